@@ -29,7 +29,8 @@ import pinocchio as pin
 
 from .dh import ArmParams
 
-__all__ = ["Robot", "RobotModelError", "load_robot", "robot_names", "DEFAULT_GRAVITY"]
+__all__ = ["Robot", "RobotModelError", "load_robot", "robot_from_xml", "robot_names",
+           "DEFAULT_GRAVITY"]
 
 #: Gravity magnitude [m/s^2] used unless told otherwise: the paper's "standard value" 9.8.
 DEFAULT_GRAVITY = 9.8
@@ -315,11 +316,30 @@ def load_robot(source="rrr", *, gravity: float = DEFAULT_GRAVITY,
         Malformed URDF, floating base, unlocked mimic joint, moving joint without mass
         downstream, unknown joint to lock, or a mass matrix that is not positive definite.
     """
+    raw, name, label = _read_source(source)
+    return robot_from_xml(raw, name=name, gravity=gravity, lock=lock, label=label)
+
+
+def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAULT_GRAVITY,
+                   lock: dict[str, float] | None = None, label: str = "<string>") -> Robot:
+    """Like :func:`load_robot`, from URDF text already in memory.
+
+    Parameters
+    ----------
+    urdf : str
+        URDF XML text.
+    name : str, optional
+        Robot name; default the URDF's ``<robot name>``.
+    gravity, lock
+        As in :func:`load_robot`.
+    label : str
+        Where the text came from, for error messages.
+    """
     lock = dict(lock or {})
     gravity = float(gravity)
     if not math.isfinite(gravity) or gravity < 0.0:
         raise ValueError(f"gravity must be a finite magnitude >= 0 m/s^2, got {gravity!r}")
-    raw, name, label = _read_source(source)
+    raw = urdf
     urdf, urdf_name = _prepare_urdf(raw, set(lock))
     try:
         model = pin.buildModelFromXML(urdf)
@@ -344,8 +364,8 @@ def load_robot(source="rrr", *, gravity: float = DEFAULT_GRAVITY,
     if model.nq == 0:
         raise RobotModelError(f"{label}: no moving joint left")
     model.gravity.linear = np.array([0.0, 0.0, -gravity])
-    robot = Robot(model=model, data=model.createData(), name=name if name != "robot" else
-                  urdf_name, source=label, urdf=raw, locked=lock)
+    robot = Robot(model=model, data=model.createData(), name=name or urdf_name, source=label,
+                  urdf=raw, locked=lock)
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
     eig = np.linalg.eigvalsh(robot.M(q0))
     if not eig.min() > 1e-12 * max(eig.max(), 1.0):
