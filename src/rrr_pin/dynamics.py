@@ -288,7 +288,7 @@ def _check_inertials(links, children, locked) -> None:
                     f"simulate an arm with zero mass")
 
 
-def load_robot(source="rrr", *, gravity: float = DEFAULT_GRAVITY,
+def load_robot(source="rrr", *, gravity: float | None = None,
                lock: dict[str, float] | None = None) -> Robot:
     """Load a fixed-base serial arm into Pinocchio.
 
@@ -298,8 +298,9 @@ def load_robot(source="rrr", *, gravity: float = DEFAULT_GRAVITY,
         A URDF file path; ``"rrr"`` (the paper's arm, generated from :func:`paper_params`);
         an example-robot-data arm name (see :func:`robot_names`); or an :class:`ArmParams`,
         whose URDF is generated on the fly.
-    gravity : float, default 9.8
-        Gravity magnitude [m/s^2], along ``-z`` of the URDF's root link.
+    gravity : float, optional
+        Gravity magnitude [m/s^2], along ``-z`` of the URDF's root link; default ``source.g``
+        for an :class:`ArmParams`, else 9.8 (the paper's value).
     lock : dict of str to float, optional
         Joints to lock, by name, at the given positions [rad or m] (Pinocchio's reduced model);
         e.g. ``{"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}``.
@@ -316,6 +317,8 @@ def load_robot(source="rrr", *, gravity: float = DEFAULT_GRAVITY,
         Malformed URDF, floating base, unlocked mimic joint, moving joint without mass
         downstream, unknown joint to lock, or a mass matrix that is not positive definite.
     """
+    if gravity is None:
+        gravity = source.g if isinstance(source, ArmParams) else DEFAULT_GRAVITY
     raw, name, label = _read_source(source)
     return robot_from_xml(raw, name=name, gravity=gravity, lock=lock, label=label)
 
