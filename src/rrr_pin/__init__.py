@@ -1,8 +1,19 @@
-"""rrr-pin: H-infinity loop shaping + feedback linearization of serial arms, Pinocchio dynamics."""
+"""rrr-pin: H-infinity loop shaping + feedback linearization of serial arms, Pinocchio dynamics.
+
+Conventions: SI units (m, rad, kg, s, N m); standard DH ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``;
+gravity along ``-z`` of the base; every controller for negative feedback on ``e = r - q``
+(python-control's ``feedback(G*K)``).
+"""
 
 from importlib.metadata import PackageNotFoundError, version
 
+from .controllers import TrackingController, fl_controller, hinf_fl_controller
 from .dh import ArmParams, DHLink, forward_kinematics, paper_params
+from .dynamics import Robot, RobotModelError, load_robot, robot_names
+from .loopshaping import Design, NCFSynResult, design, expand_diagonal, ncfsyn
+from .simulate import SimulationDiverged, SineReference, Trajectory, metrics, simulate
+from .study import StudyConfig, StudyResult, default_reference, run_study
+from .uncertainty import Tolerances, sample_plants
 
 try:
     __version__ = version("rrr-pin")
@@ -13,6 +24,29 @@ __all__ = [
     "__version__",
     "ArmParams",
     "DHLink",
+    "Design",
+    "NCFSynResult",
+    "Robot",
+    "RobotModelError",
+    "SimulationDiverged",
+    "SineReference",
+    "StudyConfig",
+    "StudyResult",
+    "Tolerances",
+    "TrackingController",
+    "Trajectory",
+    "default_reference",
+    "design",
+    "expand_diagonal",
+    "fl_controller",
     "forward_kinematics",
+    "hinf_fl_controller",
+    "load_robot",
+    "metrics",
+    "ncfsyn",
     "paper_params",
+    "robot_names",
+    "run_study",
+    "sample_plants",
+    "simulate",
 ]

@@ -18,7 +18,7 @@ def _build_parser() -> argparse.ArgumentParser:
         description="H-infinity loop shaping + feedback linearization of serial arms "
                     "(Pinocchio dynamics).")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_urdf, _add_check_dynamics, _add_design):
+    for add in (_add_urdf, _add_check_dynamics, _add_design, _add_reproduce):
         add(sub)
     return parser
 
@@ -38,34 +38,282 @@ def main(argv: list[str] | None = None) -> int:
 
 def _add_urdf(sub) -> None:
     p = sub.add_parser("urdf", help="write (or check) the URDF generated from a DH parameter set")
+    p.add_argument("--params", metavar="FILE",
+                   help="DH parameter set as JSON (ArmParams.save); default: the paper's Tables "
+                        "1-2")
+    p.add_argument("--out", metavar="PATH", default="-",
+                   help="where to write the URDF ('-' = standard output, the default)")
+    p.add_argument("--check", action="store_true",
+                   help="do not write: exit 1 if PATH differs from what the generator writes")
     p.set_defaults(func=_cmd_urdf)
 
 
 def _cmd_urdf(args) -> int:
-    raise NotImplementedError
+    from .dh import ArmParams, paper_params
+    from .urdf import check_urdf, urdf_from_params, write_urdf
+
+    params = ArmParams.load(args.params) if args.params else paper_params()
+    if args.check:
+        if args.out == "-":
+            raise ValueError("--check needs --out PATH, the file to compare")
+        if check_urdf(args.out, params):
+            print(f"{args.out}: up to date")
+            return 0
+        print(f"{args.out}: differs from the generator's output; regenerate with "
+              f"`rrr-pin urdf --out {args.out}`")
+        return 1
+    if args.out == "-":
+        sys.stdout.write(urdf_from_params(params))
+    else:
+        print(f"wrote {write_urdf(args.out, params)}")
+    return 0
 
 
 # --- check-dynamics ---------------------------------------------------------------------------
 
 def _add_check_dynamics(sub) -> None:
-    p = sub.add_parser("check-dynamics", help="compare Pinocchio with the paper's closed form")
+    p = sub.add_parser(
+        "check-dynamics", help="compare Pinocchio with the paper's closed form",
+        description="Largest differences between Pinocchio's M, V, G and the corrected closed "
+                    "form of the paper's eq. (2)-(7) over random states (q uniform in "
+                    "[-pi, pi], qd in [-5, 5] rad/s). Exits 1 if a relative difference "
+                    "(largest absolute difference / largest Pinocchio entry) exceeds --rtol.")
+    p.add_argument("--urdf", metavar="PATH", default=None,
+                   help="URDF that Pinocchio loads (default: generated from the parameters)")
+    p.add_argument("--params", metavar="FILE", default=None,
+                   help="parameter JSON (ArmParams.save) for the closed form and gravity "
+                        "(default: the paper's Tables 1-2)")
+    p.add_argument("--samples", type=int, default=200, metavar="N",
+                   help="number of random states (default: 200)")
+    p.add_argument("--seed", type=int, default=0, metavar="S",
+                   help="seed of the random states (default: 0)")
+    p.add_argument("--rtol", type=float, default=1e-9,
+                   help="largest accepted relative difference (default: 1e-9)")
     p.set_defaults(func=_cmd_check_dynamics)
 
 
 def _cmd_check_dynamics(args) -> int:
-    raise NotImplementedError
+    from .closed_form import compare_with_pinocchio
+    from .dh import ArmParams, paper_params
+    from .dynamics import load_robot
+
+    params = ArmParams.load(args.params) if args.params else paper_params()
+    robot = load_robot(args.urdf if args.urdf else params, gravity=params.g)
+    result = compare_with_pinocchio(robot, params, samples=args.samples, seed=args.seed)
+    print(f"Pinocchio ({args.urdf or 'URDF generated from the parameters'}) vs closed form "
+          f"eq. (2)-(7) ({args.params or 'paper Tables 1-2'}), {args.samples} random states, "
+          f"seed {args.seed}")
+    units = {"M": "kg m^2", "V": "N m", "G": "N m"}
+    print(f"{'':3}{'max |diff|':>12}  {'max |Pinocchio|':>16}  {'rel. diff':>10}  unit")
+    failed = []
+    for key, row in result.items():
+        ok = row["rel"] <= args.rtol
+        if not ok:
+            failed.append(key)
+        print(f"{key:3}{row['abs']:12.3e}  {row['scale']:16.3e}  {row['rel']:10.3e}  "
+              f"{units[key]:7} {'ok' if ok else 'FAIL'}")
+    if failed:
+        print(f"FAIL: {', '.join(failed)} differ by more than rtol = {args.rtol:g}")
+        return 1
+    print(f"OK: all relative differences <= rtol = {args.rtol:g}")
+    return 0
 
 
 # --- design (H-infinity loop shaping, paper section 4) ----------------------------------------
 
 def _add_design(sub) -> None:
     p = sub.add_parser("design", help="H-infinity loop-shaping design of the paper's section 4")
+    p.add_argument("--lam", type=float, default=45.0,
+                   help="feedback-linearization natural frequency lambda [rad/s] (default 45)")
+    p.add_argument("--factor", type=float, default=1.0,
+                   help="gamma / gamma_min of ncfsyn, 1 = optimal (default 1.0)")
+    p.add_argument("--joints", type=int, default=3,
+                   help="size n of the diagonal MIMO plant and controller (default 3)")
+    p.add_argument("--out", metavar="DIR", default=None,
+                   help="write fig2.png, fig3.png, fig4a.png, fig4b.png into DIR")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_design)
 
 
 def _cmd_design(args) -> int:
-    raise NotImplementedError
+    import json
 
+    from .loopshaping import design, zpk_data
+
+    d = design(lam=args.lam, n=args.joints, factor=args.factor)
+
+    def zpk(K) -> dict:
+        k, z, p = zpk_data(K)
+        return {"gain": k, "zeros": [[float(v.real), float(v.imag)] for v in z],
+                "poles": [[float(v.real), float(v.imag)] for v in p]}
+
+    figures = []
+    if args.out is not None:
+        from .plotting import save_design_figures
+
+        figures = [str(f) for f in save_design_figures(d, args.out)]
+    out = {
+        "gamma_min": d.ncf.gamma_min, "gamma": d.ncf.gamma, "emax": d.ncf.emax,
+        "gamma_reduced": d.gamma_reduced,
+        "K_full": zpk(d.K_full), "K_reduced": zpk(d.K_reduced),
+        "robust_stability": d.robust_stability.as_dict(),
+        "robust_performance": d.robust_performance.as_dict(),
+    }
+    if args.json:
+        if figures:
+            out["figures"] = figures
+        print(json.dumps(out))
+        return 0
+
+    def roots(r) -> str:
+        return ", ".join(f"{v[0]:.6g}" + (f"{v[1]:+.6g}j" if v[1] else "") for v in r)
+
+    def verdict(name: str, c: dict, where: str) -> str:
+        state = "satisfied" if c["ok"] else "NOT satisfied"
+        return (f"{name}: {state}, smallest margin {c['margin_db']:.2f} dB "
+                f"at {c['worst_frequency']:.4g} rad/s ({where})")
+
+    print(f"H-infinity loop shaping, lam = {d.lam:g} rad/s, {d.n} joints, "
+          f"factor = {d.factor:g} (negative feedback u = K (r - y), K = k I_{d.n})")
+    print(f"gamma_min = {out['gamma_min']:.4f}   gamma = {out['gamma']:.4f}   "
+          f"emax = 1/gamma = {out['emax']:.4f}")
+    for name, key in (("full-order K", "K_full"), ("reduced K (eq. 18)", "K_reduced")):
+        K = out[key]
+        print(f"{name}: gain {K['gain']:.6g}")
+        print(f"    zeros [rad/s]: {roots(K['zeros'])}")
+        print(f"    poles [rad/s]: {roots(K['poles'])}")
+    print(f"gamma of the reduced K on Gs = {d.gamma_reduced:.4f} "
+          f"({100 * (d.gamma_reduced / d.ncf.gamma - 1):+.4f} %)")
+    print(verdict("robust stability", out["robust_stability"],
+                  "sigma_max(T) below RSB, all frequencies"))
+    print(verdict("robust performance", out["robust_performance"],
+                  f"sigma_min(GK) above RPB, w <= {d.w_performance:g} rad/s"))
+    for f in figures:
+        print(f"wrote {f}")
+    return 0
+
+
+
+# --- reproduce (paper section 5, end to end) --------------------------------------------------
+
+def _parse_lock(items) -> dict:
+    lock = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise ValueError(f"--lock expects JOINT=VALUE, got {item!r}")
+        try:
+            lock[name] = float(value)
+        except ValueError:
+            raise ValueError(f"--lock {item!r}: {value!r} is not a number") from None
+    return lock
+
+
+def _floats(text: str | None, name: str):
+    if text is None:
+        return None
+    try:
+        return [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise ValueError(f"{name} expects numbers separated by commas, got {text!r}") from None
+
+
+def _add_reproduce(sub) -> None:
+    p = sub.add_parser(
+        "reproduce", help="the paper end to end: design, nominal and uncertain studies, figures",
+        description="Runs the loop-shaping design (section 4) and the closed-loop study "
+                    "(section 5): FL alone and H-infinity + FL on the nominal arm and on "
+                    "uncertain plants, and writes fig2-fig4b, fig5_nominal, fig6_uncertain, "
+                    "plants/*.urdf, results.json and results.md into --out.")
+    p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
+                   help="arm: 'rrr' (the paper's, default), an example-robot-data name (ur5, "
+                        "ur3, ur10, panda, kinova, ...) or a URDF path")
+    p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
+                   help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
+                        "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
+    p.add_argument("--home", metavar="Q1,Q2,...", default=None,
+                   help="centre of the sinusoidal reference [rad] (default: the URDF's neutral "
+                        "configuration, moved inside the joint limits)")
+    p.add_argument("--amp", type=float, default=0.5, help="reference amplitude [rad] (0.5)")
+    p.add_argument("--freq", type=float, default=0.5, help="reference frequency [Hz] (0.5)")
+    p.add_argument("--duration", type=float, default=4.0, help="simulated time [s] (4)")
+    p.add_argument("--dt", type=float, default=1e-3, help="RK4 step [s] (1e-3)")
+    p.add_argument("--samples", type=int, default=10, help="uncertain plants (10, the paper's)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the uncertain plants (0)")
+    p.add_argument("--rate", type=float, default=None, metavar="HZ",
+                   help="sampled controllers at this rate (zero-order hold, Tustin K); "
+                        "default: continuous-time laws as in the paper's Simulink study")
+    p.add_argument("--full-order", action="store_true",
+                   help="use the full-order K instead of the reduced eq. (18)")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="worker processes (default: min(2, CPUs))")
+    p.add_argument("--out", default="results", metavar="DIR", help="output folder (results/)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_reproduce)
+
+
+def _cmd_reproduce(args) -> int:
+    from pathlib import Path
+
+    from tqdm import tqdm
+
+    from .dynamics import load_robot
+    from .loopshaping import design, zpk_data
+    from .plotting import plot_study_nominal, plot_study_uncertain, save_design_figures
+    from .report import write_results
+    from .study import StudyConfig, default_reference, run_study
+
+    out = Path(args.out)
+    lock = _parse_lock(args.lock)
+    robot = load_robot(args.robot, lock=lock)
+    home = _floats(args.home, "--home")
+    reference = default_reference(robot, amp=args.amp, freq=args.freq, home=home)
+    config = StudyConfig(duration=args.duration, dt=args.dt, rate=args.rate,
+                         samples=args.samples, seed=args.seed, jobs=args.jobs)
+    d = design(lam=config.lam_hinf, n=robot.nq)
+    K = d.K_full if args.full_order else d.K_reduced
+    figures = save_design_figures(d, out)
+    bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{robot.name}: simulating",
+               disable=args.no_progress)
+
+    def progress(done, total):
+        bar.update(done - bar.n)
+
+    params = None
+    if args.robot == "rrr" and not lock:
+        from .dh import paper_params
+
+        params = paper_params()
+    result = run_study(robot, K, config=config, reference=reference, params=params,
+                       skip_joints=tuple(lock), progress=progress)
+    bar.close()
+    k, z, p = zpk_data(K)
+    design_info = {
+        "lam_rad_s": d.lam, "gamma_min": d.ncf.gamma_min, "gamma": d.ncf.gamma,
+        "emax": d.ncf.emax, "gamma_reduced": d.gamma_reduced,
+        "K_used": "full" if args.full_order else "reduced",
+        "K": {"gain": k, "zeros": [[v.real, v.imag] for v in z],
+              "poles": [[v.real, v.imag] for v in p]},
+        "robust_stability": d.robust_stability.as_dict(),
+        "robust_performance": d.robust_performance.as_dict(),
+    }
+    data = write_results(result, out, design=design_info)
+    figures += [plot_study_nominal(result, out / "fig5_nominal.png"),
+                plot_study_uncertain(result, out / "fig6_uncertain.png")]
+    s = data["summary"]
+    print(f"{robot.name}: {robot.nq} joints, gamma = {d.ncf.gamma:.4f}, K = {K.nstates // 1}"
+          f"-state per joint ({design_info['K_used']})")
+    print(f"nominal max |e|: FL {s['nominal_max_error']['fl']:.3g} rad, "
+          f"H-inf+FL {s['nominal_max_error']['hinf']:.3g} rad")
+    if "error_ratio_uncertain" in s:
+        print(f"uncertain ({s['samples_ok']} plants): RMS error FL / H-inf+FL = "
+              f"{s['error_ratio_uncertain']:.3g} (per joint "
+              f"{', '.join(f'{x:.3g}' for x in s['error_ratio_uncertain_per_joint'])}); "
+              f"RMS torque H-inf+FL / FL = {s['torque_ratio_uncertain']:.4f}")
+    if s["samples_diverged"]:
+        print(f"{s['samples_diverged']} uncertain plant(s) diverged (see results.json)")
+    print(f"wrote {out}/results.json, results.md, plants/ and {len(figures)} figures")
+    return 0
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -44,13 +44,13 @@ def default_reference(robot: Robot, amp: float = 0.5, freq: float = 0.5,
     robot : Robot
         The arm (for its neutral configuration and limits).
     amp : float, default 0.5
-        Amplitude [rad]. Where a joint's range is narrower than ``2 amp`` it is reduced to
+        Amplitude [rad]. Where a joint's range is narrower than ``2.2 amp`` it is reduced to
         45 % of that range.
     freq : float, default 0.5
         Frequency [Hz].
     home : array-like, shape (n,), optional
-        Centre of the motion [rad]; default the URDF's neutral configuration, moved just inside
-        the limits by ``amp`` where it is closer to them.
+        Centre of the motion [rad]; default the URDF's neutral configuration, moved inside the
+        limits where it is closer to them than ``1.1 amp``.
 
     Returns
     -------
@@ -60,9 +60,10 @@ def default_reference(robot: Robot, amp: float = 0.5, freq: float = 0.5,
     n = robot.nq
     lower, upper = robot.lower, robot.upper
     width = upper - lower
-    a = np.where(width >= 2.0 * amp, amp, 0.45 * width)
+    a = np.where(width >= 2.2 * amp, amp, 0.45 * width)
     if home is None:
-        home = np.clip(robot.neutral(), lower + a, upper - a)
+        # 10 % of the amplitude to spare, so tracking errors cannot touch the limits.
+        home = np.clip(robot.neutral(), lower + 1.1 * a, upper - 1.1 * a)
     home = np.asarray(home, dtype=float)
     ref = SineReference(home=home, amp=a, freq=freq, phase=2.0 * math.pi * np.arange(n) / n)
     ref.check_limits(robot)
