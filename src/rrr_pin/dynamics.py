@@ -184,7 +184,7 @@ def _read_source(source) -> tuple[str, str, str]:
     text = str(source)
     if text == "rrr":
         return urdf_from_params(), "rrr", "rrr"
-    if text in _ERD_ARMS:
+    if text in _ERD_ARMS or (not text.lower().endswith(".urdf") and _erd_has(text)):
         path = _erd_urdf_path(text)
         return path.read_text(), text, text
     path = Path(text)
@@ -194,6 +194,12 @@ def _read_source(source) -> tuple[str, str, str]:
     if not path.is_file():
         raise FileNotFoundError(f"URDF file not found: {path}")
     return path.read_text(), path.stem, str(path)
+
+
+def _erd_has(name: str) -> bool:
+    from example_robot_data.robots_loader import ROBOTS
+
+    return name in ROBOTS
 
 
 def _erd_urdf_path(name: str) -> Path:

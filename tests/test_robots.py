@@ -1,0 +1,115 @@
+"""Swapping the URDF: example-robot-data arms through the same pipeline (issue: any arm)."""
+
+import re
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yourdfpy
+from numpy.testing import assert_allclose
+
+from rrr_pin import cli
+from rrr_pin.controllers import fl_controller, hinf_fl_controller
+from rrr_pin.dynamics import RobotModelError, _erd_urdf_path, load_robot
+from rrr_pin.loopshaping import design
+from rrr_pin.simulate import simulate
+from rrr_pin.study import StudyConfig, default_reference, run_study
+
+PANDA_LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+ARMS = [("ur5", {}), ("panda", PANDA_LOCK)]
+
+
+@pytest.fixture(scope="module", params=ARMS, ids=[a[0] for a in ARMS])
+def arm(request):
+    name, lock = request.param
+    return name, lock, load_robot(name, lock=lock)
+
+
+def test_pinocchio_fk_equals_yourdfpy(arm):
+    # Two independent URDF parsers and kinematics codes must place every link alike.
+    name, lock, robot = arm
+    ref = yourdfpy.URDF.load(str(_erd_urdf_path(name)), load_meshes=False,
+                             build_collision_scene_graph=False, load_collision_meshes=False,
+                             filename_handler=yourdfpy.filename_handler_null)
+    rng = np.random.default_rng(11)
+    root = ref.base_link
+    links = [f.name for f in robot.model.frames
+             if f.type == pin.FrameType.BODY and f.name in ref.link_map and f.name != root]
+    assert len(links) >= robot.nq
+    for _ in range(10):
+        q = rng.uniform(np.maximum(robot.lower, -np.pi), np.minimum(robot.upper, np.pi))
+        cfg = dict(zip(robot.joint_names, q))
+        cfg.update(lock)
+        ref.update_cfg({j: cfg.get(j, 0.0) for j in ref.actuated_joint_names})
+        for link in links:
+            # tolerance: double-precision chains of ~10 transforms of metre-size arms
+            assert_allclose(robot.frame_placement(q, link), ref.get_transform(link, root),
+                            atol=1e-10, err_msg=link)
+
+
+@pytest.mark.parametrize("key", ["fl", "hinf"])
+def test_nominal_tracking_is_negligible(arm, key):
+    _, _, robot = arm
+    K = design(n=robot.nq).K_reduced
+    ctrl = fl_controller(robot) if key == "fl" else hinf_fl_controller(robot, K)
+    traj = simulate(robot, ctrl, default_reference(robot), 0.5)
+    # Exact model: only the RK4 truncation (~1e-9 rad) remains.
+    assert np.max(np.abs(traj.error)) < 1e-7
+
+
+def test_study_on_perturbed_plants(arm):
+    _, lock, robot = arm
+    result = run_study(robot, design(n=robot.nq).K_reduced,
+                       config=StudyConfig(duration=0.3, samples=2, jobs=1),
+                       skip_joints=tuple(lock))
+    data = result.to_json()
+    assert data["summary"]["samples_ok"] == 2
+    for key in ("fl", "hinf"):
+        assert len(data["uncertain"][key]["rms_error"]) == robot.nq
+        assert all(np.isfinite(data["uncertain"][key]["rms_error"]))
+    assert len(data["summary"]["error_ratio_uncertain_per_joint"]) == robot.nq
+
+
+def test_continuous_joints_are_unbounded_angles():
+    robot = load_robot("kinova")
+    assert robot.nq == robot.model.nv == 6
+    assert np.isinf(robot.upper).sum() == 3
+    traj = simulate(robot, fl_controller(robot), default_reference(robot), 0.1)
+    assert np.max(np.abs(traj.error)) < 1e-7
+
+
+def test_mimic_joint_must_be_locked():
+    with pytest.raises(RobotModelError, match="mimics 'panda_finger_joint1'.*lock it"):
+        load_robot("panda")
+
+
+def test_floating_base_refused(tmp_path):
+    with pytest.raises(RobotModelError, match="floating-base robot"):
+        load_robot("solo12")
+    text = ('<robot name="f"><link name="world"/><link name="b"><inertial><mass value="1"/>'
+            '<inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+            '<joint name="free" type="floating"><parent link="world"/><child link="b"/></joint>'
+            '</robot>')
+    path = tmp_path / "f.urdf"
+    path.write_text(text)
+    with pytest.raises(RobotModelError, match="joint 'free' is floating"):
+        load_robot(path)
+
+
+def test_arm_without_inertials_refused(tmp_path):
+    text = re.sub(r"<inertial>.*?</inertial>", "", load_robot("ur5").urdf, flags=re.S)
+    path = tmp_path / "bare.urdf"
+    path.write_text(text)
+    with pytest.raises(RobotModelError, match="moves no mass.*no <inertial> data"):
+        load_robot(path)
+
+
+def test_reference_leaving_limits_refused():
+    robot = load_robot("panda", lock=PANDA_LOCK)
+    with pytest.raises(ValueError, match="reference for joint 'panda_joint4' spans"):
+        default_reference(robot, home=np.zeros(7))
+
+
+def test_design_joints_cli(capsys):
+    assert cli.main(["design", "--joints", "6", "--json"]) == 0
+    assert '"gamma_min": 2.14' in capsys.readouterr().out
