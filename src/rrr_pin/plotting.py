@@ -38,6 +38,7 @@ __all__ = [
     "plot_runs",
     "plot_study_nominal",
     "plot_study_uncertain",
+    "plot_campaign",
 ]
 
 
@@ -319,3 +320,60 @@ def plot_study_uncertain(result, path):
     for k, sample in enumerate(ok):
         _plot_runs(axes, sample["trajectories"], result.joint_names, alpha=0.6, label=(k == 0))
     return _finish_study(fig, axes, path)
+
+
+# --- Monte Carlo campaign ----------------------------------------------------------------------
+
+def plot_campaign(campaign, path) -> Path:
+    """Distribution of the error ratio and per-joint spread of the RMS errors of a campaign.
+
+    Left: histogram of ``RMS error FL alone / RMS error H-infinity + FL`` over the plants
+    (log scale; a ratio above 1 means H-infinity + FL tracks better). Right: per joint, box
+    plots of the RMS tracking error [rad] of both controllers over the plants.
+
+    Parameters
+    ----------
+    campaign : rrr_pin.montecarlo.Campaign
+        A campaign with at least one sample that ran.
+    path : str or Path
+        PNG to write.
+    """
+    ok = [r for r in campaign.rows if r["status"] == "ok"]
+    ratios = np.array([r["error_ratio"] for r in ok])
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
+    fig.suptitle(f"{campaign.robot}: Monte Carlo campaign, {len(ok)} plants"
+                 + (f" ({len(campaign.rows) - len(ok)} diverged)"
+                    if len(ok) < len(campaign.rows) else ""))
+    bins = np.logspace(np.log10(max(ratios.min(), 1e-3)) - 0.05,
+                       np.log10(ratios.max()) + 0.05, 40)
+    ax1.hist(ratios, bins=bins, color="tab:blue", alpha=0.8, label="plants")
+    ax1.axvline(np.median(ratios), color="k", ls="--",
+                label=f"median {np.median(ratios):.3g}")
+    ax1.axvline(1.0, color="tab:red", ls=":", label="ratio 1 (no benefit)")
+    ax1.set_xscale("log")
+    ax1.set_xlabel("RMS error FL alone / RMS error H-infinity + FL [-]")
+    ax1.set_ylabel("Number of plants [-]")
+    ax1.set_title("Error ratio")
+    ax1.legend()
+    ax1.grid(True, alpha=0.3)
+    names = campaign.joint_names
+    pos = np.arange(len(names))
+    for offset, key, colour in ((-0.18, "fl", "tab:orange"), (0.18, "hinf", "tab:green")):
+        data = [[r[f"{key}_rms_error_{n}"] for r in ok] for n in names]
+        bp = ax2.boxplot(data, positions=pos + offset, widths=0.3, patch_artist=True,
+                         showfliers=True, flierprops={"markersize": 2})
+        for box in bp["boxes"]:
+            box.set_facecolor(colour)
+            box.set_alpha(0.6)
+        ax2.plot([], [], color=colour, lw=6, alpha=0.6,
+                 label="FL alone" if key == "fl" else "H-infinity + FL")
+    ax2.set_xticks(pos, names, rotation=30 if len(names) > 4 else 0)
+    ax2.set_yscale("log")
+    ax2.set_xlabel("Joint")
+    ax2.set_ylabel("RMS tracking error [rad]")
+    ax2.set_title("Per-joint error spread")
+    ax2.legend()
+    ax2.grid(True, alpha=0.3, which="both")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)

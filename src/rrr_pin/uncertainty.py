@@ -39,6 +39,7 @@ __all__ = [
     "perturb_params",
     "perturb_urdf",
     "perturb_inertia",
+    "sample_plant",
     "sample_plants",
 ]
 
@@ -235,16 +236,23 @@ def sample_plants(nominal, count: int, seed: int = 0, tol: Tolerances = Toleranc
         raise ValueError(f"count must be a non-negative integer, got {count!r}")
     if int(seed) != seed or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    samples = []
-    for k in range(int(count)):
-        rng = np.random.default_rng([int(seed), k])
-        if isinstance(nominal, ArmParams):
-            params, factors = perturb_params(nominal, rng, tol)
-            urdf = urdf_from_params(replace(params, name=f"{nominal.name}_sample{k:03d}"))
-            parameters = {"params": params.to_dict(), "factors": factors}
-        else:
-            urdf, factors = perturb_urdf(str(nominal), rng, tol, skip_joints=skip_joints)
-            parameters = {"factors": factors}
-        samples.append(PlantSample(index=k, seed=[int(seed), k], urdf=urdf,
-                                   parameters=parameters))
-    return samples
+    return [sample_plant(nominal, seed, k, tol, skip_joints=skip_joints)
+            for k in range(int(count))]
+
+
+def sample_plant(nominal, seed: int, index: int, tol: Tolerances = Tolerances(),
+                 *, skip_joints=()) -> PlantSample:
+    """Plant number ``index`` of a study with ``seed``, drawn alone (see :func:`sample_plants`).
+
+    ``sample_plant(nominal, s, k)`` equals ``sample_plants(nominal, n, s)[k]`` for any ``n > k``.
+    """
+    rng = np.random.default_rng([int(seed), int(index)])
+    if isinstance(nominal, ArmParams):
+        params, factors = perturb_params(nominal, rng, tol)
+        urdf = urdf_from_params(replace(params, name=f"{nominal.name}_sample{index:03d}"))
+        parameters = {"params": params.to_dict(), "factors": factors}
+    else:
+        urdf, factors = perturb_urdf(str(nominal), rng, tol, skip_joints=skip_joints)
+        parameters = {"factors": factors}
+    return PlantSample(index=int(index), seed=[int(seed), int(index)], urdf=urdf,
+                       parameters=parameters)
