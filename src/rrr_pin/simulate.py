@@ -197,7 +197,8 @@ def _check_state(q, qd, t, plant: Robot, lower, upper) -> None:
 
 def simulate(plant: Robot, controller: TrackingController, reference: SineReference,
              duration: float, *, dt: float = DEFAULT_DT, rate: float | None = None,
-             method: str = "tustin", limit_margin: float = 0.0) -> Trajectory:
+             method: str = "tustin", limit_margin: float = 0.0,
+             engine: str = "python") -> Trajectory:
     """Simulate the closed loop of ``plant`` and ``controller`` tracking ``reference``.
 
     The run starts on the reference (``q(0) = r(0)``, ``qd(0) = rd(0)``, controller state 0),
@@ -224,6 +225,11 @@ def simulate(plant: Robot, controller: TrackingController, reference: SineRefere
         :meth:`TrackingController.discretize`).
     limit_margin : float, default 0
         Slack beyond the plant's joint limits before the run counts as diverged [rad].
+    engine : {"python", "compiled", "auto"}, default "python"
+        Rollout path for sampled laws: this module's Python loop (the reference), the
+        compiled C++ loop of :mod:`rrr_pin.compiled` (same algorithm, equal to 1e-9 rad), or
+        "auto" (compiled when ``rate`` is given and the extension is built). Continuous-time
+        laws always run in Python.
 
     Returns
     -------
@@ -258,8 +264,46 @@ def simulate(plant: Robot, controller: TrackingController, reference: SineRefere
     substeps = max(1, math.ceil(Ts / dt - 1e-9))
     n_steps = int(round(duration * rate))
     Ad, Bd, Cd, Dd = controller.discretize(rate, method)
+    if engine not in ("python", "compiled", "auto"):
+        raise ValueError(f"engine must be 'python', 'compiled' or 'auto', got {engine!r}")
+    if engine == "auto":
+        from .compiled import available
+
+        engine = "compiled" if available() else "python"
+    if engine == "compiled":
+        return _simulate_compiled(plant, controller, reference, n_steps, Ts, substeps,
+                                  (Ad, Bd, Cd, Dd), lower, upper)
     return _simulate_sampled(plant, controller, reference, n_steps, Ts, substeps,
                              (Ad, Bd, Cd, Dd), lower, upper)
+
+
+def _first_violation(Q, QD, t, plant, lower, upper) -> None:
+    """Raise like the Python loop at the first sample whose state is out of bounds."""
+    bad = (~np.isfinite(Q) | ~np.isfinite(QD) | (np.abs(QD) > VELOCITY_LIMIT) | (Q < lower) |
+           (Q > upper))
+    rows = np.flatnonzero(bad.any(axis=1))
+    if rows.size:
+        k = int(rows[0])
+        _check_state(Q[k], QD[k], float(t[k]), plant, lower, upper)
+
+
+def _simulate_compiled(plant, controller, reference, n_steps, Ts, substeps, mats, lower, upper):
+    from .compiled import rollout_compiled
+
+    out = rollout_compiled(plant, controller.nominal, controller.lam, mats, reference.home,
+                           reference.amp, reference.omega, reference.phase, Ts, substeps,
+                           n_steps, raise_on_divergence=False)
+    t_all, Q, QD = out["t"], out["q"], out["qd"]
+    _first_violation(Q, QD, t_all, plant, lower, upper)
+    TAU = np.zeros_like(Q)
+    TAU[:-1] = out["tau"]
+    TAU[-1] = TAU[-2] if n_steps else TAU[-1]
+    R = reference.home + reference.amp * np.sin(np.outer(t_all, reference.omega) +
+                                                reference.phase)
+    return Trajectory(t=t_all, q=Q, qd=QD, r=R, tau=TAU, controller=controller.name,
+                      plant=plant.name,
+                      info={"method": "RK4 plant, zero-order-hold sampled law (compiled)",
+                            "rate_hz": 1.0 / Ts, "substeps": substeps})
 
 
 def _simulate_continuous(plant, controller, reference, duration, dt, lower, upper):
