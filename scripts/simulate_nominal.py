@@ -36,7 +36,7 @@ def main(argv=None):
                            rate=args.rate),
             "hinf": simulate(robot, hinf_fl_controller(robot, K), reference, args.duration,
                              rate=args.rate)}
-    for key, traj in runs.items():
+    for traj in runs.values():
         m = metrics(traj)
         print(f"{traj.controller:8s} max |e| per joint [rad]: "
               + " ".join(f"{v:.3g}" for v in m["max_error"])

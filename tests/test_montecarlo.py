@@ -46,7 +46,7 @@ def test_rows_agree_with_the_study(setup, serial):
     robot, K = setup
     study = run_study(robot, K, config=StudyConfig(duration=0.3, samples=2, jobs=1,
                                                    rate=1000.0))
-    for sample, row in zip(study.samples, serial.rows):
+    for sample, row in zip(study.samples, serial.rows, strict=False):
         assert sample["seed"] == row["seed"]
         e = np.concatenate([sample["trajectories"]["fl"].error.ravel()])
         np.testing.assert_allclose(row["fl_rms_error"], np.sqrt(np.mean(e**2)), rtol=1e-12)

@@ -38,7 +38,7 @@ def test_pinocchio_fk_equals_yourdfpy(arm):
     assert len(links) >= robot.nq
     for _ in range(10):
         q = rng.uniform(np.maximum(robot.lower, -np.pi), np.minimum(robot.upper, np.pi))
-        cfg = dict(zip(robot.joint_names, q))
+        cfg = dict(zip(robot.joint_names, q, strict=True))
         cfg.update(lock)
         ref.update_cfg({j: cfg.get(j, 0.0) for j in ref.actuated_joint_names})
         for link in links:

@@ -13,7 +13,7 @@ def test_same_seed_same_plants():
     b = sample_plants(paper_params(), 3, seed=7)
     c = sample_plants(paper_params(), 3, seed=8)
     assert [s.urdf for s in a] == [s.urdf for s in b]
-    assert all(x.urdf != y.urdf for x, y in zip(a, c))
+    assert all(x.urdf != y.urdf for x, y in zip(a, c, strict=True))
     assert [s.seed for s in a] == [[7, 0], [7, 1], [7, 2]]
     # A single plant regenerates alone from its seed.
     rng = np.random.default_rng([7, 2])

@@ -219,13 +219,7 @@ def _floats(text: str | None, name: str):
         raise ValueError(f"{name} expects numbers separated by commas, got {text!r}") from None
 
 
-def _add_reproduce(sub) -> None:
-    p = sub.add_parser(
-        "reproduce", help="the paper end to end: design, nominal and uncertain studies, figures",
-        description="Runs the loop-shaping design (section 4) and the closed-loop study "
-                    "(section 5): FL alone and H-infinity + FL on the nominal arm and on "
-                    "uncertain plants, and writes fig2-fig4b, fig5_nominal, fig6_uncertain, "
-                    "plants/*.urdf, results.json and results.md into --out.")
+def _add_robot_arguments(p) -> None:
     p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
                    help="arm: 'rrr' (the paper's, default), an example-robot-data name (ur5, "
                         "ur3, ur10, panda, kinova, ...) or a URDF path")
@@ -235,6 +229,16 @@ def _add_reproduce(sub) -> None:
     p.add_argument("--home", metavar="Q1,Q2,...", default=None,
                    help="centre of the sinusoidal reference [rad] (default: the URDF's neutral "
                         "configuration, moved inside the joint limits)")
+
+
+def _add_reproduce(sub) -> None:
+    p = sub.add_parser(
+        "reproduce", help="the paper end to end: design, nominal and uncertain studies, figures",
+        description="Runs the loop-shaping design (section 4) and the closed-loop study "
+                    "(section 5): FL alone and H-infinity + FL on the nominal arm and on "
+                    "uncertain plants, and writes fig2-fig4b, fig5_nominal, fig6_uncertain, "
+                    "plants/*.urdf, results.json and results.md into --out.")
+    _add_robot_arguments(p)
     p.add_argument("--amp", type=float, default=0.5, help="reference amplitude [rad] (0.5)")
     p.add_argument("--freq", type=float, default=0.5, help="reference frequency [Hz] (0.5)")
     p.add_argument("--duration", type=float, default=4.0, help="simulated time [s] (4)")
@@ -326,12 +330,7 @@ def _add_montecarlo(sub) -> None:
                     "FL alone and H-infinity + FL on each (sampled controllers, 1 kHz by "
                     "default) and writes campaign.csv, samples.jsonl, summary.json and "
                     "montecarlo.png into --out. Results are identical whatever --jobs.")
-    p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
-                   help="arm: 'rrr' (default), an example-robot-data name or a URDF path")
-    p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
-                   help="lock a joint at a position [rad or m] (repeatable)")
-    p.add_argument("--home", metavar="Q1,Q2,...", default=None,
-                   help="centre of the sinusoidal reference [rad]")
+    _add_robot_arguments(p)
     p.add_argument("--samples", type=int, required=True, help="number of uncertain plants")
     p.add_argument("--seed", type=int, default=0, help="campaign seed (0)")
     p.add_argument("--duration", type=float, default=10.0, help="simulated time [s] (10)")

@@ -1,4 +1,4 @@
-"""Tracking controllers: feedback linearization alone and H-infinity + feedback linearization.
+r"""Tracking controllers: feedback linearization alone and H-infinity + feedback linearization.
 
 Both laws use the NOMINAL model only (``M``, ``V + G`` of the robot the controller believes in);
 the simulated plant may differ.
@@ -18,7 +18,7 @@ Block diagram (one law for both controllers; ``K = 0`` gives FL alone)::
 With ``M = Mhat`` and ``V + G = Vhat + Ghat`` the arm obeys ``qdd = taubar`` and the error
 ``e = r - q`` obeys
 
-.. math:: \\ddot e + 2\\lambda \\dot e + \\lambda^2 (I + K(s))\\, e = -\\eta,
+.. math:: \ddot e + 2\lambda \dot e + \lambda^2 (I + K(s))\, e = -\eta,
 
 where ``eta = (M^-1 Mhat - I) taubar + M^-1 (Vhat + Ghat - V - G)`` is zero for an exact model.
 
@@ -83,11 +83,11 @@ def _as_statespace(K, n: int) -> control.StateSpace:
 
 @dataclass(frozen=True)
 class TrackingController:
-    """Feedback-linearizing tracking law with an optional linear controller on the error.
+    r"""Feedback-linearizing tracking law with an optional linear controller on the error.
 
-    .. math:: \\bar\\tau = \\ddot r + 2\\lambda(\\dot r - \\dot q)
-              + \\lambda^2 \\big(e + K(s) e\\big), \\quad
-              \\tau = \\hat M(q) \\bar\\tau + \\hat V(q, \\dot q) + \\hat G(q)
+    .. math:: \bar\tau = \ddot r + 2\lambda(\dot r - \dot q)
+              + \lambda^2 \big(e + K(s) e\big), \quad
+              \tau = \hat M(q) \bar\tau + \hat V(q, \dot q) + \hat G(q)
 
     Parameters
     ----------
@@ -133,7 +133,7 @@ class TrackingController:
         return self._mats[0].shape[0]
 
     def continuous_matrices(self):
-        """``(A, B, C, D)`` of ``K`` as arrays (empty for FL alone)."""
+        """Return ``(A, B, C, D)`` of ``K`` as arrays (empty for FL alone)."""
         return self._mats
 
     def discretize(self, rate: float = DEFAULT_RATE, method: str = "tustin"):
@@ -163,7 +163,7 @@ class TrackingController:
         return tuple(np.asarray(x, dtype=float) for x in (Kd.A, Kd.B, Kd.C, Kd.D))
 
     def torque(self, q, qd, r, rd, rdd, y) -> np.ndarray:
-        """The law's torque for state ``(q, qd)``, reference and controller output ``y``.
+        """Compute the law's torque for a state, a reference and the output ``y`` of ``K``.
 
         Parameters
         ----------
@@ -187,9 +187,9 @@ class TrackingController:
 
 
 def fl_controller(nominal: Robot, lam: float = 100.0) -> TrackingController:
-    """Feedback linearization alone, eq. (20) with feed-forward (default ``lam = 100`` rad/s).
+    r"""Feedback linearization alone, eq. (20) with feed-forward (default ``lam = 100`` rad/s).
 
-    .. math:: \\bar\\tau = \\ddot r + 2\\lambda(\\dot r - \\dot q) + \\lambda^2 (r - q)
+    .. math:: \bar\tau = \ddot r + 2\lambda(\dot r - \dot q) + \lambda^2 (r - q)
     """
     return TrackingController(nominal=nominal, lam=lam, K=None, name="FL")
 

@@ -113,7 +113,7 @@ class DHLink:
                 f"link length sqrt(a**2 + d**2) must be > 0 m, got a={self.a!r}, d={self.d!r}")
         if not 0.0 <= self.lg <= self.length * (1.0 + 1e-12):
             raise ValueError(f"lg must lie in [0, l] = [0, {self.length!r}] m, got {self.lg!r}")
-        for axis, value in zip("xyz", J):
+        for axis, value in zip("xyz", J, strict=True):
             if value < 0.0:
                 raise ValueError(f"J{axis} must be >= 0 kg m^2, got {value!r}")
         scale = max(max(J), 1e-300)
@@ -253,7 +253,7 @@ class ArmParams:
 
 
 def paper_params() -> ArmParams:
-    """The paper's RRR arm: DH Table 1 with the nominal parameters of Table 2.
+    """Return the paper's RRR arm: DH Table 1 with the nominal parameters of Table 2.
 
     ====  ===  =======  ===  =====  ====  ====  ===================
     i     a    alpha    d    m      l     lg    (Jx, Jy, Jz)
@@ -309,7 +309,7 @@ def forward_kinematics(params: ArmParams, q) -> list[np.ndarray]:
     if q.shape != (params.n,):
         raise ValueError(f"Expected q of shape ({params.n},), got {q.shape}")
     frames = [np.eye(4)]
-    for link, qi in zip(params.links, q):
+    for link, qi in zip(params.links, q, strict=True):
         frames.append(frames[-1] @ dh_transform(qi + link.theta_offset, link.d, link.a,
                                                 link.alpha))
     return frames

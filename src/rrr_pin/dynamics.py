@@ -1,8 +1,8 @@
-"""Rigid-body dynamics of a fixed-base serial arm from any URDF, through Pinocchio.
+r"""Rigid-body dynamics of a fixed-base serial arm from any URDF, through Pinocchio.
 
 The equation of motion is the paper's eq. (1),
 
-.. math:: M(q) \\ddot q + V(q, \\dot q) + G(q) = \\tau,
+.. math:: M(q) \ddot q + V(q, \dot q) + G(q) = \tau,
 
 with ``M`` from the composite rigid body algorithm (CRBA), ``V + G`` from the recursive
 Newton-Euler algorithm (RNEA) and ``qdd`` from the articulated body algorithm (ABA).

@@ -111,7 +111,8 @@ def _run_chunk(job) -> list[dict]:
             row[f"{key}_rms_error"] = float(np.sqrt(np.mean(e * e)))
             row[f"{key}_max_error"] = float(np.max(np.abs(e)))
             row[f"{key}_rms_torque"] = float(np.sqrt(np.mean(tau * tau)))
-            for name, v in zip(cfg["joint_names"], np.sqrt(np.mean(e * e, axis=0))):
+            rms = np.sqrt(np.mean(e * e, axis=0))
+            for name, v in zip(cfg["joint_names"], rms, strict=True):
                 row[f"{key}_rms_error_{name}"] = float(v)
         row["error_ratio"] = row["fl_rms_error"] / row["hinf_rms_error"]
         row["torque_ratio"] = row["hinf_rms_torque"] / row["fl_rms_torque"]
@@ -122,7 +123,7 @@ def _run_chunk(job) -> list[dict]:
 def run_campaign(robot: Robot, K, *, samples: int, seed: int = 0, rate: float | None = 1000.0,
                  duration: float = 10.0, dt: float = 1e-3,
                  reference: SineReference | None = None, params: ArmParams | None = None,
-                 tolerances: Tolerances = Tolerances(), lam_fl: float = 100.0,
+                 tolerances: Tolerances | None = None, lam_fl: float = 100.0,
                  lam_hinf: float = 45.0, jobs: int | None = None, scheduler: str | None = None,
                  executor: Executor | None = None, engine: str = "auto",
                  skip_joints=(), chunk: int | None = None, progress=None) -> Campaign:
@@ -149,8 +150,8 @@ def run_campaign(robot: Robot, K, *, samples: int, seed: int = 0, rate: float | 
     params : ArmParams, optional
         Perturb this DH parameter set (the paper's RRR); default: perturb the URDF
         (``paper_params()`` when ``robot`` is ``"rrr"``).
-    tolerances : Tolerances
-        20 % inertia, 5 % lengths.
+    tolerances : Tolerances, optional
+        Default ``Tolerances()``: 20 % inertia, 5 % lengths.
     lam_fl, lam_hinf : float
         Bandwidths [rad/s].
     jobs : int, optional
@@ -178,6 +179,7 @@ def run_campaign(robot: Robot, K, *, samples: int, seed: int = 0, rate: float | 
         raise ValueError(f"samples must be a positive integer, got {samples!r}")
     reference = default_reference(robot) if reference is None else reference
     reference.check_limits(robot)
+    tolerances = Tolerances() if tolerances is None else tolerances
     if params is None and robot.source == "rrr":
         params = paper_params()
     Kss = control.ss(K)

@@ -85,10 +85,13 @@ def results_markdown(result: StudyResult, data: dict | None = None) -> str:
     if "error_ratio_uncertain" in s:
         lines.append(
             f"| Uncertain plants: RMS error FL alone / H-inf+FL (Fig. 6c) | about 10 | "
-            f"{_fmt(s['error_ratio_uncertain'])} | {_error_ratio_verdict(s['error_ratio_uncertain'])} |")
+            f"{_fmt(s['error_ratio_uncertain'])} | "
+            f"{_error_ratio_verdict(s['error_ratio_uncertain'])} |")
         per_joint = ", ".join(_fmt(x) for x in s["error_ratio_uncertain_per_joint"])
+        better = ("all joints better" if min(s["error_ratio_uncertain_per_joint"]) > 1
+                  else "**not on every joint**")
         lines.append(f"| ... per joint ({', '.join(result.joint_names)}) | - | {per_joint} | "
-                     f"{'all joints better' if min(s['error_ratio_uncertain_per_joint']) > 1 else 'not on every joint'} |")
+                     f"{better} |")
         lines.append(
             f"| Uncertain plants: RMS torque H-inf+FL / FL alone (Fig. 6a-b) | about 1, slightly "
             f"smaller | {_fmt(s['torque_ratio_uncertain'], 5)} | "

@@ -103,7 +103,7 @@ class SineReference:
         return 2.0 * math.pi * self.freq
 
     def __call__(self, t: float):
-        """Reference at time ``t`` [s]: ``(r, rd, rdd)``, each shape (n,) [rad, rad/s, rad/s^2]."""
+        """Evaluate ``(r, rd, rdd)`` at time ``t`` [s], each shape (n,) [rad, rad/s, rad/s^2]."""
         w = self.omega
         arg = w * t + self.phase
         s, c = np.sin(arg), np.cos(arg)
@@ -297,13 +297,19 @@ def _simulate_compiled(plant, controller, reference, n_steps, Ts, substeps, mats
     _first_violation(Q, QD, t_all, plant, lower, upper)
     TAU = np.zeros_like(Q)
     TAU[:-1] = out["tau"]
-    TAU[-1] = TAU[-2] if n_steps else TAU[-1]
+    return _sampled_trajectory(t_all, Q, QD, TAU, reference, controller, plant, Ts, substeps,
+                               "RK4 plant, zero-order-hold sampled law (compiled)")
+
+
+def _sampled_trajectory(t_all, Q, QD, TAU, reference, controller, plant, Ts, substeps, method):
+    # The torque held on the last interval is also the one "at" the final sample.
+    if len(t_all) > 1:
+        TAU[-1] = TAU[-2]
     R = reference.home + reference.amp * np.sin(np.outer(t_all, reference.omega) +
                                                 reference.phase)
     return Trajectory(t=t_all, q=Q, qd=QD, r=R, tau=TAU, controller=controller.name,
                       plant=plant.name,
-                      info={"method": "RK4 plant, zero-order-hold sampled law (compiled)",
-                            "rate_hz": 1.0 / Ts, "substeps": substeps})
+                      info={"method": method, "rate_hz": 1.0 / Ts, "substeps": substeps})
 
 
 def _simulate_continuous(plant, controller, reference, duration, dt, lower, upper):
@@ -386,11 +392,5 @@ def _simulate_sampled(plant, controller, reference, n_steps, Ts, substeps, mats,
             qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
         _check_state(q, qd, t_all[k + 1], plant, lower, upper)
         Q[k + 1], QD[k + 1] = q, qd
-    # The torque held on the last interval is also the one "at" the final sample.
-    TAU[-1] = TAU[-2] if n_steps else TAU[-1]
-    R = reference.home + reference.amp * np.sin(np.outer(t_all, reference.omega) +
-                                                reference.phase)
-    return Trajectory(t=t_all, q=Q, qd=QD, r=R, tau=TAU, controller=controller.name,
-                      plant=plant.name,
-                      info={"method": "RK4 plant, zero-order-hold sampled law",
-                            "rate_hz": 1.0 / Ts, "substeps": substeps})
+    return _sampled_trajectory(t_all, Q, QD, TAU, reference, controller, plant, Ts, substeps,
+                               "RK4 plant, zero-order-hold sampled law")

@@ -37,7 +37,7 @@ CONTROLLERS = {"fl": "FL alone", "hinf": "H-infinity + FL"}
 
 def default_reference(robot: Robot, amp: float = 0.5, freq: float = 0.5,
                       home=None) -> SineReference:
-    """A sinusoid per joint about a home configuration, inside the joint limits.
+    """Build a sinusoid per joint about a home configuration, inside the joint limits.
 
     Parameters
     ----------
@@ -144,7 +144,7 @@ class StudyResult:
     design: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        """The ``results.json`` layout (see the README)."""
+        """Return the ``results.json`` content (layout in the README)."""
         ok = [s for s in self.samples if s["status"] == "ok"]
         uncertain = {key: _mean_metrics([s["metrics"][key] for s in ok]) for key in CONTROLLERS}
         return {
@@ -307,7 +307,7 @@ def run_study(nominal: Robot, K, *, config: StudyConfig = StudyConfig(),
         raise SimulationDiverged(f"the nominal closed loop diverged: {outputs[0]['status']}",
                                  time=math.nan, joint="")
     samples = []
-    for plant, out in zip(plants, outputs[1:]):
+    for plant, out in zip(plants, outputs[1:], strict=True):
         entry = {"index": plant.index, "seed": plant.seed, "parameters": plant.parameters,
                  "status": out["status"]}
         if out["status"] == "ok":

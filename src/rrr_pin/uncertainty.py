@@ -177,8 +177,8 @@ def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Toleranc
     """
     import yourdfpy
 
-    robot = yourdfpy.URDF.load(io.BytesIO(urdf.encode()), build_scene_graph=False, load_meshes=False,
-                               filename_handler=yourdfpy.filename_handler_null,
+    robot = yourdfpy.URDF.load(io.BytesIO(urdf.encode()), build_scene_graph=False,
+                               load_meshes=False, filename_handler=yourdfpy.filename_handler_null,
                                build_collision_scene_graph=False, load_collision_meshes=False)
     skip = set(skip_joints)
     link_factors, joint_factors = {}, {}

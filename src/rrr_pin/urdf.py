@@ -153,6 +153,6 @@ def write_urdf(path: str | Path, params: ArmParams | None = None) -> Path:
 
 
 def check_urdf(path: str | Path, params: ArmParams | None = None) -> bool:
-    """True if the file at ``path`` equals what the generator writes for ``params`` now."""
+    """Tell whether the file at ``path`` equals the generator's output for ``params``."""
     path = Path(path)
     return path.is_file() and path.read_text() == urdf_from_params(params)
