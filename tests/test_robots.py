@@ -1,6 +1,7 @@
 """Swapping the URDF: example-robot-data arms through the same pipeline (issue: any arm)."""
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -76,6 +77,13 @@ def test_continuous_joints_are_unbounded_angles():
     assert np.isinf(robot.upper).sum() == 3
     traj = simulate(robot, fl_controller(robot), default_reference(robot), 0.1)
     assert np.max(np.abs(traj.error)) < 1e-7
+
+
+def test_ur3_is_not_ur5():
+    # example-robot-data 5.0 maps "ur3" to the UR5's loader; we load the UR3's own URDF.
+    ur3, ur5 = load_robot("ur3"), load_robot("ur5")
+    assert "ur3" in Path(_erd_urdf_path("ur3")).name
+    assert sum(i.mass for i in ur3.model.inertias) < sum(i.mass for i in ur5.model.inertias)
 
 
 def test_mimic_joint_must_be_locked():

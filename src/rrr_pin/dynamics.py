@@ -203,11 +203,15 @@ def _erd_has(name: str) -> bool:
 
 
 def _erd_urdf_path(name: str) -> Path:
-    from example_robot_data.robots_loader import ROBOTS
+    from example_robot_data import robots_loader
 
-    if name not in ROBOTS:
+    if name not in robots_loader.ROBOTS:
         raise ValueError(f"example-robot-data has no robot {name!r}")
-    loader = ROBOTS[name]
+    loader = robots_loader.ROBOTS[name]
+    if name == "ur3" and hasattr(robots_loader, "UR3Loader"):
+        # example-robot-data 5.0 maps "ur3" to UR5Loader (its ROBOTS table); its UR3Loader
+        # names the UR3's own URDF.
+        loader = robots_loader.UR3Loader
     root = Path(__import__("example_robot_data").getModelPath(
         f"{loader.path}/{loader.urdf_subpath}/{loader.urdf_filename}"))
     path = root / loader.path / loader.urdf_subpath / loader.urdf_filename
