@@ -54,7 +54,9 @@ def test_rows_agree_with_the_study(setup, serial):
 
 def test_diverged_sample_is_recorded_and_campaign_goes_on(setup, monkeypatch):
     robot, K = setup
-    real = mc.simulate
+    import rrr_pin.study as study
+
+    real = study.simulate
 
     def flaky(plant, *args, **kwargs):
         if plant.name == "sample00001":
@@ -62,7 +64,7 @@ def test_diverged_sample_is_recorded_and_campaign_goes_on(setup, monkeypatch):
                                      "joint2")
         return real(plant, *args, **kwargs)
 
-    monkeypatch.setattr(mc, "simulate", flaky)
+    monkeypatch.setattr(study, "simulate", flaky)
     campaign = mc.run_campaign(robot, K, jobs=1, **SMALL)
     assert [r["status"] == "ok" for r in campaign.rows] == [True, False, True, True]
     assert "joint2" in campaign.rows[1]["status"]

@@ -26,11 +26,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .controllers import fl_controller, hinf_fl_controller
 from .dh import ArmParams, paper_params
 from .dynamics import Robot, robot_from_xml
-from .simulate import SimulationDiverged, SineReference, simulate
-from .study import CONTROLLERS, default_reference
+from .simulate import SineReference
+from .study import (
+    CONTROLLERS,
+    controller_spec,
+    default_reference,
+    simulate_both,
+    worker_controllers,
+)
 from .uncertainty import Tolerances, sample_plant
 
 __all__ = ["Campaign", "run_campaign", "campaign_summary", "write_campaign"]
@@ -65,45 +70,37 @@ class Campaign:
     settings: dict = field(default_factory=dict)
 
 
-_CACHE: dict = {}
+_SOURCES: dict = {}
 
 
-def _setup(cfg: dict):
-    key = cfg["key"]
-    if _CACHE.get("key") != key:
-        _CACHE.clear()
-        nominal = robot_from_xml(cfg["nominal_xml"], gravity=cfg["gravity"], lock=cfg["lock"],
-                                 label="nominal")
-        import control
-
-        K = control.ss(*cfg["K"])
-        source = (ArmParams.from_dict(cfg["params"]) if cfg["params"] is not None
-                  else cfg["nominal_xml"])
-        _CACHE.update(key=key, nominal=nominal, source=source,
-                      controllers={"fl": fl_controller(nominal, cfg["lam_fl"]),
-                                   "hinf": hinf_fl_controller(nominal, K, cfg["lam_hinf"])})
-    return _CACHE
+def _plant_source(cfg: dict):
+    """Return the nominal arm the plants are drawn around: ArmParams or URDF text (cached)."""
+    key = (cfg["spec"]["key"], json.dumps(cfg["params"], sort_keys=True))
+    if _SOURCES.get("key") != key:
+        _SOURCES.clear()
+        _SOURCES.update(key=key, source=ArmParams.from_dict(cfg["params"])
+                        if cfg["params"] is not None else cfg["spec"]["nominal_xml"])
+    return _SOURCES["source"]
 
 
 def _run_chunk(job) -> list[dict]:
     """Simulate the samples ``job[1]`` of campaign ``job[0]`` (runs in a worker)."""
     cfg, indices = job
-    setup = _setup(cfg)
+    spec = cfg["spec"]
+    controllers = worker_controllers(spec)
+    source = _plant_source(cfg)
     tol = Tolerances(*cfg["tolerances"])
     rows = []
     for k in indices:
-        sample = sample_plant(setup["source"], cfg["seed"], k, tol,
-                              skip_joints=cfg["skip_joints"])
+        sample = sample_plant(source, cfg["seed"], k, tol, skip_joints=cfg["skip_joints"])
         row = {"index": k, "seed": sample.seed, "status": "ok",
                "parameters": sample.parameters}
-        try:
-            plant = robot_from_xml(sample.urdf, gravity=cfg["gravity"], lock=cfg["lock"],
-                                   name=f"sample{k:05d}", label=f"sample {k}")
-            runs = {key: simulate(plant, ctrl, cfg["reference"], cfg["duration"],
-                                  dt=cfg["dt"], rate=cfg["rate"], engine=cfg["engine"])
-                    for key, ctrl in setup["controllers"].items()}
-        except SimulationDiverged as exc:
-            row["status"] = str(exc)
+        plant = robot_from_xml(sample.urdf, gravity=spec["gravity"], lock=spec["lock"],
+                               name=f"sample{k:05d}", label=f"sample {k}")
+        runs, row["status"] = simulate_both(plant, controllers, cfg["reference"],
+                                            cfg["duration"], dt=cfg["dt"], rate=cfg["rate"],
+                                            engine=cfg["engine"])
+        if not runs:
             rows.append(row)
             continue
         for key, traj in runs.items():
@@ -173,8 +170,6 @@ def run_campaign(robot: Robot, K, *, samples: int, seed: int = 0, rate: float | 
     -------
     Campaign
     """
-    import control
-
     if int(samples) != samples or samples < 1:
         raise ValueError(f"samples must be a positive integer, got {samples!r}")
     reference = default_reference(robot) if reference is None else reference
@@ -182,18 +177,14 @@ def run_campaign(robot: Robot, K, *, samples: int, seed: int = 0, rate: float | 
     tolerances = Tolerances() if tolerances is None else tolerances
     if params is None and robot.source == "rrr":
         params = paper_params()
-    Kss = control.ss(K)
-    mats = tuple(np.asarray(m, dtype=float) for m in (Kss.A, Kss.B, Kss.C, Kss.D))
     cfg = {
-        "nominal_xml": robot.urdf, "lock": dict(robot.locked), "gravity": robot.gravity,
-        "K": mats, "params": params.to_dict() if params is not None else None,
-        "lam_fl": lam_fl, "lam_hinf": lam_hinf, "reference": reference, "duration": duration,
-        "dt": dt, "rate": rate, "engine": engine, "seed": int(seed),
+        "spec": controller_spec(robot, K, lam_fl, lam_hinf),
+        "params": params.to_dict() if params is not None else None,
+        "reference": reference, "duration": duration, "dt": dt, "rate": rate,
+        "engine": engine, "seed": int(seed),
         "tolerances": (tolerances.inertia, tolerances.length),
         "skip_joints": tuple(skip_joints), "joint_names": robot.joint_names,
     }
-    cfg["key"] = hash((robot.urdf, tuple(m.tobytes() for m in mats), lam_fl, lam_hinf,
-                       json.dumps(cfg["params"], sort_keys=True)))
     jobs = jobs or min(2, os.cpu_count() or 1)
     workers = jobs if executor is None and scheduler is None else 4
     size = chunk or max(1, min(50, math.ceil(samples / (4 * workers))))

@@ -23,6 +23,9 @@ from .simulate import DEFAULT_DT, SimulationDiverged, SineReference, metrics, si
 from .uncertainty import PlantSample, Tolerances, sample_plants
 
 __all__ = [
+    "controller_spec",
+    "simulate_both",
+    "worker_controllers",
     "StudyConfig",
     "StudyResult",
     "default_reference",
@@ -93,6 +96,9 @@ class StudyConfig:
         20 % inertia, 5 % lengths by default.
     jobs : int, optional
         Worker processes; default ``min(2, cpu count)``.
+    engine : {"auto", "python", "compiled"}, default "auto"
+        Rollout path of sampled laws (:func:`rrr_pin.simulate.simulate`); continuous-time
+        laws always run in Python.
     """
 
     duration: float = 4.0
@@ -104,6 +110,7 @@ class StudyConfig:
     seed: int = 0
     tolerances: Tolerances = field(default_factory=Tolerances)
     jobs: int | None = None
+    engine: str = "auto"
 
     def to_dict(self) -> dict:
         """JSON-ready settings (units in the key names)."""
@@ -205,40 +212,82 @@ def summarize(result: StudyResult) -> dict:
 
 # --- workers ----------------------------------------------------------------------------------
 
+def controller_spec(nominal: Robot, K, lam_fl: float, lam_hinf: float) -> dict:
+    """Picklable description of both controllers, rebuilt once per worker process.
+
+    Parameters
+    ----------
+    nominal : Robot
+        The controllers' model.
+    K : control LTI
+        The H-infinity controller (SISO or ``n x n``).
+    lam_fl, lam_hinf : float
+        Bandwidths [rad/s] of FL alone and of H-infinity + FL.
+
+    Returns
+    -------
+    dict
+        URDF text, locked joints and gravity of ``nominal``; ``K`` as ``(A, B, C, D)``; the
+        bandwidths; and ``key``, which identifies the spec in a worker's cache.
+    """
+    import control
+
+    Kss = control.ss(K)
+    mats = tuple(np.asarray(m, dtype=float) for m in (Kss.A, Kss.B, Kss.C, Kss.D))
+    spec = {"nominal_xml": nominal.urdf, "lock": dict(nominal.locked),
+            "gravity": nominal.gravity, "K": mats, "lam_fl": float(lam_fl),
+            "lam_hinf": float(lam_hinf)}
+    spec["key"] = hash((nominal.urdf, tuple(sorted(spec["lock"].items())), spec["gravity"],
+                        tuple(m.tobytes() for m in mats), spec["lam_fl"], spec["lam_hinf"]))
+    return spec
+
+
 _CACHE: dict = {}
 
 
-def _controllers(task):
-    key = (task["nominal_xml"], tuple(sorted(task["lock"].items())), task["gravity"],
-           task["K_id"])
-    if key not in _CACHE:
-        _CACHE.clear()
-        nominal = robot_from_xml(task["nominal_xml"], gravity=task["gravity"], lock=task["lock"],
-                                 label="nominal")
-        import control  # noqa: PLC0415 - keep worker start-up cheap when unused
+def worker_controllers(spec: dict) -> dict:
+    """Build (once per process) the controllers ``{"fl", "hinf"}`` of a :func:`controller_spec`."""
+    if _CACHE.get("key") != spec["key"]:
+        import control
 
-        K = control.ss(*task["K"])
-        _CACHE[key] = (fl_controller(nominal, task["lam_fl"]),
-                       hinf_fl_controller(nominal, K, task["lam_hinf"]))
-    return _CACHE[key]
+        nominal = robot_from_xml(spec["nominal_xml"], gravity=spec["gravity"],
+                                 lock=spec["lock"], label="nominal")
+        _CACHE.clear()
+        _CACHE.update(key=spec["key"], controllers={
+            "fl": fl_controller(nominal, spec["lam_fl"]),
+            "hinf": hinf_fl_controller(nominal, control.ss(*spec["K"]), spec["lam_hinf"])})
+    return _CACHE["controllers"]
+
+
+def simulate_both(plant: Robot, controllers: dict, reference: SineReference, duration: float,
+                  **kwargs) -> tuple[dict, str]:
+    """Run every controller on ``plant``; stop at the first divergence.
+
+    Returns
+    -------
+    runs : dict
+        Trajectories by controller key (empty if a run diverged).
+    status : str
+        ``"ok"``, or the divergence message prefixed with the controller's label.
+    """
+    runs = {}
+    for key, ctrl in controllers.items():
+        try:
+            runs[key] = simulate(plant, ctrl, reference, duration, **kwargs)
+        except SimulationDiverged as exc:
+            return {}, f"{CONTROLLERS[key]}: {exc}"
+    return runs, "ok"
 
 
 def _run_plant(task) -> dict:
     """Simulate both controllers on one plant (runs in a worker process)."""
-    fl, hinf = _controllers(task)
-    plant = robot_from_xml(task["plant_xml"], gravity=task["gravity"], lock=task["lock"],
-                           name=task["plant_name"], label=task["plant_name"])
-    out = {"trajectories": {}, "status": "ok"}
-    for key, ctrl in (("fl", fl), ("hinf", hinf)):
-        try:
-            out["trajectories"][key] = simulate(plant, ctrl, task["reference"],
-                                                task["duration"], dt=task["dt"],
-                                                rate=task["rate"])
-        except SimulationDiverged as exc:
-            out["status"] = f"{CONTROLLERS[key]}: {exc}"
-            out.pop("trajectories")
-            break
-    return out
+    controllers = worker_controllers(task["spec"])
+    plant = robot_from_xml(task["plant_xml"], gravity=task["spec"]["gravity"],
+                           lock=task["spec"]["lock"], name=task["plant_name"],
+                           label=task["plant_name"])
+    runs, status = simulate_both(plant, controllers, task["reference"], task["duration"],
+                                 dt=task["dt"], rate=task["rate"], engine=task["engine"])
+    return {"trajectories": runs, "status": status}
 
 
 def run_study(nominal: Robot, K, *, config: StudyConfig = StudyConfig(),
@@ -269,8 +318,6 @@ def run_study(nominal: Robot, K, *, config: StudyConfig = StudyConfig(),
     -------
     StudyResult
     """
-    import control
-
     reference = default_reference(nominal) if reference is None else reference
     reference.check_limits(nominal)
     if nominal.source == "rrr" and params is None:
@@ -278,14 +325,10 @@ def run_study(nominal: Robot, K, *, config: StudyConfig = StudyConfig(),
     source = params if params is not None else nominal.urdf
     plants: list[PlantSample] = sample_plants(source, config.samples, config.seed,
                                               config.tolerances, skip_joints=skip_joints)
-    Kss = control.ss(K)
     base = {
-        "nominal_xml": nominal.urdf, "lock": dict(nominal.locked), "gravity": nominal.gravity,
-        "K": tuple(np.asarray(m, dtype=float) for m in (Kss.A, Kss.B, Kss.C, Kss.D)),
-        "K_id": hash(tuple(np.asarray(m, dtype=float).tobytes()
-                           for m in (Kss.A, Kss.B, Kss.C, Kss.D))),
-        "lam_fl": config.lam_fl, "lam_hinf": config.lam_hinf, "reference": reference,
-        "duration": config.duration, "dt": config.dt, "rate": config.rate,
+        "spec": controller_spec(nominal, K, config.lam_fl, config.lam_hinf),
+        "reference": reference, "duration": config.duration, "dt": config.dt,
+        "rate": config.rate, "engine": config.engine,
     }
     tasks = [{**base, "plant_xml": nominal.urdf, "plant_name": f"{nominal.name} (nominal)"}]
     tasks += [{**base, "plant_xml": p.urdf, "plant_name": f"{nominal.name}_sample{p.index:03d}"}
