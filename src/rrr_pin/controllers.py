@@ -76,7 +76,7 @@ def _as_statespace(K, n: int) -> control.StateSpace:
         K = control.ss(A, B, C, D)
     if (K.ninputs, K.noutputs) != (n, n):
         raise ValueError(f"K must be SISO or {n} x {n}, got {K.noutputs} x {K.ninputs}")
-    if np.any(np.linalg.eigvals(K.A).real > 1e-9) if K.nstates else False:
+    if K.nstates and np.any(np.linalg.eigvals(K.A).real > 1e-9):
         raise ValueError("K has unstable poles; the tracking law expects a stable controller")
     return K
 

@@ -102,6 +102,10 @@ class SineReference:
         """Angular frequencies ``2 pi freq`` [rad/s], shape (n,)."""
         return 2.0 * math.pi * self.freq
 
+    def positions(self, t) -> np.ndarray:
+        """Evaluate ``r`` [rad] on a time grid ``t`` [s], shape (N,); returns shape (N, n)."""
+        return self.home + self.amp * np.sin(np.outer(t, self.omega) + self.phase)
+
     def __call__(self, t: float):
         """Evaluate ``(r, rd, rdd)`` at time ``t`` [s], each shape (n,) [rad, rad/s, rad/s^2]."""
         w = self.omega
@@ -305,8 +309,7 @@ def _sampled_trajectory(t_all, Q, QD, TAU, reference, controller, plant, Ts, sub
     # The torque held on the last interval is also the one "at" the final sample.
     if len(t_all) > 1:
         TAU[-1] = TAU[-2]
-    R = reference.home + reference.amp * np.sin(np.outer(t_all, reference.omega) +
-                                                reference.phase)
+    R = reference.positions(t_all)
     return Trajectory(t=t_all, q=Q, qd=QD, r=R, tau=TAU, controller=controller.name,
                       plant=plant.name,
                       info={"method": method, "rate_hz": 1.0 / Ts, "substeps": substeps})
@@ -354,8 +357,7 @@ def _simulate_continuous(plant, controller, reference, duration, dt, lower, uppe
         qd = qd + h6 * (k1v + 2.0 * (k2v + k3v) + k4v)
         x = x + h6 * (k1x + 2.0 * (k2x + k3x) + k4x)
         _check_state(q, qd, t + dt, plant, lower, upper)
-    R = reference.home + reference.amp * np.sin(np.outer(t_all, reference.omega) +
-                                                reference.phase)
+    R = reference.positions(t_all)
     return Trajectory(t=t_all, q=Q, qd=QD, r=R, tau=TAU, controller=controller.name,
                       plant=plant.name, info={"method": "RK4 (continuous-time law)", "dt": dt})
 
