@@ -22,6 +22,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import asdict, dataclass, field, replace
@@ -35,18 +36,102 @@ __all__ = [
     "paper_params",
     "dh_transform",
     "forward_kinematics",
+    "check_inertial",
+    "check_robot_name",
+    "INERTIA_RTOL",
 ]
 
-#: Relative slack allowed on the triangle inequality of principal moments. The paper's own
-#: Table 2 sits exactly on the bound (thin rods, e.g. Jx2 = 0, Jy2 = Jz2), printed to 4 digits.
-TRIANGLE_RTOL = 1e-9
+#: Relative slack [-] allowed on the physical-validity checks of an inertia tensor (positive
+#: semi-definite, triangle inequality of principal moments), relative to the largest principal
+#: moment. Bodies that sit exactly on a bound are common (a thin rod has ``Jx = 0``,
+#: ``Jy = Jz``, as in the paper's Table 2), and URDF exporters print about 6 significant digits,
+#: which moves such a body off the bound by up to ~1e-6 relative; 1e-6 accepts that round-off
+#: and nothing a real body could not have.
+INERTIA_RTOL = 1e-6
 
 
-def _check_finite(name: str, value: float) -> float:
+def _check_real(name: str, value, unit: str = "") -> float:
+    """Return ``value`` as a finite float, or raise ``ValueError`` naming ``name``.
+
+    Booleans, ``None``, strings and other non-numbers are refused (``float(True)`` would read
+    a JSON ``true`` as 1).
+    """
+    unit = f" [{unit}]" if unit else ""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer,
+                                                                     np.floating)):
+        raise ValueError(f"{name} must be a number{unit}, got {value!r} "
+                         f"({type(value).__name__})")
     value = float(value)
     if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value!r}")
+        raise ValueError(f"{name} must be finite{unit}, got {value!r}")
     return value
+
+
+def check_inertial(mass, inertia, *, name: str = "inertial") -> tuple[float, np.ndarray]:
+    r"""Check that a mass and an inertia tensor describe a physical rigid body.
+
+    The inertia tensor ``I`` about the centre of mass of a body with mass density ``rho >= 0``
+    is ``I = tr(S) 1 - S`` with ``S = integral of x x^T dm`` positive semi-definite, so its
+    principal moments ``J_1, J_2, J_3`` (eigenvalues) satisfy
+
+    .. math:: J_k \ge 0, \qquad J_k \le J_i + J_j \quad (\{i, j, k\} = \{1, 2, 3\}),
+
+    and a massless body has ``I = 0``.
+
+    Parameters
+    ----------
+    mass : float
+        Mass [kg]; finite and ``>= 0``.
+    inertia : array-like, shape (3, 3)
+        Inertia tensor about the centre of mass [kg m^2], in any frame; finite and symmetric.
+    name : str
+        What is checked, for the messages (e.g. ``"link 'link2'"``).
+
+    Returns
+    -------
+    mass : float
+    inertia : ndarray, shape (3, 3)
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``, the field and the value: non-finite or negative mass, wrong shape,
+        non-finite or asymmetric tensor, a negative principal moment or one above the sum of
+        the other two (beyond :data:`INERTIA_RTOL` of the largest), or a massless body with
+        nonzero inertia.
+    """
+    mass = _check_real(f"{name}: mass", mass, "kg")
+    if mass < 0.0:
+        raise ValueError(f"{name}: mass must be >= 0 kg, got {mass!r}")
+    try:
+        inertia = np.array(inertia, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: inertia must be a 3x3 array of numbers [kg m^2], got "
+                         f"{inertia!r}") from None
+    if inertia.shape != (3, 3):
+        raise ValueError(f"{name}: Expected inertia of shape (3, 3), got {inertia.shape}")
+    if not np.all(np.isfinite(inertia)):
+        raise ValueError(f"{name}: inertia must be finite [kg m^2], got {inertia.tolist()}")
+    scale = float(np.abs(inertia).max())
+    if mass == 0.0:
+        if scale > 0.0:
+            raise ValueError(f"{name}: a massless body (mass 0 kg) must have zero inertia, got "
+                             f"{inertia.tolist()} kg m^2")
+        return mass, inertia
+    if not np.allclose(inertia, inertia.T, rtol=0.0, atol=INERTIA_RTOL * scale):
+        raise ValueError(f"{name}: inertia must be symmetric, got {inertia.tolist()} kg m^2")
+    J = np.linalg.eigvalsh(0.5 * (inertia + inertia.T))
+    tol = INERTIA_RTOL * max(float(J.max()), 0.0)
+    moments = ", ".join(f"{v:.6g}" for v in J)
+    if J.min() < -tol:
+        raise ValueError(f"{name}: inertia is not positive semi-definite: principal moments "
+                         f"({moments}) kg m^2")
+    if J.max() > J.sum() - J.max() + tol:
+        raise ValueError(f"{name}: inertia violates the triangle inequality: the largest "
+                         f"principal moment {J.max():.6g} exceeds the sum of the other two "
+                         f"{J.sum() - J.max():.6g} (principal moments ({moments}) kg m^2); no "
+                         f"rigid body has it")
+    return mass, inertia
 
 
 @dataclass(frozen=True)
@@ -99,12 +184,18 @@ class DHLink:
     velocity: float = 20.0
 
     def __post_init__(self) -> None:
-        for name in ("a", "alpha", "d", "mass", "lg", "theta_offset", "lower", "upper",
-                     "effort", "velocity"):
-            object.__setattr__(self, name, _check_finite(name, getattr(self, name)))
-        J = tuple(_check_finite(f"J[{k}]", v) for k, v in enumerate(self.J))
-        if len(J) != 3:
-            raise ValueError(f"J must hold 3 principal moments (Jx, Jy, Jz), got {len(J)}")
+        units = {"a": "m", "alpha": "rad", "d": "m", "mass": "kg", "lg": "m",
+                 "theta_offset": "rad", "lower": "rad", "upper": "rad", "effort": "N m",
+                 "velocity": "rad/s"}
+        for name, unit in units.items():
+            object.__setattr__(self, name, _check_real(name, getattr(self, name), unit))
+        if isinstance(self.J, (str, bytes, dict)) or not hasattr(self.J, "__len__"):
+            raise ValueError(f"J must be a list of 3 principal moments (Jx, Jy, Jz) [kg m^2], "
+                             f"got {self.J!r} ({type(self.J).__name__})")
+        if len(self.J) != 3:
+            raise ValueError(f"J must hold 3 principal moments (Jx, Jy, Jz), got {len(self.J)}")
+        J = tuple(_check_real(f"J{axis}", v, "kg m^2")
+                  for axis, v in zip("xyz", self.J, strict=True))
         object.__setattr__(self, "J", J)
         if self.mass <= 0.0:
             raise ValueError(f"mass must be > 0 kg, got {self.mass!r}")
@@ -119,13 +210,13 @@ class DHLink:
         scale = max(max(J), 1e-300)
         for k, axis in enumerate("xyz"):
             others = [J[j] for j in range(3) if j != k]
-            if J[k] > sum(others) + TRIANGLE_RTOL * scale:
+            if J[k] > sum(others) + INERTIA_RTOL * scale:
                 raise ValueError(
                     f"J{axis} = {J[k]!r} violates the triangle inequality of principal moments "
                     f"(must be <= the sum of the other two, {sum(others)!r})")
         if self.lower >= self.upper:
-            raise ValueError(f"lower must be < upper, got lower={self.lower!r}, "
-                             f"upper={self.upper!r}")
+            raise ValueError(f"joint limits must satisfy lower < upper, got lower="
+                             f"{self.lower!r} rad, upper={self.upper!r} rad")
         if self.effort <= 0.0 or self.velocity <= 0.0:
             raise ValueError(f"effort and velocity limits must be > 0, got effort="
                              f"{self.effort!r}, velocity={self.velocity!r}")
@@ -168,6 +259,9 @@ class ArmParams:
     notes: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
+        if isinstance(self.links, (str, bytes, dict)) or not hasattr(self.links, "__iter__"):
+            raise ValueError(f"links must be a list of links, got {self.links!r} "
+                             f"({type(self.links).__name__})")
         links = tuple(self.links)
         if not links:
             raise ValueError("links must hold at least one DHLink")
@@ -175,10 +269,14 @@ class ArmParams:
             if not isinstance(link, DHLink):
                 raise ValueError(f"links[{k}] must be a DHLink, got {type(link).__name__}")
         object.__setattr__(self, "links", links)
-        g = _check_finite("g", self.g)
+        g = _check_real("g", self.g, "m/s^2")
         if g < 0.0:
             raise ValueError(f"g must be >= 0 m/s^2 (it points along -z), got {g!r}")
         object.__setattr__(self, "g", g)
+        check_robot_name(self.name)
+        if not isinstance(self.notes, str):
+            raise ValueError(f"notes must be a string, got {self.notes!r} "
+                             f"({type(self.notes).__name__})")
 
     @property
     def n(self) -> int:
@@ -217,21 +315,46 @@ class ArmParams:
 
     @classmethod
     def from_dict(cls, data: dict) -> ArmParams:
-        """Build from :meth:`to_dict` output; unknown keys raise ``ValueError``."""
-        if not isinstance(data, dict) or "links" not in data:
-            raise ValueError("parameter data must be a mapping with a 'links' list")
+        """Build from :meth:`to_dict` output (the parameter-file validator).
+
+        Raises
+        ------
+        ValueError
+            Naming the field (e.g. ``links[1].mass``) and its value: not a mapping, unknown or
+            missing keys, ``links`` not a list, ``null``, booleans or strings where numbers
+            belong, and every check of :class:`DHLink` and :class:`ArmParams`.
+        """
+        if not isinstance(data, dict):
+            raise ValueError(f"parameter data must be a JSON object with a 'links' list, got "
+                             f"{type(data).__name__}")
+        if "links" not in data:
+            raise ValueError("parameter data lacks the field 'links' (a list of links)")
         known = {"name", "g", "notes", "links"}
         extra = set(data) - known
         if extra:
-            raise ValueError(f"unknown parameter keys: {sorted(extra)}")
+            raise ValueError(f"unknown parameter keys: {sorted(extra)}; expected {sorted(known)}")
+        rows = data["links"]
+        if not isinstance(rows, list):
+            raise ValueError(f"links must be a list of link objects, got {rows!r} "
+                             f"({type(rows).__name__})")
+        fields = [f.name for f in dataclasses.fields(DHLink)]
+        required = [f.name for f in dataclasses.fields(DHLink)
+                    if f.default is dataclasses.MISSING]
         links = []
-        for k, row in enumerate(data["links"]):
+        for k, row in enumerate(rows):
+            if not isinstance(row, dict):
+                raise ValueError(f"links[{k}] must be an object with the fields {fields}, got "
+                                 f"{row!r}")
+            unknown = sorted(set(row) - set(fields))
+            if unknown:
+                raise ValueError(f"links[{k}]: unknown fields {unknown}; expected {fields}")
+            missing = [key for key in required if key not in row]
+            if missing:
+                raise ValueError(f"links[{k}] lacks the fields {missing}")
             try:
-                links.append(DHLink(**{**row, "J": tuple(row["J"])}))
-            except TypeError as exc:
+                links.append(DHLink(**row))
+            except ValueError as exc:
                 raise ValueError(f"links[{k}]: {exc}") from None
-            except KeyError as exc:
-                raise ValueError(f"links[{k}] lacks the field {exc}") from None
         kwargs = {key: data[key] for key in ("g", "name", "notes") if key in data}
         return cls(links=tuple(links), **kwargs)
 
@@ -241,15 +364,49 @@ class ArmParams:
 
     @classmethod
     def load(cls, path: str | Path) -> ArmParams:
-        """Read a parameter set from a JSON file written by :meth:`save`."""
+        """Read a parameter set from a JSON file written by :meth:`save`.
+
+        Raises
+        ------
+        FileNotFoundError
+            No such file.
+        ValueError
+            Naming the file: not UTF-8 text, not JSON, or a field refused by :meth:`from_dict`.
+        """
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"parameter file not found: {path}")
         try:
-            data = json.loads(path.read_text())
+            data = json.loads(path.read_bytes().decode("utf-8"))
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{path}: not a UTF-8 text file (byte {exc.start}: {exc.reason}); "
+                             f"a parameter file is JSON") from None
         except json.JSONDecodeError as exc:
             raise ValueError(f"{path}: not valid JSON ({exc})") from None
-        return cls.from_dict(data)
+        try:
+            return cls.from_dict(data)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+
+
+def check_robot_name(name) -> str:
+    """Check a robot name: a non-empty string of printable characters.
+
+    Any such name is accepted; the URDF generator escapes XML's special characters
+    (``& < > "``), so ``"R&D arm"`` gives valid XML. Control characters (newline, tab, NUL...)
+    cannot appear in an XML attribute and are refused.
+
+    Raises
+    ------
+    ValueError
+        Naming the value.
+    """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"name must be a non-empty string, got {name!r}")
+    if not name.isprintable():
+        raise ValueError(f"name must hold printable characters only (no newline, tab or other "
+                         f"control character), got {name!r}")
+    return name
 
 
 def paper_params() -> ArmParams:
