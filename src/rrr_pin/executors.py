@@ -1,0 +1,409 @@
+"""Run tasks on local processes or a Dask cluster, streamed, and fail clearly on faults.
+
+:func:`run_tasks` takes tasks lazily from any iterable, keeps a bounded number in flight (so a
+campaign of 10**12 samples never builds its task list) and yields ``(task, result)`` as each
+finishes. The same call runs in this process (``jobs=1``), on ``jobs`` local processes
+(:class:`concurrent.futures.ProcessPoolExecutor`), on a Dask distributed cluster
+(``scheduler="tcp://host:8786"``) or on an executor the caller owns.
+
+Behaviour on faults
+-------------------
+Results are handed to the caller as each task finishes, so whatever the caller stored before a
+fault is kept; a fault only loses the tasks still running. A local worker process that dies
+(killed, out of memory) breaks the pool: the results that had finished are still yielded, then
+:class:`WorkersLost` is raised, carrying how many tasks finished. On Dask, the tasks of a worker
+that dies are rerun on the remaining workers (by the scheduler, then up to ``retries`` more
+times by :func:`run_tasks`); when no worker is left for ``no_worker_timeout`` seconds (60 s by
+default), :class:`WorkersLost` is raised instead of waiting forever, and an unreachable
+scheduler raises :class:`SchedulerUnreachable` after ``connect_timeout`` (10 s). Ctrl-C, or
+SIGTERM inside :func:`interrupt_on_signals`, raises :class:`KeyboardInterrupt` in the caller,
+and the pending tasks are cancelled and the local workers stopped without waiting for them.
+Rerun the campaign with ``--resume`` to compute only the samples that are missing.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor
+from concurrent.futures import wait as _cf_wait
+from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
+
+__all__ = [
+    "run_tasks", "check_jobs", "default_jobs", "interrupt_on_signals",
+    "ExecutorError", "CampaignInterrupted", "WorkersLost", "SchedulerUnreachable",
+]
+
+
+class ExecutorError(RuntimeError):
+    """Tasks could not be run to the end (base class)."""
+
+
+class CampaignInterrupted(ExecutorError):
+    """The run stopped before every task finished.
+
+    Attributes
+    ----------
+    done : int
+        Tasks whose results were yielded to the caller before the stop.
+    """
+
+    def __init__(self, message: str, done: int):
+        super().__init__(message)
+        self.done = done
+
+
+class WorkersLost(CampaignInterrupted):
+    """Workers died: a broken local pool, or no Dask worker left for ``no_worker_timeout``."""
+
+
+class SchedulerUnreachable(ExecutorError):
+    """The Dask scheduler could not be reached (nothing was run)."""
+
+
+def default_jobs() -> int:
+    """Return the default number of local worker processes, ``min(2, CPUs)``."""
+    return min(2, os.cpu_count() or 1)
+
+
+def check_jobs(jobs) -> int:
+    """Validate a number of local worker processes; ``None`` gives :func:`default_jobs`.
+
+    Raises
+    ------
+    TypeError
+        ``jobs`` is not an integer (e.g. ``2.5`` or ``True``).
+    ValueError
+        ``jobs < 1`` (``0``, ``-1``).
+    """
+    if jobs is None:
+        return default_jobs()
+    if isinstance(jobs, bool):
+        raise TypeError(f"jobs must be an integer >= 1 (local worker processes), got {jobs!r}")
+    try:
+        n = operator.index(jobs)
+    except TypeError:
+        raise TypeError(f"jobs must be an integer >= 1 (local worker processes), "
+                        f"got {jobs!r}") from None
+    if n < 1:
+        raise ValueError(f"jobs must be an integer >= 1 (local worker processes), got {n}")
+    return n
+
+
+def _check_positive(name: str, value, *, integer: bool = False, allow_zero: bool = False):
+    bad = isinstance(value, bool) or not isinstance(value, (int, float))
+    if not bad:
+        bad = (not math.isfinite(value) or (value < 0 if allow_zero else value <= 0)
+               or (integer and int(value) != value))
+    if bad:
+        kind = "an integer" if integer else "a finite number"
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be {kind} {bound}, got {value!r}")
+    return int(value) if integer else float(value)
+
+
+def run_tasks(fn: Callable, tasks: Iterable, *, jobs: int | None = None,
+              scheduler: str | None = None, executor=None, max_in_flight: int | None = None,
+              no_worker_timeout: float = 60.0, retries: int = 2,
+              connect_timeout: float = 10.0) -> Iterator[tuple]:
+    """Run ``fn(task)`` for each task; yield ``(task, result)`` in completion order.
+
+    Arguments are checked when called; the workers start (and a scheduler is contacted) at the
+    first ``next()``. Close the generator (``contextlib.closing``, or let it go out of scope)
+    to cancel what is still pending.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(task) -> result``, picklable (a module-level function) unless ``jobs=1``.
+    tasks : iterable
+        Taken lazily, at most ``max_in_flight`` ahead of the finished ones.
+    jobs : int, optional
+        Local worker processes, >= 1 (default :func:`default_jobs`); 1 runs in this process.
+        Ignored with ``scheduler`` or ``executor``.
+    scheduler : str, optional
+        Address of a Dask distributed scheduler (``"tcp://10.0.0.5:8786"``).
+    executor : concurrent.futures.Executor or distributed.Client, optional
+        Run there instead; it is not shut down. A ``distributed.Client`` gets the Dask
+        fault handling (retries, no-worker timeout).
+    max_in_flight : int, optional
+        Tasks submitted but not yet yielded; default twice the workers (at least 4 on Dask).
+    no_worker_timeout : float, default 60
+        Dask only: seconds with no worker in the cluster before :class:`WorkersLost`.
+    retries : int, default 2
+        Dask only: resubmissions of a task lost with its workers (after the scheduler's own
+        reruns, i.e. ``KilledWorker``), >= 0. An exception raised by ``fn`` is never retried.
+    connect_timeout : float, default 10
+        Dask only: seconds to reach the scheduler before :class:`SchedulerUnreachable`.
+
+    Yields
+    ------
+    task, result
+        Each task with ``fn(task)``, as they finish.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Bad ``jobs`` (0, -1, 2.5), ``max_in_flight``, timeouts or ``retries``; both
+        ``scheduler`` and ``executor``.
+    WorkersLost
+        A local worker process died, or no Dask worker was left for ``no_worker_timeout``;
+        ``.done`` tasks were yielded before.
+    SchedulerUnreachable
+        ``scheduler`` could not be reached within ``connect_timeout``.
+    KeyboardInterrupt
+        Ctrl-C (or SIGTERM in :func:`interrupt_on_signals`); pending tasks are cancelled.
+    Exception
+        Whatever ``fn`` raised, unchanged, with a note saying how many tasks had finished.
+    """
+    if scheduler is not None and executor is not None:
+        raise ValueError("give either scheduler (a Dask address) or executor, not both")
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise TypeError(f"scheduler must be an address string such as "
+                        f"'tcp://10.0.0.5:8786', got {scheduler!r}")
+    jobs = check_jobs(jobs)
+    if max_in_flight is not None:
+        max_in_flight = _check_positive("max_in_flight", max_in_flight, integer=True)
+    no_worker_timeout = _check_positive("no_worker_timeout", no_worker_timeout)
+    retries = _check_positive("retries", retries, integer=True, allow_zero=True)
+    connect_timeout = _check_positive("connect_timeout", connect_timeout)
+    if scheduler is not None or _is_dask_client(executor):
+        return _run_dask(fn, tasks, scheduler, executor, max_in_flight, no_worker_timeout,
+                         retries, connect_timeout)
+    if executor is not None:
+        if not isinstance(executor, Executor):
+            raise TypeError(f"executor must be a concurrent.futures.Executor or a "
+                            f"distributed.Client, got {type(executor).__name__}")
+        return _run_futures(fn, tasks, executor, max_in_flight or 8, own=False)
+    if jobs == 1:
+        return _run_serial(fn, tasks)
+    return _run_futures(fn, tasks, None, max_in_flight or 2 * jobs, own=True, jobs=jobs)
+
+
+@contextmanager
+def interrupt_on_signals():
+    """Within the block, SIGTERM (and SIGINT) raise :class:`KeyboardInterrupt` in this process.
+
+    So ``kill <pid>`` from a batch system stops a campaign the way Ctrl-C does: the caller's
+    ``except KeyboardInterrupt`` (or ``finally``) keeps what is finished and exits cleanly.
+    SIGINT is included because a process started in the background of a non-interactive
+    shell inherits SIGINT ignored. The previous handlers are restored on exit. Outside the
+    main thread it does nothing (signals are only delivered there).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt(f"received {signal.Signals(signum).name}")
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+# --- in this process ------------------------------------------------------------------------
+
+def _run_serial(fn, tasks):
+    done = 0
+    for task in tasks:
+        try:
+            result = fn(task)
+        except Exception as exc:
+            exc.add_note(f"(raised by a task after {done} tasks had finished)")
+            raise
+        done += 1
+        yield task, result
+
+
+# --- concurrent.futures (local processes or a caller's executor) ----------------------------
+
+def _worker_init() -> None:
+    """Local workers leave Ctrl-C to the main process, which stops them itself."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _stop_pool(pool: ProcessPoolExecutor, kill: bool) -> None:
+    """Shut the pool down; with ``kill``, terminate the workers instead of waiting for them."""
+    if not kill:
+        pool.shutdown(wait=True)
+        return
+    # Python < 3.14 has no public terminate: the running tasks' results are unwanted.
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(5.0)
+    pool.shutdown(wait=True)
+
+
+def _run_futures(fn, tasks, executor, limit: int, *, own: bool, jobs: int = 0):
+    pool = ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init) if own else executor
+    it = iter(tasks)
+    pending: dict = {}
+    done, exhausted, clean = 0, False, False
+    try:
+        while True:
+            while not exhausted and len(pending) < limit:
+                try:
+                    task = next(it)
+                except StopIteration:
+                    exhausted = True
+                    break
+                try:
+                    pending[pool.submit(fn, task)] = task
+                except BrokenProcessPool as exc:
+                    raise _broken(done, exc) from exc
+            if not pending:
+                break
+            finished, _ = _cf_wait(list(pending), return_when=FIRST_COMPLETED)
+            broken, error = None, None
+            if any(not f.cancelled() and isinstance(f.exception(), BrokenProcessPool)
+                   for f in finished):
+                # the pool is dead: hand over every result that did finish, then stop
+                finished = [f for f in pending if f.done()]
+            for f in finished:
+                task = pending.pop(f)
+                exc = None if f.cancelled() else f.exception()
+                if f.cancelled() or isinstance(exc, BrokenProcessPool):
+                    broken = broken or exc or BrokenProcessPool("task cancelled")
+                elif exc is not None:
+                    error = error or exc
+                else:
+                    done += 1
+                    yield task, f.result()
+            if broken is not None:
+                raise _broken(done, broken) from broken
+            if error is not None:
+                error.add_note(f"(raised by a task after {done} tasks had finished)")
+                raise error
+        clean = True
+    finally:
+        for f in pending:
+            f.cancel()
+        if own:
+            _stop_pool(pool, kill=not clean)
+
+
+def _broken(done: int, exc) -> WorkersLost:
+    return WorkersLost(f"a local worker process died (killed, or out of memory) after {done} "
+                       f"tasks had finished; the pool cannot go on ({exc})", done)
+
+
+# --- Dask distributed -----------------------------------------------------------------------
+
+def _is_dask_client(obj) -> bool:
+    if obj is None:
+        return False
+    try:
+        from distributed import Client
+    except ImportError:
+        return False
+    return isinstance(obj, Client)
+
+
+def _n_workers(client) -> tuple[int, int]:
+    """Return (workers, threads) the scheduler knows now; (0, 0) if it cannot be asked."""
+    try:
+        nthreads = client.nthreads()
+    except Exception:  # lost scheduler: counts as no worker
+        return 0, 0
+    return len(nthreads), sum(nthreads.values())
+
+
+def _connect(scheduler: str, connect_timeout: float):
+    try:
+        from distributed import Client
+    except ImportError as exc:
+        raise SchedulerUnreachable("a Dask scheduler needs the 'distributed' package "
+                                   "(pip install distributed)") from exc
+    try:
+        return Client(scheduler, timeout=connect_timeout, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SchedulerUnreachable(
+            f"could not reach the Dask scheduler at {scheduler!r} within "
+            f"{connect_timeout:g} s ({exc}); check the address and that `dask scheduler` "
+            "runs there") from None
+
+
+def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
+              connect_timeout):
+    import distributed
+    from distributed import KilledWorker
+
+    own = client is None
+    if own:
+        client = _connect(scheduler, connect_timeout)
+    it = iter(tasks)
+    pending: dict = {}  # future -> (task, resubmissions so far)
+    done, exhausted = 0, False
+    poll = min(1.0, no_worker_timeout / 4)
+    workers, threads = _n_workers(client)
+    checked = last_worker = time.monotonic()
+    try:
+        while True:
+            cap = limit or max(4, 2 * threads)
+            while not exhausted and len(pending) < cap:
+                try:
+                    task = next(it)
+                except StopIteration:
+                    exhausted = True
+                    break
+                pending[client.submit(fn, task, pure=False)] = (task, 0)
+            if not pending:
+                break
+            try:
+                finished = distributed.wait(list(pending), timeout=poll,
+                                            return_when="FIRST_COMPLETED").done
+            except TimeoutError:
+                finished = ()
+            for f in finished:
+                task, attempts = pending.pop(f)
+                if f.status == "finished":
+                    result = f.result()
+                    done += 1
+                    yield task, result
+                    continue
+                exc = f.exception() if f.status == "error" else None
+                if exc is not None and not isinstance(exc, KilledWorker):
+                    exc.add_note(f"(raised by a task after {done} tasks had finished)")
+                    raise exc
+                # lost with its workers (KilledWorker, cancelled, lost): resubmit
+                if attempts >= retries:
+                    raise WorkersLost(f"a task was lost with its Dask workers {attempts + 1} "
+                                      f"times; giving up after {done} tasks had finished "
+                                      f"({exc or f.status})", done)
+                pending[client.submit(fn, task, pure=False)] = (task, attempts + 1)
+            now = time.monotonic()
+            if now - checked >= poll:
+                workers, threads = _n_workers(client)
+                checked = now
+            if workers:
+                last_worker = now
+            elif now - last_worker > no_worker_timeout:
+                raise WorkersLost(f"no Dask worker left for {no_worker_timeout:g} s "
+                                  f"(all died or the scheduler is gone); stopped after {done} "
+                                  "tasks had finished", done)
+    finally:
+        if pending:
+            try:
+                client.cancel(list(pending), force=True)
+            except Exception:  # the scheduler may be gone already
+                pass
+        if own:
+            try:
+                client.close(timeout=min(10.0, connect_timeout))
+            except Exception:
+                pass
