@@ -115,6 +115,17 @@ def _diff_keys(old, new, prefix: str = "") -> list[str]:
     return [] if same else [prefix or "<settings>"]
 
 
+def _at(settings: dict, key: str) -> str:
+    """Short text of the value at dotted path ``key`` (``"missing"`` if absent)."""
+    value = settings
+    for part in key.split("."):
+        if not isinstance(value, dict) or part not in value:
+            return "missing"
+        value = value[part]
+    text = json.dumps(value, allow_nan=True)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _fsync_dir(path: Path) -> None:
     """Make a file creation or rename in ``path`` durable (no-op where unsupported)."""
     try:
@@ -273,10 +284,12 @@ class CampaignStore:
         if resume and recorded is not None:
             keys = _diff_keys(recorded["settings"], settings)
             if keys:
+                what = "; ".join(f"{k} (recorded {_at(recorded['settings'], k)}, given "
+                                 f"{_at(settings, k)})" for k in keys)
                 raise SettingsMismatch(
                     f"cannot resume the campaign in {str(out)!r}: settings differ from the "
-                    f"recorded ones in {', '.join(keys)}; rerun with the same settings, or "
-                    "use --overwrite to start afresh", keys)
+                    f"recorded ones in {', '.join(keys)}: {what}; rerun with the same "
+                    "settings, or use --overwrite to start afresh", keys)
         previous = list(recorded.get("outputs", [])) if recorded else []
         stale = set(previous) | set(outputs)
         if overwrite:
