@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .dh import ArmParams
+from .dh import ArmParams, _check_real, check_inertial
 
 __all__ = ["Robot", "RobotModelError", "load_robot", "robot_from_xml", "robot_names",
-           "DEFAULT_GRAVITY"]
+           "check_urdf_inertials", "DEFAULT_GRAVITY"]
 
 #: Gravity magnitude [m/s^2] used unless told otherwise: the paper's "standard value" 9.8.
 DEFAULT_GRAVITY = 9.8
@@ -38,6 +38,9 @@ DEFAULT_GRAVITY = 9.8
 #: Stand-in limit [rad] for continuous joints in the URDF handed to urdfdom (it cannot parse
 #: ``inf``); replaced by ``+-inf`` in the loaded model.
 _UNBOUNDED = 1e300
+
+#: dtype of the arrays the fast path hands to Pinocchio unconverted.
+_F64 = np.dtype(float)
 
 #: example-robot-data names accepted by :func:`load_robot` (fixed-base arms).
 _ERD_ARMS = ("ur3", "ur5", "ur10", "panda", "kinova", "z1", "bravo7_no_ee", "so_arm100")
@@ -55,6 +58,16 @@ def robot_names() -> tuple[str, ...]:
 @dataclass
 class Robot:
     """A Pinocchio model of a fixed-base serial arm with its workspace.
+
+    The dynamics methods (:meth:`M`, :meth:`V`, :meth:`G`, :meth:`inverse_dynamics`,
+    :meth:`forward_dynamics`) check their arrays (shape ``(nq,)``, finite) unless called with
+    ``check=False``: the fast path for hot loops whose state is already validated, which costs
+    no more than the bare Pinocchio call. With ``check=False`` the arrays must be float64
+    ndarrays of shape ``(nq,)`` holding finite values; nothing verifies it (a wrong size raises
+    Pinocchio's own error; NaN gives NaN). Both paths return the same values, bit for bit.
+
+    ``model`` is fixed at construction (:meth:`V` keeps a zero-gravity copy of it); to change
+    the model, build a new ``Robot`` with :func:`load_robot` or :func:`robot_from_xml`.
 
     Attributes
     ----------
@@ -78,6 +91,14 @@ class Robot:
     source: str
     urdf: str = field(repr=False)
     locked: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self._shape = (self.model.nq,)
+        # V(q, qd) = rnea(q, qd, 0) without gravity: one RNEA pass instead of nle - G.
+        self._model0 = self.model.copy()
+        self._model0.gravity = pin.Motion.Zero()
+        self._data0 = self._model0.createData()
+        self._zero = np.zeros(self.model.nv)
 
     @property
     def nq(self) -> int:
@@ -108,58 +129,118 @@ class Robot:
         """Neutral configuration (all zeros for revolute/prismatic joints), shape (nq,)."""
         return np.array(pin.neutral(self.model), dtype=float)
 
-    def _vec(self, name: str, x) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        if x.shape != (self.nq,):
-            raise ValueError(f"Expected {name} of shape ({self.nq},), got {x.shape}")
-        if not np.all(np.isfinite(x)):
+    def check_state(self, name: str, x) -> np.ndarray:
+        """Return ``x`` as a finite float64 array of shape ``(nq,)``, or raise ``ValueError``.
+
+        The validator of every joint-space array the methods take (``q``, ``qd``, ``qdd``,
+        ``tau``); a hot loop can call it once and then use ``check=False``.
+
+        Parameters
+        ----------
+        name : str
+            The argument's name, for the message.
+        x : array-like, shape (nq,)
+            Joint-space array [rad, rad/s, rad/s^2 or N m].
+
+        Raises
+        ------
+        ValueError
+            ``Expected q of shape (3,), got (2,)``, or ``q must be finite, got [...]``.
+        """
+        if type(x) is not np.ndarray or x.dtype is not _F64:
+            try:
+                x = np.asarray(x, dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name} must be an array of numbers of shape {self._shape}, "
+                                 f"got {x!r}") from None
+        if x.shape != self._shape:
+            raise ValueError(f"Expected {name} of shape {self._shape}, got {x.shape}")
+        # The sum is finite only if every entry is (NaN and inf propagate); finite entries can
+        # still overflow it, hence the exact test behind. Python's sum of a list is the
+        # cheapest reduction for the short arrays of an arm (~0.3 us against ~1 us for NumPy's).
+        if not math.isfinite(sum(x.tolist())) and not np.isfinite(x).all():
             raise ValueError(f"{name} must be finite, got {x}")
         return x
 
-    def M(self, q) -> np.ndarray:
+    def M(self, q, *, check: bool = True) -> np.ndarray:
         """Joint-space inertia matrix ``M(q)`` (CRBA), eq. (2).
 
         Parameters
         ----------
         q : array-like, shape (nq,)
-            Joint positions [rad].
+            Joint positions [rad or m].
+        check : bool, default True
+            Validate ``q`` (see the class docstring for ``check=False``).
 
         Returns
         -------
         M : ndarray, shape (nq, nq)
-            Full symmetric matrix [kg m^2].
+            Full symmetric matrix [kg m^2], a new array. Pinocchio's CRBA fills the upper
+            triangle; its Python binding mirrors it into the lower one and returns a copy
+            (``make_symmetric`` in ``bindings/python/algorithm/expose-crba.cpp``).
         """
-        q = self._vec("q", q)
-        Mu = pin.crba(self.model, self.data, q)
-        return np.triu(Mu) + np.triu(Mu, 1).T
+        if check:
+            q = self.check_state("q", q)
+        return pin.crba(self.model, self.data, q)
 
-    def V(self, q, qd) -> np.ndarray:
+    def V(self, q, qd, *, check: bool = True) -> np.ndarray:
         """Centrifugal and Coriolis torques ``V(q, qd)``, eq. (3), shape (nq,) [N m].
 
-        Computed as ``rnea(q, qd, 0) - G(q)``.
+        Computed as ``rnea(q, qd, 0)`` on a zero-gravity copy of the model, which equals
+        ``nonLinearEffects(q, qd) - G(q)`` without the cancellation of ``G``.
+
+        Parameters
+        ----------
+        q : array-like, shape (nq,)
+            Joint positions [rad or m].
+        qd : array-like, shape (nq,)
+            Joint velocities [rad/s or m/s].
+        check : bool, default True
+            Validate the arrays (see the class docstring for ``check=False``).
         """
-        q, qd = self._vec("q", q), self._vec("qd", qd)
-        nle = pin.nonLinearEffects(self.model, self.data, q, qd)
-        return nle - pin.computeGeneralizedGravity(self.model, self.data, q)
+        if check:
+            q, qd = self.check_state("q", q), self.check_state("qd", qd)
+        return pin.rnea(self._model0, self._data0, q, qd, self._zero)
 
-    def G(self, q) -> np.ndarray:
-        """Gravity torques ``G(q)``, eq. (4), shape (nq,) [N m]."""
-        q = self._vec("q", q)
-        return np.array(pin.computeGeneralizedGravity(self.model, self.data, q))
+    def G(self, q, *, check: bool = True) -> np.ndarray:
+        """Gravity torques ``G(q)``, eq. (4), shape (nq,) [N m], a new array.
 
-    def inverse_dynamics(self, q, qd, qdd) -> np.ndarray:
-        """Torques ``tau = M qdd + V + G`` (RNEA), shape (nq,) [N m]."""
-        q, qd, qdd = self._vec("q", q), self._vec("qd", qd), self._vec("qdd", qdd)
-        return np.array(pin.rnea(self.model, self.data, q, qd, qdd))
+        Parameters
+        ----------
+        q : array-like, shape (nq,)
+            Joint positions [rad or m].
+        check : bool, default True
+            Validate ``q`` (see the class docstring for ``check=False``).
+        """
+        if check:
+            q = self.check_state("q", q)
+        return pin.computeGeneralizedGravity(self.model, self.data, q)
 
-    def forward_dynamics(self, q, qd, tau) -> np.ndarray:
-        """Accelerations ``qdd = M^-1 (tau - V - G)`` (ABA), shape (nq,) [rad/s^2]."""
-        q, qd, tau = self._vec("q", q), self._vec("qd", qd), self._vec("tau", tau)
-        return np.array(pin.aba(self.model, self.data, q, qd, tau))
+    def inverse_dynamics(self, q, qd, qdd, *, check: bool = True) -> np.ndarray:
+        """Torques ``tau = M qdd + V + G`` (RNEA), shape (nq,) [N m].
+
+        Arrays of shape (nq,): ``q`` [rad], ``qd`` [rad/s], ``qdd`` [rad/s^2]; ``check`` as
+        in :meth:`M`.
+        """
+        if check:
+            q, qd = self.check_state("q", q), self.check_state("qd", qd)
+            qdd = self.check_state("qdd", qdd)
+        return pin.rnea(self.model, self.data, q, qd, qdd)
+
+    def forward_dynamics(self, q, qd, tau, *, check: bool = True) -> np.ndarray:
+        """Accelerations ``qdd = M^-1 (tau - V - G)`` (ABA), shape (nq,) [rad/s^2].
+
+        Arrays of shape (nq,): ``q`` [rad], ``qd`` [rad/s], ``tau`` [N m]; ``check`` as in
+        :meth:`M`.
+        """
+        if check:
+            q, qd = self.check_state("q", q), self.check_state("qd", qd)
+            tau = self.check_state("tau", tau)
+        return pin.aba(self.model, self.data, q, qd, tau)
 
     def frame_placement(self, q, frame: str) -> np.ndarray:
         """Placement of a URDF frame (link or joint name) in the root frame, shape (4, 4)."""
-        q = self._vec("q", q)
+        q = self.check_state("q", q)
         if not self.model.existFrame(frame):
             raise ValueError(f"no frame named {frame!r} in robot {self.name!r}")
         pin.framesForwardKinematics(self.model, self.data, q)
@@ -167,7 +248,7 @@ class Robot:
 
     def joint_placements(self, q) -> list[np.ndarray]:
         """Placements of the joint frames ``joint1..jointn``, each shape (4, 4)."""
-        q = self._vec("q", q)
+        q = self.check_state("q", q)
         pin.forwardKinematics(self.model, self.data, q)
         return [np.array(self.data.oMi[j].homogeneous) for j in range(1, self.model.njoints)]
 
@@ -186,14 +267,23 @@ def _read_source(source) -> tuple[str, str, str]:
         return urdf_from_params(), "rrr", "rrr"
     if text in _ERD_ARMS or (not text.lower().endswith(".urdf") and _erd_has(text)):
         path = _erd_urdf_path(text)
-        return path.read_text(), text, text
+        return _read_text(path), text, text
     path = Path(text)
     if path.suffix.lower() != ".urdf" and not path.exists():
         raise ValueError(f"unknown robot {text!r}: give a URDF path or one of "
                          f"{', '.join(robot_names())}")
     if not path.is_file():
         raise FileNotFoundError(f"URDF file not found: {path}")
-    return path.read_text(), path.stem, str(path)
+    return _read_text(path), path.stem, str(path)
+
+
+def _read_text(path: Path) -> str:
+    """Read a URDF file as text; ``RobotModelError`` naming the file if it is not UTF-8."""
+    try:
+        return path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RobotModelError(f"{path}: not a UTF-8 text file (byte {exc.start}: "
+                              f"{exc.reason}); a URDF is XML text") from None
 
 
 def _erd_has(name: str) -> bool:
@@ -223,19 +313,139 @@ def _erd_urdf_path(name: str) -> Path:
     return path
 
 
-def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
-    """Validate URDF XML and rewrite continuous joints as unbounded revolute joints."""
+def _numbers(element, attribute: str, count: int, default: str, what: str) -> list[float]:
+    """Parse ``count`` finite numbers from an attribute, or raise naming ``what``."""
+    raw = element.get(attribute, default)
+    try:
+        values = [float(v) for v in raw.split()]
+    except ValueError:
+        values = []
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise RobotModelError(f"{what}: <{element.tag} {attribute}=\"{raw}\"> must hold "
+                              f"{count} finite number{'s' if count > 1 else ''}")
+    return values
+
+
+def _inertial_of(link: ET.Element) -> tuple[float, np.ndarray] | None:
+    """Mass [kg] and inertia tensor [kg m^2] of a URDF ``<link>``, checked; None if absent."""
+    what = f"link {link.get('name')!r}"
+    inertial = link.find("inertial")
+    if inertial is None:
+        return None
+    origin = inertial.find("origin")
+    if origin is not None:
+        _numbers(origin, "xyz", 3, "0 0 0", f"{what} <inertial>")
+        _numbers(origin, "rpy", 3, "0 0 0", f"{what} <inertial>")
+    mass_el = inertial.find("mass")
+    if mass_el is None:
+        raise RobotModelError(f"{what}: <inertial> has no <mass>")
+    (mass,) = _numbers(mass_el, "value", 1, "", what)
+    inertia_el = inertial.find("inertia")
+    if inertia_el is None:
+        raise RobotModelError(f"{what}: <inertial> has no <inertia> (urdfdom would read zero "
+                              f"rotational inertia); give ixx, ixy, ixz, iyy, iyz, izz")
+    v = {key: _numbers(inertia_el, key, 1, "", what)[0]
+         for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+    inertia = np.array([[v["ixx"], v["ixy"], v["ixz"]],
+                        [v["ixy"], v["iyy"], v["iyz"]],
+                        [v["ixz"], v["iyz"], v["izz"]]])
+    try:
+        return check_inertial(mass, inertia, name=what)
+    except ValueError as exc:
+        raise RobotModelError(str(exc)) from None
+
+
+def check_urdf_inertials(urdf) -> dict[str, tuple[float, np.ndarray]]:
+    """Read and check the ``<inertial>`` of every link of a URDF.
+
+    urdfdom (under Pinocchio) reads NaN or inf in ``<inertia>``, or an ``<inertial>`` without
+    ``<inertia>``, as zero rotational inertia with only a message on stderr; this validator
+    refuses them, and every body that is not physical (:func:`rrr_pin.dh.check_inertial`).
+
+    Parameters
+    ----------
+    urdf : str or xml.etree.ElementTree.Element
+        URDF text, or its parsed ``<robot>`` element.
+
+    Returns
+    -------
+    dict
+        Link name -> ``(mass [kg], inertia tensor, shape (3, 3) [kg m^2])``, in the
+        ``<inertial>`` frame, for the links that have an ``<inertial>``.
+
+    Raises
+    ------
+    RobotModelError (a ValueError)
+        Naming the link, the field and the value: a non-finite number, a missing ``<mass>`` or
+        ``<inertia>`` or attribute, a negative mass, an inertia that is not positive
+        semi-definite or breaks the triangle inequality, or a massless link with inertia.
+    """
+    root = _parse(urdf) if isinstance(urdf, str) else urdf
+    out = {}
+    for link in root.findall("link"):
+        inertial = _inertial_of(link)
+        if inertial is not None:
+            out[link.get("name")] = inertial
+    return out
+
+
+def _parse(text: str) -> ET.Element:
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
         raise RobotModelError(f"malformed URDF (not well-formed XML): {exc}") from None
     if root.tag != "robot":
         raise RobotModelError(f"malformed URDF: root element is <{root.tag}>, expected <robot>")
-    links = {link.get("name"): link for link in root.findall("link")}
+    return root
+
+
+def _check_joint(joint: ET.Element, locked: set[str]) -> None:
+    """Check a joint's numbers: origin, axis (nonzero) and limits (lower < upper)."""
+    name, jtype = joint.get("name"), joint.get("type")
+    what = f"joint {name!r}"
+    origin = joint.find("origin")
+    if origin is not None:
+        _numbers(origin, "xyz", 3, "0 0 0", what)
+        _numbers(origin, "rpy", 3, "0 0 0", what)
+    if jtype == "fixed":
+        return
+    axis_el = joint.find("axis")
+    if axis_el is not None:
+        axis = _numbers(axis_el, "xyz", 3, "1 0 0", what)
+        if math.hypot(*axis) == 0.0:
+            raise RobotModelError(f"{what}: <axis xyz=\"{axis_el.get('xyz')}\"> is the zero "
+                                  f"vector; a joint needs a direction to turn or slide along")
+    limit = joint.find("limit")
+    if jtype in ("revolute", "prismatic"):
+        if limit is None:
+            raise RobotModelError(f"malformed URDF: {jtype} {what} has no <limit>")
+        (lower,) = _numbers(limit, "lower", 1, "0", what)
+        (upper,) = _numbers(limit, "upper", 1, "0", what)
+        if lower > upper or (lower == upper and name not in locked):
+            raise RobotModelError(
+                f"{what}: limits lower={lower!r} and upper={upper!r} leave no range of motion "
+                f"(need lower < upper; a missing attribute reads 0); fix the <limit>, make the "
+                f"joint fixed, or lock it")
+
+
+def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
+    """Validate URDF XML and rewrite continuous joints as unbounded revolute joints.
+
+    The URDF validator: the tree (one root, one parent per link, every link reached), every
+    joint's numbers (:func:`_check_joint`), every link's inertial
+    (:func:`check_urdf_inertials`) and some mass behind every moving joint.
+    """
+    root = _parse(text)
+    links = {}
+    for link in root.findall("link"):
+        if link.get("name") in links:
+            raise RobotModelError(f"malformed URDF: two links named {link.get('name')!r}")
+        links[link.get("name")] = link
     joints = root.findall("joint")
     if not links:
         raise RobotModelError("malformed URDF: no <link> element")
-    children = {}
+    check_urdf_inertials(root)
+    children, parent_joint = {}, {}
     for joint in joints:
         name, jtype = joint.get("name"), joint.get("type")
         parent, child = joint.find("parent"), joint.find("child")
@@ -245,6 +455,12 @@ def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
             if end not in links:
                 raise RobotModelError(f"malformed URDF: joint {name!r} refers to an unknown "
                                       f"link {end!r}")
+        if child.get("link") in parent_joint:
+            raise RobotModelError(
+                f"malformed URDF: link {child.get('link')!r} is the child of two joints, "
+                f"{parent_joint[child.get('link')]!r} and {name!r}; a URDF must be a tree "
+                f"(one parent per link)")
+        parent_joint[child.get("link")] = name
         if jtype in ("floating", "planar"):
             raise RobotModelError(f"joint {name!r} is {jtype}: rrr-pin handles fixed-base arms "
                                   f"with revolute and prismatic joints only")
@@ -254,8 +470,7 @@ def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
             raise RobotModelError(
                 f"joint {name!r} mimics {joint.find('mimic').get('joint')!r}: mimic joints are "
                 f"not supported; lock it (e.g. lock={{{name!r}: 0.0}})")
-        if jtype in ("revolute", "prismatic") and joint.find("limit") is None:
-            raise RobotModelError(f"malformed URDF: {jtype} joint {name!r} has no <limit>")
+        _check_joint(joint, locked)
         if jtype == "continuous":
             joint.set("type", "revolute")
             limit = joint.find("limit")
@@ -264,38 +479,76 @@ def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
             limit.set("lower", repr(-_UNBOUNDED))
             limit.set("upper", repr(_UNBOUNDED))
         children.setdefault(parent.get("link"), []).append((joint, child.get("link")))
-    roots = set(links) - {j.find("child").get("link") for j in joints}
+    roots = set(links) - set(parent_joint)
     if len(roots) != 1:
         raise RobotModelError(f"malformed URDF: expected one root link, found {sorted(roots)}")
-    _check_inertials(links, children, locked)
+    reached, stack = set(), list(roots)
+    while stack:
+        name = stack.pop()
+        reached.add(name)
+        stack += [child for _, child in children.get(name, [])]
+    if len(reached) != len(links):
+        raise RobotModelError(f"malformed URDF: links {sorted(set(links) - reached)} are not "
+                              f"connected to the root link {sorted(roots)[0]!r} (their joints "
+                              f"form a loop)")
+    _check_subtree_mass(links, children, locked)
     return ET.tostring(root, encoding="unicode"), root.get("name") or "robot"
 
 
-def _check_inertials(links, children, locked) -> None:
-    """Refuse a moving joint whose subtree carries no mass (M would be singular)."""
+def _check_subtree_mass(links, children, locked) -> None:
+    """Refuse a moving joint whose subtree carries no mass (M would be singular).
+
+    Runs after :func:`check_urdf_inertials`, so every mass read here is finite and >= 0.
+    """
 
     def subtree_mass(link_name):
-        link = links[link_name]
-        mass_el = link.find("inertial/mass")
-        mass = float(mass_el.get("value", "0")) if mass_el is not None else 0.0
+        mass_el = links[link_name].find("inertial/mass")
+        mass = float(mass_el.get("value")) if mass_el is not None else 0.0
         return mass + sum(subtree_mass(child) for _, child in children.get(link_name, []))
 
-    def missing(link_name):
-        names = [] if links[link_name].find("inertial") is not None else [link_name]
+    def massless(link_name):
+        mass_el = links[link_name].find("inertial/mass")
+        names = [link_name] if mass_el is None or float(mass_el.get("value")) == 0.0 else []
         for _, child in children.get(link_name, []):
-            names += missing(child)
+            names += massless(child)
         return names
 
     for joints in children.values():
         for joint, child in joints:
             if joint.get("type") == "fixed" or joint.get("name") in locked:
                 continue
-            mass = subtree_mass(child)
-            if not (mass > 0.0 and math.isfinite(mass)):
+            if not subtree_mass(child) > 0.0:
                 raise RobotModelError(
                     f"joint {joint.get('name')!r} moves no mass: the links downstream of it "
-                    f"({', '.join(missing(child))}) have no <inertial> data; rrr-pin refuses to "
-                    f"simulate an arm with zero mass")
+                    f"({', '.join(massless(child))}) have no <inertial> data or zero mass; "
+                    f"rrr-pin refuses to simulate an arm with zero mass")
+
+
+def _check_lock(model: pin.Model, lock: dict) -> dict[str, float]:
+    """Check the joints to lock (the lock validator): known, finite, inside the limits.
+
+    Returns the values as floats. Raises ``RobotModelError`` naming the joint, the value and the
+    limits.
+    """
+    unknown = [j for j in lock if not isinstance(j, str) or not model.existJointName(j)]
+    if unknown:
+        raise RobotModelError(f"cannot lock unknown joints {unknown}; joints are "
+                              f"{list(model.names)[1:]}")
+    out = {}
+    for joint_name, value in lock.items():
+        jid = model.getJointId(joint_name)
+        idx = model.joints[jid].idx_q
+        lower = float(model.lowerPositionLimit[idx])
+        upper = float(model.upperPositionLimit[idx])
+        try:
+            value = _check_real(f"lock value of joint {joint_name!r}", value, "rad or m")
+        except ValueError as exc:
+            raise RobotModelError(str(exc)) from None
+        if not lower <= value <= upper:
+            raise RobotModelError(f"cannot lock joint {joint_name!r} at {value!r}: outside its "
+                                  f"limits [{lower!r}, {upper!r}]")
+        out[joint_name] = value
+    return out
 
 
 def load_robot(source="rrr", *, gravity: float | None = None,
@@ -324,8 +577,11 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     FileNotFoundError
         The file does not exist.
     RobotModelError (a ValueError)
-        Malformed URDF, floating base, unlocked mimic joint, moving joint without mass
-        downstream, unknown joint to lock, or a mass matrix that is not positive definite.
+        Naming the link, joint or field: not UTF-8, malformed URDF (not a tree, two parents,
+        zero joint axis, limits with ``lower >= upper``, non-finite numbers), an inertial that
+        is not physical (:func:`check_urdf_inertials`), floating base, unlocked mimic joint,
+        moving joint without mass downstream, a joint to lock that is unknown or whose value
+        is not finite or outside its limits, or a mass matrix that is not positive definite.
     """
     if gravity is None:
         gravity = source.g if isinstance(source, ArmParams) else DEFAULT_GRAVITY
@@ -349,11 +605,14 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
         Where the text came from, for error messages.
     """
     lock = dict(lock or {})
-    gravity = float(gravity)
-    if not math.isfinite(gravity) or gravity < 0.0:
-        raise ValueError(f"gravity must be a finite magnitude >= 0 m/s^2, got {gravity!r}")
+    gravity = _check_real("gravity", gravity, "m/s^2")
+    if gravity < 0.0:
+        raise ValueError(f"gravity must be a magnitude >= 0 m/s^2 (along -z), got {gravity!r}")
     raw = urdf
-    urdf, urdf_name = _prepare_urdf(raw, set(lock))
+    try:
+        urdf, urdf_name = _prepare_urdf(raw, set(lock))
+    except RobotModelError as exc:
+        raise RobotModelError(f"{label}: {exc}") from None
     try:
         model = pin.buildModelFromXML(urdf)
     except (ValueError, RuntimeError) as exc:
@@ -365,14 +624,13 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
     model.upperPositionLimit[unbounded] = np.inf
     model.lowerPositionLimit[np.abs(model.lowerPositionLimit) >= _UNBOUNDED] = -np.inf
     if lock:
-        unknown = [j for j in lock if not model.existJointName(j)]
-        if unknown:
-            raise RobotModelError(f"cannot lock unknown joints {unknown}; joints are "
-                                  f"{list(model.names)[1:]}")
+        try:
+            lock = _check_lock(model, lock)
+        except RobotModelError as exc:
+            raise RobotModelError(f"{label}: {exc}") from None
         q_ref = pin.neutral(model)
         for joint_name, value in lock.items():
-            jid = model.getJointId(joint_name)
-            q_ref[model.joints[jid].idx_q] = float(value)
+            q_ref[model.joints[model.getJointId(joint_name)].idx_q] = value
         model = pin.buildReducedModel(model, [model.getJointId(j) for j in lock], q_ref)
     if model.nq == 0:
         raise RobotModelError(f"{label}: no moving joint left")
@@ -382,6 +640,10 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
     eig = np.linalg.eigvalsh(robot.M(q0))
     if not eig.min() > 1e-12 * max(eig.max(), 1.0):
-        raise RobotModelError(f"{label}: the mass matrix is not positive definite at the "
-                              f"neutral configuration (eigenvalues {eig}); check the inertials")
+        # Every inertial is physical and every moving joint carries mass by now, so a singular
+        # M means some joint moves no inertia about its own axis.
+        raise RobotModelError(
+            f"{label}: the mass matrix is singular at the neutral configuration (eigenvalues "
+            f"{eig}): some joint moves no inertia about its axis (e.g. point masses on the "
+            f"axis, or an axis along a massless direction of its subtree)")
     return robot
