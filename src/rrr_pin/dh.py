@@ -80,8 +80,8 @@ def check_inertial(mass, inertia, *, name: str = "inertial") -> tuple[float, np.
 
     Parameters
     ----------
-    mass : float
-        Mass [kg]; finite and ``>= 0``.
+    mass : float or None
+        Mass [kg]; finite and ``>= 0``. ``None`` checks the tensor alone.
     inertia : array-like, shape (3, 3)
         Inertia tensor about the centre of mass [kg m^2], in any frame; finite and symmetric.
     name : str
@@ -89,7 +89,7 @@ def check_inertial(mass, inertia, *, name: str = "inertial") -> tuple[float, np.
 
     Returns
     -------
-    mass : float
+    mass : float or None
     inertia : ndarray, shape (3, 3)
 
     Raises
@@ -100,9 +100,10 @@ def check_inertial(mass, inertia, *, name: str = "inertial") -> tuple[float, np.
         the other two (beyond :data:`INERTIA_RTOL` of the largest), or a massless body with
         nonzero inertia.
     """
-    mass = _check_real(f"{name}: mass", mass, "kg")
-    if mass < 0.0:
-        raise ValueError(f"{name}: mass must be >= 0 kg, got {mass!r}")
+    if mass is not None:
+        mass = _check_real(f"{name}: mass", mass, "kg")
+        if mass < 0.0:
+            raise ValueError(f"{name}: mass must be >= 0 kg, got {mass!r}")
     try:
         inertia = np.array(inertia, dtype=float)
     except (TypeError, ValueError):

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dh import ArmParams
+from .dh import ArmParams, check_inertial
 from .urdf import urdf_from_params
 
 __all__ = [
@@ -117,11 +117,22 @@ def perturb_inertia(I: np.ndarray, factors) -> np.ndarray:
     ndarray, shape (3, 3)
         ``tr(S') 1 - S'`` with ``S' = R diag(f * s) R^T``: positive semi-definite and
         satisfying the triangle inequality whenever ``I`` does.
+
+    Raises
+    ------
+    ValueError
+        ``I`` is not a physical inertia (:func:`rrr_pin.dh.check_inertial`), or a factor is
+        not finite and > 0.
     """
-    I = 0.5 * (np.asarray(I, dtype=float) + np.asarray(I, dtype=float).T)
+    _, I = check_inertial(None, I, name="I")
+    factors = np.asarray(factors, dtype=float)
+    if factors.shape != (3,) or not np.all(np.isfinite(factors)) or not np.all(factors > 0.0):
+        raise ValueError(f"factors must be 3 finite numbers > 0, got {factors.tolist()}")
+    I = 0.5 * (I + I.T)
     S = 0.5 * np.trace(I) * np.eye(3) - I
     s, R = np.linalg.eigh(S)
-    s = np.clip(s, 0.0, None) * np.asarray(factors, dtype=float)
+    # I is checked: second moments below zero are round-off within INERTIA_RTOL; drop them.
+    s = np.clip(s, 0.0, None) * factors
     S_new = (R * s) @ R.T
     return np.trace(S_new) * np.eye(3) - S_new
 
@@ -174,9 +185,18 @@ def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Toleranc
         The perturbed URDF text.
     factors : dict
         ``links``: name -> ``{mass, second_moments, com}``; ``joints``: name -> length factor.
+
+    Raises
+    ------
+    RobotModelError (a ValueError)
+        An inertial of ``urdf``, or of the plant, that is not physical, naming the link
+        (:func:`rrr_pin.dynamics.check_urdf_inertials`).
     """
     import yourdfpy
 
+    from .dynamics import check_urdf_inertials
+
+    check_urdf_inertials(urdf)  # perturb physical bodies only
     robot = yourdfpy.URDF.load(io.BytesIO(urdf.encode()), build_scene_graph=False,
                                load_meshes=False, filename_handler=yourdfpy.filename_handler_null,
                                build_collision_scene_graph=False, load_collision_meshes=False)
@@ -207,6 +227,7 @@ def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Toleranc
     text = robot.write_xml_string()
     if isinstance(text, bytes):
         text = text.decode()
+    check_urdf_inertials(text)  # the plant written is physical too
     return text, {"links": link_factors, "joints": joint_factors}
 
 
