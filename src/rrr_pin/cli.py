@@ -60,13 +60,22 @@ def _cmd_urdf(args) -> int:
         if check_urdf(args.out, params):
             print(f"{args.out}: up to date")
             return 0
-        print(f"{args.out}: differs from the generator's output; regenerate with "
+        from pathlib import Path
+
+        state = "differs from" if Path(args.out).is_file() else "is missing; expected"
+        print(f"{args.out}: {state} the generator's output; regenerate with "
               f"`rrr-pin urdf --out {args.out}`")
         return 1
     if args.out == "-":
         sys.stdout.write(urdf_from_params(params))
-    else:
-        print(f"wrote {write_urdf(args.out, params)}")
+        return 0
+    try:
+        path = write_urdf(args.out, params)
+    except OSError as exc:
+        print(f"rrr-pin urdf: error: --out {args.out}: cannot write the URDF there "
+              f"({exc.strerror or exc})", file=sys.stderr)
+        return 2
+    print(f"wrote {path}")
     return 0
 
 
@@ -94,10 +103,18 @@ def _add_check_dynamics(sub) -> None:
 
 
 def _cmd_check_dynamics(args) -> int:
+    import math
+
     from .closed_form import compare_with_pinocchio
     from .dh import ArmParams, paper_params
     from .dynamics import load_robot
 
+    if not (math.isfinite(args.rtol) and args.rtol >= 0.0):
+        raise ValueError(f"--rtol must be a finite number >= 0, got {args.rtol!r}")
+    if args.samples < 1:
+        raise ValueError(f"--samples must be >= 1, got {args.samples}")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
     params = ArmParams.load(args.params) if args.params else paper_params()
     robot = load_robot(args.urdf if args.urdf else params, gravity=params.g)
     result = compare_with_pinocchio(robot, params, samples=args.samples, seed=args.seed)
@@ -203,6 +220,8 @@ def _parse_lock(items) -> dict:
         name, sep, value = item.partition("=")
         if not sep or not name:
             raise ValueError(f"--lock expects JOINT=VALUE, got {item!r}")
+        if name in lock:
+            raise ValueError(f"--lock {name} given twice")
         try:
             lock[name] = float(value)
         except ValueError:
