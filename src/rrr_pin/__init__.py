@@ -8,8 +8,8 @@ gravity along ``-z`` of the base; every controller for negative feedback on ``e 
 from importlib.metadata import PackageNotFoundError, version
 
 from .controllers import TrackingController, fl_controller, hinf_fl_controller
-from .dh import ArmParams, DHLink, forward_kinematics, paper_params
-from .dynamics import Robot, RobotModelError, load_robot, robot_names
+from .dh import ArmParams, DHLink, check_inertial, forward_kinematics, paper_params
+from .dynamics import Robot, RobotModelError, check_urdf_inertials, load_robot, robot_names
 from .loopshaping import Design, NCFSynResult, design, expand_diagonal, ncfsyn
 from .simulate import SimulationDiverged, SineReference, Trajectory, metrics, simulate
 from .study import StudyConfig, StudyResult, default_reference, run_study
@@ -35,6 +35,8 @@ __all__ = [
     "Tolerances",
     "TrackingController",
     "Trajectory",
+    "check_inertial",
+    "check_urdf_inertials",
     "default_reference",
     "design",
     "expand_diagonal",
