@@ -7,11 +7,31 @@ gravity along ``-z`` of the base; every controller for negative feedback on ``e 
 
 from importlib.metadata import PackageNotFoundError, version
 
-from .controllers import TrackingController, fl_controller, hinf_fl_controller
+from .controllers import (
+    CompiledForm,
+    ControlLaw,
+    PDGravity,
+    SampledLaw,
+    TrackingController,
+    fl_controller,
+    hinf_fl_controller,
+    pd_controller,
+)
 from .dh import ArmParams, DHLink, check_inertial, forward_kinematics, paper_params
 from .dynamics import Robot, RobotModelError, check_urdf_inertials, load_robot, robot_names
 from .loopshaping import Design, NCFSynResult, design, expand_diagonal, ncfsyn
-from .simulate import SimulationDiverged, SineReference, Trajectory, metrics, simulate
+from .references import (
+    CirclePath,
+    IKError,
+    LinePath,
+    QuinticReference,
+    Reference,
+    SineReference,
+    SplineReference,
+    task_space_reference,
+)
+from .runner import RunSettings, make_laws, run_laws
+from .simulate import SimulationDiverged, Trajectory, metrics, simulate
 from .study import StudyConfig, StudyResult, default_reference, run_study
 from .uncertainty import Tolerances, sample_plants
 
@@ -23,13 +43,24 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 __all__ = [
     "__version__",
     "ArmParams",
+    "CirclePath",
+    "CompiledForm",
+    "ControlLaw",
     "DHLink",
     "Design",
+    "IKError",
+    "LinePath",
     "NCFSynResult",
+    "PDGravity",
+    "QuinticReference",
+    "Reference",
     "Robot",
     "RobotModelError",
+    "RunSettings",
+    "SampledLaw",
     "SimulationDiverged",
     "SineReference",
+    "SplineReference",
     "StudyConfig",
     "StudyResult",
     "Tolerances",
@@ -44,11 +75,15 @@ __all__ = [
     "forward_kinematics",
     "hinf_fl_controller",
     "load_robot",
+    "make_laws",
     "metrics",
     "ncfsyn",
     "paper_params",
+    "pd_controller",
     "robot_names",
+    "run_laws",
     "run_study",
     "sample_plants",
     "simulate",
+    "task_space_reference",
 ]

@@ -7,6 +7,8 @@ Each sub-command has an ``_add_<name>(subparsers)`` function that declares its o
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
 
 __all__ = ["main"]
@@ -229,13 +231,45 @@ def _parse_lock(items) -> dict:
     return lock
 
 
-def _floats(text: str | None, name: str):
+def _floats(text: str | None, name: str, n: int | None = None):
+    """Comma-separated finite numbers of an option, or None; ``n`` = expected count."""
     if text is None:
         return None
     try:
-        return [float(v) for v in text.replace(",", " ").split()]
+        values = [float(v) for v in text.replace(",", " ").split()]
     except ValueError:
         raise ValueError(f"{name} expects numbers separated by commas, got {text!r}") from None
+    if not values or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{name} expects finite numbers, got {text!r}")
+    if n is not None and len(values) != n:
+        raise ValueError(f"{name} expects {n} values (one per joint), got {len(values)}: "
+                         f"{text!r}")
+    return values
+
+
+def _positive(name: str, value, *, allow_zero: bool = False, integer: bool = False):
+    """Refuse NaN, inf and out-of-range option values, naming the option."""
+    if value is None:
+        return None
+    ok = math.isfinite(value) and (value >= 0 if allow_zero else value > 0)
+    if not ok:
+        want = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be a finite number {want}, got {value!r}")
+    return value
+
+
+def _check_out_dir(path) -> None:
+    """Refuse an output folder that cannot be written, before any work starts."""
+    from pathlib import Path
+
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise ValueError(f"--out {str(p)!r} exists and is not a folder")
+    parent = p
+    while not parent.exists():
+        parent = parent.parent
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"--out {str(p)!r} cannot be written ({str(parent)!r} is not writable)")
 
 
 def _add_robot_arguments(p) -> None:
@@ -246,31 +280,149 @@ def _add_robot_arguments(p) -> None:
                    help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
                         "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
     p.add_argument("--home", metavar="Q1,Q2,...", default=None,
-                   help="centre of the sinusoidal reference [rad] (default: the URDF's neutral "
-                        "configuration, moved inside the joint limits)")
+                   help="centre of the sinusoid, start of a quintic or task-space motion [rad] "
+                        "(default: the URDF's neutral configuration, moved inside the limits)")
+
+
+def _add_law_arguments(p, default_duration: float, default_rate) -> None:
+    from .runner import BUILTIN_LAWS
+
+    p.add_argument("--controllers", default="fl,hinf", metavar="NAMES",
+                   help="comma-separated built-in controllers to compare: "
+                        + "; ".join(f"{k} = {v}" for k, v in BUILTIN_LAWS.items())
+                        + " (default: fl,hinf, the paper's)")
+    p.add_argument("--baseline", default=None, metavar="NAME",
+                   help="controller the others are compared with (default: the first)")
+    p.add_argument("--duration", type=float, default=default_duration,
+                   help=f"simulated time [s] ({default_duration:g})")
+    p.add_argument("--dt", type=float, default=1e-3, help="RK4 step [s] (1e-3)")
+    p.add_argument("--rate", type=float, default=default_rate, metavar="HZ",
+                   help="sampled controllers at this rate [Hz] (zero-order hold, Tustin K)"
+                        + (f" ({default_rate:g})" if default_rate else
+                           "; default: continuous-time laws as in the paper's Simulink study"))
+    p.add_argument("--engine", choices=("auto", "python", "compiled"), default="auto",
+                   help="simulation engine (auto: compiled where the law has a compiled form)")
+    p.add_argument("--q0", metavar="Q1,Q2,...", default=None,
+                   help="initial joint positions [rad] (default: on the reference)")
+    p.add_argument("--qd0", metavar="V1,V2,...", default=None,
+                   help="initial joint velocities [rad/s] (default: on the reference)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the uncertain plants (0)")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="worker processes (default: min(2, CPUs))")
+    g = p.add_argument_group("reference")
+    g.add_argument("--reference", default="sine",
+                   choices=("sine", "quintic", "spline", "line", "circle"),
+                   help="sine (default): a sinusoid per joint; quintic: rest-to-rest from "
+                        "--home to --to; spline: C2 spline through the waypoints of --csv; "
+                        "line/circle: a path of --frame in task space, by inverse kinematics")
+    g.add_argument("--amp", type=float, default=0.5, help="sine: amplitude [rad] (0.5)")
+    g.add_argument("--freq", type=float, default=0.5, help="sine: frequency [Hz] (0.5)")
+    g.add_argument("--to", metavar="Q1,Q2,...", default=None, help="quintic: goal [rad]")
+    g.add_argument("--move-time", type=float, default=None,
+                   help="quintic, line, circle: duration of the motion [s] (default: "
+                        "half of --duration)")
+    g.add_argument("--csv", metavar="PATH", default=None,
+                   help="spline: waypoints, one row each: time [s], then one column per "
+                        "joint [rad]")
+    g.add_argument("--frame", default=None,
+                   help="line, circle: frame whose origin moves (default: the model's last frame)")
+    g.add_argument("--end", metavar="X,Y,Z", default=None,
+                   help="line: end point [m] (the line starts where the frame is at --home)")
+    g.add_argument("--radius", type=float, default=None,
+                   help="circle: radius [m]; the circle starts where the frame is at --home")
+    g.add_argument("--normal", metavar="X,Y,Z", default="0,0,1",
+                   help="circle: normal of its plane (0,0,1)")
+
+
+def _reference_from_args(args, robot):
+    import numpy as np
+
+    from .references import (
+        CirclePath,
+        LinePath,
+        QuinticReference,
+        SplineReference,
+        task_space_reference,
+    )
+    from .study import default_reference
+
+    n = robot.nq
+    home = _floats(args.home, "--home", n)
+    kind = args.reference
+    if kind == "sine":
+        _positive("--amp", args.amp, allow_zero=True)
+        _positive("--freq", args.freq, allow_zero=True)
+        return default_reference(robot, amp=args.amp, freq=args.freq, home=home)
+    if kind == "spline":
+        if args.csv is None:
+            raise ValueError("--reference spline needs --csv PATH")
+        return SplineReference.from_csv(args.csv, robot)
+    start = np.asarray(home, dtype=float) if home is not None else np.clip(
+        robot.neutral(), robot.lower, robot.upper)
+    move = _positive("--move-time", args.move_time) or 0.5 * args.duration
+    if kind == "quintic":
+        if args.to is None:
+            raise ValueError("--reference quintic needs --to Q1,Q2,... (the goal, one value "
+                             "per joint)")
+        return QuinticReference(start, _floats(args.to, "--to", n), move)
+    frame = args.frame or robot.model.frames[len(robot.model.frames) - 1].name
+    p0 = robot.frame_placement(start, frame)[:3, 3]
+    if kind == "line":
+        if args.end is None:
+            raise ValueError("--reference line needs --end X,Y,Z [m]")
+        path = LinePath(p0, _floats(args.end, "--end", 3))
+    else:
+        radius = _positive("--radius", args.radius)
+        if radius is None:
+            raise ValueError("--reference circle needs --radius R [m]")
+        normal = np.asarray(_floats(args.normal, "--normal", 3))
+        u = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 * np.linalg.norm(normal) else \
+            np.array([0.0, 1.0, 0.0])
+        u = u - normal * (u @ normal) / (normal @ normal)
+        u /= np.linalg.norm(u)
+        path = CirclePath(p0 - radius * u, radius, normal=normal, start_dir=u)
+    return task_space_reference(robot, frame, path, move, q_start=start)
+
+
+def _settings_from_args(args, n):
+    from .runner import RunSettings
+
+    _positive("--duration", args.duration)
+    _positive("--dt", args.dt)
+    _positive("--rate", args.rate)
+    if args.jobs is not None and args.jobs < 1:
+        raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    q0 = _floats(args.q0, "--q0", n)
+    qd0 = _floats(args.qd0, "--qd0", n)
+    return RunSettings(duration=args.duration, dt=args.dt, rate=args.rate, engine=args.engine,
+                       q0=tuple(q0) if q0 else None, qd0=tuple(qd0) if qd0 else None)
+
+
+def _laws_from_args(args, robot, K=None):
+    from .runner import make_laws
+
+    laws = make_laws(args.controllers, robot, K=K)
+    baseline = args.baseline or laws[0].name
+    if baseline not in [law.name for law in laws]:
+        raise ValueError(f"--baseline {baseline!r} is not among --controllers "
+                         f"({args.controllers})")
+    return laws, baseline
 
 
 def _add_reproduce(sub) -> None:
     p = sub.add_parser(
         "reproduce", help="the paper end to end: design, nominal and uncertain studies, figures",
         description="Runs the loop-shaping design (section 4) and the closed-loop study "
-                    "(section 5): FL alone and H-infinity + FL on the nominal arm and on "
-                    "uncertain plants, and writes fig2-fig4b, fig5_nominal, fig6_uncertain, "
+                    "(section 5): every --controllers law on the nominal arm and on uncertain "
+                    "plants, and writes fig2-fig4b, fig5_nominal, fig6_uncertain, "
                     "plants/*.urdf, results.json and results.md into --out.")
     _add_robot_arguments(p)
-    p.add_argument("--amp", type=float, default=0.5, help="reference amplitude [rad] (0.5)")
-    p.add_argument("--freq", type=float, default=0.5, help="reference frequency [Hz] (0.5)")
-    p.add_argument("--duration", type=float, default=4.0, help="simulated time [s] (4)")
-    p.add_argument("--dt", type=float, default=1e-3, help="RK4 step [s] (1e-3)")
+    _add_law_arguments(p, 4.0, None)
     p.add_argument("--samples", type=int, default=10, help="uncertain plants (10, the paper's)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the uncertain plants (0)")
-    p.add_argument("--rate", type=float, default=None, metavar="HZ",
-                   help="sampled controllers at this rate (zero-order hold, Tustin K); "
-                        "default: continuous-time laws as in the paper's Simulink study")
     p.add_argument("--full-order", action="store_true",
                    help="use the full-order K instead of the reduced eq. (18)")
-    p.add_argument("--jobs", type=int, default=None,
-                   help="worker processes (default: min(2, CPUs))")
     p.add_argument("--out", default="results", metavar="DIR", help="output folder (results/)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_reproduce)
@@ -285,17 +437,21 @@ def _cmd_reproduce(args) -> int:
     from .loopshaping import design, zpk_data
     from .plotting import plot_study_nominal, plot_study_uncertain, save_design_figures
     from .report import write_results
-    from .study import StudyConfig, default_reference, run_study
+    from .study import StudyConfig, run_study
 
     out = Path(args.out)
+    _check_out_dir(out)
+    if args.samples < 0:
+        raise ValueError(f"--samples must be >= 0, got {args.samples}")
     lock = _parse_lock(args.lock)
     robot = load_robot(args.robot, lock=lock)
-    home = _floats(args.home, "--home")
-    reference = default_reference(robot, amp=args.amp, freq=args.freq, home=home)
-    config = StudyConfig(duration=args.duration, dt=args.dt, rate=args.rate,
-                         samples=args.samples, seed=args.seed, jobs=args.jobs)
-    d = design(lam=config.lam_hinf, n=robot.nq)
+    settings = _settings_from_args(args, robot.nq)
+    reference = _reference_from_args(args, robot)
+    d = design(lam=45.0, n=robot.nq)
     K = d.K_full if args.full_order else d.K_reduced
+    laws, baseline = _laws_from_args(args, robot, K=K)
+    config = StudyConfig(run=settings, samples=args.samples, seed=args.seed, jobs=args.jobs,
+                         baseline=baseline)
     figures = save_design_figures(d, out)
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{robot.name}: simulating",
                disable=args.no_progress)
@@ -308,7 +464,7 @@ def _cmd_reproduce(args) -> int:
         from .dh import paper_params
 
         params = paper_params()
-    result = run_study(robot, K, config=config, reference=reference, params=params,
+    result = run_study(robot, laws, config=config, reference=reference, params=params,
                        skip_joints=tuple(lock), progress=progress)
     bar.close()
     k, z, p = zpk_data(K)
@@ -325,17 +481,18 @@ def _cmd_reproduce(args) -> int:
     figures += [plot_study_nominal(result, out / "fig5_nominal.png"),
                 plot_study_uncertain(result, out / "fig6_uncertain.png")]
     s = data["summary"]
-    print(f"{robot.name}: {robot.nq} joints, gamma = {d.ncf.gamma:.4f}, K = {K.nstates // 1}"
-          f"-state per joint ({design_info['K_used']})")
-    print(f"nominal max |e|: FL {s['nominal_max_error']['fl']:.3g} rad, "
-          f"H-inf+FL {s['nominal_max_error']['hinf']:.3g} rad")
-    if "error_ratio_uncertain" in s:
-        print(f"uncertain ({s['samples_ok']} plants): RMS error FL / H-inf+FL = "
-              f"{s['error_ratio_uncertain']:.3g} (per joint "
-              f"{', '.join(f'{x:.3g}' for x in s['error_ratio_uncertain_per_joint'])}); "
-              f"RMS torque H-inf+FL / FL = {s['torque_ratio_uncertain']:.4f}")
+    print(f"{robot.name}: {robot.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "
+          f"{', '.join(result.names)} (baseline {baseline})")
+    print("nominal max |e| [rad]: " + ", ".join(
+        f"{k} {v:.3g}" for k, v in s["nominal_max_error"].items()))
+    for name, ratio in s.get("error_ratio_uncertain", {}).items():
+        print(f"uncertain ({s['samples_ok']} plants): RMS error {baseline} / {name} = "
+              f"{ratio:.3g} (per joint "
+              f"{', '.join(f'{x:.3g}' for x in s['error_ratio_uncertain_per_joint'][name])}); "
+              f"RMS torque {name} / {baseline} = {s['torque_ratio_uncertain'][name]:.4f}")
     if s["samples_diverged"]:
-        print(f"{s['samples_diverged']} uncertain plant(s) diverged (see results.json)")
+        print(f"{s['samples_diverged']} uncertain plant(s) with a diverged run (see "
+              f"results.json)")
     print(f"wrote {out}/results.json, results.md, plants/ and {len(figures)} figures")
     return 0
 
@@ -344,20 +501,14 @@ def _cmd_reproduce(args) -> int:
 
 def _add_montecarlo(sub) -> None:
     p = sub.add_parser(
-        "montecarlo", help="Monte Carlo campaign: N seeded uncertain plants, both controllers",
+        "montecarlo", help="Monte Carlo campaign: N seeded uncertain plants, any controllers",
         description="Draws N seeded uncertain plants (20 %% inertia, 5 %% lengths), simulates "
-                    "FL alone and H-infinity + FL on each (sampled controllers, 1 kHz by "
-                    "default) and writes campaign.csv, samples.jsonl, summary.json and "
-                    "montecarlo.png into --out. Results are identical whatever --jobs.")
+                    "every --controllers law on each (sampled controllers, 1 kHz by default) "
+                    "and writes campaign.csv, samples.jsonl, summary.json and montecarlo.png "
+                    "into --out. Results are identical whatever --jobs.")
     _add_robot_arguments(p)
+    _add_law_arguments(p, 10.0, 1000.0)
     p.add_argument("--samples", type=int, required=True, help="number of uncertain plants")
-    p.add_argument("--seed", type=int, default=0, help="campaign seed (0)")
-    p.add_argument("--duration", type=float, default=10.0, help="simulated time [s] (10)")
-    p.add_argument("--rate", type=float, default=1000.0, metavar="HZ",
-                   help="controller sampling rate [Hz] (1000)")
-    p.add_argument("--engine", choices=("auto", "python", "compiled"), default="auto",
-                   help="rollout path (auto: compiled if built)")
-    p.add_argument("--jobs", type=int, default=None, help="local worker processes")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="Dask distributed scheduler address (e.g. tcp://10.0.0.5:8786); the "
                         "same tasks run on that cluster")
@@ -373,37 +524,44 @@ def _cmd_montecarlo(args) -> int:
     from tqdm import tqdm
 
     from .dynamics import load_robot
-    from .loopshaping import design
-    from .montecarlo import run_campaign, write_campaign
-    from .study import default_reference
+    from .montecarlo import CampaignSettings, run_campaign, write_campaign
 
+    _check_out_dir(args.out)
+    if args.samples < 1:
+        raise ValueError(f"--samples must be >= 1, got {args.samples}")
     lock = _parse_lock(args.lock)
     robot = load_robot(args.robot, lock=lock)
-    reference = default_reference(robot, home=_floats(args.home, "--home"))
-    K = design(n=robot.nq).K_reduced
+    run = _settings_from_args(args, robot.nq)
+    reference = _reference_from_args(args, robot)
+    laws, baseline = _laws_from_args(args, robot)
+    settings = CampaignSettings(samples=args.samples, seed=args.seed, run=run,
+                                baseline=baseline)
     bar = tqdm(total=args.samples, unit="plant", desc=f"{robot.name}: Monte Carlo",
                disable=args.no_progress)
     start = time.perf_counter()
-    campaign = run_campaign(robot, K, samples=args.samples, seed=args.seed, rate=args.rate,
-                            duration=args.duration, reference=reference, jobs=args.jobs,
-                            scheduler=args.scheduler, engine=args.engine,
-                            skip_joints=tuple(lock),
+    campaign = run_campaign(robot, laws, settings, reference=reference, jobs=args.jobs,
+                            scheduler=args.scheduler, skip_joints=tuple(lock),
                             progress=lambda done, total: bar.update(done - bar.n))
     bar.close()
     elapsed = time.perf_counter() - start
     s = write_campaign(campaign, args.out)
-    print(f"{robot.name}: {s['samples']} plants x 2 controllers x {args.duration:g} s in "
-          f"{elapsed:.1f} s ({2 * s['samples'] / elapsed:.1f} rollouts/s)")
-    print(f"ran {s['samples_ok']}, diverged {s['samples_diverged']}")
-    if s["samples_ok"]:
-        print(f"H-infinity + FL better on {100 * s['fraction_hinf_better']:.1f} % of the plants")
-        print(f"{'metric':18}{'median':>12}{'p95':>12}{'worst':>12}")
-        for name in ("error_ratio", "torque_ratio", "fl_rms_error", "hinf_rms_error",
-                     "fl_max_error", "hinf_max_error"):
-            m = s[name]
-            print(f"{name:18}{m['median']:12.4g}{m['p95']:12.4g}{m['worst']:12.4g}")
-    print(f"wrote {args.out}/campaign.csv, samples.jsonl, summary.json, montecarlo.png")
+    nl = len(laws)
+    print(f"{robot.name}: {s['samples']} plants x {nl} controllers x {run.duration:g} s in "
+          f"{elapsed:.1f} s ({nl * s['samples'] / elapsed:.1f} rollouts/s)")
+    print(f"every controller ran on {s['samples_ok']}, a run diverged on "
+          f"{s['samples_diverged']}")
+    for name, frac in s["fraction_better"].items():
+        print(f"{name} better than {baseline} on {100 * frac:.1f} % of the plants")
+    print(f"{'metric':28}{'median':>12}{'p95':>12}{'worst':>12}")
+    for name in campaign.names:
+        for metric in (f"error_ratio_{name}", f"torque_ratio_{name}", f"{name}_rms_error",
+                       f"{name}_max_error"):
+            if metric in s:
+                m = s[metric]
+                print(f"{metric:28}{m['median']:12.4g}{m['p95']:12.4g}{m['worst']:12.4g}")
+    print("wrote " + ", ".join(s["written"]))
     return 0
+
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -1,17 +1,17 @@
-"""Monte Carlo robustness campaigns: thousands of seeded uncertain plants, both controllers.
+"""Monte Carlo robustness campaigns: thousands of seeded uncertain plants, any set of laws.
 
 Each sample ``k`` of a campaign with seed ``s`` is the plant
 :func:`rrr_pin.uncertainty.sample_plant` draws with ``default_rng([s, k])``; it is generated,
-simulated under FL alone and H-infinity + FL and reduced to figures inside the worker, so only
-a row of numbers travels back. Rows are put in sample order, so the results are identical
-whatever the number of workers or where they run.
+simulated under every law (:func:`rrr_pin.runner.run_laws`) and reduced to figures inside the
+worker, so only a row of numbers travels back. Rows are put in sample order, so the results are
+identical whatever the number of workers or where they run.
 
 Workers: ``jobs`` local processes (:class:`concurrent.futures.ProcessPoolExecutor`) or a Dask
 distributed cluster (``scheduler="tcp://host:8786"``, through ``Client.get_executor()``, which
 is a ``concurrent.futures.Executor`` too): one code path, two executors.
 
-A sample whose closed loop diverges is recorded with its status and parameters; the campaign
-goes on.
+A sample where a law diverges is recorded with its status and parameters, with the figures of
+the laws that ran; the campaign goes on.
 """
 
 from __future__ import annotations
@@ -27,25 +27,51 @@ from pathlib import Path
 import numpy as np
 
 from .dh import ArmParams, paper_params
-from .dynamics import Robot, robot_from_xml
-from .simulate import SineReference
-from .study import (
-    CONTROLLERS,
-    controller_spec,
-    default_reference,
-    simulate_both,
-    worker_controllers,
-)
+from .dynamics import robot_from_xml
+from .references import Reference
+from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
+from .simulate import SimulationDiverged
 from .uncertainty import Tolerances, sample_plant
 
-__all__ = ["Campaign", "run_campaign", "campaign_summary", "write_campaign"]
+__all__ = ["Campaign", "CampaignSettings", "run_campaign", "campaign_summary",
+           "campaign_columns", "write_campaign"]
 
-#: Per-sample scalar metrics and the direction that is "worst" for each.
-_WORST = {
-    "fl_rms_error": "max", "hinf_rms_error": "max", "fl_max_error": "max",
-    "hinf_max_error": "max", "fl_rms_torque": "max", "hinf_rms_torque": "max",
-    "error_ratio": "min", "torque_ratio": "max",
-}
+
+@dataclass(frozen=True)
+class CampaignSettings:
+    """What a campaign computes (recorded whole in ``summary.json``).
+
+    Parameters
+    ----------
+    samples : int
+        Number of plants, >= 1.
+    seed : int, default 0
+        Campaign seed, >= 0.
+    run : RunSettings
+        How each run is simulated (default: 10 s, 1 kHz sampled laws).
+    tolerances : Tolerances
+        20 % inertia, 5 % lengths by default.
+    baseline : str, default "fl"
+        Law the others are compared with.
+    """
+
+    samples: int
+    seed: int = 0
+    run: RunSettings = field(default_factory=lambda: RunSettings(duration=10.0, rate=1000.0))
+    tolerances: Tolerances = field(default_factory=Tolerances)
+    baseline: str = "fl"
+
+    def __post_init__(self) -> None:
+        for key, low in (("samples", 1), ("seed", 0)):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+                raise ValueError(f"{key} must be an integer >= {low}, got {v!r}")
+
+    def to_dict(self) -> dict:
+        """JSON-ready settings."""
+        return {**self.run.to_dict(), "samples": int(self.samples), "seed": int(self.seed),
+                "tolerance_inertia": self.tolerances.inertia,
+                "tolerance_length": self.tolerances.length, "baseline": self.baseline}
 
 
 @dataclass
@@ -56,109 +82,101 @@ class Campaign:
     ----------
     robot : str
     joint_names : list of str
+    laws : list of dict
+        Each law's description (``name``, ``label``, ...), in order.
     rows : list of dict
-        ``index``, ``seed``, ``status`` (``"ok"`` or the divergence message), ``parameters``
-        and, for ``"ok"`` rows, the scalar metrics of :data:`_WORST` plus per-joint RMS
-        errors ``fl_rms_error_<joint>``, ``hinf_rms_error_<joint>`` [rad].
+        ``index``, ``seed``, ``status`` (``"ok"``, or which laws diverged and why),
+        ``parameters`` and, per law that ran, ``<law>_rms_error``, ``<law>_max_error`` [rad],
+        ``<law>_rms_torque`` [N m], ``<law>_rms_error_<joint>`` [rad]; per law other than the
+        baseline, ``error_ratio_<law>`` and ``torque_ratio_<law>``
+        (:func:`rrr_pin.runner.error_ratios`).
     settings : dict
-        Reference, rate, duration, seed, tolerances, engine.
+        :meth:`CampaignSettings.to_dict` plus the reference.
     """
 
     robot: str
     joint_names: list
+    laws: list
     rows: list
     settings: dict = field(default_factory=dict)
+
+    @property
+    def names(self) -> list[str]:
+        """Law names, in order."""
+        return [d["name"] for d in self.laws]
+
+    @property
+    def baseline(self) -> str:
+        """Name of the baseline law."""
+        return self.settings["baseline"]
 
 
 _SOURCES: dict = {}
 
 
-def _plant_source(cfg: dict):
-    """Return the nominal arm the plants are drawn around: ArmParams or URDF text (cached)."""
-    key = (cfg["spec"]["key"], json.dumps(cfg["params"], sort_keys=True))
+def _plant_source(job):
+    """The nominal arm the plants are drawn around: ArmParams or URDF text (cached per job)."""
+    key = id(job)
     if _SOURCES.get("key") != key:
         _SOURCES.clear()
-        _SOURCES.update(key=key, source=ArmParams.from_dict(cfg["params"])
-                        if cfg["params"] is not None else cfg["spec"]["nominal_xml"])
+        _SOURCES.update(key=key, source=ArmParams.from_dict(job["params"])
+                        if job["params"] is not None else job["nominal_xml"])
     return _SOURCES["source"]
 
 
-def _run_chunk(job) -> list[dict]:
-    """Simulate the samples ``job[1]`` of campaign ``job[0]`` (runs in a worker)."""
-    cfg, indices = job
-    spec = cfg["spec"]
-    controllers = worker_controllers(spec)
-    source = _plant_source(cfg)
-    tol = Tolerances(*cfg["tolerances"])
-    rows = []
-    for k in indices:
-        sample = sample_plant(source, cfg["seed"], k, tol, skip_joints=cfg["skip_joints"])
-        row = {"index": k, "seed": sample.seed, "status": "ok",
-               "parameters": sample.parameters}
-        plant = robot_from_xml(sample.urdf, gravity=spec["gravity"], lock=spec["lock"],
-                               name=f"sample{k:05d}", label=f"sample {k}")
-        runs, row["status"] = simulate_both(plant, controllers, cfg["reference"],
-                                            cfg["duration"], dt=cfg["dt"], rate=cfg["rate"],
-                                            engine=cfg["engine"])
-        if not runs:
-            rows.append(row)
-            continue
-        for key, traj in runs.items():
-            e, tau = traj.error, traj.tau
-            row[f"{key}_rms_error"] = float(np.sqrt(np.mean(e * e)))
-            row[f"{key}_max_error"] = float(np.max(np.abs(e)))
-            row[f"{key}_rms_torque"] = float(np.sqrt(np.mean(tau * tau)))
-            rms = np.sqrt(np.mean(e * e, axis=0))
-            for name, v in zip(cfg["joint_names"], rms, strict=True):
-                row[f"{key}_rms_error_{name}"] = float(v)
-        row["error_ratio"] = row["fl_rms_error"] / row["hinf_rms_error"]
-        row["torque_ratio"] = row["hinf_rms_torque"] / row["fl_rms_torque"]
-        rows.append(row)
-    return rows
+def sample_row(job: dict, k: int) -> dict:
+    """Generate sample ``k``, run every law on it and reduce it to one row."""
+    settings: CampaignSettings = job["settings"]
+    sample = sample_plant(_plant_source(job), settings.seed, k, settings.tolerances,
+                          skip_joints=job["skip_joints"])
+    row = {"index": k, "seed": sample.seed, "status": "ok", "parameters": sample.parameters}
+    plant = robot_from_xml(sample.urdf, gravity=job["gravity"], lock=job["lock"],
+                           name=f"sample{k:05d}", label=f"sample {k}")
+    runs = run_laws(plant, job["laws"], job["reference"], settings.run)
+    bad = [f"{name}: {v}" for name, v in runs.items() if isinstance(v, SimulationDiverged)]
+    if bad:
+        row["status"] = "diverged: " + "; ".join(bad)
+    figures = {name: run_metrics(t, job["joint_names"]) for name, t in runs.items()
+               if not isinstance(t, SimulationDiverged)}
+    for name, m in figures.items():
+        row.update({f"{name}_{key}": v for key, v in m.items()})
+    for name, r in error_ratios(figures, settings.baseline).items():
+        row[f"error_ratio_{name}"] = r["error_ratio"]
+        row[f"torque_ratio_{name}"] = r["torque_ratio"]
+    return row
 
 
-def run_campaign(robot: Robot, K, *, samples: int, seed: int = 0, rate: float | None = 1000.0,
-                 duration: float = 10.0, dt: float = 1e-3,
-                 reference: SineReference | None = None, params: ArmParams | None = None,
-                 tolerances: Tolerances | None = None, lam_fl: float = 100.0,
-                 lam_hinf: float = 45.0, jobs: int | None = None, scheduler: str | None = None,
-                 executor: Executor | None = None, engine: str = "auto",
+def _run_chunk(task) -> list[dict]:
+    """Simulate the samples ``task[1]`` of campaign job ``task[0]`` (runs in a worker)."""
+    job, indices = task
+    return [sample_row(job, k) for k in indices]
+
+
+def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Reference | None = None,
+                 params: ArmParams | None = None, jobs: int | None = None,
+                 scheduler: str | None = None, executor: Executor | None = None,
                  skip_joints=(), chunk: int | None = None, progress=None) -> Campaign:
-    """Run FL alone and H-infinity + FL on ``samples`` seeded uncertain plants.
+    """Run every law on ``settings.samples`` seeded uncertain plants.
 
     Parameters
     ----------
     robot : Robot
-        Nominal arm (the controllers' model).
-    K : control LTI
-        H-infinity controller (SISO, copied on the diagonal, or ``n x n``).
-    samples : int
-        Number of plants, >= 1.
-    seed : int, default 0
-        Campaign seed.
-    rate : float or None, default 1000
-        Controller sampling rate [Hz] (zero-order hold); ``None`` for continuous-time laws.
-    duration : float, default 10
-        Simulated time per rollout [s].
-    dt : float, default 1e-3
-        RK4 step (plant sub-step) [s].
-    reference : SineReference, optional
+        Nominal arm (the plants are drawn around it).
+    laws : sequence of ControlLaw or SampledLaw
+        Built-in (:func:`rrr_pin.runner.make_laws`) or your own; picklable (a worker process
+        receives them); the baseline among them.
+    settings : CampaignSettings
+    reference : Reference, optional
         Default :func:`rrr_pin.study.default_reference`.
     params : ArmParams, optional
         Perturb this DH parameter set (the paper's RRR); default: perturb the URDF
         (``paper_params()`` when ``robot`` is ``"rrr"``).
-    tolerances : Tolerances, optional
-        Default ``Tolerances()``: 20 % inertia, 5 % lengths.
-    lam_fl, lam_hinf : float
-        Bandwidths [rad/s].
     jobs : int, optional
-        Local worker processes (default ``min(2, CPUs)``); 1 runs in this process.
+        Local worker processes, >= 1 (default ``min(2, CPUs)``); 1 runs in this process.
     scheduler : str, optional
         Address of a Dask distributed scheduler; the same tasks go there instead.
     executor : concurrent.futures.Executor, optional
         Any executor to use as is (overrides ``jobs`` and ``scheduler``).
-    engine : {"auto", "python", "compiled"}
-        Rollout path of :func:`rrr_pin.simulate.simulate`.
     skip_joints : iterable of str
         Joints whose origins are not perturbed.
     chunk : int, optional
@@ -170,25 +188,26 @@ def run_campaign(robot: Robot, K, *, samples: int, seed: int = 0, rate: float | 
     -------
     Campaign
     """
-    if int(samples) != samples or samples < 1:
-        raise ValueError(f"samples must be a positive integer, got {samples!r}")
+    from .study import default_reference
+
+    laws = check_laws(laws, robot.nq, settings.baseline)
+    if jobs is not None and (isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1):
+        raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     reference = default_reference(robot) if reference is None else reference
-    reference.check_limits(robot)
-    tolerances = Tolerances() if tolerances is None else tolerances
+    reference.check_limits(robot, duration=settings.run.duration)
     if params is None and robot.source == "rrr":
         params = paper_params()
-    cfg = {
-        "spec": controller_spec(robot, K, lam_fl, lam_hinf),
+    job = {
+        "settings": settings, "laws": laws, "reference": reference,
         "params": params.to_dict() if params is not None else None,
-        "reference": reference, "duration": duration, "dt": dt, "rate": rate,
-        "engine": engine, "seed": int(seed),
-        "tolerances": (tolerances.inertia, tolerances.length),
-        "skip_joints": tuple(skip_joints), "joint_names": robot.joint_names,
+        "nominal_xml": robot.urdf, "gravity": robot.gravity, "lock": dict(robot.locked),
+        "skip_joints": tuple(skip_joints), "joint_names": list(robot.joint_names),
     }
+    samples = int(settings.samples)
     jobs = jobs or min(2, os.cpu_count() or 1)
     workers = jobs if executor is None and scheduler is None else 4
     size = chunk or max(1, min(50, math.ceil(samples / (4 * workers))))
-    tasks = [(cfg, list(range(i, min(i + size, samples)))) for i in range(0, samples, size)]
+    tasks = [(job, list(range(i, min(i + size, samples)))) for i in range(0, samples, size)]
     rows: list[dict] = []
     own, client = None, None
     if executor is None and scheduler is not None:
@@ -211,69 +230,95 @@ def run_campaign(robot: Robot, K, *, samples: int, seed: int = 0, rate: float | 
         if client is not None:
             client.close()
     rows.sort(key=lambda r: r["index"])
-    settings = {"reference": reference.to_dict(), "rate_hz": rate, "duration_s": duration,
-                "dt_s": dt, "seed": int(seed), "samples": int(samples),
-                "tolerance_inertia": tolerances.inertia, "tolerance_length": tolerances.length,
-                "lam_fl_rad_s": lam_fl, "lam_hinf_rad_s": lam_hinf, "engine": engine}
-    return Campaign(robot=robot.name, joint_names=robot.joint_names, rows=rows,
-                    settings=settings)
+    return Campaign(robot=robot.name, joint_names=list(robot.joint_names),
+                    laws=[law.describe() for law in laws], rows=rows,
+                    settings={**settings.to_dict(), "reference": reference.to_dict()})
+
+
+def _metrics(names, baseline):
+    """Per-sample scalar metrics and the direction that is "worst" for each."""
+    out = {}
+    for name in names:
+        out.update({f"{name}_rms_error": "max", f"{name}_max_error": "max",
+                    f"{name}_rms_torque": "max"})
+    for name in names:
+        if name != baseline:
+            out[f"error_ratio_{name}"] = "min"
+            out[f"torque_ratio_{name}"] = "max"
+    return out
+
+
+def campaign_columns(names, baseline, joint_names) -> list[str]:
+    """Columns of ``campaign.csv``, in order."""
+    columns = ["index", "seed", "status"] + list(_metrics(names, baseline))
+    for name in names:
+        columns += [f"{name}_rms_error_{j}" for j in joint_names]
+    return columns
 
 
 def campaign_summary(campaign: Campaign) -> dict:
-    """Median, 95th percentile and worst of each metric over the samples that ran.
+    """Median, 95th percentile and worst of each metric over the samples where it exists.
 
     Returns
     -------
     dict
-        ``samples``, ``samples_ok``, ``samples_diverged``, ``diverged`` (their indices),
-        ``fraction_hinf_better`` (share of the samples that ran where H-infinity + FL has the
-        smaller RMS error) and, per metric, ``{median, p95, worst}`` ("worst" is the maximum,
-        except for ``error_ratio``, where it is the minimum: the least benefit of H-infinity).
+        ``samples``, ``samples_ok`` (every law ran), ``samples_diverged``, ``diverged`` (their
+        indices), ``baseline``, ``fraction_better`` (per law other than the baseline: share of
+        the samples where both ran in which the law's RMS error is smaller) and, per metric,
+        ``{median, p95, worst, count}`` ("worst" is the maximum, except for the error ratios,
+        where it is the minimum: the least benefit over the baseline).
     """
-    ok = [r for r in campaign.rows if r["status"] == "ok"]
-    out = {"samples": len(campaign.rows), "samples_ok": len(ok),
-           "samples_diverged": len(campaign.rows) - len(ok),
-           "diverged": [r["index"] for r in campaign.rows if r["status"] != "ok"]}
-    if not ok:
-        return out
-    out["fraction_hinf_better"] = float(np.mean([r["hinf_rms_error"] < r["fl_rms_error"]
-                                                 for r in ok]))
-    for name, worst in _WORST.items():
-        v = np.array([r[name] for r in ok])
-        out[name] = {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)),
-                     "worst": float(v.max() if worst == "max" else v.min())}
+    rows, base = campaign.rows, campaign.baseline
+    ok = [r for r in rows if r["status"] == "ok"]
+    out = {"samples": len(rows), "samples_ok": len(ok), "samples_diverged": len(rows) - len(ok),
+           "diverged": [r["index"] for r in rows if r["status"] != "ok"], "baseline": base,
+           "fraction_better": {}}
+    for name in campaign.names:
+        key = f"error_ratio_{name}"
+        both = [r for r in rows if key in r]
+        if name != base and both:
+            out["fraction_better"][name] = float(np.mean([r[key] > 1.0 for r in both]))
+    for metric, worst in _metrics(campaign.names, base).items():
+        v = np.array([r[metric] for r in rows if metric in r])
+        if v.size:
+            out[metric] = {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)),
+                           "worst": float(v.max() if worst == "max" else v.min()),
+                           "count": int(v.size)}
     return out
 
 
 def write_campaign(campaign: Campaign, out: str | Path) -> dict:
-    """Write ``campaign.csv``, ``samples.jsonl`` (parameters), ``summary.json`` and figures.
+    """Write ``campaign.csv``, ``samples.jsonl`` (parameters), ``summary.json`` and a figure.
 
     Returns
     -------
     dict
-        The summary.
+        The summary; ``summary["written"]`` lists the files this call wrote.
     """
     from .plotting import plot_campaign
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    columns = ["index", "seed", "status"] + list(_WORST)
-    for key in CONTROLLERS:
-        columns += [f"{key}_rms_error_{name}" for name in campaign.joint_names]
-    with open(out / "campaign.csv", "w", newline="") as fh:
+    columns = campaign_columns(campaign.names, campaign.baseline, campaign.joint_names)
+    written = [out / "campaign.csv", out / "samples.jsonl", out / "summary.json"]
+    with open(written[0], "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         for row in campaign.rows:
             writer.writerow({**row, "seed": f"{row['seed'][0]}:{row['seed'][1]}"})
-    with open(out / "samples.jsonl", "w") as fh:
+    with open(written[1], "w") as fh:
         for row in campaign.rows:
             fh.write(json.dumps({"index": row["index"], "seed": row["seed"],
                                  "status": row["status"],
                                  "parameters": row["parameters"]}) + "\n")
     summary = campaign_summary(campaign)
-    (out / "summary.json").write_text(json.dumps(
-        {"robot": campaign.robot, "settings": campaign.settings, "summary": summary},
-        indent=1) + "\n")
+    written[2].write_text(json.dumps(
+        {"robot": campaign.robot, "controllers": campaign.laws, "settings": campaign.settings,
+         "summary": summary}, indent=1) + "\n")
+    figure = out / "montecarlo.png"
+    if figure.exists():
+        figure.unlink()
     if summary["samples_ok"]:
-        plot_campaign(campaign, out / "montecarlo.png")
+        written.append(plot_campaign(campaign, figure))
+    summary["written"] = [str(p) for p in written]
     return summary

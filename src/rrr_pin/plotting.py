@@ -7,7 +7,7 @@ output path): Fig. 2 :func:`plot_barriers`, Fig. 3 :func:`plot_shaped_plant`, Fi
 
 Simulation figures of section 5 (torques [N m] and tracking errors [rad] over time [s], one
 colour per joint): Fig. 5 :func:`plot_study_nominal`, Fig. 6 :func:`plot_study_uncertain`, and
-:func:`plot_runs` for any pair of runs.
+:func:`plot_runs` for any set of runs; one column per controller.
 
 References
 ----------
@@ -228,8 +228,10 @@ def save_design_figures(d, out_dir) -> list[Path]:
 _JOINT_COLOURS = plt.rcParams["axes.prop_cycle"].by_key()["color"]
 
 
-def _study_axes(title: str, joint_names):
-    fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True, constrained_layout=True)
+def _study_axes(title: str, labels: list[str]):
+    cols = len(labels)
+    fig, axes = plt.subplots(2, cols, figsize=(1.0 + 5.0 * cols, 7), sharex=True,
+                             constrained_layout=True, squeeze=False)
     fig.suptitle(title)
     for ax in axes.flat:
         ax.grid(True, alpha=0.3)
@@ -237,16 +239,17 @@ def _study_axes(title: str, joint_names):
         ax.set_xlabel("Time [s]")
     axes[0, 0].set_ylabel("Joint torque [N m]")
     axes[1, 0].set_ylabel("Tracking error r - q [rad]")
-    axes[0, 0].set_title("(a) FL alone: control signals")
-    axes[0, 1].set_title("(b) H-infinity + FL: control signals")
-    axes[1, 0].set_title("(c) FL alone: tracking errors")
-    axes[1, 1].set_title("(d) H-infinity + FL: tracking errors")
+    for col, label in enumerate(labels):
+        axes[0, col].set_title(f"({chr(97 + col)}) {label}: control signals")
+        axes[1, col].set_title(f"({chr(97 + cols + col)}) {label}: tracking errors")
     return fig, axes
 
 
-def _plot_runs(axes, runs: dict, joint_names, alpha=1.0, label=True):
-    for col, key in enumerate(("fl", "hinf")):
-        traj = runs[key]
+def _plot_runs(axes, runs: dict, names, joint_names, alpha=1.0, label=True):
+    for col, key in enumerate(names):
+        traj = runs.get(key)
+        if traj is None:
+            continue
         for j, name in enumerate(joint_names):
             colour = _JOINT_COLOURS[j % len(_JOINT_COLOURS)]
             lab = name if label else None
@@ -257,41 +260,46 @@ def _plot_runs(axes, runs: dict, joint_names, alpha=1.0, label=True):
 
 
 def _finish_study(fig, axes, path):
-    # Torques of both controllers on one scale, so their sizes compare at a glance.
-    lo = min(axes[0, 0].get_ylim()[0], axes[0, 1].get_ylim()[0])
-    hi = max(axes[0, 0].get_ylim()[1], axes[0, 1].get_ylim()[1])
+    # Torques of all controllers on one scale, so their sizes compare at a glance.
+    lo = min(ax.get_ylim()[0] for ax in axes[0])
+    hi = max(ax.get_ylim()[1] for ax in axes[0])
     for ax in axes[0]:
         ax.set_ylim(lo, hi)
     for ax in axes[1]:
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
     for ax in axes.flat:
-        ax.legend(loc="upper right", fontsize="small", ncol=2)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper right", fontsize="small", ncol=2)
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)
 
 
-def plot_runs(runs: dict, joint_names, path, title: str = "") -> Path:
-    """Torques and tracking errors of both controllers on one plant (layout of Fig. 5).
+def plot_runs(runs: dict, joint_names, path, title: str = "", labels: dict | None = None) -> Path:
+    """Torques and tracking errors of any number of controllers on one plant (layout of Fig. 5).
 
     Parameters
     ----------
     runs : dict
-        ``{"fl": Trajectory, "hinf": Trajectory}``.
+        ``{name: Trajectory}``, one column per controller, in this order.
     joint_names : list of str
         Legend labels, one per joint.
     path : str or Path
         PNG to write.
     title : str
         Figure title.
+    labels : dict, optional
+        Display name per controller name (default: the names).
     """
-    fig, axes = _study_axes(title, joint_names)
-    _plot_runs(axes, runs, joint_names)
+    names = list(runs)
+    labels = labels or {}
+    fig, axes = _study_axes(title, [labels.get(k, k) for k in names])
+    _plot_runs(axes, runs, names, joint_names)
     return _finish_study(fig, axes, path)
 
 
 def plot_study_nominal(result, path):
-    """Paper Fig. 5: torques and tracking errors of both controllers on the nominal plant.
+    """Paper Fig. 5: torques and tracking errors of every controller on the nominal plant.
 
     Parameters
     ----------
@@ -300,36 +308,41 @@ def plot_study_nominal(result, path):
     path : str or Path
         PNG to write.
     """
-    return plot_runs(result.nominal, result.joint_names, path,
-                     title=f"{result.robot}: nominal plant (exact model)")
+    return plot_runs({k: result.nominal[k] for k in result.names}, result.joint_names, path,
+                     title=f"{result.robot}: nominal plant (exact model)",
+                     labels={k: result.label(k) for k in result.names})
 
 
 def plot_study_uncertain(result, path):
-    """Paper Fig. 6: torques and tracking errors of both controllers on every uncertain plant.
+    """Paper Fig. 6: torques and tracking errors of every controller on every uncertain plant.
 
-    Each thin line is one plant (colour = joint); diverged plants are left out and counted in
-    the title.
+    Each thin line is one plant (colour = joint); a controller's diverged runs are left out and
+    counted in the title.
     """
-    ok = [s for s in result.samples if s["status"] == "ok"]
-    title = (f"{result.robot}: {len(ok)} uncertain plants "
+    names = result.names
+    n = len(result.samples)
+    title = (f"{result.robot}: {n} uncertain plants "
              f"({result.config.tolerances.inertia:.0%} inertia, "
              f"{result.config.tolerances.length:.0%} length tolerance)")
-    if len(ok) < len(result.samples):
-        title += f", {len(result.samples) - len(ok)} diverged (not shown)"
-    fig, axes = _study_axes(title, result.joint_names)
-    for k, sample in enumerate(ok):
-        _plot_runs(axes, sample["trajectories"], result.joint_names, alpha=0.6, label=(k == 0))
+    lost = {k: sum(1 for s in result.samples if k not in s["trajectories"]) for k in names}
+    if any(lost.values()):
+        title += ", diverged (not shown): " + ", ".join(
+            f"{result.label(k)} {v}" for k, v in lost.items() if v)
+    fig, axes = _study_axes(title, [result.label(k) for k in names])
+    for k, sample in enumerate(result.samples):
+        _plot_runs(axes, sample["trajectories"], names, result.joint_names, alpha=0.6,
+                   label=(k == 0))
     return _finish_study(fig, axes, path)
 
 
 # --- Monte Carlo campaign ----------------------------------------------------------------------
 
 def plot_campaign(campaign, path) -> Path:
-    """Distribution of the error ratio and per-joint spread of the RMS errors of a campaign.
+    """Distribution of the error ratios and per-joint spread of the RMS errors of a campaign.
 
-    Left: histogram of ``RMS error FL alone / RMS error H-infinity + FL`` over the plants
-    (log scale; a ratio above 1 means H-infinity + FL tracks better). Right: per joint, box
-    plots of the RMS tracking error [rad] of both controllers over the plants.
+    Left: for every controller but the baseline, histogram of ``RMS error of the baseline /
+    RMS error of the controller`` over the plants (log scale; above 1 the controller tracks
+    better). Right: per joint, box plots of the RMS tracking error [rad] of every controller.
 
     Parameters
     ----------
@@ -338,36 +351,49 @@ def plot_campaign(campaign, path) -> Path:
     path : str or Path
         PNG to write.
     """
-    ok = [r for r in campaign.rows if r["status"] == "ok"]
-    ratios = np.array([r["error_ratio"] for r in ok])
+    rows, names, base = campaign.rows, campaign.names, campaign.baseline
+    labels = {d["name"]: d["label"] for d in campaign.laws}
+    colours = {k: _JOINT_COLOURS[(i + 1) % len(_JOINT_COLOURS)] for i, k in enumerate(names)}
+    ok = sum(1 for r in rows if r["status"] == "ok")
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
-    fig.suptitle(f"{campaign.robot}: Monte Carlo campaign, {len(ok)} plants"
-                 + (f" ({len(campaign.rows) - len(ok)} diverged)"
-                    if len(ok) < len(campaign.rows) else ""))
-    bins = np.logspace(np.log10(max(ratios.min(), 1e-3)) - 0.05,
-                       np.log10(ratios.max()) + 0.05, 40)
-    ax1.hist(ratios, bins=bins, color="tab:blue", alpha=0.8, label="plants")
-    ax1.axvline(np.median(ratios), color="k", ls="--",
-                label=f"median {np.median(ratios):.3g}")
-    ax1.axvline(1.0, color="tab:red", ls=":", label="ratio 1 (no benefit)")
-    ax1.set_xscale("log")
-    ax1.set_xlabel("RMS error FL alone / RMS error H-infinity + FL [-]")
+    fig.suptitle(f"{campaign.robot}: Monte Carlo campaign, {len(rows)} plants"
+                 + (f" ({len(rows) - ok} with a diverged run)" if ok < len(rows) else ""))
+    ratios = {k: np.array([r[f"error_ratio_{k}"] for r in rows if f"error_ratio_{k}" in r])
+              for k in names if k != base}
+    ratios = {k: v for k, v in ratios.items() if v.size}
+    if ratios:
+        allv = np.concatenate(list(ratios.values()))
+        bins = np.logspace(np.log10(max(allv.min(), 1e-3)) - 0.05,
+                           np.log10(max(allv.max(), 1e-3)) + 0.05, 40)
+        for k, v in ratios.items():
+            ax1.hist(v, bins=bins, color=colours[k], alpha=0.6,
+                     label=f"{labels[k]} (median {np.median(v):.3g})")
+        ax1.axvline(1.0, color="tab:red", ls=":", label="ratio 1 (no benefit)")
+        ax1.set_xscale("log")
+        ax1.legend(fontsize="small")
+    else:
+        ax1.text(0.5, 0.5, "one controller: no ratio", ha="center", va="center",
+                 transform=ax1.transAxes)
+    ax1.set_xlabel(f"RMS error {labels[base]} / RMS error of the controller [-]")
     ax1.set_ylabel("Number of plants [-]")
-    ax1.set_title("Error ratio")
-    ax1.legend()
+    ax1.set_title(f"Error ratio against the baseline ({labels[base]})")
     ax1.grid(True, alpha=0.3)
-    names = campaign.joint_names
-    pos = np.arange(len(names))
-    for offset, key, colour in ((-0.18, "fl", "tab:orange"), (0.18, "hinf", "tab:green")):
-        data = [[r[f"{key}_rms_error_{n}"] for r in ok] for n in names]
-        bp = ax2.boxplot(data, positions=pos + offset, widths=0.3, patch_artist=True,
+    joints = campaign.joint_names
+    pos = np.arange(len(joints))
+    width = 0.8 / len(names)
+    for i, key in enumerate(names):
+        data = [[r[f"{key}_rms_error_{j}"] for r in rows if f"{key}_rms_error_{j}" in r]
+                for j in joints]
+        if not any(data):
+            continue
+        offset = (i - (len(names) - 1) / 2) * width
+        bp = ax2.boxplot(data, positions=pos + offset, widths=0.9 * width, patch_artist=True,
                          showfliers=True, flierprops={"markersize": 2})
         for box in bp["boxes"]:
-            box.set_facecolor(colour)
+            box.set_facecolor(colours[key])
             box.set_alpha(0.6)
-        ax2.plot([], [], color=colour, lw=6, alpha=0.6,
-                 label="FL alone" if key == "fl" else "H-infinity + FL")
-    ax2.set_xticks(pos, names, rotation=30 if len(names) > 4 else 0)
+        ax2.plot([], [], color=colours[key], lw=6, alpha=0.6, label=labels[key])
+    ax2.set_xticks(pos, joints, rotation=30 if len(joints) > 4 else 0)
     ax2.set_yscale("log")
     ax2.set_xlabel("Joint")
     ax2.set_ylabel("RMS tracking error [rad]")

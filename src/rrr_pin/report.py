@@ -1,23 +1,30 @@
 """The report of a study: ``results.json``, ``results.md`` and the uncertain plants' URDFs.
 
-``results.md`` sets the measured figures beside the paper's claims (section 5) and says plainly
-where they agree. Nothing here tunes the study: the verdicts are fixed rules on measured numbers,
-stated in the table.
+``results.md`` has, for any set of controllers, a table of every controller against the
+baseline, and per-joint figures. Where the study includes the paper's two controllers (the
+built-in laws named ``fl`` and ``hinf``, FL alone as the baseline), it also sets the measured
+figures beside the paper's claims (section 5) and says plainly where they agree. Nothing here
+tunes the study: the verdicts are fixed rules on measured numbers, stated in the file, and no
+verdict is computed from a missing or non-finite number.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 
-from .study import CONTROLLERS, StudyResult
+from .study import StudyResult
 
-__all__ = ["write_results", "results_markdown", "PAPER_ERROR_RATIO"]
+__all__ = ["write_results", "results_markdown", "PAPER_ERROR_RATIO", "PAPER_LAWS"]
 
 #: The paper's claim for the uncertain plants: "almost a ten times better performance".
 PAPER_ERROR_RATIO = 10.0
+
+#: Names of the built-in laws the paper compares: (baseline, H-infinity + FL).
+PAPER_LAWS = ("fl", "hinf")
 
 #: Nominal errors below this fraction of the reference amplitude count as "equivalent": both
 #: at the noise level of the integrator (continuous-time laws, ~1e-9 rad) or of the sampling
@@ -30,6 +37,8 @@ def _fmt(x, digits=3) -> str:
 
 
 def _error_ratio_verdict(ratio: float) -> str:
+    if not math.isfinite(ratio):
+        return "**no verdict**: the ratio is not a finite number"
     if ratio <= 1.0:
         return "**does not reproduce**: H-infinity + FL is not better"
     if ratio < PAPER_ERROR_RATIO / 2:
@@ -42,6 +51,8 @@ def _error_ratio_verdict(ratio: float) -> str:
 
 
 def _torque_verdict(ratio: float) -> str:
+    if not math.isfinite(ratio):
+        return "**no verdict**: the ratio is not a finite number"
     if abs(ratio - 1.0) <= 0.1:
         side = "slightly smaller" if ratio < 1.0 else "slightly larger" if ratio > 1.0 else "equal"
         agree = "agrees" if ratio <= 1.0 else "agrees on 'about the same'; the paper says smaller"
@@ -49,73 +60,119 @@ def _torque_verdict(ratio: float) -> str:
     return f"**does not agree**: H-infinity + FL uses {_fmt(ratio)}x the torque of FL alone"
 
 
+def _paper_rows(result: StudyResult, s: dict) -> list[str]:
+    fl, hinf = PAPER_LAWS
+    cfg, ref = result.config, result.reference
+    lines = ["## The paper's claims (section 5): FL alone against H-infinity + FL", "",
+             "| Claim (paper, section 5) | Paper | Measured | Verdict |", "|---|---|---|---|"]
+    nom = s["nominal_max_error"]
+    amp = getattr(ref, "amp", None)
+    scale = float(np.max(amp)) if amp is not None else float(
+        np.max(np.abs(np.diff(ref.positions([0.0, cfg.run.duration]), axis=0))))
+    noise = NOMINAL_NOISE * scale
+    values = [nom[fl], nom[hinf]]
+    if not all(math.isfinite(v) for v in values):
+        verdict = "**no verdict**: a nominal error is not finite"
+    elif max(values) < noise:
+        verdict = (f"agrees: both below {noise:.2g} rad, at the "
+                   f"{'sampling' if cfg.run.rate else 'integrator'}'s noise level (a ratio of "
+                   f"two noise levels is no claim)")
+    else:
+        verdict = f"**differs**: an error above {noise:.2g} rad"
+    lines.append(f"| Nominal model: both controllers track alike (Fig. 5c) | equivalent | max abs "
+                 f"error: FL {_fmt(nom[fl])} rad, H-inf+FL {_fmt(nom[hinf])} rad | {verdict} |")
+    ratio = s.get("error_ratio_uncertain", {}).get(hinf)
+    if ratio is None:
+        lines.append("| Uncertain plants | about 10x smaller error | no plant where both ran | "
+                     "**no figure** |")
+        return lines
+    lines.append(f"| Uncertain plants: RMS error FL alone / H-inf+FL (Fig. 6c) | about 10 | "
+                 f"{_fmt(ratio)} | {_error_ratio_verdict(ratio)} |")
+    per_joint = s["error_ratio_uncertain_per_joint"][hinf]
+    better = ("all joints better" if min(per_joint) > 1 else "**not on every joint**")
+    lines.append(f"| ... per joint ({', '.join(result.joint_names)}) | - | "
+                 f"{', '.join(_fmt(x) for x in per_joint)} | {better} |")
+    torque = s["torque_ratio_uncertain"][hinf]
+    lines.append(f"| Uncertain plants: RMS torque H-inf+FL / FL alone (Fig. 6a-b) | about 1, "
+                 f"slightly smaller | {_fmt(torque, 5)} | {_torque_verdict(torque)} |")
+    return lines
+
+
 def results_markdown(result: StudyResult, data: dict | None = None) -> str:
-    """Markdown table of a study's figures beside the paper's claims."""
+    """Markdown report of a study: every controller against the baseline, per-joint figures,
+    and, where the paper's two controllers are present, the paper's claims."""
     data = result.to_json() if data is None else data
     s = data["summary"]
     cfg = result.config
-    ref = result.reference
-    mode = (f"sampled controllers at {cfg.rate:g} Hz (zero-order hold, Tustin K)" if cfg.rate
+    run = cfg.run
+    names, base = result.names, cfg.baseline
+    mode = (f"sampled controllers at {run.rate:g} Hz (zero-order hold)" if run.rate
             else "continuous-time control laws (as the paper's Simulink study)")
+    start = ("starting on the reference" if run.q0 is None and run.qd0 is None
+             else f"starting at q0 = {run.q0}, qd0 = {run.qd0}")
     lines = [
-        f"# Reproduction of the paper's section 5 on `{result.robot}`",
+        f"# Closed-loop study on `{result.robot}`",
         "",
-        f"Reference: r(t) = home + amp sin(2 pi f t + phase), home = {_list(ref.home)} rad, "
-        f"amp = {_list(ref.amp)} rad, f = {_list(ref.freq)} Hz, phase = {_list(ref.phase)} rad, "
-        f"{cfg.duration:g} s, starting on the reference. Integration: RK4, step "
-        f"{cfg.dt:g} s; {mode}. FL alone: lam = {cfg.lam_fl:g} rad/s; H-infinity + FL: "
-        f"lam = {cfg.lam_hinf:g} rad/s with the loop-shaping K. Uncertain plants: "
-        f"{len(result.samples)} (seed {cfg.seed}), {cfg.tolerances.inertia:.0%} on masses and "
-        f"moments, {cfg.tolerances.length:.0%} on lengths; {s['samples_ok']} ran, "
-        f"{s['samples_diverged']} diverged.",
+        f"Reference: {_describe_reference(result.reference.to_dict())}, {run.duration:g} s, "
+        f"{start}. Integration: RK4, step {run.dt:g} s; {mode}; engine {run.engine}. "
+        f"Uncertain plants: {len(result.samples)} (seed {cfg.seed}), "
+        f"{cfg.tolerances.inertia:.0%} on masses and moments, {cfg.tolerances.length:.0%} on "
+        f"lengths; every controller ran on {s['samples_ok']}.",
         "",
-        "| Claim (paper, section 5) | Paper | Measured | Verdict |",
-        "|---|---|---|---|",
+        "Controllers: " + "; ".join(f"`{d['name']}` = {d['label']}" for d in result.laws)
+        + f". Baseline: `{base}`.",
+        "",
+        f"## Every controller against the baseline ({result.label(base)})",
+        "",
+        "| Controller | nominal max error [rad] | uncertain: RMS error baseline / controller | "
+        "per joint | uncertain: RMS torque controller / baseline | diverged plants |",
+        "|---|---|---|---|---|---|",
     ]
-    nom = s["nominal_max_error"]
-    noise = NOMINAL_NOISE * float(np.max(ref.amp))
-    equivalent = max(nom.values()) < noise
-    lines.append(
-        f"| Nominal model: both controllers track alike (Fig. 5c) | equivalent | max abs error: "
-        f"FL {_fmt(nom['fl'])} rad, H-inf+FL {_fmt(nom['hinf'])} rad | "
-        + (f"agrees: both below {noise:.2g} rad, at the {'sampling' if cfg.rate else 'integrator'}"
-           "'s noise level (a ratio of two noise levels is no claim)" if equivalent
-           else f"**differs**: an error above {noise:.2g} rad")
-        + " |")
-    if "error_ratio_uncertain" in s:
-        lines.append(
-            f"| Uncertain plants: RMS error FL alone / H-inf+FL (Fig. 6c) | about 10 | "
-            f"{_fmt(s['error_ratio_uncertain'])} | "
-            f"{_error_ratio_verdict(s['error_ratio_uncertain'])} |")
-        per_joint = ", ".join(_fmt(x) for x in s["error_ratio_uncertain_per_joint"])
-        better = ("all joints better" if min(s["error_ratio_uncertain_per_joint"]) > 1
-                  else "**not on every joint**")
-        lines.append(f"| ... per joint ({', '.join(result.joint_names)}) | - | {per_joint} | "
-                     f"{better} |")
-        lines.append(
-            f"| Uncertain plants: RMS torque H-inf+FL / FL alone (Fig. 6a-b) | about 1, slightly "
-            f"smaller | {_fmt(s['torque_ratio_uncertain'], 5)} | "
-            f"{_torque_verdict(s['torque_ratio_uncertain'])} |")
-    else:
-        lines.append("| Uncertain plants | about 10x smaller error | every plant diverged | "
-                     "**no figure** |")
+    ratios = s.get("error_ratio_uncertain", {})
+    for k in names:
+        if k == base:
+            cells = ["(baseline)", "-", "(baseline)"]
+        elif k in ratios:
+            cells = [_fmt(ratios[k]),
+                     ", ".join(_fmt(x) for x in s["error_ratio_uncertain_per_joint"][k]),
+                     _fmt(s["torque_ratio_uncertain"][k], 5)]
+        else:
+            cells = ["no plant where both ran", "-", "-"]
+        lines.append(f"| {result.label(k)} (`{k}`) | {_fmt(s['nominal_max_error'][k])} | "
+                     + " | ".join(cells) + f" | {s['diverged'][k]} |")
+    if all(k in names for k in PAPER_LAWS) and base == PAPER_LAWS[0]:
+        lines += [""] + _paper_rows(result, s)
     lines += ["", f"## Per-joint figures (each cell: {', '.join(result.joint_names)})", "",
               "| Plant | Controller | RMS error [rad] | max error [rad] | RMS torque [N m] | "
               "peak torque [N m] |",
               "|---|---|---|---|---|---|"]
     for group, label in (("nominal", "nominal"), ("uncertain", "uncertain (mean)")):
-        for key in CONTROLLERS:
+        for key in names:
             row = data[group].get(key)
             if not row:
                 continue
             cells = [" ".join(_fmt(v) for v in row[m])
                      for m in ("rms_error", "max_error", "rms_torque", "peak_torque")]
-            lines.append(f"| {label} | {CONTROLLERS[key]} | " + " | ".join(cells) + " |")
+            lines.append(f"| {label} | {result.label(key)} | " + " | ".join(cells) + " |")
     lines += ["", f"Verdict rules: nominal errors below {NOMINAL_NOISE:g} of the reference "
-              "amplitude count as equivalent; an error "
-              "ratio within a factor of 2 of the paper's 10 agrees; a torque ratio within 10 % of "
-              "1 is 'about the same'.", ""]
+              "amplitude count as equivalent; an error ratio within a factor of 2 of the "
+              "paper's 10 agrees; a torque ratio within 10 % of 1 is 'about the same'.", ""]
     return "\n".join(lines)
+
+
+def _describe_reference(d: dict) -> str:
+    kind = d.get("kind")
+    if kind == "sine":
+        return (f"r(t) = home + amp sin(2 pi f t + phase), home = {_list(d['home_rad'])} rad, "
+                f"amp = {_list(d['amp_rad'])} rad, f = {_list(d['freq_hz'])} Hz, phase = "
+                f"{_list(d['phase_rad'])} rad")
+    if kind == "quintic":
+        return (f"quintic rest-to-rest from {_list(d['start_rad'])} to {_list(d['goal_rad'])} "
+                f"rad in {d['move_time_s']:g} s")
+    if kind == "spline":
+        return (f"C2 spline through {len(d['times_s'])} waypoints"
+                + (f" ({d['source']})" if d.get("source") else ""))
+    return f"{kind} reference"
 
 
 def _list(v) -> str:

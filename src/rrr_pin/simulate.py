@@ -1,17 +1,30 @@
-"""Closed-loop simulation of the nonlinear arm: reference, integrator, metrics.
+"""Closed-loop simulation of the nonlinear arm: one entry point, two engines.
 
-The plant is the full rigid-body model of a URDF (Pinocchio's ABA); the controller sees only its
-nominal model (:mod:`rrr_pin.controllers`). This Python loop is the readable reference; every
-faster path must reproduce it.
+The plant is the full rigid-body model of a URDF (Pinocchio's ABA); the law sees only its own
+model (:mod:`rrr_pin.controllers`). :func:`simulate` validates its inputs once, samples the
+reference on the grid where the law is evaluated, and hands the run to an engine:
+
+* ``"python"``: :func:`_run_python`, the readable reference, runs any law;
+* ``"compiled"``: the C++ loop of :mod:`rrr_pin.compiled`, which runs a law only if the law
+  declares a :class:`~rrr_pin.controllers.CompiledForm`; the two agree to round-off
+  (``tests/test_engines.py`` pins every built-in law and reference on both);
+* ``"auto"`` (default): compiled when the extension is built and the law has a compiled form,
+  Python otherwise. The engine used is recorded in ``Trajectory.info["engine"]``; no law is ever
+  replaced by another.
 
 Integration method: classical fixed-step Runge-Kutta 4.
 
 * Continuous-time laws (``rate=None``, as in the paper's Simulink study): the state
-  ``(q, qd, x_K)`` of arm and controller is integrated together with step ``dt``; the law is
-  evaluated at every RK4 stage.
-* Sampled laws (``rate`` in Hz): at ``t_k = k Ts`` the controller reads ``(q_k, qd_k)``,
-  updates its discrete state and outputs ``tau_k``, held constant (zero-order hold) while the arm
-  is integrated over ``[t_k, t_k + Ts]`` by ``substeps`` RK4 steps of ``Ts / substeps``.
+  ``(q, qd, x)`` of arm and law is integrated together with step ``dt``; the law is evaluated at
+  every RK4 stage (times ``t_k``, ``t_k + dt/2``, ``t_k + dt``).
+* Sampled laws (``rate`` in Hz): at ``t_k = k Ts`` the law reads ``(q_k, qd_k)``, updates its
+  state and outputs ``tau_k``, held constant (zero-order hold) while the arm is integrated over
+  ``[t_k, t_k + Ts]`` by ``substeps`` RK4 steps of ``Ts / substeps``.
+
+Divergence (one definition for both engines, :func:`diverged_joint`): a run diverges when, at the
+end of a control period (sampled) or of an RK4 step (continuous), a joint's ``q`` or ``qd`` is
+NaN/inf, ``|qd|`` exceeds :data:`VELOCITY_LIMIT`, or ``q`` leaves the plant's joint limits
+widened by ``limit_margin``.
 
 Accuracy: RK4's global error is ``O(dt^4)``; ``tests/test_simulate.py`` halves the step and shows
 the tracking errors move by orders of magnitude less than the differences the study reports.
@@ -25,8 +38,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from .controllers import TrackingController
-from .dynamics import Robot
+from .controllers import ControlLaw, SampledLaw, check_law
+from .references import Reference, SineReference, check_reference
 
 __all__ = [
     "SineReference",
@@ -34,8 +47,10 @@ __all__ = [
     "SimulationDiverged",
     "simulate",
     "metrics",
+    "diverged_joint",
     "DEFAULT_DT",
     "VELOCITY_LIMIT",
+    "ENGINES",
 ]
 
 #: Default RK4 step of the continuous-time simulation [s].
@@ -43,6 +58,9 @@ DEFAULT_DT = 1e-3
 
 #: A joint speed above this [rad/s] is taken as a blow-up of the simulation.
 VELOCITY_LIMIT = 1e4
+
+#: Accepted values of ``simulate(engine=...)``.
+ENGINES = ("auto", "python", "compiled")
 
 
 class SimulationDiverged(RuntimeError):
@@ -53,82 +71,8 @@ class SimulationDiverged(RuntimeError):
         self.time = time
         self.joint = joint
 
-
-@dataclass(frozen=True)
-class SineReference:
-    """Sinusoidal joint reference ``r(t) = home + amp sin(2 pi freq t + phase)``.
-
-    Parameters
-    ----------
-    home : array-like, shape (n,)
-        Centre of the motion [rad].
-    amp : array-like, shape (n,) or float
-        Amplitude [rad], >= 0.
-    freq : array-like, shape (n,) or float
-        Frequency [Hz], >= 0.
-    phase : array-like, shape (n,) or float
-        Phase [rad].
-    """
-
-    home: np.ndarray
-    amp: np.ndarray
-    freq: np.ndarray
-    phase: np.ndarray
-
-    def __post_init__(self) -> None:
-        home = np.atleast_1d(np.asarray(self.home, dtype=float))
-        if home.ndim != 1:
-            raise ValueError(f"Expected home of shape (n,), got {home.shape}")
-        n = home.shape[0]
-        for name in ("home", "amp", "freq", "phase"):
-            v = np.asarray(getattr(self, name), dtype=float)
-            v = np.full(n, float(v)) if v.ndim == 0 else v
-            if v.shape != (n,):
-                raise ValueError(f"Expected {name} of shape ({n},), got {v.shape}")
-            if not np.all(np.isfinite(v)):
-                raise ValueError(f"{name} must be finite, got {v}")
-            if name in ("amp", "freq") and np.any(v < 0.0):
-                raise ValueError(f"{name} must be >= 0, got {v}")
-            v.setflags(write=False)
-            object.__setattr__(self, name, v)
-
-    @property
-    def n(self) -> int:
-        """Number of joints."""
-        return self.home.shape[0]
-
-    @property
-    def omega(self) -> np.ndarray:
-        """Angular frequencies ``2 pi freq`` [rad/s], shape (n,)."""
-        return 2.0 * math.pi * self.freq
-
-    def positions(self, t) -> np.ndarray:
-        """Evaluate ``r`` [rad] on a time grid ``t`` [s], shape (N,); returns shape (N, n)."""
-        return self.home + self.amp * np.sin(np.outer(t, self.omega) + self.phase)
-
-    def __call__(self, t: float):
-        """Evaluate ``(r, rd, rdd)`` at time ``t`` [s], each shape (n,) [rad, rad/s, rad/s^2]."""
-        w = self.omega
-        arg = w * t + self.phase
-        s, c = np.sin(arg), np.cos(arg)
-        return self.home + self.amp * s, self.amp * w * c, -self.amp * w * w * s
-
-    def check_limits(self, robot: Robot) -> None:
-        """Raise ``ValueError`` if ``home +- amp`` leaves the robot's joint limits."""
-        if robot.nq != self.n:
-            raise ValueError(f"reference has {self.n} joints, robot {robot.name!r} has "
-                             f"{robot.nq}")
-        lo, hi = self.home - self.amp, self.home + self.amp
-        for j, name in enumerate(robot.joint_names):
-            if lo[j] < robot.lower[j] or hi[j] > robot.upper[j]:
-                raise ValueError(
-                    f"reference for joint {name!r} spans [{lo[j]:.4g}, {hi[j]:.4g}] rad, "
-                    f"outside its limits [{robot.lower[j]:.4g}, {robot.upper[j]:.4g}]")
-
-    def to_dict(self) -> dict:
-        """JSON-ready parameters (units in the key names)."""
-        return {"home_rad": self.home.tolist(), "amp_rad": self.amp.tolist(),
-                "freq_hz": self.freq.tolist(), "phase_rad": self.phase.tolist()}
+    def __reduce__(self):
+        return (type(self), (str(self), self.time, self.joint))
 
 
 @dataclass
@@ -146,7 +90,9 @@ class Trajectory:
     tau : ndarray, shape (N, n)
         Applied torques [N m] (for sampled laws: the torque held from ``t[k]`` on).
     controller, plant : str
-        Labels.
+        The law's name and the plant's name.
+    info : dict
+        ``engine`` ("python" or "compiled"), integration settings.
     """
 
     t: np.ndarray
@@ -182,58 +128,111 @@ def metrics(traj: Trajectory) -> dict:
     }
 
 
-def _check_state(q, qd, t, plant: Robot, lower, upper) -> None:
+def diverged_joint(q, qd, lower, upper) -> tuple[int, str] | None:
+    """The divergence test of both engines: ``(joint index, reason)`` or None.
+
+    Parameters
+    ----------
+    q, qd : ndarray, shape (n,)
+        State [rad, rad/s].
+    lower, upper : ndarray, shape (n,)
+        Joint limits widened by the run's ``limit_margin`` [rad].
+    """
     bad = ~np.isfinite(q) | ~np.isfinite(qd)
-    reason = "became NaN or infinite"
-    if not bad.any():
-        bad = np.abs(qd) > VELOCITY_LIMIT
-        reason = f"exceeded {VELOCITY_LIMIT:g} rad/s (blow-up)"
-    if not bad.any():
-        bad = (q < lower) | (q > upper)
-        reason = "left its joint limits"
     if bad.any():
-        j = int(np.flatnonzero(bad)[0])
-        name = plant.joint_names[j]
-        raise SimulationDiverged(
-            f"simulation of plant {plant.name!r} diverged at t = {t:.6g} s: joint {name!r} "
-            f"{reason} (q = {q[j]:.6g} rad, qd = {qd[j]:.6g} rad/s)", time=t, joint=name)
+        return int(np.flatnonzero(bad)[0]), "became NaN or infinite"
+    bad = np.abs(qd) > VELOCITY_LIMIT
+    if bad.any():
+        return int(np.flatnonzero(bad)[0]), f"exceeded {VELOCITY_LIMIT:g} rad/s (blow-up)"
+    bad = (q < lower) | (q > upper)
+    if bad.any():
+        return int(np.flatnonzero(bad)[0]), "left its joint limits"
+    return None
 
 
-def simulate(plant: Robot, controller: TrackingController, reference: SineReference,
-             duration: float, *, dt: float = DEFAULT_DT, rate: float | None = None,
-             method: str = "tustin", limit_margin: float = 0.0,
-             engine: str = "python") -> Trajectory:
-    """Simulate the closed loop of ``plant`` and ``controller`` tracking ``reference``.
+def _diverged(plant, t, q, qd, j, reason) -> SimulationDiverged:
+    name = plant.joint_names[j]
+    return SimulationDiverged(
+        f"simulation of plant {plant.name!r} diverged at t = {t:.6g} s: joint {name!r} "
+        f"{reason} (q = {q[j]:.6g} rad, qd = {qd[j]:.6g} rad/s)", time=t, joint=name)
 
-    The run starts on the reference (``q(0) = r(0)``, ``qd(0) = rd(0)``, controller state 0),
-    so no artificial transient is excited.
+
+def _finite(name: str, value, positive: bool = True, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or (positive and (v < 0.0 or (v == 0.0 and not allow_zero))):
+        want = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be finite and {want}, got {value!r}")
+    return v
+
+
+def _state(name: str, value, default: np.ndarray) -> np.ndarray:
+    if value is None:
+        return default.copy()
+    v = np.asarray(value, dtype=float)
+    if v.shape != default.shape:
+        raise ValueError(f"Expected {name} of shape {default.shape}, got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must be finite, got {v.tolist()}")
+    return v.copy()
+
+
+@dataclass(frozen=True)
+class _Run:
+    """A validated run: everything an engine needs, nothing left to check."""
+
+    plant: object
+    law: object          # ControlLaw (continuous) or SampledLaw
+    sampled: bool
+    t: np.ndarray        # output grid, shape (N+1,)
+    R: np.ndarray        # reference on the law-evaluation grid
+    RD: np.ndarray
+    RDD: np.ndarray
+    q0: np.ndarray
+    qd0: np.ndarray
+    x0: np.ndarray
+    h: float             # RK4 step [s]
+    substeps: int        # RK4 steps per control period (1 for continuous laws)
+    lower: np.ndarray
+    upper: np.ndarray
+    info: dict
+
+
+def simulate(plant, law, reference: Reference, duration: float, *, dt: float = DEFAULT_DT,
+             rate: float | None = None, method: str = "tustin", q0=None, qd0=None,
+             limit_margin: float = 0.0, engine: str = "auto") -> Trajectory:
+    """Simulate the closed loop of ``plant`` and ``law`` tracking ``reference``.
 
     Parameters
     ----------
     plant : Robot
-        The true arm (may differ from ``controller.nominal``).
-    controller : TrackingController
-        The law (FL alone or H-infinity + FL).
-    reference : SineReference
-        Joint reference, shape (n,) per parameter.
+        The true arm (may differ from the law's model).
+    law : ControlLaw or SampledLaw
+        Any law (:mod:`rrr_pin.controllers`): a built-in or your own.
+    reference : Reference
+        Joint reference with ``plant.nq`` joints (:mod:`rrr_pin.references`).
     duration : float
-        Simulated time [s].
+        Simulated time [s]; at least one step (``dt``, or ``1/rate`` for sampled laws).
     dt : float, default 1e-3
         RK4 step [s] for continuous-time laws; for sampled laws, the largest plant sub-step
         (``substeps = ceil(Ts / dt)``).
     rate : float, optional
-        Sampling rate of a digital controller [Hz] (zero-order hold on the torque, ``K``
-        discretized with ``method``); ``None`` (default) for the continuous-time laws.
+        Run a continuous law as a digital controller at this rate [Hz] (zero-order hold, the
+        law's :meth:`~rrr_pin.controllers.ControlLaw.sampled` form with ``method``). A
+        :class:`~rrr_pin.controllers.SampledLaw` runs at its own rate (``rate`` must then be
+        None or equal to it).
     method : str, default "tustin"
-        Discretization of ``K`` for sampled laws (see
-        :meth:`TrackingController.discretize`).
+        Discretization of a continuous law's state for sampled runs.
+    q0, qd0 : array-like, shape (n,), optional
+        Initial joint positions [rad] and velocities [rad/s]; default: on the reference,
+        ``r(0)`` and ``rd(0)``. The law's state starts at ``law.initial_state()``.
     limit_margin : float, default 0
-        Slack beyond the plant's joint limits before the run counts as diverged [rad].
-    engine : {"python", "compiled", "auto"}, default "python"
-        Rollout path for sampled laws: this module's Python loop (the reference), the
-        compiled C++ loop of :mod:`rrr_pin.compiled` (same algorithm, equal to 1e-9 rad), or
-        "auto" (compiled when ``rate`` is given and the extension is built). Continuous-time
-        laws always run in Python.
+        Slack beyond the plant's joint limits before the run counts as diverged [rad], >= 0.
+    engine : {"auto", "python", "compiled"}, default "auto"
+        See the module docstring. ``"compiled"`` with a law that declares no compiled form
+        raises ``ValueError`` naming the law.
 
     Returns
     -------
@@ -243,146 +242,153 @@ def simulate(plant: Robot, controller: TrackingController, reference: SineRefere
     Raises
     ------
     SimulationDiverged
-        NaN/inf state, joint speed above :data:`VELOCITY_LIMIT`, or a joint past its limits.
+        See :func:`diverged_joint`.
     ValueError
-        Inconsistent sizes, non-positive ``duration``/``dt``/``rate``, or a step too large for
-        the controller's fastest pole (RK4 would be unstable).
+        Inconsistent sizes, non-finite or non-positive settings, a duration shorter than one
+        step, a reference or initial state outside the joint limits, an engine that cannot run
+        the law.
+    TypeError
+        ``law`` or ``reference`` of the wrong type.
     """
+    run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
+                   qd0=qd0, limit_margin=limit_margin)
+    form, engine = _choose_engine(run.law, engine)
+    if engine == "compiled":
+        from .compiled import run_compiled
+
+        traj = run_compiled(run, form)
+    else:
+        traj = _run_python(run)
+    traj.info["engine"] = engine
+    return traj
+
+
+def _choose_engine(law, engine: str):
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if engine == "python":
+        return None, "python"
+    form = law.compiled_form()
+    if engine == "compiled":
+        if form is None:
+            raise ValueError(
+                f"law {law.name!r} ({type(law).__name__}) declares no compiled form, so the "
+                f"compiled engine cannot run it; use engine='python' (or 'auto', which picks "
+                f"Python for it)")
+        from .compiled import require
+
+        require()
+        return form, "compiled"
+    from .compiled import available
+
+    return (form, "compiled") if form is not None and available() else (None, "python")
+
+
+def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
+             limit_margin) -> _Run:
+    """Validate every input once and sample the reference (the edge of the simulator)."""
     n = plant.nq
-    if controller.n != n or reference.n != n:
-        raise ValueError(f"sizes differ: plant has {n} joints, controller {controller.n}, "
-                         f"reference {reference.n}")
-    duration, dt = float(duration), float(dt)
-    if not (math.isfinite(duration) and duration > 0.0):
-        raise ValueError(f"duration must be > 0 s, got {duration!r}")
-    if not (math.isfinite(dt) and dt > 0.0):
-        raise ValueError(f"dt must be > 0 s, got {dt!r}")
+    check_law(law, n)
+    check_reference(reference, plant)
+    duration = _finite("duration", duration)
+    dt = _finite("dt", dt)
+    limit_margin = _finite("limit_margin", limit_margin, allow_zero=True)
+    if isinstance(law, SampledLaw):
+        if rate is not None and not math.isclose(_finite("rate", rate), law.rate):
+            raise ValueError(f"law {law.name!r} is sampled at {law.rate:g} Hz, rate = "
+                             f"{rate!r} asks for another rate")
+        rate = law.rate
+    elif rate is not None:
+        law = law.sampled(_finite("rate", rate), method)
+    elif not isinstance(law, ControlLaw):
+        raise TypeError(f"law must be a ControlLaw or SampledLaw, got {type(law).__name__}")
     lower = plant.lower - limit_margin
     upper = plant.upper + limit_margin
-    if rate is None:
-        return _simulate_continuous(plant, controller, reference, duration, dt, lower, upper)
-    rate = float(rate)
-    if not (math.isfinite(rate) and rate > 0.0):
-        raise ValueError(f"rate must be > 0 Hz, got {rate!r}")
-    Ts = 1.0 / rate
-    substeps = max(1, math.ceil(Ts / dt - 1e-9))
-    n_steps = int(round(duration * rate))
-    Ad, Bd, Cd, Dd = controller.discretize(rate, method)
-    if engine not in ("python", "compiled", "auto"):
-        raise ValueError(f"engine must be 'python', 'compiled' or 'auto', got {engine!r}")
-    if engine == "auto":
-        from .compiled import available
-
-        engine = "compiled" if available() else "python"
-    if engine == "compiled":
-        return _simulate_compiled(plant, controller, reference, n_steps, Ts, substeps,
-                                  (Ad, Bd, Cd, Dd), lower, upper)
-    return _simulate_sampled(plant, controller, reference, n_steps, Ts, substeps,
-                             (Ad, Bd, Cd, Dd), lower, upper)
-
-
-def _first_violation(Q, QD, t, plant, lower, upper) -> None:
-    """Raise like the Python loop at the first sample whose state is out of bounds."""
-    bad = (~np.isfinite(Q) | ~np.isfinite(QD) | (np.abs(QD) > VELOCITY_LIMIT) | (Q < lower) |
-           (Q > upper))
-    rows = np.flatnonzero(bad.any(axis=1))
-    if rows.size:
-        k = int(rows[0])
-        _check_state(Q[k], QD[k], float(t[k]), plant, lower, upper)
-
-
-def _simulate_compiled(plant, controller, reference, n_steps, Ts, substeps, mats, lower, upper):
-    from .compiled import rollout_compiled
-
-    out = rollout_compiled(plant, controller.nominal, controller.lam, mats, reference.home,
-                           reference.amp, reference.omega, reference.phase, Ts, substeps,
-                           n_steps, raise_on_divergence=False)
-    t_all, Q, QD = out["t"], out["q"], out["qd"]
-    _first_violation(Q, QD, t_all, plant, lower, upper)
-    TAU = np.zeros_like(Q)
-    TAU[:-1] = out["tau"]
-    return _sampled_trajectory(t_all, Q, QD, TAU, reference, controller, plant, Ts, substeps,
-                               "RK4 plant, zero-order-hold sampled law (compiled)")
+    if rate is not None:
+        rate = _finite("rate", rate)
+        Ts = 1.0 / rate
+        n_steps = int(round(duration * rate))
+        if n_steps < 1:
+            raise ValueError(f"duration = {duration:g} s is shorter than one control period "
+                             f"(1/rate = {Ts:g} s): nothing to simulate")
+        substeps = max(1, math.ceil(Ts / dt - 1e-9))
+        h = Ts / substeps
+        t = Ts * np.arange(n_steps + 1)
+        grid = t
+        info = {"method": "RK4 plant, zero-order-hold sampled law", "rate_hz": rate,
+                "substeps": substeps, "dt": h}
+    else:
+        n_steps = int(round(duration / dt))
+        if n_steps < 1:
+            raise ValueError(f"duration = {duration:g} s is shorter than one RK4 step "
+                             f"(dt = {dt:g} s): nothing to simulate")
+        _check_rk4_step(law, dt)
+        substeps, h = 1, dt
+        t = dt * np.arange(n_steps + 1)
+        grid = 0.5 * dt * np.arange(2 * n_steps + 1)
+        info = {"method": "RK4 (continuous-time law)", "dt": dt}
+    reference.check_limits(plant, duration=float(t[-1]))
+    R, RD, RDD = (np.ascontiguousarray(a, dtype=float) for a in reference.sample(grid))
+    q0 = _state("q0", q0, R[0])
+    qd0 = _state("qd0", qd0, RD[0])
+    bad = diverged_joint(q0, qd0, lower, upper)
+    if bad is not None:
+        j = bad[0]
+        raise ValueError(f"initial state of joint {plant.joint_names[j]!r} is invalid: "
+                         f"{bad[1]} (q0 = {q0[j]:.6g} rad, limits [{plant.lower[j]:.4g}, "
+                         f"{plant.upper[j]:.4g}], qd0 = {qd0[j]:.6g} rad/s)")
+    x0 = np.asarray(law.initial_state(), dtype=float)
+    if x0.shape != (law.nx,):
+        raise ValueError(f"law {law.name!r}: initial_state() has shape {x0.shape}, nx = "
+                         f"{law.nx}")
+    return _Run(plant, law, rate is not None, t, R, RD, RDD, q0, qd0, x0, h, substeps,
+                lower, upper, info)
 
 
-def _sampled_trajectory(t_all, Q, QD, TAU, reference, controller, plant, Ts, substeps, method):
-    # The torque held on the last interval is also the one "at" the final sample.
-    if len(t_all) > 1:
-        TAU[-1] = TAU[-2]
-    R = reference.positions(t_all)
-    return Trajectory(t=t_all, q=Q, qd=QD, r=R, tau=TAU, controller=controller.name,
-                      plant=plant.name,
-                      info={"method": method, "rate_hz": 1.0 / Ts, "substeps": substeps})
-
-
-def _simulate_continuous(plant, controller, reference, duration, dt, lower, upper):
-    A, B, C, D = controller.continuous_matrices()
-    nx = A.shape[0]
-    if nx:
+def _check_rk4_step(law, dt: float) -> None:
+    """Refuse a step RK4 cannot integrate for a linear law's fastest pole."""
+    mats = getattr(law, "continuous_matrices", None)
+    if mats is None:
+        return
+    A = mats()[0]
+    if A.shape[0]:
         fastest = float(np.max(np.abs(np.linalg.eigvals(A))))
         # RK4's stability interval on the negative real axis ends at -2.785.
         if fastest * dt > 2.5:
             raise ValueError(
                 f"dt = {dt:g} s is too large for the controller's fastest pole "
                 f"({fastest:.4g} rad/s): RK4 needs dt < {2.5 / fastest:.3g} s")
+
+
+def _trajectory(run: _Run, Q, QD, TAU) -> Trajectory:
+    R = run.R if run.sampled else run.R[::2]
+    return Trajectory(t=run.t, q=Q, qd=QD, r=R, tau=TAU, controller=run.law.name,
+                      plant=run.plant.name, info=dict(run.info))
+
+
+def _run_python(run: _Run) -> Trajectory:
+    return (_python_sampled if run.sampled else _python_continuous)(run)
+
+
+def _python_sampled(run: _Run) -> Trajectory:
+    plant, law = run.plant, run.law
     model, data = plant.model, plant.data
-    aba, law = pin.aba, controller.torque
-    n_steps = int(round(duration / dt))
-
-    def rhs(t, q, qd, x):
-        r, rd, rdd = reference(t)
-        e = r - q
-        y = C @ x + D @ e
-        tau = law(q, qd, r, rd, rdd, y)
-        return qd, aba(model, data, q, qd, tau), A @ x + B @ e, tau
-
-    t_all = dt * np.arange(n_steps + 1)
-    Q = np.empty((n_steps + 1, plant.nq))
+    aba, step, check = pin.aba, law.step, diverged_joint
+    lower, upper = run.lower, run.upper
+    h = run.h
+    h2, h6 = 0.5 * h, h / 6.0
+    t = run.t
+    R, RD, RDD = run.R, run.RD, run.RDD
+    N = len(t) - 1
+    Q = np.empty((N + 1, plant.nq))
     QD = np.empty_like(Q)
     TAU = np.empty_like(Q)
-    r0, rd0, _ = reference(0.0)
-    q, qd, x = r0.copy(), rd0.copy(), np.zeros(nx)
-    for k in range(n_steps + 1):
-        t = t_all[k]
-        k1q, k1v, k1x, tau = rhs(t, q, qd, x)
-        Q[k], QD[k], TAU[k] = q, qd, tau
-        if k == n_steps:
-            break
-        h2 = 0.5 * dt
-        k2q, k2v, k2x, _ = rhs(t + h2, q + h2 * k1q, qd + h2 * k1v, x + h2 * k1x)
-        k3q, k3v, k3x, _ = rhs(t + h2, q + h2 * k2q, qd + h2 * k2v, x + h2 * k2x)
-        k4q, k4v, k4x, _ = rhs(t + dt, q + dt * k3q, qd + dt * k3v, x + dt * k3x)
-        h6 = dt / 6.0
-        q = q + h6 * (k1q + 2.0 * (k2q + k3q) + k4q)
-        qd = qd + h6 * (k1v + 2.0 * (k2v + k3v) + k4v)
-        x = x + h6 * (k1x + 2.0 * (k2x + k3x) + k4x)
-        _check_state(q, qd, t + dt, plant, lower, upper)
-    R = reference.positions(t_all)
-    return Trajectory(t=t_all, q=Q, qd=QD, r=R, tau=TAU, controller=controller.name,
-                      plant=plant.name, info={"method": "RK4 (continuous-time law)", "dt": dt})
-
-
-def _simulate_sampled(plant, controller, reference, n_steps, Ts, substeps, mats, lower, upper):
-    Ad, Bd, Cd, Dd = mats
-    model, data = plant.model, plant.data
-    aba, law = pin.aba, controller.torque
-    h = Ts / substeps
-    h2, h6 = 0.5 * h, h / 6.0
-    t_all = Ts * np.arange(n_steps + 1)
-    Q = np.empty((n_steps + 1, plant.nq))
-    QD = np.empty_like(Q)
-    TAU = np.zeros_like(Q)
-    r0, rd0, _ = reference(0.0)
-    q, qd, x = r0.copy(), rd0.copy(), np.zeros(Ad.shape[0])
+    q, qd, x = run.q0, run.qd0, run.x0
     Q[0], QD[0] = q, qd
-    for k in range(n_steps):
-        r, rd, rdd = reference(t_all[k])
-        e = r - q
-        y = Cd @ x + Dd @ e
-        x = Ad @ x + Bd @ e
-        tau = law(q, qd, r, rd, rdd, y)
+    for k in range(N):
+        tau, x = step(t[k], q, qd, R[k], RD[k], RDD[k], x)
         TAU[k] = tau
-        for _ in range(substeps):
+        for _ in range(run.substeps):
             a1 = aba(model, data, q, qd, tau)
             v2 = qd + h2 * a1
             a2 = aba(model, data, q + h2 * qd, v2, tau)
@@ -392,7 +398,54 @@ def _simulate_sampled(plant, controller, reference, n_steps, Ts, substeps, mats,
             a4 = aba(model, data, q + h * v3, v4, tau)
             q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
             qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
-        _check_state(q, qd, t_all[k + 1], plant, lower, upper)
         Q[k + 1], QD[k + 1] = q, qd
-    return _sampled_trajectory(t_all, Q, QD, TAU, reference, controller, plant, Ts, substeps,
-                               "RK4 plant, zero-order-hold sampled law")
+        bad = check(q, qd, lower, upper)
+        if bad is not None:
+            raise _diverged(plant, float(t[k + 1]), q, qd, *bad)
+    # The torque held on the last interval is also the one "at" the final sample.
+    TAU[N] = TAU[N - 1]
+    return _trajectory(run, Q, QD, TAU)
+
+
+def _python_continuous(run: _Run) -> Trajectory:
+    plant, law = run.plant, run.law
+    model, data = plant.model, plant.data
+    aba, torque, deriv, check = pin.aba, law.torque, law.derivative, diverged_joint
+    lower, upper = run.lower, run.upper
+    dt = run.h
+    h2, h6 = 0.5 * dt, dt / 6.0
+    t = run.t
+    R, RD, RDD = run.R, run.RD, run.RDD
+    N = len(t) - 1
+    Q = np.empty((N + 1, plant.nq))
+    QD = np.empty_like(Q)
+    TAU = np.empty_like(Q)
+    stateful = law.nx > 0
+
+    def rhs(i, tk, q, qd, x):
+        r, rd, rdd = R[i], RD[i], RDD[i]
+        tau = torque(tk, q, qd, r, rd, rdd, x)
+        xd = deriv(tk, q, qd, r, rd, rdd, x) if stateful else x
+        return aba(model, data, q, qd, tau), xd, tau
+
+    q, qd, x = run.q0, run.qd0, run.x0
+    for k in range(N + 1):
+        tk = t[k]
+        a1, x1, tau = rhs(2 * k, tk, q, qd, x)
+        Q[k], QD[k], TAU[k] = q, qd, tau
+        if k == N:
+            break
+        v2 = qd + h2 * a1
+        a2, x2, _ = rhs(2 * k + 1, tk + h2, q + h2 * qd, v2, x + h2 * x1)
+        v3 = qd + h2 * a2
+        a3, x3, _ = rhs(2 * k + 1, tk + h2, q + h2 * v2, v3, x + h2 * x2)
+        v4 = qd + dt * a3
+        a4, x4, _ = rhs(2 * k + 2, tk + dt, q + dt * v3, v4, x + dt * x3)
+        q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
+        qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
+        if stateful:
+            x = x + h6 * (x1 + 2.0 * (x2 + x3) + x4)
+        bad = check(q, qd, lower, upper)
+        if bad is not None:
+            raise _diverged(plant, float(t[k + 1]), q, qd, *bad)
+    return _trajectory(run, Q, QD, TAU)

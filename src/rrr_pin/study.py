@@ -1,10 +1,10 @@
-"""The paper's section-5 study: both controllers on the nominal and on uncertain plants.
+"""The paper's section-5 study, for any set of control laws: nominal and uncertain plants.
 
 One code path for any fixed-base arm: the nominal robot (the paper's RRR, an example-robot-data
 arm or a URDF), its uncertain plants (:mod:`rrr_pin.uncertainty`, written out as URDF and loaded
-back), the two tracking laws (:mod:`rrr_pin.controllers`) and the simulation
-(:mod:`rrr_pin.simulate`). Plants run in parallel processes; results do not depend on the
-number of processes.
+back), the laws (built-in or your own, :mod:`rrr_pin.controllers`) and the runner
+(:mod:`rrr_pin.runner`). Plants run in parallel processes; results do not depend on the number
+of processes. Laws are compared with a named baseline (``"fl"`` by default, the paper's).
 """
 
 from __future__ import annotations
@@ -16,29 +16,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .controllers import fl_controller, hinf_fl_controller
 from .dh import paper_params
-from .dynamics import Robot, robot_from_xml
-from .simulate import DEFAULT_DT, SimulationDiverged, SineReference, metrics, simulate
+from .dynamics import robot_from_xml
+from .references import Reference, SineReference
+from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
+from .simulate import SimulationDiverged, metrics
 from .uncertainty import PlantSample, Tolerances, sample_plants
 
 __all__ = [
-    "controller_spec",
-    "simulate_both",
-    "worker_controllers",
     "StudyConfig",
     "StudyResult",
     "default_reference",
     "run_study",
     "summarize",
-    "CONTROLLERS",
 ]
 
-#: Result keys of the two controllers, and their labels in figures and tables.
-CONTROLLERS = {"fl": "FL alone", "hinf": "H-infinity + FL"}
 
-
-def default_reference(robot: Robot, amp: float = 0.5, freq: float = 0.5,
+def default_reference(robot, amp: float = 0.5, freq: float = 0.5,
                       home=None) -> SineReference:
     """Build a sinusoid per joint about a home configuration, inside the joint limits.
 
@@ -47,10 +41,10 @@ def default_reference(robot: Robot, amp: float = 0.5, freq: float = 0.5,
     robot : Robot
         The arm (for its neutral configuration and limits).
     amp : float, default 0.5
-        Amplitude [rad]. Where a joint's range is narrower than ``2.2 amp`` it is reduced to
-        45 % of that range.
+        Amplitude [rad], finite and >= 0. Where a joint's range is narrower than ``2.2 amp``
+        it is reduced to 45 % of that range.
     freq : float, default 0.5
-        Frequency [Hz].
+        Frequency [Hz], finite and >= 0.
     home : array-like, shape (n,), optional
         Centre of the motion [rad]; default the URDF's neutral configuration, moved inside the
         limits where it is closer to them than ``1.1 amp``.
@@ -60,6 +54,9 @@ def default_reference(robot: Robot, amp: float = 0.5, freq: float = 0.5,
     SineReference
         Phases ``2 pi j / n`` for joint ``j``, so the joints do not move in lockstep.
     """
+    for key, v in (("amp", amp), ("freq", freq)):
+        if not (math.isfinite(float(v)) and float(v) >= 0.0):
+            raise ValueError(f"{key} must be finite and >= 0, got {v!r}")
     n = robot.nq
     lower, upper = robot.lower, robot.upper
     width = upper - lower
@@ -68,6 +65,9 @@ def default_reference(robot: Robot, amp: float = 0.5, freq: float = 0.5,
         # 10 % of the amplitude to spare, so tracking errors cannot touch the limits.
         home = np.clip(robot.neutral(), lower + 1.1 * a, upper - 1.1 * a)
     home = np.asarray(home, dtype=float)
+    if home.shape != (n,):
+        raise ValueError(f"home must have one value per joint ({n} for {robot.name!r}), got "
+                         f"{home.size}")
     ref = SineReference(home=home, amp=a, freq=freq, phase=2.0 * math.pi * np.arange(n) / n)
     ref.check_limits(robot)
     return ref
@@ -75,50 +75,46 @@ def default_reference(robot: Robot, amp: float = 0.5, freq: float = 0.5,
 
 @dataclass(frozen=True)
 class StudyConfig:
-    """Settings of a study.
+    """Settings of a study (recorded whole in ``results.json``).
 
     Parameters
     ----------
-    duration : float, default 4
-        Simulated time of each run [s].
-    dt : float, default 1e-3
-        RK4 step [s] (plant sub-step for sampled laws).
-    rate : float, optional
-        Sampling rate of digital controllers [Hz]; ``None`` for continuous-time laws (default,
-        as in the paper's Simulink study).
-    lam_fl, lam_hinf : float, default 100, 45
-        FL bandwidths [rad/s] of the two controllers (paper sections 5 and 4.2).
+    run : RunSettings
+        Duration, step, rate, engine, initial state (default: 4 s, continuous-time laws as in
+        the paper's Simulink study).
     samples : int, default 10
-        Number of uncertain plants (the paper's count).
+        Number of uncertain plants (the paper's count), >= 0.
     seed : int, default 0
-        Seed of the uncertain plants.
+        Seed of the uncertain plants, >= 0.
     tolerances : Tolerances
         20 % inertia, 5 % lengths by default.
+    baseline : str, default "fl"
+        Name of the law the others are compared with.
     jobs : int, optional
-        Worker processes; default ``min(2, cpu count)``.
-    engine : {"auto", "python", "compiled"}, default "auto"
-        Rollout path of sampled laws (:func:`rrr_pin.simulate.simulate`); continuous-time
-        laws always run in Python.
+        Worker processes, >= 1; default ``min(2, cpu count)``.
     """
 
-    duration: float = 4.0
-    dt: float = DEFAULT_DT
-    rate: float | None = None
-    lam_fl: float = 100.0
-    lam_hinf: float = 45.0
+    run: RunSettings = field(default_factory=RunSettings)
     samples: int = 10
     seed: int = 0
     tolerances: Tolerances = field(default_factory=Tolerances)
+    baseline: str = "fl"
     jobs: int | None = None
-    engine: str = "auto"
+
+    def __post_init__(self) -> None:
+        for key in ("samples", "seed"):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+                raise ValueError(f"{key} must be an integer >= 0, got {v!r}")
+        if self.jobs is not None and (isinstance(self.jobs, bool) or not isinstance(
+                self.jobs, (int, np.integer)) or self.jobs < 1):
+            raise ValueError(f"jobs must be an integer >= 1, got {self.jobs!r}")
 
     def to_dict(self) -> dict:
         """JSON-ready settings (units in the key names)."""
-        return {"duration_s": self.duration, "dt_s": self.dt, "rate_hz": self.rate,
-                "lam_fl_rad_s": self.lam_fl, "lam_hinf_rad_s": self.lam_hinf,
-                "samples": self.samples, "seed": self.seed,
+        return {**self.run.to_dict(), "samples": self.samples, "seed": self.seed,
                 "tolerance_inertia": self.tolerances.inertia,
-                "tolerance_length": self.tolerances.length}
+                "tolerance_length": self.tolerances.length, "baseline": self.baseline}
 
 
 @dataclass
@@ -130,37 +126,52 @@ class StudyResult:
     robot : str
         Name of the nominal arm.
     joint_names : list of str
-    reference : SineReference
+    reference : Reference
     config : StudyConfig
+    laws : list of dict
+        Each law's :meth:`describe`, in the order given (``laws[i]["name"]`` is its key).
     nominal : dict
-        ``{"fl": Trajectory, "hinf": Trajectory}`` on the nominal plant.
+        ``{name: Trajectory}`` on the nominal plant.
     samples : list of dict
-        Per uncertain plant: ``index``, ``seed``, ``parameters``, ``status`` (``"ok"`` or the
-        divergence message), ``trajectories`` (as ``nominal``; absent if diverged) and
-        ``metrics`` (per controller).
+        Per uncertain plant: ``index``, ``seed``, ``parameters``, ``status`` (``"ok"`` when
+        every law ran, otherwise the divergence messages), ``trajectories`` and ``metrics``
+        (by law name, for the laws that ran).
     plants : list of PlantSample
     """
 
     robot: str
     joint_names: list
-    reference: SineReference
+    reference: Reference
     config: StudyConfig
+    laws: list
     nominal: dict
     samples: list
     plants: list
     design: dict = field(default_factory=dict)
 
+    @property
+    def names(self) -> list[str]:
+        """Law names, in order."""
+        return [d["name"] for d in self.laws]
+
+    def label(self, name: str) -> str:
+        """Display name of a law."""
+        return next(d["label"] for d in self.laws if d["name"] == name)
+
     def to_json(self) -> dict:
         """Return the ``results.json`` content (layout in the README)."""
-        ok = [s for s in self.samples if s["status"] == "ok"]
-        uncertain = {key: _mean_metrics([s["metrics"][key] for s in ok]) for key in CONTROLLERS}
+        uncertain = {}
+        for name in self.names:
+            rows = [s["metrics"][name] for s in self.samples if name in s.get("metrics", {})]
+            uncertain[name] = _mean_metrics(rows)
         return {
             "robot": self.robot,
             "joint_names": self.joint_names,
-            "reference": {**self.reference.to_dict(), "duration_s": self.config.duration},
+            "reference": {**self.reference.to_dict(), "duration_s": self.config.run.duration},
             "config": self.config.to_dict(),
+            "controllers": self.laws,
             "design": self.design,
-            "nominal": {key: metrics(self.nominal[key]) for key in CONTROLLERS},
+            "nominal": {name: metrics(self.nominal[name]) for name in self.names},
             "uncertain": {
                 **uncertain,
                 "samples": [{"index": s["index"], "seed": s["seed"], "status": s["status"],
@@ -178,133 +189,67 @@ def _mean_metrics(rows: list[dict]) -> dict:
 
 
 def summarize(result: StudyResult) -> dict:
-    """Headline figures of a study.
+    """Headline figures of a study, each law against the baseline.
 
     Returns
     -------
     dict
-        ``nominal_max_error`` [rad], per controller (both sit at the integrator's noise level on
-        the exact model: a ratio of the two is no claim); ``error_ratio_uncertain``, RMS error
-        over all joints, samples and time of FL alone divided by that of H-infinity + FL;
-        ``error_ratio_uncertain_per_joint`` the same per joint; ``torque_ratio_uncertain``,
-        RMS torque of H-infinity + FL over that of FL alone; ``samples_ok`` and
-        ``samples_diverged``.
+        ``baseline``; ``nominal_max_error`` [rad] per law; ``samples_ok`` (every law ran) and
+        ``samples_diverged``; ``diverged`` (per law, number of plants where it diverged); over
+        the samples where every law ran, per law other than the baseline:
+        ``error_ratio_uncertain`` (RMS error over all joints, samples and time of the baseline
+        divided by the law's: above 1, the law tracks better), ``error_ratio_uncertain_per_joint``
+        and ``torque_ratio_uncertain`` (RMS torque of the law over the baseline's).
     """
+    names, base = result.names, result.config.baseline
     ok = [s for s in result.samples if s["status"] == "ok"]
     out = {
-        "nominal_max_error": {k: float(np.max(np.abs(result.nominal[k].error)))
-                              for k in CONTROLLERS},
+        "baseline": base,
+        "nominal_max_error": {k: float(np.max(np.abs(result.nominal[k].error))) for k in names},
         "samples_ok": len(ok),
         "samples_diverged": len(result.samples) - len(ok),
+        "diverged": {k: sum(1 for s in result.samples if k not in s.get("metrics", {}))
+                     for k in names},
     }
     if ok:
         def rms(key, what, axis=None):
             sq = np.array([np.asarray(s["metrics"][key][what]) ** 2 for s in ok])
             return np.sqrt(np.mean(sq, axis=axis))
 
-        out["error_ratio_uncertain"] = float(rms("fl", "rms_error") / rms("hinf", "rms_error"))
-        out["error_ratio_uncertain_per_joint"] = (
-            rms("fl", "rms_error", axis=0) / rms("hinf", "rms_error", axis=0)).tolist()
-        out["torque_ratio_uncertain"] = float(rms("hinf", "rms_torque") /
-                                              rms("fl", "rms_torque"))
+        others = [k for k in names if k != base]
+        out["error_ratio_uncertain"] = {k: float(rms(base, "rms_error") / rms(k, "rms_error"))
+                                        for k in others}
+        out["error_ratio_uncertain_per_joint"] = {
+            k: (rms(base, "rms_error", axis=0) / rms(k, "rms_error", axis=0)).tolist()
+            for k in others}
+        out["torque_ratio_uncertain"] = {k: float(rms(k, "rms_torque") / rms(base, "rms_torque"))
+                                         for k in others}
     return out
 
 
-# --- workers ----------------------------------------------------------------------------------
-
-def controller_spec(nominal: Robot, K, lam_fl: float, lam_hinf: float) -> dict:
-    """Picklable description of both controllers, rebuilt once per worker process.
-
-    Parameters
-    ----------
-    nominal : Robot
-        The controllers' model.
-    K : control LTI
-        The H-infinity controller (SISO or ``n x n``).
-    lam_fl, lam_hinf : float
-        Bandwidths [rad/s] of FL alone and of H-infinity + FL.
-
-    Returns
-    -------
-    dict
-        URDF text, locked joints and gravity of ``nominal``; ``K`` as ``(A, B, C, D)``; the
-        bandwidths; and ``key``, which identifies the spec in a worker's cache.
-    """
-    import control
-
-    Kss = control.ss(K)
-    mats = tuple(np.asarray(m, dtype=float) for m in (Kss.A, Kss.B, Kss.C, Kss.D))
-    spec = {"nominal_xml": nominal.urdf, "lock": dict(nominal.locked),
-            "gravity": nominal.gravity, "K": mats, "lam_fl": float(lam_fl),
-            "lam_hinf": float(lam_hinf)}
-    spec["key"] = hash((nominal.urdf, tuple(sorted(spec["lock"].items())), spec["gravity"],
-                        tuple(m.tobytes() for m in mats), spec["lam_fl"], spec["lam_hinf"]))
-    return spec
-
-
-_CACHE: dict = {}
-
-
-def worker_controllers(spec: dict) -> dict:
-    """Build (once per process) the controllers ``{"fl", "hinf"}`` of a :func:`controller_spec`."""
-    if _CACHE.get("key") != spec["key"]:
-        import control
-
-        nominal = robot_from_xml(spec["nominal_xml"], gravity=spec["gravity"],
-                                 lock=spec["lock"], label="nominal")
-        _CACHE.clear()
-        _CACHE.update(key=spec["key"], controllers={
-            "fl": fl_controller(nominal, spec["lam_fl"]),
-            "hinf": hinf_fl_controller(nominal, control.ss(*spec["K"]), spec["lam_hinf"])})
-    return _CACHE["controllers"]
-
-
-def simulate_both(plant: Robot, controllers: dict, reference: SineReference, duration: float,
-                  **kwargs) -> tuple[dict, str]:
-    """Run every controller on ``plant``; stop at the first divergence.
-
-    Returns
-    -------
-    runs : dict
-        Trajectories by controller key (empty if a run diverged).
-    status : str
-        ``"ok"``, or the divergence message prefixed with the controller's label.
-    """
-    runs = {}
-    for key, ctrl in controllers.items():
-        try:
-            runs[key] = simulate(plant, ctrl, reference, duration, **kwargs)
-        except SimulationDiverged as exc:
-            return {}, f"{CONTROLLERS[key]}: {exc}"
-    return runs, "ok"
-
-
 def _run_plant(task) -> dict:
-    """Simulate both controllers on one plant (runs in a worker process)."""
-    controllers = worker_controllers(task["spec"])
-    plant = robot_from_xml(task["plant_xml"], gravity=task["spec"]["gravity"],
-                           lock=task["spec"]["lock"], name=task["plant_name"],
-                           label=task["plant_name"])
-    runs, status = simulate_both(plant, controllers, task["reference"], task["duration"],
-                                 dt=task["dt"], rate=task["rate"], engine=task["engine"])
-    return {"trajectories": runs, "status": status}
+    """Simulate every law on one plant (runs in a worker process)."""
+    laws, reference, settings, gravity, lock = task["job"]
+    plant = robot_from_xml(task["plant_xml"], gravity=gravity, lock=lock,
+                           name=task["plant_name"], label=task["plant_name"])
+    return run_laws(plant, laws, reference, settings)
 
 
-def run_study(nominal: Robot, K, *, config: StudyConfig = StudyConfig(),
-              reference: SineReference | None = None, params=None,
-              skip_joints=(), progress=None) -> StudyResult:
-    """Run both controllers on the nominal plant and on ``config.samples`` uncertain plants.
+def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
+              reference: Reference | None = None, params=None, skip_joints=(),
+              progress=None) -> StudyResult:
+    """Run every law on the nominal plant and on ``config.samples`` uncertain plants.
 
     Parameters
     ----------
     nominal : Robot
-        The nominal arm; the controllers use only this model.
-    K : control LTI
-        The H-infinity controller (SISO, copied on the diagonal, or ``n x n``; negative
-        feedback on ``e = r - q``), e.g. ``design().K_reduced``.
+        The nominal arm (the uncertain plants are drawn around it).
+    laws : sequence of ControlLaw or SampledLaw
+        Built-in (:func:`rrr_pin.runner.make_laws`) or your own; unique names; the baseline
+        ``config.baseline`` among them.
     config : StudyConfig
-        Durations, rates, bandwidths, sample count and seed.
-    reference : SineReference, optional
+        Run settings, sample count, seed, tolerances, baseline, jobs.
+    reference : Reference, optional
         Default :func:`default_reference` of the nominal arm.
     params : ArmParams, optional
         For the paper's RRR: perturb this DH parameter set (its URDF is generated); by default
@@ -317,25 +262,27 @@ def run_study(nominal: Robot, K, *, config: StudyConfig = StudyConfig(),
     Returns
     -------
     StudyResult
+
+    Raises
+    ------
+    SimulationDiverged
+        A law diverged on the nominal plant.
     """
+    laws = check_laws(laws, nominal.nq, config.baseline)
     reference = default_reference(nominal) if reference is None else reference
-    reference.check_limits(nominal)
+    reference.check_limits(nominal, duration=config.run.duration)
     if nominal.source == "rrr" and params is None:
         params = paper_params()
     source = params if params is not None else nominal.urdf
     plants: list[PlantSample] = sample_plants(source, config.samples, config.seed,
                                               config.tolerances, skip_joints=skip_joints)
-    base = {
-        "spec": controller_spec(nominal, K, config.lam_fl, config.lam_hinf),
-        "reference": reference, "duration": config.duration, "dt": config.dt,
-        "rate": config.rate, "engine": config.engine,
-    }
-    tasks = [{**base, "plant_xml": nominal.urdf, "plant_name": f"{nominal.name} (nominal)"}]
-    tasks += [{**base, "plant_xml": p.urdf, "plant_name": f"{nominal.name}_sample{p.index:03d}"}
-              for p in plants]
+    job = (laws, reference, config.run, nominal.gravity, dict(nominal.locked))
+    tasks = [{"job": job, "plant_xml": nominal.urdf, "plant_name": f"{nominal.name} (nominal)"}]
+    tasks += [{"job": job, "plant_xml": p.urdf,
+               "plant_name": f"{nominal.name}_sample{p.index:03d}"} for p in plants]
     jobs = config.jobs or min(2, os.cpu_count() or 1)
     outputs = []
-    if jobs <= 1:
+    if jobs <= 1 or len(tasks) <= 2:
         for k, task in enumerate(tasks):
             outputs.append(_run_plant(task))
             if progress:
@@ -346,17 +293,28 @@ def run_study(nominal: Robot, K, *, config: StudyConfig = StudyConfig(),
                 outputs.append(out)
                 if progress:
                     progress(k + 1, len(tasks))
-    if outputs[0]["status"] != "ok":
-        raise SimulationDiverged(f"the nominal closed loop diverged: {outputs[0]['status']}",
-                                 time=math.nan, joint="")
+    failed = {k: v for k, v in outputs[0].items() if isinstance(v, SimulationDiverged)}
+    if failed:
+        name, exc = next(iter(failed.items()))
+        raise SimulationDiverged(f"law {name!r} diverged on the nominal plant: {exc}",
+                                 time=exc.time, joint=exc.joint)
     samples = []
     for plant, out in zip(plants, outputs[1:], strict=True):
-        entry = {"index": plant.index, "seed": plant.seed, "parameters": plant.parameters,
-                 "status": out["status"]}
-        if out["status"] == "ok":
-            entry["trajectories"] = out["trajectories"]
-            entry["metrics"] = {k: metrics(out["trajectories"][k]) for k in CONTROLLERS}
-        samples.append(entry)
+        runs = {k: v for k, v in out.items() if not isinstance(v, SimulationDiverged)}
+        bad = [f"{k}: {v}" for k, v in out.items() if isinstance(v, SimulationDiverged)]
+        samples.append({"index": plant.index, "seed": plant.seed, "parameters": plant.parameters,
+                        "status": "ok" if not bad else "diverged: " + "; ".join(bad),
+                        "trajectories": runs,
+                        "metrics": {k: metrics(t) for k, t in runs.items()}})
     return StudyResult(robot=nominal.name, joint_names=nominal.joint_names, reference=reference,
-                       config=config, nominal=outputs[0]["trajectories"], samples=samples,
-                       plants=plants)
+                       config=config, laws=[law.describe() for law in laws],
+                       nominal=outputs[0], samples=samples, plants=plants)
+
+
+def sample_figures(result: StudyResult) -> dict:
+    """Per-sample scalar figures (as the campaign's rows) of the laws that ran, by index."""
+    out = {}
+    for s in result.samples:
+        m = {k: run_metrics(t, result.joint_names) for k, t in s["trajectories"].items()}
+        out[s["index"]] = {"metrics": m, "ratios": error_ratios(m, result.config.baseline)}
+    return out

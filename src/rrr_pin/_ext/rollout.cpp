@@ -1,8 +1,16 @@
-// Compiled closed-loop rollout: plant integration with Pinocchio's ABA, feedback linearization
-// with the nominal model's CRBA/RNEA, a discrete linear controller K and a sinusoidal reference,
-// all in one C++ loop (no return to Python per step). Python entry point: rrr_pin.compiled.
+// Compiled closed-loop rollout: plant integration with Pinocchio's ABA and the built-in control
+// laws that declare a compiled form (rrr_pin.controllers.CompiledForm), all in one C++ loop (no
+// return to Python per step). Python entry point: rrr_pin.compiled.run_compiled.
 //
-// The algorithm is specified in rrr_pin/compiled.py (rollout_compiled); keep both in step.
+// The algorithm is the Python reference engine's (rrr_pin.simulate._python_sampled and
+// _python_continuous), operation for operation; tests/test_engines.py pins the two together.
+// Laws implemented here, exactly as in rrr_pin.controllers:
+//   kFL: taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), y = C x + D e,
+//        tau = Mhat(q) taubar + nle_hat(q, qd); state: xdot = A x + B e (continuous) or
+//        x+ = A x + B e after the output (sampled, A..D already discrete).
+//   kPD: tau = Kp e + Kd (rd - qd) + Ghat(q); no state.
+// The reference arrives sampled on the grid where the law is evaluated (one row per control
+// instant for sampled laws, per half RK4 step for continuous laws), so any reference runs here.
 //
 // ABI: this file is compiled against the Pinocchio headers of the `libpinocchio` wheel and links
 // its shared libraries, whose SONAME carries no version. The package pins one exact `pin`
@@ -46,6 +54,7 @@ namespace
   using Vec = Eigen::VectorXd;
   using Mat = Eigen::MatrixXd;
   using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  using CRowMat = nb::DRef<const RowMat>;
   // Eigen::Ref arguments select the explicit template instantiations compiled into
   // libpinocchio_default (the same code the Python bindings call).
   using CRef = Eigen::Ref<const Vec>;
@@ -100,157 +109,287 @@ namespace
     return pinocchio::nonLinearEffects(w.model, w.data, CRef(q), CRef(v));
   }
 
-  /// Index of the first joint whose q or qd is non-finite or exceeds `bound`, or -1.
-  inline int bad_joint(const Vec & q, const Vec & qd, double bound)
+  inline const Vec & gravity(Workspace & w, const Vec & q)
   {
-    for (Eigen::Index j = 0; j < q.size(); ++j)
-      if (!(std::abs(q[j]) <= bound) || !(std::abs(qd[j]) <= bound)) // false for NaN
-        return static_cast<int>(j);
-    return -1;
+    return pinocchio::computeGeneralizedGravity(w.model, w.data, CRef(q));
   }
 
-  /// Status codes, mirrored in rrr_pin.compiled.
-  enum Status : int
+  /// Law kinds, mirrored in rrr_pin.compiled.
+  enum Kind : int
   {
-    kOk = 0,
-    kDiverged = 1,
+    kFL = 0,
+    kPD = 1,
   };
 
-  using RolloutResult = std::tuple<RowMat, RowMat, RowMat, RowMat, int, std::int64_t, int>;
-
-  RolloutResult rollout(
-    const CompiledModel & plant_model,
-    const CompiledModel & nominal_model,
-    double lam,
-    const Mat & Ad,
-    const Mat & Bd,
-    const Mat & Cd,
-    const Mat & Dd,
-    const Vec & home,
-    const Vec & amp,
-    const Vec & omega,
-    const Vec & phase,
-    double Ts,
-    int substeps,
-    std::int64_t n_steps,
-    double bound)
+  /// Divergence reasons, mirrored in rrr_pin.compiled (same order of tests as
+  /// rrr_pin.simulate.diverged_joint: non-finite, then speed, then limits).
+  enum Reason : int
   {
-    const Eigen::Index n = plant_model.model.nq;
-    const Eigen::Index m = Ad.rows();
-    if (nominal_model.model.nq != n)
-      throw std::invalid_argument("plant and nominal models differ in nq");
-    if (
-      Ad.cols() != m || Bd.rows() != m || Bd.cols() != n || Cd.rows() != n || Cd.cols() != m
-      || Dd.rows() != n || Dd.cols() != n)
-      throw std::invalid_argument("controller matrices have inconsistent shapes");
-    if (home.size() != n || amp.size() != n || omega.size() != n || phase.size() != n)
-      throw std::invalid_argument("reference parameters must have nq entries");
-    if (substeps < 1 || n_steps < 0)
-      throw std::invalid_argument("substeps must be >= 1 and n_steps >= 0");
+    kOk = -1,
+    kNonFinite = 0,
+    kSpeed = 1,
+    kLimits = 2,
+  };
 
-    const double nan = std::numeric_limits<double>::quiet_NaN();
-    RowMat Q = RowMat::Constant(n_steps + 1, n, nan);
-    RowMat QD = RowMat::Constant(n_steps + 1, n, nan);
-    RowMat TAU = RowMat::Constant(n_steps, n, nan);
-    RowMat E = RowMat::Constant(n_steps, n, nan);
-    int status = kOk;
-    std::int64_t bad_step = -1;
-    int bad_j = -1;
+  struct Divergence
+  {
+    int joint = -1;
+    int reason = kOk;
+  };
 
+  inline Divergence diverged(
+    const Vec & q, const Vec & qd, const Vec & lower, const Vec & upper, double vlim)
+  {
+    const Eigen::Index n = q.size();
+    for (Eigen::Index j = 0; j < n; ++j)
+      if (!std::isfinite(q[j]) || !std::isfinite(qd[j]))
+        return {static_cast<int>(j), kNonFinite};
+    for (Eigen::Index j = 0; j < n; ++j)
+      if (std::abs(qd[j]) > vlim)
+        return {static_cast<int>(j), kSpeed};
+    for (Eigen::Index j = 0; j < n; ++j)
+      if (q[j] < lower[j] || q[j] > upper[j])
+        return {static_cast<int>(j), kLimits};
+    return {};
+  }
+
+  /// The law of a compiled form, evaluated on the nominal model.
+  struct Law
+  {
+    int kind;
+    Workspace nominal;
+    double lam;
+    const Mat &A, &B, &C, &D, &Kp, &Kd;
+    Eigen::Index n, m;
+    Vec e, y, taubar, tau;
+    Mat M;
+
+    Law(
+      int kind_, const CompiledModel & nominal_model, double lam_, const Mat & A_,
+      const Mat & B_, const Mat & C_, const Mat & D_, const Mat & Kp_, const Mat & Kd_)
+    : kind(kind_)
+    , nominal(nominal_model)
+    , lam(lam_)
+    , A(A_)
+    , B(B_)
+    , C(C_)
+    , D(D_)
+    , Kp(Kp_)
+    , Kd(Kd_)
+    , n(nominal_model.model.nq)
+    , m(A_.rows())
+    , e(n)
+    , y(n)
+    , taubar(n)
+    , tau(n)
+    , M(n, n)
     {
-      nb::gil_scoped_release release;
+    }
 
-      Workspace plant(plant_model), nominal(nominal_model);
-      const double h = Ts / substeps;
-      const double lam2 = lam * lam;
-      Vec q(n), qd(n), r(n), rd(n), rdd(n), e(n), y(n), taubar(n), tau(n);
-      Vec x = Vec::Zero(m), xn(m);
-      Vec k1q(n), k1v(n), k2q(n), k2v(n), k3q(n), k3v(n), k4q(n), k4v(n), qs(n), vs(n);
-      Mat M(n, n);
-
-      auto reference = [&](double t) {
-        for (Eigen::Index j = 0; j < n; ++j)
-        {
-          const double arg = omega[j] * t + phase[j];
-          const double s = std::sin(arg), c = std::cos(arg);
-          r[j] = home[j] + amp[j] * s;
-          rd[j] = amp[j] * omega[j] * c;
-          rdd[j] = -amp[j] * omega[j] * omega[j] * s;
-        }
-      };
-
-      reference(0.0);
-      q = r;
-      qd = rd;
-      Q.row(0) = q.transpose();
-      QD.row(0) = qd.transpose();
-      bad_j = bad_joint(q, qd, bound);
-      if (bad_j >= 0)
+    /// Torque at (q, qd) for reference row (r, rd, rdd) and law state x; leaves e in `e`.
+    template<typename R1, typename R2, typename R3>
+    const Vec & torque(
+      const Vec & q, const Vec & qd, const R1 & r, const R2 & rd, const R3 & rdd, const Vec & x)
+    {
+      e = r.transpose() - q;
+      if (kind == kFL)
       {
-        status = kDiverged;
-        bad_step = 0;
-      }
-
-      for (std::int64_t k = 0; k < n_steps && status == kOk; ++k)
-      {
-        reference(static_cast<double>(k) * Ts);
-        e = r - q;
-        // Controller: y with the old state, then the state update.
-        y.noalias() = Dd * e;
+        y.noalias() = D * e;
         if (m > 0)
-        {
-          y.noalias() += Cd * x;
-          xn.noalias() = Ad * x;
-          xn.noalias() += Bd * e;
-          x.swap(xn);
-        }
-        taubar = rdd + 2.0 * lam * (rd - qd) + lam2 * (e + y);
-        // Feedback linearization, eq. (8), with the nominal model; crba fills the upper triangle.
+          y.noalias() += C * x;
+        taubar = rdd.transpose() + 2.0 * lam * (rd.transpose() - qd) + lam * lam * (e + y);
+        // Feedback linearization, eq. (8), with the nominal model; crba fills the upper
+        // triangle.
         M = crba(nominal, q);
         M.triangularView<Eigen::StrictlyLower>() = M.transpose();
         tau.noalias() = M * taubar;
         tau += nle(nominal, q, qd);
-        TAU.row(k) = tau.transpose();
-        E.row(k) = e.transpose();
+      }
+      else
+      {
+        tau.noalias() = Kp * e;
+        tau.noalias() += Kd * (rd.transpose() - qd);
+        tau += gravity(nominal, q);
+      }
+      return tau;
+    }
 
-        // Plant: S classical RK4 steps of h on (q, qd), tau held.
-        for (int s = 0; s < substeps; ++s)
+    /// x+ = A x + B e (sampled) or xdot = A x + B e (continuous), with `e` of the last torque().
+    void state_map(const Vec & x, Vec & out) const
+    {
+      out.noalias() = A * x;
+      out.noalias() += B * e;
+    }
+  };
+
+  using RolloutResult = std::tuple<RowMat, RowMat, RowMat, std::int64_t, int, int>;
+
+  RolloutResult rollout(
+    const CompiledModel & plant_model,
+    const CompiledModel & nominal_model,
+    int kind,
+    bool sampled,
+    double lam,
+    const Mat & A,
+    const Mat & B,
+    const Mat & C,
+    const Mat & D,
+    const Mat & Kp,
+    const Mat & Kd,
+    CRowMat R,
+    CRowMat RD,
+    CRowMat RDD,
+    const Vec & q0,
+    const Vec & qd0,
+    const Vec & x0,
+    const Vec & lower,
+    const Vec & upper,
+    double vlim,
+    double h,
+    int substeps,
+    std::int64_t n_steps)
+  {
+    const Eigen::Index n = plant_model.model.nq;
+    const Eigen::Index m = A.rows();
+    if (nominal_model.model.nq != n)
+      throw std::invalid_argument("plant and nominal models differ in nq");
+    if (kind != kFL && kind != kPD)
+      throw std::invalid_argument("unknown law kind");
+    if (
+      A.cols() != m || B.rows() != m || B.cols() != n || C.rows() != n || C.cols() != m
+      || D.rows() != n || D.cols() != n || x0.size() != m)
+      throw std::invalid_argument("controller matrices have inconsistent shapes");
+    if (kind == kPD && (Kp.rows() != n || Kp.cols() != n || Kd.rows() != n || Kd.cols() != n))
+      throw std::invalid_argument("Kp and Kd must be nq x nq");
+    if (substeps < 1 || n_steps < 1 || !(h > 0.0))
+      throw std::invalid_argument("substeps >= 1, n_steps >= 1 and h > 0 are required");
+    const std::int64_t rows = sampled ? n_steps + 1 : 2 * n_steps + 1;
+    if (
+      R.rows() != rows || RD.rows() != rows || RDD.rows() != rows || R.cols() != n
+      || RD.cols() != n || RDD.cols() != n)
+      throw std::invalid_argument("reference arrays have the wrong shape");
+    if (q0.size() != n || qd0.size() != n || lower.size() != n || upper.size() != n)
+      throw std::invalid_argument("state and limit vectors must have nq entries");
+
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    RowMat Q = RowMat::Constant(n_steps + 1, n, nan);
+    RowMat QD = RowMat::Constant(n_steps + 1, n, nan);
+    RowMat TAU = RowMat::Constant(n_steps + 1, n, nan);
+    std::int64_t bad_step = -1;
+    Divergence bad;
+
+    {
+      nb::gil_scoped_release release;
+
+      Workspace plant(plant_model);
+      Law law(kind, nominal_model, lam, A, B, C, D, Kp, Kd);
+      Vec q = q0, qd = qd0, x = x0, xn(m), tau(n);
+      Vec a1(n), a2(n), a3(n), a4(n), v2(n), v3(n), v4(n), qs(n);
+      Vec x1(m), x2(m), x3(m), x4(m), xs(m);
+      const double h2 = 0.5 * h, h6 = h / 6.0;
+      Q.row(0) = q.transpose();
+      QD.row(0) = qd.transpose();
+
+      if (sampled)
+      {
+        for (std::int64_t k = 0; k < n_steps; ++k)
         {
-          k1q = qd;
-          k1v = aba(plant, q, qd, tau);
-          qs = q + 0.5 * h * k1q;
-          vs = qd + 0.5 * h * k1v;
-          k2q = vs;
-          k2v = aba(plant, qs, vs, tau);
-          qs = q + 0.5 * h * k2q;
-          vs = qd + 0.5 * h * k2v;
-          k3q = vs;
-          k3v = aba(plant, qs, vs, tau);
-          qs = q + h * k3q;
-          vs = qd + h * k3v;
-          k4q = vs;
-          k4v = aba(plant, qs, vs, tau);
-          q += (h / 6.0) * (k1q + 2.0 * k2q + 2.0 * k3q + k4q);
-          qd += (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+          tau = law.torque(q, qd, R.row(k), RD.row(k), RDD.row(k), x);
+          if (m > 0)
+          {
+            law.state_map(x, xn);
+            x.swap(xn);
+          }
+          TAU.row(k) = tau.transpose();
+          // Plant: S classical RK4 steps of h on (q, qd), tau held.
+          for (int s = 0; s < substeps; ++s)
+          {
+            a1 = aba(plant, q, qd, tau);
+            v2 = qd + h2 * a1;
+            qs = q + h2 * qd;
+            a2 = aba(plant, qs, v2, tau);
+            v3 = qd + h2 * a2;
+            qs = q + h2 * v2;
+            a3 = aba(plant, qs, v3, tau);
+            v4 = qd + h * a3;
+            qs = q + h * v3;
+            a4 = aba(plant, qs, v4, tau);
+            q += h6 * (qd + 2.0 * (v2 + v3) + v4);
+            qd += h6 * (a1 + 2.0 * (a2 + a3) + a4);
+          }
+          Q.row(k + 1) = q.transpose();
+          QD.row(k + 1) = qd.transpose();
+          bad = diverged(q, qd, lower, upper, vlim);
+          if (bad.reason != kOk)
+          {
+            bad_step = k + 1;
+            break;
+          }
         }
-        Q.row(k + 1) = q.transpose();
-        QD.row(k + 1) = qd.transpose();
-        bad_j = bad_joint(q, qd, bound);
-        if (bad_j >= 0)
+        if (bad_step < 0)
+          TAU.row(n_steps) = TAU.row(n_steps - 1);
+      }
+      else
+      {
+        // Continuous-time law: (q, qd, x) integrated together, the law at every RK4 stage.
+        for (std::int64_t k = 0;; ++k)
         {
-          status = kDiverged;
-          bad_step = k + 1;
+          const std::int64_t i = 2 * k;
+          tau = law.torque(q, qd, R.row(i), RD.row(i), RDD.row(i), x);
+          if (m > 0)
+            law.state_map(x, x1);
+          a1 = aba(plant, q, qd, tau);
+          TAU.row(k) = tau.transpose();
+          if (k == n_steps)
+            break;
+          v2 = qd + h2 * a1;
+          qs = q + h2 * qd;
+          if (m > 0)
+            xs = x + h2 * x1;
+          a2 = aba(plant, qs, v2, law.torque(qs, v2, R.row(i + 1), RD.row(i + 1), RDD.row(i + 1), xs));
+          if (m > 0)
+            law.state_map(xs, x2);
+          v3 = qd + h2 * a2;
+          qs = q + h2 * v2;
+          if (m > 0)
+            xs = x + h2 * x2;
+          a3 = aba(plant, qs, v3, law.torque(qs, v3, R.row(i + 1), RD.row(i + 1), RDD.row(i + 1), xs));
+          if (m > 0)
+            law.state_map(xs, x3);
+          v4 = qd + h * a3;
+          qs = q + h * v3;
+          if (m > 0)
+            xs = x + h * x3;
+          a4 = aba(plant, qs, v4, law.torque(qs, v4, R.row(i + 2), RD.row(i + 2), RDD.row(i + 2), xs));
+          if (m > 0)
+            law.state_map(xs, x4);
+          q += h6 * (qd + 2.0 * (v2 + v3) + v4);
+          qd += h6 * (a1 + 2.0 * (a2 + a3) + a4);
+          if (m > 0)
+            x += h6 * (x1 + 2.0 * (x2 + x3) + x4);
+          Q.row(k + 1) = q.transpose();
+          QD.row(k + 1) = qd.transpose();
+          bad = diverged(q, qd, lower, upper, vlim);
+          if (bad.reason != kOk)
+          {
+            bad_step = k + 1;
+            break;
+          }
         }
       }
     }
-    return {std::move(Q), std::move(QD), std::move(TAU), std::move(E), status, bad_step, bad_j};
+    return {std::move(Q), std::move(QD), std::move(TAU), bad_step, bad.joint, bad.reason};
   }
 
-  /// Wall time [s] of the Pinocchio calls one rollout needs (per control step: 4*S ABA on the
-  /// plant, one CRBA and one nonLinearEffects on the nominal model), with trivial glue.
+  /// Wall time [s] of the Pinocchio calls one rollout of a law needs, with trivial glue:
+  /// sampled, per control step: the law's calls (kFL: CRBA + nonLinearEffects; kPD: gravity) on
+  /// the nominal model and 4*S ABA on the plant; continuous, per RK4 step: 4 x (the law's calls
+  /// + one ABA).
   double floor_timing(
     const CompiledModel & plant_model,
     const CompiledModel & nominal_model,
+    int kind,
+    bool sampled,
     int substeps,
     std::int64_t n_steps)
   {
@@ -263,13 +402,30 @@ namespace
     const Eigen::Index n = plant.model.nq;
     Vec q = Vec::Constant(n, 0.3), qd = Vec::Constant(n, 0.1), tau = Vec::Zero(n);
     double sink = 0.0;
+    auto law = [&]() {
+      if (kind == kFL)
+      {
+        sink += crba(nominal, q)(0, 0);
+        tau = nle(nominal, q, qd);
+      }
+      else
+        tau = gravity(nominal, q);
+    };
     const auto t0 = std::chrono::steady_clock::now();
     for (std::int64_t k = 0; k < n_steps; ++k)
     {
-      sink += crba(nominal, q)(0, 0);
-      tau = nle(nominal, q, qd);
-      for (int s = 0; s < 4 * substeps; ++s)
-        sink += aba(plant, q, qd, tau)[0];
+      if (sampled)
+      {
+        law();
+        for (int s = 0; s < 4 * substeps; ++s)
+          sink += aba(plant, q, qd, tau)[0];
+      }
+      else
+        for (int s = 0; s < 4; ++s)
+        {
+          law();
+          sink += aba(plant, q, qd, tau)[0];
+        }
     }
     const auto t1 = std::chrono::steady_clock::now();
     if (!std::isfinite(sink))
@@ -291,14 +447,17 @@ NB_MODULE(_rollout, mod)
     .def("save", &CompiledModel::save, "The model re-serialized with saveToString().");
 
   mod.def(
-    "rollout", &rollout, nb::arg("plant"), nb::arg("nominal"), nb::arg("lam"), nb::arg("Ad"),
-    nb::arg("Bd"), nb::arg("Cd"), nb::arg("Dd"), nb::arg("home"), nb::arg("amp"),
-    nb::arg("omega"), nb::arg("phase"), nb::arg("Ts"), nb::arg("substeps"), nb::arg("n_steps"),
-    nb::arg("bound"), "Run the closed loop; returns (q, qd, tau, e, status, bad_step, bad_joint).");
+    "rollout", &rollout, nb::arg("plant"), nb::arg("nominal"), nb::arg("kind"),
+    nb::arg("sampled"), nb::arg("lam"), nb::arg("A"), nb::arg("B"), nb::arg("C"), nb::arg("D"),
+    nb::arg("Kp"), nb::arg("Kd"), nb::arg("R"), nb::arg("RD"), nb::arg("RDD"), nb::arg("q0"),
+    nb::arg("qd0"), nb::arg("x0"), nb::arg("lower"), nb::arg("upper"), nb::arg("vlim"),
+    nb::arg("h"), nb::arg("substeps"), nb::arg("n_steps"),
+    "Run the closed loop; returns (q, qd, tau, bad_step, bad_joint, reason).");
 
   mod.def(
-    "floor_timing", &floor_timing, nb::arg("plant"), nb::arg("nominal"), nb::arg("substeps"),
-    nb::arg("n_steps"), "Wall time [s] of the bare Pinocchio calls of a rollout.");
+    "floor_timing", &floor_timing, nb::arg("plant"), nb::arg("nominal"), nb::arg("kind"),
+    nb::arg("sampled"), nb::arg("substeps"), nb::arg("n_steps"),
+    "Wall time [s] of the bare Pinocchio calls of a rollout.");
 
   mod.def("pinocchio_version", []() { return std::string(PINOCCHIO_VERSION); });
   mod.def("eigen_version", []() {
