@@ -216,8 +216,15 @@ def test_compare_with_pinocchio():
         assert same[key]["scale"] > 1.0
     with pytest.raises(ValueError, match="3 joints"):
         cf.compare_with_pinocchio(load_robot("ur5"), params)
-    with pytest.raises(ValueError, match="samples must be >= 1"):
-        cf.compare_with_pinocchio(load_robot(params), params, samples=0)
+    robot = load_robot(params)
+    with pytest.raises(ValueError, match="samples must be an integer >= 1, got 0"):
+        cf.compare_with_pinocchio(robot, params, samples=0)
+    with pytest.raises(ValueError, match="samples must be an integer >= 1, got 2.5"):
+        cf.compare_with_pinocchio(robot, params, samples=2.5)
+    with pytest.raises(ValueError, match="seed must be an integer >= 0, got -1"):
+        cf.compare_with_pinocchio(robot, params, seed=-1)
+    with pytest.raises(ValueError, match="qd_max must be a finite speed >= 0 rad/s, got nan"):
+        cf.compare_with_pinocchio(robot, params, qd_max=float("nan"))
 
 
 # --- CLI: rrr-pin check-dynamics ---------------------------------------------------------------

@@ -397,18 +397,23 @@ def compare_with_pinocchio(robot, params: ArmParams, samples: int = 200, seed: i
     Raises
     ------
     ValueError
-        ``params`` is not of the paper's RRR structure, ``robot`` does not have 3 joints, or
-        ``samples < 1``.
+        ``params`` is not of the paper's RRR structure, ``robot`` does not have 3 joints,
+        ``samples`` is not an integer >= 1, ``seed`` not an integer >= 0, or ``qd_max`` not
+        finite and >= 0.
 
     """
     _check_params(params)
     if robot.nq != 3:
         raise ValueError(f"robot must have 3 joints to compare with the closed form, got "
                          f"{robot.nq}")
+    if isinstance(samples, bool) or int(samples) != samples or samples < 1:
+        raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
     samples = int(samples)
-    if samples < 1:
-        raise ValueError(f"samples must be >= 1, got {samples}")
-    rng = np.random.default_rng(seed)
+    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    if not (math.isfinite(qd_max) and qd_max >= 0.0):
+        raise ValueError(f"qd_max must be a finite speed >= 0 rad/s, got {qd_max!r}")
+    rng = np.random.default_rng(int(seed))
     qs = rng.uniform(-math.pi, math.pi, size=(samples, 3))
     qds = rng.uniform(-qd_max, qd_max, size=(samples, 3))
     diff = {"M": 0.0, "V": 0.0, "G": 0.0}
