@@ -23,6 +23,7 @@ from rrr_pin.loopshaping import (
     shaped_plant,
     zpk_data,
 )
+from rrr_pin.lti import ImproperSystemError, TimebaseMismatchError
 from rrr_pin.robustness import ncf_loop
 
 OMEGA = np.logspace(-2, 4, 61)
@@ -232,10 +233,10 @@ def test_ncfsyn_errors():
         ncfsyn(G, W1=control.tf([[[1.0]], [[1.0]]], [[[1.0, 1.0]], [[1.0, 2.0]]]))
     with pytest.raises(WeightError, match="must be 2 x 2"):
         ncfsyn(G, W1=fl_plant(1.0, 3))
-    with pytest.raises(WeightError, match="proper"):
+    with pytest.raises(ImproperSystemError, match="W2 must be proper"):
         ncfsyn(G, W2=control.tf([1.0, 1.0], [1.0]))
-    with pytest.raises(ValueError, match="continuous-time"):
-        ncfsyn(control.tf([1.0], [1.0, 1.0], 0.1))
+    with pytest.raises(TimebaseMismatchError, match="do not mix"):
+        ncfsyn(control.tf([1.0], [1.0, 1.0], 0.1), W1=control.tf([1.0], [1.0, 2.0]))
     # unstable mode at s = 1 that the input cannot reach
     hidden = control.ss([[1.0, 0.0], [0.0, -1.0]], [[0.0], [1.0]], [[1.0, 1.0]], [[0.0]])
     with pytest.raises(HiddenModeError, match="uncontrollable mode at s = 1"):

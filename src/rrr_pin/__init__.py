@@ -19,7 +19,11 @@ from .controllers import (
 )
 from .dh import ArmParams, DHLink, check_inertial, forward_kinematics, paper_params
 from .dynamics import Robot, RobotModelError, check_urdf_inertials, load_robot, robot_names
-from .loopshaping import Design, NCFSynResult, design, expand_diagonal, ncfsyn
+from .gap import gapmetric
+from .loopshaping import Design, NCFSynResult, design, expand_diagonal, loopsyn, ncfsyn
+from .lti import check_lti
+from .ncf import ncfmargin
+from .reduction import ncf_reduce, reduction_guarantee
 from .references import (
     CirclePath,
     IKError,
@@ -78,6 +82,12 @@ __all__ = [
     "make_laws",
     "metrics",
     "ncfsyn",
+    "gapmetric",
+    "loopsyn",
+    "check_lti",
+    "ncfmargin",
+    "ncf_reduce",
+    "reduction_guarantee",
     "paper_params",
     "pd_controller",
     "robot_names",
