@@ -281,7 +281,7 @@ def test_check_dynamics_bad_options(capsys, args, match):
 def test_urdf_check_missing_file(tmp_path, capsys):
     assert cli.main(["urdf", "--check", "--out", str(tmp_path / "missing.urdf")]) == 1
     out = capsys.readouterr().out
-    assert "missing.urdf: is missing" in out
+    assert "missing.urdf: missing; write it with" in out
     assert "differs" not in out
 
 

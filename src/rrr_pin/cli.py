@@ -64,9 +64,11 @@ def _cmd_urdf(args) -> int:
             return 0
         from pathlib import Path
 
-        state = "differs from" if Path(args.out).is_file() else "is missing; expected"
-        print(f"{args.out}: {state} the generator's output; regenerate with "
-              f"`rrr-pin urdf --out {args.out}`")
+        if Path(args.out).is_file():
+            print(f"{args.out}: differs from the generator's output; regenerate with "
+                  f"`rrr-pin urdf --out {args.out}`")
+        else:
+            print(f"{args.out}: missing; write it with `rrr-pin urdf --out {args.out}`")
         return 1
     if args.out == "-":
         sys.stdout.write(urdf_from_params(params))
