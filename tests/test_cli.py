@@ -30,7 +30,8 @@ def test_reproduce_writes_everything(reproduced):
 def test_results_json_layout(reproduced):
     _, out = reproduced
     data = json.loads((out / "results.json").read_text())
-    assert {"home_rad", "amp_rad", "freq_hz", "phase_rad", "duration_s"} <= set(data["reference"])
+    assert {"kind", "home_rad", "amp_rad", "freq_hz", "phase_rad", "duration_s"} <= set(
+        data["reference"])
     for group in ("nominal", "uncertain"):
         for key in ("fl", "hinf"):
             assert set(data[group][key]) == KEYS
@@ -40,19 +41,61 @@ def test_results_json_layout(reproduced):
     assert {"fl", "hinf", "parameters", "status"} <= set(samples[0])
     summary = data["summary"]
     assert set(summary["nominal_max_error"]) == {"fl", "hinf"}
-    assert summary["error_ratio_uncertain"] > 0
-    assert len(summary["error_ratio_uncertain_per_joint"]) == 3
-    assert summary["torque_ratio_uncertain"] > 0
+    assert summary["error_ratio_uncertain"]["hinf"] > 0
+    assert len(summary["error_ratio_uncertain_per_joint"]["hinf"]) == 3
+    assert summary["torque_ratio_uncertain"]["hinf"] > 0
+    assert data["config"]["engine"] == "auto" and data["config"]["baseline"] == "fl"
     # The design recorded beside the study is the paper's (eq. 18 within 0.5 %).
     assert abs(data["design"]["gamma_min"] / 2.1436 - 1) < 5e-3
+
+
+@pytest.mark.parametrize("extra", [
+    ["--controllers", "fl,hinf,pd", "--reference", "quintic", "--to", "0.3,-0.2,0.4",
+     "--q0", "0.05,0,0"],
+    ["--controllers", "pd,fl", "--reference", "line", "--end", "0.6,0.1,1.9"],
+], ids=["quintic-3-laws", "line-pd-baseline"])
+def test_reproduce_references_and_controllers(tmp_path, extra):
+    out = tmp_path / "r"
+    assert cli.main(["reproduce", "--out", str(out), "--samples", "1", "--duration", "0.3",
+                     "--jobs", "1", "--no-progress"] + extra) == 0
+    data = json.loads((out / "results.json").read_text())
+    names = extra[1].split(",")
+    assert [c["name"] for c in data["controllers"]] == names
+    assert data["summary"]["baseline"] == names[0]
+    assert set(data["summary"]["error_ratio_uncertain"]) == set(names[1:])
 
 
 @pytest.mark.parametrize("argv,message", [
     (["reproduce", "--robot", "nosuch"], "unknown robot 'nosuch'"),
     (["reproduce", "--lock", "joint1"], "--lock expects JOINT=VALUE"),
     (["reproduce", "--home", "0,0,3.0"], "reference for joint 'joint3' spans"),
-    (["reproduce", "--robot", "ur5", "--lock", "nojoint=0"], "cannot lock unknown joints"),
-], ids=["robot", "lock-syntax", "home-limits", "lock-unknown"])
+    (["reproduce", "--home", "0,0"], "--home expects 3 values"),
+    (["reproduce", "--robot", "ur5", "--lock", "nojoint=0"], "nojoint"),
+    (["reproduce", "--amp", "nan"], "--amp must be a finite number"),
+    (["reproduce", "--amp", "inf"], "--amp must be a finite number"),
+    (["reproduce", "--duration", "1e-4"], "shorter than one RK4 step"),
+    (["reproduce", "--duration", "1e-4", "--rate", "1000"], "shorter than one control period"),
+    (["reproduce", "--jobs", "0"], "--jobs must be >= 1"),
+    (["reproduce", "--jobs", "-1"], "--jobs must be >= 1"),
+    (["reproduce", "--seed", "-1"], "--seed must be >= 0"),
+    (["reproduce", "--controllers", "fl,lqr"], "unknown controller 'lqr'"),
+    (["reproduce", "--baseline", "pd"], "--baseline 'pd' is not among --controllers"),
+    (["reproduce", "--q0", "0,0"], "--q0 expects 3 values"),
+    (["reproduce", "--reference", "quintic"], "needs --to"),
+    (["reproduce", "--reference", "spline"], "needs --csv"),
+    (["reproduce", "--reference", "line", "--end", "9,0,1"], "did not converge"),
+], ids=["robot", "lock-syntax", "home-limits", "home-size", "lock-unknown", "amp-nan",
+        "amp-inf", "short", "short-sampled", "jobs0", "jobs-1", "seed", "controller",
+        "baseline", "q0", "quintic", "spline", "ik"])
 def test_reproduce_bad_input(argv, message, capsys, tmp_path):
-    assert cli.main(argv + ["--out", str(tmp_path), "--no-progress"]) == 2
-    assert message in capsys.readouterr().err
+    assert cli.main(argv + ["--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_out_is_a_file(tmp_path, capsys):
+    f = tmp_path / "file"
+    f.write_text("x")
+    for cmd in (["reproduce"], ["montecarlo", "--samples", "2"]):
+        assert cli.main(cmd + ["--out", str(f), "--no-progress"]) == 2
+        assert "exists and is not a folder" in capsys.readouterr().err

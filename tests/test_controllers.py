@@ -4,8 +4,19 @@ import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.controllers import TrackingController, fl_controller, hinf_fl_controller
+from rrr_pin.controllers import (
+    ControlLaw,
+    PDGravity,
+    SampledLaw,
+    TrackingController,
+    check_law,
+    fl_controller,
+    hinf_fl_controller,
+    pd_controller,
+)
 from rrr_pin.dynamics import load_robot
+from rrr_pin.references import QuinticReference
+from rrr_pin.simulate import simulate
 
 # The paper's eq. (18), typed from the paper (used here only as a test input).
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
@@ -18,26 +29,26 @@ def rrr():
 
 
 def test_on_reference_the_law_is_inverse_dynamics(rrr):
-    # With q = r, qd = rd and y = 0 the law must give RNEA(q, qd, rdd): CRBA + NLE on one side,
+    # With q = r, qd = rd and x = 0 the law must give RNEA(q, qd, rdd): CRBA + NLE on one side,
     # the recursive Newton-Euler algorithm on the other.
     rng = np.random.default_rng(5)
     for ctrl in (fl_controller(rrr), hinf_fl_controller(rrr, K18)):
         for _ in range(20):
             q, qd, qdd = rng.uniform(-3, 3, (3, 3))
-            tau = ctrl.torque(q, qd, q, qd, qdd, np.zeros(3))
+            tau = ctrl.torque(0.0, q, qd, q, qd, qdd, np.zeros(ctrl.nx))
             expected = pin.rnea(rrr.model, rrr.data, q, qd, qdd)
             assert_allclose(tau, expected, rtol=1e-12, atol=1e-9)  # round-off of 1e2 N m terms
 
 
-def test_feedback_terms(rrr):
-    # Off the reference: tau - tau_ff = M (2 lam (rd - qd) + lam^2 (e + y)), eq. (10).
-    lam = 100.0
-    ctrl = fl_controller(rrr, lam)
+def test_feedback_terms_with_a_static_K(rrr):
+    # Off the reference, with K = k (static, y = k e): tau - (V + G) = M (2 lam (rd - qd)
+    # + lam^2 (1 + k) e), eq. (10); M, V, G from Pinocchio's RNEA-based Robot methods.
+    lam, k = 100.0, 0.3
+    ctrl = TrackingController(rrr, lam, K=control.ss([], [], [], [[k]]))
     q, qd = np.array([0.1, 0.2, 0.3]), np.array([0.0, 0.5, -0.5])
     r, rd, rdd = q + 0.01, qd + 0.1, np.zeros(3)
-    y = np.array([0.001, -0.002, 0.0])
-    tau = ctrl.torque(q, qd, r, rd, rdd, y)
-    taubar = 2 * lam * (rd - qd) + lam**2 * (r - q + y)
+    tau = ctrl.torque(0.0, q, qd, r, rd, rdd, np.zeros(0))
+    taubar = 2 * lam * (rd - qd) + lam**2 * (1 + k) * (r - q)
     expected = rrr.M(q) @ taubar + rrr.V(q, qd) + rrr.G(q)
     assert_allclose(tau, expected, rtol=1e-12)
 
@@ -59,6 +70,61 @@ def test_tustin_keeps_dc_gain(rrr):
     assert_allclose(dc, float(control.dcgain(K18)) * np.eye(3), rtol=1e-9)
 
 
+def test_pd_gravity_regulates_a_set_point(rrr):
+    # PD + gravity compensation on the exact model drives any initial state to a constant
+    # set point (Lyapunov, Siciliano et al. 2009, sec. 8.5.2): independent of the gains' values.
+    goal = np.array([0.3, -0.4, 0.5])
+    hold = QuinticReference(goal, goal, 1.0)  # at rest on the goal for all t
+    traj = simulate(rrr, pd_controller(rrr), hold, 3.0, q0=goal + [0.2, -0.1, 0.15],
+                    qd0=[0.5, 0.0, -0.5])
+    assert np.max(np.abs(traj.error[0])) > 0.1
+    assert_allclose(traj.q[-1], goal, atol=1e-4)  # 20 rad/s, critically damped: e ~ 1e-6 at 3 s
+
+
+def test_pd_torque_against_rnea(rrr):
+    # tau = Kp e + Kd ed + G(q), with G from RNEA at zero velocity and acceleration.
+    law = PDGravity(rrr, Kp=[100.0, 200.0, 50.0], Kd=[10.0, 20.0, 5.0])
+    q, qd = np.array([0.2, -0.3, 0.4]), np.array([0.1, 0.2, -0.1])
+    r, rd = q + [0.01, -0.02, 0.03], qd + [0.1, 0.0, -0.2]
+    tau = law.torque(0.0, q, qd, r, rd, np.zeros(3), np.zeros(0))
+    G = pin.rnea(rrr.model, rrr.data, q, np.zeros(3), np.zeros(3))
+    assert_allclose(tau, np.diag(law.Kp) * (r - q) + np.diag(law.Kd) * (rd - qd) + G,
+                    rtol=1e-12, atol=1e-12)
+
+
+def test_compiled_form_only_for_the_exact_class(rrr):
+    class Mine(TrackingController):
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            return np.zeros(3)
+
+    assert fl_controller(rrr).compiled_form().kind == "fl"
+    assert pd_controller(rrr).compiled_form().kind == "pd"
+    mine = Mine(rrr, 100.0, name="mine")
+    assert mine.compiled_form() is None
+    assert mine.sampled(1000.0).compiled_form() is None
+
+
+def test_laws_pickle_as_themselves(rrr):
+    import pickle
+
+    class_ = hinf_fl_controller(rrr, K18)
+    back = pickle.loads(pickle.dumps(class_))
+    assert type(back) is TrackingController and back.name == "hinf"
+    for a, b in zip(back.continuous_matrices(), class_.continuous_matrices(), strict=True):
+        assert_allclose(a, b, rtol=0, atol=0)
+
+
+def test_a_law_with_state_must_say_how_to_sample(rrr):
+    class Integrator(ControlLaw):
+        name, n, nx = "integ", 3, 3
+
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            return x
+
+    with pytest.raises(NotImplementedError, match="does not say how to discretize"):
+        Integrator().sampled(1000.0)
+
+
 @pytest.mark.parametrize("kwargs,message", [
     ({"lam": 0.0}, "lam must be a positive"),
     ({"lam": float("nan")}, "lam must be a positive"),
@@ -66,10 +132,26 @@ def test_tustin_keeps_dc_gain(rrr):
      "K must be SISO or 3 x 3"),
     ({"lam": 45.0, "K": control.tf([1.0], [1.0, -1.0])}, "unstable poles"),
     ({"lam": 45.0, "K": control.tf([1.0], [1.0, 0.5], 0.001)}, "continuous-time"),
-], ids=["lam0", "lam-nan", "K-2x2", "K-unstable", "K-discrete"])
+    ({"lam": 45.0, "name": "two words"}, "law name must be"),
+], ids=["lam0", "lam-nan", "K-2x2", "K-unstable", "K-discrete", "name"])
 def test_bad_inputs(rrr, kwargs, message):
     with pytest.raises(ValueError, match=message):
         TrackingController(nominal=rrr, **kwargs)
+
+
+def test_bad_law_objects(rrr):
+    with pytest.raises(TypeError, match="must subclass rrr_pin.ControlLaw"):
+        check_law(lambda t: 0)
+
+    class Two(SampledLaw):
+        name, n = "two", 2
+
+    with pytest.raises(ValueError, match="law 'two' is for 2 joints, the plant has 3"):
+        check_law(Two(), 3)
+    with pytest.raises(ValueError, match="Kp of shape"):
+        PDGravity(rrr, Kp=[1.0, 2.0], Kd=[1.0, 1.0, 1.0])
+    with pytest.raises(ValueError, match="wn must be > 0"):
+        pd_controller(rrr, wn=float("nan"))
 
 
 def test_bad_rate(rrr):

@@ -7,97 +7,115 @@ import pytest
 import rrr_pin.montecarlo as mc
 from rrr_pin import cli
 from rrr_pin.dynamics import load_robot
-from rrr_pin.loopshaping import design
+from rrr_pin.runner import RunSettings, make_laws
 from rrr_pin.simulate import SimulationDiverged
 from rrr_pin.study import StudyConfig, run_study
 
-SMALL = {"samples": 4, "duration": 0.3, "engine": "python"}
+RUN = RunSettings(duration=0.3, rate=1000.0, engine="python")
+SETTINGS = mc.CampaignSettings(samples=4, run=RUN)
 
 
 @pytest.fixture(scope="module")
 def setup():
-    return load_robot("rrr"), design().K_reduced
+    robot = load_robot("rrr")
+    return robot, make_laws("fl,hinf", robot)
 
 
 @pytest.fixture(scope="module")
 def serial(setup):
-    robot, K = setup
-    return mc.run_campaign(robot, K, jobs=1, **SMALL)
+    robot, laws = setup
+    return mc.run_campaign(robot, laws, SETTINGS, jobs=1)
 
 
 def test_identical_whatever_the_jobs(setup, serial):
-    robot, K = setup
-    parallel = mc.run_campaign(robot, K, jobs=2, chunk=1, **SMALL)
+    robot, laws = setup
+    parallel = mc.run_campaign(robot, laws, SETTINGS, jobs=2, chunk=1)
     assert parallel.rows == serial.rows
 
 
 def test_dask_cluster_gives_the_same_rows(setup, serial):
     distributed = pytest.importorskip("distributed")
-    robot, K = setup
+    robot, laws = setup
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
-        remote = mc.run_campaign(robot, K, scheduler=cluster.scheduler_address, chunk=1,
-                                 **SMALL)
+        remote = mc.run_campaign(robot, laws, SETTINGS, scheduler=cluster.scheduler_address,
+                                 chunk=1)
     assert remote.rows == serial.rows
 
 
 def test_rows_agree_with_the_study(setup, serial):
     # The campaign's sample k is the study's sample k: same plant, same figures.
-    robot, K = setup
-    study = run_study(robot, K, config=StudyConfig(duration=0.3, samples=2, jobs=1,
-                                                   rate=1000.0))
+    robot, laws = setup
+    study = run_study(robot, laws, config=StudyConfig(run=RUN, samples=2, jobs=1))
     for sample, row in zip(study.samples, serial.rows, strict=False):
         assert sample["seed"] == row["seed"]
-        e = np.concatenate([sample["trajectories"]["fl"].error.ravel()])
+        e = sample["trajectories"]["fl"].error.ravel()
         np.testing.assert_allclose(row["fl_rms_error"], np.sqrt(np.mean(e**2)), rtol=1e-12)
 
 
 def test_diverged_sample_is_recorded_and_campaign_goes_on(setup, monkeypatch):
-    robot, K = setup
-    import rrr_pin.study as study
+    robot, laws = setup
+    import rrr_pin.runner as runner
 
-    real = study.simulate
+    real = runner.simulate
 
-    def flaky(plant, *args, **kwargs):
-        if plant.name == "sample00001":
+    def flaky(plant, law, *args, **kwargs):
+        if plant.name == "sample00001" and law.name == "hinf":
             raise SimulationDiverged("diverged at t = 0.1 s: joint 'joint2' blew up", 0.1,
                                      "joint2")
-        return real(plant, *args, **kwargs)
+        return real(plant, law, *args, **kwargs)
 
-    monkeypatch.setattr(study, "simulate", flaky)
-    campaign = mc.run_campaign(robot, K, jobs=1, **SMALL)
+    monkeypatch.setattr(runner, "simulate", flaky)
+    campaign = mc.run_campaign(robot, laws, SETTINGS, jobs=1)
     assert [r["status"] == "ok" for r in campaign.rows] == [True, False, True, True]
-    assert "joint2" in campaign.rows[1]["status"]
+    assert "hinf: " in campaign.rows[1]["status"] and "joint2" in campaign.rows[1]["status"]
     assert "params" in campaign.rows[1]["parameters"]
+    assert "fl_rms_error" in campaign.rows[1]  # the law that ran keeps its figures
+    assert "error_ratio_hinf" not in campaign.rows[1]
     summary = mc.campaign_summary(campaign)
     assert summary["samples_diverged"] == 1 and summary["diverged"] == [1]
     assert summary["samples_ok"] == 3
+    assert summary["error_ratio_hinf"]["count"] == 3
 
 
 def test_summary_statistics(serial):
     s = mc.campaign_summary(serial)
     ratios = [r["fl_rms_error"] / r["hinf_rms_error"] for r in serial.rows]
-    np.testing.assert_allclose(s["error_ratio"]["median"], np.median(ratios), rtol=1e-12)
-    assert s["error_ratio"]["worst"] == min(ratios)
-    assert s["fraction_hinf_better"] == np.mean([x > 1 for x in ratios])
+    np.testing.assert_allclose(s["error_ratio_hinf"]["median"], np.median(ratios), rtol=1e-12)
+    assert s["error_ratio_hinf"]["worst"] == min(ratios)
+    assert s["fraction_better"]["hinf"] == np.mean([x > 1 for x in ratios])
 
 
-def test_cli_writes_table_summary_and_figure(tmp_path, capsys):
+def test_cli_three_controllers(tmp_path, capsys):
     out = tmp_path / "mc"
     code = cli.main(["montecarlo", "--samples", "3", "--duration", "0.2", "--jobs", "1",
-                     "--engine", "python", "--out", str(out), "--no-progress"])
+                     "--controllers", "fl,hinf,pd", "--engine", "python", "--out", str(out),
+                     "--no-progress"])
     assert code == 0
     with open(out / "campaign.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert [r["index"] for r in rows] == ["0", "1", "2"]
-    assert "hinf_rms_error_joint3" in rows[0]
-    summary = json.loads((out / "summary.json").read_text())["summary"]
-    assert summary["samples"] == 3
+    for col in ("hinf_rms_error_joint3", "pd_rms_error_joint3", "error_ratio_pd",
+                "torque_ratio_hinf"):
+        assert col in rows[0]
+    data = json.loads((out / "summary.json").read_text())
+    assert data["summary"]["samples"] == 3
+    assert [c["name"] for c in data["controllers"]] == ["fl", "hinf", "pd"]
+    assert data["settings"]["engine"] == "python" and data["settings"]["rate_hz"] == 1000.0
     assert (out / "montecarlo.png").stat().st_size > 10_000
     assert len((out / "samples.jsonl").read_text().splitlines()) == 3
     assert "rollouts/s" in capsys.readouterr().out
 
 
-def test_bad_sample_count(setup):
-    with pytest.raises(ValueError, match="samples must be a positive integer"):
-        mc.run_campaign(*setup, samples=0)
+@pytest.mark.parametrize("kwargs,message", [
+    ({"samples": 0}, "samples must be an integer >= 1"),
+    ({"samples": 2, "seed": -1}, "seed must be an integer >= 0"),
+], ids=["samples", "seed"])
+def test_bad_settings(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        mc.CampaignSettings(**kwargs)
+
+
+def test_bad_jobs(setup):
+    with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
+        mc.run_campaign(*setup, SETTINGS, jobs=0)

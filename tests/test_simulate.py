@@ -6,7 +6,8 @@ from numpy.testing import assert_allclose
 from rrr_pin.controllers import TrackingController, fl_controller, hinf_fl_controller
 from rrr_pin.dh import ArmParams, paper_params
 from rrr_pin.dynamics import load_robot
-from rrr_pin.simulate import SimulationDiverged, SineReference, metrics, simulate
+from rrr_pin.references import SineReference
+from rrr_pin.simulate import SimulationDiverged, metrics, simulate
 from rrr_pin.study import default_reference
 from rrr_pin.uncertainty import sample_plants
 
@@ -23,18 +24,6 @@ def setup():
     return nominal, plant, controllers, default_reference(nominal)
 
 
-def test_reference_derivatives_by_finite_differences():
-    ref = SineReference(home=[0.1, -0.2], amp=[0.5, 0.3], freq=[0.5, 2.0], phase=[0.0, 1.0])
-    h = 1e-5
-    for t in (0.0, 0.37, 1.9):
-        r_p, rd_p, _ = ref(t + h)
-        r_m, rd_m, _ = ref(t - h)
-        _, rd, rdd = ref(t)
-        # central differences: error O(h^2 * third derivative) ~ 1e-10 * (2 pi 2)^3 ~ 2e-7
-        assert_allclose((r_p - r_m) / (2 * h), rd, atol=1e-6)
-        assert_allclose((rd_p - rd_m) / (2 * h), rdd, atol=1e-5)
-
-
 @pytest.mark.parametrize("key", ["fl", "hinf"])
 @pytest.mark.parametrize("rate", [None, 1000.0], ids=["continuous", "sampled-1kHz"])
 def test_exact_model_tracks(setup, key, rate):
@@ -44,6 +33,23 @@ def test_exact_model_tracks(setup, key, rate):
     # zero-order hold itself leaves ~1e-7 rad. The uncertain plants' errors are ~1e-5..1e-4 rad.
     bound = 1e-8 if rate is None else 2e-6
     assert np.max(np.abs(traj.error)) < bound
+
+
+@pytest.mark.parametrize("engine", ["python", "auto"])
+def test_fl_transient_follows_the_closed_form(setup, engine):
+    # FL on the exact model, started off the reference: each joint's error obeys
+    # e'' + 2 lam e' + lam^2 e = 0 (eq. 10), whose solution for e(0) = e0, e'(0) = ed0 is
+    # e(t) = (e0 + (lam e0 + ed0) t) exp(-lam t) (critically damped second-order system).
+    nominal, _, controllers, ref = setup
+    lam = controllers["fl"].lam
+    r0, rd0, _ = ref(0.0)
+    e0, ed0 = np.array([0.02, -0.01, 0.015]), np.array([0.5, 0.2, -0.3])
+    traj = simulate(nominal, controllers["fl"], ref, 0.1, dt=1e-4, q0=r0 - e0, qd0=rd0 - ed0,
+                    engine=engine)
+    t = traj.t[:, None]
+    expected = (e0 + (lam * e0 + ed0) * t) * np.exp(-lam * t)
+    # RK4 with lam dt = 0.01: global error ~ (lam dt)^4 |e0| ~ 1e-10 rad; 1e-9 leaves margin.
+    assert_allclose(traj.error, expected, atol=1e-9)
 
 
 def test_halving_the_step_changes_errors_far_less_than_the_study_differences(setup):
@@ -70,12 +76,13 @@ def test_sampled_approaches_continuous(setup):
     assert gaps[1] < gaps[0] / 2.5
 
 
-def test_divergence_names_time_and_joint(setup):
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_divergence_names_time_and_joint(setup, engine):
     nominal, _, _, ref = setup
     # A static K = -3 makes the error dynamics s^2 + 2 lam s - 2 lam^2 unstable.
     bad = TrackingController(nominal=nominal, lam=45.0, K=control.ss([], [], [], [[-3.0]]))
     with pytest.raises(SimulationDiverged, match=r"diverged at t = .* s: joint 'joint\d'"):
-        simulate(nominal, bad, ref, 2.0)
+        simulate(nominal, bad, ref, 2.0, engine=engine)
 
 
 def test_step_too_large_for_fast_controller(setup):
@@ -86,18 +93,34 @@ def test_step_too_large_for_fast_controller(setup):
 
 
 @pytest.mark.parametrize("kwargs,message", [
-    ({"duration": 0.0}, "duration must be > 0"),
-    ({"duration": 1.0, "dt": -1.0}, "dt must be > 0"),
-    ({"duration": 1.0, "rate": 0.0}, "rate must be > 0"),
-], ids=["duration", "dt", "rate"])
+    ({"duration": 0.0}, "duration must be finite and > 0"),
+    ({"duration": float("nan")}, "duration must be finite and > 0"),
+    ({"duration": 1.0, "dt": -1.0}, "dt must be finite and > 0"),
+    ({"duration": 1.0, "rate": 0.0}, "rate must be finite and > 0"),
+    ({"duration": 1e-4, "rate": 1000.0}, "shorter than one control period"),
+    ({"duration": 1e-4}, "shorter than one RK4 step"),
+    ({"duration": 1.0, "limit_margin": float("nan")}, "limit_margin must be finite"),
+    ({"duration": 1.0, "q0": [0.0, 0.0]}, r"Expected q0 of shape \(3,\)"),
+    ({"duration": 1.0, "q0": [0.0, 0.0, 4.0]}, "initial state of joint 'joint3'"),
+    ({"duration": 1.0, "engine": "fast"}, "engine must be one of"),
+], ids=["duration", "duration-nan", "dt", "rate", "short-sampled", "short-continuous",
+        "margin-nan", "q0-size", "q0-limits", "engine"])
 def test_bad_arguments(setup, kwargs, message):
     nominal, _, controllers, ref = setup
     with pytest.raises(ValueError, match=message):
         simulate(nominal, controllers["fl"], ref, **kwargs)
 
 
-def test_reference_outside_limits_refused(setup):
-    nominal = setup[0]
+def test_reference_outside_limits_refused_up_front(setup):
+    nominal, _, controllers, _ = setup
     ref = SineReference(home=[0.0, 0.0, 3.0], amp=0.5, freq=0.5, phase=0.0)
     with pytest.raises(ValueError, match="reference for joint 'joint3' spans"):
-        ref.check_limits(nominal)
+        simulate(nominal, controllers["fl"], ref, 1.0)
+
+
+def test_wrong_types(setup):
+    nominal, _, controllers, ref = setup
+    with pytest.raises(TypeError, match="must subclass rrr_pin.ControlLaw"):
+        simulate(nominal, object(), ref, 1.0)
+    with pytest.raises(TypeError, match="reference must be a rrr_pin Reference"):
+        simulate(nominal, controllers["fl"], lambda t: t, 1.0)

@@ -1,40 +1,116 @@
 import control
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
+from rrr_pin.controllers import ControlLaw, fl_controller, hinf_fl_controller, pd_controller
 from rrr_pin.dynamics import load_robot
+from rrr_pin.runner import RunSettings, make_laws
 from rrr_pin.study import StudyConfig, run_study
 
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
                  [1.0, 513.37 + 0.19, 513.37 * 0.19])
 
 
-def test_results_do_not_depend_on_jobs():
-    robot = load_robot("rrr")
-    runs = [run_study(robot, K18, config=StudyConfig(duration=0.5, samples=2, jobs=j))
-            for j in (1, 2)]
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot("rrr")
+
+
+def _config(**kw):
+    return StudyConfig(run=RunSettings(duration=0.5), **kw)
+
+
+def test_results_do_not_depend_on_jobs(robot):
+    laws = [fl_controller(robot), hinf_fl_controller(robot, K18)]
+    runs = [run_study(robot, laws, config=_config(samples=2, jobs=j)) for j in (1, 2)]
     a, b = (r.to_json() for r in runs)
     assert a["uncertain"]["samples"] == b["uncertain"]["samples"]
     assert a["summary"] == b["summary"]
 
 
-def test_summary_is_computed_from_the_samples():
-    result = run_study(load_robot("rrr"), K18,
-                       config=StudyConfig(duration=0.5, samples=3, jobs=1, seed=2))
+def test_summary_is_computed_from_the_samples(robot):
+    laws = make_laws("fl,hinf,pd", robot, K=K18)
+    result = run_study(robot, laws, config=_config(samples=3, jobs=1, seed=2))
     data = result.to_json()
     s = data["summary"]
-    assert s["samples_ok"] == 3
-    # Recompute the headline ratio straight from the trajectories (not from the metrics).
+    assert s["samples_ok"] == 3 and s["baseline"] == "fl"
+    # Recompute the headline ratios straight from the trajectories (not from the metrics).
+    names = ("fl", "hinf", "pd")
     err = {k: np.concatenate([x["trajectories"][k].error.ravel() for x in result.samples])
-           for k in ("fl", "hinf")}
+           for k in names}
     tau = {k: np.concatenate([x["trajectories"][k].tau.ravel() for x in result.samples])
-           for k in ("fl", "hinf")}
+           for k in names}
 
     def rms(v):
         return np.sqrt(np.mean(v**2))
 
-    assert_allclose(s["error_ratio_uncertain"], rms(err["fl"]) / rms(err["hinf"]), rtol=1e-12)
-    assert_allclose(s["torque_ratio_uncertain"], rms(tau["hinf"]) / rms(tau["fl"]), rtol=1e-12)
-    assert len(s["error_ratio_uncertain_per_joint"]) == 3
-    assert set(data["nominal"]) == {"fl", "hinf"}
-    assert len(data["uncertain"]["fl"]["rms_error"]) == 3
+    for k in ("hinf", "pd"):
+        assert_allclose(s["error_ratio_uncertain"][k], rms(err["fl"]) / rms(err[k]), rtol=1e-12)
+        assert_allclose(s["torque_ratio_uncertain"][k], rms(tau[k]) / rms(tau["fl"]),
+                        rtol=1e-12)
+        assert len(s["error_ratio_uncertain_per_joint"][k]) == 3
+    assert "fl" not in s["error_ratio_uncertain"]
+    assert set(data["nominal"]) == set(names)
+    assert [c["name"] for c in data["controllers"]] == list(names)
+    assert data["config"]["engine"] == "auto" and data["config"]["duration_s"] == 0.5
+
+
+def test_a_users_law_runs_in_the_study(robot):
+    class Stiff(ControlLaw):
+        """A user's law: FL-free joint PD with gravity from the robot model."""
+
+        name, label, n = "stiff", "my PD", 3
+
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            return 4000.0 * (r - q) + 100.0 * (rd - qd) + robot.G(q)
+
+    laws = [pd_controller(robot), Stiff()]
+    result = run_study(robot, laws, config=StudyConfig(run=RunSettings(duration=0.3),
+                                                       samples=1, jobs=1, baseline="pd"))
+    s = result.to_json()["summary"]
+    assert set(s["error_ratio_uncertain"]) == {"stiff"}
+    assert result.nominal["stiff"].info["engine"] == "python"
+    assert result.nominal["pd"].info["engine"] in ("compiled", "python")
+
+
+@pytest.mark.parametrize("kwargs,message", [
+    ({"baseline": "nosuch"}, "baseline 'nosuch' is not among the controllers"),
+], ids=["baseline"])
+def test_bad_study(robot, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        run_study(robot, [fl_controller(robot)], config=_config(samples=0, **kwargs))
+
+
+def test_duplicate_names_refused(robot):
+    with pytest.raises(ValueError, match="names must be unique, repeated: fl"):
+        run_study(robot, [fl_controller(robot), fl_controller(robot, 50.0)],
+                  config=_config(samples=0))
+
+
+@pytest.mark.parametrize("kwargs,message", [
+    ({"samples": -1}, "samples must be an integer >= 0"),
+    ({"seed": -1}, "seed must be an integer >= 0"),
+    ({"jobs": 0}, "jobs must be an integer >= 1"),
+], ids=["samples", "seed", "jobs"])
+def test_bad_config(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        StudyConfig(**kwargs)
+
+
+@pytest.mark.parametrize("kwargs,message", [
+    ({"duration": float("nan")}, "duration must be a finite number > 0"),
+    ({"duration": 1e-4, "rate": 1000.0}, "shorter than one control period"),
+    ({"duration": 1e-4}, "shorter than one RK4 step"),
+    ({"rate": float("inf")}, "rate must be a finite number"),
+    ({"engine": "gpu"}, "engine must be one of"),
+    ({"limit_margin": float("nan")}, "limit_margin must be a finite number"),
+], ids=["duration", "short-sampled", "short-continuous", "rate", "engine", "margin"])
+def test_bad_run_settings(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        RunSettings(**kwargs)
+
+
+def test_unknown_controller_name(robot):
+    with pytest.raises(ValueError, match="unknown controller 'lqr'; built-in controllers: fl"):
+        make_laws("fl,lqr", robot)
