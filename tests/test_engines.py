@@ -225,11 +225,6 @@ def test_subclassed_builtin_runs_itself_continuous(rrr, sagging):
     check_zero_torque_runs_itself(rrr, sagging, None)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "BUG (issue 9's silent substitution, still there for sampled runs): "
-    "TrackingController.sampled() builds _SampledTracking, whose step() calls the built-in "
-    "_tau() and never the subclass's torque(), so the user's law is replaced by FL on the "
-    "Python engine (max error 8.9e-7 rad instead of ~1 rad)"))
 def test_subclassed_builtin_runs_itself_sampled(rrr, sagging):
     check_zero_torque_runs_itself(rrr, sagging, RATE)
 

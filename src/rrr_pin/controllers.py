@@ -412,9 +412,20 @@ class TrackingController(ControlLaw):
         return A @ x + B @ (r - q)
 
     def sampled(self, rate: float = DEFAULT_RATE, method: str = "tustin") -> SampledLaw:
-        """Digital version: ``K`` discretized by ``method``, torque held between samples."""
+        """Digital version: ``K`` discretized by ``method``, torque held between samples.
+
+        A subclass that overrides :meth:`torque`, :meth:`derivative` or ``_tau`` changes the
+        law, so the discretization of the built-in does not apply to it: a static subclass
+        (``nx == 0``) is sampled by evaluating its own :meth:`torque`; one with state must
+        override this method (``NotImplementedError`` otherwise).
+        """
         rate = _rate(rate)
-        return _SampledTracking(self, rate, method, self.discretize(rate, method))
+        cls = type(self)
+        own = all(getattr(cls, m) is getattr(TrackingController, m)
+                  for m in ("torque", "derivative", "_tau"))
+        if own:
+            return _SampledTracking(self, rate, method, self.discretize(rate, method))
+        return ControlLaw.sampled(self, rate, method)
 
     def compiled_form(self) -> CompiledForm | None:
         """Declared for this exact class only (a subclass may change the law)."""
