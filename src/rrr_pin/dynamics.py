@@ -12,6 +12,12 @@ URDF's root link; ``q`` are joint angles (revolute) or displacements (prismatic)
 of freedom. Continuous (unbounded revolute) joints are loaded as revolute joints with infinite
 limits, so ``q`` is always an angle and ``nq == nv``.
 
+Validation happens at the edges, once. Loading checks the URDF itself (XML, tree, joint
+axes and limits, every link's inertial with :func:`check_urdf_inertials`, joints to lock)
+before Pinocchio sees it, because urdfdom silently zeroes some bad inertias. The dynamics
+methods of :class:`Robot` check their arrays (:meth:`Robot.check_state`) unless called with
+``check=False``, the fast path for loops that have validated their state.
+
 References
 ----------
 .. [1] J. Carpentier et al., "The Pinocchio C++ library", SII 2019.
