@@ -87,22 +87,43 @@ def _fi_feasible(A, B1, B2, C1, D11, D12, gamma: float) -> bool:
     R = D1.T @ D1
     R[:mw, :mw] -= gamma**2 * np.eye(mw)
     B = np.hstack([B1, B2])
+    if np.linalg.cond(R) > 1e14:
+        return False
     Ri = np.linalg.inv(R)
     H = (np.block([[A, np.zeros((n, n))], [-C1.T @ C1, -A.T]])
          - np.vstack([B, -C1.T @ D1]) @ Ri @ np.hstack([D1.T @ C1, B.T]))
+    if _stabilizing_psd(H, n):
+        return True
+    # The Hamiltonian test is fast but loses accuracy when gamma is tiny (Ri ~ 1/gamma^2);
+    # confirm a negative answer with the balanced generalized-pencil Riccati solver.
+    try:      # A'X + XA - (XB + C1'D1) R^-1 (B'X + D1'C1) + C1'C1 = 0
+        X = sla.solve_continuous_are(A, B, C1.T @ C1, R, s=C1.T @ D1, balanced=True)
+    except (np.linalg.LinAlgError, ValueError):
+        return False
+    return _psd(X)
+
+
+def _psd(X) -> bool:
+    if not np.all(np.isfinite(X)):
+        return False
+    X = 0.5 * (X + X.T)
+    return bool(np.linalg.eigvalsh(X).min() >= -1e-9 * max(1.0, np.abs(X).max()))
+
+
+def _stabilizing_psd(H, n: int) -> bool:
+    """Whether the Hamiltonian ``H`` has a stabilizing Riccati solution ``X >= 0``."""
     ev = np.linalg.eigvals(H)
     scale = max(1.0, np.abs(ev).max())
     if np.any(np.abs(ev.real) < 1e-9 * scale):
         return False
-    T, U, k = sla.schur(H, output="real", sort="lhp")
-    if k != n:
+    try:
+        _, U, k = sla.schur(H, output="real", sort="lhp")
+    except np.linalg.LinAlgError:
         return False
     X1, X2 = U[:n, :n], U[n:, :n]
-    if np.linalg.cond(X1) > 1e12:
+    if k != n or np.linalg.cond(X1) > 1e12:
         return False
-    X = np.linalg.solve(X1.T, X2.T).T
-    X = 0.5 * (X + X.T)
-    return bool(np.linalg.eigvalsh(X).min() >= -1e-9 * max(1.0, np.abs(X).max()))
+    return _psd(np.linalg.solve(X1.T, X2.T).T)
 
 
 def _directed_gap(G1, G2, lo: float, rtol: float) -> float:
@@ -116,6 +137,10 @@ def _directed_gap(G1, G2, lo: float, rtol: float) -> float:
     lo, hi = max(0.0, lo), 1.0
     if not _fi_feasible(A, B1, B2, C1, D11, D12, hi * (1 + 1e-9)):
         return 1.0
+    # The directed gap is often its lower bound ||Gt2 G1||_inf: try just above it first.
+    first = lo * (1.0 + rtol) + 1e-12
+    if first < hi and _fi_feasible(A, B1, B2, C1, D11, D12, first):
+        return first
     while hi - lo > max(rtol * hi, 1e-12):
         mid = 0.5 * (lo + hi)
         if _fi_feasible(A, B1, B2, C1, D11, D12, mid):
@@ -125,7 +150,7 @@ def _directed_gap(G1, G2, lo: float, rtol: float) -> float:
     return hi
 
 
-def directed_gap(P1, P2, rtol: float = 1e-7) -> float:
+def directed_gap(P1, P2, rtol: float = 1e-6) -> float:
     r"""Directed gap from ``P1`` to ``P2`` (Georgiou 1988).
 
     .. math:: \vec\delta(P_1, P_2) = \inf_{Q \in H_\infty} \|G_1 - G_2 Q\|_\infty
@@ -162,7 +187,7 @@ def nugap(P1, P2) -> float:
     return _nugap(G1, G2, Gt2)
 
 
-def gapmetric(P1, P2, rtol: float = 1e-7) -> tuple[float, float]:
+def gapmetric(P1, P2, rtol: float = 1e-6) -> tuple[float, float]:
     r"""Gap and Vinnicombe nu-gap metrics between two plants.
 
     .. math::
@@ -187,7 +212,9 @@ def gapmetric(P1, P2, rtol: float = 1e-7) -> tuple[float, float]:
         Plants of the same shape and timebase (continuous or discrete), stabilizable and
         detectable.
     rtol : float
-        Relative accuracy of the gap bisection (the returned gap is an upper bound).
+        Relative accuracy of the gap bisection (the returned gap is an upper bound). Near 0
+        the Riccati test resolves the gap to about 1e-6 absolute; the nu-gap, an exact
+        H-infinity norm, to about 1e-10.
 
     Returns
     -------
