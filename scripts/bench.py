@@ -1,41 +1,80 @@
-"""Benchmark: dynamics calls, closed-loop rollouts against the C++ floor, Monte Carlo throughput.
+"""Benchmark: every figure of issue 13, each with its ratio and goal, measured side by side.
 
-Everything is measured in one run on this machine and printed (never asserted):
+Everything is measured in one run on this machine (named in the output) and printed, never
+asserted:
 
-1. per call from Python: M, V, G through Pinocchio (``Robot`` methods and bare ``pin`` calls)
-   against the paper's closed form (``rrr_pin.closed_form``);
-2. one closed-loop rollout, 10 s of the nominal RRR at 1 kHz (zero-order hold, RK4 plant, one
-   sub-step), both controllers, for every rollout path: wall time (median of ``--repeat`` runs)
-   and microseconds per control step;
-3. the floor: the same Pinocchio calls a step needs (1 CRBA + 1 NLE on the nominal model,
-   4 ABA on the plant) timed in a plain C++ loop, and the ratio of each path to it;
-4. Monte Carlo throughput (plant-rollouts per second) with 1 and 2 worker processes.
+1. per call from Python: ``Robot.M/V/G`` (checked and ``check=False``) against the bare ``pin``
+   calls they make, and the paper's closed form (``rrr_pin.closed_form``);
+2. the compiled engine: a 10 s rollout of the nominal RRR for every built-in law (FL, H-inf + FL,
+   PD + gravity), sampled at 1 kHz (zero-order hold, RK4 plant) and continuous (RK4, law at
+   every stage, dt = 1 ms), with every reference kind (sine, quintic, spline, task-space line),
+   against the C++ floor (``rrr_pin.compiled.floor_ms``: the same Pinocchio calls in a bare C++
+   loop);
+3. the Python engine (``simulate(..., engine="python")``) against a hand-written loop that calls
+   ``pin`` directly (:func:`handwritten_fl_rollout`, the yardstick): 10 s, 1 kHz, ZOH FL;
+4. a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes) against its bound
+   ``2 N x floor / 2 cores``, and the throughput with 1 worker;
+5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes.
 
-    python scripts/bench.py            # table
-    python scripts/bench.py --json     # one JSON object
+    python scripts/bench.py                  # table
+    python scripts/bench.py --json           # one JSON object
+    python scripts/bench.py --campaign-samples 1000   # the campaign of issue 13's table
+    python scripts/bench.py --quick          # seconds, to check that it runs
 """
 
 import argparse
 import json
 import os
 import platform
+import shutil
 import statistics
+import subprocess
+import sys
 import time
 import timeit
+from pathlib import Path
 
+import control
 import numpy as np
 import pinocchio as pin
 
 import rrr_pin
 from rrr_pin import closed_form
-from rrr_pin.compiled import compile_robot, floor_ms, rollout_compiled
-from rrr_pin.montecarlo import run_campaign
+from rrr_pin.compiled import floor_ms
+from rrr_pin.montecarlo import CampaignSettings, run_campaign
+from rrr_pin.references import LinePath, QuinticReference, SplineReference, task_space_reference
+from rrr_pin.runner import RunSettings, make_laws
+
+#: Issue 13's goals: (largest ratio, what it is a ratio of). Start-up goals are in seconds.
+GOALS = {
+    "compiled": 1.2,  # compiled rollout / C++ floor
+    "campaign": 1.1,  # campaign wall time / (2 N floor / 2 cores)
+    "python": 1.5,  # Python engine / hand-written loop
+    "robot_call": 2.0,  # Robot.M/V/G / bare pin call
+    "cli_help_s": 0.3,
+    "import_s": 0.6,
+}
+
+# The paper's H-infinity controller, eq. (18) (as rrr_pin.design().K_reduced reproduces it).
+K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
+                 [1.0, 513.37 + 0.19, 513.37 * 0.19])
 
 
 def per_call_us(fn, number):
     """Median over 5 repeats of the time of one call [us]."""
     times = timeit.repeat(fn, number=number, repeat=5)
     return 1e6 * statistics.median(times) / number
+
+
+def wall_ms(fn, repeat):
+    """Median wall time [ms] of ``repeat`` calls after one warm-up call."""
+    fn()
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(1e3 * (time.perf_counter() - t0))
+    return statistics.median(times)
 
 
 def machine() -> str:
@@ -49,7 +88,68 @@ def machine() -> str:
     except OSError:
         pass
     return (f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-            f"pin {pin.__version__}")
+            f"pin {pin.__version__}, numpy {np.__version__}")
+
+
+def handwritten_fl_rollout(plant, nominal, lam, R, RD, RDD, Ts, n_steps):
+    """Run the yardstick: 10 s of ZOH FL written directly on ``pin``, as a user would.
+
+    Per control period ``Ts``: ``tau = Mhat (rdd + 2 lam (rd - qd) + lam^2 (r - q)) + nle_hat``
+    (eq. 20 with feed-forward), then one classical RK4 step of the plant's ABA with ``tau`` held.
+    No validation and no divergence test. Returns the positions, shape (n_steps + 1, n) [rad].
+    """
+    pm, pd, nm, nd = plant.model, plant.data, nominal.model, nominal.data
+    crba, nle, aba = pin.crba, pin.nonLinearEffects, pin.aba
+    h, h2, h6 = Ts, 0.5 * Ts, Ts / 6.0
+    q, qd = R[0].copy(), RD[0].copy()
+    Q = np.empty((n_steps + 1, plant.nq))
+    Q[0] = q
+    for k in range(n_steps):
+        taubar = RDD[k] + 2.0 * lam * (RD[k] - qd) + lam * lam * (R[k] - q)
+        tau = crba(nm, nd, q) @ taubar + nle(nm, nd, q, qd)
+        a1 = aba(pm, pd, q, qd, tau)
+        v2 = qd + h2 * a1
+        a2 = aba(pm, pd, q + h2 * qd, v2, tau)
+        v3 = qd + h2 * a2
+        a3 = aba(pm, pd, q + h2 * v2, v3, tau)
+        v4 = qd + h * a3
+        a4 = aba(pm, pd, q + h * v3, v4, tau)
+        q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
+        qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
+        Q[k + 1] = q
+    return Q
+
+
+def references(robot, duration):
+    """One reference of each kind for the RRR, inside its limits, over ``duration`` [s]."""
+    move = min(2.0, duration)
+    q_start = np.array([0.3, -0.6, 1.0])
+    pin.framesForwardKinematics(robot.model, robot.data, q_start)
+    p0 = robot.data.oMf[robot.model.getFrameId("ee")].translation.copy()
+    times = np.linspace(0.0, duration, 6)
+    waypoints = 0.5 * np.sin(np.outer(times, [1.0, 1.7, 2.3]) + [0.0, 1.0, 2.0])
+    return {
+        "sine": rrr_pin.default_reference(robot),
+        "quintic": QuinticReference(start=[0.2, -0.5, 0.8], goal=[0.9, 0.3, -0.2],
+                                    move_time=move),
+        "spline": SplineReference(times=times, waypoints=waypoints),
+        "line": task_space_reference(robot, "ee", LinePath(p0, p0 + [-0.3, 0.2, 0.25]),
+                                     move_time=move, q_start=q_start),
+    }
+
+
+def subprocess_s(cmd, repeat):
+    """Median wall time [s] of a fresh process running ``cmd``."""
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def verdict(ratio, goal):
+    return f"goal <= {goal:g}: {'met' if ratio <= goal else 'NOT MET'}"
 
 
 def main(argv=None):
@@ -58,10 +158,19 @@ def main(argv=None):
     parser.add_argument("--duration", type=float, default=10.0, help="rollout length [s] (10)")
     parser.add_argument("--rate", type=float, default=1000.0, help="control rate [Hz] (1000)")
     parser.add_argument("--repeat", type=int, default=5, help="runs per rollout timing (5)")
-    parser.add_argument("--calls", type=int, default=2000, help="calls per per-call timing")
-    parser.add_argument("--mc-samples", type=int, default=40,
-                        help="plants per Monte Carlo throughput timing (40)")
+    parser.add_argument("--calls", type=int, default=20000, help="calls per per-call timing")
+    parser.add_argument("--campaign-samples", type=int, default=100,
+                        help="plants of the 2-job campaign (100; issue 13's table: 1000)")
+    parser.add_argument("--mc-samples", type=int, default=20,
+                        help="plants of the 1-job throughput run (20)")
+    parser.add_argument("--startup-repeat", type=int, default=5,
+                        help="runs of each start-up timing (5)")
+    parser.add_argument("--quick", action="store_true",
+                        help="tiny settings (0.05 s rollouts, 2 plants), to check that it runs")
     args = parser.parse_args(argv)
+    if args.quick:
+        args.duration, args.repeat, args.calls = 0.05, 1, 20
+        args.campaign_samples, args.mc_samples, args.startup_repeat = 2, 2, 1
 
     robot = rrr_pin.load_robot("rrr")
     params = rrr_pin.paper_params()
@@ -69,92 +178,167 @@ def main(argv=None):
     rng = np.random.default_rng(0)
     q, qd = rng.uniform(-np.pi, np.pi, 3), rng.uniform(-5, 5, 3)
 
+    # 1. Per call. The bare calls are the ones the Robot methods make (V: RNEA with zero
+    # acceleration on the zero-gravity copy of the model).
+    m0, d0, zero = robot._model0, robot._data0, np.zeros(robot.nq)
     calls = {
-        "M": {"pinocchio_robot": lambda: robot.M(q),
-              "pinocchio_bare": lambda: pin.crba(model, data, q),
+        "M": {"robot": lambda: robot.M(q), "robot_unchecked": lambda: robot.M(q, check=False),
+              "bare": lambda: pin.crba(model, data, q),
               "closed_form": lambda: closed_form.M(params, q)},
-        "V": {"pinocchio_robot": lambda: robot.V(q, qd),
-              "pinocchio_bare": lambda: pin.nonLinearEffects(model, data, q, qd),
+        "V": {"robot": lambda: robot.V(q, qd),
+              "robot_unchecked": lambda: robot.V(q, qd, check=False),
+              "bare": lambda: pin.rnea(m0, d0, q, qd, zero),
               "closed_form": lambda: closed_form.V(params, q, qd)},
-        "G": {"pinocchio_robot": lambda: robot.G(q),
-              "pinocchio_bare": lambda: pin.computeGeneralizedGravity(model, data, q),
+        "G": {"robot": lambda: robot.G(q), "robot_unchecked": lambda: robot.G(q, check=False),
+              "bare": lambda: pin.computeGeneralizedGravity(model, data, q),
               "closed_form": lambda: closed_form.G(params, q)},
     }
     per_call = {k: {path: per_call_us(fn, args.calls) for path, fn in v.items()}
                 for k, v in calls.items()}
 
-    K = rrr_pin.design().K_reduced
-    ref = rrr_pin.default_reference(robot)
-    controllers = {"fl": rrr_pin.fl_controller(robot),
-                   "hinf": rrr_pin.hinf_fl_controller(robot, K)}
+    # 2. Compiled rollouts against the floor, every law x time x reference.
+    laws = dict(zip(("fl", "hinf", "pd"), make_laws("fl,hinf,pd", robot, K=K18), strict=True))
+    refs = references(robot, args.duration)
     n_steps = int(round(args.duration * args.rate))
+    n_rk4 = int(round(args.duration / 1e-3))
+    floors = {}
+    for kind in ("fl", "pd"):
+        floors[kind, "sampled"] = floor_ms(robot, robot, n_steps, substeps=1, repeat=args.repeat,
+                                           kind=kind, sampled=True)
+        floors[kind, "continuous"] = floor_ms(robot, robot, n_rk4, repeat=args.repeat,
+                                              kind=kind, sampled=False)
+    compiled_rows = []
+    for name, law in laws.items():
+        kind = law.compiled_form().kind
+        for timing, rate in (("sampled", args.rate), ("continuous", None)):
+            for ref_name, ref in refs.items():
+                ms = wall_ms(lambda law=law, ref=ref, rate=rate: rrr_pin.simulate(
+                    robot, law, ref, args.duration, rate=rate, engine="compiled"), args.repeat)
+                floor = floors[kind, timing]
+                compiled_rows.append({"law": name, "time": timing, "reference": ref_name,
+                                      "compiled_ms": ms, "floor_ms": floor,
+                                      "ratio": ms / floor})
+
+    # 3. Python engine against the hand-written loop (FL, ZOH, sine), and H-inf for the record.
+    sine = refs["sine"]
+    py_repeat = max(1, args.repeat // 2)
+    python_ms = {name: wall_ms(lambda law=law: rrr_pin.simulate(
+        robot, law, sine, args.duration, rate=args.rate, engine="python"), py_repeat)
+        for name, law in laws.items()}
     Ts = 1.0 / args.rate
-    compiled = compile_robot(robot)
+    grid = Ts * np.arange(n_steps + 1)
+    R, RD, RDD = (np.ascontiguousarray(a) for a in sine.sample(grid))
+    lam = laws["fl"].lam
+    handwritten_ms = wall_ms(lambda: handwritten_fl_rollout(robot, robot, lam, R, RD, RDD, Ts,
+                                                            n_steps), py_repeat)
+    same = np.max(np.abs(
+        handwritten_fl_rollout(robot, robot, lam, R, RD, RDD, Ts, n_steps)
+        - rrr_pin.simulate(robot, laws["fl"], sine, args.duration, rate=args.rate,
+                           engine="python").q))
 
-    def prepared(ctrl):
-        mats = ctrl.discretize(args.rate)
-        return lambda: rollout_compiled(compiled, compiled, ctrl.lam, mats, ref.home, ref.amp,
-                                        ref.omega, ref.phase, Ts, 1, n_steps)
+    # 4. Campaign: N plants x (FL, H-inf), 10 s at 1 kHz, 2 workers; bound from the floor.
+    two = [laws["fl"], laws["hinf"]]
 
-    paths = {
-        "python": lambda c: (lambda: rrr_pin.simulate(robot, c, ref, args.duration,
-                                                      rate=args.rate, engine="python")),
-        "compiled": lambda c: (lambda: rrr_pin.simulate(robot, c, ref, args.duration,
-                                                        rate=args.rate, engine="compiled")),
-        "compiled_prepared": prepared,
-    }
-    rollout = {}
-    for path, make in paths.items():
-        rollout[path] = {}
-        repeat = max(1, args.repeat // 2) if path == "python" else args.repeat
-        for key, ctrl in controllers.items():
-            fn = make(ctrl)
-            fn()  # warm-up
-            times = []
-            for _ in range(repeat):
-                t0 = time.perf_counter()
-                fn()
-                times.append(1e3 * (time.perf_counter() - t0))
-            rollout[path][key] = statistics.median(times)
-    floor = floor_ms(robot, robot, n_steps, substeps=1, repeat=args.repeat)
-
-    mc = {}
-    for jobs in (1, 2):
+    def campaign(samples, jobs):
+        settings = CampaignSettings(samples=samples, seed=0, baseline="fl",
+                                    run=RunSettings(duration=args.duration, rate=args.rate))
         t0 = time.perf_counter()
-        run_campaign(robot, K, samples=args.mc_samples, duration=args.duration,
-                     rate=args.rate, jobs=jobs, engine="auto")
-        mc[jobs] = 2 * args.mc_samples / (time.perf_counter() - t0)
+        run_campaign(robot, two, settings, jobs=jobs)
+        return time.perf_counter() - t0
 
+    campaign_s = campaign(args.campaign_samples, 2)
+    campaign_bound_s = 2 * args.campaign_samples * 1e-3 * floors["fl", "sampled"] / 2
+    one_job_s = campaign(args.mc_samples, 1)
+
+    # 5. Start-up in fresh processes.
+    exe = shutil.which("rrr-pin", path=str(Path(sys.executable).parent)) or "rrr-pin"
+    cli_help_s = subprocess_s([exe, "--help"], args.startup_repeat)
+    import_s = subprocess_s([sys.executable, "-c", "import rrr_pin"], args.startup_repeat)
+    python_s = subprocess_s([sys.executable, "-c", "pass"], args.startup_repeat)
+
+    hinf_sampled = {r["reference"]: r for r in compiled_rows
+                    if r["law"] == "hinf" and r["time"] == "sampled"}["sine"]
+    fl_sampled = {r["reference"]: r for r in compiled_rows
+                  if r["law"] == "fl" and r["time"] == "sampled"}["sine"]
+    rollout = {"python": python_ms["hinf"], "compiled": hinf_sampled["compiled_ms"]}
+    floor = floors["fl", "sampled"]
     result = {
         "machine": machine(),
         "per_call_us": per_call,
-        "rollout_ms": {path: v["hinf"] for path, v in rollout.items()},
-        "rollout_ms_fl": {path: v["fl"] for path, v in rollout.items()},
+        "robot_call_us": {k: v["robot"] for k, v in per_call.items()},
+        "robot_call_unchecked_us": {k: v["robot_unchecked"] for k, v in per_call.items()},
+        "bare_call_us": {k: v["bare"] for k, v in per_call.items()},
+        "rollout_ms": rollout,
+        "rollout_ms_fl": {"python": python_ms["fl"], "compiled": fl_sampled["compiled_ms"]},
         "floor_ms": floor,
-        "ratio_to_floor": {path: v["hinf"] / floor for path, v in rollout.items()},
-        "us_per_step": {path: 1e3 * v["hinf"] / n_steps for path, v in rollout.items()},
-        "montecarlo_rollouts_per_s": {str(j): r for j, r in mc.items()},
+        "floors_ms": {f"{k}_{t}": v for (k, t), v in floors.items()},
+        "ratio_to_floor": {path: v / floor for path, v in rollout.items()},
+        "us_per_step": {path: 1e3 * v / n_steps for path, v in rollout.items()},
+        "compiled_vs_floor": compiled_rows,
+        "python_rollout_ms": python_ms["fl"],
+        "python_rollout_ms_by_law": python_ms,
+        "handwritten_python_ms": handwritten_ms,
+        "handwritten_max_diff_rad": float(same),
+        "campaign_s": campaign_s,
+        "campaign_bound_s": campaign_bound_s,
+        "montecarlo_rollouts_per_s": {"1": 2 * args.mc_samples / one_job_s,
+                                      "2": 2 * args.campaign_samples / campaign_s},
+        "cli_help_s": cli_help_s,
+        "import_s": import_s,
+        "python_startup_s": python_s,
+        "goals": GOALS,
         "settings": {"duration_s": args.duration, "rate_hz": args.rate, "substeps": 1,
-                     "repeat": args.repeat, "mc_samples": args.mc_samples},
+                     "continuous_dt_s": 1e-3, "repeat": args.repeat, "calls": args.calls,
+                     "campaign_samples": args.campaign_samples, "campaign_jobs": 2,
+                     "mc_samples": args.mc_samples, "startup_repeat": args.startup_repeat},
     }
     if args.json:
         print(json.dumps(result))
         return
-    print(f"machine: {result['machine']}")
-    print("\nper call from Python [us]        Pinocchio (Robot)  Pinocchio (bare)  closed form")
-    for k, v in per_call.items():
-        print(f"  {k:30}{v['pinocchio_robot']:17.2f}{v['pinocchio_bare']:18.2f}"
-              f"{v['closed_form']:13.2f}")
-    print(f"\nrollout: nominal RRR, {args.duration:g} s at {args.rate:g} Hz, RK4 plant "
-          f"(median of {args.repeat})")
-    print(f"  {'path':20}{'FL [ms]':>10}{'Hinf+FL [ms]':>14}{'us/step':>10}{'x floor':>9}")
-    for path, v in rollout.items():
-        print(f"  {path:20}{v['fl']:10.1f}{v['hinf']:14.1f}"
-              f"{result['us_per_step'][path]:10.2f}{result['ratio_to_floor'][path]:9.2f}")
-    print(f"  {'C++ floor':20}{'':10}{floor:14.1f}{1e3 * floor / n_steps:10.2f}{1.0:9.2f}")
-    print(f"\nMonte Carlo ({args.mc_samples} plants x 2 controllers x {args.duration:g} s): "
-          + ", ".join(f"{r:.1f} rollouts/s with {j} job{'s' if j > 1 else ''}"
-                      for j, r in mc.items()))
+    report(result, args)
+
+
+def report(res, args):
+    """Print the table of every figure, ratio and goal."""
+    print(f"machine: {res['machine']}")
+    print(f"\n1. per call from Python [us] (median of 5 x {args.calls})")
+    print(f"  {'':4}{'Robot':>9}{'check=False':>13}{'bare pin':>10}{'closed form':>13}"
+          f"{'Robot/bare':>12}{'unchecked/bare':>16}   goal")
+    for k, v in res["per_call_us"].items():
+        r1, r2 = v["robot"] / v["bare"], v["robot_unchecked"] / v["bare"]
+        print(f"  {k:4}{v['robot']:9.2f}{v['robot_unchecked']:13.2f}{v['bare']:10.2f}"
+              f"{v['closed_form']:13.2f}{r1:12.2f}{r2:16.2f}   "
+              f"{verdict(r1, GOALS['robot_call'])}")
+    print(f"\n2. compiled engine, nominal RRR, {args.duration:g} s; sampled at {args.rate:g} Hz "
+          f"(RK4 plant, ZOH) or continuous (RK4, dt = 1 ms, law at every stage); median of "
+          f"{args.repeat}")
+    print(f"  {'law':6}{'time':12}{'reference':10}{'compiled [ms]':>14}{'floor [ms]':>12}"
+          f"{'ratio':>8}   goal")
+    for r in res["compiled_vs_floor"]:
+        print(f"  {r['law']:6}{r['time']:12}{r['reference']:10}{r['compiled_ms']:14.1f}"
+              f"{r['floor_ms']:12.1f}{r['ratio']:8.2f}   {verdict(r['ratio'], GOALS['compiled'])}")
+    hw = res["handwritten_python_ms"]
+    print(f"\n3. Python engine, {args.duration:g} s at {args.rate:g} Hz ZOH, sine (median of "
+          f"{max(1, args.repeat // 2)})")
+    print(f"  hand-written FL loop on pin (yardstick): {hw:8.1f} ms  (same q as the engine to "
+          f"{res['handwritten_max_diff_rad']:.1e} rad)")
+    for name, ms in res["python_rollout_ms_by_law"].items():
+        print(f"  simulate(engine='python'), {name:5}:     {ms:8.1f} ms  {ms / hw:5.2f} x the "
+              f"yardstick" + (f"   {verdict(ms / hw, GOALS['python'])}" if name == "fl" else ""))
+    c, b = res["campaign_s"], res["campaign_bound_s"]
+    print(f"\n4. campaign: {args.campaign_samples} plants x 2 laws (FL, H-inf), "
+          f"{args.duration:g} s at {args.rate:g} Hz, 2 jobs")
+    print(f"  measured {c:8.2f} s; bound 2 x {args.campaign_samples} x "
+          f"{res['floor_ms']:.1f} ms / 2 cores = {b:.2f} s; ratio {c / b:.2f}   "
+          f"{verdict(c / b, GOALS['campaign'])}")
+    print("  throughput: " + ", ".join(
+        f"{r:.1f} rollouts/s with {j} job{'s' if j != '1' else ''}"
+        for j, r in res["montecarlo_rollouts_per_s"].items()))
+    print(f"\n5. start-up, fresh processes (median of {args.startup_repeat}; bare `python -c "
+          f"pass` takes {res['python_startup_s']:.3f} s)")
+    for key, what in (("cli_help_s", "rrr-pin --help"), ("import_s", "import rrr_pin")):
+        v, goal = res[key], GOALS[key]
+        print(f"  {what:16}{v:8.3f} s   goal < {goal:g} s: {'met' if v < goal else 'NOT MET'}")
 
 
 if __name__ == "__main__":
