@@ -178,10 +178,24 @@ def run_compiled(run, form):
         Kp, Kd = np.asarray(p["Kp"], dtype=float), np.asarray(p["Kd"], dtype=float)
         lam = 0.0
     N = len(run.t) - 1
-    Q, QD, TAU, bad_step, bad_joint, reason = _rollout.rollout(
-        compile_robot(plant)._model, compile_robot(form.nominal)._model, KINDS[form.kind],
-        run.sampled, lam, A, B, C, D, Kp, Kd, run.R, run.RD, run.RDD, run.q0, run.qd0, run.x0,
-        run.lower, run.upper, VELOCITY_LIMIT, run.h, run.substeps, N)
+    fx = run.effects
+    if fx is None:
+        Q, QD, TAU, bad_step, bad_joint, reason = _rollout.rollout(
+            compile_robot(plant)._model, compile_robot(form.nominal)._model, KINDS[form.kind],
+            run.sampled, lam, A, B, C, D, Kp, Kd, run.R, run.RD, run.RDD, run.q0, run.qd0,
+            run.x0, run.lower, run.upper, VELOCITY_LIMIT, run.h, run.substeps, N)
+    else:
+        # Plant effects (rrr_pin.effects): a separate C++ loop, so the ideal one stays as fast.
+        none_v, none_m = np.zeros(0), np.zeros((0, n))
+        Fv, Fc, veps = fx.friction if fx.friction is not None else (none_v, none_v, 1.0)
+        Bm, Kf, Df = fx.flex if fx.flex is not None else (none_v, none_v, none_v)
+        Q, QD, TAU, bad_step, bad_joint, reason = _rollout.rollout_effects(
+            compile_robot(plant)._model, compile_robot(form.nominal)._model, KINDS[form.kind],
+            lam, A, B, C, D, Kp, Kd, run.R, run.RD, run.RDD, run.q0, run.qd0, run.x0,
+            run.lower, run.upper, VELOCITY_LIMIT, run.h, run.substeps, N, fx.delay_steps,
+            fx.wa, fx.limit if fx.limit is not None else none_v, Fv, Fc, veps,
+            fx.noise_q if fx.noise_q is not None else none_m,
+            fx.noise_qd if fx.noise_qd is not None else none_m, fx.quantum, Bm, Kf, Df)
     if bad_step >= 0:
         t = float(run.t[bad_step])
         q, qd = Q[bad_step], QD[bad_step]

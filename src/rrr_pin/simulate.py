@@ -39,6 +39,7 @@ import numpy as np
 import pinocchio as pin
 
 from .controllers import ControlLaw, SampledLaw, check_law
+from .effects import PlantEffects, check_effects
 from .references import Reference, SineReference, check_reference
 
 __all__ = [
@@ -198,11 +199,13 @@ class _Run:
     lower: np.ndarray
     upper: np.ndarray
     info: dict
+    effects: object = None  # rrr_pin.effects._Resolved, or None for the ideal plant
 
 
 def simulate(plant, law, reference: Reference, duration: float, *, dt: float = DEFAULT_DT,
              rate: float | None = None, method: str = "tustin", q0=None, qd0=None,
-             limit_margin: float = 0.0, engine: str = "auto") -> Trajectory:
+             limit_margin: float = 0.0, engine: str = "auto",
+             effects: PlantEffects | None = None) -> Trajectory:
     """Simulate the closed loop of ``plant`` and ``law`` tracking ``reference``.
 
     Parameters
@@ -233,6 +236,10 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float = D
     engine : {"auto", "python", "compiled"}, default "auto"
         See the module docstring. ``"compiled"`` with a law that declares no compiled form
         raises ``ValueError`` naming the law.
+    effects : PlantEffects, optional
+        Unmodeled dynamics of the plant (delay, actuator bandwidth, friction, saturation,
+        sensor noise, quantization, flexible joints; :mod:`rrr_pin.effects`), sampled runs only.
+        None (default): the ideal plant.
 
     Returns
     -------
@@ -246,12 +253,12 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float = D
     ValueError
         Inconsistent sizes, non-finite or non-positive settings, a duration shorter than one
         step, a reference or initial state outside the joint limits, an engine that cannot run
-        the law.
+        the law, effects with a continuous-time law.
     TypeError
         ``law`` or ``reference`` of the wrong type.
     """
     run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
-                   qd0=qd0, limit_margin=limit_margin)
+                   qd0=qd0, limit_margin=limit_margin, effects=effects)
     form, engine = _choose_engine(run.law, engine)
     if engine == "compiled":
         from .compiled import run_compiled
@@ -285,7 +292,7 @@ def _choose_engine(law, engine: str):
 
 
 def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
-             limit_margin) -> _Run:
+             limit_margin, effects=None) -> _Run:
     """Validate every input once and sample the reference (the edge of the simulator)."""
     n = plant.nq
     check_law(law, n)
@@ -293,6 +300,13 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
     duration = _finite("duration", duration)
     dt = _finite("dt", dt)
     limit_margin = _finite("limit_margin", limit_margin, allow_zero=True)
+    effects = check_effects(effects)
+    if effects is not None and not effects.active:
+        effects = None
+    if effects is not None and rate is None and not isinstance(law, SampledLaw):
+        raise ValueError(
+            f"effects apply to sampled (digital) controllers only: law {law.name!r} is "
+            f"continuous-time; give rate= (e.g. rate=1000) to run it sampled with the effects")
     if isinstance(law, SampledLaw):
         if rate is not None and not math.isclose(_finite("rate", rate), law.rate):
             raise ValueError(f"law {law.name!r} is sampled at {law.rate:g} Hz, rate = "
@@ -341,8 +355,12 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
     if x0.shape != (law.nx,):
         raise ValueError(f"law {law.name!r}: initial_state() has shape {x0.shape}, nx = "
                          f"{law.nx}")
+    fx = None
+    if effects is not None:
+        fx = effects.resolve(plant, substeps, h, len(t) - 1)
+        info["effects"] = fx.info
     return _Run(plant, law, rate is not None, t, R, RD, RDD, q0, qd0, x0, h, substeps,
-                lower, upper, info)
+                lower, upper, info, fx)
 
 
 def _check_rk4_step(law, dt: float) -> None:
@@ -367,6 +385,8 @@ def _trajectory(run: _Run, Q, QD, TAU) -> Trajectory:
 
 
 def _run_python(run: _Run) -> Trajectory:
+    if run.effects is not None:
+        return _python_effects(run)
     return (_python_sampled if run.sampled else _python_continuous)(run)
 
 
@@ -448,4 +468,93 @@ def _python_continuous(run: _Run) -> Trajectory:
         bad = check(q, qd, lower, upper)
         if bad is not None:
             raise _diverged(plant, float(t[k + 1]), q, qd, *bad)
+    return _trajectory(run, Q, QD, TAU)
+
+
+def _python_effects(run: _Run) -> Trajectory:
+    """Run a sampled law with plant effects, in the order of :mod:`rrr_pin.effects`."""
+    plant, law, fx = run.plant, run.law, run.effects
+    model, data = plant.model, plant.data
+    aba, step, check = pin.aba, law.step, diverged_joint
+    lower, upper = run.lower, run.upper
+    h, S, d = run.h, run.substeps, fx.delay_steps
+    h2, h6 = 0.5 * h, h / 6.0
+    t = run.t
+    R, RD, RDD = run.R, run.RD, run.RDD
+    N = len(t) - 1
+    n = plant.nq
+    Q = np.empty((N + 1, n))
+    QD = np.empty_like(Q)
+    TAU = np.empty_like(Q)
+    U = np.empty((N, n))
+    wa, limit, quantum = fx.wa, fx.limit, fx.quantum
+    nq_, nqd_ = fx.noise_q, fx.noise_qd
+    if fx.friction is not None:
+        Fv, Fc, veps = fx.friction
+    if fx.flex is not None:
+        Bm, Kf, Df = fx.flex
+
+    def f(q, qd, a, th, thd, u):
+        """Link acceleration, actuator-state and motor accelerations."""
+        tm = a if wa else u
+        thdd = None
+        if fx.flex is not None:
+            tj = Kf * (th - q) + Df * (thd - qd)
+            thdd = (tm - tj) / Bm
+        else:
+            tj = tm
+        if fx.friction is not None:
+            tj = tj - (Fv * qd + Fc * np.tanh(qd / veps))
+        ad = wa * (u - a) if wa else None
+        return aba(model, data, q, qd, tj), ad, thdd
+
+    q, qd, x = run.q0, run.qd0, run.x0
+    a = th = thd = None
+    Q[0], QD[0] = q, qd
+    for k in range(N):
+        qm, qdm = q, qd
+        if nq_ is not None:
+            qm = qm + nq_[k]
+        if quantum:
+            qm = quantum * np.rint(qm / quantum)
+        if nqd_ is not None:
+            qdm = qdm + nqd_[k]
+        tau, x = step(t[k], qm, qdm, R[k], RD[k], RDD[k], x)
+        if limit is not None:
+            tau = np.minimum(np.maximum(tau, -limit), limit)
+        U[k] = tau
+        TAU[k] = tau
+        if k == 0:
+            if wa:
+                a = U[0].copy()
+            if fx.flex is not None:
+                th, thd = q + U[0] / Kf, qd.copy()
+        for s in range(S):
+            j = k * S + s - d
+            u = U[j // S] if j >= 0 else U[0]
+            a1, b1, c1 = f(q, qd, a, th, thd, u)
+            v2 = qd + h2 * a1
+            a2s = a + h2 * b1 if wa else None
+            th2, w2 = (th + h2 * thd, thd + h2 * c1) if th is not None else (None, None)
+            a2, b2, c2 = f(q + h2 * qd, v2, a2s, th2, w2, u)
+            v3 = qd + h2 * a2
+            a3s = a + h2 * b2 if wa else None
+            th3, w3 = (th + h2 * w2, thd + h2 * c2) if th is not None else (None, None)
+            a3, b3, c3 = f(q + h2 * v2, v3, a3s, th3, w3, u)
+            v4 = qd + h * a3
+            a4s = a + h * b3 if wa else None
+            th4, w4 = (th + h * w3, thd + h * c3) if th is not None else (None, None)
+            a4, b4, c4 = f(q + h * v3, v4, a4s, th4, w4, u)
+            q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
+            qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
+            if wa:
+                a = a + h6 * (b1 + 2.0 * (b2 + b3) + b4)
+            if th is not None:
+                th = th + h6 * (thd + 2.0 * (w2 + w3) + w4)
+                thd = thd + h6 * (c1 + 2.0 * (c2 + c3) + c4)
+        Q[k + 1], QD[k + 1] = q, qd
+        bad = check(q, qd, lower, upper)
+        if bad is not None:
+            raise _diverged(plant, float(t[k + 1]), q, qd, *bad)
+    TAU[N] = TAU[N - 1]
     return _trajectory(run, Q, QD, TAU)

@@ -17,6 +17,7 @@
 // version at build and run time, and rrr_pin.compiled compares `pinocchio_version()` with the
 // imported pinocchio before the first call.
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -381,6 +382,214 @@ namespace
     return {std::move(Q), std::move(QD), std::move(TAU), bad_step, bad.joint, bad.reason};
   }
 
+  /// Sampled rollout with plant effects (rrr_pin.effects), operation for operation as
+  /// rrr_pin.simulate._python_effects: sensor (noise, quantization) -> law -> saturation ->
+  /// delay (delay_steps plant sub-steps) -> first-order actuator (wa > 0) -> flexible joint
+  /// (Kf non-empty) -> arm with friction (Fv non-empty). Empty vectors / zero-row matrices
+  /// switch an effect off. The ideal loop stays in rollout() above, untouched.
+  RolloutResult rollout_effects(
+    const CompiledModel & plant_model,
+    const CompiledModel & nominal_model,
+    int kind,
+    double lam,
+    const Mat & A,
+    const Mat & B,
+    const Mat & C,
+    const Mat & D,
+    const Mat & Kp,
+    const Mat & Kd,
+    CRowMat R,
+    CRowMat RD,
+    CRowMat RDD,
+    const Vec & q0,
+    const Vec & qd0,
+    const Vec & x0,
+    const Vec & lower,
+    const Vec & upper,
+    double vlim,
+    double h,
+    int substeps,
+    std::int64_t n_steps,
+    std::int64_t delay_steps,
+    double wa,
+    const Vec & limit,
+    const Vec & Fv,
+    const Vec & Fc,
+    double veps,
+    CRowMat noise_q,
+    CRowMat noise_qd,
+    double quantum,
+    const Vec & Bm,
+    const Vec & Kf,
+    const Vec & Df)
+  {
+    const Eigen::Index n = plant_model.model.nq;
+    const Eigen::Index m = A.rows();
+    if (nominal_model.model.nq != n)
+      throw std::invalid_argument("plant and nominal models differ in nq");
+    if (kind != kFL && kind != kPD)
+      throw std::invalid_argument("unknown law kind");
+    if (
+      A.cols() != m || B.rows() != m || B.cols() != n || C.rows() != n || C.cols() != m
+      || D.rows() != n || D.cols() != n || x0.size() != m)
+      throw std::invalid_argument("controller matrices have inconsistent shapes");
+    if (kind == kPD && (Kp.rows() != n || Kp.cols() != n || Kd.rows() != n || Kd.cols() != n))
+      throw std::invalid_argument("Kp and Kd must be nq x nq");
+    if (substeps < 1 || n_steps < 1 || !(h > 0.0) || delay_steps < 0)
+      throw std::invalid_argument("substeps >= 1, n_steps >= 1, h > 0, delay_steps >= 0");
+    const std::int64_t rows = n_steps + 1;
+    if (
+      R.rows() != rows || RD.rows() != rows || RDD.rows() != rows || R.cols() != n
+      || RD.cols() != n || RDD.cols() != n)
+      throw std::invalid_argument("reference arrays have the wrong shape");
+    if (q0.size() != n || qd0.size() != n || lower.size() != n || upper.size() != n)
+      throw std::invalid_argument("state and limit vectors must have nq entries");
+    const bool sat = limit.size() > 0, fric = Fv.size() > 0, flex = Kf.size() > 0;
+    const bool has_nq = noise_q.rows() > 0, has_nqd = noise_qd.rows() > 0, act = wa > 0.0;
+    if (
+      (sat && limit.size() != n) || (fric && Fc.size() != n) || (fric && Fv.size() != n)
+      || (flex && (Kf.size() != n || Bm.size() != n || Df.size() != n))
+      || (has_nq && (noise_q.rows() != n_steps || noise_q.cols() != n))
+      || (has_nqd && (noise_qd.rows() != n_steps || noise_qd.cols() != n)))
+      throw std::invalid_argument("effect arrays have the wrong shape");
+
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    RowMat Q = RowMat::Constant(n_steps + 1, n, nan);
+    RowMat QD = RowMat::Constant(n_steps + 1, n, nan);
+    RowMat TAU = RowMat::Constant(n_steps + 1, n, nan);
+    RowMat U(n_steps, n);
+    std::int64_t bad_step = -1;
+    Divergence bad;
+
+    {
+      nb::gil_scoped_release release;
+
+      Workspace plant(plant_model);
+      Law law(kind, nominal_model, lam, A, B, C, D, Kp, Kd);
+      Vec q = q0, qd = qd0, x = x0, xn(m), tau(n), qm(n), qdm(n), u(n);
+      Vec a1(n), a2(n), a3(n), a4(n), v2(n), v3(n), v4(n), qs(n);
+      Vec act_s(n), b1(n), b2(n), b3(n), b4(n), a = Vec::Zero(n);
+      Vec th = Vec::Zero(n), thd = Vec::Zero(n), th_s(n), w2(n), w3(n), w4(n);
+      Vec c1(n), c2(n), c3(n), c4(n), tj(n), tm(n);
+      const double h2 = 0.5 * h, h6 = h / 6.0;
+
+      // Link acceleration `acc`, actuator derivative `ad`, motor acceleration `thdd`.
+      auto f = [&](const Vec & qq, const Vec & vv, const Vec & aa, const Vec & tt,
+                   const Vec & ww, Vec & acc, Vec & ad, Vec & thdd) {
+        tm = act ? aa : u;
+        if (flex)
+        {
+          tj = Kf.cwiseProduct(tt - qq) + Df.cwiseProduct(ww - vv);
+          thdd = (tm - tj).cwiseQuotient(Bm);
+        }
+        else
+          tj = tm;
+        if (fric)
+        {
+          Vec fr(n);
+          for (Eigen::Index j = 0; j < n; ++j)
+            fr[j] = Fv[j] * vv[j] + Fc[j] * std::tanh(vv[j] / veps);
+          tj = tj - fr;
+        }
+        if (act)
+          ad = wa * (u - aa);
+        acc = aba(plant, qq, vv, tj);
+      };
+
+      Q.row(0) = q.transpose();
+      QD.row(0) = qd.transpose();
+      for (std::int64_t k = 0; k < n_steps; ++k)
+      {
+        qm = q;
+        qdm = qd;
+        if (has_nq)
+          qm = qm + noise_q.row(k).transpose();
+        if (quantum > 0.0)
+          for (Eigen::Index j = 0; j < n; ++j)
+            qm[j] = quantum * std::nearbyint(qm[j] / quantum);
+        if (has_nqd)
+          qdm = qdm + noise_qd.row(k).transpose();
+        tau = law.torque(qm, qdm, R.row(k), RD.row(k), RDD.row(k), x);
+        if (m > 0)
+        {
+          law.state_map(x, xn);
+          x.swap(xn);
+        }
+        if (sat)
+          for (Eigen::Index j = 0; j < n; ++j)
+            tau[j] = std::min(std::max(tau[j], -limit[j]), limit[j]);
+        U.row(k) = tau.transpose();
+        TAU.row(k) = tau.transpose();
+        if (k == 0)
+        {
+          if (act)
+            a = tau;
+          if (flex)
+          {
+            th = q + tau.cwiseQuotient(Kf);
+            thd = qd;
+          }
+        }
+        for (int s = 0; s < substeps; ++s)
+        {
+          const std::int64_t j = k * substeps + s - delay_steps;
+          u = U.row(j >= 0 ? j / substeps : 0).transpose();
+          f(q, qd, a, th, thd, a1, b1, c1);
+          v2 = qd + h2 * a1;
+          if (act)
+            act_s = a + h2 * b1;
+          if (flex)
+          {
+            th_s = th + h2 * thd;
+            w2 = thd + h2 * c1;
+          }
+          qs = q + h2 * qd;
+          f(qs, v2, act_s, th_s, w2, a2, b2, c2);
+          v3 = qd + h2 * a2;
+          if (act)
+            act_s = a + h2 * b2;
+          if (flex)
+          {
+            th_s = th + h2 * w2;
+            w3 = thd + h2 * c2;
+          }
+          qs = q + h2 * v2;
+          f(qs, v3, act_s, th_s, w3, a3, b3, c3);
+          v4 = qd + h * a3;
+          if (act)
+            act_s = a + h * b3;
+          if (flex)
+          {
+            th_s = th + h * w3;
+            w4 = thd + h * c3;
+          }
+          qs = q + h * v3;
+          f(qs, v4, act_s, th_s, w4, a4, b4, c4);
+          q += h6 * (qd + 2.0 * (v2 + v3) + v4);
+          qd += h6 * (a1 + 2.0 * (a2 + a3) + a4);
+          if (act)
+            a += h6 * (b1 + 2.0 * (b2 + b3) + b4);
+          if (flex)
+          {
+            th += h6 * (thd + 2.0 * (w2 + w3) + w4);
+            thd += h6 * (c1 + 2.0 * (c2 + c3) + c4);
+          }
+        }
+        Q.row(k + 1) = q.transpose();
+        QD.row(k + 1) = qd.transpose();
+        bad = diverged(q, qd, lower, upper, vlim);
+        if (bad.reason != kOk)
+        {
+          bad_step = k + 1;
+          break;
+        }
+      }
+      if (bad_step < 0)
+        TAU.row(n_steps) = TAU.row(n_steps - 1);
+    }
+    return {std::move(Q), std::move(QD), std::move(TAU), bad_step, bad.joint, bad.reason};
+  }
+
   /// Wall time [s] of the Pinocchio calls one rollout of a law needs, with trivial glue:
   /// sampled, per control step: the law's calls (kFL: CRBA + nonLinearEffects; kPD: gravity) on
   /// the nominal model and 4*S ABA on the plant; continuous, per RK4 step: 4 x (the law's calls
@@ -453,6 +662,16 @@ NB_MODULE(_rollout, mod)
     nb::arg("qd0"), nb::arg("x0"), nb::arg("lower"), nb::arg("upper"), nb::arg("vlim"),
     nb::arg("h"), nb::arg("substeps"), nb::arg("n_steps"),
     "Run the closed loop; returns (q, qd, tau, bad_step, bad_joint, reason).");
+
+  mod.def(
+    "rollout_effects", &rollout_effects, nb::arg("plant"), nb::arg("nominal"), nb::arg("kind"),
+    nb::arg("lam"), nb::arg("A"), nb::arg("B"), nb::arg("C"), nb::arg("D"), nb::arg("Kp"),
+    nb::arg("Kd"), nb::arg("R"), nb::arg("RD"), nb::arg("RDD"), nb::arg("q0"), nb::arg("qd0"),
+    nb::arg("x0"), nb::arg("lower"), nb::arg("upper"), nb::arg("vlim"), nb::arg("h"),
+    nb::arg("substeps"), nb::arg("n_steps"), nb::arg("delay_steps"), nb::arg("wa"),
+    nb::arg("limit"), nb::arg("Fv"), nb::arg("Fc"), nb::arg("veps"), nb::arg("noise_q"),
+    nb::arg("noise_qd"), nb::arg("quantum"), nb::arg("Bm"), nb::arg("Kf"), nb::arg("Df"),
+    "Sampled closed loop with plant effects; returns (q, qd, tau, bad_step, bad_joint, reason).");
 
   mod.def(
     "floor_timing", &floor_timing, nb::arg("plant"), nb::arg("nominal"), nb::arg("kind"),
