@@ -339,3 +339,9 @@ def test_check_state():
         robot.check_state("q", [0.0, 0.0])
     with pytest.raises(ValueError, match=r"q must be an array of numbers"):
         robot.check_state("q", ["a", "b", "c"])
+    # V checks its two arrays in one test first; a failure still names the bad one.
+    with pytest.raises(ValueError, match=r"qd must be finite, got \[ 0\. inf  0\.\]"):
+        robot.V(np.zeros(3), np.array([0.0, math.inf, 0.0]))
+    with pytest.raises(ValueError, match=r"q must be finite"):
+        robot.V([math.nan, 0.0, 0.0], np.zeros(3))
+    assert_array_equal(robot.V(big, np.zeros(3)), robot.V(big, np.zeros(3), check=False))

@@ -204,7 +204,10 @@ class Robot:
         check : bool, default True
             Validate the arrays (see the class docstring for ``check=False``).
         """
-        if check:
+        if check and not (type(q) is type(qd) is np.ndarray and q.dtype is qd.dtype is _F64
+                          and q.shape == qd.shape == self._shape
+                          and math.isfinite(sum(q.tolist()) + sum(qd.tolist()))):
+            # One test for the common case (as in check_state); the exact one names the array.
             q, qd = self.check_state("q", q), self.check_state("qd", qd)
         return pin.rnea(self._model0, self._data0, q, qd, self._zero)
 
