@@ -1,0 +1,141 @@
+"""Tests of rrr_pin.ncf: ncfmargin (MATLAB examples, closed forms) and discrete ncfsyn (Octave)."""
+
+import control
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from rrr_pin.ncf import graph_symbols, ncfmargin, ncfsyn
+from rrr_pin.robustness import ncf_loop
+
+s = control.tf("s")
+
+
+@pytest.mark.parametrize(("P", "C", "b"), [
+    # MATLAB Robust Control Toolbox documentation, ncfmargin example: p = 4/(s - 0.001),
+    # low-gain cL = 1 -> 0.7069, high-gain cH = 10 -> 0.0995 (negative feedback, sign -1)
+    (4 / (s - 0.001), 1.0, 0.7069),
+    (4 / (s - 0.001), 10.0, 0.0995),
+    # MATLAB documentation, gapmetric example: P1 = (s+2)/(s^2+5s+10), C = 4.4/s -> 0.1961
+    ((s + 2) / (s**2 + 5 * s + 10), 4.4 / s, 0.1961),
+], ids=["matlab-low-gain", "matlab-high-gain", "matlab-gapmetric-example"])
+def test_ncfmargin_matlab_examples(P, C, b):
+    # published to 4 decimals: half a unit of the last digit
+    assert_allclose(ncfmargin(P, C)[0], b, atol=5e-5)
+
+
+def test_ncfmargin_siso_frequency_formula():
+    # SISO: b = inf_w |1 + P C| / sqrt((1 + |P|^2)(1 + |C|^2)) (Vinnicombe 2001, eq. 1.20),
+    # evaluated on a dense grid: independent of the state-space 4-block norm
+    P = (s + 3) / (s**2 + 0.4 * s + 4)
+    C = 2 / (s + 2)                 # closed loop s^3 + 2.4 s^2 + 6.8 s + 14: stable
+    w = np.logspace(-3, 4, 200001)
+    p, c = P(1j * w), C(1j * w)
+    ref = np.min(np.abs(1 + p * c) / np.sqrt((1 + np.abs(p) ** 2) * (1 + np.abs(c) ** 2)))
+    b, wpk = ncfmargin(P, C)
+    assert_allclose(b, ref, rtol=1e-6)        # grid minimum of a smooth function, dw/w ~ 1e-4
+    assert_allclose(wpk, w[np.argmin(np.abs(1 + p * c) / np.sqrt(
+        (1 + np.abs(p) ** 2) * (1 + np.abs(c) ** 2)))], rtol=1e-2)
+
+
+def random_plant(rng, n, p, m, unstable=False):
+    A = rng.standard_normal((n, n))
+    A -= (np.linalg.eigvals(A).real.max() + (-0.5 if unstable else 0.3)) * np.eye(n)
+    return control.ss(A, rng.standard_normal((n, m)), rng.standard_normal((p, n)),
+                      0.3 * rng.standard_normal((p, m)))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_ncfmargin_symmetric_and_inverse_gamma(seed):
+    rng = np.random.default_rng(seed)
+    P = random_plant(rng, 3, 2, 2, unstable=seed % 2 == 1)
+    r = ncfsyn(P, factor=1.2)
+    # b(Gs, Ks) = 1/gamma for the central controller; slycot AB13DD as independent norm
+    assert_allclose(ncfmargin(r.Gs, r.Ks)[0], 1 / r.gamma, rtol=1e-9)
+    assert_allclose(ncfmargin(r.Gs, r.Ks)[0], 1 / control.linfnorm(ncf_loop(r.Gs, r.Ks))[0],
+                    rtol=1e-7)
+    # b(P, C) = b(C, P) (Vinnicombe 2001, sec. 1.4)
+    assert_allclose(ncfmargin(r.Gs, r.Ks)[0], ncfmargin(r.Ks, r.Gs)[0], rtol=1e-9)
+
+
+def test_ncfmargin_unstable_loop_is_zero():
+    b, w = ncfmargin(1 / (s - 1), 0.5)          # closed-loop pole at s = 0.5
+    assert b == 0.0 and np.isnan(w)
+
+
+def test_graph_symbols_normalized():
+    rng = np.random.default_rng(5)
+    P = random_plant(rng, 4, 2, 3, unstable=True)
+    G, Gt = graph_symbols(P)
+    w = np.logspace(-2, 2, 9)
+    for wk in w:
+        g, gt = np.asarray(G(1j * wk)), np.asarray(Gt(1j * wk))
+        # G~G = I, Gt Gt~ = I, Gt G = 0 on the imaginary axis (rounding)
+        assert_allclose(g.conj().T @ g, np.eye(3), atol=1e-10)
+        assert_allclose(gt @ gt.conj().T, np.eye(2), atol=1e-10)
+        assert_allclose(gt @ g, 0, atol=1e-10)
+        # N M^-1 = P
+        assert_allclose(g[:2] @ np.linalg.inv(g[2:]), np.asarray(P(1j * wk)), rtol=1e-9)
+    assert np.all(G.poles().real < 0) and np.all(Gt.poles().real < 0)
+
+
+# --- discrete time ----------------------------------------------------------------------------
+
+A_D = np.array([[0.9, 0.2, 0.0], [-0.1, 0.8, 0.3], [0.0, 0.1, 1.05]])
+B_D = np.array([[1.0, 0.0], [0.0, 1.0], [0.5, 0.2]])
+C_D = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+P_D = control.ss(A_D, B_D, C_D, np.diag([0.1, 0.2]), 0.1)      # unstable (z = 1.05...)
+#: Octave 7.3.0, control 3.4.0, ncfsyn(P_D, [], [], 1.2) (SLICOT SB10ZD): info.Ks, a
+#: positive-feedback controller, and its index gamma = norm(N, inf) = 2.247579537483.
+KS_OCTAVE = (
+    [[0.33687858115142788, -0.00076482223801325642, -0.48901235458782444],
+     [0.38496051268562109, 0.71691828778954358, -1.08472725764945],
+     [-0.22389714884372958, -0.01443902866091179, 0.44438317875682282]],
+    [[0.072841768343640381, -0.059027372229584978], [-0.12715890166521099, 0.11101334950122665],
+     [0.043291700043335081, 0.10863224174273393]],
+    [[-0.043894336439900386, -0.21658745130364523, -0.27695834364272548],
+     [0.49574019836779559, -0.092375639865181561, -0.93178427566307775]],
+    [[-0.44822068113403046, -0.38299437113110246], [-0.090786945258551313, -0.49771951057506691]],
+)
+
+
+def test_discrete_ncfmargin_against_octave_controller():
+    Ko = control.ss(*KS_OCTAVE, 0.1)
+    # Octave's K is for positive feedback: our negative-feedback margin of -K; Octave prints
+    # 12 decimals
+    assert_allclose(1 / ncfmargin(P_D, -Ko)[0], 2.247579537483, rtol=1e-10)
+
+
+@pytest.mark.parametrize(("P", "gamma_near_opt", "f"), [
+    # Octave 7.3.0 / control 3.4.0: ncfsyn(P_D, [], [], 1.0001) (SB10ZD, D != 0) -> gamma
+    (P_D, 2.031557145570, 1.0001),
+    # Octave: ncfsyn(ss(tf([0.1 0.05], [1 -1.2 0.5], 0.05)), [], [], 1.000001) (SB10KD)
+    (control.ss(control.tf([0.1, 0.05], [1.0, -1.2, 0.5], 0.05)), 1.078585403904, 1.000001),
+], ids=["mimo-D-sb10zd", "siso-sb10kd"])
+def test_discrete_ncfsyn_gamma_min_against_octave(P, gamma_near_opt, f):
+    r = ncfsyn(P)
+    # Octave's suboptimal controller achieves gamma_min <= gamma <= f gamma_min
+    assert r.gamma_min <= gamma_near_opt * (1 + 1e-12)
+    assert gamma_near_opt <= f * r.gamma_min * (1 + 1e-12)
+    # the optimal discrete controller: stabilizing (|z| < 1), b(Gs, Ks) = 1/gamma_min
+    assert r.Ks.dt == P.dt
+    assert np.abs(control.feedback(P, r.Ks).poles()).max() < 1
+    assert_allclose(ncfmargin(r.Gs, r.Ks)[0], 1 / r.gamma_min, rtol=1e-7)
+
+
+def test_continuous_ncfsyn_against_octave_mimo():
+    P = control.ss([[-1, 2, 0], [0, 0.5, 1], [1, 0, -3]], [[1, 0], [0, 1], [1, 1]],
+                   [[1, 0, 1], [0, 1, 0]], [[0, 0.3], [0, 0]])
+    # Octave 7.3.0 / control 3.4.0, ncfsyn(P, [], [], 1.0) (SB10ID): gamma = 1.757348802922
+    assert_allclose(ncfsyn(P).gamma_min, 1.757348802922, rtol=1e-11)
+
+
+@pytest.mark.parametrize("factor", [1.0, 1.1])
+def test_discrete_ncfsyn_unstable_siso(factor):
+    # Octave 7.3.0's SB10KD path refuses this plant ("closed-loop system is unstable"); the
+    # reference is then the defining property of the central controller.
+    P = control.tf([1.0, 0.5], [1.0, -2.2, 1.17], 0.1)          # poles 1.3 and 0.9: unstable
+    r = ncfsyn(P, factor=factor)
+    assert np.abs(control.feedback(control.ss(P), r.Ks).poles()).max() < 1
+    assert r.gamma_min * (1 - 1e-9) <= r.gamma <= factor * r.gamma_min * (1 + 1e-9)
+    assert_allclose(1 / ncfmargin(P, r.Ks)[0], r.gamma, rtol=1e-9)
