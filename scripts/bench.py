@@ -44,6 +44,8 @@ from rrr_pin.compiled import floor_ms
 from rrr_pin.montecarlo import CampaignSettings, run_campaign
 from rrr_pin.references import LinePath, QuinticReference, SplineReference, task_space_reference
 from rrr_pin.runner import RunSettings, make_laws
+from rrr_pin.simulate import simulate
+from rrr_pin.study import default_reference
 
 #: Issue 13's goals: (largest ratio, what it is a ratio of). Start-up goals are in seconds.
 GOALS = {
@@ -129,7 +131,7 @@ def references(robot, duration):
     times = np.linspace(0.0, duration, 6)
     waypoints = 0.5 * np.sin(np.outer(times, [1.0, 1.7, 2.3]) + [0.0, 1.0, 2.0])
     return {
-        "sine": rrr_pin.default_reference(robot),
+        "sine": default_reference(robot),
         "quintic": QuinticReference(start=[0.2, -0.5, 0.8], goal=[0.9, 0.3, -0.2],
                                     move_time=move),
         "spline": SplineReference(times=times, waypoints=waypoints),
@@ -212,7 +214,7 @@ def main(argv=None):
         kind = law.compiled_form().kind
         for timing, rate in (("sampled", args.rate), ("continuous", None)):
             for ref_name, ref in refs.items():
-                ms = wall_ms(lambda law=law, ref=ref, rate=rate: rrr_pin.simulate(
+                ms = wall_ms(lambda law=law, ref=ref, rate=rate: simulate(
                     robot, law, ref, args.duration, rate=rate, engine="compiled"), args.repeat)
                 floor = floors[kind, timing]
                 compiled_rows.append({"law": name, "time": timing, "reference": ref_name,
@@ -222,7 +224,7 @@ def main(argv=None):
     # 3. Python engine against the hand-written loop (FL, ZOH, sine), and H-inf for the record.
     sine = refs["sine"]
     py_repeat = max(1, args.repeat // 2)
-    python_ms = {name: wall_ms(lambda law=law: rrr_pin.simulate(
+    python_ms = {name: wall_ms(lambda law=law: simulate(
         robot, law, sine, args.duration, rate=args.rate, engine="python"), py_repeat)
         for name, law in laws.items()}
     Ts = 1.0 / args.rate
@@ -233,7 +235,7 @@ def main(argv=None):
                                                             n_steps), py_repeat)
     same = np.max(np.abs(
         handwritten_fl_rollout(robot, robot, lam, R, RD, RDD, Ts, n_steps)
-        - rrr_pin.simulate(robot, laws["fl"], sine, args.duration, rate=args.rate,
+        - simulate(robot, laws["fl"], sine, args.duration, rate=args.rate,
                            engine="python").q))
 
     # 4. Campaign: N plants x (FL, H-inf), 10 s at 1 kHz, 2 workers; bound from the floor.
