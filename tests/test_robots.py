@@ -13,6 +13,7 @@ from rrr_pin import cli
 from rrr_pin.controllers import fl_controller, hinf_fl_controller
 from rrr_pin.dynamics import RobotModelError, _erd_urdf_path, load_robot
 from rrr_pin.loopshaping import design
+from rrr_pin.runner import RunSettings, make_laws
 from rrr_pin.simulate import simulate
 from rrr_pin.study import StudyConfig, default_reference, run_study
 
@@ -60,15 +61,16 @@ def test_nominal_tracking_is_negligible(arm, key):
 
 def test_study_on_perturbed_plants(arm):
     _, lock, robot = arm
-    result = run_study(robot, design(n=robot.nq).K_reduced,
-                       config=StudyConfig(duration=0.3, samples=2, jobs=1),
+    laws = make_laws("fl,hinf", robot, K=design(n=robot.nq).K_reduced)
+    result = run_study(robot, laws, config=StudyConfig(run=RunSettings(duration=0.3),
+                                                       samples=2, jobs=1),
                        skip_joints=tuple(lock))
     data = result.to_json()
     assert data["summary"]["samples_ok"] == 2
     for key in ("fl", "hinf"):
         assert len(data["uncertain"][key]["rms_error"]) == robot.nq
         assert all(np.isfinite(data["uncertain"][key]["rms_error"]))
-    assert len(data["summary"]["error_ratio_uncertain_per_joint"]) == robot.nq
+    assert len(data["summary"]["error_ratio_uncertain_per_joint"]["hinf"]) == robot.nq
 
 
 def test_continuous_joints_are_unbounded_angles():

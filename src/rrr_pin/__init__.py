@@ -3,97 +3,86 @@
 Conventions: SI units (m, rad, kg, s, N m); standard DH ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``;
 gravity along ``-z`` of the base; every controller for negative feedback on ``e = r - q``
 (python-control's ``feedback(G*K)``).
+
+The names below are imported on first use (PEP 562), so ``import rrr_pin`` and the
+``rrr-pin`` command start without loading Pinocchio or python-control until needed.
 """
 
-from importlib.metadata import PackageNotFoundError, version
+from __future__ import annotations
 
-from .controllers import (
-    CompiledForm,
-    ControlLaw,
-    PDGravity,
-    SampledLaw,
-    TrackingController,
-    fl_controller,
-    hinf_fl_controller,
-    pd_controller,
-)
-from .dh import ArmParams, DHLink, check_inertial, forward_kinematics, paper_params
-from .dynamics import Robot, RobotModelError, check_urdf_inertials, load_robot, robot_names
-from .gap import gapmetric
-from .loopshaping import Design, NCFSynResult, design, expand_diagonal, loopsyn, ncfsyn
-from .lti import check_lti
-from .ncf import ncfmargin
-from .reduction import ncf_reduce, reduction_guarantee
-from .references import (
-    CirclePath,
-    IKError,
-    LinePath,
-    QuinticReference,
-    Reference,
-    SineReference,
-    SplineReference,
-    task_space_reference,
-)
-from .runner import RunSettings, make_laws, run_laws
-from .simulate import SimulationDiverged, Trajectory, metrics, simulate
-from .study import StudyConfig, StudyResult, default_reference, run_study
-from .uncertainty import Tolerances, sample_plants
+import importlib
+from importlib.metadata import PackageNotFoundError, version
 
 try:
     __version__ = version("rrr-pin")
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0+unknown"
 
-__all__ = [
-    "__version__",
-    "ArmParams",
-    "CirclePath",
-    "CompiledForm",
-    "ControlLaw",
-    "DHLink",
-    "Design",
-    "IKError",
-    "LinePath",
-    "NCFSynResult",
-    "PDGravity",
-    "QuinticReference",
-    "Reference",
-    "Robot",
-    "RobotModelError",
-    "RunSettings",
-    "SampledLaw",
-    "SimulationDiverged",
-    "SineReference",
-    "SplineReference",
-    "StudyConfig",
-    "StudyResult",
-    "Tolerances",
-    "TrackingController",
-    "Trajectory",
-    "check_inertial",
-    "check_urdf_inertials",
-    "default_reference",
-    "design",
-    "expand_diagonal",
-    "fl_controller",
-    "forward_kinematics",
-    "hinf_fl_controller",
-    "load_robot",
-    "make_laws",
-    "metrics",
-    "ncfsyn",
-    "gapmetric",
-    "loopsyn",
-    "check_lti",
-    "ncfmargin",
-    "ncf_reduce",
-    "reduction_guarantee",
-    "paper_params",
-    "pd_controller",
-    "robot_names",
-    "run_laws",
-    "run_study",
-    "sample_plants",
-    "simulate",
-    "task_space_reference",
-]
+#: Public name -> submodule that defines it.
+_EXPORTS = {
+    "ArmParams": "dh",
+    "check_inertial": "dh",
+    "check_lti": "lti",
+    "check_urdf_inertials": "dynamics",
+    "CirclePath": "references",
+    "CompiledForm": "controllers",
+    "ControlLaw": "controllers",
+    "default_reference": "study",
+    "Design": "loopshaping",
+    "design": "loopshaping",
+    "DHLink": "dh",
+    "expand_diagonal": "loopshaping",
+    "fl_controller": "controllers",
+    "forward_kinematics": "dh",
+    "gapmetric": "gap",
+    "hinf_fl_controller": "controllers",
+    "IKError": "references",
+    "LinePath": "references",
+    "load_robot": "dynamics",
+    "loopsyn": "loopshaping",
+    "make_laws": "runner",
+    "metrics": "simulate",
+    "ncf_reduce": "reduction",
+    "ncfmargin": "ncf",
+    "ncfsyn": "loopshaping",
+    "NCFSynResult": "loopshaping",
+    "paper_params": "dh",
+    "pd_controller": "controllers",
+    "PDGravity": "controllers",
+    "QuinticReference": "references",
+    "reduction_guarantee": "reduction",
+    "Reference": "references",
+    "Robot": "dynamics",
+    "robot_names": "dynamics",
+    "RobotModelError": "dynamics",
+    "run_laws": "runner",
+    "run_study": "study",
+    "RunSettings": "runner",
+    "sample_plants": "uncertainty",
+    "SampledLaw": "controllers",
+    "simulate": "simulate",
+    "SimulationDiverged": "simulate",
+    "SineReference": "references",
+    "SplineReference": "references",
+    "StudyConfig": "study",
+    "StudyResult": "study",
+    "task_space_reference": "references",
+    "Tolerances": "uncertainty",
+    "TrackingController": "controllers",
+    "Trajectory": "simulate",
+}
+
+__all__ = ["__version__", *sorted(_EXPORTS, key=str.lower)]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rrr_pin' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -287,7 +287,7 @@ def _add_robot_arguments(p) -> None:
 
 
 def _add_law_arguments(p, default_duration: float, default_rate) -> None:
-    from .runner import BUILTIN_LAWS
+    from .catalog import BUILTIN_LAWS
 
     p.add_argument("--controllers", default="fl,hinf", metavar="NAMES",
                    help="comma-separated built-in controllers to compare: "

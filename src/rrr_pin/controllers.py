@@ -287,13 +287,10 @@ def _as_statespace(K, n: int):
     import control
     import scipy.linalg
 
-    try:
-        from .robustness import check_lti
-    except ImportError:  # the analysis module's validator, where it exists
-        check_lti = None
-    if check_lti is not None:
-        check_lti(K, "K")
-    K = control.ss(K)
+    from .lti import check_lti
+
+    # Finite, proper, continuous: checked before any conversion (some hang on NaN).
+    K = control.ss(check_lti(K, "K"))
     if K.isdtime(strict=True):
         raise ValueError("K must be a continuous-time system (dt = 0); it is discretized here")
     if (K.ninputs, K.noutputs) == (1, 1) and n > 1:

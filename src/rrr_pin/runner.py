@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .catalog import BUILTIN_LAWS
 from .controllers import (
     ControlLaw,
     SampledLaw,
@@ -37,14 +38,6 @@ __all__ = [
     "run_metrics",
     "error_ratios",
 ]
-
-#: Built-in laws by CLI name, with what each is.
-BUILTIN_LAWS = {
-    "fl": "feedback linearization alone, eq. (20), lam = 100 rad/s",
-    "hinf": "H-infinity + feedback linearization, eq. (8)-(10), (18)-(19), lam = 45 rad/s",
-    "pd": "PD + gravity compensation, critically damped at 20 rad/s per joint",
-}
-
 
 @dataclass(frozen=True)
 class RunSettings:
