@@ -139,7 +139,7 @@ class ControlLaw:
     nx: int = 0
 
     def initial_state(self) -> np.ndarray:
-        """The law's state at ``t = 0``, shape (nx,) (zeros by default)."""
+        """Return the law's state at ``t = 0``, shape (nx,) (zeros by default)."""
         return np.zeros(self.nx)
 
     def torque(self, t, q, qd, r, rd, rdd, x) -> np.ndarray:
@@ -163,7 +163,7 @@ class ControlLaw:
         return np.zeros(self.nx)
 
     def sampled(self, rate: float, method: str = "tustin") -> SampledLaw:
-        """The law run by a digital controller at ``rate`` Hz (zero-order hold on the torque).
+        """Return the law run by a digital controller at ``rate`` Hz (zero-order hold).
 
         A static law (``nx == 0``) is sampled exactly by evaluating :meth:`torque` at the
         sampling instants. A law with state must override this method (it has to say how its
@@ -176,7 +176,7 @@ class ControlLaw:
         return _StaticSampled(self, _rate(rate))
 
     def compiled_form(self) -> CompiledForm | None:
-        """The compiled engine's exact equivalent of this law, or None (Python only)."""
+        """Return the compiled engine's exact equivalent of this law, or None (Python only)."""
         return None
 
     def describe(self) -> dict:
@@ -207,7 +207,7 @@ class SampledLaw:
     rate: float = DEFAULT_RATE
 
     def initial_state(self) -> np.ndarray:
-        """The law's state at ``t = 0``, shape (nx,)."""
+        """Return the law's state at ``t = 0``, shape (nx,)."""
         return np.zeros(self.nx)
 
     def step(self, t, q, qd, r, rd, rdd, x) -> tuple[np.ndarray, np.ndarray]:
@@ -218,7 +218,7 @@ class SampledLaw:
         raise NotImplementedError(f"{type(self).__name__} must implement step()")
 
     def compiled_form(self) -> CompiledForm | None:
-        """The compiled engine's exact equivalent of this law, or None (Python only)."""
+        """Return the compiled engine's exact equivalent of this law, or None (Python only)."""
         return None
 
     def describe(self) -> dict:
@@ -269,11 +269,11 @@ class _StaticSampled(SampledLaw):
         return self.law.torque(t, q, qd, r, rd, rdd, x), x
 
     def compiled_form(self):
-        """The continuous law's compiled form (a static law samples exactly)."""
+        """Return the continuous law's compiled form (a static law samples exactly)."""
         return self.law.compiled_form()
 
     def describe(self):
-        """The continuous law's description, sampled."""
+        """Describe the continuous law, sampled."""
         return {**self.law.describe(), "time": "sampled", "rate_hz": self.rate}
 
 
@@ -428,7 +428,7 @@ class TrackingController(ControlLaw):
         return ControlLaw.sampled(self, rate, method)
 
     def compiled_form(self) -> CompiledForm | None:
-        """Declared for this exact class only (a subclass may change the law)."""
+        """Return the ``"fl"`` form, for this exact class only (a subclass may change the law)."""
         if type(self) is not TrackingController:
             return None
         A, B, C, D = self._mats
@@ -456,7 +456,7 @@ def _rebuild_tracking(cls, state):
 
 
 class _SampledTracking(SampledLaw):
-    """:class:`TrackingController` with ``K`` discretized: ``y = Cd x + Dd e``, ``x+ = Ad x + Bd e``."""
+    """Sampled :class:`TrackingController`: ``y = Cd x + Dd e``, ``x+ = Ad x + Bd e``."""
 
     def __init__(self, law: TrackingController, rate: float, method: str, mats):
         self.law, self.rate, self.method, self.mats = law, rate, method, mats
@@ -473,7 +473,7 @@ class _SampledTracking(SampledLaw):
         return tau, Ad @ x + Bd @ e
 
     def compiled_form(self):
-        """The ``"fl"`` form with the discrete matrices (None for a subclassed law)."""
+        """Return the ``"fl"`` form with the discrete matrices (None for a subclassed law)."""
         if type(self.law) is not TrackingController:
             return None
         Ad, Bd, Cd, Dd = self.mats
@@ -481,7 +481,7 @@ class _SampledTracking(SampledLaw):
                                                      "C": Cd, "D": Dd})
 
     def describe(self):
-        """The continuous law's description, sampled."""
+        """Describe the continuous law, sampled."""
         return {**self.law.describe(), "time": "sampled", "rate_hz": self.rate,
                 "discretization": self.method}
 
@@ -538,7 +538,7 @@ class PDGravity(ControlLaw):
                 + pin.computeGeneralizedGravity(model, data, q))
 
     def compiled_form(self) -> CompiledForm | None:
-        """Declared for this exact class only."""
+        """Return the ``"pd"`` form, for this exact class only."""
         if type(self) is not PDGravity:
             return None
         return CompiledForm("pd", self.nominal, {"Kp": self.Kp, "Kd": self.Kd})

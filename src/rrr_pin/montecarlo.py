@@ -115,7 +115,7 @@ _SOURCES: dict = {}
 
 
 def _plant_source(job):
-    """The nominal arm the plants are drawn around: ArmParams or URDF text (cached per job)."""
+    """Return the nominal arm the plants are drawn around: ArmParams or URDF text."""
     key = id(job)
     if _SOURCES.get("key") != key:
         _SOURCES.clear()

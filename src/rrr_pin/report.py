@@ -99,8 +99,11 @@ def _paper_rows(result: StudyResult, s: dict) -> list[str]:
 
 
 def results_markdown(result: StudyResult, data: dict | None = None) -> str:
-    """Markdown report of a study: every controller against the baseline, per-joint figures,
-    and, where the paper's two controllers are present, the paper's claims."""
+    """Markdown report of a study.
+
+    Every controller against the baseline, per-joint figures, and, where the paper's two
+    controllers are present, the paper's claims.
+    """
     data = result.to_json() if data is None else data
     s = data["summary"]
     cfg = result.config

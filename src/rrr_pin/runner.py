@@ -197,8 +197,11 @@ def run_laws(plant, laws, reference, settings: RunSettings) -> dict:
 
 
 def run_metrics(traj: Trajectory, joint_names) -> dict:
-    """Scalar figures of a run: ``rms_error``, ``max_error`` [rad], ``rms_torque`` [N m] (over
-    all joints and samples) and ``rms_error_<joint>`` [rad] per joint."""
+    """Scalar figures of a run.
+
+    ``rms_error``, ``max_error`` [rad], ``rms_torque`` [N m] (over all joints and samples) and
+    ``rms_error_<joint>`` [rad] per joint.
+    """
     e, tau = traj.error, traj.tau
     out = {"rms_error": float(np.sqrt(np.mean(e * e))),
            "max_error": float(np.max(np.abs(e))),
@@ -209,8 +212,10 @@ def run_metrics(traj: Trajectory, joint_names) -> dict:
 
 
 def error_ratios(metrics_by_law: dict, baseline: str) -> dict:
-    """Each law against the baseline: ``error_ratio`` = baseline RMS error / the law's (above 1:
-    the law tracks better), ``torque_ratio`` = the law's RMS torque / the baseline's.
+    """Compare each law with the baseline.
+
+    ``error_ratio`` = baseline RMS error / the law's (above 1: the law tracks better),
+    ``torque_ratio`` = the law's RMS torque / the baseline's.
 
     Parameters
     ----------

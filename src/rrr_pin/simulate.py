@@ -130,7 +130,7 @@ def metrics(traj: Trajectory) -> dict:
 
 
 def diverged_joint(q, qd, lower, upper) -> tuple[int, str] | None:
-    """The divergence test of both engines: ``(joint index, reason)`` or None.
+    """Apply the divergence test of both engines: ``(joint index, reason)`` or None.
 
     Parameters
     ----------
