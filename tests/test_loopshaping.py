@@ -10,12 +10,14 @@ from numpy.testing import assert_allclose
 from rrr_pin.cli import main
 from rrr_pin.loopshaping import (
     HiddenModeError,
+    SynthesisError,
     WeightError,
     barrier_intersection,
     design,
     expand_diagonal,
     fl_plant,
     lag_weight,
+    loopsyn,
     ncfsyn,
     reduce_controller,
     robust_performance_barrier,
@@ -23,7 +25,8 @@ from rrr_pin.loopshaping import (
     shaped_plant,
     zpk_data,
 )
-from rrr_pin.lti import ImproperSystemError, TimebaseMismatchError
+from rrr_pin.lti import DimensionMismatchError, ImproperSystemError, TimebaseMismatchError
+from rrr_pin.ncf import ncfmargin
 from rrr_pin.robustness import ncf_loop
 
 OMEGA = np.logspace(-2, 4, 61)
@@ -327,3 +330,62 @@ def test_cli_design_text_and_error(capsys):
     assert "gamma_min = 2.1436" in text and "robust performance: NOT satisfied" in text
     assert main(["design", "--factor", "0.5"]) == 2
     assert "factor must be >= 1" in capsys.readouterr().err
+
+
+# --- loopsyn ----------------------------------------------------------------------------------
+
+G1 = control.tf([45.0**2], [1.0, 90.0, 45.0**2])
+
+
+def test_loopsyn_alpha_one_is_the_paper_ncfsyn():
+    # target = the paper's shaped loop W1 G: W1 = G^-1 Gd is the lag weight (eq. 16), and
+    # alpha = 1 is ncfsyn: b = 1/gamma with the paper's gamma = 2.1436 (4 decimals printed)
+    r = loopsyn(G1, lag_weight() * G1, alpha=1.0)
+    assert_allclose(1 / r.b_max, 2.1436, atol=5e-5)
+    assert_allclose(r.b, r.b_max, rtol=1e-6)
+    w = OMEGA
+    assert_allclose(resp(r.W1), resp(lag_weight()), rtol=1e-8)
+    # G K = Gd Ks exactly (the definition of the fit)
+    assert_allclose(resp(G1 * r.K, w), resp(lag_weight() * G1 * r.Ks, w), rtol=1e-8)
+
+
+def test_loopsyn_tradeoff():
+    Gd = lag_weight() * G1
+    res = {a: loopsyn(G1, Gd, alpha=a) for a in (0.0, 0.5, 0.75, 1.0)}
+    for a, r in res.items():
+        assert r.b >= a * r.b_max * (1 - 1e-9)          # MATLAB's meaning of alpha
+        assert np.all(control.feedback(G1 * r.K).poles().real < 0)
+    # more robustness asked -> worse (larger) fit; alpha = 0: G K = Gd exactly here, since
+    # the unit-feedback loop of Gd is already stable
+    fits = [res[a].fit for a in (0.0, 0.5, 0.75, 1.0)]
+    assert fits[0] == 0.0 and np.all(np.diff(fits) > 0)
+    assert_allclose(resp(G1 * res[0.0].K), resp(Gd), rtol=1e-8)
+
+
+def test_loopsyn_errors():
+    with pytest.raises(ValueError, match="alpha must be in"):
+        loopsyn(G1, G1, alpha=1.5)
+    with pytest.raises(DimensionMismatchError, match="SISO"):
+        loopsyn(fl_plant(45.0, 2), G1)
+    with pytest.raises(ImproperSystemError, match="roll off"):
+        loopsyn(G1, control.tf([10.0], [1.0, 0.0]))             # relative degree 1 < 2
+    with pytest.raises(SynthesisError, match="minimum-phase"):
+        loopsyn(control.tf([1.0], [1.0, -1.0]), control.tf([5.0], [1.0, 0.1]))
+
+
+# --- design(): diagonal, fast for many joints, reduction guarantees ---------------------------
+
+def test_design_diagonal_equals_mimo_synthesis(paper):
+    # the per-joint design copied on the diagonal == the MIMO synthesis of the 3 x 3 plant
+    mimo = ncfsyn(fl_plant(45.0, 3), expand_diagonal(lag_weight(), 3))
+    assert_allclose(paper.ncf.gamma_min, mimo.gamma_min, rtol=1e-10)
+    assert_allclose(resp(paper.ncf.K), resp(mimo.K), rtol=1e-7, atol=1e-9)
+    assert paper.reduction.guaranteed and paper.ncf_reduction.guaranteed
+    assert_allclose(paper.ncfmargin, ncfmargin(paper.G, paper.K)[0], rtol=1e-9)
+
+
+def test_design_many_joints():
+    # issue 12: --joints 200 ran for minutes; the design is per joint now
+    d = design(n=200)
+    assert (d.K.noutputs, d.ncf.K.nstates) == (200, 600)
+    assert_allclose(d.ncf.gamma_min, 2.1436, atol=5e-5)

@@ -1,0 +1,90 @@
+"""Tests of rrr_pin.certificates: frozen linearization and the nu-gap certificate."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from rrr_pin.certificates import frozen_certificate, frozen_linearization
+from rrr_pin.dh import paper_params
+from rrr_pin.dynamics import load_robot
+from rrr_pin.loopshaping import design, fl_plant
+from rrr_pin.lti import DimensionMismatchError
+
+Q = np.array([[0.1, 0.5, -0.4], [0.8, -0.3, 1.0], [-1.0, 1.2, 0.3]])
+QD = np.array([[0.5, -0.2, 0.1], [0.0, 0.3, -0.6], [1.0, 0.5, 0.5]])
+
+
+def scaled(params, c):
+    """Arm with every mass and principal moment multiplied by ``c``."""
+    return params.with_links([replace(link, mass=link.mass * c, J=tuple(c * j for j in link.J))
+                              for link in params.links])
+
+
+@pytest.fixture(scope="module")
+def setup():
+    return design(), paper_params()
+
+
+def test_nominal_linearization_is_eq11(setup):
+    _, p = setup
+    robot = load_robot(p)
+    G = frozen_linearization(robot, robot, Q[1], QD[1], lam=45.0)
+    ref = fl_plant(45.0, 3)
+    # exact model: the map tauhat -> q is eq. (11); central differences, step 1e-6 -> ~1e-8
+    assert_allclose(G.A, np.block([[np.zeros((3, 3)), np.eye(3)],
+                                   [-45.0**2 * np.eye(3), -90.0 * np.eye(3)]]), atol=1e-5)
+    assert_allclose(G.B[3:], 45.0**2 * np.eye(3), rtol=1e-12, atol=1e-9)   # solve() rounding
+    w = np.logspace(-1, 3, 9)
+    assert_allclose(np.asarray(G(1j * w)), np.asarray(ref(1j * w)), atol=1e-8)
+
+
+def test_linearization_closed_form_without_gravity(setup):
+    # no gravity, qd = 0, qdd = 0, masses and inertias times c: qdd = M^-1 Mhat taubar with
+    # M = c Mhat, so A = [0 I; -lam^2/c I, -2 lam/c I], B = [0; lam^2/c I] (V is quadratic
+    # in qd and vanishes with its derivative at qd = 0)
+    _, p = setup
+    c, lam = 2.5, 45.0
+    nominal = load_robot(p, gravity=0.0)
+    true = load_robot(scaled(p, c), gravity=0.0)
+    G = frozen_linearization(nominal, true, Q[0], np.zeros(3), lam=lam)
+    assert_allclose(G.A[3:, :3], -lam**2 / c * np.eye(3), atol=1e-5)   # FD, step 1e-6
+    assert_allclose(G.A[3:, 3:], -2 * lam / c * np.eye(3), atol=1e-5)
+    assert_allclose(G.B[3:], lam**2 / c * np.eye(3), rtol=1e-12, atol=1e-9)   # rounding
+
+
+def test_nominal_plant_certified(setup):
+    d, p = setup
+    robot = load_robot(p)
+    cert = frozen_certificate(robot, robot, Q, QD, lam=d.lam, W1=d.W1, W2=d.W2,
+                              Ks=d.Ks_reduced)
+    assert cert.certified
+    assert cert.nugap_max < 1e-8                  # FD linearization error only
+    # b(Gs, Ks) of the eq. (18) controller is 1 / gamma_reduced
+    assert_allclose(cert.b, 1 / d.gamma_reduced, rtol=1e-9)
+    assert_allclose(cert.b_frozen, cert.b, rtol=1e-6)
+
+
+@pytest.mark.parametrize(("c", "certified"), [(1.2, True), (5.0, False)],
+                         ids=["20%-heavier", "5x-heavier"])
+def test_wrong_plants(setup, c, certified):
+    d, p = setup
+    cert = frozen_certificate(load_robot(p), load_robot(scaled(p, c)), Q, QD, lam=d.lam,
+                              W1=d.W1, W2=d.W2, Ks=d.Ks_reduced)
+    assert cert.certified == certified
+    # the theorem, checked where it applies: nugap < b  =>  b_frozen >= guaranteed bound
+    ok = cert.nugap < cert.b
+    assert np.all(cert.b_frozen[ok] >= cert.b_lower[ok] * (1 - 1e-9))
+    assert np.all(cert.b_frozen[ok] > 0)
+
+
+def test_certificate_bad_input(setup):
+    d, p = setup
+    robot = load_robot(p)
+    with pytest.raises(DimensionMismatchError, match=r"Expected q of shape \(N, 3\)"):
+        frozen_certificate(robot, robot, np.zeros((2, 2)), np.zeros((2, 2)), lam=d.lam,
+                           W1=d.W1, W2=d.W2, Ks=d.Ks_reduced)
+    with pytest.raises(ValueError, match="finite"):
+        frozen_certificate(robot, robot, np.full((1, 3), np.nan), np.zeros((1, 3)), lam=d.lam,
+                           W1=d.W1, W2=d.W2, Ks=d.Ks_reduced)
