@@ -320,6 +320,13 @@ def test_cli_design_json(capsys, tmp_path):
     assert_allclose(out["K_reduced"]["gain"], 47.40, rtol=5e-3)
     assert len(out["K_reduced"]["zeros"][0]) == 2           # [re, im]
     assert out["robust_stability"]["ok"] and not out["robust_performance"]["ok"]
+    # issue 11: the final loop's NCF margin and each reduction's guarantee
+    assert 0 < out["ncfmargin"] <= 1
+    eq18 = out["reductions"]["eq18"]["shaped_loop"]
+    assert eq18["guaranteed"] and eq18["nugap"] < eq18["b"]
+    assert_allclose(eq18["b"], 1 / out["gamma"], rtol=1e-9)            # b(Gs, Ks) = 1/gamma
+    assert_allclose(eq18["b_reduced"], 1 / out["gamma_reduced"], rtol=1e-9)
+    assert out["reductions"]["ncf_balanced_truncation"]["guaranteed"]
     for name in ("fig2.png", "fig3.png", "fig4a.png", "fig4b.png"):
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
 
@@ -328,6 +335,7 @@ def test_cli_design_text_and_error(capsys):
     assert main(["design"]) == 0
     text = capsys.readouterr().out
     assert "gamma_min = 2.1436" in text and "robust performance: NOT satisfied" in text
+    assert "eq. (18) reduction on the shaped loop" in text and "stability guaranteed" in text
     assert main(["design", "--factor", "0.5"]) == 2
     assert "factor must be >= 1" in capsys.readouterr().err
 

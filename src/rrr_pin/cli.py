@@ -180,6 +180,12 @@ def _cmd_design(args) -> int:
         "K_full": zpk(d.K_full), "K_reduced": zpk(d.K_reduced),
         "robust_stability": d.robust_stability.as_dict(),
         "robust_performance": d.robust_performance.as_dict(),
+        "ncfmargin": d.ncfmargin,
+        "reductions": {
+            "eq18": {"plant_loop": d.reduction.as_dict(),
+                     "shaped_loop": d.reduction_shaped.as_dict()},
+            "ncf_balanced_truncation": d.ncf_reduction.as_dict(),
+        },
     }
     if args.json:
         if figures:
@@ -206,6 +212,17 @@ def _cmd_design(args) -> int:
         print(f"    poles [rad/s]: {roots(K['poles'])}")
     print(f"gamma of the reduced K on Gs = {d.gamma_reduced:.4f} "
           f"({100 * (d.gamma_reduced / d.ncf.gamma - 1):+.4f} %)")
+    for where, r in (("shaped loop (Gs, Ks)", d.reduction_shaped), ("plant loop (G, K)",
+                                                                     d.reduction)):
+        state = "guaranteed" if r.guaranteed else "NOT guaranteed"
+        print(f"eq. (18) reduction on the {where}: nugap(full, reduced) = {r.nugap:.3g} "
+              f"< b = {r.b:.4f}: stability {state}; b after >= {r.b_lower:.4f} "
+              f"(computed {r.b_reduced:.4f}, lost {r.margin_lost:.2g})")
+    r = d.ncf_reduction
+    print(f"coprime-factor balanced truncation to {r.Kr.nstates} states: "
+          f"||[N - Nr; M - Mr]||_inf = {r.eps:.3g} < b = {r.b:.4f}: "
+          f"{'guaranteed' if r.guaranteed else 'NOT guaranteed'}, b after {r.b_reduced:.4f}")
+    print(f"NCF margin of the final loop b(G, K) = {d.ncfmargin:.4f}")
     print(verdict("robust stability", out["robust_stability"],
                   "sigma_max(T) below RSB, all frequencies"))
     print(verdict("robust performance", out["robust_performance"],

@@ -412,9 +412,12 @@ class Design:
         Guarantee of the eq. (18) reduction on the loop of ``G`` (one joint): ``b(G,
         K_full)``, ``nugap(K_full, K_reduced)``, the guaranteed and the achieved
         ``b(G, K_reduced)`` (the NCF margin of the final loop).
+    reduction_shaped : ReductionGuarantee
+        The same guarantee on the shaped loop: ``b(Gs, Ks) = 1/gamma``,
+        ``nugap(Ks, W1^-1 K_reduced W2^-1)`` and ``b(Gs, Ks_reduced) = 1/gamma_reduced``.
     ncf_reduction : NCFReduction
         The alternative reduction of ``K_full`` to ``order`` states by balanced truncation
-        of its normalized coprime factors, with its guarantee.
+        of its normalized coprime factors, with its guarantee (on the loop of ``G``).
     """
 
     lam: float
@@ -434,6 +437,7 @@ class Design:
     robust_stability: CheckResult
     robust_performance: CheckResult
     reduction: ReductionGuarantee
+    reduction_shaped: ReductionGuarantee
     ncf_reduction: NCFReduction
 
     @property
@@ -518,5 +522,7 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
         robust_stability=check_robust_stability(g, K_reduced, RSB),
         robust_performance=check_robust_performance(g, K_reduced, RPB, w_max=w_performance),
         reduction=reduction_guarantee(g, siso.K, K_reduced),
+        reduction_shaped=reduction_guarantee(siso.Gs, siso.Ks,
+                                             _inv(w1) * K_reduced * _inv(w2)),
         ncf_reduction=ncf_reduce(g, siso.K, order),
     )
