@@ -487,8 +487,7 @@ def camera_view(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _meshcat_js() -> str:
-    import meshcat
-
+    meshcat, _ = _import_meshcat()
     path = Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js"
     return path.read_text(encoding="utf-8")
 
@@ -529,14 +528,22 @@ def _document(title: str, commands: list[bytes], js: str) -> str:
     return _DOCUMENT.format(title=html.escape(title), js=js, commands=encoded)
 
 
+def _import_meshcat():
+    """Import meshcat (its ZeroMQ server module warns about a pyzmq deprecation on import)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import meshcat
+        import meshcat.geometry as mg
+    return meshcat, mg
+
+
 def _record(scene: Scene, fps: float, geometry: str, play: bool,
             cache: dict) -> tuple[list[bytes], list[bytes], dict]:
     """Scene commands (static part, animation part) and facts about the recording.
 
     ``cache`` maps ``id(robot)`` to its geometry models, shared between calls.
     """
-    import meshcat
-    import meshcat.geometry as mg
+    meshcat, mg = _import_meshcat()
 
     window = _RecordingWindow()
     vis = meshcat.Visualizer(window=window)
@@ -647,6 +654,7 @@ def _scene_document(scene, *, fps, max_bytes, geometry, play):
         light = _record(scene, fps, "collision", play, cache)
         if size(light[0]) < size(static):
             static, anim, facts = light
+            facts["fallback"] = True
     stride = 1
     total, fixed = size(static + anim), size(static)
     while total > max_bytes:
@@ -660,7 +668,9 @@ def _scene_document(scene, *, fps, max_bytes, geometry, play):
                 f"scene {scene.title!r} does not fit max_bytes={max_bytes}: its geometry "
                 f"takes {fixed} bytes and {facts['frames']} frames take {total} bytes even "
                 f"at the lowest rate tried; raise max_bytes or draw fewer tracks")
+        fallback = facts.get("fallback", False)
         static, anim, facts = _record(scene, fps / stride, facts["geometry"], play, cache)
+        facts["fallback"] = fallback
         total = size(static + anim)
     facts["bytes"] = total
     return _document(scene.title, static + anim, js), facts
@@ -679,8 +689,13 @@ def _legend(scene: Scene, facts: dict) -> str:
                      f"width:0.9em;height:0.9em;background:{swatch};opacity:"
                      f'{max(track.opacity, 0.35)};border:1px solid #555"></span> '
                      f"{html.escape(track.label)}</span>")
+    shapes = {"auto": "the URDF's visual shapes (ghosts: collision shapes if lighter)",
+              "visual": "the URDF's visual shapes",
+              "collision": "the URDF's collision shapes"}[facts["geometry"]]
+    if facts.get("fallback"):
+        shapes += " (the visual meshes exceed the size budget)"
     note = (f"{facts['frames']} frames at {facts['fps']:.3g} frames/s over "
-            f"{facts['duration']:.3g} s; {facts['geometry']} shapes")
+            f"{facts['duration']:.3g} s; {shapes}")
     if facts["missing_meshes"]:
         note += f"; meshes not found, drawn as simple shapes: {len(facts['missing_meshes'])}"
     return " &nbsp; ".join(items) + f'<br><small>{html.escape(note)}. Open Controls &gt; ' \
