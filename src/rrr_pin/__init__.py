@@ -34,6 +34,7 @@ _EXPORTS = {
     "expand_diagonal": "loopshaping",
     "fl_controller": "controllers",
     "forward_kinematics": "dh",
+    "frozen_certificate": "certificates",
     "gapmetric": "gap",
     "hinf_fl_controller": "controllers",
     "IKError": "references",
