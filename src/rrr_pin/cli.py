@@ -21,7 +21,7 @@ def _build_parser() -> argparse.ArgumentParser:
                     "(Pinocchio dynamics).")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_urdf, _add_check_dynamics, _add_design, _add_reproduce,
-                _add_montecarlo):
+                _add_montecarlo, _add_stress):
         add(sub)
     return parser
 
@@ -326,6 +326,12 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
     p.add_argument("--qd0", metavar="V1,V2,...", default=None,
                    help="initial joint velocities [rad/s] (default: on the reference)")
     p.add_argument("--seed", type=int, default=0, help="seed of the uncertain plants (0)")
+    p.add_argument("--delay", type=float, default=None, metavar="S",
+                   help="plant effect: actuator transport delay [s] (sampled controllers; "
+                        "rounded to the plant sub-step, see rrr_pin.effects)")
+    p.add_argument("--actuator-bandwidth", type=float, default=None, metavar="RAD_S",
+                   help="plant effect: first-order actuator wa/(s + wa), wa [rad/s] "
+                        "(sampled controllers)")
     p.add_argument("--jobs", type=int, default=None,
                    help="worker processes (default: min(2, CPUs))")
     g = p.add_argument_group("reference")
@@ -415,8 +421,19 @@ def _settings_from_args(args, n):
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
     q0 = _floats(args.q0, "--q0", n)
     qd0 = _floats(args.qd0, "--qd0", n)
+    delay = _positive("--delay", getattr(args, "delay", None), allow_zero=True)
+    wa = _positive("--actuator-bandwidth", getattr(args, "actuator_bandwidth", None))
+    effects = None
+    if delay or wa is not None:
+        from .effects import PlantEffects
+
+        if args.rate is None:
+            raise ValueError("--delay and --actuator-bandwidth act on sampled controllers: "
+                             "give --rate HZ too")
+        effects = PlantEffects(delay=delay or 0.0, bandwidth=wa)
     return RunSettings(duration=args.duration, dt=args.dt, rate=args.rate, engine=args.engine,
-                       q0=tuple(q0) if q0 else None, qd0=tuple(qd0) if qd0 else None)
+                       q0=tuple(q0) if q0 else None, qd0=tuple(qd0) if qd0 else None,
+                       effects=effects)
 
 
 def _laws_from_args(args, robot, K=None):
@@ -579,6 +596,91 @@ def _cmd_montecarlo(args) -> int:
                 m = s[metric]
                 print(f"{metric:28}{m['median']:12.4g}{m['p95']:12.4g}{m['worst']:12.4g}")
     print("wrote " + ", ".join(s["written"]))
+    return 0
+
+
+# --- stress (unmodeled dynamics: breaking points) ---------------------------------------------
+
+def _add_stress(sub) -> None:
+    from .stress import DEFAULT_BUDGET, EFFECTS
+
+    p = sub.add_parser(
+        "stress", help="where each controller breaks under an unmodeled effect",
+        description="For each --controllers law and the --effect, the breaking point of the "
+                    "nonlinear closed loop (bisection on the effect's size: the run diverges "
+                    "or its RMS tracking error exceeds --budget), the linear prediction of the "
+                    "design's digital loop, and what the robust-stability barrier of eq. "
+                    "(12)-(13) guarantees. Writes stress_<effect>.png (and .json) into --out.")
+    _add_robot_arguments(p)
+    p.add_argument("--controllers", default="fl,hinf,pd", metavar="NAMES",
+                   help="comma-separated built-in controllers (fl,hinf,pd)")
+    p.add_argument("--effect", required=True, metavar="NAME",
+                   help="; ".join(f"{k}: {v[2]} [{v[0]}]" for k, v in EFFECTS.items()))
+    p.add_argument("--budget", type=float, default=DEFAULT_BUDGET,
+                   help=f"RMS tracking error [rad] above which a run is broken "
+                        f"({DEFAULT_BUDGET:g})")
+    p.add_argument("--duration", type=float, default=2.0,
+                   help="shortest simulated time per run [s] (2; slow loops run longer)")
+    p.add_argument("--rate", type=float, default=1000.0, metavar="HZ",
+                   help="sampling rate of the controllers [Hz] (1000)")
+    p.add_argument("--dt", type=float, default=1e-4,
+                   help="plant RK4 sub-step [s], also the delay's resolution (1e-4)")
+    p.add_argument("--engine", choices=("auto", "python", "compiled"), default="auto",
+                   help="simulation engine (auto)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--out", default="results/stress", metavar="DIR",
+                   help="folder for the figure and the JSON (results/stress)")
+    p.set_defaults(func=_cmd_stress)
+
+
+def _cmd_stress(args) -> int:
+    import json
+    import time
+    from pathlib import Path
+
+    from .dynamics import load_robot
+    from .runner import RunSettings, make_laws
+    from .stress import EFFECTS, StressSettings, plot_stress, stress
+    from .study import default_reference
+
+    if args.effect not in EFFECTS:
+        raise ValueError(f"--effect {args.effect!r} is unknown; known effects: "
+                         f"{', '.join(EFFECTS)}")
+    for name in ("--budget", "--duration", "--rate", "--dt"):
+        _positive(name, getattr(args, name[2:]))
+    _check_out_dir(args.out)
+    robot = load_robot(args.robot, lock=_parse_lock(args.lock))
+    home = _floats(args.home, "--home", robot.nq)
+    reference = default_reference(robot, home=home)
+    laws = make_laws(args.controllers, robot)
+    settings = StressSettings(run=RunSettings(duration=args.duration, dt=args.dt,
+                                              rate=args.rate, engine=args.engine),
+                              budget=args.budget)
+    start = time.perf_counter()
+    result = stress(robot, laws, reference, args.effect, settings)
+    result["elapsed_s"] = time.perf_counter() - start
+    result["robot"] = robot.name
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    fig = plot_stress(result, out / f"stress_{args.effect}.png")
+    result["figure"] = str(fig)
+    (out / f"stress_{args.effect}.json").write_text(json.dumps(result, indent=1))
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    unit = result["unit"]
+
+    def fmt(v):
+        return "-" if v is None else f"{v:.4g}"
+
+    print(f"{robot.name}: {result['what']} [{unit}], budget {args.budget:g} rad RMS, "
+          f"{args.rate:g} Hz, {result['elapsed_s']:.1f} s")
+    print(f"{'controller':12}{'predicted':>12}{'simulated':>12}{'sim/pred':>10}"
+          f"{'guaranteed':>12}")
+    for row in result["rows"]:
+        print(f"{row['controller']:12}{fmt(row['predicted']):>12}{fmt(row['simulated']):>12}"
+              f"{fmt(row['agreement']):>10}{fmt(row['guaranteed']):>12}")
+    print(f"wrote {fig}")
     return 0
 
 

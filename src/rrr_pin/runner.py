@@ -27,6 +27,7 @@ from .controllers import (
     hinf_fl_controller,
     pd_controller,
 )
+from .effects import PlantEffects, check_effects
 from .simulate import DEFAULT_DT, ENGINES, SimulationDiverged, Trajectory, simulate
 
 __all__ = [
@@ -58,6 +59,8 @@ class RunSettings:
         Slack beyond the joint limits before a run counts as diverged [rad].
     q0, qd0 : tuple of float, optional
         Initial state [rad, rad/s]; default on the reference.
+    effects : PlantEffects, optional
+        Unmodeled plant dynamics (:mod:`rrr_pin.effects`); sampled laws only (``rate``).
     """
 
     duration: float = 4.0
@@ -68,6 +71,7 @@ class RunSettings:
     limit_margin: float = 0.0
     q0: tuple | None = None
     qd0: tuple | None = None
+    effects: PlantEffects | None = None
 
     def __post_init__(self) -> None:
         for key in ("duration", "dt"):
@@ -98,11 +102,15 @@ class RunSettings:
                 if arr.ndim != 1 or not np.all(np.isfinite(arr)):
                     raise ValueError(f"{key} must be a finite vector, got {v!r}")
                 object.__setattr__(self, key, tuple(float(x) for x in arr))
+        check_effects(self.effects)
+        if self.effects is not None and self.effects.active and self.rate is None:
+            raise ValueError("effects apply to sampled controllers only: give a rate")
 
     def simulate_kwargs(self) -> dict:
         """Keyword arguments of :func:`rrr_pin.simulate.simulate`."""
         return {"dt": self.dt, "rate": self.rate, "method": self.method, "engine": self.engine,
-                "limit_margin": self.limit_margin, "q0": self.q0, "qd0": self.qd0}
+                "limit_margin": self.limit_margin, "q0": self.q0, "qd0": self.qd0,
+                "effects": self.effects}
 
     def to_dict(self) -> dict:
         """JSON-ready settings (units in the key names)."""
@@ -111,7 +119,8 @@ class RunSettings:
                 "method": d["method"], "engine": d["engine"],
                 "limit_margin_rad": d["limit_margin"],
                 "q0_rad": list(d["q0"]) if d["q0"] is not None else None,
-                "qd0_rad_s": list(d["qd0"]) if d["qd0"] is not None else None}
+                "qd0_rad_s": list(d["qd0"]) if d["qd0"] is not None else None,
+                "effects": self.effects.to_dict() if self.effects is not None else None}
 
 
 def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,

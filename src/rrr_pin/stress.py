@@ -393,6 +393,7 @@ def loop_bandwidth(law, home) -> float | None:
 def _rms(plant, law, reference, effect, size, settings: StressSettings, duration):
     """RMS tracking error [rad] of one run, ``inf`` if it diverged."""
     kwargs = settings.run.simulate_kwargs()
+    kwargs.pop("effects", None)  # the effect under test replaces any in the settings
     if kwargs["q0"] is None and settings.offset:
         r0 = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
         kwargs["q0"] = np.clip(r0 + settings.offset, plant.lower, plant.upper)
