@@ -549,7 +549,16 @@ def _add_montecarlo(sub) -> None:
                    help="Dask distributed scheduler address (e.g. tcp://10.0.0.5:8786); the "
                         "same tasks run on that cluster")
     p.add_argument("--out", default="results/montecarlo", metavar="DIR",
-                   help="output folder (results/montecarlo)")
+                   help="output folder (results/montecarlo); finished samples are appended to "
+                        "DIR/parts.jsonl as they finish")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--resume", action="store_true",
+                      help="continue the interrupted campaign in --out (same settings): only "
+                           "the missing samples run; the final tables equal an uninterrupted "
+                           "run's")
+    mode.add_argument("--overwrite", action="store_true",
+                      help="start afresh in a non-empty --out (its previous campaign is "
+                           "deleted)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_montecarlo)
 
@@ -560,7 +569,8 @@ def _cmd_montecarlo(args) -> int:
     from tqdm import tqdm
 
     from .dynamics import load_robot
-    from .montecarlo import CampaignSettings, run_campaign, write_campaign
+    from .executors import CampaignInterrupted, WorkersLost
+    from .montecarlo import CampaignSettings, open_store, run_campaign, write_campaign
 
     _check_out_dir(args.out)
     if args.samples < 1:
@@ -572,18 +582,32 @@ def _cmd_montecarlo(args) -> int:
     laws, baseline = _laws_from_args(args, robot)
     settings = CampaignSettings(samples=args.samples, seed=args.seed, run=run,
                                 baseline=baseline)
-    bar = tqdm(total=args.samples, unit="plant", desc=f"{robot.name}: Monte Carlo",
-               disable=args.no_progress)
-    start = time.perf_counter()
-    campaign = run_campaign(robot, laws, settings, reference=reference, jobs=args.jobs,
-                            scheduler=args.scheduler, skip_joints=tuple(lock),
-                            progress=lambda done, total: bar.update(done - bar.n))
-    bar.close()
-    elapsed = time.perf_counter() - start
-    s = write_campaign(campaign, args.out)
+    store = open_store(args.out, robot, laws, settings, reference, resume=args.resume,
+                       overwrite=args.overwrite)
+    with store:
+        done = len(store.done())
+        if done:
+            print(f"resuming: {done} of {args.samples} samples already done in {args.out}")
+        bar = tqdm(total=args.samples, initial=done, unit="plant",
+                   desc=f"{robot.name}: Monte Carlo", disable=args.no_progress)
+        start = time.perf_counter()
+        try:
+            campaign = run_campaign(robot, laws, settings, reference=reference, jobs=args.jobs,
+                                    scheduler=args.scheduler, skip_joints=tuple(lock),
+                                    progress=lambda d, total: bar.update(d - bar.n),
+                                    store=store)
+        except CampaignInterrupted as exc:
+            bar.close()
+            print(f"rrr-pin montecarlo: {exc}", file=sys.stderr)
+            # 130: stopped by a signal (the shell's convention); 3: workers lost.
+            return 3 if isinstance(exc, WorkersLost) else 130
+        bar.close()
+        elapsed = time.perf_counter() - start
+        s = write_campaign(campaign, args.out, store=store)
     nl = len(laws)
-    print(f"{robot.name}: {s['samples']} plants x {nl} controllers x {run.duration:g} s in "
-          f"{elapsed:.1f} s ({nl * s['samples'] / elapsed:.1f} rollouts/s)")
+    ran = s["samples"] - done
+    print(f"{robot.name}: {ran} plants x {nl} controllers x {run.duration:g} s in "
+          f"{elapsed:.1f} s ({nl * ran / max(elapsed, 1e-9):.1f} rollouts/s)")
     print(f"every controller ran on {s['samples_ok']}, a run diverged on "
           f"{s['samples_diverged']}")
     for name, frac in s["fraction_better"].items():

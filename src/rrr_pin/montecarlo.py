@@ -17,10 +17,12 @@ the laws that ran; the campaign goes on.
 from __future__ import annotations
 
 import csv
+import hashlib
+import io
+import itertools
 import json
 import math
-import os
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,13 +30,18 @@ import numpy as np
 
 from .dh import ArmParams, paper_params
 from .dynamics import robot_from_xml
+from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
 from .references import Reference
 from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
 from .simulate import SimulationDiverged
+from .store import CampaignStore
 from .uncertainty import Tolerances, sample_plant
 
 __all__ = ["Campaign", "CampaignSettings", "run_campaign", "campaign_summary",
-           "campaign_columns", "write_campaign"]
+           "campaign_columns", "write_campaign", "open_store", "store_settings", "OUTPUTS"]
+
+#: Final files of a campaign, rebuilt from the stored rows at the end of every run.
+OUTPUTS = ("campaign.csv", "samples.jsonl", "summary.json", "montecarlo.png")
 
 
 @dataclass(frozen=True)
@@ -155,7 +162,8 @@ def _run_chunk(task) -> list[dict]:
 def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Reference | None = None,
                  params: ArmParams | None = None, jobs: int | None = None,
                  scheduler: str | None = None, executor: Executor | None = None,
-                 skip_joints=(), chunk: int | None = None, progress=None) -> Campaign:
+                 skip_joints=(), chunk: int | None = None, progress=None,
+                 store: CampaignStore | None = None) -> Campaign:
     """Run every law on ``settings.samples`` seeded uncertain plants.
 
     Parameters
@@ -183,16 +191,27 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
         Samples per task (default: about 4 tasks per worker, at most 50 samples).
     progress : callable, optional
         ``progress(done, total)`` after each finished chunk.
+    store : CampaignStore, optional
+        Append every finished chunk to this store (opened with :func:`open_store` before any
+        work) and compute only the samples it does not hold yet; the rows returned are the
+        store's, so a resumed campaign equals an uninterrupted one.
 
     Returns
     -------
     Campaign
+
+    Raises
+    ------
+    CampaignInterrupted
+        Ctrl-C or SIGTERM; ``.done`` samples are finished (and on disk, with a store).
+    WorkersLost
+        Local worker processes died or no Dask worker was left; finished samples are kept.
+    SchedulerUnreachable
+        The Dask scheduler cannot be reached.
     """
     from .study import default_reference
 
     laws = check_laws(laws, robot.nq, settings.baseline)
-    if jobs is not None and (isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1):
-        raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     reference = default_reference(robot) if reference is None else reference
     reference.check_limits(robot, duration=settings.run.duration)
     if params is None and robot.source == "rrr":
@@ -204,32 +223,33 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
         "skip_joints": tuple(skip_joints), "joint_names": list(robot.joint_names),
     }
     samples = int(settings.samples)
-    jobs = jobs or min(2, os.cpu_count() or 1)
+    jobs = check_jobs(jobs)
     workers = jobs if executor is None and scheduler is None else 4
-    size = chunk or max(1, min(50, math.ceil(samples / (4 * workers))))
-    tasks = [(job, list(range(i, min(i + size, samples)))) for i in range(0, samples, size)]
+    size = chunk or max(1, min(50, math.ceil(min(samples, 10**6) / (4 * workers))))
+    done = store.done() if store is not None else set()
+    todo = (k for k in range(samples) if k not in done)
+    tasks = ((job, list(block)) for block in iter(lambda: list(itertools.islice(todo, size)), []))
     rows: list[dict] = []
-    own, client = None, None
-    if executor is None and scheduler is not None:
-        from distributed import Client
-
-        client = Client(scheduler)
-        executor = client.get_executor()
-    elif executor is None and jobs > 1:
-        executor = own = ProcessPoolExecutor(max_workers=jobs)
+    finished = len(done)
+    where = f" and saved in {str(store.out)!r}; rerun with --resume" if store is not None else ""
     try:
-        results = executor.map(_run_chunk, tasks) if executor is not None else map(
-            _run_chunk, tasks)
-        for chunk_rows in results:
-            rows.extend(chunk_rows)
-            if progress:
-                progress(len(rows), samples)
-    finally:
-        if own is not None:
-            own.shutdown()
-        if client is not None:
-            client.close()
-    rows.sort(key=lambda r: r["index"])
+        with interrupt_on_signals():
+            for _, chunk_rows in run_tasks(_run_chunk, tasks, jobs=jobs, scheduler=scheduler,
+                                           executor=executor):
+                if store is not None:
+                    store.append(chunk_rows)
+                else:
+                    rows.extend(chunk_rows)
+                finished += len(chunk_rows)
+                if progress:
+                    progress(finished, samples)
+    except KeyboardInterrupt as exc:
+        raise CampaignInterrupted(f"campaign interrupted ({exc or 'Ctrl-C'}): {finished} of "
+                                  f"{samples} samples done{where}", done=finished) from None
+    except CampaignInterrupted as exc:
+        raise type(exc)(f"{exc}; {finished} of {samples} samples done{where}",
+                        done=finished) from None
+    rows = store.rows() if store is not None else sorted(rows, key=lambda r: r["index"])
     return Campaign(robot=robot.name, joint_names=list(robot.joint_names),
                     laws=[law.describe() for law in laws], rows=rows,
                     settings={**settings.to_dict(), "reference": reference.to_dict()})
@@ -287,8 +307,33 @@ def campaign_summary(campaign: Campaign) -> dict:
     return out
 
 
-def write_campaign(campaign: Campaign, out: str | Path) -> dict:
+def store_settings(robot, laws, settings: CampaignSettings, reference) -> dict:
+    """Everything that changes a row, JSON-ready: a resume must match it exactly."""
+    return {"robot": robot.name, "urdf_sha256": hashlib.sha256(robot.urdf.encode()).hexdigest(),
+            "locked": dict(robot.locked), "gravity": robot.gravity,
+            "controllers": [law.describe() for law in laws], **settings.to_dict(),
+            "reference": reference.to_dict()}
+
+
+def open_store(out, robot, laws, settings: CampaignSettings, reference, *, resume: bool = False,
+               overwrite: bool = False) -> CampaignStore:
+    """Open the campaign store in ``out`` before any work (see :mod:`rrr_pin.store`).
+
+    Raises
+    ------
+    rrr_pin.store.StoreError
+        ``out`` not writable, not empty (without ``resume``/``overwrite``), or recorded with
+        other settings (``resume``).
+    """
+    return CampaignStore.open(out, settings=store_settings(robot, laws, settings, reference),
+                              resume=resume, overwrite=overwrite, outputs=OUTPUTS)
+
+
+def write_campaign(campaign: Campaign, out: str | Path,
+                   store: CampaignStore | None = None) -> dict:
     """Write ``campaign.csv``, ``samples.jsonl`` (parameters), ``summary.json`` and a figure.
+
+    With a ``store``, the files are written through it (atomically, recorded as this run's).
 
     Returns
     -------
@@ -300,25 +345,31 @@ def write_campaign(campaign: Campaign, out: str | Path) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     columns = campaign_columns(campaign.names, campaign.baseline, campaign.joint_names)
-    written = [out / "campaign.csv", out / "samples.jsonl", out / "summary.json"]
-    with open(written[0], "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
-        writer.writeheader()
-        for row in campaign.rows:
-            writer.writerow({**row, "seed": f"{row['seed'][0]}:{row['seed'][1]}"})
-    with open(written[1], "w") as fh:
-        for row in campaign.rows:
-            fh.write(json.dumps({"index": row["index"], "seed": row["seed"],
-                                 "status": row["status"],
-                                 "parameters": row["parameters"]}) + "\n")
+    table = io.StringIO(newline="")
+    writer = csv.DictWriter(table, fieldnames=columns, extrasaction="ignore",
+                            lineterminator="\n")
+    writer.writeheader()
+    for row in campaign.rows:
+        writer.writerow({**row, "seed": f"{row['seed'][0]}:{row['seed'][1]}"})
+    params = "".join(json.dumps({"index": row["index"], "seed": list(row["seed"]),
+                                 "status": row["status"], "parameters": row["parameters"]})
+                     + "\n" for row in campaign.rows)
     summary = campaign_summary(campaign)
-    written[2].write_text(json.dumps(
-        {"robot": campaign.robot, "controllers": campaign.laws, "settings": campaign.settings,
-         "summary": summary}, indent=1) + "\n")
+    text = json.dumps({"robot": campaign.robot, "controllers": campaign.laws,
+                       "settings": campaign.settings, "summary": summary}, indent=1) + "\n"
+    written = []
+    for name, content in (("campaign.csv", table.getvalue()), ("samples.jsonl", params),
+                          ("summary.json", text)):
+        if store is not None:
+            written.append(store.write_text(name, content))
+        else:
+            (out / name).write_text(content)
+            written.append(out / name)
     figure = out / "montecarlo.png"
     if figure.exists():
         figure.unlink()
-    if summary["samples_ok"]:
-        written.append(plot_campaign(campaign, figure))
+    if any(r["status"] == "ok" for r in campaign.rows):
+        plot_campaign(campaign, figure)
+        written.append(store.wrote("montecarlo.png") if store is not None else figure)
     summary["written"] = [str(p) for p in written]
     return summary
