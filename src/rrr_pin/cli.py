@@ -477,6 +477,9 @@ def _cmd_reproduce(args) -> int:
 
     out = Path(args.out)
     _check_out_dir(out)
+    from .report_html import check_writable
+
+    check_writable(out)
     if args.samples < 0:
         raise ValueError(f"--samples must be >= 0, got {args.samples}")
     lock = _parse_lock(args.lock)
@@ -516,6 +519,7 @@ def _cmd_reproduce(args) -> int:
     data = write_results(result, out, design=design_info)
     figures += [plot_study_nominal(result, out / "fig5_nominal.png"),
                 plot_study_uncertain(result, out / "fig6_uncertain.png")]
+    report = _write_study_report(result, out, figures, design_info, robot)
     s = data["summary"]
     print(f"{robot.name}: {robot.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "
           f"{', '.join(result.names)} (baseline {baseline})")
@@ -529,8 +533,61 @@ def _cmd_reproduce(args) -> int:
     if s["samples_diverged"]:
         print(f"{s['samples_diverged']} uncertain plant(s) with a diverged run (see "
               f"results.json)")
-    print(f"wrote {out}/results.json, results.md, plants/ and {len(figures)} figures")
+    print(f"wrote {out}/results.json, results.md, plants/, {len(figures)} figures and "
+          f"{report.name} (open it in a browser)")
     return 0
+
+
+def _write_campaign_report(campaign, summary, out, store):
+    """Write ``report.html`` of a campaign: summary table and figure (no trajectories kept)."""
+    from pathlib import Path
+
+    from .report_html import write_report_html
+
+    lines = ["| metric | median | 95th percentile | worst | samples |", "|---|---|---|---|---|"]
+    for name in campaign.names:
+        for metric in (f"error_ratio_{name}", f"torque_ratio_{name}", f"{name}_rms_error",
+                       f"{name}_max_error", f"{name}_rms_torque"):
+            if metric in summary:
+                m = summary[metric]
+                lines.append(f"| {metric} | {m['median']:.4g} | {m['p95']:.4g} | "
+                             f"{m['worst']:.4g} | {m['count']} |")
+    figure = Path(out) / "montecarlo.png"
+    write_report_html(
+        Path(out) / "report.html", title=f"rrr-pin Monte Carlo campaign on {campaign.robot}",
+        tables=[(f"{summary['samples']} plants, baseline {summary['baseline']}",
+                 "\n".join(lines))],
+        figures=[figure] if figure.exists() else [], design=campaign.settings)
+    return store.wrote("report.html")
+
+
+def _write_study_report(result, out, figures, design_info, robot):
+    """Write ``report.html``: tables, figures, design, one 3D scene per controller.
+
+    The nominal plant is opaque, the uncertain plants are translucent ghosts.
+    """
+    from .dynamics import robot_from_xml
+    from .report import results_markdown
+    from .report_html import write_report_html
+    from .viewer import Scene, Track
+
+    scenes = []
+    for name in result.names:
+        nominal = result.nominal[name]
+        tracks = [Track("nominal plant", nominal.t, nominal.q)]
+        for sample, plant in zip(result.samples, result.plants, strict=True):
+            traj = sample["trajectories"].get(name)
+            if traj is None:
+                continue
+            model = robot_from_xml(plant.urdf, gravity=robot.gravity, lock=dict(robot.locked),
+                                   name=f"sample{plant.index}")
+            tracks.append(Track(f"uncertain plant {plant.index}", traj.t, traj.q, opacity=0.35,
+                                robot=model))
+        scenes.append(Scene(f"{result.label(name)}: nominal and uncertain plants", robot,
+                            tracks))
+    return write_report_html(out / "report.html", title=f"rrr-pin study on {result.robot}",
+                             tables=[("Results", results_markdown(result))],
+                             figures=figures, design=design_info, scenes=scenes)
 
 
 # --- montecarlo (robustness campaign) ---------------------------------------------------------
@@ -604,6 +661,7 @@ def _cmd_montecarlo(args) -> int:
         bar.close()
         elapsed = time.perf_counter() - start
         s = write_campaign(campaign, args.out, store=store)
+        s["written"].append(str(_write_campaign_report(campaign, s, args.out, store)))
     nl = len(laws)
     ran = s["samples"] - done
     print(f"{robot.name}: {ran} plants x {nl} controllers x {run.duration:g} s in "

@@ -41,7 +41,7 @@ __all__ = ["Campaign", "CampaignSettings", "run_campaign", "campaign_summary",
            "campaign_columns", "write_campaign", "open_store", "store_settings", "OUTPUTS"]
 
 #: Final files of a campaign, rebuilt from the stored rows at the end of every run.
-OUTPUTS = ("campaign.csv", "samples.jsonl", "summary.json", "montecarlo.png")
+OUTPUTS = ("campaign.csv", "samples.jsonl", "summary.json", "montecarlo.png", "report.html")
 
 
 @dataclass(frozen=True)
