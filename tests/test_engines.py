@@ -326,3 +326,29 @@ def test_floor_ms_runs(rrr, rrr_plant, kind, sampled):
 def test_floor_ms_bad_input(rrr, kwargs, match):
     with pytest.raises(ValueError, match=match):
         floor_ms(rrr, rrr, n_steps=10, **kwargs)
+
+
+# --- plant effects (rrr_pin.effects) on both engines --------------------------------------------
+
+
+@pytest.mark.parametrize("law", ["fl", "hinf", "pd"])
+def test_engines_agree_with_every_plant_effect(rrr_plant, rrr_laws, rrr_refs, law):
+    from rrr_pin.effects import PlantEffects
+
+    fx = PlantEffects(delay=1.5e-3, bandwidth=400.0, viscous=0.5, coulomb=[1.0, 2.0, 0.5],
+                      torque_limit="urdf", noise_q=1e-4, noise_qd=1e-3, encoder_counts=2 ** 18,
+                      stiffness=2e4, motor_inertia=0.05, damping=1.0, seed=5)
+    kw = {"rate": RATE, "dt": 2.5e-4, "effects": fx}
+    a = simulate(rrr_plant, rrr_laws[law], rrr_refs["sine"], DURATION, engine="python", **kw)
+    b = simulate(rrr_plant, rrr_laws[law], rrr_refs["sine"], DURATION, engine="compiled", **kw)
+    assert_same_run(a, b)
+    assert a.info["effects"] == b.info["effects"]
+
+
+def test_engines_agree_when_a_delay_makes_the_loop_diverge(rrr, rrr_refs):
+    from rrr_pin.effects import PlantEffects
+
+    # FL at lam = 100 has a delay margin of ~6 ms at 1 kHz; 12 ms drives it unstable.
+    py, cc = run_both(rrr, fl_controller(rrr), rrr_refs["sine"], 2.0, rate=RATE, dt=5e-4,
+                      effects=PlantEffects(delay=0.012))
+    assert (py.time, py.joint) == (cc.time, cc.joint)

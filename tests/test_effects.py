@@ -1,0 +1,202 @@
+"""Plant effects (rrr_pin.effects): each effect's physics against a closed form, seeds, bad input.
+
+The physics checks run on the RRR with joints 2 and 3 locked at 0: a single joint about the
+vertical axis with constant inertia I = M(q)[0, 0] and no gravity torque, driven by a law that
+commands a known torque. Its motion then has closed forms independent of the simulator.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from scipy.optimize import brentq
+
+from rrr_pin.controllers import SampledLaw, fl_controller
+from rrr_pin.dynamics import load_robot
+from rrr_pin.effects import EffectsError, PlantEffects
+from rrr_pin.references import QuinticReference
+from rrr_pin.simulate import simulate
+from rrr_pin.study import default_reference
+
+TS = 1e-3  # [s] control period (1 kHz)
+C = 2.0  # [N m] commanded torque after t = 0
+
+
+class StepTorque(SampledLaw):
+    """Zero torque at t = 0, then ``c`` (so the delay line and the actuator start at rest)."""
+
+    name, n, nx, rate = "step", 1, 0, 1.0 / TS
+
+    def __init__(self, c):
+        self.c = c
+
+    def step(self, t, q, qd, r, rd, rdd, x):
+        """Return the step torque."""
+        return np.array([self.c if t > 0 else 0.0]), x
+
+
+@pytest.fixture(scope="module")
+def joint1():
+    return load_robot("rrr", lock={"joint2": 0.0, "joint3": 0.0})
+
+
+@pytest.fixture(scope="module")
+def rest(joint1):
+    """A reference that stays at 0 (only the plant's limits and the law's inputs use it)."""
+    return QuinticReference(start=[0.0], goal=[0.0], move_time=1.0)
+
+
+def run(joint1, rest, effects, c=C, duration=0.5, dt=1e-4, engine="python"):
+    return simulate(joint1, StepTorque(c), rest, duration, dt=dt, effects=effects,
+                    engine=engine)
+
+
+def inertia(joint1):
+    return float(joint1.M(np.zeros(1))[0, 0])
+
+
+def test_first_order_actuator_matches_its_exponential(joint1, rest):
+    # a(t) = C (1 - exp(-wa (t - Ts))) from t = Ts on, so
+    # qd(t) = C / I ((t - Ts) - (1 - exp(-wa (t - Ts))) / wa).
+    wa = 40.0
+    traj = run(joint1, rest, PlantEffects(bandwidth=wa))
+    s = np.maximum(traj.t - TS, 0.0)
+    expected = C / inertia(joint1) * (s - (1.0 - np.exp(-wa * s)) / wa)
+    # RK4 with h = 1e-4 s on a smooth exponential: error ~ (wa h)^4 ~ 3e-10 relative.
+    assert_allclose(traj.qd[:, 0], expected, rtol=0, atol=1e-9)
+
+
+def test_delay_shifts_the_torque(joint1, rest):
+    # The step commanded at t = Ts arrives at Ts + 3.7 ms, realized as 37 sub-steps of 1e-4 s.
+    traj = run(joint1, rest, PlantEffects(delay=3.7e-3))
+    assert traj.info["effects"]["delay_s"] == pytest.approx(3.7e-3, abs=1e-12)
+    s = np.maximum(traj.t - TS - 3.7e-3, 0.0)
+    # Constant torque: RK4 is exact for qd linear in t; round-off only.
+    assert_allclose(traj.qd[:, 0], C / inertia(joint1) * s, rtol=0, atol=1e-11)
+
+
+def test_delay_is_rounded_to_the_sub_step(joint1, rest):
+    traj = run(joint1, rest, PlantEffects(delay=1.26e-3), dt=5e-4)
+    assert traj.info["effects"]["delay_substeps"] == 3
+    assert traj.info["effects"]["delay_s"] == pytest.approx(1.5e-3, abs=1e-15)
+
+
+def test_saturation_clips_the_torque(joint1, rest):
+    traj = run(joint1, rest, PlantEffects(torque_limit=0.5), c=100.0)
+    assert np.max(np.abs(traj.tau)) == 0.5
+    s = np.maximum(traj.t - TS, 0.0)
+    assert_allclose(traj.qd[:, 0], 0.5 / inertia(joint1) * s, rtol=0, atol=1e-11)
+
+
+def test_urdf_effort_limits(joint1, rest):
+    traj = run(joint1, rest, PlantEffects(torque_limit="urdf"), c=1e6, duration=0.01)
+    assert np.max(traj.tau) == joint1.model.effortLimit[0]
+
+
+def test_friction_on_a_free_joint_reaches_its_terminal_speed(joint1, rest):
+    # I qdd = C - Fv qd - Fc tanh(qd / v_eps): the speed settles at the root of the right-hand
+    # side (scipy's brentq), with time constant I / Fv = 0.53 s; after 8 s e^-15 is left.
+    Fv, Fc, veps = 50.0, 0.5, 0.001
+    traj = run(joint1, rest, PlantEffects(viscous=Fv, coulomb=Fc, coulomb_velocity=veps),
+               duration=8.0, dt=1e-3)
+    v_end = brentq(lambda v: C - Fv * v - Fc * math.tanh(v / veps), 0.0, 1.0)
+    assert_allclose(traj.qd[-1, 0], v_end, rtol=1e-4)
+    assert v_end == pytest.approx((C - Fc) / Fv, rel=1e-12)  # v_end >> v_eps
+
+
+def test_flexible_joint_oscillates_at_its_two_mass_frequency(joint1, rest):
+    # Link inertia I and motor inertia B on a spring K: the free mode has
+    # w^2 = K (1/I + 1/B) (two-mass oscillator). The spring starts unloaded and a step C drives
+    # the motor: the link acceleration is C/(I + B) plus an oscillation at w, whose frequency is
+    # read from the zero crossings.
+    K, B = 2000.0, 0.05
+    traj = run(joint1, rest, PlantEffects(stiffness=K, motor_inertia=B), duration=0.3, dt=1e-5)
+    I = inertia(joint1)
+    w = math.sqrt(K * (1.0 / I + 1.0 / B))
+    qdd = np.gradient(traj.qd[:, 0], traj.t)
+    ac = qdd - C / (I + B)  # mean acceleration of the two masses
+    ac = ac[traj.t > 2 * TS]
+    t = traj.t[traj.t > 2 * TS]
+    crossings = t[1:][np.diff(np.sign(ac)) != 0]
+    period = 2.0 * np.mean(np.diff(crossings))
+    # Zero crossings located to one sample (1 ms) over ~9 periods of 31 ms: ~1 %.
+    assert_allclose(2 * math.pi / period, w, rtol=0.03)
+
+
+def test_quantization_measures_whole_counts(joint1, rest):
+    class Spy(SampledLaw):
+        name, n, nx, rate = "spy", 1, 0, 1.0 / TS
+        seen = []
+
+        def step(self, t, q, qd, r, rd, rdd, x):
+            self.seen.append(q[0])
+            return np.array([50.0]), x  # q(0.2 s) = 0.04 rad, about 6 counts
+
+    counts = 1000
+    simulate(joint1, Spy(), rest, 0.2, dt=1e-4,
+             effects=PlantEffects(encoder_counts=counts))
+    steps = np.array(Spy.seen) / (2 * math.pi / counts)
+    assert_allclose(steps, np.round(steps), rtol=0, atol=1e-9)
+    assert len(np.unique(steps)) > 3  # the arm moved across several counts
+
+
+@pytest.fixture(scope="module")
+def rrr():
+    return load_robot("rrr")
+
+
+def test_noise_runs_are_reproducible_from_the_seed(rrr):
+    law, ref = fl_controller(rrr), default_reference(rrr)
+
+    def once(seed, engine):
+        fx = PlantEffects(noise_q=1e-3, noise_qd=1e-2, seed=seed)
+        return simulate(rrr, law, ref, 0.2, rate=1000, effects=fx, engine=engine).q
+
+    a, b, c = once(7, "auto"), once(7, "auto"), once(8, "auto")
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(a - c).max() > 1e-5
+    # Same noise arrays reach the Python engine: same run to round-off (see test_engines).
+    assert_allclose(once(7, "python"), a, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"delay": -1e-3}, r"delay = -0.001: expected finite >= 0 \[s\]"),
+    ({"delay": math.nan}, r"delay = nan"),
+    ({"bandwidth": 0.0}, r"bandwidth = 0.0: expected finite > 0 \[rad/s\]"),
+    ({"bandwidth": -5.0}, r"bandwidth = -5.0"),
+    ({"stiffness": 0.0}, r"stiffness = 0.0"),
+    ({"encoder_counts": 0}, r"encoder_counts = 0"),
+    ({"seed": -1}, r"seed = -1"),
+    ({"noise_q": [1e-3, math.inf]}, r"noise_q"),
+], ids=["neg-delay", "nan-delay", "zero-bw", "neg-bw", "zero-K", "counts", "seed", "inf-noise"])
+def test_bad_effects_name_the_field(kwargs, match):
+    with pytest.raises(EffectsError, match=match):
+        PlantEffects(**kwargs)
+
+
+def test_every_bad_field_is_named_at_once():
+    with pytest.raises(EffectsError, match=r"delay = -1.*bandwidth = 0"):
+        PlantEffects(delay=-1, bandwidth=0)
+
+
+def test_effects_refuse_a_continuous_law(rrr):
+    with pytest.raises(ValueError, match="sampled .digital. controllers only"):
+        simulate(rrr, fl_controller(rrr), default_reference(rrr), 0.1,
+                 effects=PlantEffects(delay=1e-3))
+
+
+def test_wrong_joint_count_and_too_fast_actuator(rrr):
+    law, ref = fl_controller(rrr), default_reference(rrr)
+    with pytest.raises(EffectsError, match="viscous: expected one value or 3"):
+        simulate(rrr, law, ref, 0.1, rate=1000, effects=PlantEffects(viscous=[1.0, 2.0]))
+    with pytest.raises(EffectsError, match="too fast for the plant sub-step"):
+        simulate(rrr, law, ref, 0.1, rate=1000, effects=PlantEffects(bandwidth=1e5))
+
+
+def test_no_effect_is_the_ideal_run(rrr):
+    law, ref = fl_controller(rrr), default_reference(rrr)
+    a = simulate(rrr, law, ref, 0.2, rate=1000)
+    b = simulate(rrr, law, ref, 0.2, rate=1000, effects=PlantEffects())
+    np.testing.assert_array_equal(a.q, b.q)
+    assert "effects" not in b.info

@@ -1,0 +1,128 @@
+"""Breaking points (rrr_pin.stress): linear predictions against closed forms, the nonlinear
+boundary against the linear prediction on the nominal RRR, the CLI."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from rrr_pin.cli import main
+from rrr_pin.controllers import fl_controller
+from rrr_pin.dynamics import load_robot
+from rrr_pin.runner import RunSettings, make_laws
+from rrr_pin.stress import (
+    StressSettings,
+    _rms,
+    barrier_guarantee,
+    breaking_point,
+    continuous_boundary,
+    linear_boundary,
+    stress,
+)
+from rrr_pin.study import default_reference
+
+
+@pytest.fixture(scope="module")
+def rrr():
+    return load_robot("rrr")
+
+
+@pytest.mark.parametrize("lam", [45.0, 100.0])
+def test_fl_actuator_bound_is_routh(rrr, lam):
+    # (2 lam s + lam^2)/s^2 with wa/(s + wa): s^3 + wa s^2 + 2 lam wa s + lam^2 wa; Routh:
+    # stable iff wa * 2 lam wa > lam^2 wa, i.e. wa > lam / 2.
+    assert_allclose(continuous_boundary(fl_controller(rrr, lam), "actuator"), lam / 2,
+                    rtol=1e-5)
+
+
+@pytest.mark.parametrize("lam", [45.0, 100.0])
+def test_fl_delay_margin_is_pm_over_wc(rrr, lam):
+    # |L(j wc)| = 1 at wc = lam sqrt(2 + sqrt 5); phase margin atan(2 wc / lam).
+    wc = lam * math.sqrt(2 + math.sqrt(5))
+    assert_allclose(continuous_boundary(fl_controller(rrr, lam), "delay"),
+                    math.atan(2 * wc / lam) / wc, rtol=1e-6)
+
+
+def test_digital_prediction_tends_to_the_continuous_one(rrr):
+    # The discrete analysis (ZOH, fractional delay) at 20 kHz: the hold's extra lag is Ts/2 =
+    # 25 us on a 6.5 ms margin (0.4 %), and wa moves by a similar fraction.
+    law = fl_controller(rrr, 100.0)
+    wc = 100 * math.sqrt(2 + math.sqrt(5))
+    dm = math.atan(2 * wc / 100) / wc
+    assert_allclose(linear_boundary(law, "delay", 20000.0) + 0.5 / 20000.0, dm, rtol=2e-3)
+    assert_allclose(linear_boundary(law, "actuator", 20000.0), 50.0, rtol=1e-2)
+
+
+def test_barrier_guarantees_match_closed_forms():
+    # Delay: |e^{-jwt} - 1| = 2 sin(wt/2) <= 0.2 |1 + jw/200|; the binding frequencies are low,
+    # where 2 sin(wt/2) ~ wt: a first-order estimate tau ~ 0.2 / w at w ~ 200 gives 1e-3 s.
+    assert 0.8e-3 < barrier_guarantee("delay") < 1.3e-3
+    # Actuator: |jw/(jw + wa)| <= 0.2 |1 + jw/200| for all w; checked by brute force on a
+    # finer, wider grid than the library's, independently of its bisection.
+    w = np.logspace(-3, 6, 200001)
+
+    def ok(wa):
+        return np.all(w / np.sqrt(w * w + wa * wa) <= 0.2 * np.sqrt(1 + (w / 200) ** 2) + 1e-12)
+
+    g = barrier_guarantee("actuator")
+    assert ok(g * 1.001) and not ok(g * 0.99)
+
+
+@pytest.fixture(scope="module")
+def rrr_stress(rrr):
+    laws = make_laws("fl,hinf,pd", rrr)
+    ref = default_reference(rrr)
+    return {e: stress(rrr, laws, ref, e) for e in ("delay", "actuator")}
+
+
+@pytest.mark.parametrize("effect", ["delay", "actuator"])
+def test_simulated_boundary_within_10_percent_of_prediction(rrr_stress, effect):
+    rows = rrr_stress[effect]["rows"]
+    assert [r["controller"] for r in rows] == ["fl", "hinf", "pd"]
+    for r in rows:
+        assert r["simulated"] == pytest.approx(r["predicted"], rel=0.10), r["controller"]
+        assert r["guaranteed"] is not None and r["barrier_met"]
+
+
+@pytest.mark.parametrize("effect, factor, broken", [
+    ("delay", 0.9, False), ("delay", 1.1, True),
+    ("actuator", 1.1, False), ("actuator", 0.9, True)])
+def test_python_engine_spot_check(rrr, effect, factor, broken):
+    law = fl_controller(rrr)
+    pred = linear_boundary(law, effect, 1000.0)
+    settings = StressSettings(run=RunSettings(duration=1.5, dt=1e-4, rate=1000.0,
+                                              engine="python"))
+    rms = _rms(rrr, law, default_reference(rrr), effect, factor * pred, settings, 1.5)
+    assert (rms > settings.budget) is broken
+
+
+def test_breaking_point_any_law_no_prediction(rrr):
+    # Torque limit on FL: no linear prediction; the search still brackets a boundary.
+    out = breaking_point(rrr, fl_controller(rrr), default_reference(rrr), "torque",
+                         StressSettings(run=RunSettings(duration=1.0, dt=1e-3, rate=1000.0),
+                                        sweep=0, rtol=0.05))
+    lo, hi = out["bracket"]
+    assert 0 < hi < lo and out["simulated"] == lo
+
+
+def test_cli_stress_json(tmp_path, capsys):
+    assert main(["stress", "--controllers", "fl", "--effect", "delay", "--json",
+                 "--duration", "1", "--out", str(tmp_path)]) == 0
+    data = json.loads(capsys.readouterr().out)
+    row = data["rows"][0]
+    for key in ("controller", "effect", "unit", "predicted", "simulated", "guaranteed"):
+        assert key in row
+    assert row["unit"] == "s" and (tmp_path / "stress_delay.png").is_file()
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["stress", "--effect", "wind"], "--effect 'wind' is unknown"),
+    (["stress", "--effect", "delay", "--budget", "nan"], "--budget"),
+    (["montecarlo", "--samples", "1", "--delay", "-0.001"], "--delay must be"),
+    (["montecarlo", "--samples", "1", "--actuator-bandwidth", "0"], "--actuator-bandwidth"),
+], ids=["unknown-effect", "nan-budget", "neg-delay", "zero-bandwidth"])
+def test_cli_bad_input_names_the_option(argv, match, capsys, tmp_path):
+    assert main(argv + ["--out", str(tmp_path / "o")]) == 2
+    assert match in capsys.readouterr().err
