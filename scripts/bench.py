@@ -44,7 +44,7 @@ from rrr_pin.compiled import floor_ms
 from rrr_pin.montecarlo import CampaignSettings, run_campaign
 from rrr_pin.references import LinePath, QuinticReference, SplineReference, task_space_reference
 from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.simulate import simulate
+from rrr_pin.simulation import simulate
 from rrr_pin.study import default_reference
 
 #: Issue 13's goals: (largest ratio, what it is a ratio of). Start-up goals are in seconds.

@@ -15,7 +15,7 @@ import argparse
 import rrr_pin
 from rrr_pin.plotting import plot_runs
 from rrr_pin.runner import RunSettings, make_laws, run_laws
-from rrr_pin.simulate import SimulationDiverged, metrics
+from rrr_pin.simulation import SimulationDiverged, metrics
 from rrr_pin.study import default_reference
 
 

@@ -16,7 +16,7 @@ from rrr_pin.controllers import (
 )
 from rrr_pin.dynamics import load_robot
 from rrr_pin.references import QuinticReference
-from rrr_pin.simulate import simulate
+from rrr_pin.simulation import simulate
 
 # The paper's eq. (18), typed from the paper (used here only as a test input).
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],

@@ -16,7 +16,7 @@ from rrr_pin.controllers import SampledLaw, fl_controller
 from rrr_pin.dynamics import load_robot
 from rrr_pin.effects import EffectsError, PlantEffects
 from rrr_pin.references import QuinticReference
-from rrr_pin.simulate import simulate
+from rrr_pin.simulation import simulate
 from rrr_pin.study import default_reference
 
 TS = 1e-3  # [s] control period (1 kHz)

@@ -1,6 +1,6 @@
 """The compiled engine against the Python engine, and the rule that no law is ever substituted.
 
-The Python engine (``rrr_pin.simulate._run_python``) is the readable reference; the compiled
+The Python engine (``rrr_pin.simulation._run_python``) is the readable reference; the compiled
 engine (``rrr_pin.compiled``, C++) must give the same trajectory for every built-in law (FL, H-inf
 + FL, PD + gravity), continuous and sampled, with every reference kind, on a perturbed plant
 (the law's model differs from the plant, so the feedback terms act). A law the compiled engine
@@ -34,7 +34,7 @@ from rrr_pin.references import (
     SplineReference,
     task_space_reference,
 )
-from rrr_pin.simulate import SimulationDiverged, simulate
+from rrr_pin.simulation import SimulationDiverged, simulate
 from rrr_pin.study import default_reference
 from rrr_pin.uncertainty import sample_plants
 

@@ -8,7 +8,7 @@ import rrr_pin.montecarlo as mc
 from rrr_pin import cli
 from rrr_pin.dynamics import load_robot
 from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.simulate import SimulationDiverged
+from rrr_pin.simulation import SimulationDiverged
 from rrr_pin.study import StudyConfig, run_study
 
 RUN = RunSettings(duration=0.3, rate=1000.0, engine="python")

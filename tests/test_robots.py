@@ -14,7 +14,7 @@ from rrr_pin.controllers import fl_controller, hinf_fl_controller
 from rrr_pin.dynamics import RobotModelError, _erd_urdf_path, load_robot
 from rrr_pin.loopshaping import design
 from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.simulate import simulate
+from rrr_pin.simulation import simulate
 from rrr_pin.study import StudyConfig, default_reference, run_study
 
 PANDA_LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}

@@ -7,7 +7,7 @@ from rrr_pin.controllers import TrackingController, fl_controller, hinf_fl_contr
 from rrr_pin.dh import ArmParams, paper_params
 from rrr_pin.dynamics import load_robot
 from rrr_pin.references import SineReference
-from rrr_pin.simulate import SimulationDiverged, metrics, simulate
+from rrr_pin.simulation import SimulationDiverged, metrics, simulate
 from rrr_pin.study import default_reference
 from rrr_pin.uncertainty import sample_plants
 
@@ -124,3 +124,13 @@ def test_wrong_types(setup):
         simulate(nominal, object(), ref, 1.0)
     with pytest.raises(TypeError, match="reference must be a rrr_pin Reference"):
         simulate(nominal, controllers["fl"], lambda t: t, 1.0)
+
+
+def test_package_function_is_not_shadowed_by_a_module():
+    # rrr_pin.simulate is the function even after every submodule has been imported (a
+    # submodule of the same name would replace it on the package).
+    import rrr_pin
+    import rrr_pin.runner  # noqa: F401
+    import rrr_pin.study  # noqa: F401
+
+    assert callable(rrr_pin.simulate) and rrr_pin.simulate.__module__ == "rrr_pin.simulation"

@@ -42,7 +42,7 @@ _EXPORTS = {
     "load_robot": "dynamics",
     "loopsyn": "loopshaping",
     "make_laws": "runner",
-    "metrics": "simulate",
+    "metrics": "simulation",
     "ncf_reduce": "reduction",
     "ncfmargin": "ncf",
     "ncfsyn": "loopshaping",
@@ -61,8 +61,8 @@ _EXPORTS = {
     "RunSettings": "runner",
     "sample_plants": "uncertainty",
     "SampledLaw": "controllers",
-    "simulate": "simulate",
-    "SimulationDiverged": "simulate",
+    "simulate": "simulation",
+    "SimulationDiverged": "simulation",
     "SineReference": "references",
     "SplineReference": "references",
     "StudyConfig": "study",
@@ -70,7 +70,7 @@ _EXPORTS = {
     "task_space_reference": "references",
     "Tolerances": "uncertainty",
     "TrackingController": "controllers",
-    "Trajectory": "simulate",
+    "Trajectory": "simulation",
 }
 
 __all__ = ["__version__", *sorted(_EXPORTS, key=str.lower)]

@@ -1,7 +1,7 @@
 r"""The compiled engine: the whole closed-loop run in one C++ call.
 
 It runs the laws that declare a :class:`~rrr_pin.controllers.CompiledForm`, operation for
-operation as the Python reference engine of :mod:`rrr_pin.simulate` does (C++ source:
+operation as the Python reference engine of :mod:`rrr_pin.simulation` does (C++ source:
 ``src/rrr_pin/_ext/rollout.cpp``, built by ``pip install .``):
 
 * ``"fl"``, the feedback-linearizing laws (FL alone, H-infinity + FL), eq. (8):
@@ -16,7 +16,7 @@ operation as the Python reference engine of :mod:`rrr_pin.simulate` does (C++ so
   (symmetrized from its upper triangle) and ``Vhat + Ghat`` from ``nonLinearEffects``;
 * ``"pd"``, PD + gravity compensation: ``tau = Kp e + Kd (rd - qd) + Ghat(q)``.
 
-The reference arrives sampled by :func:`rrr_pin.simulate.simulate` on the grid where the law is
+The reference arrives sampled by :func:`rrr_pin.simulation.simulate` on the grid where the law is
 evaluated, so every reference runs here. Trajectories equal the Python engine's to round-off
 (``tests/test_engines.py``). Call it through ``simulate(..., engine="compiled")`` (or
 ``"auto"``); :func:`run_compiled` takes a run that ``simulate`` has already validated.
@@ -49,7 +49,7 @@ __all__ = [
 #: Law kinds the C++ loop implements (``CompiledForm.kind``), and their codes there.
 KINDS = {"fl": 0, "pd": 1}
 
-#: Divergence reasons of the C++ loop, worded as :func:`rrr_pin.simulate.diverged_joint`.
+#: Divergence reasons of the C++ loop, worded as :func:`rrr_pin.simulation.diverged_joint`.
 _REASONS = {0: "became NaN or infinite", 2: "left its joint limits"}
 
 
@@ -144,7 +144,7 @@ def compile_robot(robot) -> CompiledRobot:
 
 
 def run_compiled(run, form):
-    """Run a validated simulation (``rrr_pin.simulate._Run``) of a law's compiled form.
+    """Run a validated simulation (``rrr_pin.simulation._Run``) of a law's compiled form.
 
     Returns
     -------
@@ -158,7 +158,7 @@ def run_compiled(run, form):
     ValueError
         A compiled form of an unknown kind.
     """
-    from .simulate import VELOCITY_LIMIT, SimulationDiverged, _trajectory
+    from .simulation import VELOCITY_LIMIT, SimulationDiverged, _trajectory
 
     require()
     if form.kind not in KINDS:

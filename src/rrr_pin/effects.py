@@ -2,7 +2,7 @@ r"""Plant-side effects: the unmodeled dynamics of a real arm, composed into one 
 
 :class:`PlantEffects` lists what a real drive train and its sensors add to the rigid-body model
 the laws are designed on. Every effect is off by default; a run with ``effects=None`` (or with
-no effect switched on) is the ideal loop of :mod:`rrr_pin.simulate`, bit for bit.
+no effect switched on) is the ideal loop of :mod:`rrr_pin.simulation`, bit for bit.
 
 Effects apply to **sampled runs** (digital controllers: ``rate`` given, or a
 :class:`~rrr_pin.controllers.SampledLaw`). A continuous-time law with effects is refused
@@ -22,7 +22,7 @@ where ``Q(x) = delta round(x / delta)``, ``delta = 2 pi / counts`` [rad] (round 
 and the joint torque is the spring-damper torque ``s`` for a flexible joint, the actuator
 output ``a`` otherwise. The law always measures the **link** side.
 
-Discretization (both engines, :mod:`rrr_pin.simulate` and the C++ rollout):
+Discretization (both engines, :mod:`rrr_pin.simulation` and the C++ rollout):
 
 * the arm, the actuator state ``a`` and the motor state ``(th, th')`` are integrated together
   by classical RK4 with the plant sub-step ``h = Ts / substeps`` (``substeps = ceil(Ts / dt)``);

@@ -33,7 +33,7 @@ from .dynamics import robot_from_xml
 from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
 from .references import Reference
 from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
-from .simulate import SimulationDiverged
+from .simulation import SimulationDiverged
 from .store import CampaignStore
 from .uncertainty import Tolerances, sample_plant
 

@@ -28,7 +28,7 @@ from .controllers import (
     pd_controller,
 )
 from .effects import PlantEffects, check_effects
-from .simulate import DEFAULT_DT, ENGINES, SimulationDiverged, Trajectory, simulate
+from .simulation import DEFAULT_DT, ENGINES, SimulationDiverged, Trajectory, simulate
 
 __all__ = [
     "RunSettings",
@@ -42,7 +42,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class RunSettings:
-    """How each closed-loop run is simulated (see :func:`rrr_pin.simulate.simulate`).
+    """How each closed-loop run is simulated (see :func:`rrr_pin.simulation.simulate`).
 
     Parameters
     ----------
@@ -107,7 +107,7 @@ class RunSettings:
             raise ValueError("effects apply to sampled controllers only: give a rate")
 
     def simulate_kwargs(self) -> dict:
-        """Keyword arguments of :func:`rrr_pin.simulate.simulate`."""
+        """Keyword arguments of :func:`rrr_pin.simulation.simulate`."""
         return {"dt": self.dt, "rate": self.rate, "method": self.method, "engine": self.engine,
                 "limit_margin": self.limit_margin, "q0": self.q0, "qd0": self.qd0,
                 "effects": self.effects}
@@ -192,8 +192,8 @@ def run_laws(plant, laws, reference, settings: RunSettings) -> dict:
     Returns
     -------
     dict
-        By law name: its :class:`~rrr_pin.simulate.Trajectory`, or the
-        :class:`~rrr_pin.simulate.SimulationDiverged` it raised (other errors propagate).
+        By law name: its :class:`~rrr_pin.simulation.Trajectory`, or the
+        :class:`~rrr_pin.simulation.SimulationDiverged` it raised (other errors propagate).
     """
     out = {}
     kwargs = settings.simulate_kwargs()

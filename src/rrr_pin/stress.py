@@ -47,7 +47,7 @@ from .barriers import PAPER_MODEL_ERROR
 from .controllers import PDGravity, TrackingController
 from .effects import PlantEffects
 from .runner import RunSettings
-from .simulate import SimulationDiverged, simulate
+from .simulation import SimulationDiverged, simulate
 
 __all__ = ["EFFECTS", "DEFAULT_BUDGET", "StressSettings", "linear_boundary",
            "continuous_boundary", "barrier_guarantee", "barrier_met", "breaking_point",

@@ -20,7 +20,7 @@ from .dh import paper_params
 from .dynamics import robot_from_xml
 from .references import Reference, SineReference
 from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
-from .simulate import SimulationDiverged, metrics
+from .simulation import SimulationDiverged, metrics
 from .uncertainty import PlantSample, Tolerances, sample_plants
 
 __all__ = [

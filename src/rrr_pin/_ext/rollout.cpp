@@ -2,7 +2,7 @@
 // laws that declare a compiled form (rrr_pin.controllers.CompiledForm), all in one C++ loop (no
 // return to Python per step). Python entry point: rrr_pin.compiled.run_compiled.
 //
-// The algorithm is the Python reference engine's (rrr_pin.simulate._python_sampled and
+// The algorithm is the Python reference engine's (rrr_pin.simulation._python_sampled and
 // _python_continuous), operation for operation; tests/test_engines.py pins the two together.
 // Laws implemented here, exactly as in rrr_pin.controllers:
 //   kFL: taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), y = C x + D e,
@@ -123,7 +123,7 @@ namespace
   };
 
   /// Divergence reasons, mirrored in rrr_pin.compiled (same order of tests as
-  /// rrr_pin.simulate.diverged_joint: non-finite, then speed, then limits).
+  /// rrr_pin.simulation.diverged_joint: non-finite, then speed, then limits).
   enum Reason : int
   {
     kOk = -1,
@@ -383,7 +383,7 @@ namespace
   }
 
   /// Sampled rollout with plant effects (rrr_pin.effects), operation for operation as
-  /// rrr_pin.simulate._python_effects: sensor (noise, quantization) -> law -> saturation ->
+  /// rrr_pin.simulation._python_effects: sensor (noise, quantization) -> law -> saturation ->
   /// delay (delay_steps plant sub-steps) -> first-order actuator (wa > 0) -> flexible joint
   /// (Kf non-empty) -> arm with friction (Fv non-empty). Empty vectors / zero-row matrices
   /// switch an effect off. The ideal loop stays in rollout() above, untouched.
