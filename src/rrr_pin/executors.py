@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 import operator
 import os
+import queue
 import signal
 import threading
 import time
@@ -314,10 +315,12 @@ def _is_dask_client(obj) -> bool:
     return isinstance(obj, Client)
 
 
-def _n_workers(client) -> tuple[int, int]:
+def _n_workers(client, timeout: float) -> tuple[int, int]:
     """Return (workers, threads) the scheduler knows now; (0, 0) if it cannot be asked."""
+    if client.status != "running":  # reconnecting to a lost scheduler, or closed
+        return 0, 0
     try:
-        nthreads = client.nthreads()
+        nthreads = client.nthreads(callback_timeout=timeout)
     except Exception:  # lost scheduler: counts as no worker
         return 0, 0
     return len(nthreads), sum(nthreads.values())
@@ -340,7 +343,6 @@ def _connect(scheduler: str, connect_timeout: float):
 
 def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
               connect_timeout):
-    import distributed
     from distributed import KilledWorker
 
     own = client is None
@@ -348,9 +350,15 @@ def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
         client = _connect(scheduler, connect_timeout)
     it = iter(tasks)
     pending: dict = {}  # future -> (task, resubmissions so far)
+    ready: queue.SimpleQueue = queue.SimpleQueue()  # futures done, fed by their callbacks
+
+    def submit(task, attempts):
+        f = client.submit(fn, task, pure=False)
+        pending[f] = (task, attempts)
+        f.add_done_callback(ready.put)
     done, exhausted = 0, False
     poll = min(1.0, no_worker_timeout / 4)
-    workers, threads = _n_workers(client)
+    workers, threads = _n_workers(client, poll)
     checked = last_worker = time.monotonic()
     try:
         while True:
@@ -361,15 +369,19 @@ def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
                 except StopIteration:
                     exhausted = True
                     break
-                pending[client.submit(fn, task, pure=False)] = (task, 0)
+                submit(task, 0)
             if not pending:
                 break
+            finished = []
             try:
-                finished = distributed.wait(list(pending), timeout=poll,
-                                            return_when="FIRST_COMPLETED").done
-            except TimeoutError:
-                finished = ()
+                finished.append(ready.get(timeout=poll))
+                while True:
+                    finished.append(ready.get_nowait())
+            except queue.Empty:
+                pass
             for f in finished:
+                if f not in pending:
+                    continue
                 task, attempts = pending.pop(f)
                 if f.status == "finished":
                     result = f.result()
@@ -385,10 +397,10 @@ def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
                     raise WorkersLost(f"a task was lost with its Dask workers {attempts + 1} "
                                       f"times; giving up after {done} tasks had finished "
                                       f"({exc or f.status})", done)
-                pending[client.submit(fn, task, pure=False)] = (task, attempts + 1)
+                submit(task, attempts + 1)
             now = time.monotonic()
             if now - checked >= poll:
-                workers, threads = _n_workers(client)
+                workers, threads = _n_workers(client, poll)
                 checked = now
             if workers:
                 last_worker = now
