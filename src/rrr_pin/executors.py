@@ -23,6 +23,7 @@ Rerun the campaign with ``--resume`` to compute only the samples that are missin
 
 from __future__ import annotations
 
+import gc
 import math
 import operator
 import os
@@ -335,14 +336,20 @@ def _connect(scheduler: str, connect_timeout: float):
     try:
         return Client(scheduler, timeout=connect_timeout, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
-        raise SchedulerUnreachable(
-            f"could not reach the Dask scheduler at {scheduler!r} within "
-            f"{connect_timeout:g} s ({exc}); check the address and that `dask scheduler` "
-            "runs there") from None
+        reason = str(exc)
+        exc.__traceback__ = None  # its frames hold the half-built Client
+    # Free the half-built Client now: collected later, its __del__ can run inside another
+    # Dask event-loop start (a LocalCluster's) and deadlock there.
+    gc.collect()
+    raise SchedulerUnreachable(
+        f"could not reach the Dask scheduler at {scheduler!r} within {connect_timeout:g} s "
+        f"({reason}); check the address and that `dask scheduler` runs there")
 
 
 def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
               connect_timeout):
+    from concurrent.futures import CancelledError
+
     from distributed import KilledWorker
 
     own = client is None
@@ -351,18 +358,43 @@ def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
     it = iter(tasks)
     pending: dict = {}  # future -> (task, resubmissions so far)
     ready: queue.SimpleQueue = queue.SimpleQueue()  # futures done, fed by their callbacks
+    collect: set = set()  # done futures whose result is not yet in hand
+    poll = min(1.0, no_worker_timeout / 4)
+    state = {"done": 0, "checked": time.monotonic(), "last_worker": time.monotonic()}
+    state["workers"], state["threads"] = _n_workers(client, poll)
 
     def submit(task, attempts):
         f = client.submit(fn, task, pure=False)
         pending[f] = (task, attempts)
         f.add_done_callback(ready.put)
-    done, exhausted = 0, False
-    poll = min(1.0, no_worker_timeout / 4)
-    workers, threads = _n_workers(client, poll)
-    checked = last_worker = time.monotonic()
+
+    def watchdog():
+        """Raise WorkersLost once the cluster had no worker for no_worker_timeout."""
+        now = time.monotonic()
+        if now - state["checked"] >= poll:
+            state["workers"], state["threads"] = _n_workers(client, poll)
+            state["checked"] = now
+        if state["workers"]:
+            state["last_worker"] = now
+        elif now - state["last_worker"] > no_worker_timeout:
+            raise WorkersLost(f"no Dask worker left for {no_worker_timeout:g} s (all died or "
+                              f"the scheduler is gone); stopped after {state['done']} tasks "
+                              "had finished", state["done"])
+
+    def lost(f, reason):
+        """Resubmit the task of a future lost with its workers, up to ``retries`` times."""
+        task, attempts = pending.pop(f)
+        collect.discard(f)
+        if attempts >= retries:
+            raise WorkersLost(f"a task was lost with its Dask workers {attempts + 1} times; "
+                              f"giving up after {state['done']} tasks had finished "
+                              f"({reason})", state["done"])
+        submit(task, attempts + 1)
+
+    exhausted = False
     try:
         while True:
-            cap = limit or max(4, 2 * threads)
+            cap = limit or max(4, 2 * state["threads"])
             while not exhausted and len(pending) < cap:
                 try:
                     task = next(it)
@@ -372,42 +404,40 @@ def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
                 submit(task, 0)
             if not pending:
                 break
-            finished = []
-            try:
-                finished.append(ready.get(timeout=poll))
+            try:  # block only when nothing already known is ready
+                if not any(f.done() for f in collect):
+                    collect.add(ready.get(timeout=poll))
                 while True:
-                    finished.append(ready.get_nowait())
+                    collect.add(ready.get_nowait())
             except queue.Empty:
                 pass
-            for f in finished:
-                if f not in pending:
+            for f in list(collect):
+                if f not in pending:  # a callback of a future already handled
+                    collect.discard(f)
                     continue
-                task, attempts = pending.pop(f)
-                if f.status == "finished":
-                    result = f.result()
-                    done += 1
+                if f.status == "error":
+                    exc = f.exception()
+                    if not isinstance(exc, KilledWorker):
+                        exc.add_note(f"(raised by a task after {state['done']} tasks had "
+                                     "finished)")
+                        raise exc
+                    lost(f, exc)
+                elif f.cancelled():
+                    lost(f, "cancelled")
+                elif f.status == "finished":
+                    try:  # the data may have died with its worker: never block on it
+                        result = f.result(timeout=poll)
+                    except TimeoutError:
+                        watchdog()
+                        continue
+                    except (KilledWorker, CancelledError) as exc:
+                        lost(f, exc)
+                        continue
+                    task, _ = pending.pop(f)
+                    collect.discard(f)
+                    state["done"] += 1
                     yield task, result
-                    continue
-                exc = f.exception() if f.status == "error" else None
-                if exc is not None and not isinstance(exc, KilledWorker):
-                    exc.add_note(f"(raised by a task after {done} tasks had finished)")
-                    raise exc
-                # lost with its workers (KilledWorker, cancelled, lost): resubmit
-                if attempts >= retries:
-                    raise WorkersLost(f"a task was lost with its Dask workers {attempts + 1} "
-                                      f"times; giving up after {done} tasks had finished "
-                                      f"({exc or f.status})", done)
-                submit(task, attempts + 1)
-            now = time.monotonic()
-            if now - checked >= poll:
-                workers, threads = _n_workers(client, poll)
-                checked = now
-            if workers:
-                last_worker = now
-            elif now - last_worker > no_worker_timeout:
-                raise WorkersLost(f"no Dask worker left for {no_worker_timeout:g} s "
-                                  f"(all died or the scheduler is gone); stopped after {done} "
-                                  "tasks had finished", done)
+            watchdog()
     finally:
         if pending:
             try:
