@@ -114,3 +114,22 @@ def test_bad_run_settings(kwargs, message):
 def test_unknown_controller_name(robot):
     with pytest.raises(ValueError, match="unknown controller 'lqr'; built-in controllers: fl"):
         make_laws("fl,lqr", robot)
+
+
+def test_certificates_beside_the_simulated_outcome(robot):
+    # Each uncertain plant gets a frozen-configuration certificate: nu-gap < b(Gs, Ks) = 1/gamma
+    # of the ncfsyn design (b = 1/gamma is checked independently in tests/test_ncf.py).
+    from rrr_pin.certificates import CertificateSpec
+    from rrr_pin.loopshaping import design
+
+    d = design(n=3)
+    spec = CertificateSpec.from_design(d, points=3)
+    result = run_study(robot, make_laws("fl,hinf", robot), config=_config(samples=2, jobs=1),
+                       certificate=spec)
+    data = result.to_json()
+    for s in data["uncertain"]["samples"]:
+        c = s["certificate"]
+        assert c["certified"] == (c["nugap_max"] < c["b"])
+        assert_allclose(c["b"], 1.0 / d.gamma_reduced, rtol=1e-6)  # eq. 18 Ks on Gs
+    assert data["summary"]["samples_certified"] <= 2
+    assert data["certificate"]["points"] == 3

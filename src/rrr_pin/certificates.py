@@ -48,7 +48,7 @@ from .loopshaping import fl_plant
 from .lti import DimensionMismatchError, check_lti, expand_diagonal
 from .ncf import _graph_symbols_ct, _series, ncfmargin
 
-__all__ = ["FrozenCertificate", "frozen_linearization", "frozen_certificate"]
+__all__ = ["FrozenCertificate", "CertificateSpec", "frozen_linearization", "frozen_certificate"]
 
 
 @dataclass(frozen=True)
@@ -225,3 +225,63 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
                      0.0)
     return FrozenCertificate(nugap=nus, b=float(b), b_lower=lower, b_frozen=bf,
                              certified=bool(nus.max() < b))
+
+
+def _matrices(sys) -> tuple:
+    s = control.ss(sys)
+    return tuple(np.asarray(m, dtype=float).tolist() for m in (s.A, s.B, s.C, s.D))
+
+
+@dataclass(frozen=True)
+class CertificateSpec:
+    """What the study and the campaign certify per uncertain plant (picklable, JSON-ready).
+
+    The loop-shaping design travels as state-space matrices (python-control systems do not
+    pickle); :meth:`certify` checks a plant at ``points`` frozen configurations of the
+    reference, evenly spaced over the run.
+
+    Parameters
+    ----------
+    lam : float
+        Feedback-linearization natural frequency of the design [rad/s].
+    W1, W2, Ks : tuple
+        ``(A, B, C, D)`` of the weights and of the shaped-plant controller (nested lists).
+    points : int, default 8
+        Frozen configurations per plant, >= 1.
+    """
+
+    lam: float
+    W1: tuple
+    W2: tuple
+    Ks: tuple
+    points: int = 8
+
+    def __post_init__(self) -> None:
+        if isinstance(self.points, bool) or not isinstance(self.points, int) or self.points < 1:
+            raise ValueError(f"points must be an integer >= 1, got {self.points!r}")
+
+    @classmethod
+    def from_design(cls, d, points: int = 8, reduced: bool = True) -> CertificateSpec:
+        """From a :class:`rrr_pin.loopshaping.Design` (the eq. 18 ``Ks`` by default)."""
+        Ks = d.Ks_reduced if reduced else d.ncf.Ks
+        return cls(float(d.lam), _matrices(d.W1), _matrices(d.W2), _matrices(Ks), points)
+
+    def certify(self, nominal, plant, reference, duration: float) -> dict:
+        """Certify ``plant`` along ``reference`` over ``[0, duration]``.
+
+        Returns
+        -------
+        dict
+            ``certified`` (bool), ``nugap_max`` and ``b`` (the design's ``b(Gs, Ks)``).
+        """
+        t = np.linspace(0.0, float(duration), self.points)
+        R, RD, RDD = reference.sample(t)
+        cert = frozen_certificate(nominal, plant, R, RD, qdd=RDD, lam=self.lam,
+                                  W1=control.ss(*self.W1), W2=control.ss(*self.W2),
+                                  Ks=control.ss(*self.Ks))
+        return {"certified": cert.certified, "nugap_max": float(cert.nugap_max), "b": cert.b}
+
+    def to_dict(self) -> dict:
+        """JSON-ready description (recorded in results; a resume must match it)."""
+        return {"lam_rad_s": self.lam, "points": self.points, "W1": self.W1, "W2": self.W2,
+                "Ks": self.Ks}

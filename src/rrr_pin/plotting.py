@@ -39,6 +39,7 @@ __all__ = [
     "plot_study_nominal",
     "plot_study_uncertain",
     "plot_campaign",
+    "plot_certificates",
 ]
 
 
@@ -400,6 +401,44 @@ def plot_campaign(campaign, path) -> Path:
     ax2.set_title("Per-joint error spread")
     ax2.legend()
     ax2.grid(True, alpha=0.3, which="both")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_certificates(nugap, b, ran, path, title: str = "") -> Path:
+    """Frozen-configuration certificates: each plant's largest nu-gap against ``b(Gs, Ks)``.
+
+    A plant below the line ``nu-gap = b`` is certified (:mod:`rrr_pin.certificates`); the
+    marker says whether every controller's simulation ran without diverging.
+
+    Parameters
+    ----------
+    nugap : array-like, shape (N,)
+        Largest nu-gap [-] of each plant over its frozen configurations.
+    b : float
+        The design's NCF margin ``b(Gs, Ks)`` [-].
+    ran : array-like of bool, shape (N,)
+        Whether the plant's simulations all ran (no divergence).
+    path : str or Path
+        PNG to write.
+    title : str
+    """
+    nugap, ran = np.asarray(nugap, dtype=float), np.asarray(ran, dtype=bool)
+    idx = np.arange(len(nugap))
+    fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
+    ax.scatter(idx[ran], nugap[ran], color="tab:green", s=14, label="simulation ran")
+    if (~ran).any():
+        ax.scatter(idx[~ran], nugap[~ran], color="tab:red", marker="x", s=24,
+                   label="simulation diverged")
+    ax.axhline(b, color="k", ls="--", label=f"b(Gs, Ks) = {b:.4g} (certified below)")
+    ax.set_xlabel("Uncertain plant (sample index) [-]")
+    ax.set_ylabel("Largest nu-gap to the nominal shaped plant [-]")
+    ax.set_ylim(0.0, max(1.05 * b, 1.05 * float(np.max(nugap)) if nugap.size else b))
+    ax.set_title(title or f"Frozen-configuration certificates: {int((nugap < b).sum())} of "
+                 f"{len(nugap)} plants certified")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)

@@ -143,6 +143,12 @@ def results_markdown(result: StudyResult, data: dict | None = None) -> str:
             cells = ["no plant where both ran", "-", "-"]
         lines.append(f"| {result.label(k)} (`{k}`) | {_fmt(s['nominal_max_error'][k])} | "
                      + " | ".join(cells) + f" | {s['diverged'][k]} |")
+    if "samples_certified" in s:
+        n_cert = sum(1 for x in result.samples if "certificate" in x)
+        lines += ["", f"Frozen-configuration certificates (H-infinity design, nu-gap against "
+                  f"b(Gs, Ks) = {s['certificate_b']:.4g}): {s['samples_certified']} of {n_cert} "
+                  f"uncertain plants certified, largest nu-gap {s['nugap_max']:.4g}. A "
+                  "certificate covers the frozen linearizations only (see the README)."]
     if all(k in names for k in PAPER_LAWS) and base == PAPER_LAWS[0]:
         lines += [""] + _paper_rows(result, s)
     lines += ["", f"## Per-joint figures (each cell: {', '.join(result.joint_names)})", "",

@@ -148,6 +148,7 @@ class StudyResult:
     samples: list
     plants: list
     design: dict = field(default_factory=dict)
+    certificate: dict | None = None
 
     @property
     def names(self) -> list[str]:
@@ -171,10 +172,13 @@ class StudyResult:
             "config": self.config.to_dict(),
             "controllers": self.laws,
             "design": self.design,
+            "certificate": self.certificate,
             "nominal": {name: metrics(self.nominal[name]) for name in self.names},
             "uncertain": {
                 **uncertain,
                 "samples": [{"index": s["index"], "seed": s["seed"], "status": s["status"],
+                             **({"certificate": s["certificate"]} if "certificate" in s
+                                else {}),
                              "parameters": s["parameters"], **s.get("metrics", {})}
                             for s in self.samples],
             },
@@ -211,6 +215,11 @@ def summarize(result: StudyResult) -> dict:
         "diverged": {k: sum(1 for s in result.samples if k not in s.get("metrics", {}))
                      for k in names},
     }
+    certs = [s["certificate"] for s in result.samples if "certificate" in s]
+    if certs:
+        out["samples_certified"] = sum(1 for c in certs if c["certified"])
+        out["certificate_b"] = certs[0]["b"]
+        out["nugap_max"] = max(c["nugap_max"] for c in certs)
     if ok:
         def rms(key, what, axis=None):
             sq = np.array([np.asarray(s["metrics"][key][what]) ** 2 for s in ok])
@@ -227,17 +236,22 @@ def summarize(result: StudyResult) -> dict:
     return out
 
 
-def _run_plant(task) -> dict:
-    """Simulate every law on one plant (runs in a worker process)."""
-    laws, reference, settings, gravity, lock = task["job"]
-    plant = robot_from_xml(task["plant_xml"], gravity=gravity, lock=lock,
-                           name=task["plant_name"], label=task["plant_name"])
-    return run_laws(plant, laws, reference, settings)
+def _run_plant(task) -> tuple[dict, dict | None]:
+    """Simulate every law on one plant, and certify it (runs in a worker process)."""
+    laws, reference, settings, nominal, certificate = task["job"]
+    plant = robot_from_xml(task["plant_xml"], gravity=nominal.gravity,
+                           lock=dict(nominal.locked), name=task["plant_name"],
+                           label=task["plant_name"])
+    runs = run_laws(plant, laws, reference, settings)
+    cert = None
+    if certificate is not None and task["certify"]:
+        cert = certificate.certify(nominal, plant, reference, settings.duration)
+    return runs, cert
 
 
 def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
               reference: Reference | None = None, params=None, skip_joints=(),
-              progress=None) -> StudyResult:
+              progress=None, certificate=None) -> StudyResult:
     """Run every law on the nominal plant and on ``config.samples`` uncertain plants.
 
     Parameters
@@ -258,6 +272,9 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
         Joints whose origins are not perturbed (e.g. locked fingers).
     progress : callable, optional
         Called as ``progress(done, total)`` after each plant.
+    certificate : rrr_pin.certificates.CertificateSpec, optional
+        Certify every uncertain plant (frozen-configuration nu-gap against ``b(Gs, Ks)``,
+        :mod:`rrr_pin.certificates`); recorded per sample beside the simulated outcome.
 
     Returns
     -------
@@ -276,9 +293,10 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     source = params if params is not None else nominal.urdf
     plants: list[PlantSample] = sample_plants(source, config.samples, config.seed,
                                               config.tolerances, skip_joints=skip_joints)
-    job = (laws, reference, config.run, nominal.gravity, dict(nominal.locked))
-    tasks = [{"job": job, "plant_xml": nominal.urdf, "plant_name": f"{nominal.name} (nominal)"}]
-    tasks += [{"job": job, "plant_xml": p.urdf,
+    job = (laws, reference, config.run, nominal, certificate)
+    tasks = [{"job": job, "plant_xml": nominal.urdf, "certify": False,
+              "plant_name": f"{nominal.name} (nominal)"}]
+    tasks += [{"job": job, "plant_xml": p.urdf, "certify": True,
                "plant_name": f"{nominal.name}_sample{p.index:03d}"} for p in plants]
     jobs = config.jobs or min(2, os.cpu_count() or 1)
     outputs = []
@@ -293,22 +311,25 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
                 outputs.append(out)
                 if progress:
                     progress(k + 1, len(tasks))
-    failed = {k: v for k, v in outputs[0].items() if isinstance(v, SimulationDiverged)}
+    failed = {k: v for k, v in outputs[0][0].items() if isinstance(v, SimulationDiverged)}
     if failed:
         name, exc = next(iter(failed.items()))
         raise SimulationDiverged(f"law {name!r} diverged on the nominal plant: {exc}",
                                  time=exc.time, joint=exc.joint)
     samples = []
-    for plant, out in zip(plants, outputs[1:], strict=True):
+    for plant, (out, cert) in zip(plants, outputs[1:], strict=True):
         runs = {k: v for k, v in out.items() if not isinstance(v, SimulationDiverged)}
         bad = [f"{k}: {v}" for k, v in out.items() if isinstance(v, SimulationDiverged)]
-        samples.append({"index": plant.index, "seed": plant.seed, "parameters": plant.parameters,
-                        "status": "ok" if not bad else "diverged: " + "; ".join(bad),
-                        "trajectories": runs,
-                        "metrics": {k: metrics(t) for k, t in runs.items()}})
+        entry = {"index": plant.index, "seed": plant.seed, "parameters": plant.parameters,
+                 "status": "ok" if not bad else "diverged: " + "; ".join(bad),
+                 "trajectories": runs, "metrics": {k: metrics(t) for k, t in runs.items()}}
+        if cert is not None:
+            entry["certificate"] = cert
+        samples.append(entry)
     return StudyResult(robot=nominal.name, joint_names=nominal.joint_names, reference=reference,
                        config=config, laws=[law.describe() for law in laws],
-                       nominal=outputs[0], samples=samples, plants=plants)
+                       nominal=outputs[0][0], samples=samples, plants=plants,
+                       certificate=certificate.to_dict() if certificate is not None else None)
 
 
 def sample_figures(result: StudyResult) -> dict:
