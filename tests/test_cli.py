@@ -99,3 +99,16 @@ def test_out_is_a_file(tmp_path, capsys):
     for cmd in (["reproduce"], ["montecarlo", "--samples", "2"]):
         assert cli.main(cmd + ["--out", str(f), "--no-progress"]) == 2
         assert "exists and is not a folder" in capsys.readouterr().err
+
+
+def test_help_loads_no_numerical_library():
+    # `rrr-pin --help` must answer at once: building the parser imports neither Pinocchio nor
+    # python-control (timing itself is measured in scripts/bench.py, never asserted).
+    import subprocess
+    import sys
+
+    code = ("import sys, rrr_pin.cli as c; c._build_parser(); "
+            "print(sorted(m for m in ('pinocchio', 'control', 'numpy') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip().splitlines()[-1]
+    assert out == "[]"

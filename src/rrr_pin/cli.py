@@ -703,7 +703,7 @@ def _cmd_montecarlo(args) -> int:
 # --- stress (unmodeled dynamics: breaking points) ---------------------------------------------
 
 def _add_stress(sub) -> None:
-    from .stress import DEFAULT_BUDGET, EFFECTS
+    from .catalog import DEFAULT_BUDGET, EFFECTS
 
     p = sub.add_parser(
         "stress", help="where each controller breaks under an unmodeled effect",

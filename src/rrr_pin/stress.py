@@ -44,6 +44,7 @@ import numpy as np
 import scipy.linalg
 
 from .barriers import PAPER_MODEL_ERROR
+from .catalog import DEFAULT_BUDGET, EFFECTS
 from .controllers import PDGravity, TrackingController
 from .effects import PlantEffects
 from .runner import RunSettings
@@ -53,18 +54,8 @@ __all__ = ["EFFECTS", "DEFAULT_BUDGET", "StressSettings", "linear_boundary",
            "continuous_boundary", "barrier_guarantee", "barrier_met", "breaking_point",
            "stress", "plot_stress", "effects_of", "spectral_radius", "loop_bandwidth"]
 
-#: Effects a stress search can vary: (unit, direction: "up" = largest tolerated size,
-#: "down" = smallest, what the size is).
-EFFECTS = {
-    "delay": ("s", "up", "actuator transport delay tau_d"),
-    "actuator": ("rad/s", "down", "first-order actuator bandwidth wa"),
-    "stiffness": ("N m/rad", "down", "joint stiffness K (motor inertia 0.01 kg m^2)"),
-    "torque": ("N m", "down", "torque limit |tau| <= tau_max, every joint"),
-    "noise": ("rad", "up", "std of the Gaussian noise on q (and 100x on qd, in rad/s)"),
-}
-
-#: RMS tracking error [rad] above which a run counts as broken.
-DEFAULT_BUDGET = 0.05
+# EFFECTS and DEFAULT_BUDGET live in rrr_pin.catalog: the CLI's help lists them without
+# importing this module's numerical dependencies.
 
 
 @dataclass(frozen=True)
