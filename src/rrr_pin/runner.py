@@ -28,7 +28,14 @@ from .controllers import (
     pd_controller,
 )
 from .effects import PlantEffects, check_effects
-from .simulation import DEFAULT_DT, ENGINES, SimulationDiverged, Trajectory, simulate
+from .simulation import (
+    DEFAULT_DT,
+    ENGINES,
+    SimulationDiverged,
+    Trajectory,
+    reuse_preparation,
+    simulate,
+)
 
 __all__ = [
     "RunSettings",
@@ -197,11 +204,12 @@ def run_laws(plant, laws, reference, settings: RunSettings) -> dict:
     """
     out = {}
     kwargs = settings.simulate_kwargs()
-    for law in laws:
-        try:
-            out[law.name] = simulate(plant, law, reference, settings.duration, **kwargs)
-        except SimulationDiverged as exc:
-            out[law.name] = exc
+    with reuse_preparation():  # the laws share the sampled reference (bit-identical)
+        for law in laws:
+            try:
+                out[law.name] = simulate(plant, law, reference, settings.duration, **kwargs)
+            except SimulationDiverged as exc:
+                out[law.name] = exc
     return out
 
 

@@ -33,6 +33,7 @@ the tracking errors move by orders of magnitude less than the differences the st
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -304,6 +305,84 @@ def _choose_engine(law, engine: str):
     return (form, "compiled") if form is not None and available() else (None, "python")
 
 
+#: Reuse of the law-side work of :func:`_prepare` across runs, active only inside
+#: :func:`reuse_preparation` (``None`` outside): the reference sampled on a grid, and the
+#: sampled form of a built-in law.
+_REUSE: dict | None = None
+
+
+@contextmanager
+def reuse_preparation():
+    """Within the block, runs of the same reference and law share their preparation.
+
+    A campaign runs the same laws on the same reference grid for thousands of plants; inside
+    this context :func:`simulate` samples each reference once per grid, and discretizes each
+    built-in law once per ``(rate, method)``, instead of once per run. Results are bit for bit
+    those of separate runs: the cached values are the ones a run would compute, and every run
+    gets its own copy of the reference arrays. Laws and references must not be changed inside
+    the block (the cache holds them by identity). Re-entrant; the cache is dropped when the
+    outermost block exits.
+    """
+    global _REUSE
+    outer = _REUSE is None
+    if outer:
+        _REUSE = {}
+    try:
+        yield
+    finally:
+        if outer:
+            _REUSE = None
+
+
+def _sampled_law(law, rate: float, method: str):
+    """``law.sampled(rate, method)``, reused inside :func:`reuse_preparation`.
+
+    Reused only for laws with a compiled form (the built-ins): their sampled form is a pure
+    function of the law's parameters, whereas a user's ``sampled`` may build fresh state.
+    """
+    if _REUSE is None or law.compiled_form() is None:
+        return law.sampled(rate, method)
+    key = ("law", id(law), rate, method)
+    hit = _REUSE.get(key)
+    if hit is None or hit[0] is not law:
+        hit = _REUSE[key] = (law, law.sampled(rate, method))
+    return hit[1]
+
+
+def _sample_reference(reference, grid_key, grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return ``reference.sample(grid)`` as contiguous float arrays.
+
+    Inside :func:`reuse_preparation`, sampled once per reference (by identity) and
+    ``grid_key`` (which determines ``grid``); each call gets its own copies.
+    """
+    if _REUSE is None:
+        return tuple(np.ascontiguousarray(a, dtype=float) for a in reference.sample(grid))
+    key = ("reference", id(reference), grid_key)
+    hit = _REUSE.get(key)
+    if hit is None or hit[0] is not reference:
+        arrays = tuple(np.ascontiguousarray(a, dtype=float) for a in reference.sample(grid))
+        hit = _REUSE[key] = (reference, arrays)
+    return tuple(a.copy() for a in hit[1])
+
+
+def _check_limits(reference, plant, duration: float) -> None:
+    """Run ``reference.check_limits(plant, duration=duration)``.
+
+    Inside :func:`reuse_preparation`, a passed check of the generic grid test
+    (:meth:`Reference.check_limits`, which depends on the reference and the limits only) is
+    not repeated for a plant with the same joint limits.
+    """
+    if _REUSE is None or type(reference).check_limits is not Reference.check_limits:
+        reference.check_limits(plant, duration=duration)
+        return
+    lower, upper = plant.lower, plant.upper
+    key = ("limits", id(reference), duration, lower.tobytes(), upper.tobytes())
+    hit = _REUSE.get(key)
+    if hit is None or hit is not reference:
+        reference.check_limits(plant, duration=duration)
+        _REUSE[key] = reference
+
+
 def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
              limit_margin, effects=None) -> _Run:
     """Validate every input once and sample the reference (the edge of the simulator)."""
@@ -326,7 +405,7 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
                              f"{rate!r} asks for another rate")
         rate = law.rate
     elif rate is not None:
-        law = law.sampled(_finite("rate", rate), method)
+        law = _sampled_law(law, _finite("rate", rate), method)
     elif not isinstance(law, ControlLaw):
         raise TypeError(f"law must be a ControlLaw or SampledLaw, got {type(law).__name__}")
     lower = plant.lower - limit_margin
@@ -354,8 +433,9 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         t = dt * np.arange(n_steps + 1)
         grid = 0.5 * dt * np.arange(2 * n_steps + 1)
         info = {"method": "RK4 (continuous-time law)", "dt": dt}
-    reference.check_limits(plant, duration=float(t[-1]))
-    R, RD, RDD = (np.ascontiguousarray(a, dtype=float) for a in reference.sample(grid))
+    _check_limits(reference, plant, float(t[-1]))
+    R, RD, RDD = _sample_reference(
+        reference, (rate is not None, Ts if rate is not None else dt, n_steps), grid)
     q0 = _state("q0", q0, R[0])
     qd0 = _state("qd0", qd0, RD[0])
     bad = diverged_joint(q0, qd0, lower, upper)

@@ -1,0 +1,85 @@
+"""Reuse of a run's preparation across runs (rrr_pin.simulation.reuse_preparation).
+
+A campaign samples the reference and discretizes the laws once per chunk instead of once per
+run; the runs must not change by a single bit. The reference here is the same run made with no
+reuse at all (each run prepares itself, the code path before the cache existed).
+"""
+
+import numpy as np
+import pytest
+
+import rrr_pin
+from rrr_pin import simulation
+from rrr_pin.compiled import available
+from rrr_pin.dynamics import robot_from_xml
+from rrr_pin.references import QuinticReference
+from rrr_pin.runner import RunSettings, make_laws, run_laws
+from rrr_pin.simulation import reuse_preparation, simulate
+from rrr_pin.study import default_reference
+from rrr_pin.uncertainty import sample_plant
+
+DURATION = 0.3  # s: long enough for the H-inf state and the FL loop to move the plant
+
+
+@pytest.fixture(scope="module")
+def setup():
+    robot = rrr_pin.load_robot("rrr")
+    plants = [robot_from_xml(sample_plant(rrr_pin.paper_params(), 0, k).urdf)
+              for k in range(2)]
+    laws = make_laws("fl,hinf,pd", robot)
+    refs = [default_reference(robot),
+            QuinticReference(start=[0.2, -0.5, 0.8], goal=[0.9, 0.3, -0.2], move_time=0.2)]
+    return robot, plants, laws, refs
+
+
+def _same(a, b):
+    for key in ("t", "q", "qd", "r", "tau"):
+        # bit for bit: the cache must hand out exactly what a run computes for itself
+        np.testing.assert_array_equal(getattr(a, key), getattr(b, key), err_msg=key)
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+@pytest.mark.parametrize("rate", [1000.0, None])
+def test_runs_inside_reuse_equal_separate_runs(setup, engine, rate):
+    _, plants, laws, refs = setup
+    if engine == "compiled" and not available():
+        pytest.skip("compiled extension not built")
+    cases = [(p, law, ref) for p in plants for law in laws for ref in refs]
+    alone = [simulate(p, law, ref, DURATION, rate=rate, engine=engine) for p, law, ref in cases]
+    with reuse_preparation():
+        shared = [simulate(p, law, ref, DURATION, rate=rate, engine=engine)
+                  for p, law, ref in cases]
+        # the cached reference and law forms exist only inside the block
+        assert simulation._REUSE
+    assert simulation._REUSE is None
+    for a, b in zip(alone, shared, strict=True):
+        _same(a, b)
+
+
+def test_reused_reference_arrays_are_independent(setup):
+    robot, plants, laws, refs = setup
+    with reuse_preparation():
+        first = simulate(plants[0], laws[0], refs[0], DURATION, rate=1000.0)
+        first.r[:] = np.nan  # a caller scribbling on its trajectory
+        second = simulate(plants[0], laws[0], refs[0], DURATION, rate=1000.0)
+    _same(second, simulate(plants[0], laws[0], refs[0], DURATION, rate=1000.0))
+
+
+def test_reuse_is_reentrant_and_run_laws_unchanged(setup):
+    _, plants, laws, refs = setup
+    settings = RunSettings(duration=DURATION, rate=500.0)
+    outside = run_laws(plants[1], laws, refs[1], settings)
+    with reuse_preparation():
+        with reuse_preparation():
+            pass
+        assert simulation._REUSE is not None  # the inner block did not drop the cache
+        inside = run_laws(plants[1], laws, refs[1], settings)
+    for name in outside:
+        _same(outside[name], inside[name])
+
+
+def test_limits_still_checked_inside_reuse(setup):
+    robot, plants, laws, _ = setup
+    far = QuinticReference(start=[0.0, 0.0, 0.0], goal=[10.0, 0.0, 0.0], move_time=0.2)
+    with reuse_preparation(), pytest.raises(ValueError, match="limits"):
+        simulate(plants[0], laws[0], far, DURATION, rate=1000.0)
