@@ -83,3 +83,26 @@ def test_limits_still_checked_inside_reuse(setup):
     far = QuinticReference(start=[0.0, 0.0, 0.0], goal=[10.0, 0.0, 0.0], move_time=0.2)
     with reuse_preparation(), pytest.raises(ValueError, match="limits"):
         simulate(plants[0], laws[0], far, DURATION, rate=1000.0)
+
+
+def test_robot_pickles_small_and_computes_the_same():
+    """A campaign sends its laws' nominal Robot with every task: model only, not workspaces."""
+    import pickle
+
+    robot = rrr_pin.load_robot("ur5")
+    blob = pickle.dumps(robot)
+    # pin.Data of UR5 alone pickles to ~90 kB; the model and URDF text to ~25 kB
+    assert len(blob) < 60_000
+    back = pickle.loads(blob)
+    rng = np.random.default_rng(3)
+    q, qd, tau = rng.uniform(-1, 1, (3, robot.nq))
+    # independent reference: the original object's own Pinocchio calls, bit for bit
+    np.testing.assert_array_equal(back.M(q), robot.M(q))
+    np.testing.assert_array_equal(back.V(q, qd), robot.V(q, qd))
+    np.testing.assert_array_equal(back.G(q), robot.G(q))
+    np.testing.assert_array_equal(back.forward_dynamics(q, qd, tau),
+                                  robot.forward_dynamics(q, qd, tau))
+    assert (back.name, back.source, back.urdf, back.locked, back.gravity) == (
+        robot.name, robot.source, robot.urdf, robot.locked, robot.gravity)
+    np.testing.assert_array_equal(back.upper, robot.upper)
+    assert back.data is not robot.data

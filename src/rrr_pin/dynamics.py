@@ -106,6 +106,18 @@ class Robot:
         self._data0 = self._model0.createData()
         self._zero = np.zeros(self.model.nv)
 
+    def __getstate__(self) -> dict:
+        # Travel as the model and its description only (about 13 kB for the RRR instead of
+        # 200 kB): the workspaces and the zero-gravity copy are rebuilt on arrival, as at
+        # construction. A campaign sends its laws' nominal Robot with every task.
+        return {key: getattr(self, key) for key in ("model", "name", "source", "urdf",
+                                                    "locked")}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.data = self.model.createData()
+        self.__post_init__()
+
     @property
     def nq(self) -> int:
         """Number of joint coordinates (equal to the number of velocities)."""

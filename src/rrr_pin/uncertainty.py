@@ -160,6 +160,23 @@ def perturb_params(params: ArmParams, rng: np.random.Generator,
     return params.with_links(links), {"links": factors}
 
 
+#: Nominal URDF texts whose inertials passed :func:`check_urdf_inertials` (a campaign perturbs
+#: the same nominal for every sample; the check of each perturbed plant is never skipped).
+_NOMINAL_OK: set = set()
+
+
+def _check_nominal(urdf: str) -> None:
+    """Check the inertials of a nominal URDF, once per distinct text."""
+    if urdf in _NOMINAL_OK:
+        return
+    from .dynamics import check_urdf_inertials
+
+    check_urdf_inertials(urdf)
+    if len(_NOMINAL_OK) >= 8:
+        _NOMINAL_OK.clear()
+    _NOMINAL_OK.add(urdf)
+
+
 def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Tolerances(),
                  *, skip_joints=()) -> tuple[str, dict]:
     """Perturb the inertials and geometry of any URDF (read and written with yourdfpy).
@@ -196,7 +213,7 @@ def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Toleranc
 
     from .dynamics import check_urdf_inertials
 
-    check_urdf_inertials(urdf)  # perturb physical bodies only
+    _check_nominal(urdf)  # perturb physical bodies only
     robot = yourdfpy.URDF.load(io.BytesIO(urdf.encode()), build_scene_graph=False,
                                load_meshes=False, filename_handler=yourdfpy.filename_handler_null,
                                build_collision_scene_graph=False, load_collision_meshes=False)
