@@ -232,6 +232,33 @@ def main(argv=None):
                                       "compiled_ms": ms["compiled"], "floor_ms": ms["floor"],
                                       "ratio": ms["compiled"] / ms["floor"]})
 
+    # 2b. Engine "codegen" (issue 13, beyond the generic floor): the same loop on CppADCodeGen
+    # dynamics of the nominal RRR (rrr_pin.codegen), against the compiled engine and its floor
+    # in the same interleaved rounds; sine reference.
+    from rrr_pin.codegen import compile_robot_codegen
+
+    cg_robot = compile_robot_codegen(robot)
+    codegen_rows = []
+    for name, law in laws.items():
+        kind = law.compiled_form().kind
+        for timing, rate in (("sampled", args.rate), ("continuous", None)):
+            steps = n_steps if rate else n_rk4
+            ms = side_by_side_ms({
+                f"{eng}": lambda law=law, rate=rate, eng=eng: simulate(
+                    robot, law, refs["sine"], args.duration, rate=rate, engine=eng)
+                for eng in ("compiled", "codegen")} | {
+                "floor": lambda kind=kind, rate=rate, steps=steps: floor_ms(
+                    robot, robot, steps, repeat=1, kind=kind, sampled=rate is not None),
+                "floor_codegen": lambda kind=kind, rate=rate, steps=steps: floor_ms(
+                    cg_robot, cg_robot, steps, repeat=1, kind=kind, sampled=rate is not None),
+            }, args.repeat)
+            codegen_rows.append({"law": name, "time": timing, "reference": "sine",
+                                 "codegen_ms": ms["codegen"], "compiled_ms": ms["compiled"],
+                                 "floor_ms": ms["floor"],
+                                 "floor_codegen_ms": ms["floor_codegen"],
+                                 "speedup": ms["compiled"] / ms["codegen"],
+                                 "speedup_vs_floor": ms["floor"] / ms["codegen"]})
+
     # 3. Python engine against the hand-written loop (FL, ZOH, sine), and H-inf for the record.
     sine = refs["sine"]
     Ts = 1.0 / args.rate
@@ -289,6 +316,9 @@ def main(argv=None):
         "ratio_to_floor": {path: v / floor for path, v in rollout.items()},
         "us_per_step": {path: 1e3 * v / n_steps for path, v in rollout.items()},
         "compiled_vs_floor": compiled_rows,
+        "codegen_rollout_ms": next(r["codegen_ms"] for r in codegen_rows
+                                   if r["law"] == "hinf" and r["time"] == "sampled"),
+        "codegen_vs_compiled": codegen_rows,
         "python_rollout_ms": python_ms["fl"],
         "python_rollout_ms_by_law": python_ms,
         "handwritten_python_ms": handwritten_ms,
@@ -331,6 +361,14 @@ def report(res, args):
     for r in res["compiled_vs_floor"]:
         print(f"  {r['law']:6}{r['time']:12}{r['reference']:10}{r['compiled_ms']:14.1f}"
               f"{r['floor_ms']:12.1f}{r['ratio']:8.2f}   {verdict(r['ratio'], GOALS['compiled'])}")
+    print("\n2b. engine='codegen' (generated dynamics of the nominal RRR), sine, same rounds "
+          "as the compiled engine and both floors")
+    print(f"  {'law':6}{'time':12}{'codegen [ms]':>13}{'compiled [ms]':>14}{'floor [ms]':>12}"
+          f"{'cg floor [ms]':>14}{'compiled/cg':>12}{'floor/cg':>10}")
+    for r in res["codegen_vs_compiled"]:
+        print(f"  {r['law']:6}{r['time']:12}{r['codegen_ms']:13.2f}{r['compiled_ms']:14.1f}"
+              f"{r['floor_ms']:12.1f}{r['floor_codegen_ms']:14.2f}{r['speedup']:12.2f}"
+              f"{r['speedup_vs_floor']:10.2f}")
     hw = res["handwritten_python_ms"]
     print(f"\n3. Python engine, {args.duration:g} s at {args.rate:g} Hz ZOH, sine (fastest of "
           f"{args.repeat} interleaved rounds)")

@@ -143,8 +143,12 @@ def compile_robot(robot) -> CompiledRobot:
     return compiled
 
 
-def run_compiled(run, form):
+def run_compiled(run, form, *, codegen: bool = False):
     """Run a validated simulation (``rrr_pin.simulation._Run``) of a law's compiled form.
+
+    ``codegen=True`` (``simulate(..., engine="codegen")``) runs the same loop on the generated
+    dynamics of :mod:`rrr_pin.codegen`, which refuses (``CodegenModelMismatch``) unless both the
+    plant and the nominal model are the generated model; ideal plant only.
 
     Returns
     -------
@@ -179,9 +183,19 @@ def run_compiled(run, form):
         lam = 0.0
     N = len(run.t) - 1
     fx = run.effects
+    if codegen:
+        from .codegen import compile_robot_codegen
+
+        if fx is not None:
+            raise ValueError("engine='codegen' runs the ideal plant only, got effects; use "
+                             "engine='compiled' with plant effects")
+        plant_m = compile_robot_codegen(plant, "plant")._model
+        nominal_m = compile_robot_codegen(form.nominal, "nominal")._model
+    else:
+        plant_m, nominal_m = compile_robot(plant)._model, compile_robot(form.nominal)._model
     if fx is None:
         Q, QD, TAU, bad_step, bad_joint, reason = _rollout.rollout(
-            compile_robot(plant)._model, compile_robot(form.nominal)._model, KINDS[form.kind],
+            plant_m, nominal_m, KINDS[form.kind],
             run.sampled, lam, A, B, C, D, Kp, Kd, run.R, run.RD, run.RDD, run.q0, run.qd0,
             run.x0, run.lower, run.upper, VELOCITY_LIMIT, run.h, run.substeps, N)
     else:

@@ -62,7 +62,7 @@ DEFAULT_DT = 1e-3
 VELOCITY_LIMIT = 1e4
 
 #: Accepted values of ``simulate(engine=...)``.
-ENGINES = ("auto", "python", "compiled")
+ENGINES = ("auto", "python", "compiled", "codegen")
 
 
 class SimulationDiverged(RuntimeError):
@@ -247,9 +247,11 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float = D
         ``r(0)`` and ``rd(0)``. The law's state starts at ``law.initial_state()``.
     limit_margin : float, default 0
         Slack beyond the plant's joint limits before the run counts as diverged [rad], >= 0.
-    engine : {"auto", "python", "compiled"}, default "auto"
+    engine : {"auto", "python", "compiled", "codegen"}, default "auto"
         See the module docstring. ``"compiled"`` with a law that declares no compiled form
-        raises ``ValueError`` naming the law.
+        raises ``ValueError`` naming the law. ``"codegen"``: the compiled loop on generated
+        dynamics (:mod:`rrr_pin.codegen`), only when plant and nominal model are the nominal
+        RRR; otherwise ``rrr_pin.codegen.CodegenModelMismatch``. Never chosen by ``"auto"``.
     effects : PlantEffects, optional
         Unmodeled dynamics of the plant (delay, actuator bandwidth, friction, saturation,
         sensor noise, quantization, flexible joints; :mod:`rrr_pin.effects`), sampled runs only.
@@ -274,10 +276,10 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float = D
     run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
                    qd0=qd0, limit_margin=limit_margin, effects=effects)
     form, engine = _choose_engine(run.law, engine)
-    if engine == "compiled":
+    if engine in ("compiled", "codegen"):
         from .compiled import run_compiled
 
-        traj = run_compiled(run, form)
+        traj = run_compiled(run, form, codegen=engine == "codegen")
     else:
         traj = _run_python(run)
     traj.info["engine"] = engine
@@ -290,7 +292,7 @@ def _choose_engine(law, engine: str):
     if engine == "python":
         return None, "python"
     form = law.compiled_form()
-    if engine == "compiled":
+    if engine in ("compiled", "codegen"):
         if form is None:
             raise ValueError(
                 f"law {law.name!r} ({type(law).__name__}) declares no compiled form, so the "
@@ -299,7 +301,7 @@ def _choose_engine(law, engine: str):
         from .compiled import require
 
         require()
-        return form, "compiled"
+        return form, engine
     from .compiled import available
 
     return (form, "compiled") if form is not None and available() else (None, "python")
