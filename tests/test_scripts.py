@@ -35,7 +35,16 @@ def run_script(script, args, monkeypatch):
 
 
 def test_every_script_is_tested():
-    assert {p.name for p in SCRIPTS.glob("*.py")} == {r[0] for r in RUNS} | {"bench.py"}
+    assert {p.name for p in SCRIPTS.glob("*.py")} == {r[0] for r in RUNS} | {"bench.py",
+                                                                                "codegen.py"}
+
+
+def test_codegen_check_runs(monkeypatch, capsys):
+    # --check only: regenerating needs the hand-built generator (docs/codegen.md).
+    with pytest.raises(SystemExit) as exc:
+        run_script("codegen.py", ["--check"], monkeypatch)
+    assert exc.value.code == 0
+    assert "up to date" in capsys.readouterr().out
 
 
 def test_bench_runs_and_reports_its_keys(monkeypatch, capsys):
