@@ -287,7 +287,9 @@ def main(argv=None):
         run_campaign(robot, two, settings, jobs=jobs)
         return time.perf_counter() - t0
 
+    load_before = os.getloadavg()[0]
     campaign_s = campaign(args.campaign_samples, 2)
+    campaign_load = [load_before, os.getloadavg()[0]]
     campaign_bound_s = 2 * args.campaign_samples * 1e-3 * floors["fl", "sampled"] / 2
     one_job_s = campaign(args.mc_samples, 1)
 
@@ -325,6 +327,7 @@ def main(argv=None):
         "handwritten_max_diff_rad": float(same),
         "campaign_s": campaign_s,
         "campaign_bound_s": campaign_bound_s,
+        "campaign_load_avg": campaign_load,
         "montecarlo_rollouts_per_s": {"1": 2 * args.mc_samples / one_job_s,
                                       "2": 2 * args.campaign_samples / campaign_s},
         "cli_help_s": cli_help_s,
@@ -383,6 +386,8 @@ def report(res, args):
     print(f"  measured {c:8.2f} s; bound 2 x {args.campaign_samples} x "
           f"{res['floor_ms']:.1f} ms / 2 cores = {b:.2f} s; ratio {c / b:.2f}   "
           f"{verdict(c / b, GOALS['campaign'])}")
+    print("  1-minute load average {:.2f} before the campaign, {:.2f} after (2 cores)".format(
+        *res["campaign_load_avg"]))
     print("  throughput: " + ", ".join(
         f"{r:.1f} rollouts/s with {j} job{'s' if j != '1' else ''}"
         for j, r in res["montecarlo_rollouts_per_s"].items()))
