@@ -319,8 +319,11 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
                    help="sampled controllers at this rate [Hz] (zero-order hold, Tustin K)"
                         + (f" ({default_rate:g})" if default_rate else
                            "; default: continuous-time laws as in the paper's Simulink study"))
-    p.add_argument("--engine", choices=("auto", "python", "compiled"), default="auto",
-                   help="simulation engine (auto: compiled where the law has a compiled form)")
+    p.add_argument("--engine", choices=("auto", "python", "compiled", "codegen"),
+                   default="auto",
+                   help="simulation engine (auto: compiled where the law has a compiled form; "
+                        "codegen: generated dynamics of the nominal RRR only, refused for any "
+                        "other model, e.g. the uncertain plants: use it with --samples 0)")
     p.add_argument("--q0", metavar="Q1,Q2,...", default=None,
                    help="initial joint positions [rad] (default: on the reference)")
     p.add_argument("--qd0", metavar="V1,V2,...", default=None,
