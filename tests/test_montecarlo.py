@@ -177,3 +177,24 @@ def test_resume_with_other_settings_is_refused(tmp_path, capsys):
     assert "seed" in capsys.readouterr().err
     # --overwrite starts afresh; a stale figure is never reported as written by this run.
     assert cli.main(argv + ["--overwrite"]) == 0
+
+
+def test_certificate_column_matches_the_study(setup):
+    # The campaign's sample k is the study's sample k: the same plant gets the same certificate.
+    from rrr_pin.certificates import CertificateSpec
+    from rrr_pin.loopshaping import design
+
+    robot, laws = setup
+    spec = CertificateSpec.from_design(design(n=3), points=3)
+    settings = mc.CampaignSettings(samples=2, run=RUN)
+    campaign = mc.run_campaign(robot, laws, settings, jobs=1, certificate=spec)
+    study = run_study(robot, laws, config=StudyConfig(run=RUN, samples=2, jobs=1),
+                      certificate=spec)
+    b = spec.margin(3)
+    for row, sample in zip(campaign.rows, study.samples, strict=True):
+        assert row["certified"] == (row["nugap_max"] < b)
+        np.testing.assert_allclose(row["nugap_max"], sample["certificate"]["nugap_max"],
+                                   rtol=1e-12)
+    assert "certified" in mc.campaign_columns(["fl", "hinf"], "fl", ["j"], certified=True)
+    s = mc.campaign_summary(campaign)
+    assert s["certified"] == sum(r["certified"] for r in campaign.rows)

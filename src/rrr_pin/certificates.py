@@ -281,6 +281,12 @@ class CertificateSpec:
                                   Ks=control.ss(*self.Ks))
         return {"certified": cert.certified, "nugap_max": float(cert.nugap_max), "b": cert.b}
 
+    def margin(self, nq: int) -> float:
+        """Return the design's NCF margin ``b(Gs, Ks)`` [-] for ``nq`` joints."""
+        W1, W2, Ks = (_square(n, control.ss(*m), nq) for n, m in
+                      (("W1", self.W1), ("W2", self.W2), ("Ks", self.Ks)))
+        return float(ncfmargin(_series(W2, fl_plant(self.lam, nq), W1), Ks)[0])
+
     def to_dict(self) -> dict:
         """JSON-ready description (recorded in results; a resume must match it)."""
         return {"lam_rad_s": self.lam, "points": self.points, "W1": self.W1, "W2": self.W2,

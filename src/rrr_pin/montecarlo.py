@@ -41,7 +41,8 @@ __all__ = ["Campaign", "CampaignSettings", "run_campaign", "campaign_summary",
            "campaign_columns", "write_campaign", "open_store", "store_settings", "OUTPUTS"]
 
 #: Final files of a campaign, rebuilt from the stored rows at the end of every run.
-OUTPUTS = ("campaign.csv", "samples.jsonl", "summary.json", "montecarlo.png", "report.html")
+OUTPUTS = ("campaign.csv", "samples.jsonl", "summary.json", "montecarlo.png", "report.html",
+           "certificates.png")
 
 
 @dataclass(frozen=True)
@@ -150,6 +151,10 @@ def sample_row(job: dict, k: int) -> dict:
     for name, r in error_ratios(figures, settings.baseline).items():
         row[f"error_ratio_{name}"] = r["error_ratio"]
         row[f"torque_ratio_{name}"] = r["torque_ratio"]
+    if job.get("certificate") is not None:
+        cert = job["certificate"].certify(job["nominal"], plant, job["reference"],
+                                          settings.run.duration)
+        row["certified"], row["nugap_max"] = cert["certified"], cert["nugap_max"]
     return row
 
 
@@ -166,7 +171,7 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
                  params: ArmParams | None = None, jobs: int | None = None,
                  scheduler: str | None = None, executor: Executor | None = None,
                  skip_joints=(), chunk: int | None = None, progress=None,
-                 store: CampaignStore | None = None) -> Campaign:
+                 store: CampaignStore | None = None, certificate=None) -> Campaign:
     """Run every law on ``settings.samples`` seeded uncertain plants.
 
     Parameters
@@ -194,6 +199,9 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
         Samples per task (default: about 8 tasks per worker, at most 20 samples).
     progress : callable, optional
         ``progress(done, total)`` after each finished chunk.
+    certificate : rrr_pin.certificates.CertificateSpec, optional
+        Certify every plant (frozen-configuration nu-gap < b(Gs, Ks)) and add the columns
+        ``certified`` and ``nugap_max`` beside the simulated outcome (about 0.3 s per plant).
     store : CampaignStore, optional
         Append every finished chunk to this store (opened with :func:`open_store` before any
         work) and compute only the samples it does not hold yet; the rows returned are the
@@ -224,6 +232,7 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
         "params": params.to_dict() if params is not None else None,
         "nominal_xml": robot.urdf, "gravity": robot.gravity, "lock": dict(robot.locked),
         "skip_joints": tuple(skip_joints), "joint_names": list(robot.joint_names),
+        "certificate": certificate, "nominal": robot if certificate is not None else None,
     }
     samples = int(settings.samples)
     jobs = check_jobs(jobs)
@@ -273,9 +282,10 @@ def _metrics(names, baseline):
     return out
 
 
-def campaign_columns(names, baseline, joint_names) -> list[str]:
+def campaign_columns(names, baseline, joint_names, certified: bool = False) -> list[str]:
     """Columns of ``campaign.csv``, in order."""
-    columns = ["index", "seed", "status"] + list(_metrics(names, baseline))
+    columns = ["index", "seed", "status"] + (["certified", "nugap_max"] if certified else [])
+    columns += list(_metrics(names, baseline))
     for name in names:
         columns += [f"{name}_rms_error_{j}" for j in joint_names]
     return columns
@@ -309,19 +319,29 @@ def campaign_summary(campaign: Campaign) -> dict:
             out[metric] = {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)),
                            "worst": float(v.max() if worst == "max" else v.min()),
                            "count": int(v.size)}
+    certs = [r for r in rows if "certified" in r]
+    if certs:
+        out["certified"] = sum(1 for r in certs if r["certified"])
+        out["certified_and_ran"] = sum(1 for r in certs if r["certified"] and
+                                       r["status"] == "ok")
+        out["not_certified_but_ran"] = sum(1 for r in certs if not r["certified"] and
+                                           r["status"] == "ok")
+        out["nugap_max"] = max(r["nugap_max"] for r in certs)
     return out
 
 
-def store_settings(robot, laws, settings: CampaignSettings, reference) -> dict:
+def store_settings(robot, laws, settings: CampaignSettings, reference,
+                   certificate=None) -> dict:
     """Everything that changes a row, JSON-ready: a resume must match it exactly."""
     return {"robot": robot.name, "urdf_sha256": hashlib.sha256(robot.urdf.encode()).hexdigest(),
             "locked": dict(robot.locked), "gravity": robot.gravity,
             "controllers": [law.describe() for law in laws], **settings.to_dict(),
-            "reference": reference.to_dict()}
+            "reference": reference.to_dict(),
+            "certificate": certificate.to_dict() if certificate is not None else None}
 
 
 def open_store(out, robot, laws, settings: CampaignSettings, reference, *, resume: bool = False,
-               overwrite: bool = False) -> CampaignStore:
+               overwrite: bool = False, certificate=None) -> CampaignStore:
     """Open the campaign store in ``out`` before any work (see :mod:`rrr_pin.store`).
 
     Raises
@@ -330,7 +350,8 @@ def open_store(out, robot, laws, settings: CampaignSettings, reference, *, resum
         ``out`` not writable, not empty (without ``resume``/``overwrite``), or recorded with
         other settings (``resume``).
     """
-    return CampaignStore.open(out, settings=store_settings(robot, laws, settings, reference),
+    return CampaignStore.open(out, settings=store_settings(robot, laws, settings, reference,
+                                                           certificate),
                               resume=resume, overwrite=overwrite, outputs=OUTPUTS)
 
 
@@ -349,7 +370,8 @@ def write_campaign(campaign: Campaign, out: str | Path,
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    columns = campaign_columns(campaign.names, campaign.baseline, campaign.joint_names)
+    columns = campaign_columns(campaign.names, campaign.baseline, campaign.joint_names,
+                               any("certified" in r for r in campaign.rows))
     table = io.StringIO(newline="")
     writer = csv.DictWriter(table, fieldnames=columns, extrasaction="ignore",
                             lineterminator="\n")
