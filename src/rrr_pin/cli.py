@@ -107,8 +107,6 @@ def _add_check_dynamics(sub) -> None:
 
 
 def _cmd_check_dynamics(args) -> int:
-    import math
-
     from .closed_form import compare_with_pinocchio
     from .dh import ArmParams, paper_params
     from .dynamics import load_robot
@@ -266,7 +264,7 @@ def _floats(text: str | None, name: str, n: int | None = None):
     return values
 
 
-def _positive(name: str, value, *, allow_zero: bool = False, integer: bool = False):
+def _positive(name: str, value, *, allow_zero: bool = False):
     """Refuse NaN, inf and out-of-range option values, naming the option."""
     if value is None:
         return None
