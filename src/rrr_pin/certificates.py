@@ -47,6 +47,7 @@ from .gap import _nugap
 from .loopshaping import fl_plant
 from .lti import DimensionMismatchError, check_lti, expand_diagonal
 from .ncf import _graph_symbols_ct, _series, ncfmargin
+from .reduction import _arcsin_bound
 
 __all__ = ["FrozenCertificate", "CertificateSpec", "frozen_linearization", "frozen_certificate"]
 
@@ -166,6 +167,12 @@ def _square(name, W, nq):
     return W
 
 
+def _shaped_loop(lam: float, W1, W2, Ks, nq: int):
+    """Nominal shaped plant ``Gs = W2 G W1`` (eq. 11) and ``Ks``, both ``nq x nq``."""
+    W1, W2, Ks = _square("W1", W1, nq), _square("W2", W2, nq), _square("Ks", Ks, nq)
+    return _series(W2, fl_plant(lam, nq), W1), W1, W2, Ks
+
+
 def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
                        qdd=None) -> FrozenCertificate:
     r"""Certify an uncertain arm at frozen configurations: ``max nugap(Gs_k, Gs) < b(Gs, Ks)``.
@@ -210,8 +217,7 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
     """
     nq = nominal.nq
     q, qd, qdd = _configs(nq, q, qd, qdd)
-    W1, W2, Ks = _square("W1", W1, nq), _square("W2", W2, nq), _square("Ks", Ks, nq)
-    Gs0 = _series(W2, fl_plant(lam, nq), W1)
+    Gs0, W1, W2, Ks = _shaped_loop(lam, W1, W2, Ks, nq)
     b = ncfmargin(Gs0, Ks)[0]
     G0, Gt0 = _graph_symbols_ct(Gs0)
     nus, bf = np.empty(q.shape[0]), np.empty(q.shape[0])
@@ -221,8 +227,7 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
         Gk_sym, _ = _graph_symbols_ct(Gsk)
         nus[k] = _nugap(Gk_sym, G0, Gt0)
         bf[k] = ncfmargin(Gsk, Ks)[0]
-    lower = np.where(nus < b, np.sin(np.arcsin(min(b, 1.0)) - np.arcsin(np.minimum(nus, 1.0))),
-                     0.0)
+    lower = np.array([_arcsin_bound(b, d) for d in nus])
     return FrozenCertificate(nugap=nus, b=float(b), b_lower=lower, b_frozen=bf,
                              certified=bool(nus.max() < b))
 
@@ -283,9 +288,9 @@ class CertificateSpec:
 
     def margin(self, nq: int) -> float:
         """Return the design's NCF margin ``b(Gs, Ks)`` [-] for ``nq`` joints."""
-        W1, W2, Ks = (_square(n, control.ss(*m), nq) for n, m in
-                      (("W1", self.W1), ("W2", self.W2), ("Ks", self.Ks)))
-        return float(ncfmargin(_series(W2, fl_plant(self.lam, nq), W1), Ks)[0])
+        Gs, _, _, Ks = _shaped_loop(self.lam, control.ss(*self.W1), control.ss(*self.W2),
+                                    control.ss(*self.Ks), nq)
+        return float(ncfmargin(Gs, Ks)[0])
 
     def to_dict(self) -> dict:
         """JSON-ready description (recorded in results; a resume must match it)."""
