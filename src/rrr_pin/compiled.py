@@ -204,8 +204,8 @@ def run_compiled(run, form, *, codegen: bool = False):
         Fv, Fc, veps = fx.friction if fx.friction is not None else (none_v, none_v, 1.0)
         Bm, Kf, Df = fx.flex if fx.flex is not None else (none_v, none_v, none_v)
         Q, QD, TAU, bad_step, bad_joint, reason = _rollout.rollout_effects(
-            compile_robot(plant)._model, compile_robot(form.nominal)._model, KINDS[form.kind],
-            lam, A, B, C, D, Kp, Kd, run.R, run.RD, run.RDD, run.q0, run.qd0, run.x0,
+            plant_m, nominal_m, KINDS[form.kind], lam, A, B, C, D, Kp, Kd, run.R, run.RD,
+            run.RDD, run.q0, run.qd0, run.x0,
             run.lower, run.upper, VELOCITY_LIMIT, run.h, run.substeps, N, fx.delay_steps,
             fx.wa, fx.limit if fx.limit is not None else none_v, Fv, Fc, veps,
             fx.noise_q if fx.noise_q is not None else none_m,
