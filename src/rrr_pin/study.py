@@ -19,7 +19,7 @@ import numpy as np
 from .dh import paper_params
 from .dynamics import robot_from_xml
 from .references import Reference, SineReference
-from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
+from .runner import RunSettings, check_laws, run_laws
 from .simulation import SimulationDiverged, metrics
 from .uncertainty import PlantSample, Tolerances, sample_plants
 
@@ -331,11 +331,3 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
                        nominal=outputs[0][0], samples=samples, plants=plants,
                        certificate=certificate.to_dict() if certificate is not None else None)
 
-
-def sample_figures(result: StudyResult) -> dict:
-    """Per-sample scalar figures (as the campaign's rows) of the laws that ran, by index."""
-    out = {}
-    for s in result.samples:
-        m = {k: run_metrics(t, result.joint_names) for k, t in s["trajectories"].items()}
-        out[s["index"]] = {"metrics": m, "ratios": error_ratios(m, result.config.baseline)}
-    return out
