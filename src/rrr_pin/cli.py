@@ -477,12 +477,12 @@ def _cmd_reproduce(args) -> int:
     from .loopshaping import design, zpk_data
     from .plotting import plot_study_nominal, plot_study_uncertain, save_design_figures
     from .report import write_results
+    from .report_html import check_writable
     from .study import StudyConfig, run_study
 
     out = Path(args.out)
-    _check_out_dir(out)
-    from .report_html import check_writable
-
+    # Creates the folder and writes a probe file in it: a file at --out, a missing permission
+    # and a read-only file system are refused before any work (covers _check_out_dir's tests).
     check_writable(out)
     if args.samples < 0:
         raise ValueError(f"--samples must be >= 0, got {args.samples}")
