@@ -24,6 +24,7 @@ Rerun the campaign with ``--resume`` to compute only the samples that are missin
 from __future__ import annotations
 
 import gc
+import itertools
 import math
 import operator
 import os
@@ -213,6 +214,17 @@ def interrupt_on_signals():
             signal.signal(s, h)
 
 
+def _top_up(it: Iterator, room: int, submit: Callable) -> bool:
+    """Submit up to ``room`` more tasks taken from ``it``; return whether ``it`` ran out."""
+    if room <= 0:
+        return False
+    taken = 0
+    for task in itertools.islice(it, room):
+        submit(task)
+        taken += 1
+    return taken < room
+
+
 # --- in this process ------------------------------------------------------------------------
 
 def _run_serial(fn, tasks):
@@ -256,18 +268,16 @@ def _run_futures(fn, tasks, executor, limit: int, *, own: bool, jobs: int = 0):
     it = iter(tasks)
     pending: dict = {}
     done, exhausted, clean = 0, False, False
+
+    def submit(task):
+        try:
+            pending[pool.submit(fn, task)] = task
+        except BrokenProcessPool as exc:
+            raise _broken(done, exc) from exc
+
     try:
         while True:
-            while not exhausted and len(pending) < limit:
-                try:
-                    task = next(it)
-                except StopIteration:
-                    exhausted = True
-                    break
-                try:
-                    pending[pool.submit(fn, task)] = task
-                except BrokenProcessPool as exc:
-                    raise _broken(done, exc) from exc
+            exhausted = exhausted or _top_up(it, limit - len(pending), submit)
             if not pending:
                 break
             finished, _ = _cf_wait(list(pending), return_when=FIRST_COMPLETED)
@@ -395,13 +405,7 @@ def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
     try:
         while True:
             cap = limit or max(4, 2 * state["threads"])
-            while not exhausted and len(pending) < cap:
-                try:
-                    task = next(it)
-                except StopIteration:
-                    exhausted = True
-                    break
-                submit(task, 0)
+            exhausted = exhausted or _top_up(it, cap - len(pending), lambda t: submit(t, 0))
             if not pending:
                 break
             try:  # block only when nothing already known is ready
