@@ -119,23 +119,10 @@ class Campaign:
         return self.settings["baseline"]
 
 
-_SOURCES: dict = {}
-
-
-def _plant_source(job):
-    """Return the nominal arm the plants are drawn around: ArmParams or URDF text."""
-    # Held by identity (the job itself is kept, so its id cannot be reused by another job).
-    if _SOURCES.get("job") is not job:
-        _SOURCES.clear()
-        _SOURCES.update(job=job, source=ArmParams.from_dict(job["params"])
-                        if job["params"] is not None else job["nominal_xml"])
-    return _SOURCES["source"]
-
-
 def sample_row(job: dict, k: int) -> dict:
     """Generate sample ``k``, run every law on it and reduce it to one row."""
     settings: CampaignSettings = job["settings"]
-    sample = sample_plant(_plant_source(job), settings.seed, k, settings.tolerances,
+    sample = sample_plant(job["source"], settings.seed, k, settings.tolerances,
                           skip_joints=job["skip_joints"])
     row = {"index": k, "seed": sample.seed, "status": "ok", "parameters": sample.parameters}
     plant = robot_from_xml(sample.urdf, gravity=job["gravity"], lock=job["lock"],
@@ -229,8 +216,9 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
         params = paper_params()
     job = {
         "settings": settings, "laws": laws, "reference": reference,
-        "params": params.to_dict() if params is not None else None,
-        "nominal_xml": robot.urdf, "gravity": robot.gravity, "lock": dict(robot.locked),
+        # The nominal arm the plants are drawn around: ArmParams or URDF text.
+        "source": params if params is not None else robot.urdf,
+        "gravity": robot.gravity, "lock": dict(robot.locked),
         "skip_joints": tuple(skip_joints), "joint_names": list(robot.joint_names),
         "certificate": certificate, "nominal": robot if certificate is not None else None,
     }
