@@ -73,7 +73,7 @@ def generated_models() -> dict:
     return dict(compiled._rollout.codegen_models())
 
 
-# Loaded models by identity of the Robot's pin.Model (as rrr_pin.compiled does).
+# Loaded models by identity of the Robot's pin.Model (rrr_pin.compiled._cached).
 _CACHE: dict = {}
 
 
@@ -98,10 +98,13 @@ def compile_robot_codegen(robot, role: str = "model"):
     """
     from . import compiled
 
-    key = id(robot.model)
-    hit = _CACHE.get(key)
-    if hit is not None and hit[0] is robot.model:
-        return hit[1]
+    return compiled._cached(_CACHE, robot, lambda r: _load(r, role))
+
+
+def _load(robot, role: str):
+    """Load ``robot.model`` on its generated dynamics (see :func:`compile_robot_codegen`)."""
+    from . import compiled
+
     fp = fingerprint(robot.model)
     name = next((k for k, v in generated_models().items() if v[0] == fp), None)
     if name is None:
@@ -113,8 +116,4 @@ def compile_robot_codegen(robot, role: str = "model"):
             f"or gravity differ. Use engine='compiled' for any other model")
     model = compiled._rollout.CompiledModel(robot.model.saveToString())
     model.use_codegen(name)
-    out = compiled.CompiledRobot(robot.name, tuple(robot.joint_names), model)
-    if len(_CACHE) >= 8:
-        _CACHE.pop(next(iter(_CACHE)))
-    _CACHE[key] = (robot.model, out)
-    return out
+    return compiled.CompiledRobot(robot.name, tuple(robot.joint_names), model)

@@ -131,16 +131,21 @@ def compile_robot(robot) -> CompiledRobot:
     if isinstance(robot, CompiledRobot):
         return robot
     require()
+    return _cached(_CACHE, robot, lambda r: CompiledRobot(
+        r.name, tuple(r.joint_names), _rollout.CompiledModel(r.model.saveToString())))
+
+
+def _cached(cache: dict, robot, load):
+    """Return ``load(robot)``, kept in ``cache`` by identity of ``robot.model`` (last 8 models)."""
     key = id(robot.model)
-    hit = _CACHE.get(key)
+    hit = cache.get(key)
     if hit is not None and hit[0] is robot.model:
         return hit[1]
-    compiled = CompiledRobot(robot.name, tuple(robot.joint_names),
-                             _rollout.CompiledModel(robot.model.saveToString()))
-    if len(_CACHE) >= 8:
-        _CACHE.pop(next(iter(_CACHE)))
-    _CACHE[key] = (robot.model, compiled)
-    return compiled
+    out = load(robot)
+    if len(cache) >= 8:
+        cache.pop(next(iter(cache)))
+    cache[key] = (robot.model, out)
+    return out
 
 
 def run_compiled(run, form, *, codegen: bool = False):
