@@ -98,7 +98,7 @@ __all__ = [
 PAPER_W1 = (25.0, 11.5, 0.19)
 
 # Re-exported names that live in other modules (kept importable from here).
-_REEXPORTED = (PAPER_MODEL_ERROR, sla)
+_REEXPORTED = (PAPER_MODEL_ERROR, sla, ncf_gamma)
 
 
 # --- plant and weights (paper 3 and 4.2) ------------------------------------------------------
@@ -401,7 +401,8 @@ class Design:
     K_reduced : control.StateSpace
         SISO reduced controller (eq. 18), same convention.
     gamma_reduced : float
-        NCF index of ``K_reduced`` on the shaped plant, ``ncf_gamma(Gs, W1^-1 K W2^-1)``.
+        NCF index of ``K_reduced`` on the shaped plant, ``ncf_gamma(Gs, W1^-1 K W2^-1)``
+        ``= 1 / reduction_shaped.b_reduced``.
     RSB, RPB : control.TransferFunction
         Robust-stability and robust-performance barriers (eq. 13 and 15).
     w_performance : float
@@ -506,7 +507,9 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
     g = fl_plant(lam, 1)
     siso = ncfsyn(g, w1, w2, factor)
     K_reduced = reduce_controller(siso.K, order)
-    gamma_reduced = ncf_gamma(siso.Gs, _inv(w1) * K_reduced * _inv(w2))
+    reduction_shaped = reduction_guarantee(siso.Gs, siso.Ks, _inv(w1) * K_reduced * _inv(w2))
+    b_reduced = reduction_shaped.b_reduced                  # b = 1 / gamma, 0 if unstable
+    gamma_reduced = 1.0 / b_reduced if b_reduced > 0.0 else float("inf")
     if not gamma_reduced <= 1.05 * siso.gamma:
         warnings.warn(f"the {order}-state reduced controller raises gamma from "
                       f"{siso.gamma:.4g} to {gamma_reduced:.4g}; consider a larger order",
@@ -522,7 +525,6 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
         robust_stability=check_robust_stability(g, K_reduced, RSB),
         robust_performance=check_robust_performance(g, K_reduced, RPB, w_max=w_performance),
         reduction=reduction_guarantee(g, siso.K, K_reduced),
-        reduction_shaped=reduction_guarantee(siso.Gs, siso.Ks,
-                                             _inv(w1) * K_reduced * _inv(w2)),
+        reduction_shaped=reduction_shaped,
         ncf_reduction=ncf_reduce(g, siso.K, order),
     )
