@@ -141,6 +141,15 @@ def _cmd_check_dynamics(args) -> int:
 
 # --- design (H-infinity loop shaping, paper section 4) ----------------------------------------
 
+def _zpk(K) -> dict:
+    """SISO controller as JSON: gain and zeros, poles as [real, imaginary] pairs [rad/s]."""
+    from .loopshaping import zpk_data
+
+    k, z, p = zpk_data(K)
+    return {"gain": k, "zeros": [[float(v.real), float(v.imag)] for v in z],
+            "poles": [[float(v.real), float(v.imag)] for v in p]}
+
+
 def _add_design(sub) -> None:
     p = sub.add_parser("design", help="H-infinity loop-shaping design of the paper's section 4")
     p.add_argument("--lam", type=float, default=45.0,
@@ -158,15 +167,9 @@ def _add_design(sub) -> None:
 def _cmd_design(args) -> int:
     import json
 
-    from .loopshaping import design, zpk_data
+    from .loopshaping import design
 
     d = design(lam=args.lam, n=args.joints, factor=args.factor)
-
-    def zpk(K) -> dict:
-        k, z, p = zpk_data(K)
-        return {"gain": k, "zeros": [[float(v.real), float(v.imag)] for v in z],
-                "poles": [[float(v.real), float(v.imag)] for v in p]}
-
     figures = []
     if args.out is not None:
         from .plotting import save_design_figures
@@ -175,7 +178,7 @@ def _cmd_design(args) -> int:
     out = {
         "gamma_min": d.ncf.gamma_min, "gamma": d.ncf.gamma, "emax": d.ncf.emax,
         "gamma_reduced": d.gamma_reduced,
-        "K_full": zpk(d.K_full), "K_reduced": zpk(d.K_reduced),
+        "K_full": _zpk(d.K_full), "K_reduced": _zpk(d.K_reduced),
         "robust_stability": d.robust_stability.as_dict(),
         "robust_performance": d.robust_performance.as_dict(),
         "ncfmargin": d.ncfmargin,
@@ -474,7 +477,7 @@ def _cmd_reproduce(args) -> int:
     from tqdm import tqdm
 
     from .dynamics import load_robot
-    from .loopshaping import design, zpk_data
+    from .loopshaping import design
     from .plotting import plot_study_nominal, plot_study_uncertain, save_design_figures
     from .report import write_results
     from .report_html import check_writable
@@ -514,13 +517,11 @@ def _cmd_reproduce(args) -> int:
     result = run_study(robot, laws, config=config, reference=reference, params=params,
                        skip_joints=tuple(lock), progress=progress, certificate=certificate)
     bar.close()
-    k, z, p = zpk_data(K)
     design_info = {
         "lam_rad_s": d.lam, "gamma_min": d.ncf.gamma_min, "gamma": d.ncf.gamma,
         "emax": d.ncf.emax, "gamma_reduced": d.gamma_reduced,
         "K_used": "full" if args.full_order else "reduced",
-        "K": {"gain": k, "zeros": [[v.real, v.imag] for v in z],
-              "poles": [[v.real, v.imag] for v in p]},
+        "K": _zpk(K),
         "robust_stability": d.robust_stability.as_dict(),
         "robust_performance": d.robust_performance.as_dict(),
     }
