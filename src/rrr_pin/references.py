@@ -536,7 +536,7 @@ def task_space_reference(robot, frame: str, path, move_time: float, *, q_start=N
     Returns
     -------
     SplineReference
-        Its ``source`` records the frame and path; attribute ``fk_error`` (in ``to_dict``) is the
+        Its ``source`` (also in ``to_dict``) records the frame, the path and ``fk_error_m``, the
         largest deviation measured [m].
 
     Raises
@@ -564,7 +564,7 @@ def task_space_reference(robot, frame: str, path, move_time: float, *, q_start=N
     if q_start is None:
         q = np.clip(robot.neutral(), robot.lower, robot.upper)
     else:
-        q = _vector("q_start", q_start, robot.nq).copy()
+        q = robot.check_state("q_start", q_start).copy()
     Q = np.empty((count, robot.nq))
     for k, p in enumerate(targets):
         q, err = _ik_point(robot, fid, p, q, damping=1e-3, tol=tol,
