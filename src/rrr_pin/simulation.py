@@ -94,7 +94,7 @@ class Trajectory:
     controller, plant : str
         The law's name and the plant's name.
     info : dict
-        ``engine`` ("python" or "compiled"), integration settings.
+        ``engine`` ("python", "compiled" or "codegen"), integration settings.
     """
 
     t: np.ndarray
