@@ -30,6 +30,7 @@ import control
 import numpy as np
 import scipy.linalg as sla
 
+from .barriers import _positive
 from .gap import nugap
 from .lti import check_lti, common_timebase, to_continuous, to_discrete
 from .ncf import _graph_symbols_ct, _is_discrete, _psd_sqrt, ncfmargin
@@ -42,13 +43,6 @@ __all__ = [
     "ReductionGuarantee",
     "reduction_guarantee",
 ]
-
-
-def _positive(name: str, value) -> float:
-    value = float(value)
-    if not (np.isfinite(value) and value > 0.0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return value
 
 
 def _order(order) -> int:
