@@ -277,11 +277,6 @@ class _StaticSampled(SampledLaw):
         return {**self.law.describe(), "time": "sampled", "rate_hz": self.rate}
 
 
-def _mass_matrix(model, data, q) -> np.ndarray:
-    Mu = pin.crba(model, data, q)
-    return np.triu(Mu) + np.triu(Mu, 1).T
-
-
 def _as_statespace(K, n: int):
     """Continuous LTI ``K`` as an ``n x n`` StateSpace (a SISO ``K`` is copied on the diagonal)."""
     import control
@@ -397,8 +392,8 @@ class TrackingController(ControlLaw):
         model, data, lam = self.nominal.model, self.nominal.data, self.lam
         taubar = rdd + 2.0 * lam * (rd - qd) + lam * lam * ((r - q) + y)
         # pin.crba's binding (pin >= 3, pinned to 4.1.0) returns a symmetric copy, its upper
-        # triangle mirrored, so this equals _mass_matrix(model, data, q) bit for bit without
-        # NumPy's two triu (a third of the Python engine's time per step).
+        # triangle mirrored (as Robot.M documents): no NumPy triu to complete it (they cost a
+        # third of the Python engine's time per step).
         return pin.crba(model, data, q) @ taubar + pin.nonLinearEffects(model, data, q, qd)
 
     def torque(self, t, q, qd, r, rd, rdd, x) -> np.ndarray:
