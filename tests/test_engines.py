@@ -19,6 +19,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from rrr_pin import paper_params
 from rrr_pin.compiled import _rollout, available, compile_robot, floor_ms
 from rrr_pin.controllers import (
+    CompiledForm,
     ControlLaw,
     SampledLaw,
     TrackingController,
@@ -270,6 +271,20 @@ def test_a_law_written_in_python_matches_the_builtin_pd(rrr, rrr_plant, rrr_laws
         assert_same_run(auto, b)
     with pytest.raises(ValueError, match=f"law '{mine.name}'"):
         simulate(rrr_plant, mine, ref, DURATION, rate=rate, engine="compiled")
+
+
+class UnknownKindPD(HandPD):
+    """A law declaring a compiled form of a kind the C++ loops do not implement."""
+
+    def compiled_form(self):
+        return CompiledForm("lqr", self.nominal, {"K": self.Kp})
+
+
+@pytest.mark.parametrize("rate", [None, RATE], ids=["continuous", "sampled"])
+def test_a_compiled_form_of_unknown_kind_is_refused(rrr, rrr_refs, rate):
+    law = UnknownKindPD(rrr, [100.0] * 3, [20.0] * 3)
+    with pytest.raises(ValueError, match="kind 'lqr' is not implemented in C"):
+        simulate(rrr, law, rrr_refs["quintic"], 0.01, rate=rate, engine="compiled")
 
 
 # --- the extension itself (ported from the former tests/test_compiled.py) ----------------------
