@@ -465,7 +465,7 @@ def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
     joints = root.findall("joint")
     if not links:
         raise RobotModelError("malformed URDF: no <link> element")
-    check_urdf_inertials(root)
+    masses = {link: mass for link, (mass, _) in check_urdf_inertials(root).items()}
     children, parent_joint = {}, {}
     for joint in joints:
         name, jtype = joint.get("name"), joint.get("type")
@@ -512,36 +512,34 @@ def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
         raise RobotModelError(f"malformed URDF: links {sorted(set(links) - reached)} are not "
                               f"connected to the root link {sorted(roots)[0]!r} (their joints "
                               f"form a loop)")
-    _check_subtree_mass(links, children, locked)
+    _check_subtree_mass(masses, children, locked)
     return ET.tostring(root, encoding="unicode"), root.get("name") or "robot"
 
 
-def _check_subtree_mass(links, children, locked) -> None:
+def _check_subtree_mass(masses, children, locked) -> None:
     """Refuse a moving joint whose subtree carries no mass (M would be singular).
 
-    Runs after :func:`check_urdf_inertials`, so every mass read here is finite and >= 0.
+    ``masses`` maps the links that have an ``<inertial>`` to their mass [kg], as read and
+    checked (finite, >= 0) by :func:`check_urdf_inertials`; ``children`` maps a link to its
+    ``(joint, child link)`` pairs.
     """
 
-    def subtree_mass(link_name):
-        mass_el = links[link_name].find("inertial/mass")
-        mass = float(mass_el.get("value")) if mass_el is not None else 0.0
-        return mass + sum(subtree_mass(child) for _, child in children.get(link_name, []))
-
-    def massless(link_name):
-        mass_el = links[link_name].find("inertial/mass")
-        names = [link_name] if mass_el is None or float(mass_el.get("value")) == 0.0 else []
+    def subtree(link_name):
+        names = [link_name]
         for _, child in children.get(link_name, []):
-            names += massless(child)
+            names += subtree(child)
         return names
 
     for joints in children.values():
         for joint, child in joints:
             if joint.get("type") == "fixed" or joint.get("name") in locked:
                 continue
-            if not subtree_mass(child) > 0.0:
+            below = subtree(child)
+            # Masses are >= 0: a zero sum means every link below is massless (all are named).
+            if not sum(masses.get(link, 0.0) for link in below) > 0.0:
                 raise RobotModelError(
                     f"joint {joint.get('name')!r} moves no mass: the links downstream of it "
-                    f"({', '.join(massless(child))}) have no <inertial> data or zero mass; "
+                    f"({', '.join(below)}) have no <inertial> data or zero mass; "
                     f"rrr-pin refuses to simulate an arm with zero mass")
 
 
