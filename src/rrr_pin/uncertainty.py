@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import io
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -160,21 +161,17 @@ def perturb_params(params: ArmParams, rng: np.random.Generator,
     return params.with_links(links), {"links": factors}
 
 
-#: Nominal URDF texts whose inertials passed :func:`check_urdf_inertials` (a campaign perturbs
-#: the same nominal for every sample; the check of each perturbed plant is never skipped).
-_NOMINAL_OK: set = set()
-
-
+@lru_cache(maxsize=8)
 def _check_nominal(urdf: str) -> None:
-    """Check the inertials of a nominal URDF, once per distinct text."""
-    if urdf in _NOMINAL_OK:
-        return
+    """Check the inertials of a nominal URDF, once per distinct text.
+
+    A campaign perturbs the same nominal for every sample; the cache remembers the last texts
+    that passed (a text that fails raises, so is not cached), and the check of each perturbed
+    plant is never skipped.
+    """
     from .dynamics import check_urdf_inertials
 
     check_urdf_inertials(urdf)
-    if len(_NOMINAL_OK) >= 8:
-        _NOMINAL_OK.clear()
-    _NOMINAL_OK.add(urdf)
 
 
 def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Tolerances(),
