@@ -133,3 +133,21 @@ def test_certificates_beside_the_simulated_outcome(robot):
         assert_allclose(c["b"], 1.0 / d.gamma_reduced, rtol=1e-6)  # eq. 18 Ks on Gs
     assert data["summary"]["samples_certified"] <= 2
     assert data["certificate"]["points"] == 3
+
+
+def test_report_gives_no_verdict_from_a_non_finite_ratio(robot):
+    from rrr_pin.report import results_markdown
+
+    laws = [fl_controller(robot), hinf_fl_controller(robot, K18)]
+    result = run_study(robot, laws, config=_config(samples=1, jobs=1))
+    data = result.to_json()
+    s = data["summary"]
+    # A NaN per-joint ratio (0/0: a joint both laws track exactly) must not read as a verdict.
+    s["error_ratio_uncertain_per_joint"]["hinf"][1] = float("nan")
+    s["torque_ratio_uncertain"]["hinf"] = float("nan")
+    text = results_markdown(result, data)
+    joint_row = next(line for line in text.splitlines() if line.startswith("| ... per joint"))
+    assert "**no verdict**" in joint_row and "every joint" not in joint_row
+    torque_row = next(line for line in text.splitlines()
+                      if line.startswith("| Uncertain plants: RMS torque"))
+    assert "**no verdict**" in torque_row

@@ -89,7 +89,9 @@ def _paper_rows(result: StudyResult, s: dict) -> list[str]:
     lines.append(f"| Uncertain plants: RMS error FL alone / H-inf+FL (Fig. 6c) | about 10 | "
                  f"{_fmt(ratio)} | {_error_ratio_verdict(ratio)} |")
     per_joint = s["error_ratio_uncertain_per_joint"][hinf]
-    better = ("all joints better" if min(per_joint) > 1 else "**not on every joint**")
+    better = ("**no verdict**: a ratio is not a finite number"
+              if not all(math.isfinite(x) for x in per_joint)
+              else "all joints better" if min(per_joint) > 1 else "**not on every joint**")
     lines.append(f"| ... per joint ({', '.join(result.joint_names)}) | - | "
                  f"{', '.join(_fmt(x) for x in per_joint)} | {better} |")
     torque = s["torque_ratio_uncertain"][hinf]
