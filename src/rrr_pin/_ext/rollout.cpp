@@ -548,7 +548,7 @@ namespace
       Vec a1(n), a2(n), a3(n), a4(n), v2(n), v3(n), v4(n), qs(n);
       Vec act_s(n), b1(n), b2(n), b3(n), b4(n), a = Vec::Zero(n);
       Vec th = Vec::Zero(n), thd = Vec::Zero(n), th_s(n), w2(n), w3(n), w4(n);
-      Vec c1(n), c2(n), c3(n), c4(n), tj(n), tm(n);
+      Vec c1(n), c2(n), c3(n), c4(n), tj(n), tm(n), fr(n);
       const double h2 = 0.5 * h, h6 = h / 6.0;
 
       // Link acceleration `acc`, actuator derivative `ad`, motor acceleration `thdd`.
@@ -564,7 +564,6 @@ namespace
           tj = tm;
         if (fric)
         {
-          Vec fr(n);
           for (Eigen::Index j = 0; j < n; ++j)
             fr[j] = Fv[j] * vv[j] + Fc[j] * std::tanh(vv[j] / veps);
           tj = tj - fr;
