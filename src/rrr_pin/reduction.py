@@ -66,19 +66,26 @@ def _split(A, B, C, select):
     return T, Qi @ B, C @ Q, k
 
 
-def _balanced_truncation(A, B, C, D, r: int, hsv_out: list | None = None):
-    """Square-root balanced truncation of a stable system to ``r`` states."""
+def _hankel_svd(A, B, C):
+    """Gramian square roots ``Lp``, ``Lq`` of a stable system and the SVD of ``Lq^T Lp``.
+
+    The singular values are the Hankel singular values, in decreasing order.
+    """
     P = sla.solve_continuous_lyapunov(A, -B @ B.T)
     Qg = sla.solve_continuous_lyapunov(A.T, -C.T @ C)
     Lp, Lq = _psd_sqrt(P), _psd_sqrt(Qg)
     U, hsv, Vt = np.linalg.svd(Lq.T @ Lp)
-    if hsv_out is not None:
-        hsv_out.extend(hsv.tolist())
+    return Lp, Lq, U, hsv, Vt
+
+
+def _balanced_truncation(A, B, C, D, r: int):
+    """Square-root balanced truncation of a stable system to ``r`` states, and its HSVs."""
+    Lp, Lq, U, hsv, Vt = _hankel_svd(A, B, C)
     r = min(r, int(np.sum(hsv > 1e-14 * hsv[0])) if hsv.size and hsv[0] > 0 else 0)
     sh = 1.0 / np.sqrt(hsv[:r])
     T = Lp @ Vt[:r].T * sh
     Ti = (U[:, :r] * sh).T @ Lq.T
-    return Ti @ A @ T, Ti @ B, C @ T, D
+    return Ti @ A @ T, Ti @ B, C @ T, D, hsv
 
 
 def reduce_controller(K, order: int = 2, fast_gap: float = 1e3) -> control.StateSpace:
@@ -141,7 +148,7 @@ def reduce_controller(K, order: int = 2, fast_gap: float = 1e3) -> control.State
     nu = A.shape[0] - k
     if nu > order:
         raise ValueError(f"K has {nu} modes with Re(s) >= 0, more than order={order}")
-    As, Bs, Cs, _ = _balanced_truncation(A[:k, :k], B[:k], C[:, :k], D, order - nu)
+    As, Bs, Cs, _, _ = _balanced_truncation(A[:k, :k], B[:k], C[:, :k], D, order - nu)
     Ar = sla.block_diag(As, A[k:, k:])
     Br = np.vstack([Bs, B[k:]])
     Cr = np.hstack([Cs, C[:, k:]])
@@ -244,12 +251,11 @@ def ncf_reduce(P, K, order: int) -> NCFReduction:
     Kc = to_continuous(K) if _is_discrete(K.dt) else K
     G, _ = _graph_symbols_ct(Kc)                          # [N; M], (p + m) x p
     A, B, C, D = (np.asarray(M, dtype=float) for M in (G.A, G.B, G.C, G.D))
-    hsv: list = []
     if A.shape[0] > order:
-        Ar, Br, Cr, Dr = _balanced_truncation(A, B, C, D, order, hsv)
+        Ar, Br, Cr, Dr, hsv = _balanced_truncation(A, B, C, D, order)
     else:
         Ar, Br, Cr, Dr = A, B, C, D
-        hsv = _hankel(A, B, C)
+        hsv = _hankel_svd(A, B, C)[3] if A.shape[0] else np.empty(0)
     m = K.noutputs
     Cn, Cm, Dn, Dm = Cr[:m], Cr[m:], Dr[:m], Dr[m:]
     Dmi = np.linalg.inv(Dm)
@@ -262,14 +268,6 @@ def ncf_reduce(P, K, order: int) -> NCFReduction:
     return NCFReduction(Kr=Kr, eps=float(eps), hsv=np.asarray(hsv), b=float(b),
                         b_reduced=float(b_red), guaranteed=ok,
                         b_lower=_arcsin_bound(b, eps))
-
-
-def _hankel(A, B, C) -> list:
-    if A.shape[0] == 0:
-        return []
-    P = sla.solve_continuous_lyapunov(A, -B @ B.T)
-    Q = sla.solve_continuous_lyapunov(A.T, -C.T @ C)
-    return np.sqrt(np.clip(np.linalg.eigvals(P @ Q).real, 0, None)).tolist()
 
 
 @dataclass(frozen=True)
