@@ -14,12 +14,13 @@ import html
 import math
 import numbers
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from .store import OutputNotWritable as OutputNotWritableError
+from .store import check_writable
 from .viewer import Scene, scene_html
 
 __all__ = ["write_report_html", "report_html", "check_writable", "OutputNotWritableError",
@@ -47,45 +48,6 @@ figcaption {font-size: 0.9em; color: #444; margin: 0.3em 0;}
 code {background: #f4f4f6; padding: 0 0.2em;}
 nav a {margin-right: 1em;}
 """
-
-
-class OutputNotWritableError(ValueError):
-    """An output folder or file that cannot be written (the message names it and why)."""
-
-
-def check_writable(out_dir) -> Path:
-    """Make sure files can be written into ``out_dir``, before any work is done.
-
-    Creates the folder (and its parents) if needed, then writes and removes a probe file in it,
-    so a read-only file system, a missing permission or a path that is a file are all caught.
-
-    Parameters
-    ----------
-    out_dir : path-like
-        The output folder.
-
-    Returns
-    -------
-    Path
-        ``out_dir``, resolved.
-
-    Raises
-    ------
-    OutputNotWritableError (a ValueError)
-        Naming the folder and the reason.
-    """
-    path = Path(out_dir)
-    if path.exists() and not path.is_dir():
-        raise OutputNotWritableError(f"output folder {str(path)!r} is not writable: it exists "
-                                     f"and is not a folder")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path, prefix=".rrr-pin-probe-"):
-            pass
-    except OSError as exc:
-        raise OutputNotWritableError(f"output folder {str(path)!r} is not writable: "
-                                     f"{exc.strerror or exc}") from None
-    return path.resolve()
 
 
 def _markdown(text: str) -> str:

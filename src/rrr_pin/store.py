@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -54,7 +55,7 @@ except ImportError:  # pragma: no cover - Windows
 
 __all__ = [
     "CampaignStore", "StoreError", "OutputNotWritable", "OutputNotEmpty", "SettingsMismatch",
-    "StoreCorrupt", "MANIFEST", "PARTS",
+    "StoreCorrupt", "MANIFEST", "PARTS", "check_writable",
 ]
 
 #: File names inside the output directory.
@@ -69,7 +70,10 @@ class StoreError(ValueError):
 
 
 class OutputNotWritable(StoreError):
-    """``out`` is a file, lies under a file, or cannot be created or written."""
+    """An output folder that is a file, lies under one, or cannot be created or written.
+
+    Raised by :func:`check_writable`, for campaigns and reports alike.
+    """
 
 
 class OutputNotEmpty(StoreError):
@@ -151,24 +155,45 @@ def _atomic_write(path: Path, data: bytes) -> None:
     _fsync_dir(path.parent)
 
 
-def _check_writable(out: Path) -> None:
-    """Create ``out`` if needed and prove a file can be created in it, or raise."""
+def check_writable(out) -> Path:
+    """Make sure files can be written into the folder ``out``, before any work is done.
+
+    Creates the folder (and its parents) if needed, then creates and removes a probe file in
+    it, so a path that is a file or lies under one, a missing permission and a read-only file
+    system are all caught. The one writability check of the package (the campaign store and
+    :func:`rrr_pin.report_html.check_writable` both use it).
+
+    Parameters
+    ----------
+    out : path-like
+        The output folder.
+
+    Returns
+    -------
+    Path
+        ``out``, resolved.
+
+    Raises
+    ------
+    OutputNotWritable (a ValueError)
+        Naming the folder and the reason.
+    """
+    out = Path(out)
     if out.exists() and not out.is_dir():
-        raise OutputNotWritable(f"output directory {str(out)!r} is an existing file, "
-                                "not a directory; choose another --out")
+        raise OutputNotWritable(f"output directory {str(out)!r} exists and is not a folder "
+                                "(it is an existing file); choose another --out")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise OutputNotWritable(f"cannot create output directory {str(out)!r}: "
-                                f"{exc.strerror or exc}") from exc
-    probe = out / f".write-test-{os.getpid()}"
+        raise OutputNotWritable(f"cannot create output directory {str(out)!r}, so it is not "
+                                f"writable: {exc.strerror or exc}") from exc
     try:
-        with open(probe, "wb") as fh:
-            fh.write(b"ok")
-        probe.unlink()
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".rrr-pin-probe-"):
+            pass
     except OSError as exc:
         raise OutputNotWritable(f"output directory {str(out)!r} is not writable: "
                                 f"{exc.strerror or exc}") from exc
+    return out.resolve()
 
 
 class CampaignStore:
@@ -259,7 +284,7 @@ class CampaignStore:
         except (TypeError, ValueError) as exc:
             raise TypeError(f"settings must be JSON-able: {exc}") from exc
         out = Path(out)
-        _check_writable(out)
+        check_writable(out)
         manifest_path, parts_path = out / MANIFEST, out / PARTS
         entries = [p.name for p in out.iterdir()]
         recorded = None
