@@ -278,6 +278,22 @@ def test_check_dynamics_bad_options(capsys, args, match):
     assert match in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"samples": math.inf}, "samples must be an integer >= 1, got inf"),
+    ({"samples": math.nan}, "samples must be an integer >= 1, got nan"),
+    ({"samples": "3"}, "samples must be an integer >= 1, got '3'"),
+    ({"samples": True}, "samples must be an integer >= 1, got True"),
+    ({"seed": math.nan}, "seed must be an integer >= 0, got nan"),
+], ids=["samples-inf", "samples-nan", "samples-str", "samples-bool", "seed-nan"])
+def test_compare_with_pinocchio_refuses_non_integers(kwargs, match):
+    # int(inf) would raise OverflowError and int(nan) a message naming nothing.
+    from rrr_pin.closed_form import compare_with_pinocchio
+
+    params = paper_params()
+    with pytest.raises(ValueError, match=match):
+        compare_with_pinocchio(load_robot(params), params, **kwargs)
+
+
 def test_urdf_check_missing_file(tmp_path, capsys):
     assert cli.main(["urdf", "--check", "--out", str(tmp_path / "missing.urdf")]) == 1
     out = capsys.readouterr().out

@@ -41,6 +41,7 @@ References
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 
@@ -364,6 +365,19 @@ def robot_coefficients(robot, q) -> dict[str, float]:
     return D
 
 
+def _count(name: str, value, low: int) -> int:
+    """``value`` as an int >= ``low`` (an integral float such as 200.0 is accepted).
+
+    Anything else (bool, string, NaN, inf, a fraction, below ``low``) raises ``ValueError``
+    naming ``name``; ``int()`` alone would raise an unnamed ``ValueError`` or an
+    ``OverflowError`` for some of them.
+    """
+    if (isinstance(value, bool) or not isinstance(value, numbers.Real)
+            or not math.isfinite(value) or value != int(value) or value < low):
+        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
 def compare_with_pinocchio(robot, params: ArmParams, samples: int = 200, seed: int = 0,
                            qd_max: float = 5.0) -> dict[str, dict[str, float]]:
     """Largest differences between a Pinocchio model and the closed form on random states.
@@ -406,14 +420,10 @@ def compare_with_pinocchio(robot, params: ArmParams, samples: int = 200, seed: i
     if robot.nq != 3:
         raise ValueError(f"robot must have 3 joints to compare with the closed form, got "
                          f"{robot.nq}")
-    if isinstance(samples, bool) or int(samples) != samples or samples < 1:
-        raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
-    samples = int(samples)
-    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    samples, seed = _count("samples", samples, 1), _count("seed", seed, 0)
     if not (math.isfinite(qd_max) and qd_max >= 0.0):
         raise ValueError(f"qd_max must be a finite speed >= 0 rad/s, got {qd_max!r}")
-    rng = np.random.default_rng(int(seed))
+    rng = np.random.default_rng(seed)
     qs = rng.uniform(-math.pi, math.pi, size=(samples, 3))
     qds = rng.uniform(-qd_max, qd_max, size=(samples, 3))
     diff = {"M": 0.0, "V": 0.0, "G": 0.0}
