@@ -10,7 +10,6 @@ of processes. Laws are compared with a named baseline (``"fl"`` by default, the 
 from __future__ import annotations
 
 import math
-import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
@@ -18,6 +17,7 @@ import numpy as np
 
 from .dh import paper_params
 from .dynamics import robot_from_xml
+from .executors import default_jobs
 from .references import Reference, SineReference
 from .runner import RunSettings, check_laws, run_laws
 from .simulation import SimulationDiverged, metrics
@@ -298,7 +298,7 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
               "plant_name": f"{nominal.name} (nominal)"}]
     tasks += [{"job": job, "plant_xml": p.urdf, "certify": True,
                "plant_name": f"{nominal.name}_sample{p.index:03d}"} for p in plants]
-    jobs = config.jobs or min(2, os.cpu_count() or 1)
+    jobs = config.jobs or default_jobs()
     outputs = []
     if jobs <= 1 or len(tasks) <= 2:
         for k, task in enumerate(tasks):
