@@ -74,8 +74,6 @@ namespace
   // libpinocchio_default (the same code the Python bindings call).
   using CRef = Eigen::Ref<const Vec>;
 
-  /// A deserialized pinocchio::Model; read-only once loaded (each call makes its own Data), so
-  /// one instance may serve concurrent rollouts.
   /// Generated dynamics of one fixed model (see the extern "C" block above).
   struct CodegenDynamics
   {
@@ -87,6 +85,8 @@ namespace
 
   const CodegenDynamics kRrrCodegen{rrr_cg_nq, rrr_cg_crba, rrr_cg_nle, rrr_cg_aba};
 
+  /// A deserialized pinocchio::Model; read-only once loaded (each call makes its own Data), so
+  /// one instance may serve concurrent rollouts.
   struct CompiledModel
   {
     Model model;
