@@ -209,7 +209,7 @@ def _siso_weight(name: str, W, n: int, default) -> control.StateSpace:
     """SISO weight from ``None`` (default), a SISO LTI or an ``n x n`` diagonal copy."""
     if W is None:
         return check_lti(default, name)
-    W = _weight(name, W, n, None)
+    W = _weight(name, W, n)
     if W.noutputs == 1:
         return W
     w = np.array([0.0, 0.1, 1.0, 10.0, 100.0, 1000.0])

@@ -73,7 +73,7 @@ def _is_discrete(dt) -> bool:
     return dt not in (0, None)
 
 
-def _weight(name: str, W, size: int, dt) -> control.StateSpace:
+def _weight(name: str, W, size: int) -> control.StateSpace:
     """Square ``size x size`` weight; ``None`` -> identity, SISO -> per-channel copy."""
     if W is None:
         return static_gain(np.eye(size))
@@ -100,8 +100,8 @@ def _series(*systems) -> control.StateSpace:
 
 def _plant_and_weights(G, W1, W2):
     G = check_lti(G, "G")
-    W1 = _weight("W1", W1, G.ninputs, G.dt)
-    W2 = _weight("W2", W2, G.noutputs, G.dt)
+    W1 = _weight("W1", W1, G.ninputs)
+    W2 = _weight("W2", W2, G.noutputs)
     dt = common_timebase(("G", G), ("W1", W1), ("W2", W2))
     return G, W1, W2, dt
 
