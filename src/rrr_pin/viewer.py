@@ -654,7 +654,6 @@ def _scene_document(scene, *, fps, max_bytes, geometry, play):
         light = _record(scene, fps, "collision", play, cache)
         if size(light[0]) < size(static):
             static, anim, facts = light
-            facts["fallback"] = True
     stride = 1
     total, fixed = size(static + anim), size(static)
     while total > max_bytes:
@@ -668,11 +667,10 @@ def _scene_document(scene, *, fps, max_bytes, geometry, play):
                 f"scene {scene.title!r} does not fit max_bytes={max_bytes}: its geometry "
                 f"takes {fixed} bytes and {facts['frames']} frames take {total} bytes even "
                 f"at the lowest rate tried; raise max_bytes or draw fewer tracks")
-        fallback = facts.get("fallback", False)
         static, anim, facts = _record(scene, fps / stride, facts["geometry"], play, cache)
-        facts["fallback"] = fallback
         total = size(static + anim)
     facts["bytes"] = total
+    facts["fallback"] = facts["geometry"] != geometry  # "auto" fell back to "collision"
     return _document(scene.title, static + anim, js), facts
 
 
