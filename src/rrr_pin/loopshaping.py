@@ -46,7 +46,7 @@ from .barriers import (
     robust_performance_barrier,
     robust_stability_barrier,
 )
-from .lti import DimensionMismatchError, ImproperSystemError, check_lti, expand_diagonal
+from .lti import DimensionMismatchError, ImproperSystemError, _size, check_lti, expand_diagonal
 from .ncf import (
     HiddenModeError,
     NCFSynResult,
@@ -124,12 +124,6 @@ def fl_plant(lam: float = 45.0, n: int = 3) -> control.StateSpace:
     n = _size("n", n)
     g = control.ss(control.tf([lam**2], [1.0, 2.0 * lam, lam**2]))
     return expand_diagonal(g, n)
-
-
-def _size(name: str, n) -> int:
-    if isinstance(n, bool) or int(n) != n or int(n) < 1:
-        raise ValueError(f"{name} must be a positive integer, got {n!r}")
-    return int(n)
 
 
 def lag_weight(k: float = PAPER_W1[0], z: float = PAPER_W1[1],

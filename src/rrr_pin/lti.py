@@ -156,6 +156,12 @@ def check_lti(sys, name: str = "sys") -> control.StateSpace:
     return static_gain(np.atleast_2d(D))
 
 
+def _size(name: str, n) -> int:
+    if isinstance(n, bool) or int(n) != n or int(n) < 1:
+        raise ValueError(f"{name} must be a positive integer, got {n!r}")
+    return int(n)
+
+
 def _is_static(sys: control.StateSpace) -> bool:
     return sys.nstates == 0
 
@@ -203,9 +209,7 @@ def expand_diagonal(K, n: int) -> control.StateSpace:
     control.StateSpace
         ``n x n`` system with ``n`` times the states of ``K``, same sampling time.
     """
-    if isinstance(n, bool) or int(n) != n or int(n) < 1:
-        raise ValueError(f"n must be a positive integer, got {n!r}")
-    n = int(n)
+    n = _size("n", n)
     K = check_lti(K, "K")
     if (K.noutputs, K.ninputs) != (1, 1):
         raise ValueError(f"Expected a SISO system, got shape ({K.noutputs}, {K.ninputs})")
