@@ -246,11 +246,16 @@ def _study_axes(title: str, labels: list[str]):
     return fig, axes
 
 
-def _plot_runs(axes, runs: dict, names, joint_names, alpha=1.0, label=True):
+def _plot_runs(axes, runs: dict, names, joint_names, alpha=1.0, labelled=None):
+    # Joint names go in a column's legend once: with the first run plotted in it (``labelled``
+    # holds the columns already labelled across calls).
+    labelled = set() if labelled is None else labelled
     for col, key in enumerate(names):
         traj = runs.get(key)
         if traj is None:
             continue
+        label = key not in labelled
+        labelled.add(key)
         for j, name in enumerate(joint_names):
             colour = _JOINT_COLOURS[j % len(_JOINT_COLOURS)]
             lab = name if label else None
@@ -330,9 +335,10 @@ def plot_study_uncertain(result, path):
         title += ", diverged (not shown): " + ", ".join(
             f"{result.label(k)} {v}" for k, v in lost.items() if v)
     fig, axes = _study_axes(title, [result.label(k) for k in names])
-    for k, sample in enumerate(result.samples):
+    labelled: set = set()
+    for sample in result.samples:
         _plot_runs(axes, sample["trajectories"], names, result.joint_names, alpha=0.6,
-                   label=(k == 0))
+                   labelled=labelled)
     return _finish_study(fig, axes, path)
 
 
