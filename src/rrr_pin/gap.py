@@ -51,22 +51,27 @@ def _parahermitian(G: control.StateSpace) -> control.StateSpace:
     return control.ss(-G.A.T, G.C.T, -G.B.T, G.D.T)
 
 
-def _nugap(G1, G2, Gt2) -> float:
-    """nu-gap from the graph symbols: ``||Gt2 G1||_inf`` if the winding condition holds."""
+def _winding_ok(G1, G2) -> bool:
+    """Whether ``det(G2~ G1)`` has no zero on the imaginary axis and winding number 0."""
     F = control.ss(_parahermitian(G2) * G1)             # G2~ G1, m x m
     A, B, C, D = (np.asarray(M, dtype=float) for M in (F.A, F.B, F.C, F.D))
     if np.linalg.cond(D) > 1e10:                         # det(G2~ G1) = 0 at infinity
-        return 1.0
+        return False
     if A.shape[0]:
         scale = max(1.0, np.abs(np.linalg.eigvals(A)).max())
         zeros = np.linalg.eigvals(A - B @ np.linalg.solve(D, C))
         if np.any(np.abs(zeros.real) <= 1e-10 * scale):  # det(G2~ G1)(jw) = 0
-            return 1.0
+            return False
         # winding number of det(G2~ G1) = RHP zeros - RHP poles; the RHP poles are the n2
         # mirrored poles of G2 (stable), counted on the realization like the zeros.
         if int(np.sum(zeros.real > 0)) != int(np.sum(np.linalg.eigvals(A).real > 0)):
-            return 1.0
-    return min(1.0, hinf_norm(control.ss(Gt2 * G1))[0])
+            return False
+    return True
+
+
+def _nugap(G1, G2, Gt2) -> float:
+    """nu-gap from the graph symbols: ``||Gt2 G1||_inf`` if the winding condition holds."""
+    return min(1.0, hinf_norm(control.ss(Gt2 * G1))[0]) if _winding_ok(G1, G2) else 1.0
 
 
 def _fi_feasible(A, B1, B2, C1, D11, D12, gamma: float) -> bool:
@@ -250,8 +255,8 @@ def gapmetric(P1, P2, rtol: float = 1e-6) -> tuple[float, float]:
     P1, P2 = _pair(P1, P2)
     G1, Gt1 = _graph_symbols_ct(P1)
     G2, Gt2 = _graph_symbols_ct(P2)
-    nu = _nugap(G1, G2, Gt2)
-    lo12 = hinf_norm(control.ss(Gt2 * G1))[0]
+    lo12 = hinf_norm(control.ss(Gt2 * G1))[0]                # ||Gt2 G1||_inf, also the nu-gap
+    nu = min(1.0, lo12) if _winding_ok(G1, G2) else 1.0
     lo21 = hinf_norm(control.ss(Gt1 * G2))[0]
     d12 = _directed_gap(G1, G2, lo12, rtol)
     d21 = _directed_gap(G2, G1, lo21, rtol)
