@@ -151,3 +151,33 @@ def test_report_gives_no_verdict_from_a_non_finite_ratio(robot):
     torque_row = next(line for line in text.splitlines()
                       if line.startswith("| Uncertain plants: RMS torque"))
     assert "**no verdict**" in torque_row
+
+
+def test_paper_claims_only_for_the_builtin_laws(robot):
+    # A user's law named "hinf" is not the paper's H-infinity + FL: no paper verdict on it.
+    from rrr_pin.report import results_markdown
+
+    class Mine(ControlLaw):
+        name, label, n = "hinf", "my law", 3
+
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            return 4000.0 * (r - q) + 100.0 * (rd - qd) + robot.G(q)
+
+    mine = run_study(robot, [fl_controller(robot), Mine()], config=_config(samples=1, jobs=1))
+    assert "The paper's claims" not in results_markdown(mine)
+    paper = run_study(robot, make_laws("fl,hinf", robot, K=K18),
+                      config=_config(samples=1, jobs=1))
+    assert "The paper's claims" in results_markdown(paper)
+
+
+def test_nominal_verdict_scale_for_a_closed_path(robot):
+    # A spline that returns to its start: the scale is half its peak-to-peak range, so the
+    # exact-model errors (~1e-9 rad) count as equivalent, not "differs".
+    from rrr_pin.references import SplineReference
+    from rrr_pin.report import results_markdown
+
+    ref = SplineReference([0.0, 0.25, 0.5], [[0, 0, 0], [0.3, -0.2, 0.2], [0, 0, 0]])
+    result = run_study(robot, make_laws("fl,hinf", robot, K=K18),
+                       config=_config(samples=1, jobs=1), reference=ref)
+    text = results_markdown(result)
+    assert "| equivalent |" in text and "agrees: both below 1.5e-06 rad" in text
