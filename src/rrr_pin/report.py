@@ -174,8 +174,9 @@ def results_markdown(result: StudyResult, data: dict | None = None) -> str:
                      for m in ("rms_error", "max_error", "rms_torque", "peak_torque")]
             lines.append(f"| {label} | {result.label(key)} | " + " | ".join(cells) + " |")
     lines += ["", f"Verdict rules: nominal errors below {NOMINAL_NOISE:g} of the reference "
-              "amplitude (half its peak-to-peak range) count as equivalent; an error ratio within a factor of 2 of the "
-              "paper's 10 agrees; a torque ratio within 10 % of 1 is 'about the same'.", ""]
+              "amplitude (half its peak-to-peak range) count as equivalent; an error ratio "
+              "within a factor of 2 of the paper's 10 agrees; a torque ratio within 10 % of 1 "
+              "is 'about the same'.", ""]
     return "\n".join(lines)
 
 
