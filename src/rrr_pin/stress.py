@@ -43,10 +43,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from .barriers import PAPER_MODEL_ERROR
+from .barriers import model_error_bound, robust_stability_barrier
 from .catalog import DEFAULT_BUDGET, EFFECTS
 from .controllers import PDGravity, TrackingController
 from .effects import PlantEffects
+from .lti import static_gain
+from .robustness import check_robust_stability
 from .runner import RunSettings
 from .simulation import SimulationDiverged, simulate
 
@@ -335,8 +337,8 @@ _W = np.logspace(-2, 6, 20001)
 
 
 def _eM(w):
-    rel, we = PAPER_MODEL_ERROR
-    return rel * np.abs(1j * w / we + 1.0)
+    """``|e_M(jw)|`` of the paper's model-error bound, eq. (12)."""
+    return np.abs(model_error_bound()(1j * w))
 
 
 def barrier_guarantee(effect: str):
@@ -359,14 +361,15 @@ def barrier_guarantee(effect: str):
 
 
 def barrier_met(law, home=None) -> bool:
-    """Whether every joint's ``|T(jw)| = |L/(1 + L)|`` stays below ``RSB = 1/|e_M|``."""
-    import control
+    """Whether every joint's ``|T(jw)| = |L/(1 + L)|`` stays below ``RSB = 1/|e_M|``.
 
-    for L in _siso_loops(law, home):
-        Lw = np.asarray(control.frequency_response(L, _W[::10]).complex).ravel()
-        if np.any(np.abs(Lw / (1.0 + Lw)) * _eM(_W[::10]) > 1.0):
-            return False
-    return True
+    Each loop is checked by :func:`rrr_pin.robustness.check_robust_stability` (nominally
+    stable, grid minimum refined) against :func:`rrr_pin.barriers.robust_stability_barrier`.
+    """
+    RSB = robust_stability_barrier()
+    unity = static_gain(np.eye(1))
+    return all(check_robust_stability(L, unity, RSB, omega=_W[::10]).ok
+               for L in _siso_loops(law, home))
 
 
 # --- nonlinear search --------------------------------------------------------------------------
