@@ -192,10 +192,10 @@ def spectral_radius(law, rate: float, home=None, *, delay: float = 0.0,
     mfrac = delay - ell * Ts
     if mfrac < 1e-15:
         mfrac = 0.0
-    Phi, G0 = _integrals(A, B, Ts - mfrac)
+    E0, G0 = _integrals(A, B, Ts - mfrac)
     E1, G1i = _integrals(A, B, mfrac) if mfrac else (None, np.zeros_like(B))
-    Phi = Phi @ E1 if mfrac else Phi
-    G1 = _integrals(A, B, Ts - mfrac)[0] @ G1i
+    Phi = E0 @ E1 if mfrac else E0
+    G1 = E0 @ G1i
     # u_{k-ell} applied over the end of the period, u_{k-ell-1} over its start.
     L = ell + 1                           # buffer w_i = u_{k-i}, i = 1..L
     nx = Ad.shape[0]
