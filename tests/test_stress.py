@@ -9,13 +9,14 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rrr_pin.cli import main
-from rrr_pin.controllers import fl_controller
+from rrr_pin.controllers import ControlLaw, fl_controller
 from rrr_pin.dynamics import load_robot
 from rrr_pin.runner import RunSettings, make_laws
 from rrr_pin.stress import (
     StressSettings,
     _rms,
     barrier_guarantee,
+    barrier_met,
     breaking_point,
     continuous_boundary,
     linear_boundary,
@@ -105,6 +106,23 @@ def test_breaking_point_any_law_no_prediction(rrr):
                                         sweep=0, rtol=0.05))
     lo, hi = out["bracket"]
     assert 0 < hi < lo and out["simulated"] == lo
+
+
+@pytest.mark.parametrize("effect", ["delay", "actuator", "torque"])
+def test_law_without_linear_model_is_refused_by_every_prediction(effect):
+    # stress() leaves the predictions of such a law empty by catching this TypeError, so each
+    # prediction (not only the digital one) must refuse it the same way, whatever the effect.
+    class Zero(ControlLaw):
+        name, n = "zero", 3
+
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            return np.zeros(3)
+
+    for predict in (lambda: linear_boundary(Zero(), "delay", 1000.0),
+                    lambda: continuous_boundary(Zero(), effect),
+                    lambda: barrier_met(Zero())):
+        with pytest.raises(TypeError, match="no linear model of law 'zero'"):
+            predict()
 
 
 def test_cli_stress_json(tmp_path, capsys):

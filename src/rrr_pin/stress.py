@@ -154,8 +154,13 @@ def _law_matrices(law, rate: float, home):
         Dc = np.hstack([-law.Kp, -law.Kd])
         return (np.zeros((0, 0)), np.zeros((0, 2 * law.n)), np.zeros((law.n, 0)), Dc,
                 Minv)
-    raise TypeError(f"no linear model of law {law.name!r} ({type(law).__name__}): the linear "
-                    f"prediction covers TrackingController and PDGravity laws")
+    raise _no_linear_model(law)
+
+
+def _no_linear_model(law) -> TypeError:
+    """Return the refusal for a law with no linear model (``stress`` then predicts nothing)."""
+    return TypeError(f"no linear model of law {law.name!r} ({type(law).__name__}): the linear "
+                     f"prediction covers TrackingController and PDGravity laws")
 
 
 def _integrals(A, B, t):
@@ -288,6 +293,8 @@ def _siso_loops(law, home):
             K = control.tf([0.0], [1.0])
         s = control.tf("s")
         return [(2 * lam * s + lam * lam * (1 + K)) / s ** 2]
+    if not isinstance(law, PDGravity):
+        raise _no_linear_model(law)
     # PD: modes of M(q_h)^-1 Kp; when M^-1 Kd is diagonal in the same basis (the default gains,
     # both proportional to diag(M)), each mode is a SISO loop. Otherwise joint by joint with
     # M_jj (coupling neglected).
