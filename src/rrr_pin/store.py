@@ -336,9 +336,7 @@ class CampaignStore:
             if not resume and not overwrite:
                 fh.truncate(0)
             fh.seek(0, os.SEEK_END)
-            manifest = {"format": _FORMAT, "version": _VERSION, "settings": settings,
-                        "outputs": []}
-            _atomic_write(manifest_path, (json.dumps(manifest, indent=1) + "\n").encode())
+            _write_manifest(manifest_path, settings, [])
         except BaseException:
             if fh is not None:
                 fh.close()
@@ -445,9 +443,7 @@ class CampaignStore:
         rel = path.relative_to(self.out).as_posix()
         if rel not in self._outputs:
             self._outputs.append(rel)
-            manifest = {"format": _FORMAT, "version": _VERSION, "settings": self.settings,
-                        "outputs": self._outputs}
-            _atomic_write(self.manifest_path, (json.dumps(manifest, indent=1) + "\n").encode())
+            _write_manifest(self.manifest_path, self.settings, self._outputs)
         if path not in self.written:
             self.written.append(path)
         return path
@@ -471,6 +467,13 @@ class CampaignStore:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _write_manifest(path: Path, settings: dict, outputs: list[str]) -> None:
+    """Write the manifest ``campaign.json`` atomically (layout: module docstring)."""
+    manifest = {"format": _FORMAT, "version": _VERSION, "settings": settings,
+                "outputs": outputs}
+    _atomic_write(path, (json.dumps(manifest, indent=1) + "\n").encode())
 
 
 def _remove_inside(out: Path, name: str) -> None:
