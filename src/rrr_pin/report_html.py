@@ -90,14 +90,14 @@ def _number(x) -> str:
     return f"{x:.6g}"
 
 
-def _value_html(value, depth: int = 0) -> str:
+def _value_html(value) -> str:
     """Readable HTML of any JSON-like value: nested mappings as tables, numbers to 6 digits."""
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if isinstance(value, Mapping):
         if not value:
             return "<i>(empty)</i>"
-        rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{_value_html(v, depth + 1)}"
+        rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{_value_html(v)}"
                        f"</td></tr>" for k, v in value.items())
         return f"<table>{rows}</table>"
     if isinstance(value, str):
@@ -106,13 +106,13 @@ def _value_html(value, depth: int = 0) -> str:
         return "-"
     if isinstance(value, numbers.Number | np.bool_):
         return _number(value)
-    if isinstance(value, Sequence | set | tuple):
+    if isinstance(value, Sequence | set):
         items = list(value)
         if all(isinstance(v, numbers.Number | np.bool_) for v in items):
             shown = ", ".join(_number(v) for v in items[:24])
             more = f", ... ({len(items)} values)" if len(items) > 24 else ""
             return f"<code>[{shown}{more}]</code>"
-        return "<ol>" + "".join(f"<li>{_value_html(v, depth + 1)}</li>" for v in items) + \
+        return "<ol>" + "".join(f"<li>{_value_html(v)}</li>" for v in items) + \
             "</ol>"
     return html.escape(str(value))
 
