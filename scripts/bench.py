@@ -4,11 +4,11 @@ Everything is measured in one run on this machine (named in the output) and prin
 asserted:
 
 1. per call from Python: ``Robot.M/V/G`` (checked and ``check=False``) against the bare ``pin``
-   calls they make, and the paper's closed form (``rrr_pin.closed_form``);
+   calls they make, and the paper's closed form (``rrr_pin.model.closed_form``);
 2. the compiled engine: a 10 s rollout of the nominal RRR for every built-in law (FL, H-inf + FL,
    PD + gravity), sampled at 1 kHz (zero-order hold, RK4 plant) and continuous (RK4, law at
    every stage, dt = 1 ms), with every reference kind (sine, quintic, spline, task-space line),
-   against the C++ floor (``rrr_pin.compiled.floor_ms``: the same Pinocchio calls in a bare C++
+   against the C++ floor (``rrr_pin.sim.compiled.floor_ms``: the same Pinocchio calls in a bare C++
    loop);
 3. the Python engine (``simulate(..., engine="python")``) against a hand-written loop that calls
    ``pin`` directly (:func:`handwritten_fl_rollout`, the yardstick): 10 s, 1 kHz, ZOH FL;
@@ -39,13 +39,18 @@ import numpy as np
 import pinocchio as pin
 
 import rrr_pin
-from rrr_pin import closed_form
-from rrr_pin.compiled import floor_ms
-from rrr_pin.montecarlo import CampaignSettings, run_campaign
-from rrr_pin.references import LinePath, QuinticReference, SplineReference, task_space_reference
-from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.simulation import simulate
-from rrr_pin.study import default_reference
+from rrr_pin.campaign.montecarlo import CampaignSettings, run_campaign
+from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.control.references import (
+    LinePath,
+    QuinticReference,
+    SplineReference,
+    default_reference,
+    task_space_reference,
+)
+from rrr_pin.model import closed_form
+from rrr_pin.sim.compiled import floor_ms
+from rrr_pin.sim.simulation import simulate
 
 #: Issue 13's goals: (largest ratio, what it is a ratio of). Start-up goals are in seconds.
 GOALS = {
@@ -73,7 +78,7 @@ def side_by_side_ms(fns: dict, repeat: int) -> dict:
 
     One warm-up call each, then ``repeat`` rounds that call every function once in turn, so
     that the load of a shared machine falls on all of them alike; the fastest run of each is
-    the least disturbed one (as :func:`rrr_pin.compiled.floor_ms` takes it). A callable whose
+    the least disturbed one (as :func:`rrr_pin.sim.compiled.floor_ms` takes it). A callable whose
     name starts with ``"floor"`` returns its own time [ms] (the C++ timer).
     """
     for fn in fns.values():
@@ -233,9 +238,9 @@ def main(argv=None):
                                       "ratio": ms["compiled"] / ms["floor"]})
 
     # 2b. Engine "codegen" (issue 13, beyond the generic floor): the same loop on CppADCodeGen
-    # dynamics of the nominal RRR (rrr_pin.codegen), against the compiled engine and its floor
+    # dynamics of the nominal RRR (rrr_pin.sim.codegen), against the compiled engine and its floor
     # in the same interleaved rounds; sine reference.
-    from rrr_pin.codegen import compile_robot_codegen
+    from rrr_pin.sim.codegen import compile_robot_codegen
 
     cg_robot = compile_robot_codegen(robot)
     codegen_rows = []

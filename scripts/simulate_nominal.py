@@ -3,7 +3,7 @@
 Loads the paper's RRR arm (or any URDF / example-robot-data arm), builds the laws by name
 (``fl``: FL alone, lam = 100 rad/s; ``hinf``: H-infinity + FL with the section-4 design,
 lam = 45 rad/s; ``pd``: PD + gravity compensation), runs them on the exact model through the
-runner (:func:`rrr_pin.runner.run_laws`), prints the per-joint figures and writes a PNG of
+runner (:func:`rrr_pin.campaign.runner.run_laws`), prints the per-joint figures and writes a PNG of
 torques and tracking errors.
 
     python scripts/simulate_nominal.py --out nominal.png
@@ -13,10 +13,10 @@ torques and tracking errors.
 import argparse
 
 import rrr_pin
-from rrr_pin.plotting import plot_runs
-from rrr_pin.runner import RunSettings, make_laws, run_laws
-from rrr_pin.simulation import SimulationDiverged, metrics
-from rrr_pin.study import default_reference
+from rrr_pin.campaign.runner import RunSettings, make_laws, run_laws
+from rrr_pin.control.references import default_reference
+from rrr_pin.report.plotting import plot_runs
+from rrr_pin.sim.simulation import SimulationDiverged, metrics
 
 
 def main(argv=None):

@@ -1,7 +1,7 @@
 """The paper's uncertain study (Fig. 6) from the Python API, for any built-in laws.
 
 Draws seeded uncertain plants (20 % on masses and moments, 5 % on lengths), runs the laws on
-the nominal arm and on each plant (:func:`rrr_pin.study.run_study`), prints the headline ratios
+the nominal arm and on each plant (:func:`rrr_pin.campaign.study.run_study`), prints the headline ratios
 against the baseline law and writes the figure of every plant's torques and errors.
 
     python scripts/uncertain_study.py --samples 10 --out uncertain.png
@@ -12,9 +12,9 @@ import argparse
 import json
 
 import rrr_pin
-from rrr_pin.plotting import plot_study_uncertain
-from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.study import StudyConfig, run_study, summarize
+from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.campaign.study import StudyConfig, run_study, summarize
+from rrr_pin.report.plotting import plot_study_uncertain
 
 
 def main(argv=None):

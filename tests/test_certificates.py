@@ -1,4 +1,4 @@
-"""Tests of rrr_pin.certificates: frozen linearization and the nu-gap certificate."""
+"""Tests of rrr_pin.robust.certificates: frozen linearization and the nu-gap certificate."""
 
 from dataclasses import replace
 
@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.certificates import frozen_certificate, frozen_linearization
-from rrr_pin.dh import paper_params
-from rrr_pin.dynamics import load_robot
-from rrr_pin.loopshaping import design, fl_plant
-from rrr_pin.lti import DimensionMismatchError
+from rrr_pin.model.dh import paper_params
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.robust.certificates import frozen_certificate, frozen_linearization
+from rrr_pin.robust.loopshaping import design, fl_plant
+from rrr_pin.robust.lti import DimensionMismatchError
 
 Q = np.array([[0.1, 0.5, -0.4], [0.8, -0.3, 1.0], [-1.0, 1.2, 0.3]])
 QD = np.array([[0.5, -0.2, 0.1], [0.0, 0.3, -0.6], [1.0, 0.5, 0.5]])

@@ -3,7 +3,7 @@ import json
 import pytest
 
 from rrr_pin import cli
-from rrr_pin.dynamics import load_robot
+from rrr_pin.model.dynamics import load_robot
 
 KEYS = {"rms_error", "max_error", "rms_torque", "peak_torque"}
 

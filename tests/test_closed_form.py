@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin import closed_form as cf
 from rrr_pin import paper_params
 from rrr_pin.cli import main
-from rrr_pin.dh import ArmParams, DHLink
-from rrr_pin.dynamics import load_robot
-from rrr_pin.urdf import write_urdf
+from rrr_pin.model import closed_form as cf
+from rrr_pin.model.dh import ArmParams, DHLink
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.urdf import write_urdf
 
 N_STATES = 200
 QD_MAX = 5.0  # rad/s

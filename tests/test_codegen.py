@@ -16,13 +16,13 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rrr_pin import paper_params
-from rrr_pin.codegen import CodegenModelMismatch, fingerprint, generated_models
-from rrr_pin.compiled import available
-from rrr_pin.controllers import fl_controller, hinf_fl_controller, pd_controller
-from rrr_pin.dynamics import load_robot, robot_from_xml
-from rrr_pin.references import SineReference
-from rrr_pin.simulation import simulate
-from rrr_pin.uncertainty import sample_plants
+from rrr_pin.control.laws import fl_controller, hinf_fl_controller, pd_controller
+from rrr_pin.control.references import SineReference
+from rrr_pin.model.dynamics import load_robot, robot_from_xml
+from rrr_pin.model.uncertainty import sample_plants
+from rrr_pin.sim.codegen import CodegenModelMismatch, fingerprint, generated_models
+from rrr_pin.sim.compiled import available
+from rrr_pin.sim.simulation import simulate
 
 pytestmark = pytest.mark.skipif(not available(), reason="compiled extension not built")
 
@@ -106,7 +106,7 @@ def test_codegen_refuses_ur5():
 
 
 def test_codegen_refuses_plant_effects(rrr, ref):
-    from rrr_pin.effects import PlantEffects
+    from rrr_pin.control.effects import PlantEffects
 
     with pytest.raises(ValueError, match="ideal plant"):
         simulate(rrr, fl_controller(rrr), ref, 0.1, rate=RATE, engine="codegen",

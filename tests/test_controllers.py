@@ -4,7 +4,7 @@ import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.controllers import (
+from rrr_pin.control.laws import (
     ControlLaw,
     PDGravity,
     SampledLaw,
@@ -14,9 +14,9 @@ from rrr_pin.controllers import (
     hinf_fl_controller,
     pd_controller,
 )
-from rrr_pin.dynamics import load_robot
-from rrr_pin.references import QuinticReference
-from rrr_pin.simulation import simulate
+from rrr_pin.control.references import QuinticReference
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.sim.simulation import simulate
 
 # The paper's eq. (18), typed from the paper (used here only as a test input).
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],

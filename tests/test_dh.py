@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.dh import ArmParams, DHLink, dh_transform, forward_kinematics, paper_params
+from rrr_pin.model.dh import ArmParams, DHLink, dh_transform, forward_kinematics, paper_params
 
 
 def test_paper_tables():

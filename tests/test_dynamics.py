@@ -1,4 +1,4 @@
-"""Structural properties of the Pinocchio dynamics (rrr_pin.dynamics), and its edge checks.
+"""Structural properties of the Pinocchio dynamics (rrr_pin.model.dynamics), and its edge checks.
 
 Each property is checked against a second Pinocchio algorithm or a finite difference, on the
 paper's arm and on example-robot-data arms.
@@ -13,7 +13,8 @@ import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.dynamics import RobotModelError, load_robot
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.robots import RobotModelError
 
 PANDA_LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 ROBOTS = {

@@ -1,4 +1,4 @@
-"""Plant effects (rrr_pin.effects): each effect's physics against a closed form, seeds, bad input.
+"""Plant effects (rrr_pin.control.effects): each effect's physics against a closed form, seeds, bad input.
 
 The physics checks run on the RRR with joints 2 and 3 locked at 0: a single joint about the
 vertical axis with constant inertia I = M(q)[0, 0] and no gravity torque, driven by a law that
@@ -12,12 +12,11 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.optimize import brentq
 
-from rrr_pin.controllers import SampledLaw, fl_controller
-from rrr_pin.dynamics import load_robot
-from rrr_pin.effects import EffectsError, PlantEffects
-from rrr_pin.references import QuinticReference
-from rrr_pin.simulation import simulate
-from rrr_pin.study import default_reference
+from rrr_pin.control.effects import EffectsError, PlantEffects
+from rrr_pin.control.laws import SampledLaw, fl_controller
+from rrr_pin.control.references import QuinticReference, default_reference
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.sim.simulation import simulate
 
 TS = 1e-3  # [s] control period (1 kHz)
 C = 2.0  # [N m] commanded torque after t = 0

@@ -1,7 +1,7 @@
 """The compiled engine against the Python engine, and the rule that no law is ever substituted.
 
-The Python engine (``rrr_pin.simulation._run_python``) is the readable reference; the compiled
-engine (``rrr_pin.compiled``, C++) must give the same trajectory for every built-in law (FL, H-inf
+The Python engine (``rrr_pin.sim.simulation._run_python``) is the readable reference; the compiled
+engine (``rrr_pin.sim.compiled``, C++) must give the same trajectory for every built-in law (FL, H-inf
 + FL, PD + gravity), continuous and sampled, with every reference kind, on a perturbed plant
 (the law's model differs from the plant, so the feedback terms act). A law the compiled engine
 does not implement (a subclass of a built-in, or a law written in Python) must run on Python
@@ -17,8 +17,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rrr_pin import paper_params
-from rrr_pin.compiled import _rollout, available, compile_robot, floor_ms
-from rrr_pin.controllers import (
+from rrr_pin.control.laws import (
     CompiledForm,
     ControlLaw,
     SampledLaw,
@@ -27,17 +26,19 @@ from rrr_pin.controllers import (
     hinf_fl_controller,
     pd_controller,
 )
-from rrr_pin.dynamics import load_robot, robot_from_xml
-from rrr_pin.references import (
+from rrr_pin.control.references import (
     LinePath,
     QuinticReference,
     SineReference,
     SplineReference,
+    default_reference,
     task_space_reference,
 )
-from rrr_pin.simulation import SimulationDiverged, simulate
-from rrr_pin.study import default_reference
-from rrr_pin.uncertainty import sample_plants
+from rrr_pin.model.dynamics import load_robot, robot_from_xml
+from rrr_pin.model.uncertainty import sample_plants
+from rrr_pin.sim.compiled import available, compile_robot, floor_ms
+from rrr_pin.sim.extension import EXTENSION
+from rrr_pin.sim.simulation import SimulationDiverged, simulate
 
 # The paper's H-infinity controller, eq. (18), typed from the paper (not from rrr_pin.design, so
 # these tests do not depend on the loop-shaping code).
@@ -291,15 +292,15 @@ def test_a_compiled_form_of_unknown_kind_is_refused(rrr, rrr_refs, rate):
 
 
 def test_extension_built_against_installed_pinocchio():
-    assert available(), "rrr_pin._rollout is not built: pip install ."
-    assert _rollout.pinocchio_version() == pin.__version__
+    assert available(), "rrr_pin.sim._rollout is not built: pip install ."
+    assert EXTENSION.pinocchio_version() == pin.__version__
 
 
 @pytest.mark.parametrize("name", ["rrr", "ur5"])
 def test_models_pass_exactly(name):
     robot = load_robot(name)
     text = robot.model.saveToString()
-    assert _rollout.CompiledModel(text).save() == text
+    assert EXTENSION.CompiledModel(text).save() == text
 
 
 def test_infinite_limits_pass_exactly(rrr):
@@ -308,7 +309,7 @@ def test_infinite_limits_pass_exactly(rrr):
     model.upperPositionLimit[:] = np.inf
     model.lowerPositionLimit[:] = -np.inf
     back = pin.Model()
-    back.loadFromString(_rollout.CompiledModel(model.saveToString()).save())
+    back.loadFromString(EXTENSION.CompiledModel(model.saveToString()).save())
     assert back == model
 
 
@@ -343,12 +344,12 @@ def test_floor_ms_bad_input(rrr, kwargs, match):
         floor_ms(rrr, rrr, n_steps=10, **kwargs)
 
 
-# --- plant effects (rrr_pin.effects) on both engines --------------------------------------------
+# --- plant effects (rrr_pin.control.effects) on both engines --------------------------------------------
 
 
 @pytest.mark.parametrize("law", ["fl", "hinf", "pd"])
 def test_engines_agree_with_every_plant_effect(rrr_plant, rrr_laws, rrr_refs, law):
-    from rrr_pin.effects import PlantEffects
+    from rrr_pin.control.effects import PlantEffects
 
     fx = PlantEffects(delay=1.5e-3, bandwidth=400.0, viscous=0.5, coulomb=[1.0, 2.0, 0.5],
                       torque_limit="urdf", noise_q=1e-4, noise_qd=1e-3, encoder_counts=2 ** 18,
@@ -361,7 +362,7 @@ def test_engines_agree_with_every_plant_effect(rrr_plant, rrr_laws, rrr_refs, la
 
 
 def test_engines_agree_when_a_delay_makes_the_loop_diverge(rrr, rrr_refs):
-    from rrr_pin.effects import PlantEffects
+    from rrr_pin.control.effects import PlantEffects
 
     # FL at lam = 100 has a delay margin of ~6 ms at 1 kHz; 12 ms drives it unstable.
     py, cc = run_both(rrr, fl_controller(rrr), rrr_refs["sine"], 2.0, rate=RATE, dt=5e-4,
@@ -379,7 +380,7 @@ def test_engines_agree_when_a_delay_makes_the_loop_diverge(rrr, rrr_refs):
 def test_engines_agree_with_each_plant_effect_alone(rrr_plant, rrr_laws, rrr_refs, effect):
     """Each effect on its own: the branches the all-effects run above skips (no actuator state,
     rigid joints, unsaturated torque, exact sensor) run on both engines."""
-    from rrr_pin.effects import PlantEffects
+    from rrr_pin.control.effects import PlantEffects
 
     kw = {"rate": RATE, "dt": 2.5e-4, "effects": PlantEffects(seed=5, **effect)}
     a = simulate(rrr_plant, rrr_laws["hinf"], rrr_refs["sine"], DURATION, engine="python", **kw)

@@ -18,14 +18,14 @@ from pathlib import Path
 
 import pytest
 
-from rrr_pin.executors import (
+from rrr_pin.campaign.executors import (
     SchedulerUnreachable,
     WorkersLost,
     check_jobs,
     interrupt_on_signals,
     run_tasks,
 )
-from rrr_pin.store import PARTS, CampaignStore
+from rrr_pin.campaign.store import PARTS, CampaignStore
 
 TESTS = Path(__file__).parent
 

@@ -1,13 +1,13 @@
-"""Tests of rrr_pin.gap: gap and nu-gap against MATLAB's examples, closed forms and a grid."""
+"""Tests of rrr_pin.robust.gap: gap and nu-gap against MATLAB's examples, closed forms and a grid."""
 
 import control
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.gap import directed_gap, gapmetric, nugap
-from rrr_pin.lti import DimensionMismatchError, NonFiniteSystemError, TimebaseMismatchError
-from rrr_pin.ncf import ncfmargin
+from rrr_pin.robust.gap import directed_gap, gapmetric, nugap
+from rrr_pin.robust.lti import DimensionMismatchError, NonFiniteSystemError, TimebaseMismatchError
+from rrr_pin.robust.ncf import ncfmargin
 
 s = control.tf("s")
 

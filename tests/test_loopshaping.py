@@ -1,4 +1,4 @@
-"""Tests of rrr_pin.loopshaping: barriers, plant, weights, ncfsyn, reduction, design, CLI."""
+"""Tests of rrr_pin.robust.loopshaping: barriers, plant, weights, ncfsyn, reduction, design, CLI."""
 
 import json
 
@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rrr_pin.cli import main
-from rrr_pin.loopshaping import (
+from rrr_pin.robust.loopshaping import (
     HiddenModeError,
     SynthesisError,
     WeightError,
@@ -25,9 +25,9 @@ from rrr_pin.loopshaping import (
     shaped_plant,
     zpk_data,
 )
-from rrr_pin.lti import DimensionMismatchError, ImproperSystemError, TimebaseMismatchError
-from rrr_pin.ncf import ncfmargin
-from rrr_pin.robustness import ncf_loop
+from rrr_pin.robust.lti import DimensionMismatchError, ImproperSystemError, TimebaseMismatchError
+from rrr_pin.robust.ncf import ncfmargin
+from rrr_pin.robust.robustness import ncf_loop
 
 OMEGA = np.logspace(-2, 4, 61)
 

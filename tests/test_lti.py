@@ -1,12 +1,12 @@
-"""Tests of rrr_pin.lti: input validation before any conversion, timebases, bilinear maps."""
+"""Tests of rrr_pin.robust.lti: input validation before any conversion, timebases, bilinear maps."""
 
 import control
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.loopshaping import design, ncfsyn
-from rrr_pin.lti import (
+from rrr_pin.robust.loopshaping import design, ncfsyn
+from rrr_pin.robust.lti import (
     DimensionMismatchError,
     IllPosedLoopError,
     ImproperSystemError,
@@ -17,7 +17,7 @@ from rrr_pin.lti import (
     to_continuous,
     to_discrete,
 )
-from rrr_pin.ncf import ncfmargin
+from rrr_pin.robust.ncf import ncfmargin
 
 
 @pytest.mark.parametrize(("sys", "err", "match"), [

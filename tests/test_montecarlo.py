@@ -4,12 +4,12 @@ import json
 import numpy as np
 import pytest
 
-import rrr_pin.montecarlo as mc
+import rrr_pin.campaign.montecarlo as mc
 from rrr_pin import cli
-from rrr_pin.dynamics import load_robot
-from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.simulation import SimulationDiverged
-from rrr_pin.study import StudyConfig, run_study
+from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.campaign.study import StudyConfig, run_study
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.sim.simulation import SimulationDiverged
 
 RUN = RunSettings(duration=0.3, rate=1000.0, engine="python")
 SETTINGS = mc.CampaignSettings(samples=4, run=RUN)
@@ -55,7 +55,7 @@ def test_rows_agree_with_the_study(setup, serial):
 
 def test_diverged_sample_is_recorded_and_campaign_goes_on(setup, monkeypatch):
     robot, laws = setup
-    import rrr_pin.runner as runner
+    import rrr_pin.campaign.runner as runner
 
     real = runner.simulate
 
@@ -181,8 +181,8 @@ def test_resume_with_other_settings_is_refused(tmp_path, capsys):
 
 def test_certificate_column_matches_the_study(setup):
     # The campaign's sample k is the study's sample k: the same plant gets the same certificate.
-    from rrr_pin.certificates import CertificateSpec
-    from rrr_pin.loopshaping import design
+    from rrr_pin.robust.certificates import CertificateSpec
+    from rrr_pin.robust.loopshaping import design
 
     robot, laws = setup
     spec = CertificateSpec.from_design(design(n=3), points=3)

@@ -1,12 +1,12 @@
-"""Tests of rrr_pin.ncf: ncfmargin (MATLAB examples, closed forms) and discrete ncfsyn (Octave)."""
+"""Tests of rrr_pin.robust.ncf: ncfmargin (MATLAB examples, closed forms) and discrete ncfsyn (Octave)."""
 
 import control
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.ncf import graph_symbols, ncfmargin, ncfsyn
-from rrr_pin.robustness import ncf_loop
+from rrr_pin.robust.ncf import graph_symbols, ncfmargin, ncfsyn
+from rrr_pin.robust.robustness import ncf_loop
 
 s = control.tf("s")
 

@@ -1,13 +1,13 @@
-"""Tests of rrr_pin.reduction: NCF balanced truncation and the nu-gap reduction guarantee."""
+"""Tests of rrr_pin.robust.reduction: NCF balanced truncation and the nu-gap reduction guarantee."""
 
 import control
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.loopshaping import design, fl_plant, zpk_data
-from rrr_pin.ncf import ncfmargin, ncfsyn
-from rrr_pin.reduction import ncf_reduce, reduction_guarantee
+from rrr_pin.robust.loopshaping import design, fl_plant, zpk_data
+from rrr_pin.robust.ncf import ncfmargin, ncfsyn
+from rrr_pin.robust.reduction import ncf_reduce, reduction_guarantee
 
 
 @pytest.fixture(scope="module")

@@ -3,8 +3,7 @@ import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.dynamics import load_robot
-from rrr_pin.references import (
+from rrr_pin.control.references import (
     CirclePath,
     IKError,
     LinePath,
@@ -13,6 +12,7 @@ from rrr_pin.references import (
     SplineReference,
     task_space_reference,
 )
+from rrr_pin.model.dynamics import load_robot
 
 
 @pytest.fixture(scope="module")

@@ -1,8 +1,8 @@
-"""rrr_pin.report_html: one self-contained report.html, its size bound, and a real browser.
+"""rrr_pin.report.html: one self-contained report.html, its size bound, and a real browser.
 
 The browser test opens the report from disk in headless Chromium (Debian's ``chromium`` and
 ``chromium-driver``, driven by selenium), waits for the MeshCat scene, and checks that the
-nominal arm is drawn where DH forward kinematics (``rrr_pin.dh``, independent of Pinocchio and
+nominal arm is drawn where DH forward kinematics (``rrr_pin.model.dh``, independent of Pinocchio and
 of the viewer) projected through the scene's camera puts it, at two instants of the animation,
 and that the console shows no error. With ``RRR_PIN_REPORT_SCREENSHOT=path.png`` set it also
 saves a screenshot of the report there (``docs/figures/report.png`` is made that way).
@@ -21,16 +21,16 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from rrr_pin.dh import forward_kinematics, paper_params
-from rrr_pin.dynamics import load_robot
-from rrr_pin.report_html import (
+from rrr_pin.model.dh import forward_kinematics, paper_params
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.report.html import (
     REPORT_MAX_BYTES,
     OutputNotWritableError,
     check_writable,
     report_html,
     write_report_html,
 )
-from rrr_pin.viewer import CAMERA_FOV, Scene, Track, ViewerSizeError, camera_view
+from rrr_pin.report.viewer import CAMERA_FOV, Scene, Track, ViewerSizeError, camera_view
 
 TABLE_MD = """| Controller | RMS error [rad] |
 |---|---|

@@ -1,4 +1,4 @@
-"""Reuse of a run's preparation across runs (rrr_pin.simulation.reuse_preparation).
+"""Reuse of a run's preparation across runs (rrr_pin.sim.simulation.reuse_preparation).
 
 A campaign samples the reference and discretizes the laws once per chunk instead of once per
 run; the runs must not change by a single bit. The reference here is the same run made with no
@@ -9,14 +9,13 @@ import numpy as np
 import pytest
 
 import rrr_pin
-from rrr_pin import simulation
-from rrr_pin.compiled import available
-from rrr_pin.dynamics import robot_from_xml
-from rrr_pin.references import QuinticReference
-from rrr_pin.runner import RunSettings, make_laws, run_laws
-from rrr_pin.simulation import reuse_preparation, simulate
-from rrr_pin.study import default_reference
-from rrr_pin.uncertainty import sample_plant
+from rrr_pin.campaign.runner import RunSettings, make_laws, run_laws
+from rrr_pin.control.references import QuinticReference, default_reference
+from rrr_pin.model.dynamics import robot_from_xml
+from rrr_pin.model.uncertainty import sample_plant
+from rrr_pin.sim import simulation
+from rrr_pin.sim.compiled import available
+from rrr_pin.sim.simulation import reuse_preparation, simulate
 
 DURATION = 0.3  # s: long enough for the H-inf state and the FL loop to move the plant
 

@@ -10,12 +10,14 @@ import yourdfpy
 from numpy.testing import assert_allclose
 
 from rrr_pin import cli
-from rrr_pin.controllers import fl_controller, hinf_fl_controller
-from rrr_pin.dynamics import RobotModelError, _erd_urdf_path, load_robot
-from rrr_pin.loopshaping import design
-from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.simulation import simulate
-from rrr_pin.study import StudyConfig, default_reference, run_study
+from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.campaign.study import StudyConfig, run_study
+from rrr_pin.control.laws import fl_controller, hinf_fl_controller
+from rrr_pin.control.references import default_reference
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.robots import RobotModelError, erd_urdf_path
+from rrr_pin.robust.loopshaping import design
+from rrr_pin.sim.simulation import simulate
 
 PANDA_LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 ARMS = [("ur5", {}), ("panda", PANDA_LOCK)]
@@ -30,7 +32,7 @@ def arm(request):
 def test_pinocchio_fk_equals_yourdfpy(arm):
     # Two independent URDF parsers and kinematics codes must place every link alike.
     name, lock, robot = arm
-    ref = yourdfpy.URDF.load(str(_erd_urdf_path(name)), load_meshes=False,
+    ref = yourdfpy.URDF.load(str(erd_urdf_path(name)), load_meshes=False,
                              build_collision_scene_graph=False, load_collision_meshes=False,
                              filename_handler=yourdfpy.filename_handler_null)
     rng = np.random.default_rng(11)
@@ -84,7 +86,7 @@ def test_continuous_joints_are_unbounded_angles():
 def test_ur3_is_not_ur5():
     # example-robot-data 5.0 maps "ur3" to the UR5's loader; we load the UR3's own URDF.
     ur3, ur5 = load_robot("ur3"), load_robot("ur5")
-    assert "ur3" in Path(_erd_urdf_path("ur3")).name
+    assert "ur3" in Path(erd_urdf_path("ur3")).name
     assert sum(i.mass for i in ur3.model.inertias) < sum(i.mass for i in ur5.model.inertias)
 
 

@@ -1,17 +1,17 @@
-"""Tests of rrr_pin.robustness: H-inf norm, NCF index, barrier checks (paper sec. 4.4)."""
+"""Tests of rrr_pin.robust.robustness: H-inf norm, NCF index, barrier checks (paper sec. 4.4)."""
 
 import control
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.loopshaping import (
+from rrr_pin.robust.loopshaping import (
     expand_diagonal,
     fl_plant,
     robust_performance_barrier,
     robust_stability_barrier,
 )
-from rrr_pin.robustness import (
+from rrr_pin.robust.robustness import (
     check_robust_performance,
     check_robust_stability,
     hinf_norm,
@@ -111,7 +111,7 @@ def test_paper_verdicts_against_eq18():
 
 
 def test_paper_design_checks_match_eq18():
-    from rrr_pin.loopshaping import design
+    from rrr_pin.robust.loopshaping import design
 
     d = design()
     G, K = fl_plant(45.0, 3), expand_diagonal(K_EQ18, 3)

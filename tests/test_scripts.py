@@ -9,7 +9,7 @@ import pytest
 
 # Imported here, not first under capsys: in an editable install, loading the extension may run
 # the rebuild hook, which hands sys.stdout to a subprocess (capsys's stream has no fileno).
-import rrr_pin.compiled  # noqa: F401
+import rrr_pin.sim.compiled  # noqa: F401
 
 SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
 

@@ -3,13 +3,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.controllers import TrackingController, fl_controller, hinf_fl_controller
-from rrr_pin.dh import ArmParams, paper_params
-from rrr_pin.dynamics import load_robot
-from rrr_pin.references import SineReference
-from rrr_pin.simulation import SimulationDiverged, metrics, simulate
-from rrr_pin.study import default_reference
-from rrr_pin.uncertainty import sample_plants
+from rrr_pin.control.laws import TrackingController, fl_controller, hinf_fl_controller
+from rrr_pin.control.references import SineReference, default_reference
+from rrr_pin.model.dh import ArmParams, paper_params
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.uncertainty import sample_plants
+from rrr_pin.sim.simulation import SimulationDiverged, metrics, simulate
 
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
                  [1.0, 513.37 + 0.19, 513.37 * 0.19])
@@ -130,7 +129,7 @@ def test_package_function_is_not_shadowed_by_a_module():
     # rrr_pin.simulate is the function even after every submodule has been imported (a
     # submodule of the same name would replace it on the package).
     import rrr_pin
-    import rrr_pin.runner  # noqa: F401
-    import rrr_pin.study  # noqa: F401
+    import rrr_pin.campaign.runner  # noqa: F401
+    import rrr_pin.campaign.study  # noqa: F401
 
-    assert callable(rrr_pin.simulate) and rrr_pin.simulate.__module__ == "rrr_pin.simulation"
+    assert callable(rrr_pin.simulate) and rrr_pin.simulate.__module__ == "rrr_pin.sim.simulation"

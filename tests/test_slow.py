@@ -3,9 +3,9 @@
 import pytest
 
 from rrr_pin import cli
-from rrr_pin.dynamics import load_robot
-from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.study import StudyConfig, run_study
+from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.campaign.study import StudyConfig, run_study
+from rrr_pin.model.dynamics import load_robot
 
 pytestmark = pytest.mark.slow
 

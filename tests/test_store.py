@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from rrr_pin.store import (
+from rrr_pin.campaign.store import (
     MANIFEST,
     PARTS,
     CampaignStore,

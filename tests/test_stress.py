@@ -1,4 +1,4 @@
-"""Breaking points (rrr_pin.stress): linear predictions against closed forms, the nonlinear
+"""Breaking points (rrr_pin.campaign.stress): linear predictions against closed forms, the nonlinear
 boundary against the linear prediction on the nominal RRR, the CLI."""
 
 import json
@@ -8,11 +8,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.cli import main
-from rrr_pin.controllers import ControlLaw, fl_controller
-from rrr_pin.dynamics import load_robot
-from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.stress import (
+from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.campaign.stress import (
     StressSettings,
     _rms,
     barrier_guarantee,
@@ -22,7 +19,10 @@ from rrr_pin.stress import (
     linear_boundary,
     stress,
 )
-from rrr_pin.study import default_reference
+from rrr_pin.cli import main
+from rrr_pin.control.laws import ControlLaw, fl_controller
+from rrr_pin.control.references import default_reference
+from rrr_pin.model.dynamics import load_robot
 
 
 @pytest.fixture(scope="module")

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.controllers import ControlLaw, fl_controller, hinf_fl_controller, pd_controller
-from rrr_pin.dynamics import load_robot
-from rrr_pin.runner import RunSettings, make_laws
-from rrr_pin.study import StudyConfig, run_study
+from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.campaign.study import StudyConfig, run_study
+from rrr_pin.control.laws import ControlLaw, fl_controller, hinf_fl_controller, pd_controller
+from rrr_pin.model.dynamics import load_robot
 
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
                  [1.0, 513.37 + 0.19, 513.37 * 0.19])
@@ -119,8 +119,8 @@ def test_unknown_controller_name(robot):
 def test_certificates_beside_the_simulated_outcome(robot):
     # Each uncertain plant gets a frozen-configuration certificate: nu-gap < b(Gs, Ks) = 1/gamma
     # of the ncfsyn design (b = 1/gamma is checked independently in tests/test_ncf.py).
-    from rrr_pin.certificates import CertificateSpec
-    from rrr_pin.loopshaping import design
+    from rrr_pin.robust.certificates import CertificateSpec
+    from rrr_pin.robust.loopshaping import design
 
     d = design(n=3)
     spec = CertificateSpec.from_design(d, points=3)
@@ -136,7 +136,7 @@ def test_certificates_beside_the_simulated_outcome(robot):
 
 
 def test_report_gives_no_verdict_from_a_non_finite_ratio(robot):
-    from rrr_pin.report import results_markdown
+    from rrr_pin.report.results import results_markdown
 
     laws = [fl_controller(robot), hinf_fl_controller(robot, K18)]
     result = run_study(robot, laws, config=_config(samples=1, jobs=1))
@@ -155,7 +155,7 @@ def test_report_gives_no_verdict_from_a_non_finite_ratio(robot):
 
 def test_paper_claims_only_for_the_builtin_laws(robot):
     # A user's law named "hinf" is not the paper's H-infinity + FL: no paper verdict on it.
-    from rrr_pin.report import results_markdown
+    from rrr_pin.report.results import results_markdown
 
     class Mine(ControlLaw):
         name, label, n = "hinf", "my law", 3
@@ -173,8 +173,8 @@ def test_paper_claims_only_for_the_builtin_laws(robot):
 def test_nominal_verdict_scale_for_a_closed_path(robot):
     # A spline that returns to its start: the scale is half its peak-to-peak range, so the
     # exact-model errors (~1e-9 rad) count as equivalent, not "differs".
-    from rrr_pin.references import SplineReference
-    from rrr_pin.report import results_markdown
+    from rrr_pin.control.references import SplineReference
+    from rrr_pin.report.results import results_markdown
 
     ref = SplineReference([0.0, 0.25, 0.5], [[0, 0, 0], [0.3, -0.2, 0.2], [0, 0, 0]])
     result = run_study(robot, make_laws("fl,hinf", robot, K=K18),

@@ -3,9 +3,9 @@ import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.dh import ArmParams, forward_kinematics, paper_params
-from rrr_pin.dynamics import load_robot
-from rrr_pin.uncertainty import Tolerances, perturb_inertia, perturb_urdf, sample_plants
+from rrr_pin.model.dh import ArmParams, forward_kinematics, paper_params
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.uncertainty import Tolerances, perturb_inertia, perturb_urdf, sample_plants
 
 
 def test_same_seed_same_plants():

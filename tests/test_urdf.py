@@ -6,9 +6,9 @@ import yourdfpy
 from numpy.testing import assert_allclose
 
 from rrr_pin import cli
-from rrr_pin.dh import forward_kinematics, paper_params
-from rrr_pin.dynamics import load_robot
-from rrr_pin.urdf import urdf_from_params
+from rrr_pin.model.dh import forward_kinematics, paper_params
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.urdf import urdf_from_params
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = ROOT / "urdf" / "rrr.urdf"

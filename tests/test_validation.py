@@ -15,10 +15,11 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rrr_pin import cli
-from rrr_pin.dh import INERTIA_RTOL, ArmParams, check_inertial, paper_params
-from rrr_pin.dynamics import RobotModelError, check_urdf_inertials, load_robot
-from rrr_pin.uncertainty import perturb_inertia, perturb_urdf
-from rrr_pin.urdf import urdf_from_params
+from rrr_pin.model.dh import INERTIA_RTOL, ArmParams, check_inertial, paper_params
+from rrr_pin.model.dynamics import check_urdf_inertials, load_robot
+from rrr_pin.model.robots import RobotModelError
+from rrr_pin.model.uncertainty import perturb_inertia, perturb_urdf
+from rrr_pin.model.urdf import urdf_from_params
 
 # --- a valid two-joint arm, and one defect at a time ------------------------------------------
 
@@ -287,7 +288,7 @@ def test_check_dynamics_bad_options(capsys, args, match):
 ], ids=["samples-inf", "samples-nan", "samples-str", "samples-bool", "seed-nan"])
 def test_compare_with_pinocchio_refuses_non_integers(kwargs, match):
     # int(inf) would raise OverflowError and int(nan) a message naming nothing.
-    from rrr_pin.closed_form import compare_with_pinocchio
+    from rrr_pin.model.closed_form import compare_with_pinocchio
 
     params = paper_params()
     with pytest.raises(ValueError, match=match):

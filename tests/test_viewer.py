@@ -1,4 +1,4 @@
-"""rrr_pin.viewer: tracks and scenes, geometry (URDF shapes, meshes, missing meshes), the
+"""rrr_pin.report.viewer: tracks and scenes, geometry (URDF shapes, meshes, missing meshes), the
 recorded MeshCat animation checked against DH forward kinematics, the byte budget."""
 
 import warnings
@@ -10,9 +10,9 @@ import pytest
 import umsgpack
 from numpy.testing import assert_allclose
 
-from rrr_pin.dh import forward_kinematics, paper_params
-from rrr_pin.dynamics import load_robot
-from rrr_pin.viewer import (
+from rrr_pin.model.dh import forward_kinematics, paper_params
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.report.viewer import (
     Scene,
     Track,
     ViewerSizeError,

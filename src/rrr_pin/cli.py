@@ -52,8 +52,8 @@ def _add_urdf(sub) -> None:
 
 
 def _cmd_urdf(args) -> int:
-    from .dh import ArmParams, paper_params
-    from .urdf import check_urdf, urdf_from_params, write_urdf
+    from .model.dh import ArmParams, paper_params
+    from .model.urdf import check_urdf, urdf_from_params, write_urdf
 
     params = ArmParams.load(args.params) if args.params else paper_params()
     if args.check:
@@ -107,9 +107,9 @@ def _add_check_dynamics(sub) -> None:
 
 
 def _cmd_check_dynamics(args) -> int:
-    from .closed_form import compare_with_pinocchio
-    from .dh import ArmParams, paper_params
-    from .dynamics import load_robot
+    from .model.closed_form import compare_with_pinocchio
+    from .model.dh import ArmParams, paper_params
+    from .model.dynamics import load_robot
 
     if not (math.isfinite(args.rtol) and args.rtol >= 0.0):
         raise ValueError(f"--rtol must be a finite number >= 0, got {args.rtol!r}")
@@ -143,7 +143,7 @@ def _cmd_check_dynamics(args) -> int:
 
 def _zpk(K) -> dict:
     """SISO controller as JSON: gain and zeros, poles as [real, imaginary] pairs [rad/s]."""
-    from .loopshaping import zpk_data
+    from .robust.loopshaping import zpk_data
 
     k, z, p = zpk_data(K)
     return {"gain": k, "zeros": [[float(v.real), float(v.imag)] for v in z],
@@ -167,12 +167,12 @@ def _add_design(sub) -> None:
 def _cmd_design(args) -> int:
     import json
 
-    from .loopshaping import design
+    from .robust.loopshaping import design
 
     d = design(lam=args.lam, n=args.joints, factor=args.factor)
     figures = []
     if args.out is not None:
-        from .plotting import save_design_figures
+        from .report.plotting import save_design_figures
 
         figures = [str(f) for f in save_design_figures(d, args.out)]
     out = {
@@ -305,7 +305,7 @@ def _add_robot_arguments(p) -> None:
 
 
 def _add_law_arguments(p, default_duration: float, default_rate) -> None:
-    from .catalog import BUILTIN_LAWS
+    from .control.catalog import BUILTIN_LAWS
 
     p.add_argument("--controllers", default="fl,hinf", metavar="NAMES",
                    help="comma-separated built-in controllers to compare: "
@@ -332,7 +332,7 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the uncertain plants (0)")
     p.add_argument("--delay", type=float, default=None, metavar="S",
                    help="plant effect: actuator transport delay [s] (sampled controllers; "
-                        "rounded to the plant sub-step, see rrr_pin.effects)")
+                        "rounded to the plant sub-step, see rrr_pin.control.effects)")
     p.add_argument("--actuator-bandwidth", type=float, default=None, metavar="RAD_S",
                    help="plant effect: first-order actuator wa/(s + wa), wa [rad/s] "
                         "(sampled controllers)")
@@ -366,14 +366,14 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
 def _reference_from_args(args, robot):
     import numpy as np
 
-    from .references import (
+    from .control.references import (
         CirclePath,
         LinePath,
         QuinticReference,
         SplineReference,
+        default_reference,
         task_space_reference,
     )
-    from .study import default_reference
 
     n = robot.nq
     home = _floats(args.home, "--home", n)
@@ -414,7 +414,7 @@ def _reference_from_args(args, robot):
 
 
 def _settings_from_args(args, n):
-    from .runner import RunSettings
+    from .campaign.runner import RunSettings
 
     _positive("--duration", args.duration)
     _positive("--dt", args.dt)
@@ -429,7 +429,7 @@ def _settings_from_args(args, n):
     wa = _positive("--actuator-bandwidth", getattr(args, "actuator_bandwidth", None))
     effects = None
     if delay or wa is not None:
-        from .effects import PlantEffects
+        from .control.effects import PlantEffects
 
         if args.rate is None:
             raise ValueError("--delay and --actuator-bandwidth act on sampled controllers: "
@@ -441,7 +441,7 @@ def _settings_from_args(args, n):
 
 
 def _laws_from_args(args, robot, K=None):
-    from .runner import make_laws
+    from .campaign.runner import make_laws
 
     laws = make_laws(args.controllers, robot, K=K)
     baseline = args.baseline or laws[0].name
@@ -476,12 +476,12 @@ def _cmd_reproduce(args) -> int:
 
     from tqdm import tqdm
 
-    from .dynamics import load_robot
-    from .loopshaping import design
-    from .plotting import plot_study_nominal, plot_study_uncertain, save_design_figures
-    from .report import write_results
-    from .report_html import check_writable
-    from .study import StudyConfig, run_study
+    from .campaign.study import StudyConfig, run_study
+    from .model.dynamics import load_robot
+    from .report.html import check_writable
+    from .report.plotting import plot_study_nominal, plot_study_uncertain, save_design_figures
+    from .report.results import write_results
+    from .robust.loopshaping import design
 
     out = Path(args.out)
     # Creates the folder and writes a probe file in it: a file at --out, a missing permission
@@ -507,10 +507,10 @@ def _cmd_reproduce(args) -> int:
 
     params = None
     if args.robot == "rrr" and not lock:
-        from .dh import paper_params
+        from .model.dh import paper_params
 
         params = paper_params()
-    from .certificates import CertificateSpec
+    from .robust.certificates import CertificateSpec
 
     certificate = None if args.no_certify else CertificateSpec.from_design(
         d, reduced=not args.full_order)
@@ -530,7 +530,7 @@ def _cmd_reproduce(args) -> int:
                 plot_study_uncertain(result, out / "fig6_uncertain.png")]
     certified = [x for x in result.samples if "certificate" in x]
     if certified:
-        from .plotting import plot_certificates
+        from .report.plotting import plot_certificates
 
         figures.append(plot_certificates(
             [x["certificate"]["nugap_max"] for x in certified],
@@ -563,7 +563,7 @@ def _write_campaign_report(campaign, summary, out, store):
     """Write ``report.html`` of a campaign: summary table and figure (no trajectories kept)."""
     from pathlib import Path
 
-    from .report_html import write_report_html
+    from .report.html import write_report_html
 
     lines = ["| metric | median | 95th percentile | worst | samples |", "|---|---|---|---|---|"]
     for name in campaign.names:
@@ -587,10 +587,10 @@ def _write_study_report(result, out, figures, design_info, robot):
 
     The nominal plant is opaque, the uncertain plants are translucent ghosts.
     """
-    from .dynamics import robot_from_xml
-    from .report import results_markdown
-    from .report_html import write_report_html
-    from .viewer import Scene, Track
+    from .model.dynamics import robot_from_xml
+    from .report.html import write_report_html
+    from .report.results import results_markdown
+    from .report.viewer import Scene, Track
 
     scenes = []
     for name in result.names:
@@ -651,9 +651,10 @@ def _cmd_montecarlo(args) -> int:
 
     from tqdm import tqdm
 
-    from .dynamics import load_robot
-    from .executors import CampaignInterrupted, WorkersLost
-    from .montecarlo import CampaignSettings, open_store, run_campaign, write_campaign
+    from .campaign.executors import CampaignInterrupted, WorkersLost
+    from .campaign.montecarlo import CampaignSettings, open_store, run_campaign
+    from .model.dynamics import load_robot
+    from .report.campaign import write_campaign
 
     _check_out_dir(args.out)
     if args.samples < 1:
@@ -667,8 +668,8 @@ def _cmd_montecarlo(args) -> int:
                                 baseline=baseline)
     certificate = None
     if args.certify:
-        from .certificates import CertificateSpec
-        from .loopshaping import design
+        from .robust.certificates import CertificateSpec
+        from .robust.loopshaping import design
 
         certificate = CertificateSpec.from_design(design(lam=45.0, n=robot.nq))
     store = open_store(args.out, robot, laws, settings, reference, resume=args.resume,
@@ -695,7 +696,7 @@ def _cmd_montecarlo(args) -> int:
         s = write_campaign(campaign, args.out, store=store)
         certs = [r for r in campaign.rows if "certified" in r]
         if certs:
-            from .plotting import plot_certificates
+            from .report.plotting import plot_certificates
 
             plot_certificates([r["nugap_max"] for r in certs], certificate.margin(robot.nq),
                               [r["status"] == "ok" for r in certs],
@@ -728,7 +729,7 @@ def _cmd_montecarlo(args) -> int:
 # --- stress (unmodeled dynamics: breaking points) ---------------------------------------------
 
 def _add_stress(sub) -> None:
-    from .catalog import DEFAULT_BUDGET, EFFECTS
+    from .control.catalog import DEFAULT_BUDGET, EFFECTS
 
     p = sub.add_parser(
         "stress", help="where each controller breaks under an unmodeled effect",
@@ -764,10 +765,11 @@ def _cmd_stress(args) -> int:
     import time
     from pathlib import Path
 
-    from .dynamics import load_robot
-    from .runner import RunSettings, make_laws
-    from .stress import EFFECTS, StressSettings, plot_stress, stress
-    from .study import default_reference
+    from .campaign.runner import RunSettings, make_laws
+    from .campaign.stress import EFFECTS, StressSettings, stress
+    from .control.references import default_reference
+    from .model.dynamics import load_robot
+    from .report.plotting import plot_stress
 
     if args.effect not in EFFECTS:
         raise ValueError(f"--effect {args.effect!r} is unknown; known effects: "

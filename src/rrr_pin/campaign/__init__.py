@@ -1,0 +1,11 @@
+"""Many runs: the runner, the paper's study, Monte Carlo campaigns, stress searches, storage.
+
+Holds :mod:`~rrr_pin.campaign.runner` (``RunSettings``, ``run_laws``: any laws on one plant),
+:mod:`~rrr_pin.campaign.study` (the section-5 study), :mod:`~rrr_pin.campaign.montecarlo`
+(campaigns of seeded plants), :mod:`~rrr_pin.campaign.stress` (breaking points of plant
+effects), :mod:`~rrr_pin.campaign.store` (append-only storage, resume) and
+:mod:`~rrr_pin.campaign.executors` (local processes or Dask). The study and the campaign are
+siblings on the runner: neither imports the other.
+
+Layer: above :mod:`rrr_pin.sim`. May import every layer below it, never :mod:`rrr_pin.report`.
+"""

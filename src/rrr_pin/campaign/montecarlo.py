@@ -1,0 +1,337 @@
+"""Monte Carlo robustness campaigns: thousands of seeded uncertain plants, any set of laws.
+
+Each sample ``k`` of a campaign with seed ``s`` is the plant
+:func:`rrr_pin.model.uncertainty.sample_plant` draws with ``default_rng([s, k])``; it is generated,
+simulated under every law (:func:`rrr_pin.campaign.runner.run_laws`) and reduced to figures inside the
+worker, so only a row of numbers travels back. Rows are put in sample order, so the results are
+identical whatever the number of workers or where they run.
+
+Workers: ``jobs`` local processes (:class:`concurrent.futures.ProcessPoolExecutor`) or a Dask
+distributed cluster (``scheduler="tcp://host:8786"``, through ``Client.get_executor()``, which
+is a ``concurrent.futures.Executor`` too): one code path, two executors.
+
+A sample where a law diverges is recorded with its status and parameters, with the figures of
+the laws that ran; the campaign goes on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import math
+from concurrent.futures import Executor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..control.references import Reference, default_reference
+from ..model.dh import ArmParams, paper_params
+from ..model.dynamics import robot_from_xml
+from ..model.uncertainty import Tolerances, sample_plant
+from ..sim.simulation import SimulationDiverged, reuse_preparation
+from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
+from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
+from .store import CampaignStore
+
+__all__ = ["Campaign", "CampaignSettings", "run_campaign", "campaign_summary",
+           "campaign_columns", "open_store", "store_settings", "OUTPUTS"]
+
+#: Final files of a campaign, rebuilt from the stored rows at the end of every run.
+OUTPUTS = ("campaign.csv", "samples.jsonl", "summary.json", "montecarlo.png", "report.html",
+           "certificates.png")
+
+
+@dataclass(frozen=True)
+class CampaignSettings:
+    """What a campaign computes (recorded whole in ``summary.json``).
+
+    Parameters
+    ----------
+    samples : int
+        Number of plants, >= 1.
+    seed : int, default 0
+        Campaign seed, >= 0.
+    run : RunSettings
+        How each run is simulated (default: 10 s, 1 kHz sampled laws).
+    tolerances : Tolerances
+        20 % inertia, 5 % lengths by default.
+    baseline : str, default "fl"
+        Law the others are compared with.
+    """
+
+    samples: int
+    seed: int = 0
+    run: RunSettings = field(default_factory=lambda: RunSettings(duration=10.0, rate=1000.0))
+    tolerances: Tolerances = field(default_factory=Tolerances)
+    baseline: str = "fl"
+
+    def __post_init__(self) -> None:
+        for key, low in (("samples", 1), ("seed", 0)):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+                raise ValueError(f"{key} must be an integer >= {low}, got {v!r}")
+
+    def to_dict(self) -> dict:
+        """JSON-ready settings."""
+        return {**self.run.to_dict(), "samples": int(self.samples), "seed": int(self.seed),
+                "tolerance_inertia": self.tolerances.inertia,
+                "tolerance_length": self.tolerances.length, "baseline": self.baseline}
+
+
+@dataclass
+class Campaign:
+    """Rows of a campaign, one per sample, in sample order.
+
+    Attributes
+    ----------
+    robot : str
+    joint_names : list of str
+    laws : list of dict
+        Each law's description (``name``, ``label``, ...), in order.
+    rows : list of dict
+        ``index``, ``seed``, ``status`` (``"ok"``, or which laws diverged and why),
+        ``parameters`` and, per law that ran, ``<law>_rms_error``, ``<law>_max_error`` [rad],
+        ``<law>_rms_torque`` [N m], ``<law>_rms_error_<joint>`` [rad]; per law other than the
+        baseline, ``error_ratio_<law>`` and ``torque_ratio_<law>``
+        (:func:`rrr_pin.campaign.runner.error_ratios`).
+    settings : dict
+        :meth:`CampaignSettings.to_dict` plus the reference.
+    """
+
+    robot: str
+    joint_names: list
+    laws: list
+    rows: list
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def names(self) -> list[str]:
+        """Law names, in order."""
+        return [d["name"] for d in self.laws]
+
+    @property
+    def baseline(self) -> str:
+        """Name of the baseline law."""
+        return self.settings["baseline"]
+
+
+def sample_row(job: dict, k: int) -> dict:
+    """Generate sample ``k``, run every law on it and reduce it to one row."""
+    settings: CampaignSettings = job["settings"]
+    sample = sample_plant(job["source"], settings.seed, k, settings.tolerances,
+                          skip_joints=job["skip_joints"])
+    row = {"index": k, "seed": sample.seed, "status": "ok", "parameters": sample.parameters}
+    plant = robot_from_xml(sample.urdf, gravity=job["gravity"], lock=job["lock"],
+                           name=f"sample{k:05d}", label=f"sample {k}")
+    runs = run_laws(plant, job["laws"], job["reference"], settings.run)
+    bad = [f"{name}: {v}" for name, v in runs.items() if isinstance(v, SimulationDiverged)]
+    if bad:
+        row["status"] = "diverged: " + "; ".join(bad)
+    figures = {name: run_metrics(t, job["joint_names"]) for name, t in runs.items()
+               if not isinstance(t, SimulationDiverged)}
+    for name, m in figures.items():
+        row.update({f"{name}_{key}": v for key, v in m.items()})
+    for name, r in error_ratios(figures, settings.baseline).items():
+        row[f"error_ratio_{name}"] = r["error_ratio"]
+        row[f"torque_ratio_{name}"] = r["torque_ratio"]
+    if job.get("certificate") is not None:
+        cert = job["certificate"].certify(job["nominal"], plant, job["reference"],
+                                          settings.run.duration)
+        row["certified"], row["nugap_max"] = cert["certified"], cert["nugap_max"]
+    return row
+
+
+def _run_chunk(task) -> list[dict]:
+    """Simulate the samples ``task[1]`` of campaign job ``task[0]`` (runs in a worker)."""
+    job, indices = task
+    # One reference and one set of laws for every sample: sample the reference and discretize
+    # the laws once per chunk (bit-identical to doing it per run).
+    with reuse_preparation():
+        return [sample_row(job, k) for k in indices]
+
+
+def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Reference | None = None,
+                 params: ArmParams | None = None, jobs: int | None = None,
+                 scheduler: str | None = None, executor: Executor | None = None,
+                 skip_joints=(), chunk: int | None = None, progress=None,
+                 store: CampaignStore | None = None, certificate=None) -> Campaign:
+    """Run every law on ``settings.samples`` seeded uncertain plants.
+
+    Parameters
+    ----------
+    robot : Robot
+        Nominal arm (the plants are drawn around it).
+    laws : sequence of ControlLaw or SampledLaw
+        Built-in (:func:`rrr_pin.campaign.runner.make_laws`) or your own; picklable (a worker process
+        receives them); the baseline among them.
+    settings : CampaignSettings
+    reference : Reference, optional
+        Default :func:`rrr_pin.control.references.default_reference`.
+    params : ArmParams, optional
+        Perturb this DH parameter set (the paper's RRR); default: perturb the URDF
+        (``paper_params()`` when ``robot`` is ``"rrr"``).
+    jobs : int, optional
+        Local worker processes, >= 1 (default ``min(2, CPUs)``); 1 runs in this process.
+    scheduler : str, optional
+        Address of a Dask distributed scheduler; the same tasks go there instead.
+    executor : concurrent.futures.Executor, optional
+        Any executor to use as is (overrides ``jobs`` and ``scheduler``).
+    skip_joints : iterable of str
+        Joints whose origins are not perturbed.
+    chunk : int, optional
+        Samples per task (default: about 8 tasks per worker, at most 20 samples).
+    progress : callable, optional
+        ``progress(done, total)`` after each finished chunk.
+    certificate : rrr_pin.robust.certificates.CertificateSpec, optional
+        Certify every plant (frozen-configuration nu-gap < b(Gs, Ks)) and add the columns
+        ``certified`` and ``nugap_max`` beside the simulated outcome (about 0.3 s per plant).
+    store : CampaignStore, optional
+        Append every finished chunk to this store (opened with :func:`open_store` before any
+        work) and compute only the samples it does not hold yet; the rows returned are the
+        store's, so a resumed campaign equals an uninterrupted one.
+
+    Returns
+    -------
+    Campaign
+
+    Raises
+    ------
+    CampaignInterrupted
+        Ctrl-C or SIGTERM; ``.done`` samples are finished (and on disk, with a store).
+    WorkersLost
+        Local worker processes died or no Dask worker was left; finished samples are kept.
+    SchedulerUnreachable
+        The Dask scheduler cannot be reached.
+    """
+    laws = check_laws(laws, robot.nq, settings.baseline)
+    reference = default_reference(robot) if reference is None else reference
+    reference.check_limits(robot, duration=settings.run.duration)
+    if params is None and robot.source == "rrr":
+        params = paper_params()
+    job = {
+        "settings": settings, "laws": laws, "reference": reference,
+        # The nominal arm the plants are drawn around: ArmParams or URDF text.
+        "source": params if params is not None else robot.urdf,
+        "gravity": robot.gravity, "lock": dict(robot.locked),
+        "skip_joints": tuple(skip_joints), "joint_names": list(robot.joint_names),
+        "certificate": certificate, "nominal": robot if certificate is not None else None,
+    }
+    samples = int(settings.samples)
+    jobs = check_jobs(jobs)
+    workers = jobs if executor is None and scheduler is None else 4
+    # About 8 tasks per worker, at most 20 samples (~2 s for the RRR at 10 s, 1 kHz): a task
+    # costs ~3 ms of set-up, while the last task of one worker leaves the other idle.
+    size = chunk or max(1, min(20, math.ceil(min(samples, 10**6) / (8 * workers))))
+    done = store.done() if store is not None else set()
+    todo = (k for k in range(samples) if k not in done)
+    tasks = ((job, list(block)) for block in iter(lambda: list(itertools.islice(todo, size)), []))
+    rows: list[dict] = []
+    finished = len(done)
+    where = f" and saved in {str(store.out)!r}; rerun with --resume" if store is not None else ""
+    try:
+        with interrupt_on_signals():
+            for _, chunk_rows in run_tasks(_run_chunk, tasks, jobs=jobs, scheduler=scheduler,
+                                           executor=executor):
+                if store is not None:
+                    store.append(chunk_rows)
+                else:
+                    rows.extend(chunk_rows)
+                finished += len(chunk_rows)
+                if progress:
+                    progress(finished, samples)
+    except KeyboardInterrupt as exc:
+        raise CampaignInterrupted(f"campaign interrupted ({exc or 'Ctrl-C'}): {finished} of "
+                                  f"{samples} samples done{where}", done=finished) from None
+    except CampaignInterrupted as exc:
+        raise type(exc)(f"{exc}; {finished} of {samples} samples done{where}",
+                        done=finished) from None
+    rows = store.rows() if store is not None else sorted(rows, key=lambda r: r["index"])
+    return Campaign(robot=robot.name, joint_names=list(robot.joint_names),
+                    laws=[law.describe() for law in laws], rows=rows,
+                    settings={**settings.to_dict(), "reference": reference.to_dict()})
+
+
+def _metrics(names, baseline):
+    """Per-sample scalar metrics and the direction that is "worst" for each."""
+    out = {}
+    for name in names:
+        out.update({f"{name}_rms_error": "max", f"{name}_max_error": "max",
+                    f"{name}_rms_torque": "max"})
+    for name in names:
+        if name != baseline:
+            out[f"error_ratio_{name}"] = "min"
+            out[f"torque_ratio_{name}"] = "max"
+    return out
+
+
+def campaign_columns(names, baseline, joint_names, certified: bool = False) -> list[str]:
+    """Columns of ``campaign.csv``, in order."""
+    columns = ["index", "seed", "status"] + (["certified", "nugap_max"] if certified else [])
+    columns += list(_metrics(names, baseline))
+    for name in names:
+        columns += [f"{name}_rms_error_{j}" for j in joint_names]
+    return columns
+
+
+def campaign_summary(campaign: Campaign) -> dict:
+    """Median, 95th percentile and worst of each metric over the samples where it exists.
+
+    Returns
+    -------
+    dict
+        ``samples``, ``samples_ok`` (every law ran), ``samples_diverged``, ``diverged`` (their
+        indices), ``baseline``, ``fraction_better`` (per law other than the baseline: share of
+        the samples where both ran in which the law's RMS error is smaller) and, per metric,
+        ``{median, p95, worst, count}`` ("worst" is the maximum, except for the error ratios,
+        where it is the minimum: the least benefit over the baseline).
+    """
+    rows, base = campaign.rows, campaign.baseline
+    ok = [r for r in rows if r["status"] == "ok"]
+    out = {"samples": len(rows), "samples_ok": len(ok), "samples_diverged": len(rows) - len(ok),
+           "diverged": [r["index"] for r in rows if r["status"] != "ok"], "baseline": base,
+           "fraction_better": {}}
+    for name in campaign.names:
+        key = f"error_ratio_{name}"
+        both = [r for r in rows if key in r]
+        if name != base and both:
+            out["fraction_better"][name] = float(np.mean([r[key] > 1.0 for r in both]))
+    for metric, worst in _metrics(campaign.names, base).items():
+        v = np.array([r[metric] for r in rows if metric in r])
+        if v.size:
+            out[metric] = {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)),
+                           "worst": float(v.max() if worst == "max" else v.min()),
+                           "count": int(v.size)}
+    certs = [r for r in rows if "certified" in r]
+    if certs:
+        out["certified"] = sum(1 for r in certs if r["certified"])
+        out["certified_and_ran"] = sum(1 for r in certs if r["certified"] and
+                                       r["status"] == "ok")
+        out["not_certified_but_ran"] = sum(1 for r in certs if not r["certified"] and
+                                           r["status"] == "ok")
+        out["nugap_max"] = max(r["nugap_max"] for r in certs)
+    return out
+
+
+def store_settings(robot, laws, settings: CampaignSettings, reference,
+                   certificate=None) -> dict:
+    """Everything that changes a row, JSON-ready: a resume must match it exactly."""
+    return {"robot": robot.name, "urdf_sha256": hashlib.sha256(robot.urdf.encode()).hexdigest(),
+            "locked": dict(robot.locked), "gravity": robot.gravity,
+            "controllers": [law.describe() for law in laws], **settings.to_dict(),
+            "reference": reference.to_dict(),
+            "certificate": certificate.to_dict() if certificate is not None else None}
+
+
+def open_store(out, robot, laws, settings: CampaignSettings, reference, *, resume: bool = False,
+               overwrite: bool = False, certificate=None) -> CampaignStore:
+    """Open the campaign store in ``out`` before any work (see :mod:`rrr_pin.campaign.store`).
+
+    Raises
+    ------
+    rrr_pin.campaign.store.StoreError
+        ``out`` not writable, not empty (without ``resume``/``overwrite``), or recorded with
+        other settings (``resume``).
+    """
+    return CampaignStore.open(out, settings=store_settings(robot, laws, settings, reference,
+                                                           certificate),
+                              resume=resume, overwrite=overwrite, outputs=OUTPUTS)

@@ -1,0 +1,266 @@
+"""The runner: any set of laws on one plant, the layer under the study and the campaign.
+
+:class:`RunSettings` (frozen, recorded whole in every output) says how a run is simulated;
+:func:`run_laws` runs every law of a list on one plant with one reference and returns each
+law's trajectory or its divergence; :func:`run_metrics` reduces a trajectory to the figures
+both the study and the Monte Carlo campaign report; :func:`error_ratios` compares every law with
+a named baseline. :mod:`rrr_pin.campaign.study` and :mod:`rrr_pin.campaign.montecarlo` sit side by side on this
+module and import nothing from each other.
+
+The built-in laws are made by name with :func:`make_laws` (``"fl"``, ``"hinf"``, ``"pd"``), so
+the CLI's ``--controllers fl,hinf,pd`` and Python callers build the same objects.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..control.catalog import BUILTIN_LAWS
+from ..control.effects import PlantEffects, check_effects
+from ..control.laws import (
+    ControlLaw,
+    SampledLaw,
+    check_law,
+    fl_controller,
+    hinf_fl_controller,
+    pd_controller,
+)
+from ..sim.simulation import (
+    DEFAULT_DT,
+    ENGINES,
+    SimulationDiverged,
+    Trajectory,
+    reuse_preparation,
+    simulate,
+)
+
+__all__ = [
+    "RunSettings",
+    "BUILTIN_LAWS",
+    "make_laws",
+    "check_laws",
+    "run_laws",
+    "run_metrics",
+    "error_ratios",
+]
+
+@dataclass(frozen=True)
+class RunSettings:
+    """How each closed-loop run is simulated (see :func:`rrr_pin.sim.simulation.simulate`).
+
+    Parameters
+    ----------
+    duration : float, default 4
+        Simulated time [s], > 0.
+    dt : float, default 1e-3
+        RK4 step [s] (plant sub-step for sampled laws), > 0.
+    rate : float, optional
+        Sampling rate of the laws [Hz]; None for continuous-time laws.
+    method : str, default "tustin"
+        Discretization of continuous laws' states when sampled.
+    engine : {"auto", "python", "compiled"}, default "auto"
+    limit_margin : float, default 0
+        Slack beyond the joint limits before a run counts as diverged [rad].
+    q0, qd0 : tuple of float, optional
+        Initial state [rad, rad/s]; default on the reference.
+    effects : PlantEffects, optional
+        Unmodeled plant dynamics (:mod:`rrr_pin.control.effects`); sampled laws only (``rate``).
+    """
+
+    duration: float = 4.0
+    dt: float = DEFAULT_DT
+    rate: float | None = None
+    method: str = "tustin"
+    engine: str = "auto"
+    limit_margin: float = 0.0
+    q0: tuple | None = None
+    qd0: tuple | None = None
+    effects: PlantEffects | None = None
+
+    def __post_init__(self) -> None:
+        for key in ("duration", "dt"):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+                    math.isfinite(v) and v > 0):
+                raise ValueError(f"{key} must be a finite number > 0 s, got {v!r}")
+        if self.rate is not None:
+            if isinstance(self.rate, bool) or not isinstance(self.rate, (int, float)) or not (
+                    math.isfinite(self.rate) and self.rate > 0):
+                raise ValueError(f"rate must be a finite number > 0 Hz or None, got "
+                                 f"{self.rate!r}")
+            if self.duration * self.rate < 1.0 - 1e-9:
+                raise ValueError(f"duration = {self.duration:g} s is shorter than one control "
+                                 f"period (1/rate = {1 / self.rate:g} s)")
+        elif self.duration < self.dt * (1.0 - 1e-9):
+            raise ValueError(f"duration = {self.duration:g} s is shorter than one RK4 step "
+                             f"(dt = {self.dt:g} s)")
+        if self.engine not in ENGINES:
+            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
+        lm = self.limit_margin
+        if not (isinstance(lm, (int, float)) and math.isfinite(lm) and lm >= 0):
+            raise ValueError(f"limit_margin must be a finite number >= 0 rad, got {lm!r}")
+        for key in ("q0", "qd0"):
+            v = getattr(self, key)
+            if v is not None:
+                arr = np.asarray(v, dtype=float)
+                if arr.ndim != 1 or not np.all(np.isfinite(arr)):
+                    raise ValueError(f"{key} must be a finite vector, got {v!r}")
+                object.__setattr__(self, key, tuple(float(x) for x in arr))
+        check_effects(self.effects)
+        if self.effects is not None and self.effects.active and self.rate is None:
+            raise ValueError("effects apply to sampled controllers only: give a rate")
+
+    def simulate_kwargs(self) -> dict:
+        """Keyword arguments of :func:`rrr_pin.sim.simulation.simulate`."""
+        return {"dt": self.dt, "rate": self.rate, "method": self.method, "engine": self.engine,
+                "limit_margin": self.limit_margin, "q0": self.q0, "qd0": self.qd0,
+                "effects": self.effects}
+
+    def to_dict(self) -> dict:
+        """JSON-ready settings (units in the key names)."""
+        d = asdict(self)
+        return {"duration_s": d["duration"], "dt_s": d["dt"], "rate_hz": d["rate"],
+                "method": d["method"], "engine": d["engine"],
+                "limit_margin_rad": d["limit_margin"],
+                "q0_rad": list(d["q0"]) if d["q0"] is not None else None,
+                "qd0_rad_s": list(d["qd0"]) if d["qd0"] is not None else None,
+                "effects": self.effects.to_dict() if self.effects is not None else None}
+
+
+def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
+              lam_hinf: float = 45.0) -> list:
+    """Build built-in laws by name, in the order given.
+
+    Parameters
+    ----------
+    names : str or sequence of str
+        Keys of :data:`BUILTIN_LAWS`, e.g. ``"fl,hinf,pd"`` or ``["fl", "hinf"]``.
+    nominal : Robot
+        The laws' model.
+    K : control LTI, optional
+        H-infinity controller for ``"hinf"``; default the paper's design for ``nominal.nq``
+        joints (``design(lam=lam_hinf).K_reduced``).
+    lam_fl, lam_hinf : float
+        Bandwidths [rad/s] of ``"fl"`` and ``"hinf"``.
+
+    Raises
+    ------
+    ValueError
+        An unknown or repeated name (the message lists the known ones).
+    """
+    if isinstance(names, str):
+        names = [s.strip() for s in names.split(",")]
+    names = list(names)
+    if not names or any(not s for s in names):
+        raise ValueError(f"controllers: expected comma-separated names from "
+                         f"{', '.join(BUILTIN_LAWS)}, got {names!r}")
+    laws = []
+    for name in names:
+        if name not in BUILTIN_LAWS:
+            raise ValueError(f"unknown controller {name!r}; built-in controllers: "
+                             f"{', '.join(f'{k} ({v})' for k, v in BUILTIN_LAWS.items())}")
+        if name == "fl":
+            laws.append(fl_controller(nominal, lam_fl))
+        elif name == "hinf":
+            if K is None:
+                from ..robust.loopshaping import design
+
+                K = design(lam=lam_hinf, n=nominal.nq).K_reduced
+            laws.append(hinf_fl_controller(nominal, K, lam_hinf))
+        else:
+            laws.append(pd_controller(nominal))
+    check_laws(laws, nominal.nq)
+    return laws
+
+
+def check_laws(laws, n: int, baseline: str | None = None) -> list:
+    """Check a list of laws for ``n`` joints: each valid, names unique, baseline among them."""
+    laws = list(laws)
+    if not laws:
+        raise ValueError("at least one control law is needed")
+    for law in laws:
+        check_law(law, n)
+    names = [law.name for law in laws]
+    dup = sorted({x for x in names if names.count(x) > 1})
+    if dup:
+        raise ValueError(f"control law names must be unique, repeated: {', '.join(dup)}")
+    if baseline is not None and baseline not in names:
+        raise ValueError(f"baseline {baseline!r} is not among the controllers "
+                         f"({', '.join(names)})")
+    return laws
+
+
+def run_laws(plant, laws, reference, settings: RunSettings) -> dict:
+    """Simulate every law on ``plant``.
+
+    Returns
+    -------
+    dict
+        By law name: its :class:`~rrr_pin.sim.simulation.Trajectory`, or the
+        :class:`~rrr_pin.sim.simulation.SimulationDiverged` it raised (other errors propagate).
+    """
+    out = {}
+    kwargs = settings.simulate_kwargs()
+    with reuse_preparation():  # the laws share the sampled reference (bit-identical)
+        for law in laws:
+            try:
+                out[law.name] = simulate(plant, law, reference, settings.duration, **kwargs)
+            except SimulationDiverged as exc:
+                out[law.name] = exc
+    return out
+
+
+def run_metrics(traj: Trajectory, joint_names) -> dict:
+    """Scalar figures of a run.
+
+    ``rms_error``, ``max_error`` [rad], ``rms_torque`` [N m] (over all joints and samples) and
+    ``rms_error_<joint>`` [rad] per joint.
+    """
+    e, tau = traj.error, traj.tau
+    out = {"rms_error": float(np.sqrt(np.mean(e * e))),
+           "max_error": float(np.max(np.abs(e))),
+           "rms_torque": float(np.sqrt(np.mean(tau * tau)))}
+    for name, v in zip(joint_names, np.sqrt(np.mean(e * e, axis=0)), strict=True):
+        out[f"rms_error_{name}"] = float(v)
+    return out
+
+
+def error_ratios(metrics_by_law: dict, baseline: str) -> dict:
+    """Compare each law with the baseline.
+
+    ``error_ratio`` = baseline RMS error / the law's (above 1: the law tracks better),
+    ``torque_ratio`` = the law's RMS torque / the baseline's.
+
+    Parameters
+    ----------
+    metrics_by_law : dict
+        ``{name: run_metrics(...)}`` of the laws that ran.
+    baseline : str
+
+    Returns
+    -------
+    dict
+        ``{name: {"error_ratio": float, "torque_ratio": float}}`` for every law but the
+        baseline; empty if the baseline did not run.
+    """
+    base = metrics_by_law.get(baseline)
+    if base is None:
+        return {}
+    out = {}
+    for name, m in metrics_by_law.items():
+        if name == baseline:
+            continue
+        out[name] = {"error_ratio": base["rms_error"] / m["rms_error"]
+                     if m["rms_error"] > 0 else math.inf,
+                     "torque_ratio": m["rms_torque"] / base["rms_torque"]
+                     if base["rms_torque"] > 0 else math.inf}
+    return out
+
+
+def law_kind(law) -> str:
+    """``"continuous"`` or ``"sampled"``."""
+    return "sampled" if isinstance(law, SampledLaw) else "continuous" if isinstance(
+        law, ControlLaw) else "unknown"

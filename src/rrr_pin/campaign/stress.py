@@ -1,0 +1,535 @@
+r"""Where each controller breaks: unmodeled dynamics, simulated, predicted and guaranteed.
+
+For one law and one effect of :mod:`rrr_pin.control.effects`, three numbers side by side:
+
+* **simulated** (:func:`breaking_point`): the effect's size at which the nonlinear closed loop
+  (sampled law, RK4 plant) stops working, by bisection: the largest delay, the smallest
+  actuator bandwidth, the smallest joint stiffness, the lowest torque limit, the largest
+  sensor noise for which the run neither diverges nor exceeds the RMS tracking-error
+  ``budget`` (default :data:`DEFAULT_BUDGET`);
+* **predicted** (:func:`linear_boundary`): the same boundary for the linear loop of the
+  design, broken at the torque input, analysed in discrete time at the law's rate (exact
+  zero-order-hold discretization with a fractional transport delay, Franklin, Powell &
+  Workman sec. 4.3.4), so that it describes the digital loop that is simulated. Per joint,
+  with the law's model exact, the FL laws see ``qdd = taubar`` (``M`` cancels):
+
+  .. math:: L(s) = \frac{2\lambda s + \lambda^2 (1 + K(s))}{s^2}
+
+  and PD + gravity at the home configuration ``q_h`` sees ``qdd = M(q_h)^{-1} tau``:
+  ``L(s) = M(q_h)^{-1} (K_d s + K_p) / s^2``, analysed with the full (coupled) ``M(q_h)``:
+  on the RRR at the sine's start the coupling of joints 2-3 makes one mode 1.7 times faster
+  than the per-joint ``K_p / M_jj`` suggests, and its delay margin 2.3 times smaller. The
+  continuous-time margins (delay margin
+  ``PM / w_c``; the Routh bound on ``wa``) are given too (``predicted_continuous``);
+* **guaranteed** (:func:`barrier_guarantee`): what the robust-stability barrier of eq. (12)-(13)
+  covers: the multiplicative error ``Delta`` of the effect stays below
+  ``|e_M(jw)| = 0.2 |jw / 200 + 1|`` at every frequency, for a delay
+  ``|e^{-jw tau} - 1| <= |e_M(jw)|`` and for an actuator ``|jw / (jw + wa)| <= |e_M(jw)|``. It
+  holds for a loop whose complementary sensitivity meets the barrier, ``|T| <= 1/|e_M|``
+  (``barrier_met``); ``None`` where no such bound applies (stiffness, torque limit, noise).
+
+References
+----------
+.. [1] The paper, eq. (12)-(13).
+.. [2] G. F. Franklin, J. D. Powell, M. Workman, *Digital Control of Dynamic Systems*, 3rd ed.,
+   1998, sec. 4.3.4.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from ..control.catalog import DEFAULT_BUDGET, EFFECTS
+from ..control.effects import PlantEffects
+from ..control.laws import PDGravity, TrackingController
+from ..robust.barriers import model_error_bound, robust_stability_barrier
+from ..robust.lti import static_gain
+from ..robust.robustness import check_robust_stability
+from ..sim.simulation import SimulationDiverged, simulate
+from .runner import RunSettings
+
+__all__ = ["EFFECTS", "DEFAULT_BUDGET", "StressSettings", "linear_boundary",
+           "continuous_boundary", "barrier_guarantee", "barrier_met", "breaking_point",
+           "stress", "effects_of", "spectral_radius", "loop_bandwidth"]
+
+# EFFECTS and DEFAULT_BUDGET live in rrr_pin.control.catalog: the CLI's help lists them without
+# importing this module's numerical dependencies.
+
+
+@dataclass(frozen=True)
+class StressSettings:
+    """How the breaking point is searched.
+
+    Parameters
+    ----------
+    run : RunSettings
+        Simulation of each run (at least; see ``cycles``): default 2 s, sampled at 1 kHz,
+        plant sub-step ``1e-4`` s (the
+        delay's resolution, see :mod:`rrr_pin.control.effects`), compiled engine where possible.
+    budget : float, default 0.05
+        RMS tracking error [rad] (over all joints and samples) above which the loop counts as
+        broken; a diverged run is broken too.
+    rtol : float, default 0.01
+        Bisection stops when the bracket is this narrow (relative).
+    sweep : int, default 6
+        Extra runs below the breaking point, for the error-against-size figure.
+    cycles : float, default 150
+        Each law runs at least ``cycles / w_b`` seconds, ``w_b`` its slowest closed-loop
+        natural frequency [rad/s] (``lam`` for the FL laws, the slowest mode of
+        ``M(q_h)^-1 K_p`` for PD): near the boundary an unstable mode grows at a rate
+        proportional to ``w_b``, so a slow loop needs a longer run to show it (the PD
+        baseline, 15.6 rad/s on the RRR, runs 9.6 s).
+    offset : float, default 0.01
+        Every run starts this far off the reference on every joint [rad] (``q0 = r(0) +
+        offset``, unless ``run.q0`` is given), so that an unstable loop has a mode to grow
+        from: started exactly on the reference, a slowly unstable loop (growth of a few 1/s
+        near the boundary) can stay under the budget for seconds and the search would report
+        a boundary beyond the true one. A stable loop forgets the offset within ~5 / lam.
+    """
+
+    run: RunSettings = field(default_factory=lambda: RunSettings(duration=2.0, dt=1e-4,
+                                                                 rate=1000.0))
+    budget: float = DEFAULT_BUDGET
+    rtol: float = 0.01
+    sweep: int = 6
+    offset: float = 0.01
+    cycles: float = 150.0
+
+    def __post_init__(self) -> None:
+        if self.run.rate is None:
+            raise ValueError("StressSettings.run.rate: effects need sampled laws (give a rate)")
+        if not (isinstance(self.offset, (int, float)) and math.isfinite(self.offset)
+                and self.offset >= 0):
+            raise ValueError(f"offset must be a finite number >= 0 rad, got {self.offset!r}")
+        for key in ("budget", "rtol"):
+            v = getattr(self, key)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{key} must be a finite number > 0, got {v!r}")
+        if not isinstance(self.sweep, int) or self.sweep < 0:
+            raise ValueError(f"sweep must be an integer >= 0, got {self.sweep!r}")
+
+
+def _check_effect(effect: str) -> str:
+    if effect not in EFFECTS:
+        raise ValueError(f"unknown effect {effect!r}; known: {', '.join(EFFECTS)}")
+    return effect
+
+
+def effects_of(effect: str, size: float, seed: int = 0) -> PlantEffects:
+    """Return the :class:`PlantEffects` of one effect at ``size`` (unit of :data:`EFFECTS`)."""
+    effect = _check_effect(effect)
+    if effect == "delay":
+        return PlantEffects(delay=size)
+    if effect == "actuator":
+        return PlantEffects(bandwidth=size)
+    if effect == "stiffness":
+        return PlantEffects(stiffness=size, motor_inertia=0.01)
+    if effect == "torque":
+        return PlantEffects(torque_limit=size)
+    return PlantEffects(noise_q=size, noise_qd=100.0 * size, seed=seed)
+
+
+# --- linear loop -------------------------------------------------------------------------------
+
+def _law_matrices(law, rate: float, home):
+    """Return the discrete law and the plant's ``M^-1``.
+
+    Law: ``u = Cc x + Dc [q; qd]``, ``x+ = Ac x + Bc [q; qd]``; ``M^-1`` (identity for the FL
+    laws, whose ``Mhat`` cancels ``M``), regulation (r = 0).
+    """
+    if isinstance(law, TrackingController):
+        n, lam = law.n, law.lam
+        Ad, Bd, Cd, Dd = law.discretize(rate)
+        eye = np.eye(n)
+        Dc = np.hstack([-lam * lam * (eye + Dd), -2.0 * lam * eye])
+        Cc = lam * lam * Cd
+        Bc = np.hstack([-Bd, np.zeros_like(Bd)])
+        return Ad, Bc, Cc, Dc, eye
+    if isinstance(law, PDGravity):
+        Minv = np.linalg.inv(law.nominal.M(home))
+        Dc = np.hstack([-law.Kp, -law.Kd])
+        return (np.zeros((0, 0)), np.zeros((0, 2 * law.n)), np.zeros((law.n, 0)), Dc,
+                Minv)
+    raise _no_linear_model(law)
+
+
+def _no_linear_model(law) -> TypeError:
+    """Return the refusal for a law with no linear model (``stress`` then predicts nothing)."""
+    return TypeError(f"no linear model of law {law.name!r} ({type(law).__name__}): the linear "
+                     f"prediction covers TrackingController and PDGravity laws")
+
+
+def _integrals(A, B, t):
+    """``(e^{A t}, int_0^t e^{A s} ds B)``."""
+    n, m = A.shape[0], B.shape[1]
+    blk = np.zeros((n + m, n + m))
+    blk[:n, :n], blk[:n, n:] = A, B
+    E = scipy.linalg.expm(blk * t)
+    return E[:n, :n], E[:n, n:]
+
+
+def spectral_radius(law, rate: float, home=None, *, delay: float = 0.0,
+                    bandwidth: float | None = None) -> float:
+    """Largest |eigenvalue| of the linear digital loop with a delay [s] and an actuator [rad/s].
+
+    The plant ``qdd = M^-1 a`` (``a = u`` or ``a' = wa (u - a)``), driven by the law's
+    zero-order-hold output delayed by ``delay``, is discretized exactly at ``Ts = 1/rate``;
+    the loop is stable iff the result is < 1.
+    """
+    Ad, Bc, Cc, Dc, Minv = _law_matrices(law, rate, home)
+    n = Minv.shape[0]
+    Ts = 1.0 / rate
+    nz = 3 * n if bandwidth else 2 * n
+    A = np.zeros((nz, nz))
+    B = np.zeros((nz, n))
+    A[:n, n:2 * n] = np.eye(n)
+    if bandwidth:
+        A[n:2 * n, 2 * n:] = Minv
+        A[2 * n:, 2 * n:] = -bandwidth * np.eye(n)
+        B[2 * n:] = bandwidth * np.eye(n)
+    else:
+        B[n:2 * n] = Minv
+    ell = int(math.floor(delay / Ts + 1e-12))
+    mfrac = delay - ell * Ts
+    if mfrac < 1e-15:
+        mfrac = 0.0
+    E0, G0 = _integrals(A, B, Ts - mfrac)
+    E1, G1i = _integrals(A, B, mfrac) if mfrac else (None, np.zeros_like(B))
+    Phi = E0 @ E1 if mfrac else E0
+    G1 = E0 @ G1i
+    # u_{k-ell} applied over the end of the period, u_{k-ell-1} over its start.
+    L = ell + 1                           # buffer w_i = u_{k-i}, i = 1..L
+    nx = Ad.shape[0]
+    N = nz + nx + L * n
+    Acl = np.zeros((N, N))
+    Cy = np.zeros((2 * n, nz))
+    Cy[:, :2 * n] = np.eye(2 * n)
+    # u_k = Cc x + Dc Cy z
+    Uz, Ux = Dc @ Cy, Cc
+    iz, ix, iw = slice(0, nz), slice(nz, nz + nx), nz + nx
+
+    def w(i):
+        return slice(iw + (i - 1) * n, iw + i * n)
+
+    Acl[iz, iz] = Phi
+    if ell == 0:
+        Acl[iz, iz] += G0 @ Uz
+        Acl[iz, ix] += G0 @ Ux
+    else:
+        Acl[iz, w(ell)] += G0
+    Acl[iz, w(ell + 1)] += G1
+    Acl[ix, ix] = Ad
+    Acl[ix, iz] = Bc @ Cy
+    Acl[w(1), iz] = Uz
+    Acl[w(1), ix] = Ux
+    for i in range(2, L + 1):
+        Acl[w(i), w(i - 1)] = np.eye(n)
+    return float(np.max(np.abs(np.linalg.eigvals(Acl))))
+
+
+def _bisect(stable, lo, hi, rtol):
+    """Boundary between ``lo`` (stable) and ``hi`` (not), geometric bisection."""
+    while hi / lo - 1.0 > rtol if hi > lo else lo / hi - 1.0 > rtol:
+        mid = math.sqrt(lo * hi)
+        if stable(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo, hi
+
+
+def linear_boundary(law, effect: str, rate: float, home=None, rtol: float = 1e-4):
+    """Predicted breaking point of the linear digital loop (see the module docstring).
+
+    Returns
+    -------
+    float or None
+        Largest delay [s] or smallest bandwidth [rad/s] that keeps the loop stable; None for
+        effects without a linear prediction (stiffness, torque, noise).
+    """
+    effect = _check_effect(effect)
+    if effect == "delay":
+        def stable(x):
+            return spectral_radius(law, rate, home, delay=x) < 1.0
+        lo = 1e-5
+        if not stable(lo):
+            return 0.0
+        hi = lo * 2
+        while stable(hi):
+            lo, hi = hi, hi * 2
+            if hi > 10.0:
+                return math.inf
+        return _bisect(stable, lo, hi, rtol)[0]
+    if effect == "actuator":
+        def stable(x):
+            return spectral_radius(law, rate, home, bandwidth=x) < 1.0
+        hi = 1e6
+        if not stable(hi):
+            return math.inf
+        lo = hi / 2
+        while stable(lo):
+            hi, lo = lo, lo / 2
+            if lo < 1e-6:
+                return 0.0
+        return _bisect(stable, hi, lo, rtol)[0]
+    return None
+
+
+def _siso_loops(law, home):
+    """Per-joint continuous ``L(s)`` as (num, den) polynomials (loop broken at the torque)."""
+    import control
+
+    if isinstance(law, TrackingController):
+        lam = law.lam
+        if law.nx:
+            A, B, C, D = (m for m in law.continuous_matrices())
+            k = law.nx // law.n
+            K = control.tf(control.ss(A[:k, :k], B[:k, :1], C[:1, :k], D[:1, :1]))
+        else:
+            K = control.tf([0.0], [1.0])
+        s = control.tf("s")
+        return [(2 * lam * s + lam * lam * (1 + K)) / s ** 2]
+    if not isinstance(law, PDGravity):
+        raise _no_linear_model(law)
+    # PD: modes of M(q_h)^-1 Kp; when M^-1 Kd is diagonal in the same basis (the default gains,
+    # both proportional to diag(M)), each mode is a SISO loop. Otherwise joint by joint with
+    # M_jj (coupling neglected).
+    M = law.nominal.M(home)
+    s = control.tf("s")
+    lp, V = np.linalg.eig(np.linalg.solve(M, law.Kp))
+    Dm = np.linalg.solve(V, np.linalg.solve(M, law.Kd) @ V)
+    if np.allclose(Dm, np.diag(np.diag(Dm)), atol=1e-9 * np.abs(Dm).max()) and np.allclose(
+            lp.imag, 0) and np.allclose(np.diag(Dm).imag, 0):
+        return [(float(d.real) * s + float(p.real)) / s ** 2
+                for p, d in zip(lp, np.diag(Dm), strict=True)]
+    return [(law.Kd[j, j] * s + law.Kp[j, j]) / (M[j, j] * s ** 2) for j in range(law.n)]
+
+
+def continuous_boundary(law, effect: str, home=None):
+    """Return the continuous-time (no sampling) prediction.
+
+    The delay margin ``PM / w_c`` [s], or the smallest ``wa`` [rad/s] keeping ``L(s) wa/(s +
+    wa)`` closed-loop stable; None otherwise.
+    """
+    import control
+
+    effect = _check_effect(effect)
+    loops = _siso_loops(law, home)
+    if effect == "delay":
+        out = []
+        for L in loops:
+            _, pm, _, wc = control.margin(L)[:4]
+            out.append(math.radians(pm) / wc)
+        return min(out)
+    if effect == "actuator":
+        out = []
+        for L in loops:
+            def stable(wa, L=L):
+                cl = control.feedback(L * control.tf([wa], [1.0, wa]), 1)
+                return bool(np.all(np.real(cl.poles()) < 0))
+            hi = 1e6
+            lo = hi / 2
+            while stable(lo) and lo > 1e-6:
+                hi, lo = lo, lo / 2
+            out.append(_bisect(stable, hi, lo, 1e-6)[0])
+        return max(out)
+    return None
+
+
+_W = np.logspace(-2, 6, 20001)
+
+
+def _eM(w):
+    """``|e_M(jw)|`` of the paper's model-error bound, eq. (12)."""
+    return np.abs(model_error_bound()(1j * w))
+
+
+def barrier_guarantee(effect: str):
+    """Return what eq. (12)-(13) covers.
+
+    The largest delay [s] with ``|e^{-jw tau} - 1| <= |e_M(jw)|``,
+    smallest ``wa`` [rad/s] with ``|jw/(jw + wa)| <= |e_M(jw)|`` for all w; None otherwise.
+    """
+    effect = _check_effect(effect)
+    eM = _eM(_W)
+    if effect == "delay":
+        def ok(tau):
+            return bool(np.all(np.abs(np.exp(-1j * _W * tau) - 1.0) <= eM))
+        return _bisect(ok, 1e-7, 1.0, 1e-6)[0]
+    if effect == "actuator":
+        def ok(wa):
+            return bool(np.all(np.abs(1j * _W / (1j * _W + wa)) <= eM))
+        return _bisect(ok, 1e9, 1.0, 1e-6)[0]
+    return None
+
+
+def barrier_met(law, home=None) -> bool:
+    """Whether every joint's ``|T(jw)| = |L/(1 + L)|`` stays below ``RSB = 1/|e_M|``.
+
+    Each loop is checked by :func:`rrr_pin.robust.robustness.check_robust_stability` (nominally
+    stable, grid minimum refined) against :func:`rrr_pin.robust.barriers.robust_stability_barrier`.
+    """
+    RSB = robust_stability_barrier()
+    unity = static_gain(np.eye(1))
+    return all(check_robust_stability(L, unity, RSB, omega=_W[::10]).ok
+               for L in _siso_loops(law, home))
+
+
+# --- nonlinear search --------------------------------------------------------------------------
+
+def loop_bandwidth(law, home) -> float | None:
+    """Slowest closed-loop natural frequency [rad/s] of a built-in law's linear loop."""
+    if isinstance(law, TrackingController):
+        return law.lam
+    if isinstance(law, PDGravity):
+        ev = np.linalg.eigvals(np.linalg.solve(law.nominal.M(home), law.Kp))
+        return float(np.sqrt(np.min(np.abs(ev))))
+    return None
+
+
+def _rms(plant, law, reference, effect, size, settings: StressSettings, duration):
+    """RMS tracking error [rad] of one run, ``inf`` if it diverged."""
+    kwargs = settings.run.simulate_kwargs()
+    kwargs.pop("effects", None)  # the effect under test replaces any in the settings
+    if kwargs["q0"] is None and settings.offset:
+        r0 = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
+        kwargs["q0"] = np.clip(r0 + settings.offset, plant.lower, plant.upper)
+    try:
+        traj = simulate(plant, law, reference, duration, effects=effects_of(effect, size),
+                        **kwargs)
+    except SimulationDiverged:
+        return math.inf
+    e = traj.error
+    return float(np.sqrt(np.mean(e * e)))
+
+
+def breaking_point(plant, law, reference, effect: str, settings: StressSettings | None = None,
+                   guess: float | None = None, home=None):
+    """Bisection on the effect's size for the boundary of the nonlinear closed loop.
+
+    Parameters
+    ----------
+    plant : Robot
+        The simulated arm.
+    law : ControlLaw or SampledLaw
+        Any law (sampled at ``settings.run.rate``).
+    reference : Reference
+    effect : str
+        A key of :data:`EFFECTS`.
+    settings : StressSettings, optional
+    home : array-like, shape (n,), optional
+        Configuration of the linear model that sets the run's length (``cycles``); default
+        the reference at ``t = 0``.
+    guess : float, optional
+        A first estimate of the boundary (e.g. the linear prediction): the bracket starts at
+        ``[guess / 2, 2 guess]``.
+
+    Returns
+    -------
+    dict
+        ``simulated`` (the last size that passed, or None if even the mildest tried failed),
+        ``bracket`` [pass, fail] and ``samples``: ``[[size, rms_error], ...]`` of every run
+        (``inf`` = diverged), ``duration`` [s] of each run.
+    """
+    settings = settings or StressSettings()
+    unit, direction, _ = EFFECTS[_check_effect(effect)]
+    samples = []
+    if home is None:
+        home = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
+    wb = loop_bandwidth(law, home)
+    duration = settings.run.duration
+    if wb:
+        rate = settings.run.rate
+        duration = max(duration, math.ceil(settings.cycles / wb * rate) / rate)
+
+    def ok(size):
+        rms = _rms(plant, law, reference, effect, size, settings, duration)
+        samples.append([size, rms])
+        return rms <= settings.budget
+
+    default = {"delay": 5e-3, "actuator": 100.0, "stiffness": 1e3, "torque": 50.0,
+               "noise": 1e-3}[effect]
+    g = guess if guess is not None and math.isfinite(guess) and guess > 0 else default
+    # "up": pass below, fail above; "down": pass above, fail below.
+    mild, harsh = (g / 2, 2 * g) if direction == "up" else (2 * g, g / 2)
+    for _ in range(12):
+        if ok(mild):
+            break
+        mild, harsh = (mild / 4, mild) if direction == "up" else (mild * 4, mild)
+    else:
+        return {"simulated": None, "bracket": [None, mild], "samples": samples,
+                "duration": duration}
+    for _ in range(12):
+        if not ok(harsh):
+            break
+        mild, harsh = (harsh, harsh * 4) if direction == "up" else (harsh, harsh / 4)
+    else:
+        return {"simulated": math.inf if direction == "up" else 0.0,
+                "bracket": [harsh, None], "samples": samples, "duration": duration}
+    mild, harsh = _bisect(ok, mild, harsh, settings.rtol)
+    for x in np.geomspace(mild / 4 if direction == "up" else mild * 4, mild,
+                          settings.sweep + 1)[:-1]:
+        ok(float(x))
+    samples.sort()
+    return {"simulated": mild, "bracket": [mild, harsh], "samples": samples,
+            "duration": duration}
+
+
+def stress(plant, laws, reference, effect: str, settings: StressSettings | None = None,
+           home=None) -> dict:
+    """Find the breaking points of every law for one effect: simulated, predicted, guaranteed.
+
+    Parameters
+    ----------
+    plant : Robot
+        The nominal arm (the laws' model is the plant: the effect is the only mismatch).
+    laws : sequence of laws
+    reference : Reference
+    effect : str
+        A key of :data:`EFFECTS`.
+    settings : StressSettings, optional
+    home : array-like, shape (n,), optional
+        Configuration of the PD loop's linear model [rad] (default: the reference at t = 0).
+
+    Returns
+    -------
+    dict
+        ``{"effect", "unit", "budget_rad", "settings", "rows": [...]}``; each row has
+        ``controller``, ``effect``, ``unit``, ``predicted`` (digital loop),
+        ``predicted_continuous``, ``simulated``, ``bracket``, ``guaranteed``, ``barrier_met``,
+        ``agreement`` (simulated / predicted), ``samples``.
+    """
+    settings = settings or StressSettings()
+    effect = _check_effect(effect)
+    unit, direction, what = EFFECTS[effect]
+    if home is None:
+        home = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
+    rate = settings.run.rate
+    guarantee = barrier_guarantee(effect)
+    rows = []
+    for law in laws:
+        try:
+            pred = linear_boundary(law, effect, rate, home)
+            cont = continuous_boundary(law, effect, home)
+            met = barrier_met(law, home)
+        except TypeError:
+            pred = cont = met = None
+        found = breaking_point(plant, law, reference, effect, settings, guess=pred, home=home)
+        sim = found["simulated"]
+        rows.append({
+            "controller": law.name, "label": law.label or law.name, "effect": effect,
+            "unit": unit, "predicted": pred, "predicted_continuous": cont, "simulated": sim,
+            "bracket": found["bracket"], "duration_s": found["duration"],
+            "guaranteed": guarantee if (guarantee is not None and met) else None,
+            "barrier_met": met,
+            "agreement": sim / pred if (sim and pred and math.isfinite(pred)) else None,
+            "samples": found["samples"],
+        })
+    return {"effect": effect, "unit": unit, "direction": direction, "what": what,
+            "budget_rad": settings.budget, "settings": {**settings.run.to_dict(),
+                                                        "rtol": settings.rtol},
+            "rows": rows}

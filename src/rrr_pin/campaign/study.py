@@ -1,0 +1,290 @@
+"""The paper's section-5 study, for any set of control laws: nominal and uncertain plants.
+
+One code path for any fixed-base arm: the nominal robot (the paper's RRR, an example-robot-data
+arm or a URDF), its uncertain plants (:mod:`rrr_pin.model.uncertainty`, written out as URDF and loaded
+back), the laws (built-in or your own, :mod:`rrr_pin.control.laws`) and the runner
+(:mod:`rrr_pin.campaign.runner`). Plants run in parallel processes; results do not depend on the number
+of processes. Laws are compared with a named baseline (``"fl"`` by default, the paper's).
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..control.references import Reference, default_reference
+from ..model.dh import paper_params
+from ..model.dynamics import robot_from_xml
+from ..model.uncertainty import PlantSample, Tolerances, sample_plants
+from ..sim.simulation import SimulationDiverged, metrics
+from .executors import default_jobs
+from .runner import RunSettings, check_laws, run_laws
+
+__all__ = [
+    "StudyConfig",
+    "StudyResult",
+    "run_study",
+    "summarize",
+]
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    """Settings of a study (recorded whole in ``results.json``).
+
+    Parameters
+    ----------
+    run : RunSettings
+        Duration, step, rate, engine, initial state (default: 4 s, continuous-time laws as in
+        the paper's Simulink study).
+    samples : int, default 10
+        Number of uncertain plants (the paper's count), >= 0.
+    seed : int, default 0
+        Seed of the uncertain plants, >= 0.
+    tolerances : Tolerances
+        20 % inertia, 5 % lengths by default.
+    baseline : str, default "fl"
+        Name of the law the others are compared with.
+    jobs : int, optional
+        Worker processes, >= 1; default ``min(2, cpu count)``.
+    """
+
+    run: RunSettings = field(default_factory=RunSettings)
+    samples: int = 10
+    seed: int = 0
+    tolerances: Tolerances = field(default_factory=Tolerances)
+    baseline: str = "fl"
+    jobs: int | None = None
+
+    def __post_init__(self) -> None:
+        for key in ("samples", "seed"):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+                raise ValueError(f"{key} must be an integer >= 0, got {v!r}")
+        if self.jobs is not None and (isinstance(self.jobs, bool) or not isinstance(
+                self.jobs, (int, np.integer)) or self.jobs < 1):
+            raise ValueError(f"jobs must be an integer >= 1, got {self.jobs!r}")
+
+    def to_dict(self) -> dict:
+        """JSON-ready settings (units in the key names)."""
+        return {**self.run.to_dict(), "samples": self.samples, "seed": self.seed,
+                "tolerance_inertia": self.tolerances.inertia,
+                "tolerance_length": self.tolerances.length, "baseline": self.baseline}
+
+
+@dataclass
+class StudyResult:
+    """Trajectories and figures of a study.
+
+    Attributes
+    ----------
+    robot : str
+        Name of the nominal arm.
+    joint_names : list of str
+    reference : Reference
+    config : StudyConfig
+    laws : list of dict
+        Each law's :meth:`describe`, in the order given (``laws[i]["name"]`` is its key).
+    nominal : dict
+        ``{name: Trajectory}`` on the nominal plant.
+    samples : list of dict
+        Per uncertain plant: ``index``, ``seed``, ``parameters``, ``status`` (``"ok"`` when
+        every law ran, otherwise the divergence messages), ``trajectories`` and ``metrics``
+        (by law name, for the laws that ran).
+    plants : list of PlantSample
+    """
+
+    robot: str
+    joint_names: list
+    reference: Reference
+    config: StudyConfig
+    laws: list
+    nominal: dict
+    samples: list
+    plants: list
+    design: dict = field(default_factory=dict)
+    certificate: dict | None = None
+
+    @property
+    def names(self) -> list[str]:
+        """Law names, in order."""
+        return [d["name"] for d in self.laws]
+
+    def label(self, name: str) -> str:
+        """Display name of a law."""
+        return next(d["label"] for d in self.laws if d["name"] == name)
+
+    def to_json(self) -> dict:
+        """Return the ``results.json`` content (layout in the README)."""
+        uncertain = {}
+        for name in self.names:
+            rows = [s["metrics"][name] for s in self.samples if name in s.get("metrics", {})]
+            uncertain[name] = _mean_metrics(rows)
+        return {
+            "robot": self.robot,
+            "joint_names": self.joint_names,
+            "reference": {**self.reference.to_dict(), "duration_s": self.config.run.duration},
+            "config": self.config.to_dict(),
+            "controllers": self.laws,
+            "design": self.design,
+            "certificate": self.certificate,
+            "nominal": {name: metrics(self.nominal[name]) for name in self.names},
+            "uncertain": {
+                **uncertain,
+                "samples": [{"index": s["index"], "seed": s["seed"], "status": s["status"],
+                             **({"certificate": s["certificate"]} if "certificate" in s
+                                else {}),
+                             "parameters": s["parameters"], **s.get("metrics", {})}
+                            for s in self.samples],
+            },
+            "summary": summarize(self),
+        }
+
+
+def _mean_metrics(rows: list[dict]) -> dict:
+    if not rows:
+        return {}
+    return {k: np.mean([row[k] for row in rows], axis=0).tolist() for k in rows[0]}
+
+
+def summarize(result: StudyResult) -> dict:
+    """Headline figures of a study, each law against the baseline.
+
+    Returns
+    -------
+    dict
+        ``baseline``; ``nominal_max_error`` [rad] per law; ``samples_ok`` (every law ran) and
+        ``samples_diverged``; ``diverged`` (per law, number of plants where it diverged); over
+        the samples where every law ran, per law other than the baseline:
+        ``error_ratio_uncertain`` (RMS error over all joints, samples and time of the baseline
+        divided by the law's: above 1, the law tracks better), ``error_ratio_uncertain_per_joint``
+        and ``torque_ratio_uncertain`` (RMS torque of the law over the baseline's).
+    """
+    names, base = result.names, result.config.baseline
+    ok = [s for s in result.samples if s["status"] == "ok"]
+    out = {
+        "baseline": base,
+        "nominal_max_error": {k: float(np.max(np.abs(result.nominal[k].error))) for k in names},
+        "samples_ok": len(ok),
+        "samples_diverged": len(result.samples) - len(ok),
+        "diverged": {k: sum(1 for s in result.samples if k not in s.get("metrics", {}))
+                     for k in names},
+    }
+    certs = [s["certificate"] for s in result.samples if "certificate" in s]
+    if certs:
+        out["samples_certified"] = sum(1 for c in certs if c["certified"])
+        out["certificate_b"] = certs[0]["b"]
+        out["nugap_max"] = max(c["nugap_max"] for c in certs)
+    if ok:
+        def rms(key, what, axis=None):
+            sq = np.array([np.asarray(s["metrics"][key][what]) ** 2 for s in ok])
+            return np.sqrt(np.mean(sq, axis=axis))
+
+        others = [k for k in names if k != base]
+        out["error_ratio_uncertain"] = {k: float(rms(base, "rms_error") / rms(k, "rms_error"))
+                                        for k in others}
+        out["error_ratio_uncertain_per_joint"] = {
+            k: (rms(base, "rms_error", axis=0) / rms(k, "rms_error", axis=0)).tolist()
+            for k in others}
+        out["torque_ratio_uncertain"] = {k: float(rms(k, "rms_torque") / rms(base, "rms_torque"))
+                                         for k in others}
+    return out
+
+
+def _run_plant(task) -> tuple[dict, dict | None]:
+    """Simulate every law on one plant, and certify it (runs in a worker process)."""
+    laws, reference, settings, nominal, certificate = task["job"]
+    plant = robot_from_xml(task["plant_xml"], gravity=nominal.gravity,
+                           lock=dict(nominal.locked), name=task["plant_name"],
+                           label=task["plant_name"])
+    runs = run_laws(plant, laws, reference, settings)
+    cert = None
+    if certificate is not None and task["certify"]:
+        cert = certificate.certify(nominal, plant, reference, settings.duration)
+    return runs, cert
+
+
+def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
+              reference: Reference | None = None, params=None, skip_joints=(),
+              progress=None, certificate=None) -> StudyResult:
+    """Run every law on the nominal plant and on ``config.samples`` uncertain plants.
+
+    Parameters
+    ----------
+    nominal : Robot
+        The nominal arm (the uncertain plants are drawn around it).
+    laws : sequence of ControlLaw or SampledLaw
+        Built-in (:func:`rrr_pin.campaign.runner.make_laws`) or your own; unique names; the baseline
+        ``config.baseline`` among them.
+    config : StudyConfig
+        Run settings, sample count, seed, tolerances, baseline, jobs.
+    reference : Reference, optional
+        Default :func:`default_reference` of the nominal arm.
+    params : ArmParams, optional
+        For the paper's RRR: perturb this DH parameter set (its URDF is generated); by default
+        the nominal URDF itself is perturbed (:func:`rrr_pin.model.uncertainty.perturb_urdf`).
+    skip_joints : iterable of str
+        Joints whose origins are not perturbed (e.g. locked fingers).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each plant.
+    certificate : rrr_pin.robust.certificates.CertificateSpec, optional
+        Certify every uncertain plant (frozen-configuration nu-gap against ``b(Gs, Ks)``,
+        :mod:`rrr_pin.robust.certificates`); recorded per sample beside the simulated outcome.
+
+    Returns
+    -------
+    StudyResult
+
+    Raises
+    ------
+    SimulationDiverged
+        A law diverged on the nominal plant.
+    """
+    laws = check_laws(laws, nominal.nq, config.baseline)
+    reference = default_reference(nominal) if reference is None else reference
+    reference.check_limits(nominal, duration=config.run.duration)
+    if nominal.source == "rrr" and params is None:
+        params = paper_params()
+    source = params if params is not None else nominal.urdf
+    plants: list[PlantSample] = sample_plants(source, config.samples, config.seed,
+                                              config.tolerances, skip_joints=skip_joints)
+    job = (laws, reference, config.run, nominal, certificate)
+    tasks = [{"job": job, "plant_xml": nominal.urdf, "certify": False,
+              "plant_name": f"{nominal.name} (nominal)"}]
+    tasks += [{"job": job, "plant_xml": p.urdf, "certify": True,
+               "plant_name": f"{nominal.name}_sample{p.index:03d}"} for p in plants]
+    jobs = config.jobs or default_jobs()
+    outputs = []
+    if jobs <= 1 or len(tasks) <= 2:
+        for k, task in enumerate(tasks):
+            outputs.append(_run_plant(task))
+            if progress:
+                progress(k + 1, len(tasks))
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            for k, out in enumerate(pool.map(_run_plant, tasks)):
+                outputs.append(out)
+                if progress:
+                    progress(k + 1, len(tasks))
+    failed = {k: v for k, v in outputs[0][0].items() if isinstance(v, SimulationDiverged)}
+    if failed:
+        name, exc = next(iter(failed.items()))
+        raise SimulationDiverged(f"law {name!r} diverged on the nominal plant: {exc}",
+                                 time=exc.time, joint=exc.joint)
+    samples = []
+    for plant, (out, cert) in zip(plants, outputs[1:], strict=True):
+        runs = {k: v for k, v in out.items() if not isinstance(v, SimulationDiverged)}
+        bad = [f"{k}: {v}" for k, v in out.items() if isinstance(v, SimulationDiverged)]
+        entry = {"index": plant.index, "seed": plant.seed, "parameters": plant.parameters,
+                 "status": "ok" if not bad else "diverged: " + "; ".join(bad),
+                 "trajectories": runs, "metrics": {k: metrics(t) for k, t in runs.items()}}
+        if cert is not None:
+            entry["certificate"] = cert
+        samples.append(entry)
+    return StudyResult(robot=nominal.name, joint_names=nominal.joint_names, reference=reference,
+                       config=config, laws=[law.describe() for law in laws],
+                       nominal=outputs[0][0], samples=samples, plants=plants,
+                       certificate=certificate.to_dict() if certificate is not None else None)
+

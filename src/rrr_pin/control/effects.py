@@ -1,0 +1,274 @@
+r"""Plant-side effects: the unmodeled dynamics of a real arm, composed into one object.
+
+:class:`PlantEffects` lists what a real drive train and its sensors add to the rigid-body model
+the laws are designed on. Every effect is off by default; a run with ``effects=None`` (or with
+no effect switched on) is the ideal loop of :mod:`rrr_pin.sim.simulation`, bit for bit.
+
+Effects apply to **sampled runs** (digital controllers: ``rate`` given, or a
+:class:`~rrr_pin.control.laws.SampledLaw`). A continuous-time law with effects is refused
+(``ValueError``): a transport delay or a sensor sampled with noise needs a sampling instant.
+
+Order in the loop, per control period ``[t_k, t_k + Ts)`` (``Ts = 1/rate``)::
+
+    sensor        q_m = Q(q + n_q),  qd_m = qd + n_qd          (noise, encoder quantization)
+      -> law      tau_k = law(t_k, q_m, qd_m, r_k, ...)         (zero-order hold)
+      -> saturation  tau_k = clip(tau_k, -tau_max, tau_max)
+      -> delay    u(t) = tau(t - tau_d)                          (transport delay)
+      -> actuator a' = wa (u - a)                                (first order, wa/(s + wa))
+      -> [flexible transmission]  motor B th'' = a - s,  s = K (th - q) + D (th' - qd)
+      -> arm with friction  M(q) qdd + V + G = s_or_a - (Fv qd + Fc tanh(qd / v_eps))
+
+where ``Q(x) = delta round(x / delta)``, ``delta = 2 pi / counts`` [rad] (round half to even)
+and the joint torque is the spring-damper torque ``s`` for a flexible joint, the actuator
+output ``a`` otherwise. The law always measures the **link** side.
+
+Discretization (both engines, :mod:`rrr_pin.sim.simulation` and the C++ rollout):
+
+* the arm, the actuator state ``a`` and the motor state ``(th, th')`` are integrated together
+  by classical RK4 with the plant sub-step ``h = Ts / substeps`` (``substeps = ceil(Ts / dt)``);
+* the delay is realized on that sub-step grid: ``tau_d`` is rounded to the nearest multiple
+  ``d h`` and the run records the realized value (``Trajectory.info["effects"]["delay_s"]``,
+  next to the requested one). Choose ``dt`` small enough for the resolution you need;
+* before ``t = 0`` the loop is taken at rest on its first command: the delay line and the
+  actuator state hold ``tau_0``; a flexible joint starts with its spring carrying ``tau_0``
+  (``th(0) = q(0) + tau_0 / K``, ``th'(0) = qd(0)``);
+* noise sequences are drawn in Python from ``numpy.random.default_rng(seed)`` (first ``n_q``,
+  shape (N, n), then ``n_qd``), and the same arrays reach both engines, so their runs agree.
+
+Smooth Coulomb friction: ``Fc tanh(qd / v_eps)`` tends to ``Fc sign(qd)`` for
+``|qd| >> v_eps`` and is differentiable at rest, so RK4 integrates it without chattering.
+
+References
+----------
+.. [1] M. W. Spong, "Modeling and control of elastic joint robots", *J. Dyn. Sys. Meas.
+   Control* 109 (1987) 310-319 (flexible-joint model: motor and link coupled by a spring).
+.. [2] G. F. Franklin, J. D. Powell, M. Workman, *Digital Control of Dynamic Systems*, 3rd ed.,
+   1998, sec. 4.3.4 (zero-order hold with a fractional transport delay).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+__all__ = ["PlantEffects", "EffectsError", "check_effects"]
+
+
+class EffectsError(ValueError):
+    """Bad plant effects: the message names every bad field, its value and the expected range."""
+
+
+def _per_joint(value):
+    """Return a float, or a tuple of floats (per joint), from a scalar or a sequence."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return value
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 0:
+        return float(arr)
+    return tuple(float(v) for v in arr.ravel())
+
+
+@dataclass(frozen=True)
+class PlantEffects:
+    """Unmodeled dynamics of the simulated arm (all off by default); see the module docstring.
+
+    Parameters
+    ----------
+    delay : float, default 0
+        Transport delay ``tau_d`` [s] >= 0: the torque computed at ``t`` reaches the joints at
+        ``t + tau_d`` (realized on the RK4 sub-step grid, rounded to the nearest sub-step).
+    bandwidth : float, optional
+        First-order actuator bandwidth ``wa`` [rad/s] > 0: applied = ``wa/(s + wa)`` times the
+        commanded torque. None: ideal actuator.
+    viscous : float or sequence, shape (n,), default 0
+        Viscous friction ``Fv`` [N m s/rad] >= 0 per joint.
+    coulomb : float or sequence, shape (n,), default 0
+        Coulomb friction level ``Fc`` [N m] >= 0 per joint (smooth: ``Fc tanh(qd / v_eps)``).
+    coulomb_velocity : float, default 0.01
+        Smoothing speed ``v_eps`` [rad/s] > 0 of the Coulomb friction.
+    torque_limit : "urdf", float or sequence, shape (n,), optional
+        Saturation ``|tau| <= tau_max`` [N m] > 0; ``"urdf"``: the URDF effort limits
+        (``robot.model.effortLimit``). None: no saturation.
+    noise_q : float or sequence, default 0
+        Standard deviation [rad] >= 0 of the Gaussian noise on the measured ``q``.
+    noise_qd : float or sequence, default 0
+        Standard deviation [rad/s] >= 0 of the Gaussian noise on the measured ``qd``.
+    encoder_counts : int, optional
+        Encoder resolution [counts per revolution] >= 1: ``q`` is measured in steps of
+        ``2 pi / counts`` rad. None: exact positions.
+    stiffness : float or sequence, optional
+        Joint stiffness ``K`` [N m/rad] > 0 of a flexible transmission; None: rigid joints.
+    motor_inertia : float or sequence, default 0.01
+        Motor-side inertia ``B`` [kg m^2] > 0 (flexible joints only).
+    damping : float or sequence, default 0
+        Transmission damping ``D`` [N m s/rad] >= 0 (flexible joints only).
+    seed : int, default 0
+        Seed of the noise sequences, >= 0.
+    """
+
+    delay: float = 0.0
+    bandwidth: float | None = None
+    viscous: float | tuple = 0.0
+    coulomb: float | tuple = 0.0
+    coulomb_velocity: float = 0.01
+    torque_limit: str | float | tuple | None = None
+    noise_q: float | tuple = 0.0
+    noise_qd: float | tuple = 0.0
+    encoder_counts: int | None = None
+    stiffness: float | tuple | None = None
+    motor_inertia: float | tuple = 0.01
+    damping: float | tuple = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        errors = []
+        for key in ("viscous", "coulomb", "torque_limit", "noise_q", "noise_qd", "stiffness",
+                    "motor_inertia", "damping"):
+            try:
+                object.__setattr__(self, key, _per_joint(getattr(self, key)))
+            except (TypeError, ValueError):
+                errors.append(f"{key} = {getattr(self, key)!r}: expected a number or a "
+                              f"sequence of numbers")
+        specs = {  # field: (lowest, zero allowed, unit)
+            "delay": (0.0, True, "s"), "bandwidth": (0.0, False, "rad/s"),
+            "viscous": (0.0, True, "N m s/rad"), "coulomb": (0.0, True, "N m"),
+            "coulomb_velocity": (0.0, False, "rad/s"), "torque_limit": (0.0, False, "N m"),
+            "noise_q": (0.0, True, "rad"), "noise_qd": (0.0, True, "rad/s"),
+            "stiffness": (0.0, False, "N m/rad"), "motor_inertia": (0.0, False, "kg m^2"),
+            "damping": (0.0, True, "N m s/rad"),
+        }
+        for key, (low, zero_ok, unit) in specs.items():
+            v = getattr(self, key)
+            if v is None or (key == "torque_limit" and v == "urdf"):
+                continue
+            if isinstance(v, str) or isinstance(v, bool):
+                errors.append(f"{key} = {v!r}: expected a number [{unit}]")
+                continue
+            vals = v if isinstance(v, tuple) else (v,)
+            ok = bool(vals) and all(math.isfinite(x) and (x > low or (zero_ok and x == low))
+                                    for x in vals)
+            if not ok:
+                want = ">= 0" if zero_ok else "> 0"
+                errors.append(f"{key} = {v!r}: expected finite {want} [{unit}]")
+        c = self.encoder_counts
+        if c is not None and (isinstance(c, bool) or not isinstance(c, (int, np.integer))
+                              or c < 1):
+            errors.append(f"encoder_counts = {c!r}: expected an integer >= 1 [counts/rev]")
+        s = self.seed
+        if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0:
+            errors.append(f"seed = {s!r}: expected an integer >= 0")
+        if errors:
+            raise EffectsError("bad plant effects: " + "; ".join(errors))
+
+    @property
+    def active(self) -> bool:
+        """Whether any effect is switched on."""
+        return bool(self.delay > 0 or self.bandwidth is not None or self.friction
+                    or self.torque_limit is not None or self.noisy
+                    or self.encoder_counts is not None or self.stiffness is not None)
+
+    @property
+    def friction(self) -> bool:
+        """Whether any friction coefficient is nonzero."""
+        return any(np.any(np.asarray(v) > 0) for v in (self.viscous, self.coulomb))
+
+    @property
+    def noisy(self) -> bool:
+        """Whether a noise level is nonzero."""
+        return any(np.any(np.asarray(v) > 0) for v in (self.noise_q, self.noise_qd))
+
+    def to_dict(self) -> dict:
+        """JSON-ready fields (units in the key names)."""
+        d = asdict(self)
+        units = {"delay": "delay_s", "bandwidth": "bandwidth_rad_s", "viscous": "viscous_Nms",
+                 "coulomb": "coulomb_Nm", "coulomb_velocity": "coulomb_velocity_rad_s",
+                 "torque_limit": "torque_limit_Nm", "noise_q": "noise_q_rad",
+                 "noise_qd": "noise_qd_rad_s", "encoder_counts": "encoder_counts",
+                 "stiffness": "stiffness_Nm_rad", "motor_inertia": "motor_inertia_kgm2",
+                 "damping": "damping_Nms", "seed": "seed"}
+        return {units[k]: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
+
+    def resolve(self, plant, substeps: int, h: float, n_steps: int) -> _Resolved:
+        """Per-joint arrays for a run of ``n_steps`` control periods on ``plant`` (engines' input).
+
+        Raises
+        ------
+        EffectsError
+            A per-joint field of the wrong length, a URDF without effort limits, or a sub-step
+            ``h`` too large for the actuator bandwidth or the joint resonance (RK4).
+        """
+        n = plant.nq
+
+        def vec(key, value):
+            arr = np.asarray(value, dtype=float)
+            if arr.ndim == 0:
+                return np.full(n, float(arr))
+            if arr.shape != (n,):
+                raise EffectsError(f"{key}: expected one value or {n} (one per joint), got "
+                                   f"{arr.size}")
+            return arr.copy()
+
+        d = int(round(self.delay / h))
+        limit = None
+        if self.torque_limit == "urdf":
+            limit = np.asarray(plant.model.effortLimit, dtype=float).copy()
+            if limit.shape != (n,) or not np.all(limit > 0):
+                raise EffectsError(f"torque_limit = 'urdf': the URDF of {plant.name!r} has "
+                                   f"effort limits {limit.tolist()}, expected > 0 per joint")
+        elif self.torque_limit is not None:
+            limit = vec("torque_limit", self.torque_limit)
+        wa = float(self.bandwidth) if self.bandwidth is not None else 0.0
+        # RK4's stability interval on the negative real axis ends at -2.785.
+        if wa * h > 2.5:
+            raise EffectsError(f"bandwidth = {wa:g} rad/s is too fast for the plant sub-step "
+                               f"h = {h:g} s (RK4 needs wa h < 2.5): lower dt")
+        flex = None
+        if self.stiffness is not None:
+            Kf = vec("stiffness", self.stiffness)
+            Bm = vec("motor_inertia", self.motor_inertia)
+            Df = vec("damping", self.damping)
+            w = float(np.max(np.sqrt(Kf / Bm)))
+            if w * h > 2.5:
+                raise EffectsError(f"stiffness: the motor resonance sqrt(K/B) = {w:.4g} rad/s "
+                                   f"is too fast for the plant sub-step h = {h:g} s (RK4 needs "
+                                   f"sqrt(K/B) h < 2.5): lower dt")
+            flex = (Bm, Kf, Df)
+        fric = None
+        if self.friction:
+            fric = (vec("viscous", self.viscous), vec("coulomb", self.coulomb),
+                    float(self.coulomb_velocity))
+        rng = np.random.default_rng(self.seed)
+        sq, sqd = vec("noise_q", self.noise_q), vec("noise_qd", self.noise_qd)
+        nq = rng.standard_normal((n_steps, n)) * sq if np.any(sq > 0) else None
+        nqd = rng.standard_normal((n_steps, n)) * sqd if np.any(sqd > 0) else None
+        quantum = 2.0 * math.pi / self.encoder_counts if self.encoder_counts else 0.0
+        info = {**self.to_dict(), "delay_requested_s": self.delay, "delay_s": d * h,
+                "delay_substeps": d}
+        return _Resolved(d, wa, limit, fric, flex, nq, nqd, quantum, info)
+
+
+@dataclass(frozen=True)
+class _Resolved:
+    """Effects of one run, as the engines take them (validated, per joint)."""
+
+    delay_steps: int              # delay in plant sub-steps
+    wa: float                     # actuator bandwidth [rad/s], 0 = ideal
+    limit: np.ndarray | None      # (n,) saturation [N m]
+    friction: tuple | None        # (Fv (n,), Fc (n,), v_eps)
+    flex: tuple | None            # (B (n,), K (n,), D (n,))
+    noise_q: np.ndarray | None    # (N, n) [rad]
+    noise_qd: np.ndarray | None   # (N, n) [rad/s]
+    quantum: float                # encoder step [rad], 0 = exact
+    info: dict
+
+
+def check_effects(effects) -> PlantEffects | None:
+    """Return ``effects`` if it is None or a :class:`PlantEffects`; ``TypeError`` otherwise."""
+    if effects is None or isinstance(effects, PlantEffects):
+        return effects
+    raise TypeError(f"effects must be a rrr_pin.PlantEffects or None, got "
+                    f"{type(effects).__name__}")

@@ -1,0 +1,10 @@
+"""The arm: DH parameters, URDF generation and checks, arm sources, Pinocchio dynamics.
+
+Holds :mod:`~rrr_pin.model.dh` (the paper's Tables 1-2), :mod:`~rrr_pin.model.urdf` (the URDF
+generator), :mod:`~rrr_pin.model.robots` (where an arm comes from: the paper's RRR, an
+example-robot-data name or a URDF path), :mod:`~rrr_pin.model.dynamics` (``Robot``,
+``load_robot``: M, V, G through Pinocchio), :mod:`~rrr_pin.model.closed_form` (the corrected
+eq. (2)-(7)) and :mod:`~rrr_pin.model.uncertainty` (seeded uncertain plants as URDF).
+
+Layer: the lowest. May import :mod:`rrr_pin.validation` only.
+"""

@@ -1,0 +1,595 @@
+r"""Rigid-body dynamics of a fixed-base serial arm from any URDF, through Pinocchio.
+
+The equation of motion is the paper's eq. (1),
+
+.. math:: M(q) \ddot q + V(q, \dot q) + G(q) = \tau,
+
+with ``M`` from the composite rigid body algorithm (CRBA), ``V + G`` from the recursive
+Newton-Euler algorithm (RNEA) and ``qdd`` from the articulated body algorithm (ABA).
+
+Conventions: SI units (rad, rad/s, N m); gravity of magnitude ``gravity`` along ``-z`` of the
+URDF's root link; ``q`` are joint angles (revolute) or displacements (prismatic), one per degree
+of freedom. Continuous (unbounded revolute) joints are loaded as revolute joints with infinite
+limits, so ``q`` is always an angle and ``nq == nv``.
+
+Validation happens at the edges, once. Loading checks the URDF itself (XML, tree, joint
+axes and limits, every link's inertial with :func:`check_urdf_inertials`, joints to lock)
+before Pinocchio sees it, because urdfdom silently zeroes some bad inertias. The dynamics
+methods of :class:`Robot` check their arrays (:meth:`Robot.check_state`) unless called with
+``check=False``, the fast path for loops that have validated their state.
+
+References
+----------
+.. [1] J. Carpentier et al., "The Pinocchio C++ library", SII 2019.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from .dh import ArmParams, _check_real, check_inertial
+from .robots import RobotModelError, read_source
+
+__all__ = ["Robot", "load_robot", "robot_from_xml", "check_urdf_inertials", "DEFAULT_GRAVITY"]
+
+#: Gravity magnitude [m/s^2] used unless told otherwise: the paper's "standard value" 9.8.
+DEFAULT_GRAVITY = 9.8
+
+#: Stand-in limit [rad] for continuous joints in the URDF handed to urdfdom (it cannot parse
+#: ``inf``); replaced by ``+-inf`` in the loaded model.
+_UNBOUNDED = 1e300
+
+#: dtype of the arrays the fast path hands to Pinocchio unconverted.
+_F64 = np.dtype(float)
+
+
+@dataclass
+class Robot:
+    """A Pinocchio model of a fixed-base serial arm with its workspace.
+
+    The dynamics methods (:meth:`M`, :meth:`V`, :meth:`G`, :meth:`inverse_dynamics`,
+    :meth:`forward_dynamics`) check their arrays (shape ``(nq,)``, finite) unless called with
+    ``check=False``: the fast path for hot loops whose state is already validated, which costs
+    no more than the bare Pinocchio call. With ``check=False`` the arrays must be float64
+    ndarrays of shape ``(nq,)`` holding finite values; nothing verifies it (a wrong size raises
+    Pinocchio's own error; NaN gives NaN). Both paths return the same values, bit for bit.
+
+    ``model`` is fixed at construction (:meth:`V` keeps a zero-gravity copy of it); to change
+    the model, build a new ``Robot`` with :func:`load_robot` or :func:`robot_from_xml`.
+
+    Attributes
+    ----------
+    model : pinocchio.Model
+        The (possibly reduced) kinematic and inertial model.
+    data : pinocchio.Data
+        Workspace of ``model``; not thread-safe (one ``Robot`` per process or thread).
+    name : str
+        Robot name.
+    source : str
+        Where the model came from (a path, a robot name, or ``"<params>"``).
+    urdf : str
+        The URDF text the model was built from (before joint locking).
+    locked : dict
+        Joints locked at fixed values [rad or m], by name.
+    """
+
+    model: pin.Model = field(repr=False)
+    data: pin.Data = field(repr=False)
+    name: str
+    source: str
+    urdf: str = field(repr=False)
+    locked: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self._shape = (self.model.nq,)
+        # V(q, qd) = rnea(q, qd, 0) without gravity: one RNEA pass instead of nle - G.
+        self._model0 = self.model.copy()
+        self._model0.gravity = pin.Motion.Zero()
+        self._data0 = self._model0.createData()
+        self._zero = np.zeros(self.model.nv)
+
+    def __getstate__(self) -> dict:
+        # Travel as the model and its description only (about 13 kB for the RRR instead of
+        # 200 kB): the workspaces and the zero-gravity copy are rebuilt on arrival, as at
+        # construction. A campaign sends its laws' nominal Robot with every task.
+        return {key: getattr(self, key) for key in ("model", "name", "source", "urdf",
+                                                    "locked")}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.data = self.model.createData()
+        self.__post_init__()
+
+    @property
+    def nq(self) -> int:
+        """Number of joint coordinates (equal to the number of velocities)."""
+        return self.model.nq
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Names of the moving joints, base to tip, shape (nq,)."""
+        return list(self.model.names)[1:]
+
+    @property
+    def gravity(self) -> float:
+        """Gravity magnitude [m/s^2] (along -z of the root link)."""
+        return float(-self.model.gravity.linear[2])
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower joint limits, shape (nq,) [rad or m]; ``-inf`` for continuous joints."""
+        return np.array(self.model.lowerPositionLimit, dtype=float)
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper joint limits, shape (nq,) [rad or m]; ``+inf`` for continuous joints."""
+        return np.array(self.model.upperPositionLimit, dtype=float)
+
+    def neutral(self) -> np.ndarray:
+        """Neutral configuration (all zeros for revolute/prismatic joints), shape (nq,)."""
+        return np.array(pin.neutral(self.model), dtype=float)
+
+    def check_state(self, name: str, x) -> np.ndarray:
+        """Return ``x`` as a finite float64 array of shape ``(nq,)``, or raise ``ValueError``.
+
+        The validator of every joint-space array the methods take (``q``, ``qd``, ``qdd``,
+        ``tau``); a hot loop can call it once and then use ``check=False``.
+
+        Parameters
+        ----------
+        name : str
+            The argument's name, for the message.
+        x : array-like, shape (nq,)
+            Joint-space array [rad, rad/s, rad/s^2 or N m].
+
+        Raises
+        ------
+        ValueError
+            ``Expected q of shape (3,), got (2,)``, or ``q must be finite, got [...]``.
+        """
+        if type(x) is not np.ndarray or x.dtype is not _F64:
+            try:
+                x = np.asarray(x, dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name} must be an array of numbers of shape {self._shape}, "
+                                 f"got {x!r}") from None
+        if x.shape != self._shape:
+            raise ValueError(f"Expected {name} of shape {self._shape}, got {x.shape}")
+        # The sum is finite only if every entry is (NaN and inf propagate); finite entries can
+        # still overflow it, hence the exact test behind. Python's sum of a list is the
+        # cheapest reduction for the short arrays of an arm (~0.3 us against ~1 us for NumPy's).
+        if not math.isfinite(sum(x.tolist())) and not np.isfinite(x).all():
+            raise ValueError(f"{name} must be finite, got {x}")
+        return x
+
+    def M(self, q, *, check: bool = True) -> np.ndarray:
+        """Joint-space inertia matrix ``M(q)`` (CRBA), eq. (2).
+
+        Parameters
+        ----------
+        q : array-like, shape (nq,)
+            Joint positions [rad or m].
+        check : bool, default True
+            Validate ``q`` (see the class docstring for ``check=False``).
+
+        Returns
+        -------
+        M : ndarray, shape (nq, nq)
+            Full symmetric matrix [kg m^2], a new array. Pinocchio's CRBA fills the upper
+            triangle; its Python binding mirrors it into the lower one and returns a copy
+            (``make_symmetric`` in ``bindings/python/algorithm/expose-crba.cpp``).
+        """
+        if check:
+            q = self.check_state("q", q)
+        return pin.crba(self.model, self.data, q)
+
+    def V(self, q, qd, *, check: bool = True) -> np.ndarray:
+        """Centrifugal and Coriolis torques ``V(q, qd)``, eq. (3), shape (nq,) [N m].
+
+        Computed as ``rnea(q, qd, 0)`` on a zero-gravity copy of the model, which equals
+        ``nonLinearEffects(q, qd) - G(q)`` without the cancellation of ``G``.
+
+        Parameters
+        ----------
+        q : array-like, shape (nq,)
+            Joint positions [rad or m].
+        qd : array-like, shape (nq,)
+            Joint velocities [rad/s or m/s].
+        check : bool, default True
+            Validate the arrays (see the class docstring for ``check=False``).
+        """
+        if check and not (type(q) is type(qd) is np.ndarray and q.dtype is qd.dtype is _F64
+                          and q.shape == qd.shape == self._shape
+                          and math.isfinite(sum(q.tolist()) + sum(qd.tolist()))):
+            # One test for the common case (as in check_state); the exact one names the array.
+            q, qd = self.check_state("q", q), self.check_state("qd", qd)
+        return pin.rnea(self._model0, self._data0, q, qd, self._zero)
+
+    def G(self, q, *, check: bool = True) -> np.ndarray:
+        """Gravity torques ``G(q)``, eq. (4), shape (nq,) [N m], a new array.
+
+        Parameters
+        ----------
+        q : array-like, shape (nq,)
+            Joint positions [rad or m].
+        check : bool, default True
+            Validate ``q`` (see the class docstring for ``check=False``).
+        """
+        if check:
+            q = self.check_state("q", q)
+        return pin.computeGeneralizedGravity(self.model, self.data, q)
+
+    def inverse_dynamics(self, q, qd, qdd, *, check: bool = True) -> np.ndarray:
+        """Torques ``tau = M qdd + V + G`` (RNEA), shape (nq,) [N m].
+
+        Arrays of shape (nq,): ``q`` [rad], ``qd`` [rad/s], ``qdd`` [rad/s^2]; ``check`` as
+        in :meth:`M`.
+        """
+        if check:
+            q, qd = self.check_state("q", q), self.check_state("qd", qd)
+            qdd = self.check_state("qdd", qdd)
+        return pin.rnea(self.model, self.data, q, qd, qdd)
+
+    def forward_dynamics(self, q, qd, tau, *, check: bool = True) -> np.ndarray:
+        """Accelerations ``qdd = M^-1 (tau - V - G)`` (ABA), shape (nq,) [rad/s^2].
+
+        Arrays of shape (nq,): ``q`` [rad], ``qd`` [rad/s], ``tau`` [N m]; ``check`` as in
+        :meth:`M`.
+        """
+        if check:
+            q, qd = self.check_state("q", q), self.check_state("qd", qd)
+            tau = self.check_state("tau", tau)
+        return pin.aba(self.model, self.data, q, qd, tau)
+
+    def frame_placement(self, q, frame: str) -> np.ndarray:
+        """Placement of a URDF frame (link or joint name) in the root frame, shape (4, 4)."""
+        q = self.check_state("q", q)
+        if not self.model.existFrame(frame):
+            raise ValueError(f"no frame named {frame!r} in robot {self.name!r}")
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return np.array(self.data.oMf[self.model.getFrameId(frame)].homogeneous)
+
+    def joint_placements(self, q) -> list[np.ndarray]:
+        """Placements of the joint frames ``joint1..jointn``, each shape (4, 4)."""
+        q = self.check_state("q", q)
+        pin.forwardKinematics(self.model, self.data, q)
+        return [np.array(self.data.oMi[j].homogeneous) for j in range(1, self.model.njoints)]
+
+
+def _numbers(element, attribute: str, count: int, default: str, what: str) -> list[float]:
+    """Parse ``count`` finite numbers from an attribute, or raise naming ``what``."""
+    raw = element.get(attribute, default)
+    try:
+        values = [float(v) for v in raw.split()]
+    except ValueError:
+        values = []
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise RobotModelError(f"{what}: <{element.tag} {attribute}=\"{raw}\"> must hold "
+                              f"{count} finite number{'s' if count > 1 else ''}")
+    return values
+
+
+def _inertial_of(link: ET.Element) -> tuple[float, np.ndarray] | None:
+    """Mass [kg] and inertia tensor [kg m^2] of a URDF ``<link>``, checked; None if absent."""
+    what = f"link {link.get('name')!r}"
+    inertial = link.find("inertial")
+    if inertial is None:
+        return None
+    origin = inertial.find("origin")
+    if origin is not None:
+        _numbers(origin, "xyz", 3, "0 0 0", f"{what} <inertial>")
+        _numbers(origin, "rpy", 3, "0 0 0", f"{what} <inertial>")
+    mass_el = inertial.find("mass")
+    if mass_el is None:
+        raise RobotModelError(f"{what}: <inertial> has no <mass>")
+    (mass,) = _numbers(mass_el, "value", 1, "", what)
+    inertia_el = inertial.find("inertia")
+    if inertia_el is None:
+        raise RobotModelError(f"{what}: <inertial> has no <inertia> (urdfdom would read zero "
+                              f"rotational inertia); give ixx, ixy, ixz, iyy, iyz, izz")
+    v = {key: _numbers(inertia_el, key, 1, "", what)[0]
+         for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+    inertia = np.array([[v["ixx"], v["ixy"], v["ixz"]],
+                        [v["ixy"], v["iyy"], v["iyz"]],
+                        [v["ixz"], v["iyz"], v["izz"]]])
+    try:
+        return check_inertial(mass, inertia, name=what)
+    except ValueError as exc:
+        raise RobotModelError(str(exc)) from None
+
+
+def check_urdf_inertials(urdf) -> dict[str, tuple[float, np.ndarray]]:
+    """Read and check the ``<inertial>`` of every link of a URDF.
+
+    urdfdom (under Pinocchio) reads NaN or inf in ``<inertia>``, or an ``<inertial>`` without
+    ``<inertia>``, as zero rotational inertia with only a message on stderr; this validator
+    refuses them, and every body that is not physical (:func:`rrr_pin.model.dh.check_inertial`).
+
+    Parameters
+    ----------
+    urdf : str or xml.etree.ElementTree.Element
+        URDF text, or its parsed ``<robot>`` element.
+
+    Returns
+    -------
+    dict
+        Link name -> ``(mass [kg], inertia tensor, shape (3, 3) [kg m^2])``, in the
+        ``<inertial>`` frame, for the links that have an ``<inertial>``.
+
+    Raises
+    ------
+    RobotModelError (a ValueError)
+        Naming the link, the field and the value: a non-finite number, a missing ``<mass>`` or
+        ``<inertia>`` or attribute, a negative mass, an inertia that is not positive
+        semi-definite or breaks the triangle inequality, or a massless link with inertia.
+    """
+    root = _parse(urdf) if isinstance(urdf, str) else urdf
+    out = {}
+    for link in root.findall("link"):
+        inertial = _inertial_of(link)
+        if inertial is not None:
+            out[link.get("name")] = inertial
+    return out
+
+
+def _parse(text: str) -> ET.Element:
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise RobotModelError(f"malformed URDF (not well-formed XML): {exc}") from None
+    if root.tag != "robot":
+        raise RobotModelError(f"malformed URDF: root element is <{root.tag}>, expected <robot>")
+    return root
+
+
+def _check_joint(joint: ET.Element, locked: set[str]) -> None:
+    """Check a joint's numbers: origin, axis (nonzero) and limits (lower < upper)."""
+    name, jtype = joint.get("name"), joint.get("type")
+    what = f"joint {name!r}"
+    origin = joint.find("origin")
+    if origin is not None:
+        _numbers(origin, "xyz", 3, "0 0 0", what)
+        _numbers(origin, "rpy", 3, "0 0 0", what)
+    if jtype == "fixed":
+        return
+    axis_el = joint.find("axis")
+    if axis_el is not None:
+        axis = _numbers(axis_el, "xyz", 3, "1 0 0", what)
+        if math.hypot(*axis) == 0.0:
+            raise RobotModelError(f"{what}: <axis xyz=\"{axis_el.get('xyz')}\"> is the zero "
+                                  f"vector; a joint needs a direction to turn or slide along")
+    limit = joint.find("limit")
+    if jtype in ("revolute", "prismatic"):
+        if limit is None:
+            raise RobotModelError(f"malformed URDF: {jtype} {what} has no <limit>")
+        (lower,) = _numbers(limit, "lower", 1, "0", what)
+        (upper,) = _numbers(limit, "upper", 1, "0", what)
+        if lower > upper or (lower == upper and name not in locked):
+            raise RobotModelError(
+                f"{what}: limits lower={lower!r} and upper={upper!r} leave no range of motion "
+                f"(need lower < upper; a missing attribute reads 0); fix the <limit>, make the "
+                f"joint fixed, or lock it")
+
+
+def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
+    """Validate URDF XML and rewrite continuous joints as unbounded revolute joints.
+
+    The URDF validator: the tree (one root, one parent per link, every link reached), every
+    joint's numbers (:func:`_check_joint`), every link's inertial
+    (:func:`check_urdf_inertials`) and some mass behind every moving joint.
+    """
+    root = _parse(text)
+    links = {}
+    for link in root.findall("link"):
+        if link.get("name") in links:
+            raise RobotModelError(f"malformed URDF: two links named {link.get('name')!r}")
+        links[link.get("name")] = link
+    joints = root.findall("joint")
+    if not links:
+        raise RobotModelError("malformed URDF: no <link> element")
+    masses = {link: mass for link, (mass, _) in check_urdf_inertials(root).items()}
+    children, parent_joint = {}, {}
+    for joint in joints:
+        name, jtype = joint.get("name"), joint.get("type")
+        parent, child = joint.find("parent"), joint.find("child")
+        if parent is None or child is None:
+            raise RobotModelError(f"malformed URDF: joint {name!r} lacks <parent> or <child>")
+        for end in (parent.get("link"), child.get("link")):
+            if end not in links:
+                raise RobotModelError(f"malformed URDF: joint {name!r} refers to an unknown "
+                                      f"link {end!r}")
+        if child.get("link") in parent_joint:
+            raise RobotModelError(
+                f"malformed URDF: link {child.get('link')!r} is the child of two joints, "
+                f"{parent_joint[child.get('link')]!r} and {name!r}; a URDF must be a tree "
+                f"(one parent per link)")
+        parent_joint[child.get("link")] = name
+        if jtype in ("floating", "planar"):
+            raise RobotModelError(f"joint {name!r} is {jtype}: rrr-pin handles fixed-base arms "
+                                  f"with revolute and prismatic joints only")
+        if jtype not in ("revolute", "continuous", "prismatic", "fixed"):
+            raise RobotModelError(f"malformed URDF: joint {name!r} has unknown type {jtype!r}")
+        if joint.find("mimic") is not None and name not in locked:
+            raise RobotModelError(
+                f"joint {name!r} mimics {joint.find('mimic').get('joint')!r}: mimic joints are "
+                f"not supported; lock it (e.g. lock={{{name!r}: 0.0}})")
+        _check_joint(joint, locked)
+        if jtype == "continuous":
+            joint.set("type", "revolute")
+            limit = joint.find("limit")
+            if limit is None:
+                limit = ET.SubElement(joint, "limit", {"effort": "1e6", "velocity": "1e6"})
+            limit.set("lower", repr(-_UNBOUNDED))
+            limit.set("upper", repr(_UNBOUNDED))
+        children.setdefault(parent.get("link"), []).append((joint, child.get("link")))
+    roots = set(links) - set(parent_joint)
+    if len(roots) != 1:
+        raise RobotModelError(f"malformed URDF: expected one root link, found {sorted(roots)}")
+    reached, stack = set(), list(roots)
+    while stack:
+        name = stack.pop()
+        reached.add(name)
+        stack += [child for _, child in children.get(name, [])]
+    if len(reached) != len(links):
+        raise RobotModelError(f"malformed URDF: links {sorted(set(links) - reached)} are not "
+                              f"connected to the root link {sorted(roots)[0]!r} (their joints "
+                              f"form a loop)")
+    _check_subtree_mass(masses, children, locked)
+    return ET.tostring(root, encoding="unicode"), root.get("name") or "robot"
+
+
+def _check_subtree_mass(masses, children, locked) -> None:
+    """Refuse a moving joint whose subtree carries no mass (M would be singular).
+
+    ``masses`` maps the links that have an ``<inertial>`` to their mass [kg], as read and
+    checked (finite, >= 0) by :func:`check_urdf_inertials`; ``children`` maps a link to its
+    ``(joint, child link)`` pairs.
+    """
+
+    def subtree(link_name):
+        names = [link_name]
+        for _, child in children.get(link_name, []):
+            names += subtree(child)
+        return names
+
+    for joints in children.values():
+        for joint, child in joints:
+            if joint.get("type") == "fixed" or joint.get("name") in locked:
+                continue
+            below = subtree(child)
+            # Masses are >= 0: a zero sum means every link below is massless (all are named).
+            if not sum(masses.get(link, 0.0) for link in below) > 0.0:
+                raise RobotModelError(
+                    f"joint {joint.get('name')!r} moves no mass: the links downstream of it "
+                    f"({', '.join(below)}) have no <inertial> data or zero mass; "
+                    f"rrr-pin refuses to simulate an arm with zero mass")
+
+
+def _check_lock(model: pin.Model, lock: dict) -> dict[str, float]:
+    """Check the joints to lock (the lock validator): known, finite, inside the limits.
+
+    Returns the values as floats. Raises ``RobotModelError`` naming the joint, the value and the
+    limits.
+    """
+    unknown = [j for j in lock if not isinstance(j, str) or not model.existJointName(j)]
+    if unknown:
+        raise RobotModelError(f"cannot lock unknown joints {unknown}; joints are "
+                              f"{list(model.names)[1:]}")
+    out = {}
+    for joint_name, value in lock.items():
+        jid = model.getJointId(joint_name)
+        idx = model.joints[jid].idx_q
+        lower = float(model.lowerPositionLimit[idx])
+        upper = float(model.upperPositionLimit[idx])
+        try:
+            value = _check_real(f"lock value of joint {joint_name!r}", value, "rad or m")
+        except ValueError as exc:
+            raise RobotModelError(str(exc)) from None
+        if not lower <= value <= upper:
+            raise RobotModelError(f"cannot lock joint {joint_name!r} at {value!r}: outside its "
+                                  f"limits [{lower!r}, {upper!r}]")
+        out[joint_name] = value
+    return out
+
+
+def load_robot(source="rrr", *, gravity: float | None = None,
+               lock: dict[str, float] | None = None) -> Robot:
+    """Load a fixed-base serial arm into Pinocchio.
+
+    Parameters
+    ----------
+    source : str, path-like or ArmParams, default "rrr"
+        A URDF file path; ``"rrr"`` (the paper's arm, generated from :func:`paper_params`);
+        an example-robot-data arm name (see :func:`robot_names`); or an :class:`ArmParams`,
+        whose URDF is generated on the fly.
+    gravity : float, optional
+        Gravity magnitude [m/s^2], along ``-z`` of the URDF's root link; default ``source.g``
+        for an :class:`ArmParams`, else 9.8 (the paper's value).
+    lock : dict of str to float, optional
+        Joints to lock, by name, at the given positions [rad or m] (Pinocchio's reduced model);
+        e.g. ``{"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}``.
+
+    Returns
+    -------
+    Robot
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    RobotModelError (a ValueError)
+        Naming the link, joint or field: not UTF-8, malformed URDF (not a tree, two parents,
+        zero joint axis, limits with ``lower >= upper``, non-finite numbers), an inertial that
+        is not physical (:func:`check_urdf_inertials`), floating base, unlocked mimic joint,
+        moving joint without mass downstream, a joint to lock that is unknown or whose value
+        is not finite or outside its limits, or a mass matrix that is not positive definite.
+    """
+    if gravity is None:
+        gravity = source.g if isinstance(source, ArmParams) else DEFAULT_GRAVITY
+    raw, name, label = read_source(source)
+    return robot_from_xml(raw, name=name, gravity=gravity, lock=lock, label=label)
+
+
+def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAULT_GRAVITY,
+                   lock: dict[str, float] | None = None, label: str = "<string>") -> Robot:
+    """Like :func:`load_robot`, from URDF text already in memory.
+
+    Parameters
+    ----------
+    urdf : str
+        URDF XML text.
+    name : str, optional
+        Robot name; default the URDF's ``<robot name>``.
+    gravity, lock
+        As in :func:`load_robot`.
+    label : str
+        Where the text came from, for error messages.
+    """
+    lock = dict(lock or {})
+    gravity = _check_real("gravity", gravity, "m/s^2")
+    if gravity < 0.0:
+        raise ValueError(f"gravity must be a magnitude >= 0 m/s^2 (along -z), got {gravity!r}")
+    raw = urdf
+    try:
+        urdf, urdf_name = _prepare_urdf(raw, set(lock))
+    except RobotModelError as exc:
+        raise RobotModelError(f"{label}: {exc}") from None
+    try:
+        model = pin.buildModelFromXML(urdf)
+    except (ValueError, RuntimeError) as exc:
+        raise RobotModelError(f"Pinocchio could not build a model from {label}: {exc}") from None
+    if model.nq != model.nv:
+        raise RobotModelError(f"{label}: joints with nq != nv are not supported "
+                              f"(nq={model.nq}, nv={model.nv})")
+    unbounded = np.abs(model.upperPositionLimit) >= _UNBOUNDED
+    model.upperPositionLimit[unbounded] = np.inf
+    model.lowerPositionLimit[np.abs(model.lowerPositionLimit) >= _UNBOUNDED] = -np.inf
+    if lock:
+        try:
+            lock = _check_lock(model, lock)
+        except RobotModelError as exc:
+            raise RobotModelError(f"{label}: {exc}") from None
+        q_ref = pin.neutral(model)
+        for joint_name, value in lock.items():
+            q_ref[model.joints[model.getJointId(joint_name)].idx_q] = value
+        model = pin.buildReducedModel(model, [model.getJointId(j) for j in lock], q_ref)
+    if model.nq == 0:
+        raise RobotModelError(f"{label}: no moving joint left")
+    model.gravity.linear = np.array([0.0, 0.0, -gravity])
+    robot = Robot(model=model, data=model.createData(), name=name or urdf_name, source=label,
+                  urdf=raw, locked=lock)
+    q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
+    eig = np.linalg.eigvalsh(robot.M(q0))
+    if not eig.min() > 1e-12 * max(eig.max(), 1.0):
+        # Every inertial is physical and every moving joint carries mass by now, so a singular
+        # M means some joint moves no inertia about its own axis.
+        raise RobotModelError(
+            f"{label}: the mass matrix is singular at the neutral configuration (eigenvalues "
+            f"{eig}): some joint moves no inertia about its axis (e.g. point masses on the "
+            f"axis, or an axis along a massless direction of its subtree)")
+    return robot

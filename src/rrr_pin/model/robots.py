@@ -1,0 +1,92 @@
+"""Where an arm comes from: the paper's RRR, an example-robot-data arm, a URDF file or ArmParams.
+
+:func:`read_source` turns any of them into URDF text; :func:`robot_names` lists the names
+:func:`rrr_pin.model.dynamics.load_robot` accepts besides paths. A new arm source is one branch
+here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .dh import ArmParams
+from .urdf import urdf_from_params
+
+__all__ = ["ERD_ARMS", "RobotModelError", "robot_names", "read_source", "erd_urdf_path"]
+
+#: example-robot-data names accepted by :func:`load_robot` (fixed-base arms).
+ERD_ARMS = ("ur3", "ur5", "ur10", "panda", "kinova", "z1", "bravo7_no_ee", "so_arm100")
+
+
+class RobotModelError(ValueError):
+    """A URDF or robot model that rrr-pin cannot simulate (with the reason in the message)."""
+
+
+def robot_names() -> tuple[str, ...]:
+    """Names :func:`load_robot` accepts besides paths: ``"rrr"`` and example-robot-data arms."""
+    return ("rrr",) + ERD_ARMS
+
+
+def read_source(source) -> tuple[str, str, str]:
+    """Return ``(urdf_text, name, source_label)`` for a path, a known name or an ArmParams.
+
+    Raises
+    ------
+    TypeError, ValueError, FileNotFoundError, RobotModelError
+        Not a source, an unknown name, a missing file, a file that is not UTF-8 text.
+    """
+    if isinstance(source, ArmParams):
+        return urdf_from_params(source), source.name, "<params>"
+    if not isinstance(source, (str, Path)):
+        raise TypeError(f"source must be a URDF path, a robot name or ArmParams, got "
+                        f"{type(source).__name__}")
+    text = str(source)
+    if text == "rrr":
+        return urdf_from_params(), "rrr", "rrr"
+    if text in ERD_ARMS or (not text.lower().endswith(".urdf") and _erd_has(text)):
+        path = erd_urdf_path(text)
+        return _read_text(path), text, text
+    path = Path(text)
+    if path.suffix.lower() != ".urdf" and not path.exists():
+        raise ValueError(f"unknown robot {text!r}: give a URDF path or one of "
+                         f"{', '.join(robot_names())}")
+    if not path.is_file():
+        raise FileNotFoundError(f"URDF file not found: {path}")
+    return _read_text(path), path.stem, str(path)
+
+
+def _read_text(path: Path) -> str:
+    """Read a URDF file as text; ``RobotModelError`` naming the file if it is not UTF-8."""
+    try:
+        return path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RobotModelError(f"{path}: not a UTF-8 text file (byte {exc.start}: "
+                              f"{exc.reason}); a URDF is XML text") from None
+
+
+def _erd_has(name: str) -> bool:
+    from example_robot_data.robots_loader import ROBOTS
+
+    return name in ROBOTS
+
+
+def erd_urdf_path(name: str) -> Path:
+    """Path of an example-robot-data arm's URDF file; refuses a floating base."""
+    from example_robot_data import robots_loader
+
+    if name not in robots_loader.ROBOTS:
+        raise ValueError(f"example-robot-data has no robot {name!r}")
+    loader = robots_loader.ROBOTS[name]
+    if name == "ur3" and hasattr(robots_loader, "UR3Loader"):
+        # example-robot-data 5.0 maps "ur3" to UR5Loader (its ROBOTS table); its UR3Loader
+        # names the UR3's own URDF.
+        loader = robots_loader.UR3Loader
+    root = Path(__import__("example_robot_data").getModelPath(
+        f"{loader.path}/{loader.urdf_subpath}/{loader.urdf_filename}"))
+    path = root / loader.path / loader.urdf_subpath / loader.urdf_filename
+    if not path.is_file():
+        raise FileNotFoundError(f"example-robot-data URDF for {name!r} not found at {path}")
+    if getattr(loader, "free_flyer", False):
+        raise RobotModelError(f"{name!r} is a floating-base robot; rrr-pin handles fixed-base "
+                              f"arms only")
+    return path

@@ -1,0 +1,293 @@
+"""Uncertain plants: seeded, physically valid perturbations of an arm, written out as URDF.
+
+The perturbed URDF files ARE the uncertain plants: the study loads them back through
+:func:`rrr_pin.load_robot`, exactly like any user URDF.
+
+Perturbation model (paper section 5: "20 % tolerance for the inertia parameters and 5 % for the
+link lengths"); every factor is drawn independently and uniformly in ``[1 - tol, 1 + tol]``:
+
+* mass of each link: ``m * f_m``;
+* inertia of each link: the principal *second moments* of its mass distribution
+  ``S_k = integral of x_k^2 dm`` (principal axes of ``S`` = those of the inertia tensor) are
+  scaled, ``S_k * f_k``, and the inertia rebuilt as ``I = tr(S) 1 - S``. Since ``S_k >= 0``
+  stays true, every perturbed tensor is positive semi-definite and satisfies the triangle
+  inequality by construction, and each principal moment ``J_x = S_y + S_z`` moves by the same
+  relative tolerance. (Scaling ``Jx, Jy, Jz`` independently would break the triangle inequality
+  of the paper's thin rods, whose moments sit exactly on it.)
+* lengths: each link length ``l`` (DH ``a`` and ``d``) by ``f_l`` with the centre-of-mass
+  distance ``lg`` scaled by the same factor (for a URDF: each joint origin's translation and the
+  link's centre of mass).
+
+Seeding: sample ``k`` of a study with seed ``s`` uses ``numpy.random.default_rng([s, k])``
+(PCG64, identical on every platform), so a single plant can be regenerated alone.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass, replace
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from .dh import ArmParams, check_inertial
+from .urdf import urdf_from_params
+
+__all__ = [
+    "Tolerances",
+    "PlantSample",
+    "perturb_params",
+    "perturb_urdf",
+    "perturb_inertia",
+    "sample_plant",
+    "sample_plants",
+]
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Relative tolerances of the uncertain plants (paper: 20 % inertia, 5 % lengths).
+
+    Parameters
+    ----------
+    inertia : float, default 0.2
+        On masses and moments of inertia, in ``[0, 1)``.
+    length : float, default 0.05
+        On link lengths, joint offsets and centre-of-mass positions, in ``[0, 1)``.
+    """
+
+    inertia: float = 0.2
+    length: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name in ("inertia", "length"):
+            value = float(getattr(self, name))
+            if not 0.0 <= value < 1.0:
+                raise ValueError(f"{name} tolerance must be in [0, 1), got {value!r}")
+            object.__setattr__(self, name, value)
+
+
+@dataclass(frozen=True)
+class PlantSample:
+    """One uncertain plant: where it came from and its URDF text.
+
+    Attributes
+    ----------
+    index : int
+        Sample number ``k``.
+    seed : list of int
+        ``[s, k]``, the seed of ``numpy.random.default_rng`` that made it.
+    urdf : str
+        URDF text of the plant.
+    parameters : dict
+        JSON-ready description of the perturbation (the ``ArmParams`` of the RRR, or the
+        factors applied to each link and joint of a URDF).
+    """
+
+    index: int
+    seed: list
+    urdf: str
+    parameters: dict
+
+    def write(self, folder: str | Path, stem: str = "plant") -> Path:
+        """Write the URDF as ``folder/<stem>_<index:03d>.urdf``; return the path."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{stem}_{self.index:03d}.urdf"
+        path.write_text(self.urdf)
+        return path
+
+
+def _factor(rng: np.random.Generator, tol: float, size=None):
+    return rng.uniform(1.0 - tol, 1.0 + tol, size=size)
+
+
+def perturb_inertia(I: np.ndarray, factors) -> np.ndarray:
+    """Scale the principal second moments of an inertia tensor.
+
+    Parameters
+    ----------
+    I : array-like, shape (3, 3)
+        Inertia tensor about the centre of mass [kg m^2] (symmetric, physically valid).
+    factors : array-like, shape (3,)
+        Positive factors on the principal second moments ``S = tr(I)/2 1 - I``.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``tr(S') 1 - S'`` with ``S' = R diag(f * s) R^T``: positive semi-definite and
+        satisfying the triangle inequality whenever ``I`` does.
+
+    Raises
+    ------
+    ValueError
+        ``I`` is not a physical inertia (:func:`rrr_pin.model.dh.check_inertial`), or a factor is
+        not finite and > 0.
+    """
+    _, I = check_inertial(None, I, name="I")
+    factors = np.asarray(factors, dtype=float)
+    if factors.shape != (3,) or not np.all(np.isfinite(factors)) or not np.all(factors > 0.0):
+        raise ValueError(f"factors must be 3 finite numbers > 0, got {factors.tolist()}")
+    I = 0.5 * (I + I.T)
+    S = 0.5 * np.trace(I) * np.eye(3) - I
+    s, R = np.linalg.eigh(S)
+    # I is checked: second moments below zero are round-off within INERTIA_RTOL; drop them.
+    s = np.clip(s, 0.0, None) * factors
+    S_new = (R * s) @ R.T
+    return np.trace(S_new) * np.eye(3) - S_new
+
+
+def perturb_params(params: ArmParams, rng: np.random.Generator,
+                   tol: Tolerances = Tolerances()) -> tuple[ArmParams, dict]:
+    """Perturb a DH parameter set (masses, principal moments, lengths with ``lg``).
+
+    Returns
+    -------
+    params : ArmParams
+        The perturbed, validated parameter set.
+    factors : dict
+        The factors drawn, per link: ``mass``, ``second_moments`` (3), ``length``.
+    """
+    links, factors = [], []
+    for link in params.links:
+        f_m = float(_factor(rng, tol.inertia))
+        f_s = _factor(rng, tol.inertia, 3)
+        f_l = float(_factor(rng, tol.length))
+        J = np.diag(perturb_inertia(np.diag(link.J), f_s))
+        links.append(replace(link, mass=link.mass * f_m, J=tuple(float(v) for v in J),
+                             a=link.a * f_l, d=link.d * f_l, lg=link.lg * f_l))
+        factors.append({"mass": f_m, "second_moments": f_s.tolist(), "length": f_l})
+    return params.with_links(links), {"links": factors}
+
+
+@lru_cache(maxsize=8)
+def _check_nominal(urdf: str) -> None:
+    """Check the inertials of a nominal URDF, once per distinct text.
+
+    A campaign perturbs the same nominal for every sample; the cache remembers the last texts
+    that passed (a text that fails raises, so is not cached), and the check of each perturbed
+    plant is never skipped.
+    """
+    from .dynamics import check_urdf_inertials
+
+    check_urdf_inertials(urdf)
+
+
+def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Tolerances(),
+                 *, skip_joints=()) -> tuple[str, dict]:
+    """Perturb the inertials and geometry of any URDF (read and written with yourdfpy).
+
+    Every link with an ``<inertial>`` gets a mass factor and three second-moment factors
+    (:func:`perturb_inertia`, in the inertial's own frame) and its centre of mass scaled by a
+    length factor; every joint origin's translation is scaled by a length factor.
+
+    Parameters
+    ----------
+    urdf : str
+        URDF text.
+    rng : numpy.random.Generator
+        Seeded generator.
+    tol : Tolerances
+        Relative tolerances.
+    skip_joints : iterable of str
+        Joints whose origins stay nominal (e.g. locked gripper fingers).
+
+    Returns
+    -------
+    urdf : str
+        The perturbed URDF text.
+    factors : dict
+        ``links``: name -> ``{mass, second_moments, com}``; ``joints``: name -> length factor.
+
+    Raises
+    ------
+    RobotModelError (a ValueError)
+        An inertial of ``urdf``, or of the plant, that is not physical, naming the link
+        (:func:`rrr_pin.model.dynamics.check_urdf_inertials`).
+    """
+    import yourdfpy
+
+    from .dynamics import check_urdf_inertials
+
+    _check_nominal(urdf)  # perturb physical bodies only
+    robot = yourdfpy.URDF.load(io.BytesIO(urdf.encode()), build_scene_graph=False,
+                               load_meshes=False, filename_handler=yourdfpy.filename_handler_null,
+                               build_collision_scene_graph=False, load_collision_meshes=False)
+    skip = set(skip_joints)
+    link_factors, joint_factors = {}, {}
+    for link in robot.robot.links:
+        inertial = link.inertial
+        if inertial is None or inertial.mass is None:
+            continue
+        f_m = float(_factor(rng, tol.inertia))
+        f_s = _factor(rng, tol.inertia, 3)
+        f_c = float(_factor(rng, tol.length))
+        inertial.mass = float(inertial.mass) * f_m
+        if inertial.inertia is not None:
+            inertial.inertia = perturb_inertia(inertial.inertia, f_s)
+        origin = np.eye(4) if inertial.origin is None else np.array(inertial.origin, float)
+        origin[:3, 3] *= f_c
+        inertial.origin = origin
+        link_factors[link.name] = {"mass": f_m, "second_moments": f_s.tolist(), "com": f_c}
+    for joint in robot.robot.joints:
+        f_l = float(_factor(rng, tol.length))
+        if joint.name in skip or joint.origin is None:
+            continue
+        origin = np.array(joint.origin, dtype=float)
+        origin[:3, 3] *= f_l
+        joint.origin = origin
+        joint_factors[joint.name] = f_l
+    text = robot.write_xml_string()
+    if isinstance(text, bytes):
+        text = text.decode()
+    check_urdf_inertials(text)  # the plant written is physical too
+    return text, {"links": link_factors, "joints": joint_factors}
+
+
+def sample_plants(nominal, count: int, seed: int = 0, tol: Tolerances = Tolerances(),
+                  *, skip_joints=()) -> list[PlantSample]:
+    """Draw ``count`` uncertain plants around a nominal arm.
+
+    Parameters
+    ----------
+    nominal : ArmParams or str
+        A DH parameter set (perturbed with :func:`perturb_params`, its URDF generated) or the
+        URDF text of any arm (perturbed with :func:`perturb_urdf`).
+    count : int
+        Number of plants, >= 0.
+    seed : int, default 0
+        Study seed; sample ``k`` uses ``default_rng([seed, k])``.
+    tol : Tolerances
+        Relative tolerances (default 20 % inertia, 5 % lengths).
+    skip_joints : iterable of str
+        For URDF input: joints whose origins stay nominal.
+
+    Returns
+    -------
+    list of PlantSample
+    """
+    if int(count) != count or count < 0:
+        raise ValueError(f"count must be a non-negative integer, got {count!r}")
+    if int(seed) != seed or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    return [sample_plant(nominal, seed, k, tol, skip_joints=skip_joints)
+            for k in range(int(count))]
+
+
+def sample_plant(nominal, seed: int, index: int, tol: Tolerances = Tolerances(),
+                 *, skip_joints=()) -> PlantSample:
+    """Plant number ``index`` of a study with ``seed``, drawn alone (see :func:`sample_plants`).
+
+    ``sample_plant(nominal, s, k)`` equals ``sample_plants(nominal, n, s)[k]`` for any ``n > k``.
+    """
+    rng = np.random.default_rng([int(seed), int(index)])
+    if isinstance(nominal, ArmParams):
+        params, factors = perturb_params(nominal, rng, tol)
+        urdf = urdf_from_params(replace(params, name=f"{nominal.name}_sample{index:03d}"))
+        parameters = {"params": params.to_dict(), "factors": factors}
+    else:
+        urdf, factors = perturb_urdf(str(nominal), rng, tol, skip_joints=skip_joints)
+        parameters = {"factors": factors}
+    return PlantSample(index=int(index), seed=[int(seed), int(index)], urdf=urdf,
+                       parameters=parameters)

@@ -1,0 +1,230 @@
+"""One self-contained ``report.html``: tables, figures, the design summary and 3D scenes.
+
+The page needs no server and no network: PNG (and JPEG, SVG) figures are inlined as base64
+``data:`` URIs, tables are given as Markdown (rendered by markdown-it-py, raw HTML in it
+escaped) or as HTML, and each :class:`rrr_pin.report.viewer.Scene` becomes an animated MeshCat
+viewer (:func:`rrr_pin.report.viewer.scene_html`). The whole file is kept under a byte budget by
+decimating the scenes' frames.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+import numbers
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..campaign.store import OutputNotWritable as OutputNotWritableError
+from ..campaign.store import check_writable
+from .viewer import Scene, scene_html
+
+__all__ = ["write_report_html", "report_html", "check_writable", "OutputNotWritableError",
+           "REPORT_MAX_BYTES"]
+
+#: Byte budget of a whole report [bytes] (the issue's bound for 10 s at 30 frames/s with
+#: 11 arms).
+REPORT_MAX_BYTES = 20_000_000
+
+_MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg",
+         ".svg": "image/svg+xml", ".gif": "image/gif"}
+
+_STYLE = """
+body {font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 0 auto;
+      max-width: 1100px; padding: 1em 2em; color: #222; line-height: 1.45;}
+h1 {font-size: 1.6em; border-bottom: 2px solid #ddd; padding-bottom: 0.2em;}
+h2 {font-size: 1.3em; margin-top: 1.6em;}
+table {border-collapse: collapse; margin: 0.6em 0; font-size: 0.92em;}
+th, td {border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: left; vertical-align: top;}
+th {background: #f2f2f4;}
+td.num {text-align: right; font-variant-numeric: tabular-nums;}
+figure {margin: 1em 0;}
+figure img {max-width: 100%; border: 1px solid #eee;}
+figcaption {font-size: 0.9em; color: #444; margin: 0.3em 0;}
+code {background: #f4f4f6; padding: 0 0.2em;}
+nav a {margin-right: 1em;}
+"""
+
+
+def _markdown(text: str) -> str:
+    from markdown_it import MarkdownIt
+
+    md = MarkdownIt("commonmark", {"html": False}).enable("table")
+    md.disable("image")  # a Markdown image would be a file or network reference
+    return md.render(text)
+
+
+def _table_html(content: str) -> str:
+    """HTML of a table given as HTML (starts with ``<``) or as Markdown."""
+    return content if content.lstrip().startswith("<") else _markdown(content)
+
+
+def _figure_html(path: Path) -> str:
+    path = Path(path)
+    mime = _MIME.get(path.suffix.lower())
+    if mime is None:
+        raise ValueError(f"figure {str(path)!r}: expected one of {', '.join(sorted(_MIME))}, "
+                         f"got {path.suffix!r}")
+    if not path.is_file():
+        raise FileNotFoundError(f"figure not found: {path}")
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return (f'<figure><img alt="{html.escape(path.stem, quote=True)}" '
+            f'src="data:{mime};base64,{data}"><figcaption>{html.escape(path.name)}'
+            f"</figcaption></figure>")
+
+
+def _number(x) -> str:
+    if isinstance(x, bool | np.bool_):
+        return "yes" if x else "no"
+    if isinstance(x, numbers.Integral):
+        return str(int(x))
+    x = float(x)
+    if math.isnan(x):
+        return "NaN"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return f"{x:.6g}"
+
+
+def _value_html(value) -> str:
+    """Readable HTML of any JSON-like value: nested mappings as tables, numbers to 6 digits."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, Mapping):
+        if not value:
+            return "<i>(empty)</i>"
+        rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{_value_html(v)}"
+                       f"</td></tr>" for k, v in value.items())
+        return f"<table>{rows}</table>"
+    if isinstance(value, str):
+        return html.escape(value)
+    if value is None:
+        return "-"
+    if isinstance(value, numbers.Number | np.bool_):
+        return _number(value)
+    if isinstance(value, Sequence | set):
+        items = list(value)
+        if all(isinstance(v, numbers.Number | np.bool_) for v in items):
+            shown = ", ".join(_number(v) for v in items[:24])
+            more = f", ... ({len(items)} values)" if len(items) > 24 else ""
+            return f"<code>[{shown}{more}]</code>"
+        return "<ol>" + "".join(f"<li>{_value_html(v)}</li>" for v in items) + \
+            "</ol>"
+    return html.escape(str(value))
+
+
+def _page(title: str, sections: list[tuple[str, str, str]]) -> str:
+    nav = "".join(f'<a href="#{anchor}">{html.escape(name)}</a>'
+                  for anchor, name, _ in sections)
+    body = "".join(f'<section id="{anchor}"><h2>{html.escape(name)}</h2>{content}</section>'
+                   for anchor, name, content in sections)
+    return (f'<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8">'
+            f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+            f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head>\n<body>"
+            f"<h1>{html.escape(title)}</h1><nav>{nav}</nav>{body}</body>\n</html>\n")
+
+
+def report_html(*, title: str, tables: Sequence[tuple[str, str]] = (),
+                figures: Sequence = (), design: Mapping | None = None,
+                scenes: Sequence[Scene] = (), max_bytes: int = REPORT_MAX_BYTES,
+                fps: float = 30.0) -> str:
+    """Build the report page as a string; see :func:`write_report_html`."""
+    if isinstance(max_bytes, bool) or not (isinstance(max_bytes, numbers.Integral)
+                                           and max_bytes > 0):
+        raise ValueError(f"max_bytes must be an integer > 0, got {max_bytes!r}")
+    if design is not None and not isinstance(design, Mapping):
+        raise TypeError(f"design must be a dict or None, got {type(design).__name__}")
+    sections = []
+    if tables:
+        parts = []
+        for k, entry in enumerate(tables):
+            if not (isinstance(entry, Sequence) and len(entry) == 2
+                    and all(isinstance(e, str) for e in entry)):
+                raise TypeError(f"tables[{k}] must be a (caption, markdown_or_html) pair of "
+                                f"strings, got {entry!r:.80}")
+            caption, content = entry
+            parts.append(f"<h3>{html.escape(caption)}</h3>{_table_html(content)}")
+        sections.append(("results", "Results", "".join(parts)))
+    if design is not None:
+        sections.append(("design", "Design", _value_html(design)))
+    if figures:
+        sections.append(("figures", "Figures", "".join(_figure_html(Path(f)) for f in figures)))
+    scenes = list(scenes)
+    if scenes:
+        for k, scene in enumerate(scenes):
+            if not isinstance(scene, Scene):
+                raise TypeError(f"scenes[{k}] must be a rrr_pin.report.viewer.Scene, got "
+                                f"{type(scene).__name__}")
+        fixed = len(_page(title, sections + [("scenes", "3D animation", "")]).encode("utf-8"))
+        room = max_bytes - fixed - 2000 * len(scenes)  # 2000: section and legend markup
+        if room <= 0:
+            raise ValueError(f"max_bytes={max_bytes} leaves no room for the scenes: the tables "
+                             f"and figures alone take {fixed} bytes")
+        per_scene = room // len(scenes)
+        note = ("<p>Each scene: the nominal plant opaque, the uncertain plants as translucent "
+                "ghosts. Open Controls &gt; Animations: play, pause, reset and a time slider; "
+                "drag to orbit, right-drag to pan, scroll to zoom.</p>")
+        sections.append(("scenes", "3D animation", note + "".join(
+            scene_html(scene, fps=fps, max_bytes=per_scene) for scene in scenes)))
+    return _page(title, sections)
+
+
+def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (),
+                      figures: Sequence = (), design: Mapping | None = None,
+                      scenes: Sequence[Scene] = (), max_bytes: int = REPORT_MAX_BYTES,
+                      fps: float = 30.0) -> Path:
+    """Write one self-contained HTML report.
+
+    Parameters
+    ----------
+    path : path-like
+        The file to write (e.g. ``results/report.html``); parent folders are created.
+    title : str
+        Page title.
+    tables : sequence of (str, str)
+        ``(caption, content)`` pairs; ``content`` is Markdown (pipe tables, headings, lists;
+        raw HTML in it is escaped) or, when it starts with ``<``, HTML inserted as is.
+    figures : sequence of path-like
+        Image files (PNG, JPEG, GIF, SVG), inlined as base64 ``data:`` URIs.
+    design : dict, optional
+        Design summary (e.g. gamma, K, margins): any JSON-like mapping, shown as nested
+        tables, numbers to 6 significant digits.
+    scenes : sequence of rrr_pin.report.viewer.Scene
+        3D animations, e.g. one per controller; each is rendered with
+        :func:`rrr_pin.report.viewer.scene_html`, the byte budget left by the rest of the page
+        shared equally between them.
+    max_bytes : int, default :data:`REPORT_MAX_BYTES`
+        Byte budget of the file [bytes]; the scenes' frames are decimated to fit.
+    fps : float, default 30
+        Frames per second of the animations before decimation [1/s].
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    FileNotFoundError
+        A figure file is missing.
+    rrr_pin.report.viewer.ViewerSizeError (a ValueError)
+        A scene that does not fit its share of ``max_bytes``.
+    OutputNotWritableError (a ValueError)
+        The file cannot be written.
+    """
+    text = report_html(title=title, tables=tables, figures=figures, design=design,
+                       scenes=scenes, max_bytes=max_bytes, fps=fps)
+    path = Path(path)
+    check_writable(path.parent)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise OutputNotWritableError(f"cannot write {str(path)!r}: "
+                                     f"{exc.strerror or exc}") from None
+    return path

@@ -1,0 +1,298 @@
+"""Frozen-configuration robustness certificates for uncertain arms (nu-gap against b(Gs, Ks)).
+
+The controller of eq. (8)-(10) uses the *nominal* model, ``tau = Mhat(q) taubar + Vhat(q, qd)
++ Ghat(q)`` with ``taubar = -2 lam qd - lam^2 (q - tauhat)``, while the arm obeys its *true*
+``M, V, G`` (eq. 1). The map ``tauhat -> q`` is then
+
+    qdd = M(q)^-1 [ Mhat(q) taubar + Vhat(q, qd) + Ghat(q) - V(q, qd) - G(q) ],
+
+which is eq. (11), ``lam^2 / (s + lam)^2 I``, only when the model is exact. At each frozen
+configuration ``(q, qd, qdd)`` along the reference, :func:`frozen_certificate` linearizes this
+map (``B`` exactly, the ``q`` and ``qd`` derivatives by central differences of Pinocchio's
+``M, V, G``), shapes it like the design (``W2 G W1``), and compares its nu-gap to the nominal
+shaped plant with the design's margin ``b(Gs, Ks)``: by Vinnicombe's theorem, ``nugap < b``
+implies that ``Ks`` stabilizes the frozen plant, with margin at least
+``sin(arcsin b - arcsin nugap)``.
+
+What a frozen-configuration certificate proves, and what it does not
+--------------------------------------------------------------------
+It proves that, at every configuration checked, the linear time-invariant model obtained by
+freezing the arm there and linearizing the feedback-linearized uncertain dynamics is
+stabilized by the loop-shaping controller, with a guaranteed NCF margin. It does not prove
+that the nonlinear, time-varying closed loop is stable or tracks the reference: frozen-time
+stability does not imply stability of the time-varying system unless the configuration
+varies slowly enough, the linearization holds only for small deviations around the frozen
+point, the configurations between the checked ones are not covered, and the certificate
+ignores what the LTI model leaves out (sampling and discretization of the controller, torque
+limits, friction, delays, unmodelled flexible dynamics). A certified plant is therefore
+*likely* robust and a non-certified one is *not proven* robust - it may still be stable in
+simulation; simulation and the certificate are complementary evidence, not substitutes.
+
+References
+----------
+.. [1] The paper, eq. (8)-(11) and section 4.
+.. [2] G. Vinnicombe, *Uncertainty and Feedback*, Imperial College Press, 2001, th. 3.8.
+.. [3] C. A. Desoer, "Slowly varying system xdot = A(t) x", IEEE Trans. Automat. Control
+   14(6), 780-781, 1969 (frozen-time stability needs slow variation).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import control
+import numpy as np
+
+from .gap import _nugap
+from .loopshaping import fl_plant
+from .lti import DimensionMismatchError, check_lti, expand_diagonal
+from .ncf import _graph_symbols_ct, _series, ncfmargin
+from .reduction import _arcsin_bound
+
+__all__ = ["FrozenCertificate", "CertificateSpec", "frozen_linearization", "frozen_certificate"]
+
+
+@dataclass(frozen=True)
+class FrozenCertificate:
+    """Result of :func:`frozen_certificate`.
+
+    Attributes
+    ----------
+    nugap : ndarray, shape (N,)
+        nu-gap between each frozen shaped plant and the nominal shaped plant ``Gs``.
+    b : float
+        ``b(Gs, Ks)`` of the nominal shaped loop.
+    b_lower : ndarray, shape (N,)
+        Guaranteed margin ``sin(arcsin b - arcsin nugap)`` of each frozen loop (0 where
+        ``nugap >= b``).
+    b_frozen : ndarray, shape (N,)
+        Computed ``b(Gs_k, Ks)`` of each frozen loop (0 where unstable), for comparison.
+    certified : bool
+        ``max(nugap) < b``.
+    """
+
+    nugap: np.ndarray
+    b: float
+    b_lower: np.ndarray
+    b_frozen: np.ndarray
+    certified: bool
+
+    @property
+    def nugap_max(self) -> float:
+        """Largest nu-gap over the configurations."""
+        return float(self.nugap.max())
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary."""
+        return {"certified": bool(self.certified), "b": float(self.b),
+                "nugap_max": self.nugap_max, "b_lower_min": float(self.b_lower.min()),
+                "b_frozen_min": float(self.b_frozen.min())}
+
+
+def _configs(nq: int, q, qd, qdd):
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    qd = np.atleast_2d(np.asarray(qd, dtype=float))
+    qdd = np.zeros_like(q) if qdd is None else np.atleast_2d(np.asarray(qdd, dtype=float))
+    for name, x in (("q", q), ("qd", qd), ("qdd", qdd)):
+        if x.ndim != 2 or x.shape[1] != nq or x.shape[0] == 0:
+            raise DimensionMismatchError(f"Expected {name} of shape (N, {nq}), got {x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise ValueError(f"{name} must be finite")
+    if not (q.shape == qd.shape == qdd.shape):
+        raise DimensionMismatchError(f"q, qd and qdd must have the same shape, got {q.shape}, "
+                                     f"{qd.shape} and {qdd.shape}")
+    return q, qd, qdd
+
+
+def frozen_linearization(nominal, plant, q, qd, qdd=None, lam: float = 45.0,
+                         h: float = 1e-6) -> control.StateSpace:
+    r"""Linearize the feedback-linearized uncertain arm ``tauhat -> q`` at one configuration.
+
+    .. math:: \ddot q = M^{-1}\left[\hat M \bar\tau + \hat V + \hat G - V - G\right],\quad
+              \bar\tau = -2\lambda \dot q - \lambda^2 (q - \hat\tau)
+
+    (paper eq. 8-10 with nominal ``Mhat, Vhat, Ghat`` and true ``M, V, G``), linearized at
+    ``(q, qd)`` and the input ``tauhat`` for which ``taubar = qdd``.
+
+    Parameters
+    ----------
+    nominal, plant : rrr_pin.model.dynamics.Robot
+        The controller's model and the true arm (same ``nq``).
+    q, qd, qdd : array-like, shape (nq,)
+        Configuration [rad], velocity [rad/s] and reference acceleration [rad/s^2]
+        (``qdd`` default 0).
+    lam : float
+        Feedback-linearization natural frequency [rad/s].
+    h : float
+        Relative central-difference step.
+
+    Returns
+    -------
+    control.StateSpace
+        ``nq x nq`` plant, states ``[dq; dqd]``; equal to :func:`fl_plant` (eq. 11) when
+        ``plant`` is ``nominal``.
+    """
+    nq = nominal.nq
+    if plant.nq != nq:
+        raise DimensionMismatchError(f"nominal has nq={nq} but plant has nq={plant.nq}")
+    q, qd, qdd = (x[0] for x in _configs(nq, q, qd, qdd))
+    tauhat = q + (qdd + 2.0 * lam * qd) / lam**2
+
+    def f(q, qd):
+        taubar = -2.0 * lam * qd - lam**2 * (q - tauhat)
+        rhs = (nominal.M(q) @ taubar + nominal.V(q, qd) + nominal.G(q)
+               - plant.V(q, qd) - plant.G(q))
+        return np.linalg.solve(plant.M(q), rhs)
+
+    Jq, Jqd = np.zeros((nq, nq)), np.zeros((nq, nq))
+    for i in range(nq):
+        e = np.zeros(nq)
+        e[i] = h * max(1.0, abs(q[i]))
+        Jq[:, i] = (f(q + e, qd) - f(q - e, qd)) / (2 * e[i])
+        e[i] = h * max(1.0, abs(qd[i]))
+        Jqd[:, i] = (f(q, qd + e) - f(q, qd - e)) / (2 * e[i])
+    Bq = lam**2 * np.linalg.solve(plant.M(q), nominal.M(q))
+    Z, eye = np.zeros((nq, nq)), np.eye(nq)
+    return control.ss(np.block([[Z, eye], [Jq, Jqd]]), np.vstack([Z, Bq]),
+                      np.hstack([eye, Z]), Z)
+
+
+def _square(name, W, nq):
+    W = check_lti(W, name)
+    if (W.noutputs, W.ninputs) == (1, 1) and nq > 1:
+        W = expand_diagonal(W, nq)
+    if (W.noutputs, W.ninputs) != (nq, nq):
+        raise DimensionMismatchError(f"Expected {name} SISO or {nq} x {nq}, got "
+                                     f"{W.noutputs} x {W.ninputs}")
+    return W
+
+
+def _shaped_loop(lam: float, W1, W2, Ks, nq: int):
+    """Nominal shaped plant ``Gs = W2 G W1`` (eq. 11) and ``Ks``, both ``nq x nq``."""
+    W1, W2, Ks = _square("W1", W1, nq), _square("W2", W2, nq), _square("Ks", Ks, nq)
+    return _series(W2, fl_plant(lam, nq), W1), W1, W2, Ks
+
+
+def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
+                       qdd=None) -> FrozenCertificate:
+    r"""Certify an uncertain arm at frozen configurations: ``max nugap(Gs_k, Gs) < b(Gs, Ks)``.
+
+    For each configuration ``k`` the uncertain arm is linearized
+    (:func:`frozen_linearization`), shaped like the design, ``Gs_k = W2 G_k W1``, and
+    compared with the nominal shaped plant ``Gs = W2 G W1`` of eq. (11):
+
+    .. math:: \delta_\nu(G_{s,k}, G_s) < b(G_s, K_s) \implies K_s \text{ stabilizes }
+              G_{s,k},\quad \arcsin b(G_{s,k}, K_s) \ge \arcsin b(G_s, K_s)
+              - \arcsin \delta_\nu(G_{s,k}, G_s)
+
+    See the module docstring for what this proves and what it does not.
+
+    Parameters
+    ----------
+    nominal, plant : rrr_pin.model.dynamics.Robot
+        The controller's model and the uncertain (true) arm.
+    q, qd : array-like, shape (N, nq)
+        Frozen configurations [rad] and velocities [rad/s] along the reference.
+    lam : float
+        Feedback-linearization natural frequency [rad/s] (``Design.lam``).
+    W1, W2 : control.LTI
+        Loop-shaping weights, SISO or ``nq x nq`` (``Design.W1``, ``Design.W2``).
+    Ks : control.LTI
+        Negative-feedback controller of the shaped plant, SISO or ``nq x nq``
+        (``Design.Ks_reduced`` for the eq. 18 controller, ``Design.ncf.Ks`` for the full one).
+    qdd : array-like, shape (N, nq), optional
+        Reference accelerations [rad/s^2] (default 0).
+
+    Returns
+    -------
+    FrozenCertificate
+        ``nugap`` per configuration, ``b``, guaranteed and computed frozen margins,
+        ``certified``.
+
+    Examples
+    --------
+    >>> d = design()                                           # doctest: +SKIP
+    >>> cert = frozen_certificate(robot, uncertain, q, qd, lam=d.lam, W1=d.W1, W2=d.W2,
+    ...                           Ks=d.Ks_reduced)             # doctest: +SKIP
+    """
+    nq = nominal.nq
+    q, qd, qdd = _configs(nq, q, qd, qdd)
+    Gs0, W1, W2, Ks = _shaped_loop(lam, W1, W2, Ks, nq)
+    b = ncfmargin(Gs0, Ks)[0]
+    G0, Gt0 = _graph_symbols_ct(Gs0)
+    nus, bf = np.empty(q.shape[0]), np.empty(q.shape[0])
+    for k in range(q.shape[0]):
+        Gk = frozen_linearization(nominal, plant, q[k], qd[k], qdd[k], lam)
+        Gsk = _series(W2, Gk, W1)
+        Gk_sym, _ = _graph_symbols_ct(Gsk)
+        nus[k] = _nugap(Gk_sym, G0, Gt0)
+        bf[k] = ncfmargin(Gsk, Ks)[0]
+    lower = np.array([_arcsin_bound(b, d) for d in nus])
+    return FrozenCertificate(nugap=nus, b=float(b), b_lower=lower, b_frozen=bf,
+                             certified=bool(nus.max() < b))
+
+
+def _matrices(sys) -> tuple:
+    s = control.ss(sys)
+    return tuple(np.asarray(m, dtype=float).tolist() for m in (s.A, s.B, s.C, s.D))
+
+
+@dataclass(frozen=True)
+class CertificateSpec:
+    """What the study and the campaign certify per uncertain plant (picklable, JSON-ready).
+
+    The loop-shaping design travels as state-space matrices (python-control systems do not
+    pickle); :meth:`certify` checks a plant at ``points`` frozen configurations of the
+    reference, evenly spaced over the run.
+
+    Parameters
+    ----------
+    lam : float
+        Feedback-linearization natural frequency of the design [rad/s].
+    W1, W2, Ks : tuple
+        ``(A, B, C, D)`` of the weights and of the shaped-plant controller (nested lists).
+    points : int, default 8
+        Frozen configurations per plant, >= 1.
+    """
+
+    lam: float
+    W1: tuple
+    W2: tuple
+    Ks: tuple
+    points: int = 8
+
+    def __post_init__(self) -> None:
+        if isinstance(self.points, bool) or not isinstance(self.points, int) or self.points < 1:
+            raise ValueError(f"points must be an integer >= 1, got {self.points!r}")
+
+    @classmethod
+    def from_design(cls, d, points: int = 8, reduced: bool = True) -> CertificateSpec:
+        """From a :class:`rrr_pin.robust.loopshaping.Design` (the eq. 18 ``Ks`` by default)."""
+        Ks = d.Ks_reduced if reduced else d.ncf.Ks
+        return cls(float(d.lam), _matrices(d.W1), _matrices(d.W2), _matrices(Ks), points)
+
+    def certify(self, nominal, plant, reference, duration: float) -> dict:
+        """Certify ``plant`` along ``reference`` over ``[0, duration]``.
+
+        Returns
+        -------
+        dict
+            ``certified`` (bool), ``nugap_max`` and ``b`` (the design's ``b(Gs, Ks)``).
+        """
+        t = np.linspace(0.0, float(duration), self.points)
+        R, RD, RDD = reference.sample(t)
+        cert = frozen_certificate(nominal, plant, R, RD, qdd=RDD, lam=self.lam,
+                                  W1=control.ss(*self.W1), W2=control.ss(*self.W2),
+                                  Ks=control.ss(*self.Ks))
+        return {"certified": cert.certified, "nugap_max": float(cert.nugap_max), "b": cert.b}
+
+    def margin(self, nq: int) -> float:
+        """Return the design's NCF margin ``b(Gs, Ks)`` [-] for ``nq`` joints."""
+        Gs, _, _, Ks = _shaped_loop(self.lam, control.ss(*self.W1), control.ss(*self.W2),
+                                    control.ss(*self.Ks), nq)
+        return float(ncfmargin(Gs, Ks)[0])
+
+    def to_dict(self) -> dict:
+        """JSON-ready description (recorded in results; a resume must match it)."""
+        return {"lam_rad_s": self.lam, "points": self.points, "W1": self.W1, "W2": self.W2,
+                "Ks": self.Ks}

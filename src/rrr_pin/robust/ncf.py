@@ -1,0 +1,510 @@
+"""Normalized coprime factors: McFarlane-Glover :func:`ncfsyn` and the margin :func:`ncfmargin`.
+
+Conventions (used everywhere in rrr-pin):
+
+* Every controller is for python-control's **negative** feedback, ``u = K (r - y)``: the loop
+  of ``G`` and ``K`` is ``control.feedback(G * K)``. MATLAB's and Octave's ``ncfsyn`` and
+  SLICOT's ``SB10ID``/``SB10KD``/``SB10ZD`` return the positive-feedback controller ``-K``.
+* Shaped plant ``Gs = W2 G W1``, loop-shaping controller ``K = W1 Ks W2``.
+* Graph symbols with outputs first, ``G = [N; M]`` for ``P = N M^-1`` (normalized:
+  ``G~ G = I``) and ``Gt = [-Mt, Nt]`` for ``P = Mt^-1 Nt`` (``Gt Gt~ = I``, ``Gt G = 0``).
+* Continuous time natively; discrete time through the exact bilinear map of
+  :func:`rrr_pin.robust.lti.to_continuous`, which preserves every quantity computed here.
+
+References
+----------
+.. [1] D. McFarlane and K. Glover, *Robust Controller Design Using Normalized Coprime Factor
+   Plant Descriptions*, LNCIS 138, Springer, 1990; and "A loop shaping design procedure
+   using H-infinity synthesis", IEEE Trans. Automat. Control 37(6), 759-769, 1992.
+.. [2] S. Skogestad and I. Postlethwaite, *Multivariable Feedback Control: Analysis and
+   Design*, 2nd ed., Wiley, 2005, sec. 9.4 (eq. 9.66, 9.75-9.79).
+.. [3] G. Vinnicombe, *Uncertainty and Feedback: H-infinity Loop-Shaping and the nu-Gap
+   Metric*, Imperial College Press, 2001, ch. 1-3 (b(P, C), graph symbols).
+.. [4] K. Zhou, J. C. Doyle and K. Glover, *Robust and Optimal Control*, Prentice Hall,
+   1996, sec. 13.8 (normalized coprime factorizations).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import control
+import numpy as np
+import scipy.linalg as sla
+
+from .lti import (
+    DimensionMismatchError,
+    IllPosedLoopError,
+    check_lti,
+    common_timebase,
+    expand_diagonal,
+    static_gain,
+    to_continuous,
+    to_discrete,
+)
+from .robustness import hinf_norm, ncf_gamma, ncf_loop
+
+__all__ = [
+    "HiddenModeError",
+    "WeightError",
+    "SynthesisError",
+    "NCFSynResult",
+    "shaped_plant",
+    "ncfsyn",
+    "ncfmargin",
+    "graph_symbols",
+]
+
+
+class HiddenModeError(ValueError):
+    """The shaped plant has an unstable mode that is uncontrollable or unobservable."""
+
+
+class WeightError(ValueError):
+    """A loop-shaping weight is not square or has the wrong size."""
+
+
+class SynthesisError(RuntimeError):
+    """The NCF synthesis failed numerically (Riccati equation, improper or unstable loop)."""
+
+
+def _is_discrete(dt) -> bool:
+    return dt not in (0, None)
+
+
+def _weight(name: str, W, size: int) -> control.StateSpace:
+    """Square ``size x size`` weight; ``None`` -> identity, SISO -> per-channel copy."""
+    if W is None:
+        return static_gain(np.eye(size))
+    W = check_lti(W, name)
+    if W.noutputs != W.ninputs:
+        raise WeightError(f"{name} must be square, got shape ({W.noutputs}, {W.ninputs})")
+    if W.noutputs == 1 and size > 1:
+        W = expand_diagonal(W, size)
+    if W.noutputs != size:
+        raise WeightError(f"{name} must be {size} x {size} (or SISO), "
+                          f"got {W.noutputs} x {W.ninputs}")
+    return W
+
+
+def _series(*systems) -> control.StateSpace:
+    """Product ``S1 S2 ...`` of checked systems with one timebase."""
+    dt = common_timebase(*((f"system {i}", s) for i, s in enumerate(systems)))
+    out = None
+    for s in systems:
+        s = control.ss(s.A, s.B, s.C, s.D, dt if dt is not None else s.dt)
+        out = s if out is None else out * s
+    return control.ss(out)
+
+
+def _plant_and_weights(G, W1, W2):
+    G = check_lti(G, "G")
+    W1 = _weight("W1", W1, G.ninputs)
+    W2 = _weight("W2", W2, G.noutputs)
+    dt = common_timebase(("G", G), ("W1", W1), ("W2", W2))
+    return G, W1, W2, dt
+
+
+def shaped_plant(G, W1=None, W2=None) -> control.StateSpace:
+    """Shaped plant of the loop-shaping procedure (paper sec. 4, step 2).
+
+    .. math:: G_s = W_2 G W_1
+
+    Parameters
+    ----------
+    G : control.LTI or array-like
+        Plant, ``p`` outputs and ``m`` inputs (continuous or discrete time).
+    W1 : control.LTI, optional
+        Pre-compensator, ``m x m`` or SISO (applied per channel); default identity.
+    W2 : control.LTI, optional
+        Post-compensator, ``p x p`` or SISO; default identity.
+
+    Returns
+    -------
+    control.StateSpace
+        ``p x m`` shaped plant (series connection, states of ``W1``, ``G`` and ``W2``).
+    """
+    G, W1, W2, _ = _plant_and_weights(G, W1, W2)
+    return _series(W2, G, W1)
+
+
+@dataclass(frozen=True)
+class NCFSynResult:
+    """Result of :func:`ncfsyn`; every controller is for negative feedback, ``u = -K y``.
+
+    Attributes
+    ----------
+    K : control.StateSpace
+        Loop-shaping controller ``W1 Ks W2`` for the plant ``G``, shape (m, p); the loop is
+        ``control.feedback(G * K)``. (MATLAB/Octave ``ncfsyn`` return ``-K``.)
+    Ks : control.StateSpace
+        Central controller of the shaped plant, shape (m, p), same convention.
+    Gs : control.StateSpace
+        Shaped plant ``W2 G W1``, shape (p, m).
+    W1, W2 : control.StateSpace
+        The weights actually used, ``m x m`` and ``p x p``.
+    gamma : float
+        Achieved index ``||[I; Ks](I + Gs Ks)^-1 [I Gs]||_inf`` of the loop (Gs, Ks).
+    gamma_min : float
+        Optimal index ``sqrt(1 + rho(X Z))`` of the shaped plant.
+    emax : float
+        Achieved stability margin ``1 / gamma`` (robustness to normalized coprime factor
+        uncertainty; the loop shape is kept when ``emax >= 0.2``).
+    factor : float
+        Requested ``gamma / gamma_min`` (``1`` = optimal).
+    """
+
+    K: control.StateSpace
+    Ks: control.StateSpace
+    Gs: control.StateSpace
+    W1: control.StateSpace
+    W2: control.StateSpace
+    gamma: float
+    gamma_min: float
+    emax: float
+    factor: float
+
+
+def _check_hidden_modes(Gs: control.StateSpace, discrete: bool = False,
+                        what: str = "shaped plant") -> None:
+    """Raise :class:`HiddenModeError` for an unstabilizable or undetectable realization.
+
+    ``Gs`` is continuous (the bilinear image when ``discrete``: the mode is then reported
+    at ``z = (1 + s) / (1 - s)``).
+    """
+    A, B, C = (np.asarray(M, dtype=float) for M in (Gs.A, Gs.B, Gs.C))
+    n = A.shape[0]
+    scale = max(1.0, np.linalg.norm(A, 1))
+    for ev in np.linalg.eigvals(A):
+        if ev.real < -1e-9 * scale:
+            continue
+        M = A - ev * np.eye(n)
+        for kind, pbh in (("uncontrollable", np.hstack([M, B])),
+                          ("unobservable", np.vstack([M, C]))):
+            sv = np.linalg.svd(pbh, compute_uv=False)
+            if sv[-1] <= 1e-9 * max(scale, sv[0]):
+                where = (f"z = {(1 + ev) / (1 - ev):.6g} with |z| >= 1" if discrete
+                         else f"s = {ev:.6g} with Re(s) >= 0")
+                raise HiddenModeError(
+                    f"the {what} has an {kind} mode at {where}: no controller stabilizes "
+                    "it (check W1, W2 for pole-zero cancellations with G, or pass a "
+                    "minimal realization)")
+
+
+def _psd_sqrt(P: np.ndarray) -> np.ndarray:
+    d, V = np.linalg.eigh(0.5 * (P + P.T))
+    return (V * np.sqrt(np.clip(d, 0.0, None))) @ V.T
+
+
+def ncfsyn(G, W1=None, W2=None, factor: float = 1.0) -> NCFSynResult:
+    r"""McFarlane-Glover normalized coprime factor loop-shaping synthesis.
+
+    For the shaped plant ``Gs = W2 G W1 = (A, B, C, D)``, with ``S = I + D^T D`` and
+    ``R = I + D D^T``, ``X`` and ``Z`` are the stabilizing solutions of the generalized
+    control and filter Riccati equations (Skogestad & Postlethwaite eq. 9.78-9.79)
+
+    .. math::
+        A^T X + X A - (X B + C^T D) S^{-1} (B^T X + D^T C) + C^T C = 0
+
+        A Z + Z A^T - (Z C^T + B D^T) R^{-1} (C Z + D B^T) + B B^T = 0
+
+    and ``gamma_min = sqrt(1 + rho(X Z))``. With ``gamma = factor * gamma_min``,
+    ``F = -S^{-1}(D^T C + B^T X)`` and ``E = (1 - gamma^2) I + Z X``, the central
+    positive-feedback controller (eq. 9.75-9.77) is the descriptor system
+
+    .. math::
+        E \dot\xi = \left(E (A + B F) + \gamma^2 Z C^T (C + D F)\right) \xi
+                     + \gamma^2 Z C^T y,\qquad u = B^T X \xi - D^T y,
+
+    returned with the opposite sign (negative feedback). For ``factor > 1``, ``E`` is
+    invertible and the controller has the order of ``Gs``. At the optimum (``factor == 1``)
+    ``E`` is singular; as in SLICOT ``SB10ID`` (behind Octave's ``ncfsyn``) its null space,
+    of dimension the multiplicity of ``rho(X Z)``, is eliminated exactly (SVD of ``E`` and a
+    Schur complement on the algebraic equations), so the optimal ``Ks`` has that many states
+    fewer and no near-singular fast pole. A ``factor`` just above 1 instead gives a real pole
+    whose magnitude grows like ``1 / (factor - 1)``;
+    :func:`rrr_pin.robust.reduction.reduce_controller` removes it.
+
+    **Discrete time** (the problem SLICOT ``SB10KD``/``SB10ZD`` solve): ``Gs`` is mapped to
+    continuous time by the bilinear map ``z = (1 + s) / (1 - s)``
+    (:func:`rrr_pin.robust.lti.to_continuous`), which maps the unit circle onto the imaginary axis
+    and preserves internal stability and the H-infinity norm of the NCF loop; so
+    ``gamma_min`` is the discrete one and the continuous central controller, mapped back,
+    is a discrete controller of the same order achieving the same ``gamma``.
+
+    Parameters
+    ----------
+    G : control.LTI or array-like
+        Plant, ``p`` outputs and ``m`` inputs, continuous or discrete time, proper.
+    W1 : control.LTI, optional
+        Proper pre-compensator, ``m x m`` or SISO (per channel); default identity.
+    W2 : control.LTI, optional
+        Proper post-compensator, ``p x p`` or SISO; default identity.
+    factor : float
+        ``gamma / gamma_min >= 1``; 1 for the optimal controller.
+
+    Returns
+    -------
+    NCFSynResult
+        ``K = W1 Ks W2``, ``Ks``, ``Gs``, ``gamma``, ``gamma_min``, ``emax = 1 / gamma``;
+        controllers for negative feedback, ``control.feedback(G * K)``.
+
+    Raises
+    ------
+    ValueError
+        ``factor < 1`` or not finite.
+    NonFiniteSystemError, ImproperSystemError, TimebaseMismatchError
+        NaN/inf coefficients, an improper plant or weight, mixed timebases
+        (:mod:`rrr_pin.robust.lti`), checked before any conversion.
+    WeightError
+        Non-square or wrongly sized weight.
+    HiddenModeError
+        ``Gs`` has an unstable mode that is uncontrollable or unobservable.
+    SynthesisError
+        A Riccati equation has no stabilizing solution, the optimal controller is improper,
+        or the loop is not internally stable (numerical failure).
+
+    References
+    ----------
+    .. [1] McFarlane and Glover (1990, 1992); Skogestad and Postlethwaite (2005), sec. 9.4.2;
+       SLICOT ``SB10ID``/``SB10JD`` (descriptor form at the optimum), ``SB10KD``/``SB10ZD``
+       (discrete time).
+
+    Examples
+    --------
+    >>> import control
+    >>> from rrr_pin.robust.loopshaping import ncfsyn, fl_plant, lag_weight
+    >>> res = ncfsyn(fl_plant(45.0, 1), lag_weight())
+    >>> round(res.gamma_min, 4)
+    2.1436
+    >>> loop = control.feedback(fl_plant(45.0, 1) * res.K)     # negative feedback
+    """
+    factor = float(factor)
+    if not np.isfinite(factor) or factor < 1.0:
+        raise ValueError(f"factor must be >= 1 (1 = optimal controller), got {factor!r}")
+    G, W1, W2, dt = _plant_and_weights(G, W1, W2)
+    Gs = _series(W2, G, W1)
+    discrete = _is_discrete(Gs.dt)
+    try:
+        Gc = to_continuous(Gs) if discrete else Gs
+    except ValueError as exc:
+        raise SynthesisError(f"shaped plant: {exc}") from exc
+    _check_hidden_modes(Gc, discrete)
+    Ks_c, gamma_min = _ncfsyn_ct(Gc, factor)
+    gamma = ncf_gamma(Gc, Ks_c)
+    if not np.isfinite(gamma):
+        raise SynthesisError("the synthesized controller does not stabilize the shaped plant")
+    if discrete:
+        try:
+            Ks = to_discrete(Ks_c, Gs.dt)
+        except ValueError as exc:
+            raise SynthesisError(f"discrete controller: {exc}; use factor > 1") from exc
+    else:
+        Ks = Ks_c
+    K = _series(W1, Ks, W2)
+    return NCFSynResult(K=K, Ks=Ks, Gs=Gs, W1=W1, W2=W2, gamma=float(gamma),
+                        gamma_min=gamma_min, emax=1.0 / float(gamma), factor=factor)
+
+
+def _ncfsyn_ct(Gs: control.StateSpace, factor: float):
+    """Central controller (negative feedback) and ``gamma_min`` of a continuous ``Gs``."""
+    A, B, C, D = (np.asarray(M, dtype=float) for M in (Gs.A, Gs.B, Gs.C, Gs.D))
+    n, m = A.shape[0], D.shape[1]
+    if n == 0:
+        raise SynthesisError("the shaped plant is a static gain; nothing to synthesize")
+    X, Z = _riccati_xz(A, B, C, D)
+    S = np.eye(m) + D.T @ D
+    Zh = _psd_sqrt(Z)
+    mu = np.linalg.eigvalsh(Zh @ X @ Zh)            # eigenvalues of X Z, real and >= 0
+    rho = max(float(mu[-1]), 0.0)
+    gamma_min = float(np.sqrt(1.0 + rho))
+    gam2 = (factor * gamma_min) ** 2
+
+    F = -np.linalg.solve(S, D.T @ C + B.T @ X)
+    E = (1.0 - gam2) * np.eye(n) + Z @ X
+    Ak = E @ (A + B @ F) + gam2 * Z @ C.T @ (C + D @ F)
+    Bk = gam2 * Z @ C.T
+    Ck = B.T @ X
+    Dk = -D.T
+    if factor == 1.0:
+        # Null space of E: as many directions as copies of rho in the spectrum of X Z.
+        k = int(np.sum(mu >= rho - 1e-8 * max(rho, 1.0)))
+        scale = abs(1.0 - gam2) + rho
+        Ak, Bk, Ck, Dk = _descriptor_to_ss(E, Ak, Bk, Ck, Dk, n - k, scale)
+    else:
+        Ak, Bk = np.linalg.solve(E, Ak), np.linalg.solve(E, Bk)
+    return control.ss(Ak, Bk, -Ck, -Dk), gamma_min        # negative-feedback convention
+
+
+def _riccati_xz(A, B, C, D):
+    """Stabilizing solutions X (control) and Z (filter) of the NCF Riccati equations."""
+    p, m = D.shape
+    S = np.eye(m) + D.T @ D
+    R = np.eye(p) + D @ D.T
+    try:
+        X = sla.solve_continuous_are(A, B, C.T @ C, S, s=C.T @ D)
+        Z = sla.solve_continuous_are(A.T, C.T, B @ B.T, R, s=B @ D.T)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise SynthesisError(f"Riccati equation without stabilizing solution: {exc}") from exc
+    return X, Z
+
+
+def _inv_sqrt(S: np.ndarray) -> np.ndarray:
+    d, V = np.linalg.eigh(0.5 * (S + S.T))
+    return (V / np.sqrt(d)) @ V.T
+
+
+def _graph_symbols_ct(P: control.StateSpace):
+    """Return the normalized graph symbols ``[N; M]`` and ``[-Mt, Nt]`` of a continuous P."""
+    A, B, C, D = (np.asarray(M, dtype=float) for M in (P.A, P.B, P.C, P.D))
+    n, (p, m) = A.shape[0], D.shape
+    Ri, Rti = _inv_sqrt(np.eye(m) + D.T @ D), _inv_sqrt(np.eye(p) + D @ D.T)
+    if n == 0:
+        return static_gain(np.vstack([D @ Ri, Ri])), static_gain(Rti @ np.hstack([-np.eye(p), D]))
+    X, Z = _riccati_xz(A, B, C, D)
+    F = -np.linalg.solve(np.eye(m) + D.T @ D, B.T @ X + D.T @ C)
+    L = -np.linalg.solve(np.eye(p) + D @ D.T, C @ Z + D @ B.T).T
+    right = control.ss(A + B @ F, B @ Ri, np.vstack([C + D @ F, F]), np.vstack([D @ Ri, Ri]))
+    left = control.ss(A + L @ C, np.hstack([-L, B + L @ D]), Rti @ C,
+                      Rti @ np.hstack([-np.eye(p), D]))
+    return right, left
+
+
+def graph_symbols(P) -> tuple[control.StateSpace, control.StateSpace]:
+    r"""Return the normalized right and left graph symbols of a plant.
+
+    .. math:: P = N M^{-1} = \tilde M^{-1} \tilde N,\quad
+              G = \begin{bmatrix} N \\ M \end{bmatrix},\
+              \tilde G = \begin{bmatrix} -\tilde M & \tilde N \end{bmatrix},\quad
+              G^\sim G = I,\ \tilde G \tilde G^\sim = I,\ \tilde G G = 0
+
+    With ``R = I + D^T D``, ``Rt = I + D D^T``, the stabilizing Riccati solutions ``X``, ``Z``
+    of :func:`ncfsyn`, ``F = -R^{-1}(B^T X + D^T C)`` and ``L = -(Z C^T + B D^T) Rt^{-1}``:
+    ``G = (A + B F, B R^{-1/2}, [C + D F; F], [D; I] R^{-1/2})`` and
+    ``Gt = (A + L C, [-L, B + L D], Rt^{-1/2} C, Rt^{-1/2} [-I, D])`` (Zhou, Doyle and
+    Glover, sec. 13.8).
+
+    Parameters
+    ----------
+    P : control.LTI
+        Stabilizable and detectable plant, ``p x m``, continuous time (discrete plants: pass
+        :func:`rrr_pin.robust.lti.to_continuous` of it).
+
+    Returns
+    -------
+    G : control.StateSpace
+        Stable ``(p + m) x m`` right graph symbol ``[N; M]``.
+    Gt : control.StateSpace
+        Stable ``p x (p + m)`` left graph symbol ``[-Mt, Nt]``.
+    """
+    P = check_lti(P, "P")
+    if _is_discrete(P.dt):
+        raise ValueError("graph_symbols takes a continuous-time plant; map a discrete one "
+                         "with rrr_pin.robust.lti.to_continuous first")
+    _check_hidden_modes(P, False, what="plant")
+    return _graph_symbols_ct(P)
+
+
+def _loop_pair(P, C):
+    """Check a negative-feedback loop ``(P, C)``; return continuous images and the timebase."""
+    P, C = check_lti(P, "P"), check_lti(C, "C")
+    if (C.noutputs, C.ninputs) != (P.ninputs, P.noutputs):
+        raise DimensionMismatchError(
+            f"Expected C of shape ({P.ninputs}, {P.noutputs}) for P of shape "
+            f"({P.noutputs}, {P.ninputs}), got ({C.noutputs}, {C.ninputs})")
+    dt = common_timebase(("P", P), ("C", C))
+    Q = np.eye(P.noutputs) + np.asarray(P.D, float) @ np.asarray(C.D, float)
+    if np.linalg.cond(Q) > 1e12:
+        raise IllPosedLoopError(
+            f"the loop is ill-posed: I + D_P D_C is singular (cond {np.linalg.cond(Q):.3g}); "
+            f"D_P = {np.asarray(P.D).tolist()}, D_C = {np.asarray(C.D).tolist()}")
+    if _is_discrete(dt):
+        P, C = to_continuous(P), to_continuous(C)
+    return P, C, dt
+
+
+def _to_frequency(wc: float, dt) -> float:
+    """Return the frequency of the original system for a continuous-image frequency ``wc``."""
+    if not _is_discrete(dt):
+        return wc
+    return 2.0 * np.arctan(wc) / (1.0 if dt is True else dt)     # arctan(inf) = pi / 2
+
+
+def ncfmargin(P, C) -> tuple[float, float]:
+    r"""Return the NCF stability margin ``b(P, C)`` of a negative-feedback loop.
+
+    .. math:: b(P, C) = \left\| \begin{bmatrix} I \\ C \end{bmatrix} (I + P C)^{-1}
+              \begin{bmatrix} I & P \end{bmatrix} \right\|_\infty^{-1}
+              \text{ if the loop is internally stable, else } 0
+
+    ``b(P, C) = b(C, P)``. Every plant ``P1 = (N + dN)(M + dM)^{-1}`` with
+    ``||[dN; dM]||_inf < b`` (normalized factors of ``P``), and every plant with
+    ``nugap(P, P1) < b``, is stabilized by ``C`` (Vinnicombe 2001, th. 3.8).
+
+    Parameters
+    ----------
+    P : control.LTI
+        Plant, ``p x m``; continuous or discrete time.
+    C : control.LTI or array-like
+        Negative-feedback controller (``u = -C y``), ``m x p``, same timebase.
+
+    Returns
+    -------
+    b : float
+        Margin in ``[0, 1]``; 0 when the loop is not internally stable.
+    freq : float
+        Frequency where ``1 / b`` peaks [rad/s; rad per sample when ``dt`` is True];
+        ``nan`` for an unstable loop.
+
+    Raises
+    ------
+    DimensionMismatchError, TimebaseMismatchError, IllPosedLoopError,
+    NonFiniteSystemError, ImproperSystemError
+        See :mod:`rrr_pin.robust.lti`.
+
+    References
+    ----------
+    .. [1] MATLAB Robust Control Toolbox ``ncfmargin`` (default sign -1, the same loop);
+       Vinnicombe (2001) sec. 1.4; McFarlane and Glover (1990).
+
+    Examples
+    --------
+    >>> import control
+    >>> from rrr_pin.robust.ncf import ncfmargin
+    >>> round(ncfmargin(control.tf(4, [1, -0.001]), 1.0)[0], 4)     # MATLAB doc: 0.7069
+    0.7069
+    """
+    P, C, dt = _loop_pair(P, C)
+    gamma, w = hinf_norm(ncf_loop(P, C))
+    if not np.isfinite(gamma):
+        return 0.0, float("nan")
+    return 1.0 / gamma, float(_to_frequency(w, dt))
+
+
+def _descriptor_to_ss(E, A, B, C, D, r: int, scale: float):
+    """Return a standard realization of ``E xdot = A x + B u, y = C x + D u`` with ``rank E = r``.
+
+    ``E = U diag(s) V^T``; in the coordinates ``V^T x`` the last ``n - r`` equations are
+    algebraic and are eliminated by a Schur complement (no impulsive modes allowed).
+    ``scale`` is the size of the terms of ``E``, to judge the discarded singular values.
+    """
+    U, s, Vt = np.linalg.svd(E)
+    if r < E.shape[0] and s[r] > 1e-6 * scale:
+        warnings.warn(f"optimal NCF controller: discarded singular value {s[r]:.3g} of E is "
+                      f"not small relative to {scale:.3g}", RuntimeWarning, stacklevel=3)
+    At, Bt, Ct = U.T @ A @ Vt.T, U.T @ B, C @ Vt.T
+    A11, A12, A21, A22 = At[:r, :r], At[:r, r:], At[r:, :r], At[r:, r:]
+    if A22.size and np.linalg.cond(A22) > 1e12:
+        raise SynthesisError("the optimal controller is improper (singular algebraic part); "
+                             "use factor > 1")
+    if A22.size:
+        M = np.linalg.solve(A22, np.hstack([A21, Bt[r:]]))
+        A11, Br = A11 - A12 @ M[:, :r], Bt[:r] - A12 @ M[:, r:]
+        Cr, Dr = Ct[:, :r] - Ct[:, r:] @ M[:, :r], D - Ct[:, r:] @ M[:, r:]
+    else:
+        Br, Cr, Dr = Bt, Ct, D
+    si = 1.0 / s[:r]
+    return si[:, None] * A11, si[:, None] * Br, Cr, Dr
+
+

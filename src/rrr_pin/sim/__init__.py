@@ -1,0 +1,11 @@
+"""Closed-loop simulation: one entry point, a Python reference engine and compiled engines.
+
+Holds :mod:`~rrr_pin.sim.trajectory` (the leaf: ``Trajectory``, ``SimulationDiverged``, the
+divergence test), :mod:`~rrr_pin.sim.simulation` (``simulate``: validation and the Python
+engine), :mod:`~rrr_pin.sim.extension` (the C++ extension ``_rollout``),
+:mod:`~rrr_pin.sim.compiled` (the compiled engine) and :mod:`~rrr_pin.sim.codegen` (the
+generated-dynamics engine).
+
+Layer: above :mod:`rrr_pin.control`. May import :mod:`rrr_pin.validation`,
+:mod:`rrr_pin.model`, :mod:`rrr_pin.robust` and :mod:`rrr_pin.control`.
+"""

@@ -1,0 +1,80 @@
+"""The compiled extension ``rrr_pin.sim._rollout``: loading, version check, loaded models.
+
+Shared by the compiled engine (:mod:`rrr_pin.sim.compiled`) and the codegen engine
+(:mod:`rrr_pin.sim.codegen`); imports nothing of rrr_pin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pinocchio as pin  # loads libpinocchio_default.so before the extension needs it
+
+__all__ = ["EXTENSION", "CompiledRobot", "available", "require", "cached"]
+
+
+def _load_extension():
+    """Return (module, None) or (None, reason it cannot be used)."""
+    try:
+        from . import _rollout as ext
+    except ImportError as exc:
+        return None, (f"rrr_pin's compiled extension (rrr_pin.sim._rollout) is not built or cannot "
+                      f"load ({exc}); install the package with `pip install .` or "
+                      f"`pip install -e .`, which compiles it")
+    if ext.pinocchio_version() != pin.__version__:
+        return None, (f"rrr_pin.sim._rollout was compiled against Pinocchio "
+                      f"{ext.pinocchio_version()} but Pinocchio {pin.__version__} is installed "
+                      f"(its C++ ABI changes between versions); reinstall rrr-pin "
+                      f"(`pip install --force-reinstall .`) or install "
+                      f"pin=={ext.pinocchio_version()}")
+    return ext, None
+
+
+#: The compiled extension module, or None when it cannot be used (see :func:`require`).
+EXTENSION, _UNAVAILABLE = _load_extension()
+
+
+def available() -> bool:
+    """Whether the compiled extension is built and matches the installed Pinocchio."""
+    return EXTENSION is not None
+
+
+def require() -> None:
+    """Raise ``ImportError`` saying why the compiled engine cannot run, if it cannot."""
+    if EXTENSION is None:
+        raise ImportError(_UNAVAILABLE)
+
+
+@dataclass(frozen=True)
+class CompiledRobot:
+    """A robot model loaded into the extension, reusable across rollouts and threads.
+
+    Attributes
+    ----------
+    name : str
+        Robot name (for messages).
+    joint_names : tuple of str
+        Names of the moving joints, shape (nq,).
+    """
+
+    name: str
+    joint_names: tuple[str, ...]
+    _model: object = field(repr=False)
+
+    @property
+    def nq(self) -> int:
+        """Number of joints."""
+        return self._model.nq
+
+
+def cached(cache: dict, robot, load):
+    """Return ``load(robot)``, kept in ``cache`` by identity of ``robot.model`` (last 8 models)."""
+    key = id(robot.model)
+    hit = cache.get(key)
+    if hit is not None and hit[0] is robot.model:
+        return hit[1]
+    out = load(robot)
+    if len(cache) >= 8:
+        cache.pop(next(iter(cache)))
+    cache[key] = (robot.model, out)
+    return out

@@ -1,0 +1,544 @@
+"""Closed-loop simulation of the nonlinear arm: one entry point, two engines.
+
+The plant is the full rigid-body model of a URDF (Pinocchio's ABA); the law sees only its own
+model (:mod:`rrr_pin.control.laws`). :func:`simulate` validates its inputs once, samples the
+reference on the grid where the law is evaluated, and hands the run to an engine:
+
+* ``"python"``: :func:`_run_python`, the readable reference, runs any law;
+* ``"compiled"``: the C++ loop of :mod:`rrr_pin.sim.compiled`, which runs a law only if the law
+  declares a :class:`~rrr_pin.control.laws.CompiledForm`; the two agree to round-off
+  (``tests/test_engines.py`` pins every built-in law and reference on both);
+* ``"auto"`` (default): compiled when the extension is built and the law has a compiled form,
+  Python otherwise. The engine used is recorded in ``Trajectory.info["engine"]``; no law is ever
+  replaced by another.
+
+Integration method: classical fixed-step Runge-Kutta 4.
+
+* Continuous-time laws (``rate=None``, as in the paper's Simulink study): the state
+  ``(q, qd, x)`` of arm and law is integrated together with step ``dt``; the law is evaluated at
+  every RK4 stage (times ``t_k``, ``t_k + dt/2``, ``t_k + dt``).
+* Sampled laws (``rate`` in Hz): at ``t_k = k Ts`` the law reads ``(q_k, qd_k)``, updates its
+  state and outputs ``tau_k``, held constant (zero-order hold) while the arm is integrated over
+  ``[t_k, t_k + Ts]`` by ``substeps`` RK4 steps of ``Ts / substeps``.
+
+Divergence (one definition for both engines, :func:`diverged_joint`): a run diverges when, at the
+end of a control period (sampled) or of an RK4 step (continuous), a joint's ``q`` or ``qd`` is
+NaN/inf, ``|qd|`` exceeds :data:`VELOCITY_LIMIT`, or ``q`` leaves the plant's joint limits
+widened by ``limit_margin``.
+
+Accuracy: RK4's global error is ``O(dt^4)``; ``tests/test_simulate.py`` halves the step and shows
+the tracking errors move by orders of magnitude less than the differences the study reports.
+"""
+
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+
+import numpy as np
+import pinocchio as pin
+
+from ..control.effects import PlantEffects, check_effects
+from ..control.laws import ControlLaw, SampledLaw, check_law
+from ..control.references import Reference, SineReference, check_reference
+from .trajectory import (
+    VELOCITY_LIMIT,
+    Run,
+    SimulationDiverged,
+    Trajectory,
+    diverged_joint,
+    divergence,
+    make_trajectory,
+    metrics,
+)
+
+__all__ = [
+    "SineReference",
+    "Trajectory",
+    "SimulationDiverged",
+    "simulate",
+    "metrics",
+    "diverged_joint",
+    "DEFAULT_DT",
+    "VELOCITY_LIMIT",
+    "ENGINES",
+]
+
+#: Default RK4 step of the continuous-time simulation [s].
+DEFAULT_DT = 1e-3
+
+#: Accepted values of ``simulate(engine=...)``.
+ENGINES = ("auto", "python", "compiled", "codegen")
+
+
+def _surely_inside(q, qd, low: list, up: list) -> bool:
+    """Return True only if :func:`diverged_joint` would return None (per-step fast test).
+
+    On Python floats (``tolist``), which for an arm's few joints costs about a quarter of
+    NumPy's reductions. A finite sum means every entry is finite (NaN and inf propagate); False
+    (including a finite overflow of the sum) sends the step to :func:`diverged_joint`, the
+    definition, which names the joint and the reason.
+    """
+    ql, vl = q.tolist(), qd.tolist()
+    return (math.isfinite(sum(ql) + sum(vl)) and max(map(abs, vl)) <= VELOCITY_LIMIT
+            and all(map(float.__le__, low, ql)) and all(map(float.__le__, ql, up)))
+
+
+def _finite(name: str, value, positive: bool = True, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or (positive and (v < 0.0 or (v == 0.0 and not allow_zero))):
+        want = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be finite and {want}, got {value!r}")
+    return v
+
+
+def _state(name: str, value, default: np.ndarray) -> np.ndarray:
+    if value is None:
+        return default.copy()
+    v = np.asarray(value, dtype=float)
+    if v.shape != default.shape:
+        raise ValueError(f"Expected {name} of shape {default.shape}, got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must be finite, got {v.tolist()}")
+    return v.copy()
+
+
+def simulate(plant, law, reference: Reference, duration: float, *, dt: float = DEFAULT_DT,
+             rate: float | None = None, method: str = "tustin", q0=None, qd0=None,
+             limit_margin: float = 0.0, engine: str = "auto",
+             effects: PlantEffects | None = None) -> Trajectory:
+    """Simulate the closed loop of ``plant`` and ``law`` tracking ``reference``.
+
+    Parameters
+    ----------
+    plant : Robot
+        The true arm (may differ from the law's model).
+    law : ControlLaw or SampledLaw
+        Any law (:mod:`rrr_pin.control.laws`): a built-in or your own.
+    reference : Reference
+        Joint reference with ``plant.nq`` joints (:mod:`rrr_pin.control.references`).
+    duration : float
+        Simulated time [s]; at least one step (``dt``, or ``1/rate`` for sampled laws).
+    dt : float, default 1e-3
+        RK4 step [s] for continuous-time laws; for sampled laws, the largest plant sub-step
+        (``substeps = ceil(Ts / dt)``).
+    rate : float, optional
+        Run a continuous law as a digital controller at this rate [Hz] (zero-order hold, the
+        law's :meth:`~rrr_pin.control.laws.ControlLaw.sampled` form with ``method``). A
+        :class:`~rrr_pin.control.laws.SampledLaw` runs at its own rate (``rate`` must then be
+        None or equal to it).
+    method : str, default "tustin"
+        Discretization of a continuous law's state for sampled runs.
+    q0, qd0 : array-like, shape (n,), optional
+        Initial joint positions [rad] and velocities [rad/s]; default: on the reference,
+        ``r(0)`` and ``rd(0)``. The law's state starts at ``law.initial_state()``.
+    limit_margin : float, default 0
+        Slack beyond the plant's joint limits before the run counts as diverged [rad], >= 0.
+    engine : {"auto", "python", "compiled", "codegen"}, default "auto"
+        See the module docstring. ``"compiled"`` with a law that declares no compiled form
+        raises ``ValueError`` naming the law. ``"codegen"``: the compiled loop on generated
+        dynamics (:mod:`rrr_pin.sim.codegen`), only when plant and nominal model are the nominal
+        RRR; otherwise ``rrr_pin.sim.codegen.CodegenModelMismatch``. Never chosen by ``"auto"``.
+    effects : PlantEffects, optional
+        Unmodeled dynamics of the plant (delay, actuator bandwidth, friction, saturation,
+        sensor noise, quantization, flexible joints; :mod:`rrr_pin.control.effects`), sampled runs only.
+        None (default): the ideal plant.
+
+    Returns
+    -------
+    Trajectory
+        Sampled every ``dt`` (continuous) or every ``1/rate`` (sampled).
+
+    Raises
+    ------
+    SimulationDiverged
+        See :func:`diverged_joint`.
+    ValueError
+        Inconsistent sizes, non-finite or non-positive settings, a duration shorter than one
+        step, a reference or initial state outside the joint limits, an engine that cannot run
+        the law, effects with a continuous-time law.
+    TypeError
+        ``law`` or ``reference`` of the wrong type.
+    """
+    run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
+                   qd0=qd0, limit_margin=limit_margin, effects=effects)
+    form, engine = _choose_engine(run.law, engine)
+    if engine in ("compiled", "codegen"):
+        from .compiled import run_compiled
+
+        traj = run_compiled(run, form, codegen=engine == "codegen")
+    else:
+        traj = _run_python(run)
+    traj.info["engine"] = engine
+    return traj
+
+
+def _choose_engine(law, engine: str):
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if engine == "python":
+        return None, "python"
+    form = law.compiled_form()
+    if engine in ("compiled", "codegen"):
+        if form is None:
+            raise ValueError(
+                f"law {law.name!r} ({type(law).__name__}) declares no compiled form, so the "
+                f"compiled engine cannot run it; use engine='python' (or 'auto', which picks "
+                f"Python for it)")
+        from .compiled import require
+
+        require()
+        return form, engine
+    from .compiled import available
+
+    return (form, "compiled") if form is not None and available() else (None, "python")
+
+
+#: Reuse of the law-side work of :func:`_prepare` across runs, active only inside
+#: :func:`reuse_preparation` (``None`` outside): the reference sampled on a grid, and the
+#: sampled form of a built-in law.
+_REUSE: dict | None = None
+
+
+@contextmanager
+def reuse_preparation():
+    """Within the block, runs of the same reference and law share their preparation.
+
+    A campaign runs the same laws on the same reference grid for thousands of plants; inside
+    this context :func:`simulate` samples each reference once per grid, and discretizes each
+    built-in law once per ``(rate, method)``, instead of once per run. Results are bit for bit
+    those of separate runs: the cached values are the ones a run would compute, and every run
+    gets its own copy of the reference arrays. Laws and references must not be changed inside
+    the block (the cache holds them by identity). Re-entrant; the cache is dropped when the
+    outermost block exits.
+    """
+    global _REUSE
+    outer = _REUSE is None
+    if outer:
+        _REUSE = {}
+    try:
+        yield
+    finally:
+        if outer:
+            _REUSE = None
+
+
+def _sampled_law(law, rate: float, method: str):
+    """``law.sampled(rate, method)``, reused inside :func:`reuse_preparation`.
+
+    Reused only for laws with a compiled form (the built-ins): their sampled form is a pure
+    function of the law's parameters, whereas a user's ``sampled`` may build fresh state.
+    """
+    if _REUSE is None or law.compiled_form() is None:
+        return law.sampled(rate, method)
+    key = ("law", id(law), rate, method)
+    hit = _REUSE.get(key)
+    if hit is None or hit[0] is not law:
+        hit = _REUSE[key] = (law, law.sampled(rate, method))
+    return hit[1]
+
+
+def _sample_reference(reference, grid_key, grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return ``reference.sample(grid)`` as contiguous float arrays.
+
+    Inside :func:`reuse_preparation`, sampled once per reference (by identity) and
+    ``grid_key`` (which determines ``grid``); each call gets its own copies.
+    """
+    if _REUSE is None:
+        return tuple(np.ascontiguousarray(a, dtype=float) for a in reference.sample(grid))
+    key = ("reference", id(reference), grid_key)
+    hit = _REUSE.get(key)
+    if hit is None or hit[0] is not reference:
+        arrays = tuple(np.ascontiguousarray(a, dtype=float) for a in reference.sample(grid))
+        hit = _REUSE[key] = (reference, arrays)
+    return tuple(a.copy() for a in hit[1])
+
+
+def _check_limits(reference, plant, duration: float) -> None:
+    """Run ``reference.check_limits(plant, duration=duration)``.
+
+    Inside :func:`reuse_preparation`, a passed check of the generic grid test
+    (:meth:`Reference.check_limits`, which depends on the reference and the limits only) is
+    not repeated for a plant with the same joint limits.
+    """
+    if _REUSE is None or type(reference).check_limits is not Reference.check_limits:
+        reference.check_limits(plant, duration=duration)
+        return
+    lower, upper = plant.lower, plant.upper
+    key = ("limits", id(reference), duration, lower.tobytes(), upper.tobytes())
+    hit = _REUSE.get(key)
+    if hit is None or hit is not reference:
+        reference.check_limits(plant, duration=duration)
+        _REUSE[key] = reference
+
+
+def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
+             limit_margin, effects=None) -> Run:
+    """Validate every input once and sample the reference (the edge of the simulator)."""
+    n = plant.nq
+    check_law(law, n)
+    check_reference(reference, plant)
+    duration = _finite("duration", duration)
+    dt = _finite("dt", dt)
+    limit_margin = _finite("limit_margin", limit_margin, allow_zero=True)
+    effects = check_effects(effects)
+    if effects is not None and not effects.active:
+        effects = None
+    if effects is not None and rate is None and not isinstance(law, SampledLaw):
+        raise ValueError(
+            f"effects apply to sampled (digital) controllers only: law {law.name!r} is "
+            f"continuous-time; give rate= (e.g. rate=1000) to run it sampled with the effects")
+    if isinstance(law, SampledLaw):
+        if rate is not None and not math.isclose(_finite("rate", rate), law.rate):
+            raise ValueError(f"law {law.name!r} is sampled at {law.rate:g} Hz, rate = "
+                             f"{rate!r} asks for another rate")
+        rate = law.rate
+    elif rate is not None:
+        law = _sampled_law(law, _finite("rate", rate), method)
+    elif not isinstance(law, ControlLaw):
+        raise TypeError(f"law must be a ControlLaw or SampledLaw, got {type(law).__name__}")
+    lower = plant.lower - limit_margin
+    upper = plant.upper + limit_margin
+    if rate is not None:
+        rate = _finite("rate", rate)
+        Ts = 1.0 / rate
+        n_steps = int(round(duration * rate))
+        if n_steps < 1:
+            raise ValueError(f"duration = {duration:g} s is shorter than one control period "
+                             f"(1/rate = {Ts:g} s): nothing to simulate")
+        substeps = max(1, math.ceil(Ts / dt - 1e-9))
+        h = Ts / substeps
+        t = Ts * np.arange(n_steps + 1)
+        grid = t
+        info = {"method": "RK4 plant, zero-order-hold sampled law", "rate_hz": rate,
+                "substeps": substeps, "dt": h}
+    else:
+        n_steps = int(round(duration / dt))
+        if n_steps < 1:
+            raise ValueError(f"duration = {duration:g} s is shorter than one RK4 step "
+                             f"(dt = {dt:g} s): nothing to simulate")
+        _check_rk4_step(law, dt)
+        substeps, h = 1, dt
+        t = dt * np.arange(n_steps + 1)
+        grid = 0.5 * dt * np.arange(2 * n_steps + 1)
+        info = {"method": "RK4 (continuous-time law)", "dt": dt}
+    _check_limits(reference, plant, float(t[-1]))
+    R, RD, RDD = _sample_reference(
+        reference, (rate is not None, Ts if rate is not None else dt, n_steps), grid)
+    q0 = _state("q0", q0, R[0])
+    qd0 = _state("qd0", qd0, RD[0])
+    bad = diverged_joint(q0, qd0, lower, upper)
+    if bad is not None:
+        j = bad[0]
+        raise ValueError(f"initial state of joint {plant.joint_names[j]!r} is invalid: "
+                         f"{bad[1]} (q0 = {q0[j]:.6g} rad, limits [{plant.lower[j]:.4g}, "
+                         f"{plant.upper[j]:.4g}], qd0 = {qd0[j]:.6g} rad/s)")
+    x0 = np.asarray(law.initial_state(), dtype=float)
+    if x0.shape != (law.nx,):
+        raise ValueError(f"law {law.name!r}: initial_state() has shape {x0.shape}, nx = "
+                         f"{law.nx}")
+    fx = None
+    if effects is not None:
+        fx = effects.resolve(plant, substeps, h, len(t) - 1)
+        info["effects"] = fx.info
+    return Run(plant, law, rate is not None, t, R, RD, RDD, q0, qd0, x0, h, substeps,
+                lower, upper, info, fx)
+
+
+def _check_rk4_step(law, dt: float) -> None:
+    """Refuse a step RK4 cannot integrate for a linear law's fastest pole."""
+    mats = getattr(law, "continuous_matrices", None)
+    if mats is None:
+        return
+    A = mats()[0]
+    if A.shape[0]:
+        fastest = float(np.max(np.abs(np.linalg.eigvals(A))))
+        # RK4's stability interval on the negative real axis ends at -2.785.
+        if fastest * dt > 2.5:
+            raise ValueError(
+                f"dt = {dt:g} s is too large for the controller's fastest pole "
+                f"({fastest:.4g} rad/s): RK4 needs dt < {2.5 / fastest:.3g} s")
+
+
+def _run_python(run: Run) -> Trajectory:
+    if run.effects is not None:
+        return _python_effects(run)
+    return (_python_sampled if run.sampled else _python_continuous)(run)
+
+
+def _python_sampled(run: Run) -> Trajectory:
+    plant, law = run.plant, run.law
+    model, data = plant.model, plant.data
+    aba, step, check, inside = pin.aba, law.step, diverged_joint, _surely_inside
+    lower, upper = run.lower, run.upper
+    low, up = lower.tolist(), upper.tolist()
+    h = run.h
+    h2, h6 = 0.5 * h, h / 6.0
+    t = run.t
+    R, RD, RDD = run.R, run.RD, run.RDD
+    N = len(t) - 1
+    Q = np.empty((N + 1, plant.nq))
+    QD = np.empty_like(Q)
+    TAU = np.empty_like(Q)
+    q, qd, x = run.q0, run.qd0, run.x0
+    Q[0], QD[0] = q, qd
+    for k in range(N):
+        tau, x = step(t[k], q, qd, R[k], RD[k], RDD[k], x)
+        TAU[k] = tau
+        for _ in range(run.substeps):
+            a1 = aba(model, data, q, qd, tau)
+            v2 = qd + h2 * a1
+            a2 = aba(model, data, q + h2 * qd, v2, tau)
+            v3 = qd + h2 * a2
+            a3 = aba(model, data, q + h2 * v2, v3, tau)
+            v4 = qd + h * a3
+            a4 = aba(model, data, q + h * v3, v4, tau)
+            q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
+            qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
+        Q[k + 1], QD[k + 1] = q, qd
+        if not inside(q, qd, low, up):
+            bad = check(q, qd, lower, upper)
+            if bad is not None:
+                raise divergence(plant, float(t[k + 1]), q, qd, *bad)
+    # The torque held on the last interval is also the one "at" the final sample.
+    TAU[N] = TAU[N - 1]
+    return make_trajectory(run, Q, QD, TAU)
+
+
+def _python_continuous(run: Run) -> Trajectory:
+    plant, law = run.plant, run.law
+    model, data = plant.model, plant.data
+    aba, torque, deriv, check = pin.aba, law.torque, law.derivative, diverged_joint
+    inside = _surely_inside
+    lower, upper = run.lower, run.upper
+    low, up = lower.tolist(), upper.tolist()
+    dt = run.h
+    h2, h6 = 0.5 * dt, dt / 6.0
+    t = run.t
+    R, RD, RDD = run.R, run.RD, run.RDD
+    N = len(t) - 1
+    Q = np.empty((N + 1, plant.nq))
+    QD = np.empty_like(Q)
+    TAU = np.empty_like(Q)
+    stateful = law.nx > 0
+
+    def rhs(i, tk, q, qd, x):
+        r, rd, rdd = R[i], RD[i], RDD[i]
+        tau = torque(tk, q, qd, r, rd, rdd, x)
+        xd = deriv(tk, q, qd, r, rd, rdd, x) if stateful else x
+        return aba(model, data, q, qd, tau), xd, tau
+
+    q, qd, x = run.q0, run.qd0, run.x0
+    for k in range(N + 1):
+        tk = t[k]
+        a1, x1, tau = rhs(2 * k, tk, q, qd, x)
+        Q[k], QD[k], TAU[k] = q, qd, tau
+        if k == N:
+            break
+        v2 = qd + h2 * a1
+        a2, x2, _ = rhs(2 * k + 1, tk + h2, q + h2 * qd, v2, x + h2 * x1)
+        v3 = qd + h2 * a2
+        a3, x3, _ = rhs(2 * k + 1, tk + h2, q + h2 * v2, v3, x + h2 * x2)
+        v4 = qd + dt * a3
+        a4, x4, _ = rhs(2 * k + 2, tk + dt, q + dt * v3, v4, x + dt * x3)
+        q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
+        qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
+        if stateful:
+            x = x + h6 * (x1 + 2.0 * (x2 + x3) + x4)
+        if not inside(q, qd, low, up):
+            bad = check(q, qd, lower, upper)
+            if bad is not None:
+                raise divergence(plant, float(t[k + 1]), q, qd, *bad)
+    return make_trajectory(run, Q, QD, TAU)
+
+
+def _python_effects(run: Run) -> Trajectory:
+    """Run a sampled law with plant effects, in the order of :mod:`rrr_pin.control.effects`."""
+    plant, law, fx = run.plant, run.law, run.effects
+    model, data = plant.model, plant.data
+    aba, step, check = pin.aba, law.step, diverged_joint
+    lower, upper = run.lower, run.upper
+    h, S, d = run.h, run.substeps, fx.delay_steps
+    h2, h6 = 0.5 * h, h / 6.0
+    t = run.t
+    R, RD, RDD = run.R, run.RD, run.RDD
+    N = len(t) - 1
+    n = plant.nq
+    Q = np.empty((N + 1, n))
+    QD = np.empty_like(Q)
+    TAU = np.empty_like(Q)
+    U = np.empty((N, n))
+    wa, limit, quantum = fx.wa, fx.limit, fx.quantum
+    nq_, nqd_ = fx.noise_q, fx.noise_qd
+    if fx.friction is not None:
+        Fv, Fc, veps = fx.friction
+    if fx.flex is not None:
+        Bm, Kf, Df = fx.flex
+
+    def f(q, qd, a, th, thd, u):
+        """Link acceleration, actuator-state and motor accelerations."""
+        tm = a if wa else u
+        thdd = None
+        if fx.flex is not None:
+            tj = Kf * (th - q) + Df * (thd - qd)
+            thdd = (tm - tj) / Bm
+        else:
+            tj = tm
+        if fx.friction is not None:
+            tj = tj - (Fv * qd + Fc * np.tanh(qd / veps))
+        ad = wa * (u - a) if wa else None
+        return aba(model, data, q, qd, tj), ad, thdd
+
+    q, qd, x = run.q0, run.qd0, run.x0
+    a = th = thd = None
+    Q[0], QD[0] = q, qd
+    for k in range(N):
+        qm, qdm = q, qd
+        if nq_ is not None:
+            qm = qm + nq_[k]
+        if quantum:
+            qm = quantum * np.rint(qm / quantum)
+        if nqd_ is not None:
+            qdm = qdm + nqd_[k]
+        tau, x = step(t[k], qm, qdm, R[k], RD[k], RDD[k], x)
+        if limit is not None:
+            tau = np.minimum(np.maximum(tau, -limit), limit)
+        U[k] = tau
+        TAU[k] = tau
+        if k == 0:
+            if wa:
+                a = U[0].copy()
+            if fx.flex is not None:
+                th, thd = q + U[0] / Kf, qd.copy()
+        for s in range(S):
+            j = k * S + s - d
+            u = U[j // S] if j >= 0 else U[0]
+            a1, b1, c1 = f(q, qd, a, th, thd, u)
+            v2 = qd + h2 * a1
+            a2s = a + h2 * b1 if wa else None
+            th2, w2 = (th + h2 * thd, thd + h2 * c1) if th is not None else (None, None)
+            a2, b2, c2 = f(q + h2 * qd, v2, a2s, th2, w2, u)
+            v3 = qd + h2 * a2
+            a3s = a + h2 * b2 if wa else None
+            th3, w3 = (th + h2 * w2, thd + h2 * c2) if th is not None else (None, None)
+            a3, b3, c3 = f(q + h2 * v2, v3, a3s, th3, w3, u)
+            v4 = qd + h * a3
+            a4s = a + h * b3 if wa else None
+            th4, w4 = (th + h * w3, thd + h * c3) if th is not None else (None, None)
+            a4, b4, c4 = f(q + h * v3, v4, a4s, th4, w4, u)
+            q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
+            qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
+            if wa:
+                a = a + h6 * (b1 + 2.0 * (b2 + b3) + b4)
+            if th is not None:
+                th = th + h6 * (thd + 2.0 * (w2 + w3) + w4)
+                thd = thd + h6 * (c1 + 2.0 * (c2 + c3) + c4)
+        Q[k + 1], QD[k + 1] = q, qd
+        bad = check(q, qd, lower, upper)
+        if bad is not None:
+            raise divergence(plant, float(t[k + 1]), q, qd, *bad)
+    TAU[N] = TAU[N - 1]
+    return make_trajectory(run, Q, QD, TAU)

@@ -1,0 +1,163 @@
+"""One validator per kind of scalar or vector input, shared by every layer.
+
+Each ``check_*`` converts what it accepts and raises ``ValueError`` naming the field, the value
+and the expected range, in the same words everywhere:
+
+* :func:`check_real`: a finite number;
+* :func:`check_positive`: a finite number > 0 (or >= 0);
+* :func:`check_count`: an integer >= a bound (sizes, samples, seeds, jobs);
+* :func:`check_size`: a dimension, an integer >= 1;
+* :func:`check_rate`: a sampling rate [Hz], finite and > 0;
+* :func:`check_probability`: a number in [0, 1];
+* :func:`check_vector`: a finite vector of shape (n,).
+
+Public entry points call them once; inner loops trust what they were handed. Booleans, ``None``
+and strings are refused as numbers everywhere (``float(True)`` would read a JSON ``true`` as 1).
+This module imports nothing of rrr_pin: it is the bottom layer.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+__all__ = [
+    "check_real",
+    "check_positive",
+    "check_count",
+    "check_size",
+    "check_rate",
+    "check_probability",
+    "check_vector",
+]
+
+
+def _unit(unit: str) -> str:
+    return f" [{unit}]" if unit else ""
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def check_real(name: str, value, unit: str = "") -> float:
+    """Return ``value`` as a finite float.
+
+    Parameters
+    ----------
+    name : str
+        The field, for the message.
+    value : int or float
+        The value; booleans, None, strings and other non-numbers are refused.
+    unit : str, optional
+        Unit shown in the message (``"kg"`` gives ``"mass must be a number [kg]"``).
+
+    Raises
+    ------
+    ValueError
+        ``"{name} must be a number [unit], got ... (type)"`` or ``"{name} must be finite"``.
+    """
+    if not _is_number(value):
+        raise ValueError(f"{name} must be a number{_unit(unit)}, got {value!r} "
+                         f"({type(value).__name__})")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite{_unit(unit)}, got {value!r}")
+    return value
+
+
+def check_positive(name: str, value, *, allow_zero: bool = False, unit: str = "") -> float:
+    """Return ``value`` as a finite float > 0 (``allow_zero``: >= 0).
+
+    Raises
+    ------
+    ValueError
+        ``"{name} must be a finite number > 0 [unit], got ..."`` for a non-number, NaN, inf or
+        a value out of range.
+    """
+    want = ">= 0" if allow_zero else "> 0"
+    ok = _is_number(value) and math.isfinite(value) and (value >= 0 if allow_zero else value > 0)
+    if not ok:
+        raise ValueError(f"{name} must be a finite number {want}{_unit(unit)}, got {value!r}")
+    return float(value)
+
+
+def check_count(name: str, value, low: int = 0) -> int:
+    """Return ``value`` as an int >= ``low`` (an integral float such as 200.0 is accepted).
+
+    Raises
+    ------
+    ValueError
+        ``"{name} must be an integer >= {low}, got ..."`` for a bool, a string, NaN, inf, a
+        fraction or a value below ``low`` (``int()`` alone would raise an unnamed ``ValueError``
+        or an ``OverflowError`` for some of them).
+    """
+    if (not _is_number(value) or not math.isfinite(value) or value != int(value)
+            or value < low):
+        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+def check_size(name: str, n) -> int:
+    """Return a dimension ``n`` as an int >= 1 (:func:`check_count` with ``low=1``)."""
+    return check_count(name, n, 1)
+
+
+def check_rate(name: str, rate) -> float:
+    """Return a sampling rate [Hz] as a finite float > 0.
+
+    Raises
+    ------
+    ValueError
+        ``"{name} must be a finite number > 0 [Hz], got ..."``.
+    """
+    return check_positive(name, rate, unit="Hz")
+
+
+def check_probability(name: str, p) -> float:
+    """Return ``p`` as a float in [0, 1].
+
+    Raises
+    ------
+    ValueError
+        ``"{name} must be a probability in [0, 1], got ..."``.
+    """
+    if not (_is_number(p) and 0.0 <= p <= 1.0):
+        raise ValueError(f"{name} must be a probability in [0, 1], got {p!r}")
+    return float(p)
+
+
+def check_vector(name: str, value, n: int | None = None, *, readonly: bool = False) -> np.ndarray:
+    """Return ``value`` as a finite float vector of shape ``(n,)`` (a scalar reads as (1,)).
+
+    Parameters
+    ----------
+    name : str
+        The field, for the message.
+    value : array-like
+        The vector.
+    n : int, optional
+        Required length; any length if None.
+    readonly : bool, default False
+        Return a read-only array (for values kept in frozen objects).
+
+    Raises
+    ------
+    ValueError
+        ``"{name} must be an array of numbers"``, ``"Expected {name} of shape (n,), got ..."``
+        or ``"{name} must be finite, got [...]"``.
+    """
+    try:
+        v = np.atleast_1d(np.array(value, dtype=float))
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an array of numbers, got {value!r}") from None
+    if v.ndim != 1 or (n is not None and v.shape != (n,)):
+        want = f"({n},)" if n is not None else "(n,)"
+        raise ValueError(f"Expected {name} of shape {want}, got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must be finite, got {v.tolist()}")
+    if readonly:
+        v.setflags(write=False)
+    return v
