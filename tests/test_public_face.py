@@ -1,0 +1,83 @@
+"""Every ``rrr_pin`` name the README, the docs, the scripts and the docstrings use resolves.
+
+Extracted from the text: dotted names ``rrr_pin.a.b`` (a module path, then attributes), and
+``from rrr_pin... import x, y`` lines (each imported name must exist). The package's lazy
+top-level names (``rrr_pin.X``) are checked the same way, so a name the README advertises and
+the package lacks fails here.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+
+import rrr_pin
+
+ROOT = Path(__file__).resolve().parents[1]
+TEXTS = sorted([ROOT / "README.md", *ROOT.glob("docs/*.md"), *ROOT.glob("scripts/*.py"),
+                *(ROOT / "src" / "rrr_pin").rglob("*.py")])
+
+DOTTED = re.compile(r"(?<![\w.])rrr_pin(?:\.[A-Za-z_]\w*)+")
+FROM = re.compile(r"^\s*from (rrr_pin(?:\.\w+)*) import \(?([\w, \n]+?)\)?\s*$", re.M)
+
+
+def resolve(dotted: str) -> bool:
+    """Import the longest module prefix of ``dotted``, then follow the rest as attributes."""
+    parts = dotted.split(".")
+    for k in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:k]))
+        except ImportError:
+            continue
+        try:
+            for attr in parts[k:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            return False
+        return True
+    return False
+
+
+def _names():
+    out = set()
+    for path in TEXTS:
+        text = path.read_text()
+        rel = path.relative_to(ROOT).as_posix()
+        for m in DOTTED.finditer(text):
+            name = m.group(0).rstrip(".")
+            if name.endswith((".py", ".so")) or "rrr_pin._ext" in name:
+                continue  # file names, not Python names
+            out.add((rel, name))
+        for m in FROM.finditer(text):
+            for item in m.group(2).replace("\n", " ").split(","):
+                item = item.strip().split(" as ")[0].strip()
+                if item:
+                    out.add((rel, f"{m.group(1)}.{item}"))
+    return sorted(out)
+
+
+NAMES = _names()
+
+
+def test_texts_name_many_things():
+    # the extraction itself works: the README alone names dozens of rrr_pin objects
+    assert sum(1 for rel, _ in NAMES if rel == "README.md") > 20
+
+
+@pytest.mark.parametrize("where, name", NAMES, ids=[f"{w}:{n}" for w, n in NAMES])
+def test_name_resolves(where, name):
+    assert resolve(name), f"{where} names {name}, which does not resolve"
+
+
+def test_all_lists_only_real_names():
+    missing = [n for n in rrr_pin.__all__ if not hasattr(rrr_pin, n)]
+    assert missing == []
+
+
+def test_version_is_the_package_version():
+    from importlib.metadata import version
+
+    assert rrr_pin.__version__ == version("rrr-pin")
