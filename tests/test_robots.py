@@ -125,3 +125,24 @@ def test_reference_leaving_limits_refused():
 def test_design_joints_cli(capsys):
     assert cli.main(["design", "--joints", "6", "--json"]) == 0
     assert '"gamma_min": 2.14' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("source,lock,expected", [
+    ("rrr", {}, True), ("rrr", {"joint3": 0.0}, True), ("ur5", {}, False),
+], ids=["rrr", "rrr-locked", "ur5"])
+def test_nominal_params_is_the_papers_for_rrr_only(source, lock, expected):
+    # The one "rrr means the paper's Tables 1-2" rule, used by the study and the campaign.
+    from rrr_pin.model.dh import paper_params
+    from rrr_pin.model.robots import nominal_params
+
+    params = nominal_params(load_robot(source, lock=lock))
+    assert params == (paper_params() if expected else None)
+
+
+def test_nominal_params_of_a_urdf_file_is_none(tmp_path):
+    # The same arm read from a file carries no parameter set: its URDF is perturbed instead.
+    from rrr_pin.model.robots import nominal_params
+    from rrr_pin.model.urdf import write_urdf
+
+    path = write_urdf(tmp_path / "rrr.urdf")
+    assert nominal_params(load_robot(path)) is None

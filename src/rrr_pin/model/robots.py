@@ -2,17 +2,18 @@
 
 :func:`read_source` turns any of them into URDF text; :func:`robot_names` lists the names
 :func:`rrr_pin.model.dynamics.load_robot` accepts besides paths. A new arm source is one branch
-here.
+here; :func:`nominal_params` says which sources come with a DH parameter set.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from .dh import ArmParams
+from .dh import ArmParams, paper_params
 from .urdf import urdf_from_params
 
-__all__ = ["ERD_ARMS", "RobotModelError", "robot_names", "read_source", "erd_urdf_path"]
+__all__ = ["ERD_ARMS", "RobotModelError", "robot_names", "read_source", "erd_urdf_path",
+           "nominal_params"]
 
 #: example-robot-data names accepted by :func:`load_robot` (fixed-base arms).
 ERD_ARMS = ("ur3", "ur5", "ur10", "panda", "kinova", "z1", "bravo7_no_ee", "so_arm100")
@@ -53,6 +54,27 @@ def read_source(source) -> tuple[str, str, str]:
     if not path.is_file():
         raise FileNotFoundError(f"URDF file not found: {path}")
     return _read_text(path), path.stem, str(path)
+
+
+def nominal_params(robot) -> ArmParams | None:
+    """Return the DH parameter set an arm is built from, if rrr-pin knows it; else None.
+
+    The one place of the rule "``rrr`` means the paper's parameters": an arm loaded as
+    ``"rrr"`` (with or without locked joints) is the paper's Tables 1-2, so its uncertain
+    plants perturb :func:`rrr_pin.model.dh.paper_params`; any other arm (an example-robot-data
+    name, a URDF file, ``ArmParams``) has its URDF perturbed instead.
+
+    Parameters
+    ----------
+    robot : rrr_pin.model.dynamics.Robot
+        The nominal arm; only its ``source`` label is read.
+
+    Returns
+    -------
+    ArmParams or None
+        ``paper_params()`` for ``robot.source == "rrr"``, otherwise None.
+    """
+    return paper_params() if robot.source == "rrr" else None
 
 
 def _read_text(path: Path) -> str:
