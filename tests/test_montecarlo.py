@@ -198,3 +198,45 @@ def test_certificate_column_matches_the_study(setup):
     assert "certified" in mc.campaign_columns(["fl", "hinf"], "fl", ["j"], certified=True)
     s = mc.campaign_summary(campaign)
     assert s["certified"] == sum(r["certified"] for r in campaign.rows)
+
+
+def test_campaign_settings_defaults_and_shared_record():
+    from rrr_pin.campaign.settings import Settings
+
+    s = mc.CampaignSettings(samples=3)
+    assert isinstance(s, Settings)
+    assert (s.run.duration, s.run.rate, s.seed, s.baseline) == (10.0, 1000.0, 0, "fl")
+    with pytest.raises(TypeError, match="samples"):
+        mc.CampaignSettings()  # no default count of plants
+    with pytest.raises(TypeError, match="run must be a RunSettings, got dict"):
+        mc.CampaignSettings(samples=2, run={"duration": 1.0})
+
+
+def test_chunk_tasks_are_frozen_picklable_and_give_the_rows(setup, serial):
+    # What crosses the process boundary is a frozen CampaignChunk of a frozen CampaignJob;
+    # run in this process after a pickle round trip, it gives the campaign's rows.
+    import dataclasses
+    import pickle
+
+    from rrr_pin.control.references import default_reference
+    from rrr_pin.model.dh import paper_params
+
+    robot, laws = setup
+    job = mc.CampaignJob(settings=SETTINGS, laws=tuple(laws), reference=default_reference(robot),
+                         source=paper_params(), gravity=robot.gravity, lock=(),
+                         skip_joints=(), joint_names=tuple(robot.joint_names))
+    task = pickle.loads(pickle.dumps(mc.CampaignChunk(job, (1, 2))))
+    assert mc.run_chunk(task) == serial.rows[1:3]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        task.indices = (0,)
+
+
+def test_rrr_campaign_perturbs_the_papers_parameters(setup, serial):
+    # The "rrr means paper_params()" rule (rrr_pin.model.robots.nominal_params): the default
+    # (the `serial` campaign) equals passing the parameters.
+    from rrr_pin.model.dh import paper_params
+
+    robot, laws = setup
+    settings = mc.CampaignSettings(samples=1, run=RUN)
+    given = mc.run_campaign(robot, laws, settings, params=paper_params(), jobs=1)
+    assert given.rows == serial.rows[:1]

@@ -181,3 +181,64 @@ def test_nominal_verdict_scale_for_a_closed_path(robot):
                        config=_config(samples=1, jobs=1), reference=ref)
     text = results_markdown(result)
     assert "| equivalent |" in text and "agrees: both below 1.5e-06 rad" in text
+
+
+def test_study_and_campaign_share_one_settings_record():
+    # StudyConfig and CampaignSettings are the same record (rrr_pin.campaign.settings) with
+    # their own defaults: the same fields give the same recorded settings.
+    import dataclasses
+
+    from rrr_pin.campaign.montecarlo import CampaignSettings
+    from rrr_pin.campaign.settings import Settings
+
+    run = RunSettings(duration=0.5, rate=500.0)
+    study, campaign = StudyConfig(samples=3, seed=2, run=run), CampaignSettings(3, 2, run)
+    assert isinstance(study, Settings) and isinstance(campaign, Settings)
+    assert study.to_dict() == campaign.to_dict() == Settings(3, 2, run).to_dict()
+    assert [f.name for f in dataclasses.fields(Settings)] == [
+        "samples", "seed", "run", "tolerances", "baseline"]
+    assert [f.name for f in dataclasses.fields(StudyConfig)][-1] == "jobs"  # not recorded
+    assert "jobs" not in study.to_dict()
+    assert StudyConfig().samples == 10 and StudyConfig().run == RunSettings()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        study.samples = 4
+
+
+@pytest.mark.parametrize("kwargs,error,message", [
+    ({"run": {"duration": 1.0}}, TypeError, "run must be a RunSettings, got dict"),
+    ({"tolerances": 0.2}, TypeError, "tolerances must be a Tolerances, got float"),
+    ({"baseline": None}, TypeError, "baseline must be a str, got NoneType"),
+    ({"samples": 2.5}, ValueError, "samples must be an integer >= 0, got 2.5"),
+    ({"jobs": True}, TypeError, "jobs must be an integer >= 1"),
+], ids=["run", "tolerances", "baseline", "samples-fraction", "jobs-bool"])
+def test_config_refuses_wrong_types(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        StudyConfig(**kwargs)
+
+
+def test_plant_tasks_are_frozen_and_rrr_plants_come_from_the_papers_parameters(robot,
+                                                                               monkeypatch):
+    # Every task sent to a worker is a frozen PlantTask; for "rrr" the plants perturb the
+    # paper's DH parameters (rrr_pin.model.robots.nominal_params), as for params=paper_params().
+    import dataclasses
+
+    import rrr_pin.campaign.study as study
+    from rrr_pin.model.dh import paper_params
+
+    seen = []
+    real = study.run_plant
+
+    def spy(task):
+        seen.append(task)
+        return real(task)
+
+    monkeypatch.setattr(study, "run_plant", spy)
+    laws = [fl_controller(robot)]
+    a = run_study(robot, laws, config=_config(samples=1, jobs=1))
+    b = run_study(robot, laws, config=_config(samples=1, jobs=1), params=paper_params())
+    assert all(isinstance(t, study.PlantTask) for t in seen) and len(seen) == 4
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        seen[0].certify = True
+    assert [t.certify for t in seen[:2]] == [False, True]
+    assert a.plants[0].urdf == b.plants[0].urdf
+    assert a.to_json()["uncertain"]["samples"] == b.to_json()["uncertain"]["samples"]

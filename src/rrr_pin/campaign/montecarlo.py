@@ -1,10 +1,10 @@
 """Monte Carlo robustness campaigns: thousands of seeded uncertain plants, any set of laws.
 
 Each sample ``k`` of a campaign with seed ``s`` is the plant
-:func:`rrr_pin.model.uncertainty.sample_plant` draws with ``default_rng([s, k])``; it is generated,
-simulated under every law (:func:`rrr_pin.campaign.runner.run_laws`) and reduced to figures inside the
-worker, so only a row of numbers travels back. Rows are put in sample order, so the results are
-identical whatever the number of workers or where they run.
+:func:`rrr_pin.model.uncertainty.sample_plant` draws with ``default_rng([s, k])``; it is
+generated, simulated under every law (:func:`rrr_pin.campaign.runner.run_laws`) and reduced to
+figures inside the worker, so only a row of numbers travels back. Rows are put in sample order,
+so the results are identical whatever the number of workers or where they run.
 
 Workers: ``jobs`` local processes (:class:`concurrent.futures.ProcessPoolExecutor`) or a Dask
 distributed cluster (``scheduler="tcp://host:8786"``, through ``Client.get_executor()``, which
@@ -21,20 +21,27 @@ import itertools
 import math
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
 from ..control.references import Reference, default_reference
-from ..model.dh import ArmParams, paper_params
-from ..model.dynamics import robot_from_xml
-from ..model.uncertainty import Tolerances, sample_plant
+from ..model.dh import ArmParams
+from ..model.dynamics import Robot, robot_from_xml
+from ..model.robots import nominal_params
+from ..model.uncertainty import sample_plant
 from ..sim.simulation import SimulationDiverged, reuse_preparation
 from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
 from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
+from .settings import Settings
 from .store import CampaignStore
 
-__all__ = ["Campaign", "CampaignSettings", "run_campaign", "campaign_summary",
-           "campaign_columns", "open_store", "store_settings", "OUTPUTS"]
+if TYPE_CHECKING:
+    from ..robust.certificates import CertificateSpec
+
+__all__ = ["Campaign", "CampaignSettings", "CampaignJob", "CampaignChunk", "run_campaign",
+           "run_chunk", "sample_row", "campaign_summary", "campaign_columns", "open_store",
+           "store_settings", "OUTPUTS"]
 
 #: Final files of a campaign, rebuilt from the stored rows at the end of every run.
 OUTPUTS = ("campaign.csv", "samples.jsonl", "summary.json", "montecarlo.png", "report.html",
@@ -42,40 +49,67 @@ OUTPUTS = ("campaign.csv", "samples.jsonl", "summary.json", "montecarlo.png", "r
 
 
 @dataclass(frozen=True)
-class CampaignSettings:
-    """What a campaign computes (recorded whole in ``summary.json``).
+class CampaignSettings(Settings):
+    """What a campaign computes: :class:`~rrr_pin.campaign.settings.Settings` with its defaults.
+
+    Recorded whole in ``summary.json`` and in the store's manifest (a resume must match it).
 
     Parameters
     ----------
     samples : int
         Number of plants, >= 1.
-    seed : int, default 0
-        Campaign seed, >= 0.
+    seed, tolerances, baseline
+        As in :class:`~rrr_pin.campaign.settings.Settings`.
     run : RunSettings
         How each run is simulated (default: 10 s, 1 kHz sampled laws).
-    tolerances : Tolerances
-        20 % inertia, 5 % lengths by default.
-    baseline : str, default "fl"
-        Law the others are compared with.
     """
 
-    samples: int
-    seed: int = 0
+    MIN_SAMPLES: ClassVar[int] = 1
+
     run: RunSettings = field(default_factory=lambda: RunSettings(duration=10.0, rate=1000.0))
-    tolerances: Tolerances = field(default_factory=Tolerances)
-    baseline: str = "fl"
 
-    def __post_init__(self) -> None:
-        for key, low in (("samples", 1), ("seed", 0)):
-            v = getattr(self, key)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
-                raise ValueError(f"{key} must be an integer >= {low}, got {v!r}")
 
-    def to_dict(self) -> dict:
-        """JSON-ready settings."""
-        return {**self.run.to_dict(), "samples": int(self.samples), "seed": int(self.seed),
-                "tolerance_inertia": self.tolerances.inertia,
-                "tolerance_length": self.tolerances.length, "baseline": self.baseline}
+@dataclass(frozen=True)
+class CampaignJob:
+    """What every sample of a campaign shares, sent to the workers with each chunk.
+
+    Attributes
+    ----------
+    settings : Settings
+    laws : tuple of ControlLaw or SampledLaw
+    reference : Reference
+    source : ArmParams or str
+        The nominal arm the plants are drawn around: a DH parameter set or URDF text.
+    gravity : float
+        Gravity of the plants [m/s^2].
+    lock : tuple of (str, float)
+        Locked joints of the plants and their positions [rad or m].
+    skip_joints : tuple of str
+        Joints whose origins are not perturbed.
+    joint_names : tuple of str
+    certificate : CertificateSpec or None
+    nominal : Robot or None
+        The nominal arm, for the certificate (None without one).
+    """
+
+    settings: Settings
+    laws: tuple
+    reference: Reference
+    source: ArmParams | str
+    gravity: float
+    lock: tuple
+    skip_joints: tuple
+    joint_names: tuple
+    certificate: CertificateSpec | None = None
+    nominal: Robot | None = None
+
+
+@dataclass(frozen=True)
+class CampaignChunk:
+    """Samples ``indices`` of campaign ``job``: one task of a worker (:func:`run_chunk`)."""
+
+    job: CampaignJob
+    indices: tuple
 
 
 @dataclass
@@ -115,39 +149,37 @@ class Campaign:
         return self.settings["baseline"]
 
 
-def sample_row(job: dict, k: int) -> dict:
+def sample_row(job: CampaignJob, k: int) -> dict:
     """Generate sample ``k``, run every law on it and reduce it to one row."""
-    settings: CampaignSettings = job["settings"]
-    sample = sample_plant(job["source"], settings.seed, k, settings.tolerances,
-                          skip_joints=job["skip_joints"])
+    settings = job.settings
+    sample = sample_plant(job.source, settings.seed, k, settings.tolerances,
+                          skip_joints=job.skip_joints)
     row = {"index": k, "seed": sample.seed, "status": "ok", "parameters": sample.parameters}
-    plant = robot_from_xml(sample.urdf, gravity=job["gravity"], lock=job["lock"],
+    plant = robot_from_xml(sample.urdf, gravity=job.gravity, lock=dict(job.lock),
                            name=f"sample{k:05d}", label=f"sample {k}")
-    runs = run_laws(plant, job["laws"], job["reference"], settings.run)
+    runs = run_laws(plant, job.laws, job.reference, settings.run)
     bad = [f"{name}: {v}" for name, v in runs.items() if isinstance(v, SimulationDiverged)]
     if bad:
         row["status"] = "diverged: " + "; ".join(bad)
-    figures = {name: run_metrics(t, job["joint_names"]) for name, t in runs.items()
+    figures = {name: run_metrics(t, job.joint_names) for name, t in runs.items()
                if not isinstance(t, SimulationDiverged)}
     for name, m in figures.items():
         row.update({f"{name}_{key}": v for key, v in m.items()})
     for name, r in error_ratios(figures, settings.baseline).items():
         row[f"error_ratio_{name}"] = r["error_ratio"]
         row[f"torque_ratio_{name}"] = r["torque_ratio"]
-    if job.get("certificate") is not None:
-        cert = job["certificate"].certify(job["nominal"], plant, job["reference"],
-                                          settings.run.duration)
+    if job.certificate is not None:
+        cert = job.certificate.certify(job.nominal, plant, job.reference, settings.run.duration)
         row["certified"], row["nugap_max"] = cert["certified"], cert["nugap_max"]
     return row
 
 
-def _run_chunk(task) -> list[dict]:
-    """Simulate the samples ``task[1]`` of campaign job ``task[0]`` (runs in a worker)."""
-    job, indices = task
+def run_chunk(task: CampaignChunk) -> list[dict]:
+    """Simulate the samples of one chunk, in order (runs in a worker)."""
     # One reference and one set of laws for every sample: sample the reference and discretize
     # the laws once per chunk (bit-identical to doing it per run).
     with reuse_preparation():
-        return [sample_row(job, k) for k in indices]
+        return [sample_row(task.job, k) for k in task.indices]
 
 
 def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Reference | None = None,
@@ -162,14 +194,14 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
     robot : Robot
         Nominal arm (the plants are drawn around it).
     laws : sequence of ControlLaw or SampledLaw
-        Built-in (:func:`rrr_pin.campaign.runner.make_laws`) or your own; picklable (a worker process
-        receives them); the baseline among them.
+        Built-in (:func:`rrr_pin.campaign.runner.make_laws`) or your own; picklable (a worker
+        process receives them); the baseline among them.
     settings : CampaignSettings
     reference : Reference, optional
         Default :func:`rrr_pin.control.references.default_reference`.
     params : ArmParams, optional
-        Perturb this DH parameter set (the paper's RRR); default: perturb the URDF
-        (``paper_params()`` when ``robot`` is ``"rrr"``).
+        Perturb this DH parameter set; default :func:`rrr_pin.model.robots.nominal_params`
+        (the paper's for ``"rrr"``), and for any other arm its URDF.
     jobs : int, optional
         Local worker processes, >= 1 (default ``min(2, CPUs)``); 1 runs in this process.
     scheduler : str, optional
@@ -206,16 +238,14 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
     laws = check_laws(laws, robot.nq, settings.baseline)
     reference = default_reference(robot) if reference is None else reference
     reference.check_limits(robot, duration=settings.run.duration)
-    if params is None and robot.source == "rrr":
-        params = paper_params()
-    job = {
-        "settings": settings, "laws": laws, "reference": reference,
-        # The nominal arm the plants are drawn around: ArmParams or URDF text.
-        "source": params if params is not None else robot.urdf,
-        "gravity": robot.gravity, "lock": dict(robot.locked),
-        "skip_joints": tuple(skip_joints), "joint_names": list(robot.joint_names),
-        "certificate": certificate, "nominal": robot if certificate is not None else None,
-    }
+    if params is None:
+        params = nominal_params(robot)
+    job = CampaignJob(settings=settings, laws=tuple(laws), reference=reference,
+                      source=params if params is not None else robot.urdf,
+                      gravity=robot.gravity, lock=tuple(dict(robot.locked).items()),
+                      skip_joints=tuple(skip_joints), joint_names=tuple(robot.joint_names),
+                      certificate=certificate,
+                      nominal=robot if certificate is not None else None)
     samples = int(settings.samples)
     jobs = check_jobs(jobs)
     workers = jobs if executor is None and scheduler is None else 4
@@ -224,13 +254,14 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
     size = chunk or max(1, min(20, math.ceil(min(samples, 10**6) / (8 * workers))))
     done = store.done() if store is not None else set()
     todo = (k for k in range(samples) if k not in done)
-    tasks = ((job, list(block)) for block in iter(lambda: list(itertools.islice(todo, size)), []))
+    tasks = (CampaignChunk(job, block)
+             for block in iter(lambda: tuple(itertools.islice(todo, size)), ()))
     rows: list[dict] = []
     finished = len(done)
     where = f" and saved in {str(store.out)!r}; rerun with --resume" if store is not None else ""
     try:
         with interrupt_on_signals():
-            for _, chunk_rows in run_tasks(_run_chunk, tasks, jobs=jobs, scheduler=scheduler,
+            for _, chunk_rows in run_tasks(run_chunk, tasks, jobs=jobs, scheduler=scheduler,
                                            executor=executor):
                 if store is not None:
                     store.append(chunk_rows)

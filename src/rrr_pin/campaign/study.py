@@ -1,77 +1,97 @@
 """The paper's section-5 study, for any set of control laws: nominal and uncertain plants.
 
 One code path for any fixed-base arm: the nominal robot (the paper's RRR, an example-robot-data
-arm or a URDF), its uncertain plants (:mod:`rrr_pin.model.uncertainty`, written out as URDF and loaded
-back), the laws (built-in or your own, :mod:`rrr_pin.control.laws`) and the runner
-(:mod:`rrr_pin.campaign.runner`). Plants run in parallel processes; results do not depend on the number
-of processes. Laws are compared with a named baseline (``"fl"`` by default, the paper's).
+arm or a URDF), its uncertain plants (:mod:`rrr_pin.model.uncertainty`, written out as URDF and
+loaded back), the laws (built-in or your own, :mod:`rrr_pin.control.laws`) and the runner
+(:mod:`rrr_pin.campaign.runner`), with the settings of :mod:`rrr_pin.campaign.settings`. Plants
+run in parallel processes; results do not depend on the number of processes. Laws are compared
+with a named baseline (``"fl"`` by default, the paper's).
 """
 
 from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..control.references import Reference, default_reference
-from ..model.dh import paper_params
-from ..model.dynamics import robot_from_xml
-from ..model.uncertainty import PlantSample, Tolerances, sample_plants
+from ..model.dynamics import Robot, robot_from_xml
+from ..model.robots import nominal_params
+from ..model.uncertainty import PlantSample, sample_plants
 from ..sim.simulation import SimulationDiverged, metrics
-from .executors import default_jobs
+from .executors import check_jobs, default_jobs
 from .runner import RunSettings, check_laws, run_laws
+from .settings import Settings
+
+if TYPE_CHECKING:
+    from ..robust.certificates import CertificateSpec
 
 __all__ = [
     "StudyConfig",
     "StudyResult",
+    "PlantTask",
+    "run_plant",
     "run_study",
     "summarize",
 ]
 
 
 @dataclass(frozen=True)
-class StudyConfig:
-    """Settings of a study (recorded whole in ``results.json``).
+class StudyConfig(Settings):
+    """Settings of a study: :class:`~rrr_pin.campaign.settings.Settings` with the study's defaults.
+
+    Recorded whole in ``results.json`` (:meth:`~rrr_pin.campaign.settings.Settings.to_dict`);
+    ``jobs`` is not recorded, since the results do not depend on it.
 
     Parameters
     ----------
-    run : RunSettings
-        Duration, step, rate, engine, initial state (default: 4 s, continuous-time laws as in
-        the paper's Simulink study).
     samples : int, default 10
         Number of uncertain plants (the paper's count), >= 0.
-    seed : int, default 0
-        Seed of the uncertain plants, >= 0.
-    tolerances : Tolerances
-        20 % inertia, 5 % lengths by default.
-    baseline : str, default "fl"
-        Name of the law the others are compared with.
+    seed, run, tolerances, baseline
+        As in :class:`~rrr_pin.campaign.settings.Settings` (``run`` by default 4 s,
+        continuous-time laws as in the paper's Simulink study).
     jobs : int, optional
         Worker processes, >= 1; default ``min(2, cpu count)``.
     """
 
-    run: RunSettings = field(default_factory=RunSettings)
     samples: int = 10
-    seed: int = 0
-    tolerances: Tolerances = field(default_factory=Tolerances)
-    baseline: str = "fl"
     jobs: int | None = None
 
     def __post_init__(self) -> None:
-        for key in ("samples", "seed"):
-            v = getattr(self, key)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
-                raise ValueError(f"{key} must be an integer >= 0, got {v!r}")
-        if self.jobs is not None and (isinstance(self.jobs, bool) or not isinstance(
-                self.jobs, (int, np.integer)) or self.jobs < 1):
-            raise ValueError(f"jobs must be an integer >= 1, got {self.jobs!r}")
+        super().__post_init__()
+        if self.jobs is not None:
+            check_jobs(self.jobs)
 
-    def to_dict(self) -> dict:
-        """JSON-ready settings (units in the key names)."""
-        return {**self.run.to_dict(), "samples": self.samples, "seed": self.seed,
-                "tolerance_inertia": self.tolerances.inertia,
-                "tolerance_length": self.tolerances.length, "baseline": self.baseline}
+
+@dataclass(frozen=True)
+class PlantTask:
+    """One plant of a study, sent to a worker process (:func:`run_plant`).
+
+    Attributes
+    ----------
+    laws : tuple of ControlLaw or SampledLaw
+    reference : Reference
+    run : RunSettings
+    nominal : Robot
+        The nominal arm: gravity and locked joints of the plant, and the certificate's model.
+    certificate : CertificateSpec or None
+    plant_xml : str
+        URDF text of the plant.
+    plant_name : str
+    certify : bool
+        Certify this plant (the uncertain ones; not the nominal).
+    """
+
+    laws: tuple
+    reference: Reference
+    run: RunSettings
+    nominal: Robot
+    certificate: CertificateSpec | None
+    plant_xml: str
+    plant_name: str
+    certify: bool
 
 
 @dataclass
@@ -193,16 +213,15 @@ def summarize(result: StudyResult) -> dict:
     return out
 
 
-def _run_plant(task) -> tuple[dict, dict | None]:
+def run_plant(task: PlantTask) -> tuple[dict, dict | None]:
     """Simulate every law on one plant, and certify it (runs in a worker process)."""
-    laws, reference, settings, nominal, certificate = task["job"]
-    plant = robot_from_xml(task["plant_xml"], gravity=nominal.gravity,
-                           lock=dict(nominal.locked), name=task["plant_name"],
-                           label=task["plant_name"])
-    runs = run_laws(plant, laws, reference, settings)
+    nominal = task.nominal
+    plant = robot_from_xml(task.plant_xml, gravity=nominal.gravity, lock=dict(nominal.locked),
+                           name=task.plant_name, label=task.plant_name)
+    runs = run_laws(plant, task.laws, task.reference, task.run)
     cert = None
-    if certificate is not None and task["certify"]:
-        cert = certificate.certify(nominal, plant, reference, settings.duration)
+    if task.certificate is not None and task.certify:
+        cert = task.certificate.certify(nominal, plant, task.reference, task.run.duration)
     return runs, cert
 
 
@@ -223,8 +242,9 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     reference : Reference, optional
         Default :func:`default_reference` of the nominal arm.
     params : ArmParams, optional
-        For the paper's RRR: perturb this DH parameter set (its URDF is generated); by default
-        the nominal URDF itself is perturbed (:func:`rrr_pin.model.uncertainty.perturb_urdf`).
+        Perturb this DH parameter set (its URDF is generated); default
+        :func:`rrr_pin.model.robots.nominal_params` (the paper's for ``"rrr"``), and for any
+        other arm the nominal URDF itself (:func:`rrr_pin.model.uncertainty.perturb_urdf`).
     skip_joints : iterable of str
         Joints whose origins are not perturbed (e.g. locked fingers).
     progress : callable, optional
@@ -245,26 +265,29 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     laws = check_laws(laws, nominal.nq, config.baseline)
     reference = default_reference(nominal) if reference is None else reference
     reference.check_limits(nominal, duration=config.run.duration)
-    if nominal.source == "rrr" and params is None:
-        params = paper_params()
+    if params is None:
+        params = nominal_params(nominal)
     source = params if params is not None else nominal.urdf
     plants: list[PlantSample] = sample_plants(source, config.samples, config.seed,
                                               config.tolerances, skip_joints=skip_joints)
-    job = (laws, reference, config.run, nominal, certificate)
-    tasks = [{"job": job, "plant_xml": nominal.urdf, "certify": False,
-              "plant_name": f"{nominal.name} (nominal)"}]
-    tasks += [{"job": job, "plant_xml": p.urdf, "certify": True,
-               "plant_name": f"{nominal.name}_sample{p.index:03d}"} for p in plants]
+
+    def task(xml: str, name: str, certify: bool) -> PlantTask:
+        return PlantTask(laws=tuple(laws), reference=reference, run=config.run, nominal=nominal,
+                         certificate=certificate, plant_xml=xml, plant_name=name,
+                         certify=certify)
+
+    tasks = [task(nominal.urdf, f"{nominal.name} (nominal)", False)]
+    tasks += [task(p.urdf, f"{nominal.name}_sample{p.index:03d}", True) for p in plants]
     jobs = config.jobs or default_jobs()
     outputs = []
     if jobs <= 1 or len(tasks) <= 2:
-        for k, task in enumerate(tasks):
-            outputs.append(_run_plant(task))
+        for k, plant_task in enumerate(tasks):
+            outputs.append(run_plant(plant_task))
             if progress:
                 progress(k + 1, len(tasks))
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for k, out in enumerate(pool.map(_run_plant, tasks)):
+            for k, out in enumerate(pool.map(run_plant, tasks)):
                 outputs.append(out)
                 if progress:
                     progress(k + 1, len(tasks))
