@@ -75,30 +75,91 @@ def test_reproduce_references_and_controllers(tmp_path, extra):
     (["reproduce", "--amp", "inf"], "--amp must be a finite number"),
     (["reproduce", "--duration", "1e-4"], "shorter than one RK4 step"),
     (["reproduce", "--duration", "1e-4", "--rate", "1000"], "shorter than one control period"),
-    (["reproduce", "--jobs", "0"], "--jobs must be >= 1"),
-    (["reproduce", "--jobs", "-1"], "--jobs must be >= 1"),
-    (["reproduce", "--seed", "-1"], "--seed must be >= 0"),
+    (["reproduce", "--jobs", "0"], "--jobs must be an integer >= 1, got 0"),
+    (["reproduce", "--jobs", "-1"], "--jobs must be an integer >= 1, got -1"),
+    (["reproduce", "--seed", "-1"], "--seed must be an integer >= 0, got -1"),
+    (["reproduce", "--samples", "-1"], "--samples must be an integer >= 0, got -1"),
+    (["reproduce", "--dt", "0"], "--dt must be a finite number > 0, got 0.0"),
+    (["reproduce", "--rate", "nan"], "--rate must be a finite number > 0, got nan"),
+    (["reproduce", "--delay", "-1e-3", "--rate", "1000"],
+     "--delay must be a finite number >= 0, got -0.001"),
+    (["reproduce", "--delay", "1e-3"], "give --rate HZ too"),
+    (["reproduce", "--q0", "0,nan,0"], "--q0 must be finite"),
     (["reproduce", "--controllers", "fl,lqr"], "unknown controller 'lqr'"),
     (["reproduce", "--baseline", "pd"], "--baseline 'pd' is not among --controllers"),
     (["reproduce", "--q0", "0,0"], "--q0 expects 3 values"),
     (["reproduce", "--reference", "quintic"], "needs --to"),
     (["reproduce", "--reference", "spline"], "needs --csv"),
     (["reproduce", "--reference", "line", "--end", "9,0,1"], "did not converge"),
+    (["reproduce", "--reference", "quintic", "--to", "0,0,0", "--move-time", "0"],
+     "--move-time must be a finite number > 0, got 0.0"),
+    (["reproduce", "--reference", "circle"], "needs --radius"),
+    (["reproduce", "--reference", "circle", "--radius", "-0.1"],
+     "--radius must be a finite number > 0, got -0.1"),
+    (["reproduce", "--reference", "circle", "--radius", "0.05", "--normal", "0,0,0"],
+     "normal must be a non-zero vector"),
+    (["montecarlo", "--samples", "0"], "--samples must be an integer >= 1, got 0"),
 ], ids=["robot", "lock-syntax", "home-limits", "home-size", "lock-unknown", "amp-nan",
-        "amp-inf", "short", "short-sampled", "jobs0", "jobs-1", "seed", "controller",
-        "baseline", "q0", "quintic", "spline", "ik"])
+        "amp-inf", "short", "short-sampled", "jobs0", "jobs-1", "seed", "samples", "dt",
+        "rate-nan", "delay", "delay-no-rate", "q0-nan", "controller", "baseline", "q0",
+        "quintic", "spline", "ik", "move-time", "circle-radius", "circle-radius-negative",
+        "circle-normal", "mc-samples"])
 def test_reproduce_bad_input(argv, message, capsys, tmp_path):
     assert cli.main(argv + ["--out", str(tmp_path / "o"), "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
 
 
-def test_out_is_a_file(tmp_path, capsys):
+@pytest.mark.parametrize("cmd", [["reproduce", "--no-progress"],
+                                 ["montecarlo", "--samples", "2", "--no-progress"],
+                                 ["stress", "--effect", "delay"]],
+                         ids=["reproduce", "montecarlo", "stress"])
+def test_out_is_a_file(tmp_path, capsys, cmd):
+    # One writability check (rrr_pin.campaign.store.check_writable) for every command.
     f = tmp_path / "file"
     f.write_text("x")
-    for cmd in (["reproduce"], ["montecarlo", "--samples", "2"]):
-        assert cli.main(cmd + ["--out", str(f), "--no-progress"]) == 2
-        assert "exists and is not a folder" in capsys.readouterr().err
+    assert cli.main(cmd + ["--out", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert "exists and is not a folder" in err and "Traceback" not in err
+
+
+def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path):
+    # The circle of --reference circle starts at the frame's position at the start
+    # configuration: centre + radius * start_dir is that point (rrr_pin.control.paths).
+    import ast
+
+    import numpy as np
+
+    out = tmp_path / "c"
+    assert cli.main(["reproduce", "--out", str(out), "--samples", "0", "--duration", "0.3",
+                     "--jobs", "1", "--no-progress", "--reference", "circle", "--radius",
+                     "0.05", "--no-certify"]) == 0
+    source = json.loads((out / "results.json").read_text())["reference"]["source"]
+    assert source.startswith("task-space circle of frame ")
+    path = ast.literal_eval(source[source.index("{"):source.index("}, fk_error_m") + 1])
+    assert path["kind"] == "circle" and path["radius_m"] == 0.05
+    robot = load_robot("rrr")
+    start = np.clip(robot.neutral(), robot.lower, robot.upper)
+    p0 = robot.frame_placement(start, robot.model.frames[len(robot.model.frames) - 1].name)
+    np.testing.assert_allclose(np.add(path["center_m"], 0.05 * np.array(path["start_dir"])),
+                               p0[:3, 3], rtol=0, atol=1e-12)  # round-off of c + r u only
+
+
+def test_reproduce_prints_the_report_lines(reproduced, capsys, tmp_path):
+    # The CLI prints the report layer's lines (rrr_pin.report.results.summary_lines).
+    out = tmp_path / "again"
+    assert cli.main(["reproduce", "--out", str(out), "--samples", "2", "--duration", "0.3",
+                     "--jobs", "1", "--no-progress"]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    summary = json.loads((out / "results.json").read_text())["summary"]
+    assert printed[0].startswith("rrr: 3 joints, gamma = 2.14")
+    assert printed[1] == "nominal max |e| [rad]: " + ", ".join(
+        f"{k} {v:.3g}" for k, v in summary["nominal_max_error"].items())
+    assert printed[2].startswith("uncertain (2 plants): RMS error fl / hinf = ")
+    assert printed[3].startswith(f"certified (frozen nu-gap < b = {summary['certificate_b']:.4g}"
+                                 f"): {summary['samples_certified']} of 2 plants")
+    assert printed[-1] == (f"wrote {out}/results.json, results.md, plants/, 7 figures and "
+                           f"report.html (open it in a browser)")
 
 
 def test_help_loads_no_numerical_library():

@@ -266,3 +266,107 @@ def test_report_renders_in_headless_chromium(rrr, figure, tmp_path):
         driver.quit()
     errors = [entry for entry in logs if entry["level"] == "SEVERE"]
     assert errors == [], errors
+
+
+# --- the study's and the campaign's report.html, and the report layer's text ----------------
+
+
+@pytest.fixture(scope="module")
+def small_study(rrr):
+    from rrr_pin.campaign.runner import RunSettings, make_laws
+    from rrr_pin.campaign.study import StudyConfig, run_study
+
+    laws = make_laws("fl,pd", rrr)
+    run = RunSettings(duration=0.2, engine="python")
+    return run_study(rrr, laws, config=StudyConfig(run=run, samples=2, jobs=1))
+
+
+def test_study_report_builds_each_plant_model_once(small_study, rrr, tmp_path, monkeypatch):
+    # 2 laws x 2 plants: one model per plant (2 builds), shared by both laws' scenes.
+    import rrr_pin.report.results as results
+
+    calls = []
+    real = results.robot_from_xml
+
+    def counting(*args, **kwargs):
+        calls.append(kwargs["name"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(results, "robot_from_xml", counting)
+    path = results.write_study_report(small_study, tmp_path, [], {"gamma": 2.1}, rrr)
+    assert path == tmp_path / "report.html"
+    assert calls == ["sample0", "sample1"]
+    text = path.read_text()
+    assert text.count("uncertain plant 1") >= 2  # a ghost in each law's scene
+    assert "rrr-pin study on rrr" in text
+
+
+def test_study_summary_lines(small_study):
+    from rrr_pin.report.results import summary_lines
+
+    s = small_study.to_json()["summary"]
+    lines = summary_lines(small_study, s)
+    assert lines[0] == "nominal max |e| [rad]: " + ", ".join(
+        f"{k} {v:.3g}" for k, v in s["nominal_max_error"].items())
+    ratio = s["error_ratio_uncertain"]["pd"]
+    assert lines[1].startswith(f"uncertain (2 plants): RMS error fl / pd = {ratio:.3g} ")
+    assert len(lines) == 2  # no certificate, nothing diverged
+
+
+@pytest.fixture(scope="module")
+def small_campaign(rrr):
+    import rrr_pin.campaign.montecarlo as mc
+    from rrr_pin.campaign.runner import RunSettings, make_laws
+
+    settings = mc.CampaignSettings(samples=3, run=RunSettings(duration=0.2, rate=1000.0,
+                                                            engine="python"))
+    return mc.run_campaign(rrr, make_laws("fl,pd", rrr), settings, jobs=1)
+
+
+def test_campaign_report_and_summary_lines(small_campaign, tmp_path):
+    from rrr_pin.campaign.montecarlo import campaign_summary
+    from rrr_pin.report.campaign import summary_lines, write_campaign_report
+
+    s = campaign_summary(small_campaign)
+    path = write_campaign_report(small_campaign, s, tmp_path)
+    text = path.read_text()
+    assert path == tmp_path / "report.html" and "<img" not in text  # no montecarlo.png here
+    m = s["pd_rms_torque"]  # in the page's table, not in the terminal's
+    assert (f"<td>pd_rms_torque</td>\n<td>{m['median']:.4g}</td>" in text)
+    lines = summary_lines(small_campaign, s)
+    assert lines[0] == "every controller ran on 3, a run diverged on 0"
+    share = 100 * s["fraction_better"]["pd"]
+    assert lines[1] == f"pd better than fl on {share:.1f} % of the plants"
+    assert lines[2].split() == ["metric", "median", "p95", "worst"]
+    assert [line.split()[0] for line in lines[3:]] == [
+        "fl_rms_error", "fl_max_error", "error_ratio_pd", "torque_ratio_pd", "pd_rms_error",
+        "pd_max_error"]
+
+
+def test_design_summary_and_lines_agree():
+    from rrr_pin.report.design import design_lines, design_summary, study_design
+    from rrr_pin.robust.loopshaping import design
+
+    d = design(lam=45.0, n=2)
+    out = design_summary(d)
+    lines = design_lines(d)
+    assert lines[1] == (f"gamma_min = {out['gamma_min']:.4f}   gamma = {out['gamma']:.4f}   "
+                        f"emax = 1/gamma = {out['emax']:.4f}")
+    assert lines[2] == f"full-order K: gain {out['K_full']['gain']:.6g}"
+    assert lines[-1].startswith("robust performance: ")
+    recorded = study_design(d, full_order=True)
+    assert recorded["K_used"] == "full" and recorded["K"] == out["K_full"]
+    assert study_design(d)["K"] == out["K_reduced"]
+
+
+def test_stress_lines_show_missing_values_as_dashes():
+    from rrr_pin.report.stress import stress_lines
+
+    result = {"robot": "rrr", "what": "actuator transport delay tau_d", "unit": "s",
+              "budget_rad": 0.05, "settings": {"rate_hz": 1000.0}, "elapsed_s": 1.23,
+              "rows": [{"controller": "fl", "predicted": 0.005972, "simulated": None,
+                        "agreement": None, "guaranteed": 0.001062}]}
+    lines = stress_lines(result)
+    assert lines[0] == ("rrr: actuator transport delay tau_d [s], budget 0.05 rad RMS, "
+                        "1000 Hz, 1.2 s")
+    assert lines[2].split() == ["fl", "0.005972", "-", "-", "0.001062"]

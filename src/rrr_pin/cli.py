@@ -7,8 +7,6 @@ Each sub-command has an ``_add_<name>(subparsers)`` function that declares its o
 from __future__ import annotations
 
 import argparse
-import math
-import os
 import sys
 
 __all__ = ["main"]
@@ -110,13 +108,11 @@ def _cmd_check_dynamics(args) -> int:
     from .model.closed_form import compare_with_pinocchio
     from .model.dh import ArmParams, paper_params
     from .model.dynamics import load_robot
+    from .validation import check_count, check_positive
 
-    if not (math.isfinite(args.rtol) and args.rtol >= 0.0):
-        raise ValueError(f"--rtol must be a finite number >= 0, got {args.rtol!r}")
-    if args.samples < 1:
-        raise ValueError(f"--samples must be >= 1, got {args.samples}")
-    if args.seed < 0:
-        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    check_positive("--rtol", args.rtol, allow_zero=True)
+    check_count("--samples", args.samples, 1)
+    check_count("--seed", args.seed)
     params = ArmParams.load(args.params) if args.params else paper_params()
     robot = load_robot(args.urdf if args.urdf else params, gravity=params.g)
     result = compare_with_pinocchio(robot, params, samples=args.samples, seed=args.seed)
@@ -141,15 +137,6 @@ def _cmd_check_dynamics(args) -> int:
 
 # --- design (H-infinity loop shaping, paper section 4) ----------------------------------------
 
-def _zpk(K) -> dict:
-    """SISO controller as JSON: gain and zeros, poles as [real, imaginary] pairs [rad/s]."""
-    from .robust.loopshaping import zpk_data
-
-    k, z, p = zpk_data(K)
-    return {"gain": k, "zeros": [[float(v.real), float(v.imag)] for v in z],
-            "poles": [[float(v.real), float(v.imag)] for v in p]}
-
-
 def _add_design(sub) -> None:
     p = sub.add_parser("design", help="H-infinity loop-shaping design of the paper's section 4")
     p.add_argument("--lam", type=float, default=45.0,
@@ -167,6 +154,7 @@ def _add_design(sub) -> None:
 def _cmd_design(args) -> int:
     import json
 
+    from .report.design import design_lines, design_summary
     from .robust.loopshaping import design
 
     d = design(lam=args.lam, n=args.joints, factor=args.factor)
@@ -175,63 +163,11 @@ def _cmd_design(args) -> int:
         from .report.plotting import save_design_figures
 
         figures = [str(f) for f in save_design_figures(d, args.out)]
-    out = {
-        "gamma_min": d.ncf.gamma_min, "gamma": d.ncf.gamma, "emax": d.ncf.emax,
-        "gamma_reduced": d.gamma_reduced,
-        "K_full": _zpk(d.K_full), "K_reduced": _zpk(d.K_reduced),
-        "robust_stability": d.robust_stability.as_dict(),
-        "robust_performance": d.robust_performance.as_dict(),
-        "ncfmargin": d.ncfmargin,
-        "reductions": {
-            "eq18": {"plant_loop": d.reduction.as_dict(),
-                     "shaped_loop": d.reduction_shaped.as_dict()},
-            "ncf_balanced_truncation": d.ncf_reduction.as_dict(),
-        },
-    }
     if args.json:
-        if figures:
-            out["figures"] = figures
-        print(json.dumps(out))
+        print(json.dumps({**design_summary(d), **({"figures": figures} if figures else {})}))
         return 0
-
-    def roots(r) -> str:
-        return ", ".join(f"{v[0]:.6g}" + (f"{v[1]:+.6g}j" if v[1] else "") for v in r)
-
-    def verdict(name: str, c: dict, where: str) -> str:
-        state = "satisfied" if c["ok"] else "NOT satisfied"
-        return (f"{name}: {state}, smallest margin {c['margin_db']:.2f} dB "
-                f"at {c['worst_frequency']:.4g} rad/s ({where})")
-
-    print(f"H-infinity loop shaping, lam = {d.lam:g} rad/s, {d.n} joints, "
-          f"factor = {d.factor:g} (negative feedback u = K (r - y), K = k I_{d.n})")
-    print(f"gamma_min = {out['gamma_min']:.4f}   gamma = {out['gamma']:.4f}   "
-          f"emax = 1/gamma = {out['emax']:.4f}")
-    for name, key in (("full-order K", "K_full"), ("reduced K (eq. 18)", "K_reduced")):
-        K = out[key]
-        print(f"{name}: gain {K['gain']:.6g}")
-        print(f"    zeros [rad/s]: {roots(K['zeros'])}")
-        print(f"    poles [rad/s]: {roots(K['poles'])}")
-    print(f"gamma of the reduced K on Gs = {d.gamma_reduced:.4f} "
-          f"({100 * (d.gamma_reduced / d.ncf.gamma - 1):+.4f} %)")
-    for where, r in (("shaped loop (Gs, Ks)", d.reduction_shaped), ("plant loop (G, K)",
-                                                                     d.reduction)):
-        state = "guaranteed" if r.guaranteed else "NOT guaranteed"
-        print(f"eq. (18) reduction on the {where}: nugap(full, reduced) = {r.nugap:.3g} "
-              f"< b = {r.b:.4f}: stability {state}; b after >= {r.b_lower:.4f} "
-              f"(computed {r.b_reduced:.4f}, lost {r.margin_lost:.2g})")
-    r = d.ncf_reduction
-    print(f"coprime-factor balanced truncation to {r.Kr.nstates} states: "
-          f"||[N - Nr; M - Mr]||_inf = {r.eps:.3g} < b = {r.b:.4f}: "
-          f"{'guaranteed' if r.guaranteed else 'NOT guaranteed'}, b after {r.b_reduced:.4f}")
-    print(f"NCF margin of the final loop b(G, K) = {d.ncfmargin:.4f}")
-    print(verdict("robust stability", out["robust_stability"],
-                  "sigma_max(T) below RSB, all frequencies"))
-    print(verdict("robust performance", out["robust_performance"],
-                  f"sigma_min(GK) above RPB, w <= {d.w_performance:g} rad/s"))
-    for f in figures:
-        print(f"wrote {f}")
+    print("\n".join(design_lines(d) + [f"wrote {f}" for f in figures]))
     return 0
-
 
 
 # --- reproduce (paper section 5, end to end) --------------------------------------------------
@@ -253,43 +189,18 @@ def _parse_lock(items) -> dict:
 
 def _floats(text: str | None, name: str, n: int | None = None):
     """Comma-separated finite numbers of an option, or None; ``n`` = expected count."""
+    from .validation import check_vector
+
     if text is None:
         return None
     try:
         values = [float(v) for v in text.replace(",", " ").split()]
     except ValueError:
         raise ValueError(f"{name} expects numbers separated by commas, got {text!r}") from None
-    if not values or not all(math.isfinite(v) for v in values):
-        raise ValueError(f"{name} expects finite numbers, got {text!r}")
     if n is not None and len(values) != n:
         raise ValueError(f"{name} expects {n} values (one per joint), got {len(values)}: "
                          f"{text!r}")
-    return values
-
-
-def _positive(name: str, value, *, allow_zero: bool = False):
-    """Refuse NaN, inf and out-of-range option values, naming the option."""
-    if value is None:
-        return None
-    ok = math.isfinite(value) and (value >= 0 if allow_zero else value > 0)
-    if not ok:
-        want = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name} must be a finite number {want}, got {value!r}")
-    return value
-
-
-def _check_out_dir(path) -> None:
-    """Refuse an output folder that cannot be written, before any work starts."""
-    from pathlib import Path
-
-    p = Path(path)
-    if p.exists() and not p.is_dir():
-        raise ValueError(f"--out {str(p)!r} exists and is not a folder")
-    parent = p
-    while not parent.exists():
-        parent = parent.parent
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"--out {str(p)!r} cannot be written ({str(parent)!r} is not writable)")
+    return check_vector(name, values).tolist()
 
 
 def _add_robot_arguments(p) -> None:
@@ -366,21 +277,22 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
 def _reference_from_args(args, robot):
     import numpy as np
 
+    from .control.paths import circle_from_start
     from .control.references import (
-        CirclePath,
         LinePath,
         QuinticReference,
         SplineReference,
         default_reference,
         task_space_reference,
     )
+    from .validation import check_positive
 
     n = robot.nq
     home = _floats(args.home, "--home", n)
     kind = args.reference
     if kind == "sine":
-        _positive("--amp", args.amp, allow_zero=True)
-        _positive("--freq", args.freq, allow_zero=True)
+        check_positive("--amp", args.amp, allow_zero=True)
+        check_positive("--freq", args.freq, allow_zero=True)
         return default_reference(robot, amp=args.amp, freq=args.freq, home=home)
     if kind == "spline":
         if args.csv is None:
@@ -388,7 +300,8 @@ def _reference_from_args(args, robot):
         return SplineReference.from_csv(args.csv, robot)
     start = np.asarray(home, dtype=float) if home is not None else np.clip(
         robot.neutral(), robot.lower, robot.upper)
-    move = _positive("--move-time", args.move_time) or 0.5 * args.duration
+    move = 0.5 * args.duration if args.move_time is None else check_positive(
+        "--move-time", args.move_time)
     if kind == "quintic":
         if args.to is None:
             raise ValueError("--reference quintic needs --to Q1,Q2,... (the goal, one value "
@@ -401,32 +314,29 @@ def _reference_from_args(args, robot):
             raise ValueError("--reference line needs --end X,Y,Z [m]")
         path = LinePath(p0, _floats(args.end, "--end", 3))
     else:
-        radius = _positive("--radius", args.radius)
-        if radius is None:
+        if args.radius is None:
             raise ValueError("--reference circle needs --radius R [m]")
-        normal = np.asarray(_floats(args.normal, "--normal", 3))
-        u = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 * np.linalg.norm(normal) else \
-            np.array([0.0, 1.0, 0.0])
-        u = u - normal * (u @ normal) / (normal @ normal)
-        u /= np.linalg.norm(u)
-        path = CirclePath(p0 - radius * u, radius, normal=normal, start_dir=u)
+        path = circle_from_start(p0, check_positive("--radius", args.radius),
+                                 _floats(args.normal, "--normal", 3))
     return task_space_reference(robot, frame, path, move, q_start=start)
 
 
 def _settings_from_args(args, n):
     from .campaign.runner import RunSettings
+    from .validation import check_count, check_positive
 
-    _positive("--duration", args.duration)
-    _positive("--dt", args.dt)
-    _positive("--rate", args.rate)
-    if args.jobs is not None and args.jobs < 1:
-        raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
-    if args.seed < 0:
-        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    for name in ("duration", "dt") + (("rate",) if args.rate is not None else ()):
+        check_positive(f"--{name}", getattr(args, name))
+    if args.jobs is not None:
+        check_count("--jobs", args.jobs, 1)
+    check_count("--seed", args.seed)
     q0 = _floats(args.q0, "--q0", n)
     qd0 = _floats(args.qd0, "--qd0", n)
-    delay = _positive("--delay", getattr(args, "delay", None), allow_zero=True)
-    wa = _positive("--actuator-bandwidth", getattr(args, "actuator_bandwidth", None))
+    delay, wa = args.delay, args.actuator_bandwidth
+    if delay is not None:
+        check_positive("--delay", delay, allow_zero=True)
+    if wa is not None:
+        check_positive("--actuator-bandwidth", wa)
     effects = None
     if delay or wa is not None:
         from .control.effects import PlantEffects
@@ -476,139 +386,47 @@ def _cmd_reproduce(args) -> int:
 
     from tqdm import tqdm
 
+    from .campaign.store import check_writable
     from .campaign.study import StudyConfig, run_study
     from .model.dynamics import load_robot
-    from .report.html import check_writable
-    from .report.plotting import plot_study_nominal, plot_study_uncertain, save_design_figures
-    from .report.results import write_results
+    from .report.design import study_design
+    from .report.plotting import save_design_figures, save_study_figures
+    from .report.results import summary_lines, write_results, write_study_report
+    from .robust.certificates import CertificateSpec
     from .robust.loopshaping import design
+    from .validation import check_count
 
     out = Path(args.out)
-    # Creates the folder and writes a probe file in it: a file at --out, a missing permission
-    # and a read-only file system are refused before any work (covers _check_out_dir's tests).
-    check_writable(out)
-    if args.samples < 0:
-        raise ValueError(f"--samples must be >= 0, got {args.samples}")
+    check_writable(out)  # a file at --out, no permission, read-only: refused before any work
+    check_count("--samples", args.samples)
     lock = _parse_lock(args.lock)
     robot = load_robot(args.robot, lock=lock)
     settings = _settings_from_args(args, robot.nq)
     reference = _reference_from_args(args, robot)
     d = design(lam=45.0, n=robot.nq)
-    K = d.K_full if args.full_order else d.K_reduced
-    laws, baseline = _laws_from_args(args, robot, K=K)
+    laws, baseline = _laws_from_args(args, robot, K=d.K_full if args.full_order else
+                                     d.K_reduced)
     config = StudyConfig(run=settings, samples=args.samples, seed=args.seed, jobs=args.jobs,
                          baseline=baseline)
     figures = save_design_figures(d, out)
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{robot.name}: simulating",
                disable=args.no_progress)
-
-    def progress(done, total):
-        bar.update(done - bar.n)
-
-    params = None
-    if args.robot == "rrr" and not lock:
-        from .model.dh import paper_params
-
-        params = paper_params()
-    from .robust.certificates import CertificateSpec
-
     certificate = None if args.no_certify else CertificateSpec.from_design(
         d, reduced=not args.full_order)
-    result = run_study(robot, laws, config=config, reference=reference, params=params,
-                       skip_joints=tuple(lock), progress=progress, certificate=certificate)
+    result = run_study(robot, laws, config=config, reference=reference,
+                       skip_joints=tuple(lock), certificate=certificate,
+                       progress=lambda done, total: bar.update(done - bar.n))
     bar.close()
-    design_info = {
-        "lam_rad_s": d.lam, "gamma_min": d.ncf.gamma_min, "gamma": d.ncf.gamma,
-        "emax": d.ncf.emax, "gamma_reduced": d.gamma_reduced,
-        "K_used": "full" if args.full_order else "reduced",
-        "K": _zpk(K),
-        "robust_stability": d.robust_stability.as_dict(),
-        "robust_performance": d.robust_performance.as_dict(),
-    }
+    design_info = study_design(d, full_order=args.full_order)
     data = write_results(result, out, design=design_info)
-    figures += [plot_study_nominal(result, out / "fig5_nominal.png"),
-                plot_study_uncertain(result, out / "fig6_uncertain.png")]
-    certified = [x for x in result.samples if "certificate" in x]
-    if certified:
-        from .report.plotting import plot_certificates
-
-        figures.append(plot_certificates(
-            [x["certificate"]["nugap_max"] for x in certified],
-            certified[0]["certificate"]["b"], [x["status"] == "ok" for x in certified],
-            out / "certificates.png"))
-    report = _write_study_report(result, out, figures, design_info, robot)
-    s = data["summary"]
+    figures += save_study_figures(result, out)
+    report = write_study_report(result, out, figures, design_info, robot)
     print(f"{robot.name}: {robot.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "
           f"{', '.join(result.names)} (baseline {baseline})")
-    print("nominal max |e| [rad]: " + ", ".join(
-        f"{k} {v:.3g}" for k, v in s["nominal_max_error"].items()))
-    for name, ratio in s.get("error_ratio_uncertain", {}).items():
-        print(f"uncertain ({s['samples_ok']} plants): RMS error {baseline} / {name} = "
-              f"{ratio:.3g} (per joint "
-              f"{', '.join(f'{x:.3g}' for x in s['error_ratio_uncertain_per_joint'][name])}); "
-              f"RMS torque {name} / {baseline} = {s['torque_ratio_uncertain'][name]:.4f}")
-    if "samples_certified" in s:
-        print(f"certified (frozen nu-gap < b = {s['certificate_b']:.4g}): "
-              f"{s['samples_certified']} of {len(certified)} plants, largest nu-gap "
-              f"{s['nugap_max']:.4g}")
-    if s["samples_diverged"]:
-        print(f"{s['samples_diverged']} uncertain plant(s) with a diverged run (see "
-              f"results.json)")
+    print("\n".join(summary_lines(result, data["summary"])))
     print(f"wrote {out}/results.json, results.md, plants/, {len(figures)} figures and "
           f"{report.name} (open it in a browser)")
     return 0
-
-
-def _write_campaign_report(campaign, summary, out, store):
-    """Write ``report.html`` of a campaign: summary table and figure (no trajectories kept)."""
-    from pathlib import Path
-
-    from .report.html import write_report_html
-
-    lines = ["| metric | median | 95th percentile | worst | samples |", "|---|---|---|---|---|"]
-    for name in campaign.names:
-        for metric in (f"error_ratio_{name}", f"torque_ratio_{name}", f"{name}_rms_error",
-                       f"{name}_max_error", f"{name}_rms_torque"):
-            if metric in summary:
-                m = summary[metric]
-                lines.append(f"| {metric} | {m['median']:.4g} | {m['p95']:.4g} | "
-                             f"{m['worst']:.4g} | {m['count']} |")
-    figure = Path(out) / "montecarlo.png"
-    write_report_html(
-        Path(out) / "report.html", title=f"rrr-pin Monte Carlo campaign on {campaign.robot}",
-        tables=[(f"{summary['samples']} plants, baseline {summary['baseline']}",
-                 "\n".join(lines))],
-        figures=[figure] if figure.exists() else [], design=campaign.settings)
-    return store.wrote("report.html")
-
-
-def _write_study_report(result, out, figures, design_info, robot):
-    """Write ``report.html``: tables, figures, design, one 3D scene per controller.
-
-    The nominal plant is opaque, the uncertain plants are translucent ghosts.
-    """
-    from .model.dynamics import robot_from_xml
-    from .report.html import write_report_html
-    from .report.results import results_markdown
-    from .report.viewer import Scene, Track
-
-    scenes = []
-    for name in result.names:
-        nominal = result.nominal[name]
-        tracks = [Track("nominal plant", nominal.t, nominal.q)]
-        for sample, plant in zip(result.samples, result.plants, strict=True):
-            traj = sample["trajectories"].get(name)
-            if traj is None:
-                continue
-            model = robot_from_xml(plant.urdf, gravity=robot.gravity, lock=dict(robot.locked),
-                                   name=f"sample{plant.index}")
-            tracks.append(Track(f"uncertain plant {plant.index}", traj.t, traj.q, opacity=0.35,
-                                robot=model))
-        scenes.append(Scene(f"{result.label(name)}: nominal and uncertain plants", robot,
-                            tracks))
-    return write_report_html(out / "report.html", title=f"rrr-pin study on {result.robot}",
-                             tables=[("Results", results_markdown(result))],
-                             figures=figures, design=design_info, scenes=scenes)
 
 
 # --- montecarlo (robustness campaign) ---------------------------------------------------------
@@ -647,18 +465,18 @@ def _add_montecarlo(sub) -> None:
 
 def _cmd_montecarlo(args) -> int:
     import time
-    from pathlib import Path
 
     from tqdm import tqdm
 
     from .campaign.executors import CampaignInterrupted, WorkersLost
     from .campaign.montecarlo import CampaignSettings, open_store, run_campaign
+    from .campaign.store import check_writable
     from .model.dynamics import load_robot
-    from .report.campaign import write_campaign
+    from .report.campaign import summary_lines, write_campaign, write_campaign_report
+    from .validation import check_count
 
-    _check_out_dir(args.out)
-    if args.samples < 1:
-        raise ValueError(f"--samples must be >= 1, got {args.samples}")
+    check_count("--samples", args.samples, 1)
+    check_writable(args.out)
     lock = _parse_lock(args.lock)
     robot = load_robot(args.robot, lock=lock)
     run = _settings_from_args(args, robot.nq)
@@ -693,35 +511,13 @@ def _cmd_montecarlo(args) -> int:
             return 3 if isinstance(exc, WorkersLost) else 130
         bar.close()
         elapsed = time.perf_counter() - start
-        s = write_campaign(campaign, args.out, store=store)
-        certs = [r for r in campaign.rows if "certified" in r]
-        if certs:
-            from .report.plotting import plot_certificates
-
-            plot_certificates([r["nugap_max"] for r in certs], certificate.margin(robot.nq),
-                              [r["status"] == "ok" for r in certs],
-                              Path(args.out) / "certificates.png")
-            s["written"].append(str(store.wrote("certificates.png")))
-        s["written"].append(str(_write_campaign_report(campaign, s, args.out, store)))
-    nl = len(laws)
-    ran = s["samples"] - done
+        s = write_campaign(campaign, args.out, store=store, certificate_b=None if
+                           certificate is None else certificate.margin(robot.nq))
+        s["written"].append(str(write_campaign_report(campaign, s, args.out, store)))
+    nl, ran = len(laws), s["samples"] - done
     print(f"{robot.name}: {ran} plants x {nl} controllers x {run.duration:g} s in "
           f"{elapsed:.1f} s ({nl * ran / max(elapsed, 1e-9):.1f} rollouts/s)")
-    print(f"every controller ran on {s['samples_ok']}, a run diverged on "
-          f"{s['samples_diverged']}")
-    if "certified" in s:
-        print(f"certified (frozen nu-gap < b): {s['certified']} plants, of which "
-              f"{s['certified_and_ran']} ran; not certified but ran: "
-              f"{s['not_certified_but_ran']}; largest nu-gap {s['nugap_max']:.4g}")
-    for name, frac in s["fraction_better"].items():
-        print(f"{name} better than {baseline} on {100 * frac:.1f} % of the plants")
-    print(f"{'metric':28}{'median':>12}{'p95':>12}{'worst':>12}")
-    for name in campaign.names:
-        for metric in (f"error_ratio_{name}", f"torque_ratio_{name}", f"{name}_rms_error",
-                       f"{name}_max_error"):
-            if metric in s:
-                m = s[metric]
-                print(f"{metric:28}{m['median']:12.4g}{m['p95']:12.4g}{m['worst']:12.4g}")
+    print("\n".join(summary_lines(campaign, s)))
     print("wrote " + ", ".join(s["written"]))
     return 0
 
@@ -763,20 +559,21 @@ def _add_stress(sub) -> None:
 def _cmd_stress(args) -> int:
     import json
     import time
-    from pathlib import Path
 
     from .campaign.runner import RunSettings, make_laws
+    from .campaign.store import check_writable
     from .campaign.stress import EFFECTS, StressSettings, stress
     from .control.references import default_reference
     from .model.dynamics import load_robot
-    from .report.plotting import plot_stress
+    from .report.stress import stress_lines, write_stress
+    from .validation import check_positive
 
     if args.effect not in EFFECTS:
         raise ValueError(f"--effect {args.effect!r} is unknown; known effects: "
                          f"{', '.join(EFFECTS)}")
-    for name in ("--budget", "--duration", "--rate", "--dt"):
-        _positive(name, getattr(args, name[2:]))
-    _check_out_dir(args.out)
+    for name in ("budget", "duration", "rate", "dt"):
+        check_positive(f"--{name}", getattr(args, name))
+    check_writable(args.out)
     robot = load_robot(args.robot, lock=_parse_lock(args.lock))
     home = _floats(args.home, "--home", robot.nq)
     reference = default_reference(robot, home=home)
@@ -788,27 +585,11 @@ def _cmd_stress(args) -> int:
     result = stress(robot, laws, reference, args.effect, settings)
     result["elapsed_s"] = time.perf_counter() - start
     result["robot"] = robot.name
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    fig = plot_stress(result, out / f"stress_{args.effect}.png")
-    result["figure"] = str(fig)
-    (out / f"stress_{args.effect}.json").write_text(json.dumps(result, indent=1))
+    fig = write_stress(result, args.out)
     if args.json:
         print(json.dumps(result))
         return 0
-    unit = result["unit"]
-
-    def fmt(v):
-        return "-" if v is None else f"{v:.4g}"
-
-    print(f"{robot.name}: {result['what']} [{unit}], budget {args.budget:g} rad RMS, "
-          f"{args.rate:g} Hz, {result['elapsed_s']:.1f} s")
-    print(f"{'controller':12}{'predicted':>12}{'simulated':>12}{'sim/pred':>10}"
-          f"{'guaranteed':>12}")
-    for row in result["rows"]:
-        print(f"{row['controller']:12}{fmt(row['predicted']):>12}{fmt(row['simulated']):>12}"
-              f"{fmt(row['agreement']):>10}{fmt(row['guaranteed']):>12}")
-    print(f"wrote {fig}")
+    print("\n".join(stress_lines(result) + [f"wrote {fig}"]))
     return 0
 
 

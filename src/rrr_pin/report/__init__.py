@@ -1,8 +1,10 @@
 """What a person reads: results tables, figures, the 3D viewer and the HTML report.
 
-Holds :mod:`~rrr_pin.report.results` (``results.json``, ``results.md``),
+Holds :mod:`~rrr_pin.report.results` (a study's ``results.json``, ``results.md`` and
+``report.html``), :mod:`~rrr_pin.report.campaign` (a campaign's tables, summary and
+``report.html``), :mod:`~rrr_pin.report.design` (the loop-shaping design as JSON and text),
 :mod:`~rrr_pin.report.plotting` (matplotlib figures, Agg), :mod:`~rrr_pin.report.viewer`
-(MeshCat scenes) and :mod:`~rrr_pin.report.html` (the self-contained ``report.html``).
+(MeshCat scenes) and :mod:`~rrr_pin.report.html` (the self-contained ``report.html`` page).
 
 Layer: above :mod:`rrr_pin.campaign`. May import every layer below it, never
 :mod:`rrr_pin.cli`.

@@ -344,6 +344,34 @@ def plot_study_uncertain(result, path):
     return _finish_study(fig, axes, path)
 
 
+def save_study_figures(result, out_dir) -> list[Path]:
+    """Write ``fig5_nominal.png``, ``fig6_uncertain.png`` and, if certified, ``certificates.png``.
+
+    Parameters
+    ----------
+    result : rrr_pin.campaign.study.StudyResult
+        A study; its certified uncertain plants (if any) give :func:`plot_certificates`.
+    out_dir : str or Path
+        Directory, created if missing.
+
+    Returns
+    -------
+    list of Path
+        The files written, in that order.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figures = [plot_study_nominal(result, out / "fig5_nominal.png"),
+               plot_study_uncertain(result, out / "fig6_uncertain.png")]
+    certified = [x for x in result.samples if "certificate" in x]
+    if certified:
+        figures.append(plot_certificates(
+            [x["certificate"]["nugap_max"] for x in certified],
+            certified[0]["certificate"]["b"], [x["status"] == "ok" for x in certified],
+            out / "certificates.png"))
+    return figures
+
+
 # --- Monte Carlo campaign ----------------------------------------------------------------------
 
 def plot_campaign(campaign, path) -> Path:

@@ -1,4 +1,4 @@
-"""The report of a study: ``results.json``, ``results.md`` and the uncertain plants' URDFs.
+"""The report of a study: ``results.json``, ``results.md``, the plants' URDFs and ``report.html``.
 
 ``results.md`` has, for any set of controllers, a table of every controller against the
 baseline, and per-joint figures. Where the study includes the paper's two controllers (the
@@ -17,8 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from ..campaign.study import StudyResult
+from ..model.dynamics import Robot, robot_from_xml
+from .html import write_report_html
+from .viewer import Scene, Track
 
-__all__ = ["write_results", "results_markdown", "PAPER_ERROR_RATIO", "PAPER_LAWS"]
+__all__ = ["write_results", "results_markdown", "write_study_report", "summary_lines",
+           "PAPER_ERROR_RATIO", "PAPER_LAWS"]
 
 #: The paper's claim for the uncertain plants: "almost a ten times better performance".
 PAPER_ERROR_RATIO = 10.0
@@ -221,3 +225,79 @@ def write_results(result: StudyResult, out: str | Path, design: dict | None = No
     (out / "results.json").write_text(json.dumps(data, indent=1) + "\n")
     (out / "results.md").write_text(results_markdown(result, data))
     return data
+
+
+def write_study_report(result: StudyResult, out: str | Path, figures, design: dict | None,
+                       robot: Robot) -> Path:
+    """Write ``out/report.html``: results table, figures, design and one 3D scene per law.
+
+    In each scene the nominal plant is opaque and the uncertain plants are translucent ghosts.
+    Each uncertain plant's model is built once from its URDF (``result.plants``) and shared by
+    the scenes of every law that ran on it.
+
+    Parameters
+    ----------
+    result : StudyResult
+    out : path-like
+        The study's folder.
+    figures : sequence of path-like
+        Image files to inline.
+    design : dict, optional
+        Design summary shown as nested tables.
+    robot : Robot
+        The nominal arm (its gravity and locked joints are the plants').
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    models: dict[int, Robot] = {}
+
+    def model(plant) -> Robot:
+        if plant.index not in models:
+            models[plant.index] = robot_from_xml(plant.urdf, gravity=robot.gravity,
+                                                 lock=dict(robot.locked),
+                                                 name=f"sample{plant.index}")
+        return models[plant.index]
+
+    scenes = []
+    for name in result.names:
+        nominal = result.nominal[name]
+        tracks = [Track("nominal plant", nominal.t, nominal.q)]
+        for sample, plant in zip(result.samples, result.plants, strict=True):
+            traj = sample["trajectories"].get(name)
+            if traj is not None:
+                tracks.append(Track(f"uncertain plant {plant.index}", traj.t, traj.q,
+                                    opacity=0.35, robot=model(plant)))
+        scenes.append(Scene(f"{result.label(name)}: nominal and uncertain plants", robot,
+                            tracks))
+    return write_report_html(Path(out) / "report.html", title=f"rrr-pin study on {result.robot}",
+                             tables=[("Results", results_markdown(result))],
+                             figures=figures, design=design, scenes=scenes)
+
+
+def summary_lines(result: StudyResult, summary: dict) -> list[str]:
+    """Headline figures of a study as text lines (no newlines), for a terminal.
+
+    From ``summary`` (``results.json["summary"]``): the nominal largest errors, per law the
+    uncertain-plant error and torque ratios against the baseline, the certificates of the
+    uncertain plants of ``result``, and the count of plants with a diverged run (if any).
+    """
+    s, base = summary, summary["baseline"]
+    lines = ["nominal max |e| [rad]: " + ", ".join(f"{k} {v:.3g}"
+                                                   for k, v in s["nominal_max_error"].items())]
+    for name, ratio in s.get("error_ratio_uncertain", {}).items():
+        per_joint = ", ".join(f"{x:.3g}" for x in s["error_ratio_uncertain_per_joint"][name])
+        lines.append(f"uncertain ({s['samples_ok']} plants): RMS error {base} / {name} = "
+                     f"{ratio:.3g} (per joint {per_joint}); RMS torque {name} / {base} = "
+                     f"{s['torque_ratio_uncertain'][name]:.4f}")
+    if "samples_certified" in s:
+        checked = sum(1 for x in result.samples if "certificate" in x)
+        lines.append(f"certified (frozen nu-gap < b = {s['certificate_b']:.4g}): "
+                     f"{s['samples_certified']} of {checked} plants, largest nu-gap "
+                     f"{s['nugap_max']:.4g}")
+    if s["samples_diverged"]:
+        lines.append(f"{s['samples_diverged']} uncertain plant(s) with a diverged run (see "
+                     f"results.json)")
+    return lines
