@@ -223,7 +223,7 @@ def test_compare_with_pinocchio():
         cf.compare_with_pinocchio(robot, params, samples=2.5)
     with pytest.raises(ValueError, match="seed must be an integer >= 0, got -1"):
         cf.compare_with_pinocchio(robot, params, seed=-1)
-    with pytest.raises(ValueError, match="qd_max must be a finite speed >= 0 rad/s, got nan"):
+    with pytest.raises(ValueError, match=r"qd_max must be a finite number >= 0 \[rad/s\], got nan"):
         cf.compare_with_pinocchio(robot, params, qd_max=float("nan"))
 
 

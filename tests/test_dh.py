@@ -29,11 +29,13 @@ def test_json_round_trip(tmp_path):
 
 
 BAD = [
-    ("mass", -1.0, "mass must be > 0"),
-    ("mass", float("nan"), "mass must be finite"),
+    ("mass", -1.0, r"mass must be a finite number > 0 \[kg\], got -1\.0"),
+    ("mass", float("nan"), r"mass must be a finite number > 0 \[kg\], got nan"),
     ("lg", 1.5, "lg must lie in"),
     ("lg", -0.1, "lg must lie in"),
-    ("J", (-1.0, 1.0, 1.0), "Jx must be >= 0"),
+    ("J", (-1.0, 1.0, 1.0), r"Jx must be a finite number >= 0 \[kg m\^2\], got -1\.0"),
+    ("effort", 0.0, r"effort must be a finite number > 0 \[N m\], got 0\.0"),
+    ("velocity", True, r"velocity must be a finite number > 0 \[rad/s\], got True"),
     ("J", (0.0, 1.0, 3.0), "Jz = 3.0 violates the triangle inequality"),
     ("a", float("inf"), "a must be finite"),
 ]

@@ -13,8 +13,9 @@ import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.dynamics import load_robot, robot_from_xml
 from rrr_pin.model.robots import RobotModelError
+from rrr_pin.model.urdf import urdf_from_params
 
 PANDA_LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 ROBOTS = {
@@ -179,3 +180,20 @@ def test_well_formed_minimal_urdf_loads(tmp_path):
     robot = load_robot(path)
     # One pendulum link: M = Iyy + m r^2 = 0.01 + 1 * 0.1^2 about the y axis.
     assert_allclose(robot.M([0.3]), [[0.02]], rtol=1e-12)
+
+
+def test_trusted_load_still_unbounds_continuous_joints():
+    # check=False skips the URDF validator, not the rewrite of continuous joints for urdfdom.
+    text = urdf_from_params().replace('<joint name="joint1" type="revolute">',
+                                      '<joint name="joint1" type="continuous">', 1)
+    checked, trusted = robot_from_xml(text), robot_from_xml(text, check=False)
+    assert checked.upper[0] == trusted.upper[0] == np.inf
+    assert checked.lower[0] == trusted.lower[0] == -np.inf
+    q = np.array([0.3, -0.2, 0.5])
+    assert np.array_equal(trusted.M(q), checked.M(q))
+
+
+def test_gravity_is_a_magnitude():
+    with pytest.raises(ValueError, match=r"gravity must be a finite number >= 0 \[m/s\^2\], "
+                                         r"got -9\.8"):
+        robot_from_xml(urdf_from_params(), gravity=-9.8)

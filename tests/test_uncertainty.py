@@ -4,7 +4,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rrr_pin.model.dh import ArmParams, forward_kinematics, paper_params
-from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.dynamics import load_robot, robot_from_xml
 from rrr_pin.model.uncertainty import Tolerances, perturb_inertia, perturb_urdf, sample_plants
 
 
@@ -83,14 +83,41 @@ def test_perturb_urdf_ur5(tmp_path):
     assert all(0.95 <= f <= 1.05 for f in factors["joints"].values())
 
 
+@pytest.mark.parametrize("source", ["rrr", "ur5"], ids=["dh-plant", "urdf-plant"])
+def test_a_plant_checked_where_made_loads_trusted_as_checked(source):
+    # robot_from_xml(check=False) skips only the URDF validator: the model is the same, bit
+    # for bit, as the checked load (and as what the study would simulate).
+    nominal = load_robot(source)
+    plant = sample_plants(paper_params() if source == "rrr" else nominal.urdf, 1, seed=3)[0]
+    checked = robot_from_xml(plant.urdf, gravity=nominal.gravity)
+    trusted = robot_from_xml(plant.urdf, gravity=nominal.gravity, check=False)
+    q = np.linspace(-0.5, 0.7, nominal.nq)
+    qd = np.linspace(0.3, -0.2, nominal.nq)
+    assert np.array_equal(trusted.M(q), checked.M(q))
+    assert np.array_equal(trusted.V(q, qd), checked.V(q, qd))
+    assert np.array_equal(trusted.G(q), checked.G(q))
+    assert np.array_equal(trusted.lower, checked.lower)
+    assert np.array_equal(trusted.upper, checked.upper)
+    assert trusted.joint_names == checked.joint_names
+
+
 @pytest.mark.parametrize("kwargs,message", [
-    ({"count": -1}, "count must be"), ({"count": 1, "seed": -2}, "seed must be"),
-], ids=["count", "seed"])
+    ({"count": -1}, "count must be an integer >= 0, got -1"),
+    ({"count": 1, "seed": -2}, "seed must be an integer >= 0, got -2"),
+    ({"count": True}, "count must be an integer >= 0, got True"),
+    ({"count": 1.5}, r"count must be an integer >= 0, got 1\.5"),
+], ids=["count", "seed", "count-bool", "count-fraction"])
 def test_bad_sampling_arguments(kwargs, message):
     with pytest.raises(ValueError, match=message):
         sample_plants(paper_params(), **kwargs)
 
 
-def test_bad_tolerance():
-    with pytest.raises(ValueError, match="inertia tolerance must be in"):
-        Tolerances(inertia=1.5)
+@pytest.mark.parametrize("kwargs,message", [
+    ({"inertia": 1.5}, r"inertia tolerance must be in \[0, 1\), got 1\.5"),
+    ({"length": -0.1}, r"length tolerance must be in \[0, 1\), got -0\.1"),
+    ({"inertia": "0.1"}, r"inertia tolerance must be a number, got '0\.1' \(str\)"),
+    ({"length": float("nan")}, "length tolerance must be finite, got nan"),
+], ids=["inertia-above-1", "negative-length", "string", "nan"])
+def test_bad_tolerance(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        Tolerances(**kwargs)

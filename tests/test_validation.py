@@ -63,7 +63,7 @@ def test_valid_arm_loads(tmp_path):
 # --- A. inertials -----------------------------------------------------------------------------
 
 BAD_INERTIALS = [
-    ("negative-mass", _inertial(mass="-1"), r"link 'l1': mass must be >= 0 kg, got -1\.0"),
+    ("negative-mass", _inertial(mass="-1"), r"link 'l1': mass must be a finite number >= 0 \[kg\], got -1\.0"),
     ("nan-mass", _inertial(mass="nan"), r"link 'l1': <mass value=\"nan\"> must hold 1 finite"),
     ("nan-inertia", _inertial(ixx="nan"), r"link 'l1': <inertia ixx=\"nan\"> must hold 1 fin"),
     ("inf-inertia", _inertial(iyz="inf"), r"link 'l1': <inertia iyz=\"inf\"> must hold 1 fin"),
@@ -104,7 +104,7 @@ def test_triangle_tolerance_is_as_stated():
 
 
 @pytest.mark.parametrize(("mass", "inertia", "match"), [
-    (True, np.eye(3), r"body: mass must be a number \[kg\], got True \(bool\)"),
+    (True, np.eye(3), r"body: mass must be a finite number >= 0 \[kg\], got True"),
     (1.0, np.eye(2), r"Expected inertia of shape \(3, 3\), got \(2, 2\)"),
     (1.0, [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]], "inertia must be symmetric"),
     (1.0, [[1, 0, 0], [0, math.nan, 0], [0, 0, 1]], "inertia must be finite"),
@@ -122,7 +122,7 @@ def test_check_dynamics_refuses_negative_mass(tmp_path, capsys):
     assert cli.main(["check-dynamics", "--urdf", str(path)]) == 2
     out = capsys.readouterr()
     assert "OK" not in out.out
-    assert "link 'link3': mass must be >= 0 kg, got -5.0" in out.err
+    assert "link 'link3': mass must be a finite number >= 0 [kg], got -5.0" in out.err
     assert "no <inertial>" not in out.err  # the old, wrong cause
 
 
@@ -131,8 +131,10 @@ def test_uncertain_plants_refuse_broken_nominal_inertial():
         perturb_urdf(_arm(l1=_inertial(izz="0.05")), np.random.default_rng(0))
     with pytest.raises(ValueError, match="I: inertia is not positive semi-definite"):
         perturb_inertia(np.diag([-1.0, 1.0, 1.0]), [1.0, 1.0, 1.0])
-    with pytest.raises(ValueError, match=r"factors must be 3 finite numbers > 0"):
+    with pytest.raises(ValueError, match=r"factors must be finite, got \[1\.0, nan, 1\.0\]"):
         perturb_inertia(np.eye(3), [1.0, math.nan, 1.0])
+    with pytest.raises(ValueError, match=r"factors must be 3 finite numbers > 0, got \[1\.0, 0\.0, "):
+        perturb_inertia(np.eye(3), [1.0, 0.0, 1.0])
 
 
 def test_uncertain_plants_are_physical():
@@ -210,23 +212,23 @@ def _params_file(tmp_path, edit) -> str:
 
 BAD_PARAMS = [
     ("mass-true", lambda d: d["links"][1].update(mass=True),
-     r"links\[1\]: mass must be a number \[kg\], got True \(bool\)"),
+     r"links\[1\]: mass must be a finite number > 0 \[kg\], got True"),
     ("mass-string", lambda d: d["links"][0].update(mass="five"),
-     r"links\[0\]: mass must be a number \[kg\], got 'five' \(str\)"),
+     r"links\[0\]: mass must be a finite number > 0 \[kg\], got 'five'"),
     ("mass-null", lambda d: d["links"][2].update(mass=None),
-     r"links\[2\]: mass must be a number \[kg\], got None"),
+     r"links\[2\]: mass must be a finite number > 0 \[kg\], got None"),
     ("J-null", lambda d: d["links"][0].update(J=None),
      r"links\[0\]: J must be a list of 3 principal moments"),
     ("Jy-string", lambda d: d["links"][0].update(J=[1, "x", 0]),
-     r"links\[0\]: Jy must be a number"),
+     r"links\[0\]: Jy must be a finite number >= 0 \[kg m\^2\], got 'x'"),
     ("links-int", lambda d: d.update(links=5), r"links must be a list of link objects, got 5"),
     ("links-null", lambda d: d.update(links=None), r"links must be a list of link objects"),
     ("link-int", lambda d: d["links"].__setitem__(0, 5), r"links\[0\] must be an object"),
-    ("g-null", lambda d: d.update(g=None), r"g must be a number \[m/s\^2\], got None"),
+    ("g-null", lambda d: d.update(g=None), r"g must be a finite number >= 0 \[m/s\^2\], got None"),
     ("name-null", lambda d: d.update(name=None), r"name must be a non-empty string, got None"),
     ("name-newline", lambda d: d.update(name="a\nb"), r"name must hold printable characters"),
     ("negative-mass", lambda d: d["links"][0].update(mass=-2),
-     r"links\[0\]: mass must be > 0 kg, got -2\.0"),
+     r"links\[0\]: mass must be a finite number > 0 \[kg\], got -2"),
     ("lower-eq-upper", lambda d: d["links"][0].update(lower=1, upper=1),
      r"links\[0\]: joint limits must satisfy lower < upper"),
     ("missing-field", lambda d: d["links"][0].pop("lg"), r"links\[0\] lacks the fields \['lg'\]"),
@@ -271,8 +273,8 @@ def test_robot_name_with_xml_special_characters(tmp_path, capsys):
 @pytest.mark.parametrize(("args", "match"), [
     (["--rtol", "nan"], "--rtol must be a finite number >= 0, got nan"),
     (["--rtol=-1e-9"], "--rtol must be a finite number >= 0, got -1e-09"),
-    (["--samples", "0"], "--samples must be >= 1, got 0"),
-    (["--seed", "-1"], "--seed must be >= 0, got -1"),
+    (["--samples", "0"], "--samples must be an integer >= 1, got 0"),
+    (["--seed", "-1"], "--seed must be an integer >= 0, got -1"),
 ], ids=["rtol-nan", "rtol-negative", "samples", "seed"])
 def test_check_dynamics_bad_options(capsys, args, match):
     assert cli.main(["check-dynamics", *args]) == 2

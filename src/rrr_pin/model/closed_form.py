@@ -41,10 +41,10 @@ References
 from __future__ import annotations
 
 import math
-import numbers
 
 import numpy as np
 
+from ..validation import check_count, check_positive, check_vector
 from .dh import ArmParams
 
 __all__ = [
@@ -96,15 +96,6 @@ def _check_params(params: ArmParams) -> None:
                              f"{params.links[k].a!r}")
 
 
-def _vec3(name: str, x) -> np.ndarray:
-    x = np.asarray(x, dtype=float)
-    if x.shape != (3,):
-        raise ValueError(f"Expected {name} of shape (3,), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError(f"{name} must be finite, got {x}")
-    return x
-
-
 def coefficients(params: ArmParams, q) -> dict[str, float]:
     """Return the coefficients ``D_i, D_ij, D_ijk`` of eq. (7), corrected.
 
@@ -132,7 +123,11 @@ def coefficients(params: ArmParams, q) -> dict[str, float]:
 
     """
     _check_params(params)
-    q = _vec3("q", q)
+    return _coefficients(params, check_vector("q", q, 3))
+
+
+def _coefficients(params: ArmParams, q: np.ndarray) -> dict[str, float]:
+    """:func:`coefficients` of checked ``params`` (RRR structure) and ``q`` (shape (3,))."""
     m, l, lg, J, g = params.m, params.l, params.lg, params.J, params.g  # noqa: E741
     m2, m3 = m[1], m[2]
     l2 = l[1]
@@ -298,7 +293,7 @@ def V(params: ArmParams, q, qd) -> np.ndarray:
         Joint torques [N m].
 
     """
-    qd = _vec3("qd", qd)
+    qd = check_vector("qd", qd, 3)
     return _assemble_V(coefficients(params, q), qd)
 
 
@@ -347,7 +342,7 @@ def robot_coefficients(robot, q) -> dict[str, float]:
     if robot.nq != 3:
         raise ValueError(f"robot must have 3 joints to compare with the closed form, got "
                          f"{robot.nq}")
-    q = _vec3("q", q)
+    q = check_vector("q", q, 3)
     Mq, Gq = robot.M(q), robot.G(q)
     e = np.eye(3)
     Vjj = [robot.V(q, e[j]) for j in range(3)]
@@ -363,19 +358,6 @@ def robot_coefficients(robot, q) -> dict[str, float]:
         for i in range(3):
             D[f"D{i + 1}{j + 1}{k + 1}"] = 0.5 * float(Vjk[i])
     return D
-
-
-def _count(name: str, value, low: int) -> int:
-    """``value`` as an int >= ``low`` (an integral float such as 200.0 is accepted).
-
-    Anything else (bool, string, NaN, inf, a fraction, below ``low``) raises ``ValueError``
-    naming ``name``; ``int()`` alone would raise an unnamed ``ValueError`` or an
-    ``OverflowError`` for some of them.
-    """
-    if (isinstance(value, bool) or not isinstance(value, numbers.Real)
-            or not math.isfinite(value) or value != int(value) or value < low):
-        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
 
 
 def compare_with_pinocchio(robot, params: ArmParams, samples: int = 200, seed: int = 0,
@@ -420,20 +402,20 @@ def compare_with_pinocchio(robot, params: ArmParams, samples: int = 200, seed: i
     if robot.nq != 3:
         raise ValueError(f"robot must have 3 joints to compare with the closed form, got "
                          f"{robot.nq}")
-    samples, seed = _count("samples", samples, 1), _count("seed", seed, 0)
-    if not (math.isfinite(qd_max) and qd_max >= 0.0):
-        raise ValueError(f"qd_max must be a finite speed >= 0 rad/s, got {qd_max!r}")
+    samples, seed = check_count("samples", samples, 1), check_count("seed", seed, 0)
+    qd_max = check_positive("qd_max", qd_max, allow_zero=True, unit="rad/s")
     rng = np.random.default_rng(seed)
     qs = rng.uniform(-math.pi, math.pi, size=(samples, 3))
     qds = rng.uniform(-qd_max, qd_max, size=(samples, 3))
     diff = {"M": 0.0, "V": 0.0, "G": 0.0}
     scale = {"M": 0.0, "V": 0.0, "G": 0.0}
     for q, qd in zip(qs, qds, strict=True):
-        D = coefficients(params, q)
+        # Checked once above: the rows of qs and qds are finite float64 arrays of shape (3,).
+        D = _coefficients(params, q)
         pairs = {
-            "M": (_assemble_M(D), robot.M(q)),
-            "V": (_assemble_V(D, qd), robot.V(q, qd)),
-            "G": (np.array([D["D1"], D["D2"], D["D3"]]), robot.G(q)),
+            "M": (_assemble_M(D), robot.M(q, check=False)),
+            "V": (_assemble_V(D, qd), robot.V(q, qd, check=False)),
+            "G": (np.array([D["D1"], D["D2"], D["D3"]]), robot.G(q, check=False)),
         }
         for key, (closed, pin_value) in pairs.items():
             diff[key] = max(diff[key], float(np.max(np.abs(closed - pin_value))))

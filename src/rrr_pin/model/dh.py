@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..validation import check_positive, check_real
+
 __all__ = [
     "DHLink",
     "ArmParams",
@@ -48,23 +50,6 @@ __all__ = [
 #: which moves such a body off the bound by up to ~1e-6 relative; 1e-6 accepts that round-off
 #: and nothing a real body could not have.
 INERTIA_RTOL = 1e-6
-
-
-def _check_real(name: str, value, unit: str = "") -> float:
-    """Return ``value`` as a finite float, or raise ``ValueError`` naming ``name``.
-
-    Booleans, ``None``, strings and other non-numbers are refused (``float(True)`` would read
-    a JSON ``true`` as 1).
-    """
-    unit = f" [{unit}]" if unit else ""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer,
-                                                                     np.floating)):
-        raise ValueError(f"{name} must be a number{unit}, got {value!r} "
-                         f"({type(value).__name__})")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite{unit}, got {value!r}")
-    return value
 
 
 def check_inertial(mass, inertia, *, name: str = "inertial") -> tuple[float, np.ndarray]:
@@ -101,9 +86,7 @@ def check_inertial(mass, inertia, *, name: str = "inertial") -> tuple[float, np.
         nonzero inertia.
     """
     if mass is not None:
-        mass = _check_real(f"{name}: mass", mass, "kg")
-        if mass < 0.0:
-            raise ValueError(f"{name}: mass must be >= 0 kg, got {mass!r}")
+        mass = check_positive(f"{name}: mass", mass, allow_zero=True, unit="kg")
     try:
         inertia = np.array(inertia, dtype=float)
     except (TypeError, ValueError):
@@ -189,25 +172,21 @@ class DHLink:
                  "theta_offset": "rad", "lower": "rad", "upper": "rad", "effort": "N m",
                  "velocity": "rad/s"}
         for name, unit in units.items():
-            object.__setattr__(self, name, _check_real(name, getattr(self, name), unit))
+            check = check_positive if name in ("mass", "effort", "velocity") else check_real
+            object.__setattr__(self, name, check(name, getattr(self, name), unit=unit))
         if isinstance(self.J, (str, bytes, dict)) or not hasattr(self.J, "__len__"):
             raise ValueError(f"J must be a list of 3 principal moments (Jx, Jy, Jz) [kg m^2], "
                              f"got {self.J!r} ({type(self.J).__name__})")
         if len(self.J) != 3:
             raise ValueError(f"J must hold 3 principal moments (Jx, Jy, Jz), got {len(self.J)}")
-        J = tuple(_check_real(f"J{axis}", v, "kg m^2")
+        J = tuple(check_positive(f"J{axis}", v, allow_zero=True, unit="kg m^2")
                   for axis, v in zip("xyz", self.J, strict=True))
         object.__setattr__(self, "J", J)
-        if self.mass <= 0.0:
-            raise ValueError(f"mass must be > 0 kg, got {self.mass!r}")
         if self.length <= 0.0:
             raise ValueError(
                 f"link length sqrt(a**2 + d**2) must be > 0 m, got a={self.a!r}, d={self.d!r}")
         if not 0.0 <= self.lg <= self.length * (1.0 + 1e-12):
             raise ValueError(f"lg must lie in [0, l] = [0, {self.length!r}] m, got {self.lg!r}")
-        for axis, value in zip("xyz", J, strict=True):
-            if value < 0.0:
-                raise ValueError(f"J{axis} must be >= 0 kg m^2, got {value!r}")
         scale = max(max(J), 1e-300)
         for k, axis in enumerate("xyz"):
             others = [J[j] for j in range(3) if j != k]
@@ -218,9 +197,6 @@ class DHLink:
         if self.lower >= self.upper:
             raise ValueError(f"joint limits must satisfy lower < upper, got lower="
                              f"{self.lower!r} rad, upper={self.upper!r} rad")
-        if self.effort <= 0.0 or self.velocity <= 0.0:
-            raise ValueError(f"effort and velocity limits must be > 0, got effort="
-                             f"{self.effort!r}, velocity={self.velocity!r}")
 
     @property
     def length(self) -> float:
@@ -270,10 +246,7 @@ class ArmParams:
             if not isinstance(link, DHLink):
                 raise ValueError(f"links[{k}] must be a DHLink, got {type(link).__name__}")
         object.__setattr__(self, "links", links)
-        g = _check_real("g", self.g, "m/s^2")
-        if g < 0.0:
-            raise ValueError(f"g must be >= 0 m/s^2 (it points along -z), got {g!r}")
-        object.__setattr__(self, "g", g)
+        object.__setattr__(self, "g", check_positive("g", self.g, allow_zero=True, unit="m/s^2"))
         check_robot_name(self.name)
         if not isinstance(self.notes, str):
             raise ValueError(f"notes must be a string, got {self.notes!r} "

@@ -32,7 +32,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from .dh import ArmParams, _check_real, check_inertial
+from ..validation import check_positive, check_real
+from .dh import ArmParams, check_inertial
 from .robots import RobotModelError, read_source
 
 __all__ = ["Robot", "load_robot", "robot_from_xml", "check_urdf_inertials", "DEFAULT_GRAVITY"]
@@ -419,13 +420,6 @@ def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
                 f"joint {name!r} mimics {joint.find('mimic').get('joint')!r}: mimic joints are "
                 f"not supported; lock it (e.g. lock={{{name!r}: 0.0}})")
         _check_joint(joint, locked)
-        if jtype == "continuous":
-            joint.set("type", "revolute")
-            limit = joint.find("limit")
-            if limit is None:
-                limit = ET.SubElement(joint, "limit", {"effort": "1e6", "velocity": "1e6"})
-            limit.set("lower", repr(-_UNBOUNDED))
-            limit.set("upper", repr(_UNBOUNDED))
         children.setdefault(parent.get("link"), []).append((joint, child.get("link")))
     roots = set(links) - set(parent_joint)
     if len(roots) != 1:
@@ -440,6 +434,22 @@ def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
                               f"connected to the root link {sorted(roots)[0]!r} (their joints "
                               f"form a loop)")
     _check_subtree_mass(masses, children, locked)
+    return _unbound_continuous(root)
+
+
+def _unbound_continuous(root: ET.Element) -> tuple[str, str]:
+    """Rewrite continuous joints as revolute joints with unbounded limits (no checks).
+
+    Returns the URDF text for urdfdom and the ``<robot name>``.
+    """
+    for joint in root.findall("joint"):
+        if joint.get("type") == "continuous":
+            joint.set("type", "revolute")
+            limit = joint.find("limit")
+            if limit is None:
+                limit = ET.SubElement(joint, "limit", {"effort": "1e6", "velocity": "1e6"})
+            limit.set("lower", repr(-_UNBOUNDED))
+            limit.set("upper", repr(_UNBOUNDED))
     return ET.tostring(root, encoding="unicode"), root.get("name") or "robot"
 
 
@@ -487,7 +497,7 @@ def _check_lock(model: pin.Model, lock: dict) -> dict[str, float]:
         lower = float(model.lowerPositionLimit[idx])
         upper = float(model.upperPositionLimit[idx])
         try:
-            value = _check_real(f"lock value of joint {joint_name!r}", value, "rad or m")
+            value = check_real(f"lock value of joint {joint_name!r}", value, "rad or m")
         except ValueError as exc:
             raise RobotModelError(str(exc)) from None
         if not lower <= value <= upper:
@@ -536,7 +546,8 @@ def load_robot(source="rrr", *, gravity: float | None = None,
 
 
 def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAULT_GRAVITY,
-                   lock: dict[str, float] | None = None, label: str = "<string>") -> Robot:
+                   lock: dict[str, float] | None = None, label: str = "<string>",
+                   check: bool = True) -> Robot:
     """Like :func:`load_robot`, from URDF text already in memory.
 
     Parameters
@@ -549,14 +560,24 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
         As in :func:`load_robot`.
     label : str
         Where the text came from, for error messages.
+    check : bool, default True
+        Validate the URDF text (the XML tree, every joint, every inertial, some mass behind
+        every moving joint). ``False`` trusts a text that rrr-pin made and checked itself,
+        so that a plant is validated once, where it is made: the URDF of a loaded
+        :class:`Robot` (``robot.urdf``), or an uncertain plant of
+        :func:`rrr_pin.model.uncertainty.sample_plant` drawn around such a nominal (its tree,
+        joints and limits are the nominal's, and its perturbed inertials were checked when it
+        was written). Continuous joints are still rewritten, and ``gravity``, ``lock`` and
+        the built model (``nq == nv``, a moving joint left, a positive definite mass matrix)
+        are checked either way. A text that rrr-pin did not check must not be passed with
+        ``check=False``: urdfdom reads some bad inertias as zero without an error.
     """
     lock = dict(lock or {})
-    gravity = _check_real("gravity", gravity, "m/s^2")
-    if gravity < 0.0:
-        raise ValueError(f"gravity must be a magnitude >= 0 m/s^2 (along -z), got {gravity!r}")
+    gravity = check_positive("gravity", gravity, allow_zero=True, unit="m/s^2")
     raw = urdf
     try:
-        urdf, urdf_name = _prepare_urdf(raw, set(lock))
+        urdf, urdf_name = (_prepare_urdf(raw, set(lock)) if check
+                           else _unbound_continuous(_parse(raw)))
     except RobotModelError as exc:
         raise RobotModelError(f"{label}: {exc}") from None
     try:

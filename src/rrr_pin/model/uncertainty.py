@@ -1,7 +1,11 @@
 """Uncertain plants: seeded, physically valid perturbations of an arm, written out as URDF.
 
-The perturbed URDF files ARE the uncertain plants: the study loads them back through
-:func:`rrr_pin.load_robot`, exactly like any user URDF.
+The perturbed URDF texts ARE the uncertain plants. A plant is validated once, where it is made:
+a DH plant by :class:`~rrr_pin.model.dh.DHLink` (its URDF is generated from checked links), a
+URDF plant by :func:`~rrr_pin.model.dynamics.check_urdf_inertials` on the text written (its
+tree, joints and limits are the nominal's, which were checked when the nominal was loaded). So
+the plant of a loaded nominal may be loaded with
+``rrr_pin.model.dynamics.robot_from_xml(plant.urdf, ..., check=False)``.
 
 Perturbation model (paper section 5: "20 % tolerance for the inertia parameters and 5 % for the
 link lengths"); every factor is drawn independently and uniformly in ``[1 - tol, 1 + tol]``:
@@ -31,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..validation import check_count, check_real, check_vector
 from .dh import ArmParams, check_inertial
 from .urdf import urdf_from_params
 
@@ -62,7 +67,7 @@ class Tolerances:
 
     def __post_init__(self) -> None:
         for name in ("inertia", "length"):
-            value = float(getattr(self, name))
+            value = check_real(f"{name} tolerance", getattr(self, name))
             if not 0.0 <= value < 1.0:
                 raise ValueError(f"{name} tolerance must be in [0, 1), got {value!r}")
             object.__setattr__(self, name, value)
@@ -126,9 +131,15 @@ def perturb_inertia(I: np.ndarray, factors) -> np.ndarray:
         not finite and > 0.
     """
     _, I = check_inertial(None, I, name="I")
-    factors = np.asarray(factors, dtype=float)
-    if factors.shape != (3,) or not np.all(np.isfinite(factors)) or not np.all(factors > 0.0):
+    factors = check_vector("factors", factors, 3)
+    if not np.all(factors > 0.0):
         raise ValueError(f"factors must be 3 finite numbers > 0, got {factors.tolist()}")
+    return _perturb_inertia(I, factors)
+
+
+def _perturb_inertia(I, factors) -> np.ndarray:
+    """:func:`perturb_inertia` without the checks, for inertias checked where they were read."""
+    I = np.asarray(I, dtype=float)
     I = 0.5 * (I + I.T)
     S = 0.5 * np.trace(I) * np.eye(3) - I
     s, R = np.linalg.eigh(S)
@@ -154,7 +165,8 @@ def perturb_params(params: ArmParams, rng: np.random.Generator,
         f_m = float(_factor(rng, tol.inertia))
         f_s = _factor(rng, tol.inertia, 3)
         f_l = float(_factor(rng, tol.length))
-        J = np.diag(perturb_inertia(np.diag(link.J), f_s))
+        # link.J was checked by DHLink; the perturbed link is checked by DHLink again below.
+        J = np.diag(_perturb_inertia(np.diag(link.J), f_s))
         links.append(replace(link, mass=link.mass * f_m, J=tuple(float(v) for v in J),
                              a=link.a * f_l, d=link.d * f_l, lg=link.lg * f_l))
         factors.append({"mass": f_m, "second_moments": f_s.tolist(), "length": f_l})
@@ -225,7 +237,7 @@ def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Toleranc
         f_c = float(_factor(rng, tol.length))
         inertial.mass = float(inertial.mass) * f_m
         if inertial.inertia is not None:
-            inertial.inertia = perturb_inertia(inertial.inertia, f_s)
+            inertial.inertia = _perturb_inertia(inertial.inertia, f_s)  # checked above
         origin = np.eye(4) if inertial.origin is None else np.array(inertial.origin, float)
         origin[:3, 3] *= f_c
         inertial.origin = origin
@@ -267,12 +279,8 @@ def sample_plants(nominal, count: int, seed: int = 0, tol: Tolerances = Toleranc
     -------
     list of PlantSample
     """
-    if int(count) != count or count < 0:
-        raise ValueError(f"count must be a non-negative integer, got {count!r}")
-    if int(seed) != seed or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    return [sample_plant(nominal, seed, k, tol, skip_joints=skip_joints)
-            for k in range(int(count))]
+    count, seed = check_count("count", count), check_count("seed", seed)
+    return [sample_plant(nominal, seed, k, tol, skip_joints=skip_joints) for k in range(count)]
 
 
 def sample_plant(nominal, seed: int, index: int, tol: Tolerances = Tolerances(),
