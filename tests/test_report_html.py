@@ -370,3 +370,18 @@ def test_stress_lines_show_missing_values_as_dashes():
     assert lines[0] == ("rrr: actuator transport delay tau_d [s], budget 0.05 rad RMS, "
                         "1000 Hz, 1.2 s")
     assert lines[2].split() == ["fl", "0.005972", "-", "-", "0.001062"]
+
+
+def test_comparison_lines_fail_on_nan_and_above_rtol():
+    # A NaN difference is a failure, never "ok" (NaN <= rtol is False).
+    from rrr_pin.report.dynamics import comparison_lines
+
+    result = {"M": {"abs": 1e-12, "scale": 2.0, "rel": 5e-13},
+              "V": {"abs": 1e-6, "scale": 1.0, "rel": 1e-6},
+              "G": {"abs": math.nan, "scale": 9.8, "rel": math.nan}}
+    lines, failed = comparison_lines(result, 1e-9)
+    assert failed == ["V", "G"]
+    assert [line.split()[-1] for line in lines[1:4]] == ["ok", "FAIL", "FAIL"]
+    assert lines[-1] == "FAIL: V, G differ by more than rtol = 1e-09"
+    assert comparison_lines({"M": result["M"]}, 1e-9)[0][-1] == (
+        "OK: all relative differences <= rtol = 1e-09")

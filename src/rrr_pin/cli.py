@@ -108,6 +108,7 @@ def _cmd_check_dynamics(args) -> int:
     from .model.closed_form import compare_with_pinocchio
     from .model.dh import ArmParams, paper_params
     from .model.dynamics import load_robot
+    from .report.dynamics import comparison_lines
     from .validation import check_count, check_positive
 
     check_positive("--rtol", args.rtol, allow_zero=True)
@@ -119,20 +120,9 @@ def _cmd_check_dynamics(args) -> int:
     print(f"Pinocchio ({args.urdf or 'URDF generated from the parameters'}) vs closed form "
           f"eq. (2)-(7) ({args.params or 'paper Tables 1-2'}), {args.samples} random states, "
           f"seed {args.seed}")
-    units = {"M": "kg m^2", "V": "N m", "G": "N m"}
-    print(f"{'':3}{'max |diff|':>12}  {'max |Pinocchio|':>16}  {'rel. diff':>10}  unit")
-    failed = []
-    for key, row in result.items():
-        ok = row["rel"] <= args.rtol
-        if not ok:
-            failed.append(key)
-        print(f"{key:3}{row['abs']:12.3e}  {row['scale']:16.3e}  {row['rel']:10.3e}  "
-              f"{units[key]:7} {'ok' if ok else 'FAIL'}")
-    if failed:
-        print(f"FAIL: {', '.join(failed)} differ by more than rtol = {args.rtol:g}")
-        return 1
-    print(f"OK: all relative differences <= rtol = {args.rtol:g}")
-    return 0
+    lines, failed = comparison_lines(result, args.rtol)
+    print("\n".join(lines))
+    return 1 if failed else 0
 
 
 # --- design (H-infinity loop shaping, paper section 4) ----------------------------------------
