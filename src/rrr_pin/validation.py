@@ -150,6 +150,8 @@ def check_vector(name: str, value, n: int | None = None, *, readonly: bool = Fal
         or ``"{name} must be finite, got [...]"``.
     """
     try:
+        if value is None:  # np.array(None, dtype=float) would read it as NaN
+            raise TypeError
         v = np.atleast_1d(np.array(value, dtype=float))
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be an array of numbers, got {value!r}") from None

@@ -1,0 +1,192 @@
+"""Tests of rrr_pin.validation: each check_* against hand-written cases.
+
+Accepted values must come back converted (float, int, read-only float vector); everything else
+(booleans, None, strings, NaN, inf, out of range, wrong shape) must be refused with a
+``ValueError`` whose message names the field and the bad value in the shared wording.
+"""
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+from rrr_pin.validation import (
+    check_count,
+    check_positive,
+    check_probability,
+    check_rate,
+    check_real,
+    check_size,
+    check_vector,
+)
+
+# --- check_real --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("value", "expected"), [
+    (3, 3.0), (-2.5, -2.5), (0, 0.0), (np.float32(0.5), 0.5), (np.int64(-7), -7.0),
+    (1e300, 1e300),
+], ids=["int", "negative-float", "zero", "float32", "int64", "huge"])
+def test_check_real_accepts_finite_numbers(value, expected):
+    got = check_real("x", value)
+    assert type(got) is float and got == expected
+
+
+@pytest.mark.parametrize(("value", "message"), [
+    (True, r"mass must be a number \[kg\], got True \(bool\)"),
+    (np.bool_(False), r"mass must be a number \[kg\], got (np\.)?False_? \(bool_?\)"),
+    (None, r"mass must be a number \[kg\], got None \(NoneType\)"),
+    ("5", r"mass must be a number \[kg\], got '5' \(str\)"),
+    ([1.0], r"mass must be a number \[kg\], got \[1\.0\] \(list\)"),
+    (math.nan, r"mass must be finite \[kg\], got nan"),
+    (-math.inf, r"mass must be finite \[kg\], got -inf"),
+], ids=["bool", "numpy-bool", "None", "str", "list", "nan", "-inf"])
+def test_check_real_refuses(value, message):
+    with pytest.raises(ValueError, match=message):
+        check_real("mass", value, "kg")
+
+
+def test_check_real_without_unit_has_no_brackets():
+    with pytest.raises(ValueError, match=re.escape("g must be finite, got inf")):
+        check_real("g", math.inf)
+
+
+# --- check_positive ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("value", "allow_zero", "expected"), [
+    (2, False, 2.0), (1e-300, False, 1e-300), (np.float64(4.5), False, 4.5),
+    (0, True, 0.0), (0.0, True, 0.0), (7, True, 7.0),
+], ids=["int", "tiny", "float64", "zero-allowed-int", "zero-allowed", "int-allowed"])
+def test_check_positive_accepts(value, allow_zero, expected):
+    got = check_positive("dt", value, allow_zero=allow_zero)
+    assert type(got) is float and got == expected
+
+
+@pytest.mark.parametrize(("value", "allow_zero", "message"), [
+    (0.0, False, r"dt must be a finite number > 0 \[s\], got 0\.0"),
+    (-1, False, r"dt must be a finite number > 0 \[s\], got -1"),
+    (-1e-12, True, r"dt must be a finite number >= 0 \[s\], got -1e-12"),
+    (math.nan, False, r"dt must be a finite number > 0 \[s\], got nan"),
+    (math.inf, True, r"dt must be a finite number >= 0 \[s\], got inf"),
+    (True, False, r"dt must be a finite number > 0 \[s\], got True"),
+    (None, True, r"dt must be a finite number >= 0 \[s\], got None"),
+    ("0.1", False, r"dt must be a finite number > 0 \[s\], got '0\.1'"),
+], ids=["zero", "negative", "negative-allow-zero", "nan", "inf", "bool", "None", "str"])
+def test_check_positive_refuses(value, allow_zero, message):
+    with pytest.raises(ValueError, match=message):
+        check_positive("dt", value, allow_zero=allow_zero, unit="s")
+
+
+# --- check_count and check_size ----------------------------------------------------------------
+
+@pytest.mark.parametrize(("value", "low", "expected"), [
+    (0, 0, 0), (5, 1, 5), (200.0, 1, 200), (np.int32(3), 0, 3), (-2, -5, -2),
+], ids=["zero", "int", "integral-float", "int32", "negative-low"])
+def test_check_count_accepts(value, low, expected):
+    got = check_count("samples", value, low)
+    assert type(got) is int and got == expected
+
+
+@pytest.mark.parametrize(("value", "low", "message"), [
+    (0, 1, "samples must be an integer >= 1, got 0"),
+    (-1, 0, "samples must be an integer >= 0, got -1"),
+    (2.5, 0, "samples must be an integer >= 0, got 2.5"),
+    (math.nan, 0, "samples must be an integer >= 0, got nan"),
+    (math.inf, 1, "samples must be an integer >= 1, got inf"),  # int(inf): OverflowError
+    (True, 0, "samples must be an integer >= 0, got True"),
+    (None, 0, "samples must be an integer >= 0, got None"),
+    ("3", 0, "samples must be an integer >= 0, got '3'"),
+], ids=["below-low", "negative", "fraction", "nan", "inf", "bool", "None", "str"])
+def test_check_count_refuses(value, low, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        check_count("samples", value, low)
+
+
+def test_check_count_default_low_is_zero():
+    assert check_count("seed", 0) == 0
+    with pytest.raises(ValueError, match=re.escape("seed must be an integer >= 0, got -3")):
+        check_count("seed", -3)
+
+
+@pytest.mark.parametrize(("value", "expected"), [(1, 1), (3.0, 3), (np.int64(12), 12)],
+                         ids=["one", "integral-float", "int64"])
+def test_check_size_accepts(value, expected):
+    got = check_size("n", value)
+    assert type(got) is int and got == expected
+
+
+@pytest.mark.parametrize("value", [0, -2, 1.5, True, None, "3", math.nan],
+                         ids=["zero", "negative", "fraction", "bool", "None", "str", "nan"])
+def test_check_size_refuses(value):
+    with pytest.raises(ValueError, match=re.escape(f"n must be an integer >= 1, got {value!r}")):
+        check_size("n", value)
+
+
+# --- check_rate ----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("value", "expected"), [(1000, 1000.0), (0.5, 0.5)], ids=["int", "float"])
+def test_check_rate_accepts(value, expected):
+    got = check_rate("rate", value)
+    assert type(got) is float and got == expected
+
+
+@pytest.mark.parametrize("value", [0, -100.0, math.nan, math.inf, True, None, "1000"],
+                         ids=["zero", "negative", "nan", "inf", "bool", "None", "str"])
+def test_check_rate_refuses(value):
+    message = f"rate must be a finite number > 0 [Hz], got {value!r}"
+    with pytest.raises(ValueError, match=re.escape(message)):
+        check_rate("rate", value)
+
+
+# --- check_probability ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("value", "expected"), [(0, 0.0), (1, 1.0), (0.25, 0.25)],
+                         ids=["zero", "one", "quarter"])
+def test_check_probability_accepts(value, expected):
+    got = check_probability("p", value)
+    assert type(got) is float and got == expected
+
+
+@pytest.mark.parametrize("value", [-0.01, 1.0000001, math.nan, math.inf, True, None, "0.5"],
+                         ids=["below", "above", "nan", "inf", "bool", "None", "str"])
+def test_check_probability_refuses(value):
+    message = f"p must be a probability in [0, 1], got {value!r}"
+    with pytest.raises(ValueError, match=re.escape(message)):
+        check_probability("p", value)
+
+
+# --- check_vector --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("value", "n", "expected"), [
+    ([1, 2, 3], 3, [1.0, 2.0, 3.0]), ((0.5,), None, [0.5]), (2.0, None, [2.0]),
+    (np.arange(4), 4, [0.0, 1.0, 2.0, 3.0]), ([], None, []),
+], ids=["list", "tuple-any-length", "scalar-reads-as-1", "int-array", "empty-any-length"])
+def test_check_vector_accepts(value, n, expected):
+    got = check_vector("q", value, n)
+    assert got.dtype == np.float64 and got.shape == (len(expected),)
+    assert got.tolist() == expected
+    assert got.flags.writeable
+
+
+def test_check_vector_copies_and_can_freeze():
+    source = np.array([1.0, 2.0])
+    got = check_vector("home", source, 2, readonly=True)
+    assert not got.flags.writeable
+    assert source.flags.writeable  # the caller's array is neither shared nor frozen
+    got_rw = check_vector("home", source, 2)
+    got_rw[0] = 9.0
+    assert source[0] == 1.0
+
+
+@pytest.mark.parametrize(("value", "n", "message"), [
+    ([0.0, 0.0], 3, r"Expected q of shape (3,), got (2,)"),
+    ([[0.0, 0.0, 0.0]], 3, r"Expected q of shape (3,), got (1, 3)"),
+    ([[1.0], [2.0]], None, r"Expected q of shape (n,), got (2, 1)"),
+    ([0.0, math.nan, 1.0], 3, r"q must be finite, got [0.0, nan, 1.0]"),
+    ([math.inf], None, r"q must be finite, got [inf]"),
+    (["a", "b"], None, r"q must be an array of numbers, got ['a', 'b']"),
+    (None, None, r"q must be an array of numbers, got None"),
+], ids=["short", "2-d", "column", "nan", "inf", "strings", "None"])
+def test_check_vector_refuses(value, n, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        check_vector("q", value, n)
