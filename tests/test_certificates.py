@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose
 
 from rrr_pin.model.dh import paper_params
 from rrr_pin.model.dynamics import load_robot
-from rrr_pin.robust.certificates import frozen_certificate, frozen_linearization
+from rrr_pin.robust.certificates import CertificateSpec, frozen_certificate, frozen_linearization
 from rrr_pin.robust.loopshaping import design, fl_plant
 from rrr_pin.robust.lti import DimensionMismatchError
 
@@ -88,3 +88,22 @@ def test_certificate_bad_input(setup):
     with pytest.raises(ValueError, match="finite"):
         frozen_certificate(robot, robot, np.full((1, 3), np.nan), np.zeros((1, 3)), lam=d.lam,
                            W1=d.W1, W2=d.W2, Ks=d.Ks_reduced)
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"lam": 0.0}, r"lam must be a finite number > 0 \[rad/s\], got 0\.0"),
+    ({"lam": "45"}, r"lam must be a finite number > 0 \[rad/s\], got '45'"),
+    ({"points": 0}, r"points must be an integer >= 1, got 0"),
+    ({"points": True}, r"points must be an integer >= 1, got True"),
+], ids=["lam-zero", "lam-str", "points-zero", "points-bool"])
+def test_certificate_spec_checks_its_settings_once_when_made(kwargs, match):
+    spec = {"lam": 45.0, "W1": ((), (), (), ((1.0,),)), "W2": ((), (), (), ((1.0,),)),
+            "Ks": ((), (), (), ((1.0,),)), **kwargs}
+    with pytest.raises(ValueError, match=match):
+        CertificateSpec(**spec)
+
+
+def test_frozen_linearization_refuses_a_bad_lam():
+    robot = load_robot("rrr")
+    with pytest.raises(ValueError, match=r"lam must be a finite number > 0 \[rad/s\], got nan"):
+        frozen_linearization(robot, robot, np.zeros(3), np.zeros(3), lam=float("nan"))

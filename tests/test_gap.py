@@ -1,4 +1,4 @@
-"""Tests of rrr_pin.robust.gap: gap and nu-gap against MATLAB's examples, closed forms and a grid."""
+"""Tests of rrr_pin.robust.gap: gap and nu-gap against MATLAB's examples, closed forms, a grid."""
 
 import control
 import numpy as np

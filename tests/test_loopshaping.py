@@ -397,3 +397,21 @@ def test_design_many_joints():
     d = design(n=200)
     assert (d.K.noutputs, d.ncf.K.nstates) == (200, 600)
     assert_allclose(d.ncf.gamma_min, 2.1436, atol=5e-5)
+
+
+@pytest.mark.parametrize(("call", "match"), [
+    (lambda: fl_plant(lam=0.0), r"lam must be a finite number > 0 \[rad/s\], got 0\.0"),
+    (lambda: fl_plant(lam=True), r"lam must be a finite number > 0 \[rad/s\], got True"),
+    (lambda: fl_plant(n=0), r"n must be an integer >= 1, got 0"),
+    (lambda: fl_plant(n=2.5), r"n must be an integer >= 1, got 2\.5"),
+    (lambda: lag_weight(p=float("nan")), r"p must be a finite number > 0 \[rad/s\], got nan"),
+    (lambda: design(n="3"), r"n must be an integer >= 1, got '3'"),
+    (lambda: reduce_controller(fl_plant(45.0, 1), -1), r"order must be an integer >= 0, got -1"),
+    (lambda: reduce_controller(fl_plant(45.0, 1), 1, fast_gap=0),
+     r"fast_gap must be a finite number > 0, got 0"),
+    (lambda: ncfsyn(fl_plant(45.0, 1), factor=None), r"factor must be a number, got None"),
+], ids=["lam-zero", "lam-bool", "n-zero", "n-fraction", "p-nan", "design-n-str",
+        "order-negative", "fast-gap-zero", "factor-None"])
+def test_scalar_arguments_use_the_shared_validators(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()

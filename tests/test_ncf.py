@@ -1,4 +1,7 @@
-"""Tests of rrr_pin.robust.ncf: ncfmargin (MATLAB examples, closed forms) and discrete ncfsyn (Octave)."""
+"""Tests of rrr_pin.robust.ncf.
+
+ncfmargin against MATLAB's examples and closed forms; discrete ncfsyn against Octave.
+"""
 
 import control
 import numpy as np

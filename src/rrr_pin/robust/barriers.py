@@ -19,6 +19,8 @@ import control
 import numpy as np
 from scipy.optimize import brentq
 
+from ..validation import check_positive
+
 __all__ = [
     "PAPER_MODEL_ERROR",
     "PAPER_PERFORMANCE_SPECS",
@@ -33,14 +35,6 @@ __all__ = [
 PAPER_MODEL_ERROR = (0.20, 200.0)
 #: Paper eq. (14): 10 % tracking error up to 80 rad/s, 15 % rejection error up to 100 rad/s.
 PAPER_PERFORMANCE_SPECS = ((0.10, 80.0), (0.15, 100.0))
-
-
-
-def _positive(name: str, value) -> float:
-    value = float(value)
-    if not (np.isfinite(value) and value > 0.0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return value
 
 
 def model_error_bound(rel_error: float = PAPER_MODEL_ERROR[0],
@@ -65,7 +59,8 @@ def model_error_bound(rel_error: float = PAPER_MODEL_ERROR[0],
     control.TransferFunction
         SISO ``e_M(s)`` (improper: a bound, not a system to simulate).
     """
-    rel_error, w_error = _positive("rel_error", rel_error), _positive("w_error", w_error)
+    rel_error = check_positive("rel_error", rel_error)
+    w_error = check_positive("w_error", w_error, unit="rad/s")
     return control.tf([rel_error / w_error, rel_error], [1.0])
 
 
@@ -85,7 +80,8 @@ def robust_stability_barrier(rel_error: float = PAPER_MODEL_ERROR[0],
     control.TransferFunction
         SISO barrier for the largest closed-loop singular value.
     """
-    rel_error, w_error = _positive("rel_error", rel_error), _positive("w_error", w_error)
+    rel_error = check_positive("rel_error", rel_error)
+    w_error = check_positive("w_error", w_error, unit="rad/s")
     return control.tf([w_error / rel_error], [1.0, w_error])
 
 
@@ -146,7 +142,8 @@ def robust_performance_barrier(specs=PAPER_PERFORMANCE_SPECS,
         (the pole at ``s = w_error (1/rel_error - 1)`` lies in the right half-plane).
     """
     alpha_p, omega_p = _specs(specs)
-    rel_error, w_error = _positive("rel_error", rel_error), _positive("w_error", w_error)
+    rel_error = check_positive("rel_error", rel_error)
+    w_error = check_positive("w_error", w_error, unit="rad/s")
     if rel_error >= 1.0:
         raise ValueError(f"rel_error must be < 1 for a robust-performance barrier, "
                          f"got {rel_error!r}")

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
+from ..validation import check_count, check_positive
 from .gap import _nugap
 from .loopshaping import fl_plant
 from .lti import DimensionMismatchError, check_lti, expand_diagonal
@@ -50,6 +51,8 @@ from .ncf import _graph_symbols_ct, _series, ncfmargin
 from .reduction import _arcsin_bound
 
 __all__ = ["FrozenCertificate", "CertificateSpec", "frozen_linearization", "frozen_certificate"]
+
+_H = 1e-6  # relative central-difference step of frozen_linearization
 
 
 @dataclass(frozen=True)
@@ -105,7 +108,7 @@ def _configs(nq: int, q, qd, qdd):
 
 
 def frozen_linearization(nominal, plant, q, qd, qdd=None, lam: float = 45.0,
-                         h: float = 1e-6) -> control.StateSpace:
+                         h: float = _H) -> control.StateSpace:
     r"""Linearize the feedback-linearized uncertain arm ``tauhat -> q`` at one configuration.
 
     .. math:: \ddot q = M^{-1}\left[\hat M \bar\tau + \hat V + \hat G - V - G\right],\quad
@@ -132,17 +135,31 @@ def frozen_linearization(nominal, plant, q, qd, qdd=None, lam: float = 45.0,
         ``nq x nq`` plant, states ``[dq; dqd]``; equal to :func:`fl_plant` (eq. 11) when
         ``plant`` is ``nominal``.
     """
+    nq = _check_pair(nominal, plant)
+    q, qd, qdd = (x[0] for x in _configs(nq, q, qd, qdd))
+    return _linearization(nominal, plant, q, qd, qdd, check_positive("lam", lam, unit="rad/s"),
+                          h)
+
+
+def _check_pair(nominal, plant) -> int:
     nq = nominal.nq
     if plant.nq != nq:
         raise DimensionMismatchError(f"nominal has nq={nq} but plant has nq={plant.nq}")
-    q, qd, qdd = (x[0] for x in _configs(nq, q, qd, qdd))
+    return nq
+
+
+def _linearization(nominal, plant, q, qd, qdd, lam: float, h: float) -> control.StateSpace:
+    """:func:`frozen_linearization` of checked float64 arrays ``q, qd, qdd`` of shape (nq,)."""
+    nq = nominal.nq
     tauhat = q + (qdd + 2.0 * lam * qd) / lam**2
 
     def f(q, qd):
+        # q, qd are finite float64 arrays of shape (nq,): the robots' unchecked fast path.
         taubar = -2.0 * lam * qd - lam**2 * (q - tauhat)
-        rhs = (nominal.M(q) @ taubar + nominal.V(q, qd) + nominal.G(q)
-               - plant.V(q, qd) - plant.G(q))
-        return np.linalg.solve(plant.M(q), rhs)
+        rhs = (nominal.M(q, check=False) @ taubar + nominal.V(q, qd, check=False)
+               + nominal.G(q, check=False) - plant.V(q, qd, check=False)
+               - plant.G(q, check=False))
+        return np.linalg.solve(plant.M(q, check=False), rhs)
 
     Jq, Jqd = np.zeros((nq, nq)), np.zeros((nq, nq))
     for i in range(nq):
@@ -151,7 +168,7 @@ def frozen_linearization(nominal, plant, q, qd, qdd=None, lam: float = 45.0,
         Jq[:, i] = (f(q + e, qd) - f(q - e, qd)) / (2 * e[i])
         e[i] = h * max(1.0, abs(qd[i]))
         Jqd[:, i] = (f(q, qd + e) - f(q, qd - e)) / (2 * e[i])
-    Bq = lam**2 * np.linalg.solve(plant.M(q), nominal.M(q))
+    Bq = lam**2 * np.linalg.solve(plant.M(q, check=False), nominal.M(q, check=False))
     Z, eye = np.zeros((nq, nq)), np.eye(nq)
     return control.ss(np.block([[Z, eye], [Jq, Jqd]]), np.vstack([Z, Bq]),
                       np.hstack([eye, Z]), Z)
@@ -215,14 +232,15 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
     >>> cert = frozen_certificate(robot, uncertain, q, qd, lam=d.lam, W1=d.W1, W2=d.W2,
     ...                           Ks=d.Ks_reduced)             # doctest: +SKIP
     """
-    nq = nominal.nq
+    nq = _check_pair(nominal, plant)
     q, qd, qdd = _configs(nq, q, qd, qdd)
+    lam = check_positive("lam", lam, unit="rad/s")
     Gs0, W1, W2, Ks = _shaped_loop(lam, W1, W2, Ks, nq)
     b = ncfmargin(Gs0, Ks)[0]
     G0, Gt0 = _graph_symbols_ct(Gs0)
     nus, bf = np.empty(q.shape[0]), np.empty(q.shape[0])
     for k in range(q.shape[0]):
-        Gk = frozen_linearization(nominal, plant, q[k], qd[k], qdd[k], lam)
+        Gk = _linearization(nominal, plant, q[k], qd[k], qdd[k], lam, _H)
         Gsk = _series(W2, Gk, W1)
         Gk_sym, _ = _graph_symbols_ct(Gsk)
         nus[k] = _nugap(Gk_sym, G0, Gt0)
@@ -262,8 +280,8 @@ class CertificateSpec:
     points: int = 8
 
     def __post_init__(self) -> None:
-        if isinstance(self.points, bool) or not isinstance(self.points, int) or self.points < 1:
-            raise ValueError(f"points must be an integer >= 1, got {self.points!r}")
+        object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
+        object.__setattr__(self, "points", check_count("points", self.points, 1))
 
     @classmethod
     def from_design(cls, d, points: int = 8, reduced: bool = True) -> CertificateSpec:

@@ -3,9 +3,10 @@
 The feedback-linearized plant (eq. 11), the loop-shaping weights (eq. 16-17), :func:`loopsyn`
 (loop shaping to a target loop shape) and the whole design of the paper, :func:`design`.
 The concepts it builds on live in their own modules and are re-exported here for existing
-callers: barriers (:mod:`rrr_pin.robust.barriers`, eq. 12-15), McFarlane-Glover synthesis and the
-NCF margin (:mod:`rrr_pin.robust.ncf`), gap metrics (:mod:`rrr_pin.robust.gap`), controller reduction
-(:mod:`rrr_pin.robust.reduction`, eq. 18) and LTI validation (:mod:`rrr_pin.robust.lti`).
+callers: barriers (:mod:`rrr_pin.robust.barriers`, eq. 12-15), McFarlane-Glover synthesis and
+the NCF margin (:mod:`rrr_pin.robust.ncf`), gap metrics (:mod:`rrr_pin.robust.gap`), controller
+reduction (:mod:`rrr_pin.robust.reduction`, eq. 18) and LTI validation
+(:mod:`rrr_pin.robust.lti`).
 
 Conventions (used everywhere in rrr-pin):
 
@@ -35,10 +36,10 @@ import control
 import numpy as np
 import scipy.linalg as sla
 
+from ..validation import check_positive, check_real, check_size
 from .barriers import (
     PAPER_MODEL_ERROR,
     PAPER_PERFORMANCE_SPECS,
-    _positive,
     _specs,
     barrier_intersection,
     model_error_bound,
@@ -46,7 +47,7 @@ from .barriers import (
     robust_performance_barrier,
     robust_stability_barrier,
 )
-from .lti import DimensionMismatchError, ImproperSystemError, _size, check_lti, expand_diagonal
+from .lti import DimensionMismatchError, ImproperSystemError, check_lti, expand_diagonal
 from .ncf import (
     HiddenModeError,
     NCFSynResult,
@@ -120,8 +121,11 @@ def fl_plant(lam: float = 45.0, n: int = 3) -> control.StateSpace:
     control.StateSpace
         ``n x n`` plant with ``2 n`` states.
     """
-    lam = _positive("lam", lam)
-    n = _size("n", n)
+    return _fl_plant(check_positive("lam", lam, unit="rad/s"), check_size("n", n))
+
+
+def _fl_plant(lam: float, n: int) -> control.StateSpace:
+    """:func:`fl_plant` of a checked ``lam`` [rad/s] and ``n``."""
     g = control.ss(control.tf([lam**2], [1.0, 2.0 * lam, lam**2]))
     return expand_diagonal(g, n)
 
@@ -146,7 +150,8 @@ def lag_weight(k: float = PAPER_W1[0], z: float = PAPER_W1[1],
     control.TransferFunction
         SISO weight; the paper's post-compensator is ``W2 = 1`` (eq. 17).
     """
-    k, z, p = _positive("k", k), _positive("z", z), _positive("p", p)
+    k = check_positive("k", k)
+    z, p = check_positive("z", z, unit="rad/s"), check_positive("p", p, unit="rad/s")
     return control.tf([k, k * z], [1.0, p])
 
 
@@ -316,8 +321,8 @@ def loopsyn(G, Gd, alpha: float = 0.5) -> LoopsynResult:
     .. [1] MATLAB Robust Control Toolbox ``loopsyn`` (alpha); McFarlane and Glover (1992);
        Skogestad and Postlethwaite (2005), sec. 9.4.
     """
-    alpha = float(alpha)
-    if not (np.isfinite(alpha) and 0.0 <= alpha <= 1.0):
+    alpha = check_real("alpha", alpha)
+    if not 0.0 <= alpha <= 1.0:
         raise ValueError(f"alpha must be in [0, 1], got {alpha!r}")
     G, Gd = check_lti(G, "G"), check_lti(Gd, "Gd")
     for name, sys in (("G", G), ("Gd", Gd)):
@@ -491,14 +496,14 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
     -------
     Design
     """
-    lam, n = _positive("lam", lam), _size("n", n)
+    lam, n = check_positive("lam", lam, unit="rad/s"), check_size("n", n)
     rel_error, w_error = model_error
     RSB = robust_stability_barrier(rel_error, w_error)
     RPB = robust_performance_barrier(specs, rel_error, w_error)
     w_performance = _specs(specs)[1]
     w1 = _siso_weight("W1", W1, n, lag_weight())
     w2 = _siso_weight("W2", W2, n, np.eye(1))
-    g = fl_plant(lam, 1)
+    g = _fl_plant(lam, 1)
     siso = ncfsyn(g, w1, w2, factor)
     K_reduced = reduce_controller(siso.K, order)
     reduction_shaped = reduction_guarantee(siso.Gs, siso.Ks, _inv(w1) * K_reduced * _inv(w2))
@@ -513,7 +518,7 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
                        W2=expand_diagonal(w2, n), gamma=siso.gamma, gamma_min=siso.gamma_min,
                        emax=siso.emax, factor=siso.factor)
     return Design(
-        lam=lam, n=n, factor=float(factor), G=fl_plant(lam, n), W1=ncf.W1, W2=ncf.W2,
+        lam=lam, n=n, factor=siso.factor, G=_fl_plant(lam, n), W1=ncf.W1, W2=ncf.W2,
         Gs=ncf.Gs, ncf=ncf, K_full=siso.K, K_reduced=K_reduced,
         gamma_reduced=float(gamma_reduced), RSB=RSB, RPB=RPB, w_performance=w_performance,
         robust_stability=check_robust_stability(g, K_reduced, RSB),

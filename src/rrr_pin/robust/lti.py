@@ -1,7 +1,8 @@
 """LTI inputs at the edge of the analysis API: validation, diagonal copies, bilinear maps.
 
-Every public function of :mod:`rrr_pin.robust.ncf`, :mod:`rrr_pin.robust.gap`, :mod:`rrr_pin.robust.reduction` and
-:mod:`rrr_pin.robust.loopshaping` that takes a python-control system calls :func:`check_lti` first.
+Every public function of :mod:`rrr_pin.robust.ncf`, :mod:`rrr_pin.robust.gap`,
+:mod:`rrr_pin.robust.reduction` and :mod:`rrr_pin.robust.loopshaping` that takes a
+python-control system calls :func:`check_lti` first.
 It checks the raw coefficients *before* any python-control conversion (python-control 0.10's
 ``ss(tf)`` never returns on a NaN numerator), so bad input gets a named error:
 
@@ -29,6 +30,8 @@ import numbers
 
 import control
 import numpy as np
+
+from ..validation import check_size
 
 __all__ = [
     "LTIInputError",
@@ -156,12 +159,6 @@ def check_lti(sys, name: str = "sys") -> control.StateSpace:
     return static_gain(np.atleast_2d(D))
 
 
-def _size(name: str, n) -> int:
-    if isinstance(n, bool) or int(n) != n or int(n) < 1:
-        raise ValueError(f"{name} must be a positive integer, got {n!r}")
-    return int(n)
-
-
 def _is_static(sys: control.StateSpace) -> bool:
     return sys.nstates == 0
 
@@ -209,7 +206,7 @@ def expand_diagonal(K, n: int) -> control.StateSpace:
     control.StateSpace
         ``n x n`` system with ``n`` times the states of ``K``, same sampling time.
     """
-    n = _size("n", n)
+    n = check_size("n", n)
     K = check_lti(K, "K")
     if (K.noutputs, K.ninputs) != (1, 1):
         raise ValueError(f"Expected a SISO system, got shape ({K.noutputs}, {K.ninputs})")

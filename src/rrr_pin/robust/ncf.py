@@ -33,6 +33,7 @@ import control
 import numpy as np
 import scipy.linalg as sla
 
+from ..validation import check_real
 from .lti import (
     DimensionMismatchError,
     IllPosedLoopError,
@@ -280,8 +281,8 @@ def ncfsyn(G, W1=None, W2=None, factor: float = 1.0) -> NCFSynResult:
     2.1436
     >>> loop = control.feedback(fl_plant(45.0, 1) * res.K)     # negative feedback
     """
-    factor = float(factor)
-    if not np.isfinite(factor) or factor < 1.0:
+    factor = check_real("factor", factor)
+    if factor < 1.0:
         raise ValueError(f"factor must be >= 1 (1 = optimal controller), got {factor!r}")
     G, W1, W2, dt = _plant_and_weights(G, W1, W2)
     Gs = _series(W2, G, W1)

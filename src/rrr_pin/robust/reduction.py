@@ -30,7 +30,7 @@ import control
 import numpy as np
 import scipy.linalg as sla
 
-from .barriers import _positive
+from ..validation import check_count, check_positive
 from .gap import nugap
 from .lti import check_lti, common_timebase, to_continuous, to_discrete
 from .ncf import _graph_symbols_ct, _is_discrete, _psd_sqrt, ncfmargin
@@ -43,12 +43,6 @@ __all__ = [
     "ReductionGuarantee",
     "reduction_guarantee",
 ]
-
-
-def _order(order) -> int:
-    if isinstance(order, bool) or int(order) != order or order < 0:
-        raise ValueError(f"order must be a non-negative integer, got {order!r}")
-    return int(order)
 
 
 def _split(A, B, C, select):
@@ -123,8 +117,8 @@ def reduce_controller(K, order: int = 2, fast_gap: float = 1e3) -> control.State
     if _is_discrete(K.dt):
         raise ValueError("reduce_controller takes a continuous-time K; use ncf_reduce for "
                          "discrete controllers")
-    order = _order(order)
-    fast_gap = _positive("fast_gap", fast_gap)
+    order = check_count("order", order)
+    fast_gap = check_positive("fast_gap", fast_gap)
     A, B, C, D = (np.asarray(M, dtype=float) for M in (K.A, K.B, K.C, K.D))
     n = A.shape[0]
     if n <= order:
@@ -246,7 +240,7 @@ def ncf_reduce(P, K, order: int) -> NCFReduction:
     .. [1] McFarlane and Glover (1990) ch. 5; Vinnicombe (2001) th. 3.8.
     """
     P, K = _loop_check(P, K)
-    order = _order(order)
+    order = check_count("order", order)
     b = ncfmargin(P, K)[0]
     Kc = to_continuous(K) if _is_discrete(K.dt) else K
     G, _ = _graph_symbols_ct(Kc)                          # [N; M], (p + m) x p
@@ -328,7 +322,8 @@ def reduction_guarantee(P, K, Kr) -> ReductionGuarantee:
     .. [1] Vinnicombe (2001), th. 3.8 with ``b(P, K) = b(K, P)``.
     """
     P, K = _loop_check(P, K)
-    _, Kr = _loop_check(P, Kr)
+    Kr = check_lti(Kr, "Kr")
+    common_timebase(("P", P), ("Kr", Kr))
     b = ncfmargin(P, K)[0]
     d = nugap(K, Kr)
     return ReductionGuarantee(b=float(b), nugap=float(d), guaranteed=bool(d < b),

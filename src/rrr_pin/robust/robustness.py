@@ -33,6 +33,8 @@ import control
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from ..validation import check_positive
+
 __all__ = [
     "CheckResult",
     "sigma",
@@ -335,8 +337,7 @@ def check_robust_performance(G, K, RPB, w_max: float = 100.0, omega=None) -> Che
         ``margin_db = min_{w <= w_max} (sigma_min(L)_dB - |RPB|_dB)``; ``ok`` when positive
         and the nominal loop is internally stable (otherwise ``margin_db = -inf``).
     """
-    if not (np.isfinite(w_max) and w_max > 0.0):
-        raise ValueError(f"w_max must be a positive frequency [rad/s], got {w_max!r}")
+    w_max = check_positive("w_max", w_max, unit="rad/s")
     omega = _check_omega(DEFAULT_OMEGA if omega is None else omega)
     omega = np.append(omega[omega < w_max], w_max)
     if not is_internally_stable(G, K):
