@@ -92,13 +92,14 @@ def test_step_too_large_for_fast_controller(setup):
 
 
 @pytest.mark.parametrize("kwargs,message", [
-    ({"duration": 0.0}, "duration must be finite and > 0"),
-    ({"duration": float("nan")}, "duration must be finite and > 0"),
-    ({"duration": 1.0, "dt": -1.0}, "dt must be finite and > 0"),
-    ({"duration": 1.0, "rate": 0.0}, "rate must be finite and > 0"),
+    ({"duration": 0.0}, r"duration must be a finite number > 0 \[s\], got 0\.0"),
+    ({"duration": float("nan")}, r"duration must be a finite number > 0 \[s\], got nan"),
+    ({"duration": 1.0, "dt": -1.0}, r"dt must be a finite number > 0 \[s\], got -1\.0"),
+    ({"duration": 1.0, "rate": 0.0}, r"rate must be a finite number > 0 \[Hz\], got 0\.0"),
     ({"duration": 1e-4, "rate": 1000.0}, "shorter than one control period"),
     ({"duration": 1e-4}, "shorter than one RK4 step"),
-    ({"duration": 1.0, "limit_margin": float("nan")}, "limit_margin must be finite"),
+    ({"duration": 1.0, "limit_margin": float("nan")},
+     r"limit_margin must be a finite number >= 0 \[rad\], got nan"),
     ({"duration": 1.0, "q0": [0.0, 0.0]}, r"Expected q0 of shape \(3,\)"),
     ({"duration": 1.0, "q0": [0.0, 0.0, 4.0]}, "initial state of joint 'joint3'"),
     ({"duration": 1.0, "engine": "fast"}, "engine must be one of"),
@@ -133,3 +134,15 @@ def test_package_function_is_not_shadowed_by_a_module():
     import rrr_pin.campaign.study  # noqa: F401
 
     assert callable(rrr_pin.simulate) and rrr_pin.simulate.__module__ == "rrr_pin.sim.simulation"
+
+
+@pytest.mark.parametrize("rate", [None, 500], ids=["continuous", "sampled"])
+def test_trusted_settings_give_the_same_run(setup, rate):
+    # check=False (settings validated by the caller, e.g. RunSettings) skips only the scalar
+    # checks; ints are still converted, so the run and its record are the same, bit for bit.
+    nominal, _, controllers, ref = setup
+    a = simulate(nominal, controllers["fl"], ref, 1, dt=0.002, rate=rate, engine="python")
+    b = simulate(nominal, controllers["fl"], ref, 1, dt=0.002, rate=rate, engine="python",
+                 check=False)
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.tau, b.tau)
+    assert a.info == b.info and repr(a.info) == repr(b.info)

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import gc
 import itertools
-import math
 import operator
 import os
 import queue
@@ -37,6 +36,8 @@ from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor
 from concurrent.futures import wait as _cf_wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+
+from ..validation import check_count, check_positive
 
 __all__ = [
     "run_tasks", "check_jobs", "default_jobs", "interrupt_on_signals",
@@ -99,16 +100,15 @@ def check_jobs(jobs) -> int:
     return n
 
 
-def _check_positive(name: str, value, *, integer: bool = False, allow_zero: bool = False):
-    bad = isinstance(value, bool) or not isinstance(value, (int, float))
-    if not bad:
-        bad = (not math.isfinite(value) or (value < 0 if allow_zero else value <= 0)
-               or (integer and int(value) != value))
-    if bad:
-        kind = "an integer" if integer else "a finite number"
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name} must be {kind} {bound}, got {value!r}")
-    return int(value) if integer else float(value)
+def _check_in_flight(value) -> int:
+    """Return ``max_in_flight`` as an int >= 1 (:func:`rrr_pin.validation.check_count`).
+
+    Keeps this module's wording, "an integer > 0", which ``tests/test_executors.py`` matches.
+    """
+    try:
+        return check_count("max_in_flight", value, 1)
+    except ValueError:
+        raise ValueError(f"max_in_flight must be an integer > 0, got {value!r}") from None
 
 
 def run_tasks(fn: Callable, tasks: Iterable, *, jobs: int | None = None,
@@ -172,10 +172,10 @@ def run_tasks(fn: Callable, tasks: Iterable, *, jobs: int | None = None,
                         f"'tcp://10.0.0.5:8786', got {scheduler!r}")
     jobs = check_jobs(jobs)
     if max_in_flight is not None:
-        max_in_flight = _check_positive("max_in_flight", max_in_flight, integer=True)
-    no_worker_timeout = _check_positive("no_worker_timeout", no_worker_timeout)
-    retries = _check_positive("retries", retries, integer=True, allow_zero=True)
-    connect_timeout = _check_positive("connect_timeout", connect_timeout)
+        max_in_flight = _check_in_flight(max_in_flight)
+    no_worker_timeout = check_positive("no_worker_timeout", no_worker_timeout, unit="s")
+    retries = check_count("retries", retries)
+    connect_timeout = check_positive("connect_timeout", connect_timeout, unit="s")
     if scheduler is not None or _is_dask_client(executor):
         return _run_dask(fn, tasks, scheduler, executor, max_in_flight, no_worker_timeout,
                          retries, connect_timeout)

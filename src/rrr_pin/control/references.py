@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..validation import check_positive, check_vector
+
 __all__ = [
     "default_reference",
     "Reference",
@@ -46,17 +48,6 @@ __all__ = [
 
 class IKError(ValueError):
     """Inverse kinematics did not converge; the message names the path point and residual."""
-
-
-def _vector(name: str, value, n: int | None = None) -> np.ndarray:
-    v = np.atleast_1d(np.asarray(value, dtype=float))
-    if v.ndim != 1 or (n is not None and v.shape != (n,)):
-        want = f"({n},)" if n is not None else "(n,)"
-        raise ValueError(f"Expected {name} of shape {want}, got {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name} must be finite, got {v.tolist()}")
-    v.setflags(write=False)
-    return v
 
 
 class Reference:
@@ -155,12 +146,12 @@ class SineReference(Reference):
     phase: np.ndarray
 
     def __post_init__(self) -> None:
-        home = _vector("home", self.home)
+        home = check_vector("home", self.home, readonly=True)
         n = home.shape[0]
         object.__setattr__(self, "home", home)
         for name in ("amp", "freq", "phase"):
             v = np.asarray(getattr(self, name), dtype=float)
-            v = _vector(name, np.full(n, float(v)) if v.ndim == 0 else v, n)
+            v = check_vector(name, np.full(n, float(v)) if v.ndim == 0 else v, n, readonly=True)
             if name in ("amp", "freq") and np.any(v < 0.0):
                 raise ValueError(f"{name} must be >= 0, got {v.tolist()}")
             object.__setattr__(self, name, v)
@@ -234,13 +225,12 @@ class QuinticReference(Reference):
     move_time: float
 
     def __post_init__(self) -> None:
-        start = _vector("start", self.start)
+        start = check_vector("start", self.start, readonly=True)
         object.__setattr__(self, "start", start)
-        object.__setattr__(self, "goal", _vector("goal", self.goal, start.shape[0]))
-        T = float(self.move_time)
-        if not (math.isfinite(T) and T > 0.0):
-            raise ValueError(f"move_time must be a finite duration > 0 s, got {self.move_time!r}")
-        object.__setattr__(self, "move_time", T)
+        object.__setattr__(self, "goal", check_vector("goal", self.goal, start.shape[0],
+                                                      readonly=True))
+        object.__setattr__(self, "move_time", check_positive("move_time", self.move_time,
+                                                             unit="s"))
 
     @property
     def n(self) -> int:
@@ -423,8 +413,8 @@ class LinePath:
     end: np.ndarray
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "start", _vector("start", self.start, 3))
-        object.__setattr__(self, "end", _vector("end", self.end, 3))
+        object.__setattr__(self, "start", check_vector("start", self.start, 3, readonly=True))
+        object.__setattr__(self, "end", check_vector("end", self.end, 3, readonly=True))
 
     def point(self, s: np.ndarray) -> np.ndarray:
         """Points at path parameters ``s`` in [0, 1], shape (N,) -> (N, 3) [m]."""
@@ -449,16 +439,13 @@ class CirclePath:
     start_dir: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _vector("center", self.center, 3))
-        r = float(self.radius)
-        if not (math.isfinite(r) and r > 0.0):
-            raise ValueError(f"radius must be > 0 m, got {self.radius!r}")
-        object.__setattr__(self, "radius", r)
-        nz = _vector("normal", self.normal, 3)
+        object.__setattr__(self, "center", check_vector("center", self.center, 3, readonly=True))
+        object.__setattr__(self, "radius", check_positive("radius", self.radius, unit="m"))
+        nz = check_vector("normal", self.normal, 3)
         if np.linalg.norm(nz) == 0.0:
             raise ValueError("normal must be a non-zero vector")
         nz = nz / np.linalg.norm(nz)
-        u = _vector("start_dir", self.start_dir, 3)
+        u = check_vector("start_dir", self.start_dir, 3)
         u = u - nz * (u @ nz)
         if np.linalg.norm(u) < 1e-9:
             raise ValueError("start_dir must not be parallel to normal")
@@ -555,9 +542,7 @@ def task_space_reference(robot, frame: str, path, move_time: float, *, q_start=N
         raise ValueError(f"frame {frame!r} is not in robot {robot.name!r}; frames: "
                          f"{', '.join(names)}")
     fid = robot.model.getFrameId(frame)
-    T = float(move_time)
-    if not (math.isfinite(T) and T > 0.0):
-        raise ValueError(f"move_time must be > 0 s, got {move_time!r}")
+    T = check_positive("move_time", move_time, unit="s")
     count = max(3, int(math.ceil(T * rate)) + 1)
     t = np.linspace(0.0, T, count)
     s = _quintic(t / T)[0]
@@ -615,9 +600,8 @@ def default_reference(robot, amp: float = 0.5, freq: float = 0.5,
     SineReference
         Phases ``2 pi j / n`` for joint ``j``, so the joints do not move in lockstep.
     """
-    for key, v in (("amp", amp), ("freq", freq)):
-        if not (math.isfinite(float(v)) and float(v) >= 0.0):
-            raise ValueError(f"{key} must be finite and >= 0, got {v!r}")
+    amp = check_positive("amp", amp, allow_zero=True, unit="rad")
+    freq = check_positive("freq", freq, allow_zero=True, unit="Hz")
     n = robot.nq
     lower, upper = robot.lower, robot.upper
     width = upper - lower
@@ -625,10 +609,8 @@ def default_reference(robot, amp: float = 0.5, freq: float = 0.5,
     if home is None:
         # 10 % of the amplitude to spare, so tracking errors cannot touch the limits.
         home = np.clip(robot.neutral(), lower + 1.1 * a, upper - 1.1 * a)
-    home = np.asarray(home, dtype=float)
-    if home.shape != (n,):
-        raise ValueError(f"home must have one value per joint ({n} for {robot.name!r}), got "
-                         f"{home.size}")
+    else:
+        home = check_vector("home", home, n)
     ref = SineReference(home=home, amp=a, freq=freq, phase=2.0 * math.pi * np.arange(n) / n)
     ref.check_limits(robot)
     return ref

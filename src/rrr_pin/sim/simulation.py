@@ -41,6 +41,7 @@ import pinocchio as pin
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import ControlLaw, SampledLaw, check_law
 from ..control.references import Reference, SineReference, check_reference
+from ..validation import check_positive, check_rate, check_vector
 from .trajectory import (
     VELOCITY_LIMIT,
     Run,
@@ -84,32 +85,17 @@ def _surely_inside(q, qd, low: list, up: list) -> bool:
             and all(map(float.__le__, low, ql)) and all(map(float.__le__, ql, up)))
 
 
-def _finite(name: str, value, positive: bool = True, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or (positive and (v < 0.0 or (v == 0.0 and not allow_zero))):
-        want = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name} must be finite and {want}, got {value!r}")
-    return v
-
-
 def _state(name: str, value, default: np.ndarray) -> np.ndarray:
+    """Return a checked copy of the initial state ``value``, or of ``default`` if None."""
     if value is None:
         return default.copy()
-    v = np.asarray(value, dtype=float)
-    if v.shape != default.shape:
-        raise ValueError(f"Expected {name} of shape {default.shape}, got {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name} must be finite, got {v.tolist()}")
-    return v.copy()
+    return check_vector(name, value, default.shape[0])
 
 
 def simulate(plant, law, reference: Reference, duration: float, *, dt: float = DEFAULT_DT,
              rate: float | None = None, method: str = "tustin", q0=None, qd0=None,
              limit_margin: float = 0.0, engine: str = "auto",
-             effects: PlantEffects | None = None) -> Trajectory:
+             effects: PlantEffects | None = None, check: bool = True) -> Trajectory:
     """Simulate the closed loop of ``plant`` and ``law`` tracking ``reference``.
 
     Parameters
@@ -144,8 +130,15 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float = D
         RRR; otherwise ``rrr_pin.sim.codegen.CodegenModelMismatch``. Never chosen by ``"auto"``.
     effects : PlantEffects, optional
         Unmodeled dynamics of the plant (delay, actuator bandwidth, friction, saturation,
-        sensor noise, quantization, flexible joints; :mod:`rrr_pin.control.effects`), sampled runs only.
-        None (default): the ideal plant.
+        sensor noise, quantization, flexible joints; :mod:`rrr_pin.control.effects`), sampled
+        runs only. None (default): the ideal plant.
+    check : bool, default True
+        Validate the scalar settings ``duration``, ``dt``, ``rate`` and ``limit_margin``
+        (finite, > 0; ``limit_margin`` >= 0). ``False`` trusts them as validated by the caller
+        (e.g. :class:`rrr_pin.campaign.runner.RunSettings`, which checks them when it is made)
+        and only converts them to float. What depends on the plant, the law or the reference
+        (sizes, the initial state, joint limits, at least one step, the RK4 step of a linear
+        law's fastest pole) is checked either way.
 
     Returns
     -------
@@ -164,7 +157,7 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float = D
         ``law`` or ``reference`` of the wrong type.
     """
     run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
-                   qd0=qd0, limit_margin=limit_margin, effects=effects)
+                   qd0=qd0, limit_margin=limit_margin, effects=effects, check=check)
     form, engine = _choose_engine(run.law, engine)
     if engine in ("compiled", "codegen"):
         from .compiled import run_compiled
@@ -276,14 +269,25 @@ def _check_limits(reference, plant, duration: float) -> None:
 
 
 def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
-             limit_margin, effects=None) -> Run:
-    """Validate every input once and sample the reference (the edge of the simulator)."""
+             limit_margin, effects=None, check=True) -> Run:
+    """Validate every input once and sample the reference (the edge of the simulator).
+
+    ``check=False`` trusts the scalar settings (``duration``, ``dt``, ``rate``,
+    ``limit_margin``), validated by the caller; they are only converted to float.
+    """
     n = plant.nq
     check_law(law, n)
     check_reference(reference, plant)
-    duration = _finite("duration", duration)
-    dt = _finite("dt", dt)
-    limit_margin = _finite("limit_margin", limit_margin, allow_zero=True)
+    if check:
+        duration = check_positive("duration", duration, unit="s")
+        dt = check_positive("dt", dt, unit="s")
+        limit_margin = check_positive("limit_margin", limit_margin, allow_zero=True,
+                                      unit="rad")
+        if rate is not None:
+            rate = check_rate("rate", rate)
+    else:
+        duration, dt, limit_margin = float(duration), float(dt), float(limit_margin)
+        rate = None if rate is None else float(rate)
     effects = check_effects(effects)
     if effects is not None and not effects.active:
         effects = None
@@ -292,18 +296,17 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
             f"effects apply to sampled (digital) controllers only: law {law.name!r} is "
             f"continuous-time; give rate= (e.g. rate=1000) to run it sampled with the effects")
     if isinstance(law, SampledLaw):
-        if rate is not None and not math.isclose(_finite("rate", rate), law.rate):
+        if rate is not None and not math.isclose(rate, law.rate):
             raise ValueError(f"law {law.name!r} is sampled at {law.rate:g} Hz, rate = "
                              f"{rate!r} asks for another rate")
-        rate = law.rate
+        rate = check_rate("rate", law.rate)  # a user's SampledLaw may hold anything
     elif rate is not None:
-        law = _sampled_law(law, _finite("rate", rate), method)
+        law = _sampled_law(law, rate, method)
     elif not isinstance(law, ControlLaw):
         raise TypeError(f"law must be a ControlLaw or SampledLaw, got {type(law).__name__}")
     lower = plant.lower - limit_margin
     upper = plant.upper + limit_margin
     if rate is not None:
-        rate = _finite("rate", rate)
         Ts = 1.0 / rate
         n_steps = int(round(duration * rate))
         if n_steps < 1:
