@@ -1,4 +1,4 @@
-"""Plant effects (rrr_pin.control.effects): each effect's physics against a closed form, seeds, bad input.
+"""Plant effects (rrr_pin.control.effects): physics against closed forms, seeds, bad input.
 
 The physics checks run on the RRR with joints 2 and 3 locked at 0: a single joint about the
 vertical axis with constant inertia I = M(q)[0, 0] and no gravity torque, driven by a law that

@@ -1,14 +1,16 @@
 """The compiled engine against the Python engine, and the rule that no law is ever substituted.
 
-The Python engine (``rrr_pin.sim.simulation._run_python``) is the readable reference; the compiled
-engine (``rrr_pin.sim.compiled``, C++) must give the same trajectory for every built-in law (FL, H-inf
-+ FL, PD + gravity), continuous and sampled, with every reference kind, on a perturbed plant
-(the law's model differs from the plant, so the feedback terms act). A law the compiled engine
-does not implement (a subclass of a built-in, or a law written in Python) must run on Python
-under ``engine="auto"``, and ``engine="compiled"`` must refuse it by name.
+The Python engine (``rrr_pin.sim.simulation._run_python``) is the readable reference; the
+compiled engine (``rrr_pin.sim.compiled``, C++) must give the same trajectory for every built-in
+law (FL, H-inf + FL, PD + gravity), continuous and sampled, with every reference kind, on a
+perturbed plant (the law's model differs from the plant, so the feedback terms act). A law the
+compiled engine does not implement (a subclass of a built-in, a law written in Python, a compiled
+form of a type it does not know) must run on Python under ``engine="auto"``, and
+``engine="compiled"`` must refuse it by name.
 """
 
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import control
 import numpy as np
@@ -20,6 +22,7 @@ from rrr_pin import paper_params
 from rrr_pin.control.laws import (
     CompiledForm,
     ControlLaw,
+    FLForm,
     SampledLaw,
     TrackingController,
     fl_controller,
@@ -274,18 +277,60 @@ def test_a_law_written_in_python_matches_the_builtin_pd(rrr, rrr_plant, rrr_laws
         simulate(rrr_plant, mine, ref, DURATION, rate=rate, engine="compiled")
 
 
-class UnknownKindPD(HandPD):
-    """A law declaring a compiled form of a kind the C++ loops do not implement."""
+@dataclass(frozen=True, eq=False)
+class LQRForm(CompiledForm):
+    """A compiled form the C++ loops do not implement."""
+
+    K: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class RenamedFLForm(FLForm):
+    """A subclass of a known form: it may mean another law, so it is not run as FLForm."""
+
+
+class UnknownFormPD(HandPD):
+    """A law declaring a compiled form of a type the C++ loops do not implement."""
+
+    def __init__(self, nominal, Kp, Kd, form):
+        super().__init__(nominal, Kp, Kd)
+        self.form = form
 
     def compiled_form(self):
-        return CompiledForm("lqr", self.nominal, {"K": self.Kp})
+        return self.form(self.nominal)
+
+
+def _lqr(nominal):
+    return LQRForm(nominal, np.eye(3))
+
+
+def _renamed_fl(nominal):
+    n = nominal.nq
+    return RenamedFLForm(nominal, 100.0, np.zeros((0, 0)), np.zeros((0, n)), np.zeros((n, 0)),
+                         np.zeros((n, n)))
 
 
 @pytest.mark.parametrize("rate", [None, RATE], ids=["continuous", "sampled"])
-def test_a_compiled_form_of_unknown_kind_is_refused(rrr, rrr_refs, rate):
-    law = UnknownKindPD(rrr, [100.0] * 3, [20.0] * 3)
-    with pytest.raises(ValueError, match="kind 'lqr' is not implemented in C"):
+@pytest.mark.parametrize("form, name", [(_lqr, "LQRForm"), (_renamed_fl, "RenamedFLForm")],
+                         ids=["new-form", "subclassed-form"])
+def test_a_compiled_form_of_unknown_type_is_refused(rrr, rrr_refs, rate, form, name):
+    law = UnknownFormPD(rrr, [100.0] * 3, [20.0] * 3, form)
+    with pytest.raises(ValueError, match=f"compiled form {name} of law 'hand_pd' is not "
+                                         f"implemented in C\\+\\+ .known: FLForm, PDForm"):
         simulate(rrr, law, rrr_refs["quintic"], 0.01, rate=rate, engine="compiled")
+
+
+@pytest.mark.parametrize("rate", [None, RATE], ids=["continuous", "sampled"])
+def test_auto_runs_an_unknown_form_on_python(rrr, rrr_plant, rrr_laws, rrr_refs, rate):
+    # engine="auto" picks the engine that implements the law: Python here, whose run equals the
+    # built-in PD's (same formula, see test_a_law_written_in_python_matches_the_builtin_pd).
+    builtin = rrr_laws["pd"]
+    law = UnknownFormPD(rrr, np.diag(builtin.Kp), np.diag(builtin.Kd), _lqr)
+    ref = rrr_refs["quintic"]
+    auto = simulate(rrr_plant, law, ref, DURATION, rate=rate)
+    assert auto.info["engine"] == "python"
+    assert_same_run(auto, simulate(rrr_plant, builtin, ref, DURATION, rate=rate,
+                                   engine="compiled"))
 
 
 # --- the extension itself (ported from the former tests/test_compiled.py) ----------------------
@@ -344,7 +389,7 @@ def test_floor_ms_bad_input(rrr, kwargs, match):
         floor_ms(rrr, rrr, n_steps=10, **kwargs)
 
 
-# --- plant effects (rrr_pin.control.effects) on both engines --------------------------------------------
+# --- plant effects (rrr_pin.control.effects) on both engines ------------------------------------
 
 
 @pytest.mark.parametrize("law", ["fl", "hinf", "pd"])

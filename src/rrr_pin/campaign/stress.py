@@ -45,7 +45,6 @@ import scipy.linalg
 
 from ..control.catalog import DEFAULT_BUDGET, EFFECTS
 from ..control.effects import PlantEffects
-from ..control.laws import PDGravity, TrackingController
 from ..robust.barriers import model_error_bound, robust_stability_barrier
 from ..robust.lti import static_gain
 from ..robust.robustness import check_robust_stability
@@ -135,32 +134,34 @@ def effects_of(effect: str, size: float, seed: int = 0) -> PlantEffects:
 
 # --- linear loop -------------------------------------------------------------------------------
 
+def _model_of(law):
+    """Return the law's linear model (``law.linear_model()``), or None if it has none."""
+    ask = getattr(law, "linear_model", None)
+    return ask() if ask is not None else None
+
+
+def _linear_model(law):
+    """Return the law's linear model; ``TypeError`` (:func:`_no_linear_model`) if it has none."""
+    model = _model_of(law)
+    if model is None:
+        raise _no_linear_model(law)
+    return model
+
+
 def _law_matrices(law, rate: float, home):
-    """Return the discrete law and the plant's ``M^-1``.
+    """Return the discrete law and the plant's ``M^-1`` (:meth:`LinearModel.digital`).
 
     Law: ``u = Cc x + Dc [q; qd]``, ``x+ = Ac x + Bc [q; qd]``; ``M^-1`` (identity for the FL
     laws, whose ``Mhat`` cancels ``M``), regulation (r = 0).
     """
-    if isinstance(law, TrackingController):
-        n, lam = law.n, law.lam
-        Ad, Bd, Cd, Dd = law.discretize(rate)
-        eye = np.eye(n)
-        Dc = np.hstack([-lam * lam * (eye + Dd), -2.0 * lam * eye])
-        Cc = lam * lam * Cd
-        Bc = np.hstack([-Bd, np.zeros_like(Bd)])
-        return Ad, Bc, Cc, Dc, eye
-    if isinstance(law, PDGravity):
-        Minv = np.linalg.inv(law.nominal.M(home))
-        Dc = np.hstack([-law.Kp, -law.Kd])
-        return (np.zeros((0, 0)), np.zeros((0, 2 * law.n)), np.zeros((law.n, 0)), Dc,
-                Minv)
-    raise _no_linear_model(law)
+    return _linear_model(law).digital(rate, home)
 
 
 def _no_linear_model(law) -> TypeError:
     """Return the refusal for a law with no linear model (``stress`` then predicts nothing)."""
     return TypeError(f"no linear model of law {law.name!r} ({type(law).__name__}): the linear "
-                     f"prediction covers TrackingController and PDGravity laws")
+                     f"prediction covers laws whose linear_model() gives one (the built-in "
+                     f"TrackingController and PDGravity laws)")
 
 
 def _integrals(A, B, t):
@@ -280,33 +281,8 @@ def linear_boundary(law, effect: str, rate: float, home=None, rtol: float = 1e-4
 
 
 def _siso_loops(law, home):
-    """Per-joint continuous ``L(s)`` as (num, den) polynomials (loop broken at the torque)."""
-    import control
-
-    if isinstance(law, TrackingController):
-        lam = law.lam
-        if law.nx:
-            A, B, C, D = (m for m in law.continuous_matrices())
-            k = law.nx // law.n
-            K = control.tf(control.ss(A[:k, :k], B[:k, :1], C[:1, :k], D[:1, :1]))
-        else:
-            K = control.tf([0.0], [1.0])
-        s = control.tf("s")
-        return [(2 * lam * s + lam * lam * (1 + K)) / s ** 2]
-    if not isinstance(law, PDGravity):
-        raise _no_linear_model(law)
-    # PD: modes of M(q_h)^-1 Kp; when M^-1 Kd is diagonal in the same basis (the default gains,
-    # both proportional to diag(M)), each mode is a SISO loop. Otherwise joint by joint with
-    # M_jj (coupling neglected).
-    M = law.nominal.M(home)
-    s = control.tf("s")
-    lp, V = np.linalg.eig(np.linalg.solve(M, law.Kp))
-    Dm = np.linalg.solve(V, np.linalg.solve(M, law.Kd) @ V)
-    if np.allclose(Dm, np.diag(np.diag(Dm)), atol=1e-9 * np.abs(Dm).max()) and np.allclose(
-            lp.imag, 0) and np.allclose(np.diag(Dm).imag, 0):
-        return [(float(d.real) * s + float(p.real)) / s ** 2
-                for p, d in zip(lp, np.diag(Dm), strict=True)]
-    return [(law.Kd[j, j] * s + law.Kp[j, j]) / (M[j, j] * s ** 2) for j in range(law.n)]
+    """Per-joint continuous ``L(s)`` (loop broken at the torque; :meth:`LinearModel.loops`)."""
+    return _linear_model(law).loops(home)
 
 
 def continuous_boundary(law, effect: str, home=None):
@@ -382,13 +358,9 @@ def barrier_met(law, home=None) -> bool:
 # --- nonlinear search --------------------------------------------------------------------------
 
 def loop_bandwidth(law, home) -> float | None:
-    """Slowest closed-loop natural frequency [rad/s] of a built-in law's linear loop."""
-    if isinstance(law, TrackingController):
-        return law.lam
-    if isinstance(law, PDGravity):
-        ev = np.linalg.eigvals(np.linalg.solve(law.nominal.M(home), law.Kp))
-        return float(np.sqrt(np.min(np.abs(ev))))
-    return None
+    """Slowest closed-loop natural frequency [rad/s] of a law's linear loop (None: no model)."""
+    model = _model_of(law)
+    return model.bandwidth(home) if model is not None else None
 
 
 def _rms(plant, law, reference, effect, size, settings: StressSettings, duration):

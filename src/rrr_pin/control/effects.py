@@ -53,7 +53,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["PlantEffects", "EffectsError", "check_effects"]
+__all__ = ["PlantEffects", "Resolved", "EffectsError", "check_effects"]
 
 
 class EffectsError(ValueError):
@@ -192,7 +192,7 @@ class PlantEffects:
                  "damping": "damping_Nms", "seed": "seed"}
         return {units[k]: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
 
-    def resolve(self, plant, substeps: int, h: float, n_steps: int) -> _Resolved:
+    def resolve(self, plant, substeps: int, h: float, n_steps: int) -> Resolved:
         """Per-joint arrays for a run of ``n_steps`` control periods on ``plant`` (engines' input).
 
         Raises
@@ -226,7 +226,7 @@ class PlantEffects:
         if wa * h > 2.5:
             raise EffectsError(f"bandwidth = {wa:g} rad/s is too fast for the plant sub-step "
                                f"h = {h:g} s (RK4 needs wa h < 2.5): lower dt")
-        flex = None
+        Bm = Kf = Df = None
         if self.stiffness is not None:
             Kf = vec("stiffness", self.stiffness)
             Bm = vec("motor_inertia", self.motor_inertia)
@@ -236,11 +236,11 @@ class PlantEffects:
                 raise EffectsError(f"stiffness: the motor resonance sqrt(K/B) = {w:.4g} rad/s "
                                    f"is too fast for the plant sub-step h = {h:g} s (RK4 needs "
                                    f"sqrt(K/B) h < 2.5): lower dt")
-            flex = (Bm, Kf, Df)
-        fric = None
+        Fv = Fc = None
+        veps = 1.0
         if self.friction:
-            fric = (vec("viscous", self.viscous), vec("coulomb", self.coulomb),
-                    float(self.coulomb_velocity))
+            Fv, Fc = vec("viscous", self.viscous), vec("coulomb", self.coulomb)
+            veps = float(self.coulomb_velocity)
         rng = np.random.default_rng(self.seed)
         sq, sqd = vec("noise_q", self.noise_q), vec("noise_qd", self.noise_qd)
         nq = rng.standard_normal((n_steps, n)) * sq if np.any(sq > 0) else None
@@ -248,22 +248,66 @@ class PlantEffects:
         quantum = 2.0 * math.pi / self.encoder_counts if self.encoder_counts else 0.0
         info = {**self.to_dict(), "delay_requested_s": self.delay, "delay_s": d * h,
                 "delay_substeps": d}
-        return _Resolved(d, wa, limit, fric, flex, nq, nqd, quantum, info)
+        return Resolved(delay_steps=d, wa=wa, limit=limit, Fv=Fv, Fc=Fc, veps=veps, noise_q=nq,
+                        noise_qd=nqd, quantum=quantum, Bm=Bm, Kf=Kf, Df=Df, info=info)
 
 
-@dataclass(frozen=True)
-class _Resolved:
-    """Effects of one run, as the engines take them (validated, per joint)."""
+@dataclass(frozen=True, eq=False)
+class Resolved:
+    """The effects of one run as both engines take them: validated, per joint, None when off.
 
-    delay_steps: int              # delay in plant sub-steps
-    wa: float                     # actuator bandwidth [rad/s], 0 = ideal
-    limit: np.ndarray | None      # (n,) saturation [N m]
-    friction: tuple | None        # (Fv (n,), Fc (n,), v_eps)
-    flex: tuple | None            # (B (n,), K (n,), D (n,))
-    noise_q: np.ndarray | None    # (N, n) [rad]
-    noise_qd: np.ndarray | None   # (N, n) [rad/s]
-    quantum: float                # encoder step [rad], 0 = exact
+    Made by :meth:`PlantEffects.resolve`. Each field but ``info`` has a namesake in the compiled
+    engine's ``Effects`` (``src/rrr_pin/_ext/effects.hpp``), which :mod:`rrr_pin.sim.compiled`
+    fills by name; a new effect is a field here, its check in :meth:`PlantEffects.resolve`, its
+    step in the Python engine and its step in C++.
+
+    Attributes
+    ----------
+    delay_steps : int
+        Transport delay in plant sub-steps ``h``, >= 0.
+    wa : float
+        Actuator bandwidth [rad/s]; 0: ideal actuator.
+    limit : ndarray, shape (n,), or None
+        Saturation ``tau_max`` [N m].
+    Fv, Fc : ndarray, shape (n,), or None
+        Viscous [N m s/rad] and Coulomb [N m] friction (both or neither).
+    veps : float
+        Coulomb smoothing speed ``v_eps`` [rad/s] > 0.
+    noise_q, noise_qd : ndarray, shape (N, n), or None
+        Sensor noise per control step [rad], [rad/s].
+    quantum : float
+        Encoder step [rad]; 0: exact positions.
+    Bm, Kf, Df : ndarray, shape (n,), or None
+        Flexible joints: motor inertia [kg m^2], stiffness [N m/rad], damping [N m s/rad] (all
+        three or none).
+    info : dict
+        What the run records (``Trajectory.info["effects"]``): the settings, the requested and
+        the realized delay.
+    """
+
+    delay_steps: int
+    wa: float
+    limit: np.ndarray | None
+    Fv: np.ndarray | None
+    Fc: np.ndarray | None
+    veps: float
+    noise_q: np.ndarray | None
+    noise_qd: np.ndarray | None
+    quantum: float
+    Bm: np.ndarray | None
+    Kf: np.ndarray | None
+    Df: np.ndarray | None
     info: dict
+
+    @property
+    def friction(self) -> tuple | None:
+        """``(Fv, Fc, v_eps)``, or None without friction."""
+        return (self.Fv, self.Fc, self.veps) if self.Fv is not None else None
+
+    @property
+    def flex(self) -> tuple | None:
+        """``(B, K, D)`` of flexible joints, or None for rigid ones."""
+        return (self.Bm, self.Kf, self.Df) if self.Kf is not None else None
 
 
 def check_effects(effects) -> PlantEffects | None:

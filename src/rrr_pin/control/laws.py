@@ -66,14 +66,22 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field, fields
+from typing import ClassVar
 
 import numpy as np
 import pinocchio as pin
+
+from ..validation import check_positive
 
 __all__ = [
     "ControlLaw",
     "SampledLaw",
     "CompiledForm",
+    "FLForm",
+    "PDForm",
+    "LinearModel",
+    "FLLinearModel",
+    "PDLinearModel",
     "TrackingController",
     "PDGravity",
     "fl_controller",
@@ -93,26 +101,242 @@ PD_BANDWIDTH = 20.0
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CompiledForm:
-    """What the compiled engine must run to reproduce a law exactly.
+    """Base of the compiled forms: what the compiled engine must run to reproduce a law exactly.
+
+    A law declares its form with :meth:`ControlLaw.compiled_form`. Each subclass is one law the
+    compiled engine may implement (:class:`FLForm`, :class:`PDForm`); the engine dispatches on
+    the form's exact type and refuses any other (``ValueError`` naming it), so a form it does
+    not know is never run as another.
 
     Attributes
     ----------
-    kind : {"fl", "pd"}
-        ``"fl"``: ``taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y)``,
-        ``tau = Mhat taubar + nle_hat``, ``y`` from the linear controller ``(A, B, C, D)`` on
-        ``e``. ``"pd"``: ``tau = Kp e + Kd (rd - qd) + Ghat``.
     nominal : Robot
         The law's model.
-    params : dict
-        ``"fl"``: ``lam`` and ``A, B, C, D`` (continuous, or discrete at the law's rate for a
-        sampled law); ``"pd"``: ``Kp, Kd`` (n x n).
+    kind : str
+        Short name of the form (class attribute; messages and
+        :func:`rrr_pin.sim.compiled.floor_ms`).
     """
 
-    kind: str
     nominal: object
-    params: dict
+    kind: ClassVar[str] = ""
+
+
+def _matrix(name: str, value, shape: tuple[int, int]) -> np.ndarray:
+    """``value`` as a read-only finite float matrix of ``shape``."""
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != shape:
+        raise ValueError(f"Expected {name} of shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {arr.tolist()}")
+    if arr.flags.writeable:
+        arr = arr.copy()
+        arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class FLForm(CompiledForm):
+    r"""Feedback linearization with a linear controller on the error, eq. (8)-(10).
+
+    .. math:: \bar\tau = \ddot r + 2\lambda(\dot r - \dot q) + \lambda^2 (e + y), \quad
+              \tau = \hat M(q)\,\bar\tau + \hat V(q, \dot q) + \hat G(q)
+
+    with ``e = r - q``, ``y = C x + D e`` and the controller state ``xdot = A x + B e``
+    (continuous law) or ``x+ = A x + B e`` after the output (sampled law, matrices already
+    discrete at its rate). FL alone has ``m = 0`` states and ``D = 0``.
+
+    Attributes
+    ----------
+    nominal : Robot
+        The law's model (``n = nominal.nq`` joints).
+    lam : float
+        Bandwidth ``lambda`` [rad/s], > 0.
+    A, B, C, D : ndarray, shapes (m, m), (m, n), (n, m), (n, n)
+        The controller ``K`` on ``e`` [rad] (output ``y`` in rad), negative feedback.
+    """
+
+    lam: float
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    kind: ClassVar[str] = "fl"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
+        n = self.nominal.nq
+        m = np.shape(self.A)[0] if np.ndim(self.A) == 2 else -1
+        for key, shape in (("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n))):
+            object.__setattr__(self, key, _matrix(key, getattr(self, key), shape))
+
+
+@dataclass(frozen=True, eq=False)
+class PDForm(CompiledForm):
+    r"""PD control with gravity compensation.
+
+    .. math:: \tau = K_p (r - q) + K_d (\dot r - \dot q) + \hat G(q)
+
+    Attributes
+    ----------
+    nominal : Robot
+        The law's model (``n = nominal.nq`` joints).
+    Kp : ndarray, shape (n, n)
+        Stiffness [N m/rad].
+    Kd : ndarray, shape (n, n)
+        Damping [N m s/rad].
+    """
+
+    Kp: np.ndarray
+    Kd: np.ndarray
+    kind: ClassVar[str] = "pd"
+
+    def __post_init__(self) -> None:
+        n = self.nominal.nq
+        for key in ("Kp", "Kd"):
+            object.__setattr__(self, key, _matrix(key, getattr(self, key), (n, n)))
+
+
+class LinearModel:
+    r"""The linear loop a law closes around the arm, for the predictions of ``stress``.
+
+    Regulation (``r = 0``) with the law's model exact; the loop is broken at the torque input.
+    :mod:`rrr_pin.campaign.stress` asks a law for it (:meth:`ControlLaw.linear_model`) and
+    builds its digital and continuous predictions from these three methods.
+
+    Attributes
+    ----------
+    n : int
+        Number of joints (set by each subclass).
+    """
+
+    def digital(self, rate: float, home) -> tuple:
+        """Return the law sampled at ``rate`` [Hz] and the plant's ``M^-1`` at ``home`` [rad].
+
+        Returns
+        -------
+        Ac, Bc, Cc, Dc : ndarray, shapes (m, m), (m, 2n), (n, m), (n, 2n)
+            The discrete law ``u = Cc x + Dc [q; qd]``, ``x+ = Ac x + Bc [q; qd]`` [N m].
+        Minv : ndarray, shape (n, n)
+            The plant ``qdd = Minv u`` [1/(kg m^2)].
+        """
+        raise NotImplementedError(f"{type(self).__name__} must implement digital()")
+
+    def loops(self, home) -> list:
+        """Return the SISO loops ``L(s)`` (``control.TransferFunction``), one per mode or joint."""
+        raise NotImplementedError(f"{type(self).__name__} must implement loops()")
+
+    def bandwidth(self, home) -> float:
+        """Return the slowest closed-loop natural frequency [rad/s]."""
+        raise NotImplementedError(f"{type(self).__name__} must implement bandwidth()")
+
+
+@dataclass(frozen=True, eq=False)
+class FLLinearModel(LinearModel):
+    r"""Linear loop of a feedback-linearizing law: per joint, ``qdd = taubar`` (``M`` cancels).
+
+    .. math:: L(s) = \frac{2\lambda s + \lambda^2 (1 + K(s))}{s^2}
+
+    Attributes
+    ----------
+    n : int
+        Number of joints.
+    lam : float
+        Bandwidth ``lambda`` [rad/s].
+    K : tuple of ndarray
+        ``(A, B, C, D)`` of the continuous controller (block diagonal for a SISO ``K``; empty
+        for FL alone), shapes (m, m), (m, n), (n, m), (n, n).
+    discretize : callable
+        ``discretize(rate) -> (Ad, Bd, Cd, Dd)``, the law's own Tustin discretization at
+        ``rate`` [Hz] (:meth:`TrackingController.discretize`).
+    """
+
+    n: int
+    lam: float
+    K: tuple
+    discretize: object
+
+    def digital(self, rate, home):
+        """Return ``u = lam^2 (Cd x - (I + Dd) q) - 2 lam qd``, ``x+ = Ad x - Bd q``, and ``I``."""
+        n, lam = self.n, self.lam
+        Ad, Bd, Cd, Dd = self.discretize(rate)
+        eye = np.eye(n)
+        Dc = np.hstack([-lam * lam * (eye + Dd), -2.0 * lam * eye])
+        Cc = lam * lam * Cd
+        Bc = np.hstack([-Bd, np.zeros_like(Bd)])
+        return Ad, Bc, Cc, Dc, eye
+
+    def loops(self, home):
+        """Return ``[L(s)]``: every joint has the same loop (``K`` SISO, copied on the diagonal)."""
+        import control
+
+        lam = self.lam
+        A, B, C, D = self.K
+        nx = A.shape[0]
+        if nx:
+            k = nx // self.n
+            K = control.tf(control.ss(A[:k, :k], B[:k, :1], C[:1, :k], D[:1, :1]))
+        else:
+            K = control.tf([0.0], [1.0])
+        s = control.tf("s")
+        return [(2 * lam * s + lam * lam * (1 + K)) / s ** 2]
+
+    def bandwidth(self, home):
+        """Return ``lam`` [rad/s]."""
+        return self.lam
+
+
+@dataclass(frozen=True, eq=False)
+class PDLinearModel(LinearModel):
+    r"""Linear loop of PD + gravity at ``home``: ``qdd = M(q_h)^{-1} tau``, coupled.
+
+    .. math:: L(s) = M(q_h)^{-1} (K_d s + K_p) / s^2
+
+    Attributes
+    ----------
+    n : int
+        Number of joints.
+    nominal : Robot
+        The law's model, whose ``M(q_h)`` [kg m^2] is taken at the configuration ``home``.
+    Kp, Kd : ndarray, shape (n, n)
+        Stiffness [N m/rad] and damping [N m s/rad].
+    """
+
+    n: int
+    nominal: object
+    Kp: np.ndarray
+    Kd: np.ndarray
+
+    def digital(self, rate, home):
+        """Return the static law ``u = -(Kp q + Kd qd)`` (no state) and ``M(home)^-1``."""
+        Minv = np.linalg.inv(self.nominal.M(home))
+        Dc = np.hstack([-self.Kp, -self.Kd])
+        return (np.zeros((0, 0)), np.zeros((0, 2 * self.n)), np.zeros((self.n, 0)), Dc, Minv)
+
+    def loops(self, home):
+        """Return one loop per mode of ``M^-1 Kp``, or per joint with ``M_jj`` if ``Kd`` couples.
+
+        When ``M^-1 Kd`` is diagonal in the modes of ``M^-1 Kp`` (the default gains, both
+        proportional to ``diag(M)``), each mode is a SISO loop; otherwise joint by joint with
+        ``M_jj`` (coupling neglected).
+        """
+        import control
+
+        M = self.nominal.M(home)
+        s = control.tf("s")
+        lp, V = np.linalg.eig(np.linalg.solve(M, self.Kp))
+        Dm = np.linalg.solve(V, np.linalg.solve(M, self.Kd) @ V)
+        if np.allclose(Dm, np.diag(np.diag(Dm)), atol=1e-9 * np.abs(Dm).max()) and np.allclose(
+                lp.imag, 0) and np.allclose(np.diag(Dm).imag, 0):
+            return [(float(d.real) * s + float(p.real)) / s ** 2
+                    for p, d in zip(lp, np.diag(Dm), strict=True)]
+        return [(self.Kd[j, j] * s + self.Kp[j, j]) / (M[j, j] * s ** 2) for j in range(self.n)]
+
+    def bandwidth(self, home):
+        """Return the square root of the slowest eigenvalue of ``M(home)^-1 Kp`` [rad/s]."""
+        ev = np.linalg.eigvals(np.linalg.solve(self.nominal.M(home), self.Kp))
+        return float(np.sqrt(np.min(np.abs(ev))))
 
 
 class ControlLaw:
@@ -179,6 +403,10 @@ class ControlLaw:
         """Return the compiled engine's exact equivalent of this law, or None (Python only)."""
         return None
 
+    def linear_model(self) -> LinearModel | None:
+        """Return the linear loop this law closes on the arm, or None (no linear prediction)."""
+        return None
+
     def describe(self) -> dict:
         """JSON-ready description of the law (recorded in results)."""
         return {"name": self.name, "label": self.label or self.name,
@@ -219,6 +447,10 @@ class SampledLaw:
 
     def compiled_form(self) -> CompiledForm | None:
         """Return the compiled engine's exact equivalent of this law, or None (Python only)."""
+        return None
+
+    def linear_model(self) -> LinearModel | None:
+        """Return the linear loop this law closes on the arm, or None (no linear prediction)."""
         return None
 
     def describe(self) -> dict:
@@ -415,20 +647,31 @@ class TrackingController(ControlLaw):
         override this method (``NotImplementedError`` otherwise).
         """
         rate = _rate(rate)
-        cls = type(self)
-        own = all(getattr(cls, m) is getattr(TrackingController, m)
-                  for m in ("torque", "derivative", "_tau"))
-        if own:
+        if self._own_law():
             return _SampledTracking(self, rate, method, self.discretize(rate, method))
         return ControlLaw.sampled(self, rate, method)
 
-    def compiled_form(self) -> CompiledForm | None:
-        """Return the ``"fl"`` form, for this exact class only (a subclass may change the law)."""
+    def _own_law(self) -> bool:
+        """Whether the torque is this class's (no subclass overrides the law's methods)."""
+        cls = type(self)
+        return all(getattr(cls, m) is getattr(TrackingController, m)
+                   for m in ("torque", "derivative", "_tau"))
+
+    def linear_model(self) -> FLLinearModel | None:
+        """Return the :class:`FLLinearModel` (None if a subclass overrides the law's methods)."""
+        if not self._own_law():
+            return None
+        return FLLinearModel(self.n, self.lam, self._mats, self.discretize)
+
+    def compiled_form(self) -> FLForm | None:
+        """Return the :class:`FLForm` with ``K``'s continuous matrices, for this exact class only.
+
+        A subclass may change the law, so it gets None (the Python engine runs it).
+        """
         if type(self) is not TrackingController:
             return None
         A, B, C, D = self._mats
-        return CompiledForm("fl", self.nominal, {"lam": self.lam, "A": A, "B": B, "C": C,
-                                                 "D": D})
+        return FLForm(self.nominal, self.lam, A, B, C, D)
 
     def __reduce__(self):
         # control.StateSpace does not pickle (it holds a lambda): travel as matrices, rebuilt
@@ -468,12 +711,11 @@ class _SampledTracking(SampledLaw):
         return tau, Ad @ x + Bd @ e
 
     def compiled_form(self):
-        """Return the ``"fl"`` form with the discrete matrices (None for a subclassed law)."""
+        """Return the :class:`FLForm` with the discrete matrices (None for a subclassed law)."""
         if type(self.law) is not TrackingController:
             return None
         Ad, Bd, Cd, Dd = self.mats
-        return CompiledForm("fl", self.law.nominal, {"lam": self.law.lam, "A": Ad, "B": Bd,
-                                                     "C": Cd, "D": Dd})
+        return FLForm(self.law.nominal, self.law.lam, Ad, Bd, Cd, Dd)
 
     def describe(self):
         """Describe the continuous law, sampled."""
@@ -532,11 +774,17 @@ class PDGravity(ControlLaw):
         return (self.Kp @ (r - q) + self.Kd @ (rd - qd)
                 + pin.computeGeneralizedGravity(model, data, q))
 
-    def compiled_form(self) -> CompiledForm | None:
-        """Return the ``"pd"`` form, for this exact class only."""
+    def compiled_form(self) -> PDForm | None:
+        """Return the :class:`PDForm`, for this exact class only."""
         if type(self) is not PDGravity:
             return None
-        return CompiledForm("pd", self.nominal, {"Kp": self.Kp, "Kd": self.Kd})
+        return PDForm(self.nominal, self.Kp, self.Kd)
+
+    def linear_model(self) -> PDLinearModel | None:
+        """Return the :class:`PDLinearModel` (None if a subclass overrides :meth:`torque`)."""
+        if type(self).torque is not PDGravity.torque:
+            return None
+        return PDLinearModel(self.n, self.nominal, self.Kp, self.Kd)
 
     def describe(self) -> dict:
         """Name, class and gains."""

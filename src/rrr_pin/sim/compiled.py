@@ -1,10 +1,13 @@
 r"""The compiled engine: the whole closed-loop run in one C++ call.
 
-It runs the laws that declare a :class:`~rrr_pin.control.laws.CompiledForm`, operation for
-operation as the Python reference engine of :mod:`rrr_pin.sim.simulation` does (C++ source:
-``src/rrr_pin/_ext/rollout.cpp``, built by ``pip install .``):
+It runs the laws whose :class:`~rrr_pin.control.laws.CompiledForm` it implements, operation for
+operation as the Python reference engine of :mod:`rrr_pin.sim.simulation` does (C++ sources in
+``src/rrr_pin/_ext/``: ``law.hpp``, ``rollout.cpp``, ``rk4.hpp``, ``effects.hpp``; built by
+``pip install .``). It dispatches on the form's exact type (:data:`ENGINE_LAWS`), one C++ law
+per form, and refuses any other form with a ``ValueError`` naming it:
 
-* ``"fl"``, the feedback-linearizing laws (FL alone, H-infinity + FL), eq. (8):
+* :class:`~rrr_pin.control.laws.FLForm`, the feedback-linearizing laws (FL alone, H-infinity +
+  FL), eq. (8):
 
   .. math::
 
@@ -14,11 +17,17 @@ operation as the Python reference engine of :mod:`rrr_pin.sim.simulation` does (
   with ``y = C x + D e`` and ``K``'s state ``xdot = A x + B e`` (continuous) or
   ``x+ = A x + B e`` after the output (sampled, matrices discretized), ``Mhat`` from CRBA
   (symmetrized from its upper triangle) and ``Vhat + Ghat`` from ``nonLinearEffects``;
-* ``"pd"``, PD + gravity compensation: ``tau = Kp e + Kd (rd - qd) + Ghat(q)``.
+* :class:`~rrr_pin.control.laws.PDForm`, PD + gravity compensation:
+  ``tau = Kp e + Kd (rd - qd) + Ghat(q)``.
 
-The reference arrives sampled by :func:`rrr_pin.sim.simulation.simulate` on the grid where the law is
-evaluated, so every reference runs here. Trajectories equal the Python engine's to round-off
-(``tests/test_engines.py``). Call it through ``simulate(..., engine="compiled")`` (or
+The form's fields, the run (:class:`~rrr_pin.sim.trajectory.Run`) and its plant effects
+(:class:`~rrr_pin.control.effects.Resolved`) reach C++ as three objects whose fields are set by
+name (``FLLaw``/``PDLaw``, ``RolloutInputs``, ``Effects``), so a field added on one side and not
+on the other fails loudly (``AttributeError``) instead of being dropped.
+
+The reference arrives sampled by :func:`rrr_pin.sim.simulation.simulate` on the grid where the
+law is evaluated, so every reference runs here. Trajectories equal the Python engine's to
+round-off (``tests/test_engines.py``). Call it through ``simulate(..., engine="compiled")`` (or
 ``"auto"``); :func:`run_compiled` takes a run that ``simulate`` has already validated.
 
 Models reach C++ as :meth:`pinocchio.Model.saveToString` text (Boost.Serialization, exact for
@@ -31,8 +40,10 @@ pinned at build and run time (``pyproject.toml``) and checked at import.
 
 from __future__ import annotations
 
-import numpy as np
+from dataclasses import fields
 
+from ..control.effects import Resolved
+from ..control.laws import FLForm, PDForm
 from .codegen import compile_robot_codegen
 from .extension import EXTENSION, CompiledRobot, available, cached, require
 from .trajectory import REASONS, VELOCITY_LIMIT, divergence, make_trajectory
@@ -44,11 +55,13 @@ __all__ = [
     "compile_robot",
     "run_compiled",
     "floor_ms",
-    "KINDS",
+    "implements",
+    "ENGINE_LAWS",
 ]
 
-#: Law kinds the C++ loop implements (``CompiledForm.kind``), and their codes there.
-KINDS = {"fl": 0, "pd": 1}
+#: The compiled forms the C++ loop implements, by exact type, and the C++ law (a class of the
+#: extension whose fields are the form's, ``nominal`` aside) each one becomes.
+ENGINE_LAWS = {FLForm: "FLLaw", PDForm: "PDLaw"}
 
 
 # The last few models loaded, by identity of the Robot's pin.Model (a campaign reuses the
@@ -80,12 +93,47 @@ def compile_robot(robot) -> CompiledRobot:
         r.name, tuple(r.joint_names), EXTENSION.CompiledModel(r.model.saveToString())))
 
 
+def implements(form) -> bool:
+    """Whether the compiled engine implements ``form`` (its exact type in :data:`ENGINE_LAWS`)."""
+    return type(form) in ENGINE_LAWS
+
+
+def _known() -> str:
+    return ", ".join(cls.__name__ for cls in ENGINE_LAWS)
+
+
+def _fill(obj, **values):
+    """Set the fields of an extension object by name; return it."""
+    for key, value in values.items():
+        setattr(obj, key, value)
+    return obj
+
+
+def _law(form):
+    """Return the C++ law of a compiled form: the extension's class for its type, by name."""
+    return _fill(getattr(EXTENSION, ENGINE_LAWS[type(form)])(),
+                 **{f.name: getattr(form, f.name) for f in fields(form) if f.name != "nominal"})
+
+
+def _effects(fx: Resolved):
+    """Return the C++ ``Effects``: every field of ``fx`` but ``info``, by name (None: off)."""
+    return _fill(EXTENSION.Effects(), **{f.name: getattr(fx, f.name) for f in fields(fx)
+                                         if f.name != "info" and getattr(fx, f.name) is not None})
+
+
 def run_compiled(run, form, *, codegen: bool = False):
     """Run a validated simulation (:class:`rrr_pin.sim.trajectory.Run`) of a law's compiled form.
 
     ``codegen=True`` (``simulate(..., engine="codegen")``) runs the same loop on the generated
-    dynamics of :mod:`rrr_pin.sim.codegen`, which refuses (``CodegenModelMismatch``) unless both the
-    plant and the nominal model are the generated model; ideal plant only.
+    dynamics of :mod:`rrr_pin.sim.codegen`, which refuses (``CodegenModelMismatch``) unless both
+    the plant and the nominal model are the generated model; ideal plant only.
+
+    Parameters
+    ----------
+    run : Run
+        What :func:`rrr_pin.sim.simulation.simulate` validated.
+    form : CompiledForm
+        ``run.law.compiled_form()``; an instance of a type in :data:`ENGINE_LAWS`.
 
     Returns
     -------
@@ -97,26 +145,13 @@ def run_compiled(run, form, *, codegen: bool = False):
     SimulationDiverged
         Same test and message as the Python engine.
     ValueError
-        A compiled form of an unknown kind.
+        A compiled form of a type the C++ loop does not implement (never run as another).
     """
     require()
-    if form.kind not in KINDS:
-        raise ValueError(f"compiled form of kind {form.kind!r} is not implemented in C++ "
-                         f"(known: {', '.join(KINDS)})")
+    if not implements(form):
+        raise ValueError(f"compiled form {type(form).__qualname__} of law {run.law.name!r} is "
+                         f"not implemented in C++ (known: {_known()}); use engine='python'")
     plant = run.plant
-    n = plant.nq
-    p = form.params
-    empty = np.zeros((0, 0))
-    if form.kind == "fl":
-        A, B, C, D = (np.asarray(p[k], dtype=float) for k in "ABCD")
-        Kp = Kd = empty
-        lam = float(p["lam"])
-    else:
-        m = 0
-        A, B, C, D = np.zeros((m, m)), np.zeros((m, n)), np.zeros((n, m)), np.zeros((n, n))
-        Kp, Kd = np.asarray(p["Kp"], dtype=float), np.asarray(p["Kd"], dtype=float)
-        lam = 0.0
-    N = len(run.t) - 1
     fx = run.effects
     if codegen:
         if fx is not None:
@@ -126,23 +161,12 @@ def run_compiled(run, form, *, codegen: bool = False):
         nominal_m = compile_robot_codegen(form.nominal, "nominal")._model
     else:
         plant_m, nominal_m = compile_robot(plant)._model, compile_robot(form.nominal)._model
-    if fx is None:
-        Q, QD, TAU, bad_step, bad_joint, reason = EXTENSION.rollout(
-            plant_m, nominal_m, KINDS[form.kind],
-            run.sampled, lam, A, B, C, D, Kp, Kd, run.R, run.RD, run.RDD, run.q0, run.qd0,
-            run.x0, run.lower, run.upper, VELOCITY_LIMIT, run.h, run.substeps, N)
-    else:
-        # Plant effects (rrr_pin.control.effects): a separate C++ loop, so the ideal one stays as fast.
-        none_v, none_m = np.zeros(0), np.zeros((0, n))
-        Fv, Fc, veps = fx.friction if fx.friction is not None else (none_v, none_v, 1.0)
-        Bm, Kf, Df = fx.flex if fx.flex is not None else (none_v, none_v, none_v)
-        Q, QD, TAU, bad_step, bad_joint, reason = EXTENSION.rollout_effects(
-            plant_m, nominal_m, KINDS[form.kind], lam, A, B, C, D, Kp, Kd, run.R, run.RD,
-            run.RDD, run.q0, run.qd0, run.x0,
-            run.lower, run.upper, VELOCITY_LIMIT, run.h, run.substeps, N, fx.delay_steps,
-            fx.wa, fx.limit if fx.limit is not None else none_v, Fv, Fc, veps,
-            fx.noise_q if fx.noise_q is not None else none_m,
-            fx.noise_qd if fx.noise_qd is not None else none_m, fx.quantum, Bm, Kf, Df)
+    inputs = _fill(EXTENSION.RolloutInputs(), sampled=run.sampled, R=run.R, RD=run.RD,
+                   RDD=run.RDD, q0=run.q0, qd0=run.qd0, x0=run.x0, lower=run.lower,
+                   upper=run.upper, vlim=VELOCITY_LIMIT, h=run.h, substeps=run.substeps,
+                   n_steps=len(run.t) - 1)
+    Q, QD, TAU, bad_step, bad_joint, reason = EXTENSION.rollout(
+        plant_m, nominal_m, _law(form), inputs, _effects(fx) if fx is not None else None)
     if bad_step >= 0:
         raise divergence(plant, float(run.t[bad_step]), Q[bad_step], QD[bad_step], bad_joint,
                          REASONS[reason])
@@ -170,6 +194,7 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
     repeat : int, default 5
         Runs; the fastest is returned (the least disturbed by other processes).
     kind : {"fl", "pd"}
+        The ``kind`` of a form in :data:`ENGINE_LAWS` (``FLForm.kind``, ``PDForm.kind``).
     sampled : bool, default True
 
     Returns
@@ -180,8 +205,10 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
     plant_c, nominal_c = compile_robot(plant), compile_robot(nominal)
     if repeat < 1:
         raise ValueError(f"repeat must be >= 1, got {repeat!r}")
-    if kind not in KINDS:
-        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
-    return 1e3 * min(EXTENSION.floor_timing(plant_c._model, nominal_c._model, KINDS[kind],
-                                           bool(sampled), int(substeps), int(n_steps))
+    kinds = {cls.kind: name for cls, name in ENGINE_LAWS.items()}
+    if kind not in kinds:
+        raise ValueError(f"kind must be one of {', '.join(kinds)}, got {kind!r}")
+    law = getattr(EXTENSION, kinds[kind])()  # only its type matters: which calls to time
+    return 1e3 * min(EXTENSION.floor_timing(plant_c._model, nominal_c._model, law, bool(sampled),
+                                           int(substeps), int(n_steps))
                      for _ in range(repeat))

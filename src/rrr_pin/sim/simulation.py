@@ -185,9 +185,10 @@ def _choose_engine(law, engine: str):
 
         require()
         return form, engine
-    from .compiled import available
+    from .compiled import available, implements
 
-    return (form, "compiled") if form is not None and available() else (None, "python")
+    ok = form is not None and available() and implements(form)
+    return (form, "compiled") if ok else (None, "python")
 
 
 #: Reuse of the law-side work of :func:`_prepare` across runs, active only inside

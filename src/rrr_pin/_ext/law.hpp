@@ -1,0 +1,142 @@
+// The control laws the compiled engine implements, one struct of parameters per compiled form of
+// rrr_pin.control.laws (FLForm -> FLLaw, PDForm -> PDLaw; rrr_pin.sim.compiled maps one to the
+// other by type and copies the fields by name). Each law's Eval evaluates it on the nominal model,
+// operation for operation as the Python laws do:
+//
+//   FLLaw: taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), y = C x + D e,
+//          tau = Mhat(q) taubar + nle_hat(q, qd)                                       eq. (8)
+//          state: xdot = A x + B e (continuous) or x+ = A x + B e after the output (sampled,
+//          A..D already discrete).
+//   PDLaw: tau = Kp e + Kd (rd - qd) + Ghat(q); no state.
+#pragma once
+
+#include "model.hpp"
+
+namespace rrr_pin
+{
+  /// Feedback linearization with a linear controller (A, B, C, D) on e = r - q (FLForm).
+  struct FLLaw
+  {
+    double lam = 0.0;  // [rad/s]
+    Mat A, B, C, D;    // (m, m), (m, n), (n, m), (n, n); m = 0 for FL alone
+
+    Eigen::Index nx() const { return A.rows(); }
+
+    void check(Eigen::Index n) const
+    {
+      const Eigen::Index m = A.rows();
+      if (
+        A.cols() != m || B.rows() != m || B.cols() != n || C.rows() != n || C.cols() != m
+        || D.rows() != n || D.cols() != n)
+        throw std::invalid_argument("controller matrices have inconsistent shapes");
+    }
+
+    /// The nominal-model calls one torque() makes (for floor_timing).
+    static void model_calls(Workspace & nominal, const Vec & q, const Vec & qd, Vec & tau,
+                            double & sink)
+    {
+      sink += crba(nominal, q)(0, 0);
+      tau = nle(nominal, q, qd);
+    }
+
+    class Eval
+    {
+    public:
+      Eval(const FLLaw & law, const CompiledModel & nominal_model)
+      : p(law)
+      , nominal(nominal_model)
+      , m(law.nx())
+      , e(nominal_model.model.nq)
+      , y(e.size())
+      , taubar(e.size())
+      , tau(e.size())
+      , M(e.size(), e.size())
+      {
+      }
+
+      /// Torque at (q, qd) for reference row (r, rd, rdd) and law state x; keeps e.
+      template<typename R1, typename R2, typename R3>
+      const Vec & torque(
+        const Vec & q, const Vec & qd, const R1 & r, const R2 & rd, const R3 & rdd, const Vec & x)
+      {
+        e = r.transpose() - q;
+        y.noalias() = p.D * e;
+        if (m > 0)
+          y.noalias() += p.C * x;
+        const double lam = p.lam;
+        taubar = rdd.transpose() + 2.0 * lam * (rd.transpose() - qd) + lam * lam * (e + y);
+        // Eq. (8) with the nominal model; crba fills the upper triangle.
+        M = crba(nominal, q);
+        M.triangularView<Eigen::StrictlyLower>() = M.transpose();
+        tau.noalias() = M * taubar;
+        tau += nle(nominal, q, qd);
+        return tau;
+      }
+
+      /// x+ = A x + B e (sampled) or xdot = A x + B e (continuous), e of the last torque().
+      void state_map(const Vec & x, Vec & out) const
+      {
+        out.noalias() = p.A * x;
+        out.noalias() += p.B * e;
+      }
+
+    private:
+      const FLLaw & p;
+      Workspace nominal;
+      Eigen::Index m;
+      Vec e, y, taubar, tau;
+      Mat M;
+    };
+  };
+
+  /// PD + gravity compensation (PDForm).
+  struct PDLaw
+  {
+    Mat Kp, Kd;  // (n, n) [N m/rad], [N m s/rad]
+
+    Eigen::Index nx() const { return 0; }
+
+    void check(Eigen::Index n) const
+    {
+      if (Kp.rows() != n || Kp.cols() != n || Kd.rows() != n || Kd.cols() != n)
+        throw std::invalid_argument("Kp and Kd must be nq x nq");
+    }
+
+    static void model_calls(Workspace & nominal, const Vec & q, const Vec &, Vec & tau,
+                            double &)
+    {
+      tau = gravity(nominal, q);
+    }
+
+    class Eval
+    {
+    public:
+      Eval(const PDLaw & law, const CompiledModel & nominal_model)
+      : p(law)
+      , nominal(nominal_model)
+      , e(nominal_model.model.nq)
+      , tau(e.size())
+      {
+      }
+
+      template<typename R1, typename R2, typename R3>
+      const Vec & torque(
+        const Vec & q, const Vec & qd, const R1 & r, const R2 & rd, const R3 &, const Vec &)
+      {
+        e = r.transpose() - q;
+        tau.noalias() = p.Kp * e;
+        tau.noalias() += p.Kd * (rd.transpose() - qd);
+        tau += gravity(nominal, q);
+        return tau;
+      }
+
+      /// A static law has no state (the loops never call this with nx = 0).
+      void state_map(const Vec &, Vec &) const {}
+
+    private:
+      const PDLaw & p;
+      Workspace nominal;
+      Vec e, tau;
+    };
+  };
+} // namespace rrr_pin
