@@ -81,7 +81,7 @@ def test_reproduce_references_and_controllers(tmp_path, extra):
     (["reproduce", "--samples", "-1"], "--samples must be an integer >= 0, got -1"),
     (["reproduce", "--dt", "0"], "--dt must be a finite number > 0, got 0.0"),
     (["reproduce", "--rate", "nan"], "--rate must be a finite number > 0, got nan"),
-    (["reproduce", "--delay", "-1e-3", "--rate", "1000"],
+    (["reproduce", "--delay=-1e-3", "--rate", "1000"],
      "--delay must be a finite number >= 0, got -0.001"),
     (["reproduce", "--delay", "1e-3"], "give --rate HZ too"),
     (["reproduce", "--q0", "0,nan,0"], "--q0 must be finite"),
@@ -133,13 +133,13 @@ def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path):
     out = tmp_path / "c"
     assert cli.main(["reproduce", "--out", str(out), "--samples", "0", "--duration", "0.3",
                      "--jobs", "1", "--no-progress", "--reference", "circle", "--radius",
-                     "0.05", "--no-certify"]) == 0
+                     "0.05", "--home", "0.3,0.6,-1.2", "--no-certify"]) == 0
     source = json.loads((out / "results.json").read_text())["reference"]["source"]
     assert source.startswith("task-space circle of frame ")
     path = ast.literal_eval(source[source.index("{"):source.index("}, fk_error_m") + 1])
     assert path["kind"] == "circle" and path["radius_m"] == 0.05
     robot = load_robot("rrr")
-    start = np.clip(robot.neutral(), robot.lower, robot.upper)
+    start = np.array([0.3, 0.6, -1.2])  # --home: a bent arm, the circle within reach
     p0 = robot.frame_placement(start, robot.model.frames[len(robot.model.frames) - 1].name)
     np.testing.assert_allclose(np.add(path["center_m"], 0.05 * np.array(path["start_dir"])),
                                p0[:3, 3], rtol=0, atol=1e-12)  # round-off of c + r u only
