@@ -4,8 +4,8 @@
 :func:`run_laws` runs every law of a list on one plant with one reference and returns each
 law's trajectory or its divergence; :func:`run_metrics` reduces a trajectory to the figures
 both the study and the Monte Carlo campaign report; :func:`error_ratios` compares every law with
-a named baseline. :mod:`rrr_pin.campaign.study` and :mod:`rrr_pin.campaign.montecarlo` sit side by side on this
-module and import nothing from each other.
+a named baseline. :mod:`rrr_pin.campaign.study` and :mod:`rrr_pin.campaign.montecarlo` sit side
+by side on this module and import nothing from each other.
 
 The built-in laws are made by name with :func:`make_laws` (``"fl"``, ``"hinf"``, ``"pd"``), so
 the CLI's ``--controllers fl,hinf,pd`` and Python callers build the same objects.
@@ -18,16 +18,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..control.catalog import BUILTIN_LAWS
+from ..control.catalog import BUILTIN_LAWS, make_law
 from ..control.effects import PlantEffects, check_effects
-from ..control.laws import (
-    ControlLaw,
-    SampledLaw,
-    check_law,
-    fl_controller,
-    hinf_fl_controller,
-    pd_controller,
-)
+from ..control.laws import check_law
 from ..sim.simulation import (
     DEFAULT_DT,
     ENGINES,
@@ -132,7 +125,9 @@ class RunSettings:
 
 def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
               lam_hinf: float = 45.0) -> list:
-    """Build built-in laws by name, in the order given.
+    """Build built-in laws by name, in the order given, from the registry ``catalog.LAWS``.
+
+    Each name goes to :func:`rrr_pin.control.catalog.make_law`.
 
     Parameters
     ----------
@@ -157,21 +152,7 @@ def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
     if not names or any(not s for s in names):
         raise ValueError(f"controllers: expected comma-separated names from "
                          f"{', '.join(BUILTIN_LAWS)}, got {names!r}")
-    laws = []
-    for name in names:
-        if name not in BUILTIN_LAWS:
-            raise ValueError(f"unknown controller {name!r}; built-in controllers: "
-                             f"{', '.join(f'{k} ({v})' for k, v in BUILTIN_LAWS.items())}")
-        if name == "fl":
-            laws.append(fl_controller(nominal, lam_fl))
-        elif name == "hinf":
-            if K is None:
-                from ..robust.loopshaping import design
-
-                K = design(lam=lam_hinf, n=nominal.nq).K_reduced
-            laws.append(hinf_fl_controller(nominal, K, lam_hinf))
-        else:
-            laws.append(pd_controller(nominal))
+    laws = [make_law(name, nominal, K=K, lam_fl=lam_fl, lam_hinf=lam_hinf) for name in names]
     check_laws(laws, nominal.nq)
     return laws
 
@@ -261,6 +242,7 @@ def error_ratios(metrics_by_law: dict, baseline: str) -> dict:
 
 
 def law_kind(law) -> str:
-    """``"continuous"`` or ``"sampled"``."""
-    return "sampled" if isinstance(law, SampledLaw) else "continuous" if isinstance(
-        law, ControlLaw) else "unknown"
+    """``"continuous"`` or ``"sampled"``, as the law describes itself (``"unknown"`` otherwise)."""
+    describe = getattr(law, "describe", None)
+    time = describe().get("time") if describe is not None else None
+    return time if time in ("continuous", "sampled") else "unknown"

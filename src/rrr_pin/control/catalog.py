@@ -1,20 +1,91 @@
-"""Names of the built-in control laws, importable without loading any numerical library.
+"""The built-in control laws by name (one registry), importable without any numerical library.
 
-:func:`rrr_pin.campaign.runner.make_laws` builds them; the CLI lists them in its help, which must answer
-without importing Pinocchio or python-control.
+:data:`LAWS` maps each CLI name to a :class:`BuiltinLaw`: what the law is, and the factory that
+builds it. The factories import :mod:`rrr_pin.control.laws` (and, for ``"hinf"`` without a
+given ``K``, :mod:`rrr_pin.robust.loopshaping`) only when called, so the CLI's help lists the
+names and descriptions without importing Pinocchio, NumPy or python-control.
+:func:`rrr_pin.campaign.runner.make_laws` builds laws through :func:`make_law`.
 """
 
-__all__ = ["BUILTIN_LAWS", "EFFECTS", "DEFAULT_BUDGET"]
+from __future__ import annotations
 
-#: Built-in laws by CLI name, with what each is.
-BUILTIN_LAWS = {
-    "fl": "feedback linearization alone, eq. (20), lam = 100 rad/s",
-    "hinf": "H-infinity + feedback linearization, eq. (8)-(10), (18)-(19), lam = 45 rad/s",
-    "pd": "PD + gravity compensation, critically damped at 20 rad/s per joint",
+from collections.abc import Callable
+from dataclasses import dataclass
+
+__all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "make_law", "EFFECTS", "DEFAULT_BUDGET"]
+
+
+def _fl(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
+    """Feedback linearization alone at ``lam_fl`` [rad/s] (``K``, ``lam_hinf`` unused)."""
+    from .laws import fl_controller
+
+    return fl_controller(nominal, lam_fl)
+
+
+def _hinf(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
+    """H-infinity + FL at ``lam_hinf`` [rad/s]; ``K`` default: the paper's design for ``nq``."""
+    from .laws import hinf_fl_controller
+
+    if K is None:
+        from ..robust.loopshaping import design
+
+        K = design(lam=lam_hinf, n=nominal.nq).K_reduced
+    return hinf_fl_controller(nominal, K, lam_hinf)
+
+
+def _pd(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
+    """PD + gravity with the default gains (the options are unused)."""
+    from .laws import pd_controller
+
+    return pd_controller(nominal)
+
+
+@dataclass(frozen=True)
+class BuiltinLaw:
+    """One built-in law of the registry.
+
+    Attributes
+    ----------
+    description : str
+        What the law is (the CLI's help).
+    factory : callable
+        ``factory(nominal, *, K=None, lam_fl=100.0, lam_hinf=45.0) -> law``: the options of
+        :func:`rrr_pin.campaign.runner.make_laws`, each factory reading those that apply to it.
+    """
+
+    description: str
+    factory: Callable
+
+
+#: The registry: built-in laws by CLI name.
+LAWS = {
+    "fl": BuiltinLaw("feedback linearization alone, eq. (20), lam = 100 rad/s", _fl),
+    "hinf": BuiltinLaw("H-infinity + feedback linearization, eq. (8)-(10), (18)-(19), "
+                       "lam = 45 rad/s", _hinf),
+    "pd": BuiltinLaw("PD + gravity compensation, critically damped at 20 rad/s per joint", _pd),
 }
 
-#: Effects a stress search can vary (:mod:`rrr_pin.campaign.stress`): (unit, direction: "up" = largest
-#: tolerated size, "down" = smallest, what the size is).
+#: Built-in laws by CLI name, with what each is (the descriptions of :data:`LAWS`).
+BUILTIN_LAWS = {name: law.description for name, law in LAWS.items()}
+
+
+def make_law(name: str, nominal, **options):
+    """Build the built-in law ``name`` on ``nominal`` (options: ``K``, ``lam_fl``, ``lam_hinf``).
+
+    Raises
+    ------
+    ValueError
+        An unknown name (the message lists the built-in ones with what each is).
+    """
+    law = LAWS.get(name) if isinstance(name, str) else None
+    if law is None:
+        raise ValueError(f"unknown controller {name!r}; built-in controllers: "
+                         f"{', '.join(f'{k} ({v})' for k, v in BUILTIN_LAWS.items())}")
+    return law.factory(nominal, **options)
+
+
+#: Effects a stress search can vary (:mod:`rrr_pin.campaign.stress`): (unit, direction: "up" =
+#: largest tolerated size, "down" = smallest, what the size is).
 EFFECTS = {
     "delay": ("s", "up", "actuator transport delay tau_d"),
     "actuator": ("rad/s", "down", "first-order actuator bandwidth wa"),

@@ -1,0 +1,65 @@
+"""The registry of built-in laws (rrr_pin.control.catalog): light to import, one name -> factory."""
+
+import subprocess
+import sys
+
+import control
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from rrr_pin.campaign.runner import make_laws
+from rrr_pin.control.catalog import BUILTIN_LAWS, LAWS, make_law
+from rrr_pin.control.laws import PDGravity, TrackingController
+from rrr_pin.model.dynamics import load_robot
+
+# The paper's eq. (18), typed from the paper (a test input, not from rrr_pin.robust).
+K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
+                 [1.0, 513.37 + 0.19, 513.37 * 0.19])
+
+
+@pytest.fixture(scope="module")
+def rrr():
+    return load_robot("rrr")
+
+
+def test_catalog_imports_no_numerical_library():
+    # The CLI's help lists the laws from here; it must answer without loading any of these.
+    code = ("import sys, rrr_pin.control.catalog as c; assert c.BUILTIN_LAWS; "
+            "print(sorted(m for m in ('numpy', 'pinocchio', 'control', 'scipy') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_descriptions_are_the_registry_s():
+    assert BUILTIN_LAWS == {name: law.description for name, law in LAWS.items()}
+    assert list(LAWS) == ["fl", "hinf", "pd"]
+
+
+def test_each_name_builds_its_law(rrr):
+    fl = make_law("fl", rrr, lam_fl=80.0)
+    assert type(fl) is TrackingController and fl.lam == 80.0 and fl.nx == 0
+    hinf = make_law("hinf", rrr, K=K18, lam_hinf=45.0)
+    assert type(hinf) is TrackingController and hinf.lam == 45.0
+    # K18 (2 states) copied on the diagonal of 3 joints; its DC gain from the paper's
+    # polynomials: 47.40 * 134.75 * 12.17 / (513.37 * 0.19). 1e-12: one state-space solve.
+    A, B, C, D = hinf.continuous_matrices()
+    assert A.shape == (6, 6)
+    dc = C @ np.linalg.solve(-A, B) + D
+    assert_allclose(dc, 47.40 * 134.75 * 12.17 / (513.37 * 0.19) * np.eye(3), rtol=1e-12,
+                    atol=1e-9)
+    pd = make_law("pd", rrr)
+    assert type(pd) is PDGravity
+
+
+def test_make_laws_goes_through_the_registry(rrr):
+    laws = make_laws("pd,fl", rrr, lam_fl=70.0)
+    assert [law.name for law in laws] == ["pd", "fl"] and laws[1].lam == 70.0
+
+
+@pytest.mark.parametrize("name", ["lqr", "", 3], ids=["unknown", "empty", "not-a-string"])
+def test_an_unknown_name_lists_the_builtins(rrr, name):
+    with pytest.raises(ValueError, match=r"unknown controller .*; built-in controllers: fl \("):
+        make_law(name, rrr)
