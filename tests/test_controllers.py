@@ -5,8 +5,13 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rrr_pin.control.laws import (
+    CompiledForm,
     ControlLaw,
+    FLForm,
+    FLLinearModel,
+    PDForm,
     PDGravity,
+    PDLinearModel,
     SampledLaw,
     TrackingController,
     check_law,
@@ -97,11 +102,112 @@ def test_compiled_form_only_for_the_exact_class(rrr):
         def torque(self, t, q, qd, r, rd, rdd, x):
             return np.zeros(3)
 
-    assert fl_controller(rrr).compiled_form().kind == "fl"
-    assert pd_controller(rrr).compiled_form().kind == "pd"
+    assert type(fl_controller(rrr).compiled_form()) is FLForm
+    assert type(pd_controller(rrr).compiled_form()) is PDForm
     mine = Mine(rrr, 100.0, name="mine")
     assert mine.compiled_form() is None
     assert mine.sampled(1000.0).compiled_form() is None
+    assert mine.linear_model() is None
+
+
+def test_fl_alone_form_is_eq_20(rrr):
+    # FL alone, eq. (20): no controller states and D = 0, so y = 0 and taubar is the PD-like
+    # law on e; the form carries exactly that, at the law's bandwidth.
+    form = fl_controller(rrr, 80.0).compiled_form()
+    assert isinstance(form, CompiledForm) and form.nominal is rrr and form.lam == 80.0
+    assert [m.shape for m in (form.A, form.B, form.C, form.D)] == [(0, 0), (0, 3), (3, 0),
+                                                                   (3, 3)]
+    assert not np.any(form.D)
+
+
+def _tf_at(Ad, Bd, Cd, Dd, z):
+    """Frequency response C (zI - A)^-1 B + D of a discrete system at the complex point z."""
+    return Cd @ np.linalg.solve(z * np.eye(Ad.shape[0]) - Ad, Bd) + Dd
+
+
+@pytest.mark.parametrize("w", [1.0, 30.0, 400.0], ids=["1", "30", "400"])
+def test_sampled_hinf_form_is_the_tustin_image_of_eq_18(rrr, w):
+    # The sampled form's K(z) at z = e^{jwT} equals the paper's K(s), eq. (18), at the Tustin
+    # point s = (2/T)(z - 1)/(z + 1), on the diagonal, and 0 off it (K is SISO, copied). The
+    # reference is K18's own polynomials, evaluated directly (no state-space realization).
+    # 1e-9: round-off of a 2-state solve, K18's poles spread over 3.5 decades.
+    T = 1e-3
+    form = hinf_fl_controller(rrr, K18).sampled(1.0 / T).compiled_form()
+    assert type(form) is FLForm and form.A.shape == (6, 6)
+    z = np.exp(1j * w * T)
+    s = 2.0 / T * (z - 1.0) / (z + 1.0)
+    num, den = K18.num[0][0], K18.den[0][0]
+    expected = np.polyval(num, s) / np.polyval(den, s)
+    assert_allclose(_tf_at(form.A, form.B, form.C, form.D, z), expected * np.eye(3), rtol=1e-9,
+                    atol=1e-9 * abs(expected))
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda r: FLForm(r, 100.0, np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((3, 0)),
+                      np.zeros((3, 3))), r"Expected B of shape \(0, 3\), got \(0, 2\)"),
+    (lambda r: FLForm(r, -1.0, np.zeros((0, 0)), np.zeros((0, 3)), np.zeros((3, 0)),
+                      np.zeros((3, 3))), "lam must be a finite number > 0"),
+    (lambda r: FLForm(r, 100.0, np.zeros((0, 0)), np.zeros((0, 3)), np.zeros((3, 0)),
+                      np.full((3, 3), np.nan)), "D must be finite"),
+    (lambda r: PDForm(r, np.eye(2), np.eye(3)), r"Expected Kp of shape \(3, 3\)"),
+], ids=["B-shape", "lam", "D-nan", "Kp-shape"])
+def test_bad_forms_name_the_field(rrr, make, match):
+    with pytest.raises(ValueError, match=match):
+        make(rrr)
+
+
+def test_forms_are_frozen(rrr):
+    form = pd_controller(rrr).compiled_form()
+    with pytest.raises(AttributeError):
+        form.Kp = np.eye(3)
+    with pytest.raises(ValueError, match="read-only"):
+        form.Kp[0, 0] = 1.0
+
+
+def test_fl_linear_model_is_the_linearized_plant(rrr):
+    # With the model exact, FL alone makes qdd = taubar = -lam^2 q - 2 lam qd (regulation, r = 0):
+    # u = Dc [q; qd] with Dc = [-lam^2 I, -2 lam I], no state, and M^-1 = I (M cancels). Its
+    # loop is L(s) = (2 lam s + lam^2) / s^2, eq. (19) with K = 0.
+    lam = 100.0
+    lin = fl_controller(rrr, lam).linear_model()
+    assert type(lin) is FLLinearModel and lin.bandwidth(None) == lam
+    Ac, Bc, Cc, Dc, Minv = lin.digital(1000.0, None)
+    assert Ac.shape == (0, 0) and Bc.shape == (0, 6) and Cc.shape == (3, 0)
+    assert_allclose(Dc, np.hstack([-lam ** 2 * np.eye(3), -2 * lam * np.eye(3)]), rtol=0, atol=0)
+    assert_allclose(Minv, np.eye(3), rtol=0, atol=0)
+    (L,) = lin.loops(None)
+    s = 1j * np.array([3.0, 70.0, 900.0])
+    # 1e-12: python-control's polynomial evaluation against the closed form, in double.
+    assert_allclose(L(s), (2 * lam * s + lam ** 2) / s ** 2, rtol=1e-12)
+
+
+def test_pd_linear_model_uses_the_coupled_inertia(rrr):
+    # PD at q_h: qdd = M(q_h)^-1 u; M^-1 checked against Pinocchio's computeMinverse (a second
+    # algorithm, not the inverse of CRBA), the slowest mode against the generalized symmetric
+    # eigenproblem Kp v = w^2 M v (scipy.linalg.eigh). 1e-10: round-off of 3 x 3 solves.
+    import scipy.linalg
+
+    home = np.array([0.3, -0.5, 0.8])
+    law = pd_controller(rrr)
+    lin = law.linear_model()
+    assert type(lin) is PDLinearModel
+    Minv_ref = pin.computeMinverse(rrr.model, rrr.data, home)
+    Minv_ref = np.triu(Minv_ref) + np.triu(Minv_ref, 1).T
+    Ac, Bc, Cc, Dc, Minv = lin.digital(1000.0, home)
+    assert Ac.shape == (0, 0)
+    assert_allclose(Minv, Minv_ref, rtol=1e-10, atol=1e-12)
+    assert_allclose(Dc, np.hstack([-law.Kp, -law.Kd]), rtol=0, atol=0)
+    w2 = scipy.linalg.eigh(law.Kp, rrr.M(home), eigvals_only=True)
+    assert_allclose(lin.bandwidth(home), np.sqrt(w2.min()), rtol=1e-10)
+
+
+def test_pd_subclass_with_its_own_torque_has_no_linear_model(rrr):
+    class Softer(PDGravity):
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            return 0.5 * super().torque(t, q, qd, r, rd, rdd, x)
+
+    law = Softer(rrr, Kp=[100.0] * 3, Kd=[10.0] * 3, name="softer")
+    assert law.linear_model() is None and law.compiled_form() is None
 
 
 def test_laws_pickle_as_themselves(rrr):

@@ -10,7 +10,7 @@ form of a type it does not know) must run on Python under ``engine="auto"``, and
 """
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import control
 import numpy as np
@@ -19,10 +19,12 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rrr_pin import paper_params
+from rrr_pin.control.effects import Resolved
 from rrr_pin.control.laws import (
     CompiledForm,
     ControlLaw,
     FLForm,
+    PDForm,
     SampledLaw,
     TrackingController,
     fl_controller,
@@ -39,7 +41,7 @@ from rrr_pin.control.references import (
 )
 from rrr_pin.model.dynamics import load_robot, robot_from_xml
 from rrr_pin.model.uncertainty import sample_plants
-from rrr_pin.sim.compiled import available, compile_robot, floor_ms
+from rrr_pin.sim.compiled import ENGINE_LAWS, available, compile_robot, floor_ms
 from rrr_pin.sim.extension import EXTENSION
 from rrr_pin.sim.simulation import SimulationDiverged, simulate
 
@@ -334,6 +336,82 @@ def test_auto_runs_an_unknown_form_on_python(rrr, rrr_plant, rrr_laws, rrr_refs,
 
 
 # --- the extension itself (ported from the former tests/test_compiled.py) ----------------------
+
+
+@pytest.mark.parametrize("form, cxx", [(FLForm, "FLLaw"), (PDForm, "PDLaw"),
+                                       (Resolved, "Effects")], ids=["FLForm", "PDForm", "Effects"])
+def test_python_and_cxx_structs_have_the_same_fields(form, cxx):
+    # sim.compiled copies every field by name (nominal and info stay in Python), so a field on
+    # one side only would fail loudly there; this names it here first.
+    assert ENGINE_LAWS.get(form, "Effects") == cxx
+    obj = getattr(EXTENSION, cxx)()
+    missing = [f.name for f in fields(form) if f.name not in ("nominal", "info")
+               and not hasattr(obj, f.name)]
+    assert missing == []
+
+
+def _inputs(run):
+    return {"sampled": run.sampled, "R": run.R, "RD": run.RD, "RDD": run.RDD, "q0": run.q0,
+            "qd0": run.qd0, "x0": run.x0, "lower": run.lower, "upper": run.upper,
+            "vlim": 50.0, "h": run.h, "substeps": run.substeps, "n_steps": len(run.t) - 1}
+
+
+def _call(robot, form, inputs, effects=None):
+    from rrr_pin.sim.compiled import _law
+
+    ins = EXTENSION.RolloutInputs()
+    for key, value in inputs.items():
+        setattr(ins, key, value)
+    m = compile_robot(robot)._model
+    return EXTENSION.rollout(m, m, _law(form), ins, effects)
+
+
+@pytest.fixture(scope="module")
+def pd_run(rrr, rrr_laws, rrr_refs):
+    from rrr_pin.sim.simulation import _prepare
+
+    run = _prepare(rrr, rrr_laws["pd"], rrr_refs["sine"], 0.05, dt=2.5e-4, rate=RATE,
+                   method="tustin", q0=None, qd0=None, limit_margin=0.0)
+    return run, run.law.compiled_form()
+
+
+def test_all_off_effects_are_the_ideal_loop(rrr, pd_run):
+    # effects.hpp: a default Effects switches every effect off, which is the ideal plant.
+    run, form = pd_run
+    ideal = _call(rrr, form, _inputs(run))
+    off = _call(rrr, form, _inputs(run), EXTENSION.Effects())
+    for a, b in zip(ideal, off, strict=True):
+        assert_array_equal(b, a)
+
+
+@pytest.mark.parametrize("change, effects, match", [
+    ({"R": np.zeros((3, 3))}, None, "reference arrays have the wrong shape"),
+    ({"x0": np.zeros(2)}, None, "x0 must have the law's nx entries"),
+    ({"substeps": 0}, None, "substeps >= 1"),
+    ({"sampled": False}, "off", "plant effects need a sampled law"),
+    ({}, "bad-limit", "effect arrays have the wrong shape"),
+], ids=["R-shape", "x0", "substeps", "continuous-effects", "effect-shape"])
+def test_the_extension_refuses_bad_inputs(rrr, pd_run, change, effects, match):
+    run, form = pd_run
+    fx = None
+    if effects is not None:
+        fx = EXTENSION.Effects()
+        if effects == "bad-limit":
+            fx.limit = np.ones(2)
+    with pytest.raises(ValueError, match=match):
+        _call(rrr, form, {**_inputs(run), **change}, fx)
+
+
+def test_a_pd_law_with_wrong_gains_is_refused_by_the_extension(rrr, pd_run):
+    run, _ = pd_run
+    law = EXTENSION.PDLaw()
+    law.Kp, law.Kd = np.eye(2), np.eye(2)
+    ins = EXTENSION.RolloutInputs()
+    for key, value in _inputs(run).items():
+        setattr(ins, key, value)
+    m = compile_robot(rrr)._model
+    with pytest.raises(ValueError, match="Kp and Kd must be nq x nq"):
+        EXTENSION.rollout(m, m, law, ins)
 
 
 def test_extension_built_against_installed_pinocchio():

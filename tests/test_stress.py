@@ -5,6 +5,7 @@ import json
 import math
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
@@ -17,10 +18,12 @@ from rrr_pin.campaign.stress import (
     breaking_point,
     continuous_boundary,
     linear_boundary,
+    loop_bandwidth,
+    spectral_radius,
     stress,
 )
 from rrr_pin.cli import main
-from rrr_pin.control.laws import ControlLaw, fl_controller
+from rrr_pin.control.laws import ControlLaw, TrackingController, fl_controller
 from rrr_pin.control.references import default_reference
 from rrr_pin.model.dynamics import load_robot
 
@@ -123,6 +126,70 @@ def test_law_without_linear_model_is_refused_by_every_prediction(effect):
                     lambda: barrier_met(Zero())):
         with pytest.raises(TypeError, match="no linear model of law 'zero'"):
             predict()
+
+
+@pytest.mark.parametrize("lam", [45.0, 100.0])
+def test_fl_digital_loop_without_delay_is_the_zoh_double_integrator(rrr, lam):
+    # Per joint, no delay: the zero-order-hold double integrator q+ = q + T qd + T^2/2 u,
+    # qd+ = qd + T u (Franklin, Powell & Workman sec. 4.3), with u = -lam^2 q - 2 lam qd. The
+    # loop's radius is that 2 x 2 matrix's (the one-sample command buffer adds only zeros).
+    # 1e-12: expm of the augmented matrix against the closed form, both in double.
+    T = 1e-3
+    Phi = np.array([[1.0, T], [0.0, 1.0]])
+    Gamma = np.array([[T * T / 2], [T]])
+    A = Phi - Gamma @ np.array([[lam * lam, 2 * lam]])
+    expected = np.max(np.abs(np.linalg.eigvals(A)))
+    assert_allclose(spectral_radius(fl_controller(rrr, lam), 1.0 / T), expected, rtol=1e-12)
+
+
+class Zero(ControlLaw):
+    """A user's law with no linear model."""
+
+    name, n = "zero", 3
+
+    def torque(self, t, q, qd, r, rd, rdd, x):
+        return np.zeros(3)
+
+
+class Retuned(TrackingController):
+    """A subclass that changes the law: the built-in's linear model no longer describes it."""
+
+    def _tau(self, q, qd, r, rd, rdd, y):
+        return 2.0 * super()._tau(q, qd, r, rd, rdd, y)
+
+
+@pytest.mark.parametrize("make, name", [(lambda r: Zero(), "zero"),
+                                        (lambda r: Retuned(r, 100.0, name="retuned"), "retuned")],
+                         ids=["user-law", "subclassed-builtin"])
+def test_stress_asks_the_law_for_its_linear_model(rrr, make, name):
+    law = make(rrr)
+    assert law.linear_model() is None and loop_bandwidth(law, np.zeros(3)) is None
+    with pytest.raises(TypeError, match=f"no linear model of law '{name}' .* linear_model"):
+        spectral_radius(law, 1000.0)
+
+
+def test_stress_leaves_the_predictions_of_a_law_without_a_model_empty(rrr):
+    # The row of a law without a linear model has no prediction, and its simulated boundary is
+    # still searched (here FL alone written by hand: the same law as the built-in, so the
+    # same boundary within the bisection's tolerance).
+    settings = StressSettings(run=RunSettings(duration=0.5, dt=1e-4, rate=1000.0), sweep=0,
+                              rtol=0.05, cycles=0.0)
+
+    class HandFL(ControlLaw):
+        name, n, lam = "hand_fl", 3, 100.0
+
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            taubar = rdd + 2 * self.lam * (rd - qd) + self.lam ** 2 * (r - q)
+            return (pin.crba(rrr.model, rrr.data, q) @ taubar
+                    + pin.nonLinearEffects(rrr.model, rrr.data, q, qd))
+
+    out = stress(rrr, [HandFL(), fl_controller(rrr)], default_reference(rrr), "delay", settings)
+    hand, builtin = out["rows"]
+    assert hand["predicted"] is None and hand["predicted_continuous"] is None
+    assert hand["barrier_met"] is None and hand["guaranteed"] is None
+    assert builtin["predicted"] is not None
+    lo, hi = builtin["bracket"]
+    assert lo / 1.1 <= hand["simulated"] <= hi * 1.1
 
 
 def test_cli_stress_json(tmp_path, capsys):

@@ -225,14 +225,12 @@ namespace rrr_pin
     const RolloutInputs & in, const Effects * fx)
   {
     const Eigen::Index n = plant.model.nq;
+    if (!in.sampled && fx)
+      throw std::invalid_argument("plant effects need a sampled law");
     check_inputs(plant, nominal, law.nx(), in);
     law.check(n);
     if (!in.sampled)
-    {
-      if (fx)
-        throw std::invalid_argument("plant effects need a sampled law");
       return continuous_loop(plant, nominal, law, in);
-    }
     const Effects ideal;
     if (fx)
       fx->check(n, in.n_steps);
