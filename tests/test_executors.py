@@ -80,7 +80,7 @@ def test_jobs_not_an_integer_is_refused(jobs):
 
 
 def test_other_arguments_are_checked():
-    with pytest.raises(ValueError, match="max_in_flight must be an integer > 0, got 0"):
+    with pytest.raises(ValueError, match="max_in_flight must be an integer >= 1, got 0"):
         run_tasks(square, range(3), jobs=1, max_in_flight=0)
     with pytest.raises(ValueError, match="no_worker_timeout must be a finite number > 0"):
         run_tasks(square, range(3), scheduler="tcp://127.0.0.1:1",

@@ -100,17 +100,6 @@ def check_jobs(jobs) -> int:
     return n
 
 
-def _check_in_flight(value) -> int:
-    """Return ``max_in_flight`` as an int >= 1 (:func:`rrr_pin.validation.check_count`).
-
-    Keeps this module's wording, "an integer > 0", which ``tests/test_executors.py`` matches.
-    """
-    try:
-        return check_count("max_in_flight", value, 1)
-    except ValueError:
-        raise ValueError(f"max_in_flight must be an integer > 0, got {value!r}") from None
-
-
 def run_tasks(fn: Callable, tasks: Iterable, *, jobs: int | None = None,
               scheduler: str | None = None, executor=None, max_in_flight: int | None = None,
               no_worker_timeout: float = 60.0, retries: int = 2,
@@ -172,7 +161,7 @@ def run_tasks(fn: Callable, tasks: Iterable, *, jobs: int | None = None,
                         f"'tcp://10.0.0.5:8786', got {scheduler!r}")
     jobs = check_jobs(jobs)
     if max_in_flight is not None:
-        max_in_flight = _check_in_flight(max_in_flight)
+        max_in_flight = check_count("max_in_flight", max_in_flight, 1)
     no_worker_timeout = check_positive("no_worker_timeout", no_worker_timeout, unit="s")
     retries = check_count("retries", retries)
     connect_timeout = check_positive("connect_timeout", connect_timeout, unit="s")

@@ -217,7 +217,7 @@ def run_plant(task: PlantTask) -> tuple[dict, dict | None]:
     """Simulate every law on one plant, and certify it (runs in a worker process)."""
     nominal = task.nominal
     plant = robot_from_xml(task.plant_xml, gravity=nominal.gravity, lock=dict(nominal.locked),
-                           name=task.plant_name, label=task.plant_name)
+                           name=task.plant_name, label=task.plant_name, check=False)
     runs = run_laws(plant, task.laws, task.reference, task.run)
     cert = None
     if task.certificate is not None and task.certify:

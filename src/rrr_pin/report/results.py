@@ -258,7 +258,7 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
         if plant.index not in models:
             models[plant.index] = robot_from_xml(plant.urdf, gravity=robot.gravity,
                                                  lock=dict(robot.locked),
-                                                 name=f"sample{plant.index}")
+                                                 name=f"sample{plant.index}", check=False)
         return models[plant.index]
 
     scenes = []
