@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import contextmanager
 
 __all__ = ["main"]
 
@@ -177,20 +178,14 @@ def _parse_lock(items) -> dict:
     return lock
 
 
-def _floats(text: str | None, name: str, n: int | None = None):
-    """Comma-separated finite numbers of an option, or None; ``n`` = expected count."""
-    from .validation import check_vector
-
+def _floats(text: str | None, name: str):
+    """Comma-separated numbers of an option, or None (their count is checked where used)."""
     if text is None:
         return None
     try:
-        values = [float(v) for v in text.replace(",", " ").split()]
+        return [float(v) for v in text.replace(",", " ").split()]
     except ValueError:
         raise ValueError(f"{name} expects numbers separated by commas, got {text!r}") from None
-    if n is not None and len(values) != n:
-        raise ValueError(f"{name} expects {n} values (one per joint), got {len(values)}: "
-                         f"{text!r}")
-    return check_vector(name, values).tolist()
 
 
 def _add_robot_arguments(p) -> None:
@@ -264,80 +259,60 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
                    help="circle: normal of its plane (0,0,1)")
 
 
+def _option(field: str) -> str:
+    """How the command line spells a settings field: ``move_time`` -> ``--move-time``."""
+    return "--" + field.replace("_", "-")
+
+
 def _reference_from_args(args, robot):
-    import numpy as np
+    from .control.specs import ReferenceSpec
 
-    from .control.paths import circle_from_start
-    from .control.references import (
-        LinePath,
-        QuinticReference,
-        SplineReference,
-        default_reference,
-        task_space_reference,
-    )
-    from .validation import check_positive
+    def values(text, name):
+        v = _floats(text, name)
+        return None if v is None else tuple(v)
 
-    n = robot.nq
-    home = _floats(args.home, "--home", n)
-    kind = args.reference
-    if kind == "sine":
-        check_positive("--amp", args.amp, allow_zero=True)
-        check_positive("--freq", args.freq, allow_zero=True)
-        return default_reference(robot, amp=args.amp, freq=args.freq, home=home)
-    if kind == "spline":
-        if args.csv is None:
-            raise ValueError("--reference spline needs --csv PATH")
-        return SplineReference.from_csv(args.csv, robot)
-    start = np.asarray(home, dtype=float) if home is not None else np.clip(
-        robot.neutral(), robot.lower, robot.upper)
-    move = 0.5 * args.duration if args.move_time is None else check_positive(
-        "--move-time", args.move_time)
-    if kind == "quintic":
-        if args.to is None:
-            raise ValueError("--reference quintic needs --to Q1,Q2,... (the goal, one value "
-                             "per joint)")
-        return QuinticReference(start, _floats(args.to, "--to", n), move)
-    frame = args.frame or robot.model.frames[len(robot.model.frames) - 1].name
-    p0 = robot.frame_placement(start, frame)[:3, 3]
-    if kind == "line":
-        if args.end is None:
-            raise ValueError("--reference line needs --end X,Y,Z [m]")
-        path = LinePath(p0, _floats(args.end, "--end", 3))
-    else:
-        if args.radius is None:
-            raise ValueError("--reference circle needs --radius R [m]")
-        path = circle_from_start(p0, check_positive("--radius", args.radius),
-                                 _floats(args.normal, "--normal", 3))
-    return task_space_reference(robot, frame, path, move, q_start=start)
+    spec = ReferenceSpec(kind=args.reference, amp=args.amp, freq=args.freq,
+                         home=values(args.home, "--home"), to=values(args.to, "--to"),
+                         move_time=args.move_time, csv=args.csv, frame=args.frame,
+                         end=values(args.end, "--end"), radius=args.radius,
+                         normal=values(args.normal, "--normal"))
+    return spec.build(robot, args.duration, label=_option)
 
 
-def _settings_from_args(args, n):
+@contextmanager
+def _as_options():
+    """Name a settings field as its option (``move_time`` -> ``--move-time``) in an error."""
+    from .validation import FieldError
+
+    try:
+        yield
+    except FieldError as exc:
+        raise exc.relabelled(_option) from None
+
+
+def _settings_from_args(args, n: int):
     from .campaign.runner import RunSettings
-    from .validation import check_count, check_positive
+    from .control.effects import PlantEffects
+    from .validation import check_count, check_positive, check_vector
 
-    for name in ("duration", "dt") + (("rate",) if args.rate is not None else ()):
-        check_positive(f"--{name}", getattr(args, name))
     if args.jobs is not None:
         check_count("--jobs", args.jobs, 1)
     check_count("--seed", args.seed)
-    q0 = _floats(args.q0, "--q0", n)
-    qd0 = _floats(args.qd0, "--qd0", n)
-    delay, wa = args.delay, args.actuator_bandwidth
-    if delay is not None:
-        check_positive("--delay", delay, allow_zero=True)
-    if wa is not None:
-        check_positive("--actuator-bandwidth", wa)
+    for name in ("delay", "actuator_bandwidth"):
+        if getattr(args, name) is not None:
+            check_positive(_option(name), getattr(args, name), allow_zero=name == "delay")
     effects = None
-    if delay or wa is not None:
-        from .control.effects import PlantEffects
-
+    if args.delay or args.actuator_bandwidth is not None:
         if args.rate is None:
             raise ValueError("--delay and --actuator-bandwidth act on sampled controllers: "
                              "give --rate HZ too")
-        effects = PlantEffects(delay=delay or 0.0, bandwidth=wa)
-    return RunSettings(duration=args.duration, dt=args.dt, rate=args.rate, engine=args.engine,
-                       q0=tuple(q0) if q0 else None, qd0=tuple(qd0) if qd0 else None,
-                       effects=effects)
+        with _as_options():
+            effects = PlantEffects(delay=args.delay or 0.0, bandwidth=args.actuator_bandwidth)
+    q0, qd0 = (None if text is None else tuple(check_vector(name, _floats(text, name), n))
+               for text, name in ((args.q0, "--q0"), (args.qd0, "--qd0")))
+    with _as_options():
+        return RunSettings(duration=args.duration, dt=args.dt, rate=args.rate,
+                           engine=args.engine, q0=q0, qd0=qd0, effects=effects)
 
 
 def _laws_from_args(args, robot, K=None):
@@ -553,24 +528,23 @@ def _cmd_stress(args) -> int:
     from .campaign.runner import RunSettings, make_laws
     from .campaign.store import check_writable
     from .campaign.stress import EFFECTS, StressSettings, stress
-    from .control.references import default_reference
+    from .control.specs import ReferenceSpec
     from .model.dynamics import load_robot
     from .report.stress import stress_lines, write_stress
-    from .validation import check_positive
 
     if args.effect not in EFFECTS:
         raise ValueError(f"--effect {args.effect!r} is unknown; known effects: "
                          f"{', '.join(EFFECTS)}")
-    for name in ("budget", "duration", "rate", "dt"):
-        check_positive(f"--{name}", getattr(args, name))
+    with _as_options():
+        settings = StressSettings(run=RunSettings(duration=args.duration, dt=args.dt,
+                                                  rate=args.rate, engine=args.engine),
+                                  budget=args.budget)
     check_writable(args.out)
     robot = load_robot(args.robot, lock=_parse_lock(args.lock))
-    home = _floats(args.home, "--home", robot.nq)
-    reference = default_reference(robot, home=home)
+    home = _floats(args.home, "--home")
+    reference = ReferenceSpec(home=None if home is None else tuple(home)).build(
+        robot, args.duration, label=_option)
     laws = make_laws(args.controllers, robot)
-    settings = StressSettings(run=RunSettings(duration=args.duration, dt=args.dt,
-                                              rate=args.rate, engine=args.engine),
-                              budget=args.budget)
     start = time.perf_counter()
     result = stress(robot, laws, reference, args.effect, settings)
     result["elapsed_s"] = time.perf_counter() - start

@@ -13,6 +13,9 @@ and the expected range, in the same words everywhere:
 
 Public entry points call them once; inner loops trust what they were handed. Booleans, ``None``
 and strings are refused as numbers everywhere (``float(True)`` would read a JSON ``true`` as 1).
+Each raises :class:`FieldError` (a ``ValueError``) that keeps the field apart from the words,
+so a caller that spells the field otherwise (a command line's ``--move-time`` for
+``move_time``) can say the same sentence in its own terms (:meth:`FieldError.relabelled`).
 This module imports nothing of rrr_pin: it is the bottom layer.
 """
 
@@ -24,6 +27,7 @@ import numbers
 import numpy as np
 
 __all__ = [
+    "FieldError",
     "check_real",
     "check_positive",
     "check_count",
@@ -32,6 +36,34 @@ __all__ = [
     "check_probability",
     "check_vector",
 ]
+
+
+class FieldError(ValueError):
+    """A field's value is out of its range; ``str()`` is the sentence, naming field and value.
+
+    Attributes
+    ----------
+    field : str
+        The field as named in the sentence.
+    template : str
+        The sentence with ``{name}`` where the field stands.
+    """
+
+    def __init__(self, field: str, template: str):
+        super().__init__(template.format(name=field))
+        self.field, self.template = field, template
+
+    def relabelled(self, label) -> FieldError:
+        """Return the same error with the field named ``label(field)``."""
+        return FieldError(label(self.field), self.template)
+
+    def __reduce__(self):
+        return (type(self), (self.field, self.template))
+
+
+def _fail(name: str, sentence: str) -> FieldError:
+    """Build a :class:`FieldError` whose sentence starts with the field ``name``."""
+    return FieldError(name, "{name}" + sentence.replace("{", "{{").replace("}", "}}"))
 
 
 def _unit(unit: str) -> str:
@@ -60,11 +92,11 @@ def check_real(name: str, value, unit: str = "") -> float:
         ``"{name} must be a number [unit], got ... (type)"`` or ``"{name} must be finite"``.
     """
     if not _is_number(value):
-        raise ValueError(f"{name} must be a number{_unit(unit)}, got {value!r} "
+        raise _fail(name, f" must be a number{_unit(unit)}, got {value!r} "
                          f"({type(value).__name__})")
     value = float(value)
     if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite{_unit(unit)}, got {value!r}")
+        raise _fail(name, f" must be finite{_unit(unit)}, got {value!r}")
     return value
 
 
@@ -80,7 +112,7 @@ def check_positive(name: str, value, *, allow_zero: bool = False, unit: str = ""
     want = ">= 0" if allow_zero else "> 0"
     ok = _is_number(value) and math.isfinite(value) and (value >= 0 if allow_zero else value > 0)
     if not ok:
-        raise ValueError(f"{name} must be a finite number {want}{_unit(unit)}, got {value!r}")
+        raise _fail(name, f" must be a finite number {want}{_unit(unit)}, got {value!r}")
     return float(value)
 
 
@@ -96,7 +128,7 @@ def check_count(name: str, value, low: int = 0) -> int:
     """
     if (not _is_number(value) or not math.isfinite(value) or value != int(value)
             or value < low):
-        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+        raise _fail(name, f" must be an integer >= {low}, got {value!r}")
     return int(value)
 
 
@@ -125,7 +157,7 @@ def check_probability(name: str, p) -> float:
         ``"{name} must be a probability in [0, 1], got ..."``.
     """
     if not (_is_number(p) and 0.0 <= p <= 1.0):
-        raise ValueError(f"{name} must be a probability in [0, 1], got {p!r}")
+        raise _fail(name, f" must be a probability in [0, 1], got {p!r}")
     return float(p)
 
 
@@ -154,12 +186,12 @@ def check_vector(name: str, value, n: int | None = None, *, readonly: bool = Fal
             raise TypeError
         v = np.atleast_1d(np.array(value, dtype=float))
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be an array of numbers, got {value!r}") from None
+        raise _fail(name, f" must be an array of numbers, got {value!r}") from None
     if v.ndim != 1 or (n is not None and v.shape != (n,)):
         want = f"({n},)" if n is not None else "(n,)"
-        raise ValueError(f"Expected {name} of shape {want}, got {v.shape}")
+        raise FieldError(name, f"Expected {{name}} of shape {want}, got {v.shape}")
     if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name} must be finite, got {v.tolist()}")
+        raise _fail(name, f" must be finite, got {v.tolist()}")
     if readonly:
         v.setflags(write=False)
     return v

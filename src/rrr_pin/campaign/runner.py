@@ -29,6 +29,7 @@ from ..sim.simulation import (
     reuse_preparation,
     simulate,
 )
+from ..validation import check_positive, check_rate, check_vector
 
 __all__ = [
     "RunSettings",
@@ -74,16 +75,10 @@ class RunSettings:
     effects: PlantEffects | None = None
 
     def __post_init__(self) -> None:
-        for key in ("duration", "dt"):
-            v = getattr(self, key)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
-                    math.isfinite(v) and v > 0):
-                raise ValueError(f"{key} must be a finite number > 0 s, got {v!r}")
+        check_positive("duration", self.duration, unit="s")
+        check_positive("dt", self.dt, unit="s")
         if self.rate is not None:
-            if isinstance(self.rate, bool) or not isinstance(self.rate, (int, float)) or not (
-                    math.isfinite(self.rate) and self.rate > 0):
-                raise ValueError(f"rate must be a finite number > 0 Hz or None, got "
-                                 f"{self.rate!r}")
+            check_rate("rate", self.rate)
             if self.duration * self.rate < 1.0 - 1e-9:
                 raise ValueError(f"duration = {self.duration:g} s is shorter than one control "
                                  f"period (1/rate = {1 / self.rate:g} s)")
@@ -92,16 +87,11 @@ class RunSettings:
                              f"(dt = {self.dt:g} s)")
         if self.engine not in ENGINES:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
-        lm = self.limit_margin
-        if not (isinstance(lm, (int, float)) and math.isfinite(lm) and lm >= 0):
-            raise ValueError(f"limit_margin must be a finite number >= 0 rad, got {lm!r}")
+        check_positive("limit_margin", self.limit_margin, allow_zero=True, unit="rad")
         for key in ("q0", "qd0"):
             v = getattr(self, key)
             if v is not None:
-                arr = np.asarray(v, dtype=float)
-                if arr.ndim != 1 or not np.all(np.isfinite(arr)):
-                    raise ValueError(f"{key} must be a finite vector, got {v!r}")
-                object.__setattr__(self, key, tuple(float(x) for x in arr))
+                object.__setattr__(self, key, tuple(check_vector(key, v).tolist()))
         check_effects(self.effects)
         if self.effects is not None and self.effects.active and self.rate is None:
             raise ValueError("effects apply to sampled controllers only: give a rate")
@@ -188,7 +178,9 @@ def run_laws(plant, laws, reference, settings: RunSettings) -> dict:
     with reuse_preparation():  # the laws share the sampled reference (bit-identical)
         for law in laws:
             try:
-                out[law.name] = simulate(plant, law, reference, settings.duration, **kwargs)
+                # check=False: RunSettings validated duration, dt, rate and limit_margin.
+                out[law.name] = simulate(plant, law, reference, settings.duration, check=False,
+                                         **kwargs)
             except SimulationDiverged as exc:
                 out[law.name] = exc
     return out

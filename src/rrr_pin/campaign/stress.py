@@ -49,6 +49,7 @@ from ..robust.barriers import model_error_bound, robust_stability_barrier
 from ..robust.lti import static_gain
 from ..robust.robustness import check_robust_stability
 from ..sim.simulation import SimulationDiverged, simulate
+from ..validation import check_count, check_positive
 from .runner import RunSettings
 
 __all__ = ["EFFECTS", "DEFAULT_BUDGET", "StressSettings", "linear_boundary",
@@ -101,15 +102,10 @@ class StressSettings:
     def __post_init__(self) -> None:
         if self.run.rate is None:
             raise ValueError("StressSettings.run.rate: effects need sampled laws (give a rate)")
-        if not (isinstance(self.offset, (int, float)) and math.isfinite(self.offset)
-                and self.offset >= 0):
-            raise ValueError(f"offset must be a finite number >= 0 rad, got {self.offset!r}")
-        for key in ("budget", "rtol"):
-            v = getattr(self, key)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{key} must be a finite number > 0, got {v!r}")
-        if not isinstance(self.sweep, int) or self.sweep < 0:
-            raise ValueError(f"sweep must be an integer >= 0, got {self.sweep!r}")
+        check_positive("offset", self.offset, allow_zero=True, unit="rad")
+        check_positive("budget", self.budget, unit="rad")
+        check_positive("rtol", self.rtol)
+        object.__setattr__(self, "sweep", check_count("sweep", self.sweep))
 
 
 def _check_effect(effect: str) -> str:

@@ -71,7 +71,7 @@ from typing import ClassVar
 import numpy as np
 import pinocchio as pin
 
-from ..validation import check_positive
+from ..validation import check_positive, check_rate
 
 __all__ = [
     "ControlLaw",
@@ -397,7 +397,7 @@ class ControlLaw:
             raise NotImplementedError(
                 f"law {self.name!r} has {self.nx} states and does not say how to discretize "
                 f"them: override sampled(rate) or write it as a SampledLaw")
-        return _StaticSampled(self, _rate(rate))
+        return _StaticSampled(self, check_rate("rate", rate))
 
     def compiled_form(self) -> CompiledForm | None:
         """Return the compiled engine's exact equivalent of this law, or None (Python only)."""
@@ -458,13 +458,6 @@ class SampledLaw:
         return {"name": self.name, "label": self.label or self.name,
                 "class": f"{type(self).__module__}.{type(self).__qualname__}",
                 "time": "sampled", "rate_hz": self.rate}
-
-
-def _rate(rate) -> float:
-    rate = float(rate)
-    if not (math.isfinite(rate) and rate > 0.0):
-        raise ValueError(f"rate must be a positive sampling rate [Hz], got {rate!r}")
-    return rate
 
 
 def check_law(law, n: int | None = None) -> None:
@@ -614,7 +607,7 @@ class TrackingController(ControlLaw):
         """
         import control
 
-        rate = _rate(rate)
+        rate = check_rate("rate", rate)
         if self.nx == 0:
             return self._mats
         Kd = control.sample_system(self.K, 1.0 / rate, method=method)
@@ -646,7 +639,7 @@ class TrackingController(ControlLaw):
         (``nx == 0``) is sampled by evaluating its own :meth:`torque`; one with state must
         override this method (``NotImplementedError`` otherwise).
         """
-        rate = _rate(rate)
+        rate = check_rate("rate", rate)
         if self._own_law():
             return _SampledTracking(self, rate, method, self.discretize(rate, method))
         return ControlLaw.sampled(self, rate, method)
