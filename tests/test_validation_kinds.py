@@ -190,3 +190,30 @@ def test_check_vector_copies_and_can_freeze():
 def test_check_vector_refuses(value, n, message):
     with pytest.raises(ValueError, match=re.escape(message)):
         check_vector("q", value, n)
+
+
+# --- FieldError: the field kept apart from the sentence -----------------------------------------
+
+def test_field_error_relabels_and_pickles():
+    import pickle
+
+    from rrr_pin.validation import FieldError, check_positive
+
+    with pytest.raises(FieldError) as info:
+        check_positive("move_time", -1.0, unit="s")
+    exc = info.value
+    assert isinstance(exc, ValueError) and exc.field == "move_time"
+    assert str(exc) == "move_time must be a finite number > 0 [s], got -1.0"
+    assert str(exc.relabelled(lambda f: "--" + f.replace("_", "-"))) == (
+        "--move-time must be a finite number > 0 [s], got -1.0")
+    back = pickle.loads(pickle.dumps(exc))  # crosses a process boundary whole
+    assert (type(back), back.field, str(back)) == (FieldError, exc.field, str(exc))
+
+
+def test_field_error_keeps_braces_of_the_value():
+    from rrr_pin.validation import FieldError, check_real
+
+    with pytest.raises(FieldError) as info:
+        check_real("x", "{a}")
+    assert str(info.value) == "x must be a number, got '{a}' (str)"
+    assert str(info.value.relabelled(str.upper)) == "X must be a number, got '{a}' (str)"

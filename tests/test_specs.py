@@ -1,0 +1,84 @@
+"""Tests of rrr_pin.control.specs: a ReferenceSpec builds the reference its options name."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from rrr_pin.control.paths import circle_from_start
+from rrr_pin.control.references import (
+    LinePath,
+    QuinticReference,
+    default_reference,
+    task_space_reference,
+)
+from rrr_pin.control.specs import KINDS, ReferenceSpec
+from rrr_pin.model.dynamics import load_robot
+
+
+@pytest.fixture(scope="module")
+def rrr():
+    return load_robot("rrr")
+
+
+T = np.linspace(0.0, 2.0, 41)
+
+
+def _same(a, b):
+    # the spec must build exactly the reference the direct call builds (same code, same numbers)
+    for x, y in zip(a.sample(T), b.sample(T), strict=True):
+        assert_allclose(x, y, rtol=0, atol=0)
+
+
+def test_sine_is_the_default_reference(rrr):
+    _same(ReferenceSpec().build(rrr, 4.0), default_reference(rrr))
+    home = (0.1, 0.5, -0.4)
+    _same(ReferenceSpec(amp=0.2, freq=1.0, home=home).build(rrr, 4.0),
+          default_reference(rrr, amp=0.2, freq=1.0, home=np.array(home)))
+
+
+def test_quintic_defaults_to_half_the_run(rrr):
+    start = np.clip(rrr.neutral(), rrr.lower, rrr.upper)
+    got = ReferenceSpec(kind="quintic", to=(0.3, -0.2, 0.4)).build(rrr, 3.0)
+    _same(got, QuinticReference(start, np.array([0.3, -0.2, 0.4]), 1.5))
+
+
+def test_line_and_circle_start_where_the_frame_is(rrr):
+    home = np.array([0.2, 0.6, -1.0])
+    frame = rrr.model.frames[len(rrr.model.frames) - 1].name
+    p0 = rrr.frame_placement(home, frame)[:3, 3]
+    got = ReferenceSpec(kind="line", home=tuple(home), end=tuple(p0 + [0.05, 0.0, 0.0]),
+                        move_time=1.0).build(rrr, 2.0)
+    _same(got, task_space_reference(rrr, frame, LinePath(p0, p0 + [0.05, 0.0, 0.0]), 1.0,
+                                    q_start=home))
+    got = ReferenceSpec(kind="circle", home=tuple(home), radius=0.05).build(rrr, 2.0)
+    _same(got, task_space_reference(rrr, frame, circle_from_start(p0, 0.05), 1.0,
+                                    q_start=home))
+
+
+def option(field):
+    return "--" + field.replace("_", "-")
+
+
+@pytest.mark.parametrize("spec, message", [
+    (ReferenceSpec(kind="zigzag"), "--reference 'zigzag' is unknown; known: sine"),
+    (ReferenceSpec(kind="spline"), "--reference spline needs --csv PATH"),
+    (ReferenceSpec(kind="quintic"), "--reference quintic needs --to"),
+    (ReferenceSpec(kind="quintic", to=(0, 0, 0), move_time=0.0),
+     "--move-time must be a finite number > 0, got 0.0"),
+    (ReferenceSpec(kind="circle", radius=-0.1), "--radius must be a finite number > 0, got -0.1"),
+    (ReferenceSpec(home=(0.0, 0.0)), r"Expected --home of shape (3,), got (2,)"),
+    (ReferenceSpec(amp=float("nan")), "--amp must be a finite number >= 0, got nan"),
+], ids=["kind", "csv", "to", "move-time", "radius", "home", "amp"])
+def test_refusals_name_the_option_as_the_caller_spells_it(rrr, spec, message):
+    with pytest.raises(ValueError) as info:
+        spec.build(rrr, 4.0, label=option)
+    assert message in str(info.value)
+
+
+def test_default_label_is_the_field_name(rrr):
+    with pytest.raises(ValueError, match="move_time must be a finite number > 0, got -1"):
+        ReferenceSpec(kind="quintic", to=(0, 0, 0), move_time=-1).build(rrr, 4.0)
+
+
+def test_every_kind_is_documented():
+    assert set(KINDS) == {"sine", "quintic", "spline", "line", "circle"}
