@@ -2,9 +2,9 @@
 """Regenerate (or check) the committed generated dynamics of the nominal RRR.
 
 ``src/rrr_pin/_ext/codegen_rrr.c`` is plain C for CRBA, nonLinearEffects and ABA of the model
-``rrr_pin.model.dynamics.load_robot("rrr")`` (``urdf/rrr.urdf``, gravity ``DEFAULT_GRAVITY`` = 9.8 m/s^2
-along -z), made by CppADCodeGen through ``tools/codegen/gen.cpp``. Its header records the sha256
-of the URDF and the :func:`rrr_pin.sim.codegen.fingerprint` of the model it was made for.
+``rrr_pin.model.dynamics.load_robot("rrr")`` (``urdf/rrr.urdf``, gravity ``DEFAULT_GRAVITY`` =
+9.8 m/s^2 along -z), made by CppADCodeGen through ``tools/codegen/gen.cpp``. Its header records
+the sha256 of the URDF and the :func:`rrr_pin.sim.codegen.fingerprint` of the model it was made for.
 
 Usage::
 

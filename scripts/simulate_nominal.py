@@ -16,7 +16,7 @@ import rrr_pin
 from rrr_pin.campaign.runner import RunSettings, make_laws, run_laws
 from rrr_pin.control.references import default_reference
 from rrr_pin.report.plotting import plot_runs
-from rrr_pin.sim.simulation import SimulationDiverged, metrics
+from rrr_pin.sim.trajectory import SimulationDiverged, metrics
 
 
 def main(argv=None):

@@ -1,8 +1,8 @@
 """The paper's uncertain study (Fig. 6) from the Python API, for any built-in laws.
 
 Draws seeded uncertain plants (20 % on masses and moments, 5 % on lengths), runs the laws on
-the nominal arm and on each plant (:func:`rrr_pin.campaign.study.run_study`), prints the headline ratios
-against the baseline law and writes the figure of every plant's torques and errors.
+the nominal arm and on each plant (:func:`rrr_pin.campaign.study.run_study`), prints the headline
+ratios against the baseline law and writes the figure of every plant's torques and errors.
 
     python scripts/uncertain_study.py --samples 10 --out uncertain.png
     python scripts/uncertain_study.py --controllers fl,hinf,pd --rate 1000 --jobs 2

@@ -21,7 +21,7 @@ from rrr_pin.control.references import SineReference
 from rrr_pin.model.dynamics import load_robot, robot_from_xml
 from rrr_pin.model.uncertainty import sample_plants
 from rrr_pin.sim.codegen import CodegenModelMismatch, fingerprint, generated_models
-from rrr_pin.sim.compiled import available
+from rrr_pin.sim.extension import available
 from rrr_pin.sim.simulation import simulate
 
 pytestmark = pytest.mark.skipif(not available(), reason="compiled extension not built")

@@ -41,9 +41,10 @@ from rrr_pin.control.references import (
 )
 from rrr_pin.model.dynamics import load_robot, robot_from_xml
 from rrr_pin.model.uncertainty import sample_plants
-from rrr_pin.sim.compiled import ENGINE_LAWS, available, compile_robot, floor_ms
-from rrr_pin.sim.extension import EXTENSION
-from rrr_pin.sim.simulation import SimulationDiverged, simulate
+from rrr_pin.sim.compiled import ENGINE_LAWS, compile_robot, floor_ms
+from rrr_pin.sim.extension import EXTENSION, available
+from rrr_pin.sim.simulation import simulate
+from rrr_pin.sim.trajectory import SimulationDiverged
 
 # The paper's H-infinity controller, eq. (18), typed from the paper (not from rrr_pin.design, so
 # these tests do not depend on the loop-shaping code).

@@ -8,25 +8,27 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rrr_pin.cli import main
-from rrr_pin.robust.loopshaping import (
+from rrr_pin.robust.barriers import (
+    barrier_intersection,
+    robust_performance_barrier,
+    robust_stability_barrier,
+)
+from rrr_pin.robust.loopshaping import design, fl_plant, lag_weight, loopsyn, zpk_data
+from rrr_pin.robust.lti import (
+    DimensionMismatchError,
+    ImproperSystemError,
+    TimebaseMismatchError,
+    expand_diagonal,
+)
+from rrr_pin.robust.ncf import (
     HiddenModeError,
     SynthesisError,
     WeightError,
-    barrier_intersection,
-    design,
-    expand_diagonal,
-    fl_plant,
-    lag_weight,
-    loopsyn,
+    ncfmargin,
     ncfsyn,
-    reduce_controller,
-    robust_performance_barrier,
-    robust_stability_barrier,
     shaped_plant,
-    zpk_data,
 )
-from rrr_pin.robust.lti import DimensionMismatchError, ImproperSystemError, TimebaseMismatchError
-from rrr_pin.robust.ncf import ncfmargin
+from rrr_pin.robust.reduction import reduce_controller
 from rrr_pin.robust.robustness import ncf_loop
 
 OMEGA = np.logspace(-2, 4, 61)

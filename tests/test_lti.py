@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.robust.loopshaping import design, ncfsyn
+from rrr_pin.robust.loopshaping import design
 from rrr_pin.robust.lti import (
     DimensionMismatchError,
     IllPosedLoopError,
@@ -17,7 +17,7 @@ from rrr_pin.robust.lti import (
     to_continuous,
     to_discrete,
 )
-from rrr_pin.robust.ncf import ncfmargin
+from rrr_pin.robust.ncf import ncfmargin, ncfsyn
 
 
 @pytest.mark.parametrize(("sys", "err", "match"), [

@@ -9,7 +9,7 @@ from rrr_pin import cli
 from rrr_pin.campaign.runner import RunSettings, make_laws
 from rrr_pin.campaign.study import StudyConfig, run_study
 from rrr_pin.model.dynamics import load_robot
-from rrr_pin.sim.simulation import SimulationDiverged
+from rrr_pin.sim.trajectory import SimulationDiverged
 
 RUN = RunSettings(duration=0.3, rate=1000.0, engine="python")
 SETTINGS = mc.CampaignSettings(samples=4, run=RUN)

@@ -81,3 +81,31 @@ def test_version_is_the_package_version():
     from importlib.metadata import version
 
     assert rrr_pin.__version__ == version("rrr-pin")
+
+
+def _defined_and_all(path: Path):
+    import ast
+
+    defined, listed = set(), []
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            defined.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            for t in targets:
+                for name in ([t] if isinstance(t, ast.Name) else getattr(t, "elts", [])):
+                    if isinstance(name, ast.Name):
+                        defined.add(name.id)
+                        if name.id == "__all__":
+                            listed = [e.value for e in node.value.elts]
+    return defined, listed
+
+
+MODULES = sorted(p for p in (ROOT / "src" / "rrr_pin").rglob("*.py") if p.name != "__init__.py")
+
+
+@pytest.mark.parametrize("path", MODULES, ids=[p.relative_to(ROOT).as_posix() for p in MODULES])
+def test_no_module_reexports_a_siblings_names(path):
+    # a module's __all__ names only what it defines; a name's home is the module defining it
+    defined, listed = _defined_and_all(path)
+    assert [n for n in listed if n not in defined] == []

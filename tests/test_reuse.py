@@ -14,7 +14,7 @@ from rrr_pin.control.references import QuinticReference, default_reference
 from rrr_pin.model.dynamics import robot_from_xml
 from rrr_pin.model.uncertainty import sample_plant
 from rrr_pin.sim import simulation
-from rrr_pin.sim.compiled import available
+from rrr_pin.sim.extension import available
 from rrr_pin.sim.simulation import reuse_preparation, simulate
 
 DURATION = 0.3  # s: long enough for the H-inf state and the FL loop to move the plant

@@ -5,12 +5,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.robust.loopshaping import (
-    expand_diagonal,
-    fl_plant,
-    robust_performance_barrier,
-    robust_stability_barrier,
-)
+from rrr_pin.robust.barriers import robust_performance_barrier, robust_stability_barrier
+from rrr_pin.robust.loopshaping import fl_plant
+from rrr_pin.robust.lti import expand_diagonal
 from rrr_pin.robust.robustness import (
     check_robust_performance,
     check_robust_stability,

@@ -8,7 +8,8 @@ from rrr_pin.control.references import SineReference, default_reference
 from rrr_pin.model.dh import ArmParams, paper_params
 from rrr_pin.model.dynamics import load_robot
 from rrr_pin.model.uncertainty import sample_plants
-from rrr_pin.sim.simulation import SimulationDiverged, metrics, simulate
+from rrr_pin.sim.simulation import simulate
+from rrr_pin.sim.trajectory import SimulationDiverged, metrics
 
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
                  [1.0, 513.37 + 0.19, 513.37 * 0.19])

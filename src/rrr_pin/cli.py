@@ -527,7 +527,8 @@ def _cmd_stress(args) -> int:
 
     from .campaign.runner import RunSettings, make_laws
     from .campaign.store import check_writable
-    from .campaign.stress import EFFECTS, StressSettings, stress
+    from .campaign.stress import StressSettings, stress
+    from .control.catalog import EFFECTS
     from .control.specs import ReferenceSpec
     from .model.dynamics import load_robot
     from .report.stress import stress_lines, write_stress

@@ -30,7 +30,8 @@ from ..model.dh import ArmParams
 from ..model.dynamics import Robot, robot_from_xml
 from ..model.robots import nominal_params
 from ..model.uncertainty import sample_plant
-from ..sim.simulation import SimulationDiverged, reuse_preparation
+from ..sim.simulation import reuse_preparation
+from ..sim.trajectory import SimulationDiverged
 from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
 from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
 from .settings import Settings

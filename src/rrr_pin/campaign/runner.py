@@ -21,19 +21,12 @@ import numpy as np
 from ..control.catalog import BUILTIN_LAWS, make_law
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import check_law
-from ..sim.simulation import (
-    DEFAULT_DT,
-    ENGINES,
-    SimulationDiverged,
-    Trajectory,
-    reuse_preparation,
-    simulate,
-)
+from ..sim.simulation import DEFAULT_DT, ENGINES, reuse_preparation, simulate
+from ..sim.trajectory import SimulationDiverged, Trajectory
 from ..validation import check_positive, check_rate, check_vector
 
 __all__ = [
     "RunSettings",
-    "BUILTIN_LAWS",
     "make_laws",
     "check_laws",
     "run_laws",
@@ -170,8 +163,8 @@ def run_laws(plant, laws, reference, settings: RunSettings) -> dict:
     Returns
     -------
     dict
-        By law name: its :class:`~rrr_pin.sim.simulation.Trajectory`, or the
-        :class:`~rrr_pin.sim.simulation.SimulationDiverged` it raised (other errors propagate).
+        By law name: its :class:`~rrr_pin.sim.trajectory.Trajectory`, or the
+        :class:`~rrr_pin.sim.trajectory.SimulationDiverged` it raised (other errors propagate).
     """
     out = {}
     kwargs = settings.simulate_kwargs()

@@ -161,7 +161,7 @@ def check_writable(out) -> Path:
     Creates the folder (and its parents) if needed, then creates and removes a probe file in
     it, so a path that is a file or lies under one, a missing permission and a read-only file
     system are all caught. The one writability check of the package (the campaign store and
-    :func:`rrr_pin.report.html.check_writable` both use it).
+    :func:`rrr_pin.campaign.store.check_writable` both use it).
 
     Parameters
     ----------

@@ -48,11 +48,12 @@ from ..control.effects import PlantEffects
 from ..robust.barriers import model_error_bound, robust_stability_barrier
 from ..robust.lti import static_gain
 from ..robust.robustness import check_robust_stability
-from ..sim.simulation import SimulationDiverged, simulate
+from ..sim.simulation import simulate
+from ..sim.trajectory import SimulationDiverged
 from ..validation import check_count, check_positive
 from .runner import RunSettings
 
-__all__ = ["EFFECTS", "DEFAULT_BUDGET", "StressSettings", "linear_boundary",
+__all__ = ["StressSettings", "linear_boundary",
            "continuous_boundary", "barrier_guarantee", "barrier_met", "breaking_point",
            "stress", "effects_of", "spectral_radius", "loop_bandwidth"]
 

@@ -20,7 +20,7 @@ from ..control.references import Reference, default_reference
 from ..model.dynamics import Robot, robot_from_xml
 from ..model.robots import nominal_params
 from ..model.uncertainty import PlantSample, sample_plants
-from ..sim.simulation import SimulationDiverged, metrics
+from ..sim.trajectory import SimulationDiverged, metrics
 from .executors import check_jobs, default_jobs
 from .runner import RunSettings, check_laws, run_laws
 from .settings import Settings

@@ -23,8 +23,7 @@ from ..campaign.store import OutputNotWritable as OutputNotWritableError
 from ..campaign.store import check_writable
 from .viewer import Scene, scene_html
 
-__all__ = ["write_report_html", "report_html", "check_writable", "OutputNotWritableError",
-           "REPORT_MAX_BYTES"]
+__all__ = ["write_report_html", "report_html", "REPORT_MAX_BYTES"]
 
 #: Byte budget of a whole report [bytes] (the issue's bound for 10 s at 30 frames/s with
 #: 11 arms).

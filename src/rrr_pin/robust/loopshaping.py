@@ -41,22 +41,17 @@ from .barriers import (
     PAPER_MODEL_ERROR,
     PAPER_PERFORMANCE_SPECS,
     _specs,
-    barrier_intersection,
-    model_error_bound,
-    performance_bound,
     robust_performance_barrier,
     robust_stability_barrier,
 )
 from .lti import DimensionMismatchError, ImproperSystemError, check_lti, expand_diagonal
 from .ncf import (
-    HiddenModeError,
     NCFSynResult,
     SynthesisError,
     WeightError,
     _weight,
     ncfmargin,
     ncfsyn,
-    shaped_plant,
 )
 from .reduction import (
     NCFReduction,
@@ -73,21 +68,8 @@ from .robustness import (
 )
 
 __all__ = [
-    "HiddenModeError",
-    "WeightError",
-    "SynthesisError",
-    "model_error_bound",
-    "robust_stability_barrier",
-    "performance_bound",
-    "robust_performance_barrier",
-    "barrier_intersection",
     "fl_plant",
     "lag_weight",
-    "shaped_plant",
-    "NCFSynResult",
-    "ncfsyn",
-    "reduce_controller",
-    "expand_diagonal",
     "zpk_data",
     "LoopsynResult",
     "loopsyn",

@@ -45,13 +45,10 @@ from dataclasses import fields
 from ..control.effects import Resolved
 from ..control.laws import FLForm, PDForm
 from .codegen import compile_robot_codegen
-from .extension import EXTENSION, CompiledRobot, available, cached, require
+from .extension import EXTENSION, CompiledRobot, cached, require
 from .trajectory import REASONS, VELOCITY_LIMIT, divergence, make_trajectory
 
 __all__ = [
-    "CompiledRobot",
-    "available",
-    "require",
     "compile_robot",
     "run_compiled",
     "floor_ms",

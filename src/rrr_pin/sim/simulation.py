@@ -40,28 +40,20 @@ import pinocchio as pin
 
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import ControlLaw, SampledLaw, check_law
-from ..control.references import Reference, SineReference, check_reference
+from ..control.references import Reference, check_reference
 from ..validation import check_positive, check_rate, check_vector
 from .trajectory import (
     VELOCITY_LIMIT,
     Run,
-    SimulationDiverged,
     Trajectory,
     diverged_joint,
     divergence,
     make_trajectory,
-    metrics,
 )
 
 __all__ = [
-    "SineReference",
-    "Trajectory",
-    "SimulationDiverged",
     "simulate",
-    "metrics",
-    "diverged_joint",
     "DEFAULT_DT",
-    "VELOCITY_LIMIT",
     "ENGINES",
 ]
 
@@ -181,11 +173,12 @@ def _choose_engine(law, engine: str):
                 f"law {law.name!r} ({type(law).__name__}) declares no compiled form, so the "
                 f"compiled engine cannot run it; use engine='python' (or 'auto', which picks "
                 f"Python for it)")
-        from .compiled import require
+        from .extension import require
 
         require()
         return form, engine
-    from .compiled import available, implements
+    from .compiled import implements
+    from .extension import available
 
     ok = form is not None and available() and implements(form)
     return (form, "compiled") if ok else (None, "python")
