@@ -10,7 +10,7 @@ names and descriptions without importing Pinocchio, NumPy or python-control.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from typing import NamedTuple
 
 __all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "make_law", "EFFECTS", "DEFAULT_BUDGET"]
 
@@ -40,9 +40,8 @@ def _pd(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
     return pd_controller(nominal)
 
 
-@dataclass(frozen=True)
-class BuiltinLaw:
-    """One built-in law of the registry.
+class BuiltinLaw(NamedTuple):
+    """One built-in law of the registry (a named tuple: immutable, and cheap to import).
 
     Attributes
     ----------
