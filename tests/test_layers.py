@@ -14,6 +14,7 @@ shows the checker failing on a tree with an upward import, a cycle and a private
 from __future__ import annotations
 
 import ast
+import importlib
 from pathlib import Path
 
 import pytest
@@ -142,6 +143,15 @@ def test_package_keeps_its_layers():
 def test_every_module_is_in_a_layer():
     names = [m for m in imports_of(SRC) if m != "rrr_pin"]
     assert [m for m in names if layer_of(m) is None] == []
+
+
+@pytest.mark.parametrize("sub", LAYERS[1:-1])
+def test_each_layer_says_what_it_holds(sub):
+    # the subpackage's docstring names every module in it, and what the layer may import
+    doc = importlib.import_module(f"rrr_pin.{sub}").__doc__
+    modules = sorted(p.stem for p in (SRC / sub).glob("*.py") if p.stem != "__init__")
+    assert [m for m in modules if f"rrr_pin.{sub}.{m}" not in doc] == []
+    assert "Layer:" in doc
 
 
 # --- the checker itself, on a small tree --------------------------------------------------------

@@ -1,6 +1,7 @@
 """Many runs: the runner, the paper's study, Monte Carlo campaigns, stress searches, storage.
 
-Holds :mod:`~rrr_pin.campaign.runner` (``RunSettings``, ``run_laws``: any laws on one plant),
+Holds :mod:`~rrr_pin.campaign.settings` (the one frozen settings record of a study or a
+campaign), :mod:`~rrr_pin.campaign.runner` (``RunSettings``, ``run_laws``: any laws on one plant),
 :mod:`~rrr_pin.campaign.study` (the section-5 study), :mod:`~rrr_pin.campaign.montecarlo`
 (campaigns of seeded plants), :mod:`~rrr_pin.campaign.stress` (breaking points of plant
 effects), :mod:`~rrr_pin.campaign.store` (append-only storage, resume) and

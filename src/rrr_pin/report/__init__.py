@@ -3,6 +3,8 @@
 Holds :mod:`~rrr_pin.report.results` (a study's ``results.json``, ``results.md`` and
 ``report.html``), :mod:`~rrr_pin.report.campaign` (a campaign's tables, summary and
 ``report.html``), :mod:`~rrr_pin.report.design` (the loop-shaping design as JSON and text),
+:mod:`~rrr_pin.report.stress` (a stress search's figure, JSON and table),
+:mod:`~rrr_pin.report.dynamics` (the check-dynamics table and verdict),
 :mod:`~rrr_pin.report.plotting` (matplotlib figures, Agg), :mod:`~rrr_pin.report.viewer`
 (MeshCat scenes) and :mod:`~rrr_pin.report.html` (the self-contained ``report.html`` page).
 
