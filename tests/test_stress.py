@@ -17,12 +17,14 @@ from rrr_pin.campaign.stress import (
     barrier_met,
     breaking_point,
     continuous_boundary,
+    effects_of,
     linear_boundary,
     loop_bandwidth,
     spectral_radius,
     stress,
 )
 from rrr_pin.cli import main
+from rrr_pin.control.effects import PlantEffects
 from rrr_pin.control.laws import ControlLaw, TrackingController, fl_controller
 from rrr_pin.control.references import default_reference
 from rrr_pin.model.dynamics import load_robot
@@ -211,3 +213,19 @@ def test_cli_stress_json(tmp_path, capsys):
 def test_cli_bad_input_names_the_option(argv, match, capsys, tmp_path):
     assert main(argv + ["--out", str(tmp_path / "o")]) == 2
     assert match in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("effect, expected", [
+    ("delay", PlantEffects(delay=0.003)),
+    ("actuator", PlantEffects(bandwidth=0.003)),
+    ("stiffness", PlantEffects(stiffness=0.003, motor_inertia=0.01)),
+    ("torque", PlantEffects(torque_limit=0.003)),
+    ("noise", PlantEffects(noise_q=0.003, noise_qd=0.3, seed=7)),
+], ids=lambda v: v if isinstance(v, str) else "")
+def test_each_searchable_effect_is_one_catalog_entry(effect, expected):
+    # the catalog entry alone says which PlantEffects fields a stress size sets (the search,
+    # its help and its units read the same entry)
+    from rrr_pin.control.catalog import EFFECTS
+
+    assert effects_of(effect, 0.003, seed=7) == expected
+    assert set(EFFECTS) == {"delay", "actuator", "stiffness", "torque", "noise"}

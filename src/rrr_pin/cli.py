@@ -503,7 +503,7 @@ def _add_stress(sub) -> None:
     p.add_argument("--controllers", default="fl,hinf,pd", metavar="NAMES",
                    help="comma-separated built-in controllers (fl,hinf,pd)")
     p.add_argument("--effect", required=True, metavar="NAME",
-                   help="; ".join(f"{k}: {v[2]} [{v[0]}]" for k, v in EFFECTS.items()))
+                   help="; ".join(f"{k}: {v.what} [{v.unit}]" for k, v in EFFECTS.items()))
     p.add_argument("--budget", type=float, default=DEFAULT_BUDGET,
                    help=f"RMS tracking error [rad] above which a run is broken "
                         f"({DEFAULT_BUDGET:g})")

@@ -117,16 +117,7 @@ def _check_effect(effect: str) -> str:
 
 def effects_of(effect: str, size: float, seed: int = 0) -> PlantEffects:
     """Return the :class:`PlantEffects` of one effect at ``size`` (unit of :data:`EFFECTS`)."""
-    effect = _check_effect(effect)
-    if effect == "delay":
-        return PlantEffects(delay=size)
-    if effect == "actuator":
-        return PlantEffects(bandwidth=size)
-    if effect == "stiffness":
-        return PlantEffects(stiffness=size, motor_inertia=0.01)
-    if effect == "torque":
-        return PlantEffects(torque_limit=size)
-    return PlantEffects(noise_q=size, noise_qd=100.0 * size, seed=seed)
+    return PlantEffects(**EFFECTS[_check_effect(effect)].fields(size, seed))
 
 
 # --- linear loop -------------------------------------------------------------------------------
@@ -405,7 +396,7 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
         (``inf`` = diverged), ``duration`` [s] of each run.
     """
     settings = settings or StressSettings()
-    unit, direction, _ = EFFECTS[_check_effect(effect)]
+    unit, direction, _, _ = EFFECTS[_check_effect(effect)]
     samples = []
     if home is None:
         home = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
@@ -474,7 +465,7 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
     """
     settings = settings or StressSettings()
     effect = _check_effect(effect)
-    unit, direction, what = EFFECTS[effect]
+    unit, direction, what, _ = EFFECTS[effect]
     if home is None:
         home = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
     rate = settings.run.rate

@@ -12,7 +12,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import NamedTuple
 
-__all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "make_law", "EFFECTS", "DEFAULT_BUDGET"]
+__all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "make_law", "StressEffect", "EFFECTS",
+           "DEFAULT_BUDGET"]
 
 
 def _fl(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
@@ -83,14 +84,41 @@ def make_law(name: str, nominal, **options):
     return law.factory(nominal, **options)
 
 
-#: Effects a stress search can vary (:mod:`rrr_pin.campaign.stress`): (unit, direction: "up" =
-#: largest tolerated size, "down" = smallest, what the size is).
+class StressEffect(NamedTuple):
+    """One effect a stress search can vary (a named tuple: immutable, and cheap to import).
+
+    Attributes
+    ----------
+    unit : str
+        Unit of the effect's size.
+    direction : {"up", "down"}
+        ``"up"``: the search finds the largest tolerated size; ``"down"``: the smallest.
+    what : str
+        What the size is (the CLI's help).
+    fields : callable
+        ``fields(size, seed) -> dict``: the :class:`~rrr_pin.control.effects.PlantEffects`
+        fields of the effect at ``size``, the only place a searchable effect is spelled out.
+    """
+
+    unit: str
+    direction: str
+    what: str
+    fields: Callable
+
+
+#: Effects a stress search can vary (:mod:`rrr_pin.campaign.stress`), by name.
 EFFECTS = {
-    "delay": ("s", "up", "actuator transport delay tau_d"),
-    "actuator": ("rad/s", "down", "first-order actuator bandwidth wa"),
-    "stiffness": ("N m/rad", "down", "joint stiffness K (motor inertia 0.01 kg m^2)"),
-    "torque": ("N m", "down", "torque limit |tau| <= tau_max, every joint"),
-    "noise": ("rad", "up", "std of the Gaussian noise on q (and 100x on qd, in rad/s)"),
+    "delay": StressEffect("s", "up", "actuator transport delay tau_d",
+                          lambda size, seed: {"delay": size}),
+    "actuator": StressEffect("rad/s", "down", "first-order actuator bandwidth wa",
+                             lambda size, seed: {"bandwidth": size}),
+    "stiffness": StressEffect("N m/rad", "down", "joint stiffness K (motor inertia 0.01 kg m^2)",
+                              lambda size, seed: {"stiffness": size, "motor_inertia": 0.01}),
+    "torque": StressEffect("N m", "down", "torque limit |tau| <= tau_max, every joint",
+                           lambda size, seed: {"torque_limit": size}),
+    "noise": StressEffect("rad", "up", "std of the Gaussian noise on q (and 100x on qd, in rad/s)",
+                          lambda size, seed: {"noise_q": size, "noise_qd": 100.0 * size,
+                                              "seed": seed}),
 }
 
 #: RMS tracking error [rad] above which a stress run counts as broken.
