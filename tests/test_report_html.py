@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from rrr_pin.campaign.store import OutputNotWritableError, check_writable
+from rrr_pin.campaign.store import OutputNotWritable, check_writable
 from rrr_pin.model.dh import forward_kinematics, paper_params
 from rrr_pin.model.dynamics import load_robot
 from rrr_pin.report.html import REPORT_MAX_BYTES, report_html, write_report_html
@@ -123,9 +123,9 @@ def test_check_writable(tmp_path):
     assert (tmp_path / "a" / "b").is_dir() and not any((tmp_path / "a" / "b").iterdir())
     blocker = tmp_path / "file.txt"
     blocker.write_text("x")
-    with pytest.raises(OutputNotWritableError, match="file.txt.*not a folder"):
+    with pytest.raises(OutputNotWritable, match="file.txt.*not a folder"):
         check_writable(blocker)
-    with pytest.raises(OutputNotWritableError, match=r"file.txt/sub.*not writable"):
+    with pytest.raises(OutputNotWritable, match=r"file.txt/sub.*not writable"):
         check_writable(blocker / "sub")
 
 

@@ -1,5 +1,6 @@
-// The two loops of a compiled rollout (see rollout.hpp): a sampled law with the plant effects of
-// effects.hpp (all off: the ideal plant), and a continuous law integrated with the arm. Both take
+// The loops of a compiled rollout (see rollout.hpp): a sampled law on the ideal plant or with
+// the plant effects of effects.hpp (one template, two instances), and a continuous law
+// integrated with the arm. Both take
 // their RK4 stages from rk4.hpp.
 #include "rollout.hpp"
 
@@ -7,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 
 #include "rk4.hpp"
 
@@ -85,6 +87,27 @@ namespace rrr_pin
       }
     };
 
+    /// The ideal sampled plant: the arm alone, driven by the held command u. The effects loop's
+    /// SampledPlant with every effect off computes the same numbers; this one skips its copies.
+    struct IdealPlant
+    {
+      Workspace arm;
+      Parts parts;
+      Vec u;
+
+      explicit IdealPlant(const CompiledModel & model)
+      : arm(model)
+      , u(model.model.nq)
+      {
+      }
+
+      void slope(const State & y, int, State & k)
+      {
+        k.q = y.qd;
+        k.qd = aba(arm, y.q, y.qd, u);
+      }
+    };
+
     /// A continuous law and the arm, integrated together; the law at every RK4 stage, on the
     /// reference row of the stage's half step.
     template<class Eval>
@@ -140,8 +163,9 @@ namespace rrr_pin
     };
 
     /// Sampled law: sensor -> law -> saturation -> delay -> plant (effects.hpp), S RK4 sub-steps
-    /// of h per control period, the command held.
-    template<class Law>
+    /// of h per control period, the command held. Ideal = true: no effects (the same operations
+    /// on the same numbers, without the sensor, saturation, delay-line and actuator copies).
+    template<class Law, bool Ideal>
     RolloutResult sampled_loop(
       const CompiledModel & plant_model, const CompiledModel & nominal_model, const Law & law,
       const RolloutInputs & in, const Effects & fx)
@@ -149,7 +173,12 @@ namespace rrr_pin
       const Eigen::Index n = plant_model.model.nq, m = law.nx();
       const std::int64_t N = in.n_steps;
       Outputs out(N, n);
-      SampledPlant plant(plant_model, fx);
+      std::conditional_t<Ideal, IdealPlant, SampledPlant> plant = [&] {
+        if constexpr (Ideal)
+          return IdealPlant(plant_model);
+        else
+          return SampledPlant(plant_model, fx);
+      }();
       typename Law::Eval eval(law, nominal_model);
       State y;
       y.q = in.q0;
@@ -160,21 +189,36 @@ namespace rrr_pin
       out.QD.row(0) = y.qd.transpose();
       for (std::int64_t k = 0; k < N; ++k)
       {
-        fx.sense(k, y.q, y.qd, qm, qdm);
-        tau = eval.torque(qm, qdm, in.R.row(k), in.RD.row(k), in.RDD.row(k), x);
+        if constexpr (Ideal)
+          tau = eval.torque(y.q, y.qd, in.R.row(k), in.RD.row(k), in.RDD.row(k), x);
+        else
+        {
+          fx.sense(k, y.q, y.qd, qm, qdm);
+          tau = eval.torque(qm, qdm, in.R.row(k), in.RD.row(k), in.RDD.row(k), x);
+        }
         if (m > 0)
         {
           eval.state_map(x, xn);
           x.swap(xn);
         }
-        fx.saturate(tau);
-        out.TAU.row(k) = tau.transpose();  // also the delay line: row j = command j
-        if (k == 0)
-          fx.start(tau, y);
-        for (int s = 0; s < in.substeps; ++s)
+        if constexpr (Ideal)
         {
-          plant.u = out.TAU.row(fx.delayed_row(k, s, in.substeps)).transpose();
-          rk4_step(plant, y, in.h, w);
+          out.TAU.row(k) = tau.transpose();
+          plant.u = tau;
+          for (int s = 0; s < in.substeps; ++s)
+            rk4_step(plant, y, in.h, w);
+        }
+        else
+        {
+          fx.saturate(tau);
+          out.TAU.row(k) = tau.transpose();  // also the delay line: row j = command j
+          if (k == 0)
+            fx.start(tau, y);
+          for (int s = 0; s < in.substeps; ++s)
+          {
+            plant.u = out.TAU.row(fx.delayed_row(k, s, in.substeps)).transpose();
+            rk4_step(plant, y, in.h, w);
+          }
         }
         if (!out.record(k, y, in))
           break;
@@ -231,10 +275,10 @@ namespace rrr_pin
     law.check(n);
     if (!in.sampled)
       return continuous_loop(plant, nominal, law, in);
-    const Effects ideal;
-    if (fx)
-      fx->check(n, in.n_steps);
-    return sampled_loop(plant, nominal, law, in, fx ? *fx : ideal);
+    if (!fx)
+      return sampled_loop<Law, true>(plant, nominal, law, in, Effects{});
+    fx->check(n, in.n_steps);
+    return sampled_loop<Law, false>(plant, nominal, law, in, *fx);
   }
 
   template<class Law>

@@ -19,8 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..campaign.store import OutputNotWritable as OutputNotWritableError
-from ..campaign.store import check_writable
+from ..campaign.store import OutputNotWritable, check_writable
 from .viewer import Scene, scene_html
 
 __all__ = ["write_report_html", "report_html", "REPORT_MAX_BYTES"]
@@ -212,7 +211,7 @@ def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (
         A figure file is missing.
     rrr_pin.report.viewer.ViewerSizeError (a ValueError)
         A scene that does not fit its share of ``max_bytes``.
-    OutputNotWritableError (a ValueError)
+    OutputNotWritable (a ValueError)
         The file cannot be written.
     """
     text = report_html(title=title, tables=tables, figures=figures, design=design,
@@ -224,6 +223,6 @@ def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, path)
     except OSError as exc:
-        raise OutputNotWritableError(f"cannot write {str(path)!r}: "
+        raise OutputNotWritable(f"cannot write {str(path)!r}: "
                                      f"{exc.strerror or exc}") from None
     return path
