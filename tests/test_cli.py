@@ -173,3 +173,21 @@ def test_help_loads_no_numerical_library():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip().splitlines()[-1]
     assert out == "[]"
+
+
+def test_version_prints_the_package_version(capsys):
+    import rrr_pin
+
+    with pytest.raises(SystemExit) as info:
+        cli.main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"rrr-pin {rrr_pin.__version__}"
+    # the package's namespace holds its version string, not importlib's version() function
+    assert not hasattr(rrr_pin, "version")
+
+
+def test_help_texts_have_no_doubled_percent(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["montecarlo", "--help"])
+    out = capsys.readouterr().out
+    assert "%%" not in out and "20 % inertia" in out

@@ -11,11 +11,11 @@ The names below are imported on first use (PEP 562), so ``import rrr_pin`` and t
 from __future__ import annotations
 
 import importlib
-from importlib.metadata import PackageNotFoundError, version
+import importlib.metadata as _metadata
 
 try:
-    __version__ = version("rrr-pin")
-except PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = _metadata.version("rrr-pin")
+except _metadata.PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0+unknown"
 
 #: Public name -> submodule that defines it.

@@ -18,6 +18,9 @@ def _build_parser() -> argparse.ArgumentParser:
         prog="rrr-pin",
         description="H-infinity loop shaping + feedback linearization of serial arms "
                     "(Pinocchio dynamics).")
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"rrr-pin {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_urdf, _add_check_dynamics, _add_design, _add_reproduce,
                 _add_montecarlo, _add_stress):
@@ -399,7 +402,7 @@ def _cmd_reproduce(args) -> int:
 def _add_montecarlo(sub) -> None:
     p = sub.add_parser(
         "montecarlo", help="Monte Carlo campaign: N seeded uncertain plants, any controllers",
-        description="Draws N seeded uncertain plants (20 %% inertia, 5 %% lengths), simulates "
+        description="Draws N seeded uncertain plants (20 % inertia, 5 % lengths), simulates "
                     "every --controllers law on each (sampled controllers, 1 kHz by default) "
                     "and writes campaign.csv, samples.jsonl, summary.json and montecarlo.png "
                     "into --out. Results are identical whatever --jobs.")
