@@ -252,3 +252,28 @@ def test_wrote_checks_the_file_exists(tmp_path):
         (store.out / "fig.png").write_bytes(b"png")
         assert store.wrote("fig.png") == store.out / "fig.png"
         assert store.written == [store.out / "fig.png"]
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
+def test_a_signal_during_the_write_is_held_until_the_rows_are_counted(tmp_path, monkeypatch, sig):
+    # the signal lands inside fsync (where a real one most often does): the rows reach the file
+    # and the store counts them, and only then does the interrupt surface
+    import signal
+
+    from rrr_pin.campaign.executors import interrupt_on_signals
+
+    real_fsync = os.fsync
+
+    def fsync_hit_by_signal(fd):
+        os.kill(os.getpid(), getattr(signal, sig))
+        real_fsync(fd)
+
+    with CampaignStore.open(tmp_path / "o", settings=SETTINGS, resume=False,
+                            overwrite=False) as store:
+        store.append([toy_row(7, 0), toy_row(7, 1)])
+        monkeypatch.setattr(os, "fsync", fsync_hit_by_signal)
+        with pytest.raises(KeyboardInterrupt, match=f"received {sig}"), interrupt_on_signals():
+            store.append([toy_row(7, 2), toy_row(7, 3)])
+        monkeypatch.setattr(os, "fsync", real_fsync)
+        assert store.done() == {0, 1, 2, 3}
+        assert [r["index"] for r in store.rows()] == [0, 1, 2, 3]

@@ -44,8 +44,11 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import tempfile
+import threading
 from collections.abc import Iterable
+from contextlib import contextmanager
 from pathlib import Path
 
 try:  # POSIX advisory lock: one writer per output directory
@@ -194,6 +197,29 @@ def check_writable(out) -> Path:
         raise OutputNotWritable(f"output directory {str(out)!r} is not writable: "
                                 f"{exc.strerror or exc}") from exc
     return out.resolve()
+
+
+@contextmanager
+def _signals_deferred():
+    """Hold SIGINT and SIGTERM until the block ends, then deliver them to the handlers in force.
+
+    A signal that lands while rows are being written (during ``fsync``, say) would otherwise
+    raise ``KeyboardInterrupt`` between the write and its bookkeeping: rows on disk that the
+    store does not count. Only the main thread has signal handlers; elsewhere it does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in held}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        if pending:
+            signal.raise_signal(pending[0])
 
 
 class CampaignStore:
@@ -393,15 +419,16 @@ class CampaignStore:
             except (TypeError, ValueError) as exc:
                 raise TypeError(f"row {k} is not JSON-able: {exc}") from exc
             seen.add(k)
-        start = self._fh.tell()
-        try:
-            self._fh.write("".join(lines).encode())
-            self._fh.flush()
-            os.fsync(self._fh.fileno())
-        except OSError:  # e.g. disk full: leave no torn line between two good ones
-            self._fh.truncate(start)
-            raise
-        self._done |= seen
+        with _signals_deferred():  # written and recorded, or neither: never one without the other
+            start = self._fh.tell()
+            try:
+                self._fh.write("".join(lines).encode())
+                self._fh.flush()
+                os.fsync(self._fh.fileno())
+            except OSError:  # e.g. disk full: leave no torn line between two good ones
+                self._fh.truncate(start)
+                raise
+            self._done |= seen
 
     def rows(self) -> list[dict]:
         """Return every recorded row, sorted by ``index``."""
