@@ -191,3 +191,13 @@ def test_help_texts_have_no_doubled_percent(capsys):
         cli.main(["montecarlo", "--help"])
     out = capsys.readouterr().out
     assert "%%" not in out and "20 % inertia" in out
+
+
+@pytest.mark.parametrize("value, shown", [("-1e-3", "-0.001"), ("-2.5E+1", "-25.0"), ("-1", "-1")],
+                         ids=["exponent", "exponent-upper", "integer"])
+def test_negative_option_values_reach_the_options_check(capsys, tmp_path, value, shown):
+    # argparse alone reads "-1e-3" as an option ("expected one argument")
+    assert cli.main(["reproduce", "--dt", value, "--out", str(tmp_path / "o"),
+                     "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert f"--dt must be a finite number > 0 [s], got {shown}" in err

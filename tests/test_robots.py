@@ -146,3 +146,13 @@ def test_nominal_params_of_a_urdf_file_is_none(tmp_path):
 
     path = write_urdf(tmp_path / "rrr.urdf")
     assert nominal_params(load_robot(path)) is None
+
+
+def test_every_listed_name_loads():
+    # robot_names() lists only arms load_robot accepts; the Panda needs its mimic finger locked
+    from rrr_pin.model.robots import robot_names
+
+    for name in robot_names():
+        lock = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0} if name == "panda" else {}
+        robot = load_robot(name, lock=lock)
+        assert robot.nq >= 3, name

@@ -31,12 +31,31 @@ def _build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``rrr-pin`` console script."""
     parser = _build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_negative_values(sys.argv[1:] if argv is None else list(argv)))
     try:
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError, RuntimeError) as exc:
         print(f"rrr-pin {args.command}: error: {exc}", file=sys.stderr)
         return 2
+
+
+def _negative_values(argv: list[str]) -> list[str]:
+    """Join ``--opt -1e-3`` into ``--opt=-1e-3``: argparse reads ``-1e-3`` as an option.
+
+    argparse takes a token for a negative number only in the forms ``-1`` and ``-0.5``; an
+    exponent (``-1e-3``) made ``--dt -1e-3`` fail with "expected one argument" instead of
+    reaching the option's own check.
+    """
+    import re
+
+    number = re.compile(r"^-(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
+    out = []
+    for token in argv:
+        if out and number.match(token) and out[-1].startswith("--") and "=" not in out[-1]:
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
 
 
 # --- urdf -------------------------------------------------------------------------------------

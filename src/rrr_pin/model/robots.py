@@ -16,7 +16,7 @@ __all__ = ["ERD_ARMS", "RobotModelError", "robot_names", "read_source", "erd_urd
            "nominal_params"]
 
 #: example-robot-data names accepted by :func:`load_robot` (fixed-base arms).
-ERD_ARMS = ("ur3", "ur5", "ur10", "panda", "kinova", "z1", "bravo7_no_ee", "so_arm100")
+ERD_ARMS = ("ur3", "ur5", "ur10", "panda", "kinova", "z1", "bravo7_no_ee", "xarm7")
 
 
 class RobotModelError(ValueError):
