@@ -217,3 +217,25 @@ def test_field_error_keeps_braces_of_the_value():
         check_real("x", "{a}")
     assert str(info.value) == "x must be a number, got '{a}' (str)"
     assert str(info.value.relabelled(str.upper)) == "X must be a number, got '{a}' (str)"
+
+
+@pytest.mark.parametrize("value, shape, message", [
+    ([[1.0, 2.0]], (2, 1), r"Expected K of shape \(2, 1\), got \(1, 2\)"),
+    ([[1.0, float("inf")]], (1, 2), r"K must be finite, got \[\[1.0, inf\]\]"),
+    ([["a", 1.0]], (1, 2), "K must be an array of numbers"),
+], ids=["shape", "inf", "strings"])
+def test_check_matrix_refuses(value, shape, message):
+    from rrr_pin.validation import check_matrix
+
+    with pytest.raises(ValueError, match=message):
+        check_matrix("K", value, shape)
+
+
+def test_check_matrix_readonly_copies_a_writable_input():
+    from rrr_pin.validation import check_matrix
+
+    src = np.eye(2)
+    out = check_matrix("K", src, (2, 2), readonly=True)
+    assert not out.flags.writeable and src.flags.writeable  # the caller's array is untouched
+    np.testing.assert_array_equal(out, src)  # same numbers, exactly
+    assert check_matrix("K", [[1, 2]], (1, 2)).dtype == float

@@ -468,15 +468,16 @@ def _cmd_montecarlo(args) -> int:
     robot = load_robot(args.robot, lock=lock)
     run = _settings_from_args(args, robot.nq)
     reference = _reference_from_args(args, robot)
-    laws, baseline = _laws_from_args(args, robot)
-    settings = CampaignSettings(samples=args.samples, seed=args.seed, run=run,
-                                baseline=baseline)
-    certificate = None
-    if args.certify:
+    certificate = K = None
+    if args.certify:  # one design serves the certificate and the H-infinity law
         from .robust.certificates import CertificateSpec
         from .robust.loopshaping import design
 
-        certificate = CertificateSpec.from_design(design(lam=45.0, n=robot.nq))
+        d = design(lam=45.0, n=robot.nq)
+        certificate, K = CertificateSpec.from_design(d), d.K_reduced
+    laws, baseline = _laws_from_args(args, robot, K=K)
+    settings = CampaignSettings(samples=args.samples, seed=args.seed, run=run,
+                                baseline=baseline)
     store = open_store(args.out, robot, laws, settings, reference, resume=args.resume,
                        overwrite=args.overwrite, certificate=certificate)
     with store:

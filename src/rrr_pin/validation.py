@@ -9,7 +9,8 @@ and the expected range, in the same words everywhere:
 * :func:`check_size`: a dimension, an integer >= 1;
 * :func:`check_rate`: a sampling rate [Hz], finite and > 0;
 * :func:`check_probability`: a number in [0, 1];
-* :func:`check_vector`: a finite vector of shape (n,).
+* :func:`check_vector`: a finite vector of shape (n,);
+* :func:`check_matrix`: a finite matrix of a given shape.
 
 Public entry points call them once; inner loops trust what they were handed. Booleans, ``None``
 and strings are refused as numbers everywhere (``float(True)`` would read a JSON ``true`` as 1).
@@ -35,6 +36,7 @@ __all__ = [
     "check_rate",
     "check_probability",
     "check_vector",
+    "check_matrix",
 ]
 
 
@@ -195,3 +197,38 @@ def check_vector(name: str, value, n: int | None = None, *, readonly: bool = Fal
     if readonly:
         v.setflags(write=False)
     return v
+
+
+def check_matrix(name: str, value, shape: tuple[int, int], *,
+                 readonly: bool = False) -> np.ndarray:
+    """Return ``value`` as a finite float matrix of exactly ``shape``.
+
+    Parameters
+    ----------
+    name : str
+        The field, for the message.
+    value : array-like
+        The matrix.
+    shape : tuple of int
+        Required shape ``(rows, columns)``.
+    readonly : bool, default False
+        Return a read-only array (a copy if ``value`` was writable), for frozen objects.
+
+    Raises
+    ------
+    ValueError
+        ``"{name} must be an array of numbers"``, ``"Expected {name} of shape (r, c), got ..."``
+        or ``"{name} must be finite, got [[...]]"``.
+    """
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise _fail(name, f" must be an array of numbers, got {value!r}") from None
+    if arr.shape != tuple(shape):
+        raise FieldError(name, f"Expected {{name}} of shape {tuple(shape)}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise _fail(name, f" must be finite, got {arr.tolist()}")
+    if readonly and arr.flags.writeable:
+        arr = arr.copy()
+        arr.setflags(write=False)
+    return arr

@@ -71,7 +71,7 @@ from typing import ClassVar
 import numpy as np
 import pinocchio as pin
 
-from ..validation import check_positive, check_rate
+from ..validation import check_matrix, check_positive, check_rate
 
 __all__ = [
     "ControlLaw",
@@ -123,19 +123,6 @@ class CompiledForm:
     kind: ClassVar[str] = ""
 
 
-def _matrix(name: str, value, shape: tuple[int, int]) -> np.ndarray:
-    """``value`` as a read-only finite float matrix of ``shape``."""
-    arr = np.asarray(value, dtype=float)
-    if arr.shape != shape:
-        raise ValueError(f"Expected {name} of shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite, got {arr.tolist()}")
-    if arr.flags.writeable:
-        arr = arr.copy()
-        arr.setflags(write=False)
-    return arr
-
-
 @dataclass(frozen=True, eq=False)
 class FLForm(CompiledForm):
     r"""Feedback linearization with a linear controller on the error, eq. (8)-(10).
@@ -169,7 +156,8 @@ class FLForm(CompiledForm):
         n = self.nominal.nq
         m = np.shape(self.A)[0] if np.ndim(self.A) == 2 else -1
         for key, shape in (("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n))):
-            object.__setattr__(self, key, _matrix(key, getattr(self, key), shape))
+            value = check_matrix(key, getattr(self, key), shape, readonly=True)
+            object.__setattr__(self, key, value)
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,7 +183,8 @@ class PDForm(CompiledForm):
     def __post_init__(self) -> None:
         n = self.nominal.nq
         for key in ("Kp", "Kd"):
-            object.__setattr__(self, key, _matrix(key, getattr(self, key), (n, n)))
+            value = check_matrix(key, getattr(self, key), (n, n), readonly=True)
+            object.__setattr__(self, key, value)
 
 
 class LinearModel:
