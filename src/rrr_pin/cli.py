@@ -219,7 +219,9 @@ def _add_robot_arguments(p) -> None:
                         "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
     p.add_argument("--home", metavar="Q1,Q2,...", default=None,
                    help="centre of the sinusoid, start of a quintic or task-space motion [rad] "
-                        "(default: the URDF's neutral configuration, moved inside the limits)")
+                        "(default: the URDF's neutral configuration, moved inside the limits; "
+                        "for line/circle, bent one joint away from it if the frame is singular "
+                        "there)")
 
 
 def _add_law_arguments(p, default_duration: float, default_rate) -> None:

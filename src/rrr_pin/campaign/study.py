@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..control.references import Reference, default_reference
+from ..control.references import Reference, TaskSpaceReference, default_reference
 from ..model.dynamics import Robot, robot_from_xml
 from ..model.robots import nominal_params
 from ..model.uncertainty import PlantSample, sample_plants
@@ -35,6 +35,7 @@ __all__ = [
     "run_plant",
     "run_study",
     "summarize",
+    "task_space_errors",
 ]
 
 
@@ -114,6 +115,14 @@ class StudyResult:
         every law ran, otherwise the divergence messages), ``trajectories`` and ``metrics``
         (by law name, for the laws that ran).
     plants : list of PlantSample
+    task_space : dict
+        For a task-space reference (:class:`~rrr_pin.control.references.TaskSpaceReference`),
+        the frame's Cartesian error (:func:`task_space_errors`): ``frame``, ``nominal`` and
+        ``uncertain`` per law (figures in [m], see :func:`task_space_errors`), and ``errors``
+        (not written to ``results.json``): ``errors["nominal"][law]``, the nominal plant's
+        error, shape (N, 3) [m], and ``errors["uncertain"][law]``, a list of tracking-error
+        norms (nominal kinematics) of shape (N,) [m], one per uncertain plant where the law
+        ran. Empty for a joint-space reference.
     """
 
     robot: str
@@ -126,6 +135,7 @@ class StudyResult:
     plants: list
     design: dict = field(default_factory=dict)
     certificate: dict | None = None
+    task_space: dict = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:
@@ -160,6 +170,8 @@ class StudyResult:
                             for s in self.samples],
             },
             "summary": summarize(self),
+            **({"task_space": {k: v for k, v in self.task_space.items() if k != "errors"}}
+               if self.task_space else {}),
         }
 
 
@@ -210,6 +222,61 @@ def summarize(result: StudyResult) -> dict:
             for k in others}
         out["torque_ratio_uncertain"] = {k: float(rms(k, "rms_torque") / rms(base, "rms_torque"))
                                          for k in others}
+    return out
+
+
+def task_space_errors(reference: TaskSpaceReference, nominal: Robot, runs: dict,
+                      samples: list, plants: list) -> dict:
+    """Cartesian error of the frame a task-space reference moves, for every run of a study.
+
+    The frame's origin by forward kinematics against the path
+    (:meth:`~rrr_pin.control.references.TaskSpaceReference.tracking_error`), two ways for an
+    uncertain plant: by the plant's own kinematics (``rms_error_m``, ``max_error_m``: where the
+    arm really is, so its perturbed link lengths count) and by the nominal kinematics
+    (``rms_tracking_error_m``, ``max_tracking_error_m``: the joint tracking error seen in task
+    space, what the controller is responsible for). RMS over time of the error's Euclidean
+    norm, over the plants where the law ran; max its largest value [m].
+
+    Parameters
+    ----------
+    reference : TaskSpaceReference
+    nominal : Robot
+    runs : dict
+        ``{law name: Trajectory}`` on the nominal plant.
+    samples : list of dict
+        The study's samples (``trajectories`` by law name).
+    plants : list of PlantSample
+        The uncertain plants, in the order of ``samples``.
+    """
+    def figures(d, prefix=""):
+        return {f"rms_{prefix}error_m": float(np.sqrt(np.mean(d * d))),
+                f"max_{prefix}error_m": float(d.max())}
+
+    def norm(robot, traj):
+        return np.linalg.norm(reference.tracking_error(robot, traj.t, traj.q), axis=1)
+
+    out = {"frame": reference.frame, "nominal": {}, "uncertain": {},
+           "errors": {"nominal": {}, "uncertain": {}}}
+    for name, traj in runs.items():
+        e = reference.tracking_error(nominal, traj.t, traj.q)
+        out["errors"]["nominal"][name] = e
+        out["nominal"][name] = figures(np.linalg.norm(e, axis=1))
+    true: dict = {name: [] for name in runs}
+    seen: dict = {name: [] for name in runs}
+    for sample, plant in zip(samples, plants, strict=True):
+        if not sample["trajectories"]:
+            continue
+        robot = robot_from_xml(plant.urdf, gravity=nominal.gravity, lock=dict(nominal.locked),
+                               name=f"sample{plant.index}", check=False)
+        for name, traj in sample["trajectories"].items():
+            true[name].append(norm(robot, traj))
+            seen[name].append(norm(nominal, traj))
+    out["errors"]["uncertain"] = seen
+    for name in runs:
+        if true[name]:
+            out["uncertain"][name] = {**figures(np.concatenate(true[name])),
+                                      **figures(np.concatenate(seen[name]), "tracking_"),
+                                      "plants": len(true[name])}
     return out
 
 
@@ -306,8 +373,11 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
         if cert is not None:
             entry["certificate"] = cert
         samples.append(entry)
+    task_space = (task_space_errors(reference, nominal, outputs[0][0], samples, plants)
+                  if isinstance(reference, TaskSpaceReference) else {})
     return StudyResult(robot=nominal.name, joint_names=nominal.joint_names, reference=reference,
                        config=config, laws=[law.describe() for law in laws],
                        nominal=outputs[0][0], samples=samples, plants=plants,
-                       certificate=certificate.to_dict() if certificate is not None else None)
+                       certificate=certificate.to_dict() if certificate is not None else None,
+                       task_space=task_space)
 

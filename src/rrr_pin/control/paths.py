@@ -2,7 +2,10 @@
 
 :func:`circle_from_start` builds the :class:`~rrr_pin.control.references.CirclePath` whose
 motion begins at a given point, as ``rrr-pin reproduce --reference circle`` needs: the point
-where the frame is at the start configuration.
+where the frame is at the start configuration. :func:`task_start` chooses that start
+configuration when none is given: the neutral one if the frame can move in every direction
+there, else the nearest one-joint move away from it that can (the paper's RRR is stretched,
+hence singular, at its neutral configuration).
 """
 
 from __future__ import annotations
@@ -12,7 +15,10 @@ import numpy as np
 from ..validation import check_positive, check_vector
 from .references import CirclePath
 
-__all__ = ["circle_from_start"]
+__all__ = ["circle_from_start", "task_start", "position_conditioning"]
+
+#: Largest condition number of the frame's position Jacobian accepted at a default start.
+COND_MAX = 10.0
 
 
 def circle_from_start(p0, radius: float, normal=(0.0, 0.0, 1.0)) -> CirclePath:
@@ -53,3 +59,83 @@ def circle_from_start(p0, radius: float, normal=(0.0, 0.0, 1.0)) -> CirclePath:
     u = u - normal * (u @ normal) / (normal @ normal)
     u /= np.linalg.norm(u)
     return CirclePath(p0 - radius * u, radius, normal=normal, start_dir=u)
+
+
+def position_conditioning(robot, frame: str, q) -> float:
+    r"""Condition number of the position rows of ``frame``'s Jacobian at ``q``.
+
+    .. math:: \kappa = \sigma_1(J_p) / \sigma_m(J_p), \qquad m = \min(3, n)
+
+    with :math:`J_p` the 3 x n translation rows of Pinocchio's frame Jacobian
+    (``LOCAL_WORLD_ALIGNED``). Infinite at a singular configuration, where the frame's origin
+    cannot move in some direction.
+
+    Parameters
+    ----------
+    robot : Robot
+    frame : str
+        A frame of ``robot.model``.
+    q : array-like, shape (n,)
+        Configuration [rad].
+    """
+    import pinocchio as pin
+
+    fid = robot.model.getFrameId(frame)
+    data = robot.model.createData()
+    J = pin.computeFrameJacobian(robot.model, data, np.asarray(q, dtype=float), fid,
+                                 pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+    s = np.linalg.svd(J, compute_uv=False)[: min(3, robot.nq)]
+    return float(s[0] / s[-1]) if s[-1] > 1e-12 * max(s[0], 1e-300) else np.inf
+
+
+def task_start(robot, frame: str, *, cond_max: float = COND_MAX, step: float = 0.05,
+               reach: float = 1.0) -> np.ndarray:
+    """Default start configuration of a task-space motion of ``frame``.
+
+    The neutral configuration (moved inside the joint limits) if the position Jacobian of
+    ``frame`` is conditioned better than ``cond_max`` there (:func:`position_conditioning`);
+    otherwise the first configuration, in order of growing offset ``step, 2 step, ...`` up to
+    ``reach``, then joint index, then ``+`` before ``-``, that moves one joint by that offset
+    and is conditioned better than ``cond_max``. For the paper's RRR (stretched, hence singular,
+    at zero) this bends the elbow: ``(0, 0, 0.5)`` rad, condition number 9.8.
+
+    Parameters
+    ----------
+    robot : Robot
+    frame : str
+        A frame of ``robot.model``.
+    cond_max : float, default 10
+        Largest accepted condition number, > 1.
+    step, reach : float, default 0.05 and 1.0
+        Offset grid [rad] (or [m] for a prismatic joint).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The start [rad].
+
+    Raises
+    ------
+    ValueError
+        No configuration of that set is conditioned better than ``cond_max``; the message gives
+        the neutral one's condition number and asks for an explicit start (``--home``).
+    """
+    cond_max = check_positive("cond_max", cond_max)
+    if not robot.model.existFrame(frame):
+        raise ValueError(f"frame {frame!r} is not in robot {robot.name!r}")
+    q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
+    k0 = position_conditioning(robot, frame, q0)
+    if k0 <= cond_max:
+        return q0
+    for m in range(1, int(round(reach / step)) + 1):
+        for j in range(robot.nq):
+            for sign in (1.0, -1.0):
+                q = q0.copy()
+                q[j] += sign * m * step
+                if robot.lower[j] <= q[j] <= robot.upper[j] and \
+                        position_conditioning(robot, frame, q) <= cond_max:
+                    return q
+    raise ValueError(
+        f"frame {frame!r} of {robot.name!r} is badly conditioned at the neutral configuration "
+        f"(condition number {k0:.3g} > {cond_max:g}) and at every one-joint move of up to "
+        f"{reach:g} rad from it: give the start configuration (--home Q1,Q2,...)")

@@ -41,6 +41,7 @@ __all__ = [
     "LinePath",
     "CirclePath",
     "task_space_reference",
+    "TaskSpaceReference",
     "IKError",
     "check_reference",
 ]
@@ -487,9 +488,90 @@ def _ik_point(robot, frame_id: int, target: np.ndarray, q: np.ndarray, *, dampin
     return q, err
 
 
+@dataclass(frozen=True)
+class TaskSpaceReference(SplineReference):
+    """Joint spline that moves a frame's origin along a task-space path.
+
+    Made by :func:`task_space_reference`: a :class:`SplineReference` (the engines see only its
+    joint spline) that also keeps what it was made from, so that a run can be judged in task
+    space by :meth:`tracking_error`.
+
+    Attributes
+    ----------
+    frame : str
+        The frame whose origin follows the path.
+    path : LinePath or CirclePath
+        The path [m], base frame.
+    move_time : float
+        Duration of the motion [s]; the path parameter follows the quintic rest-to-rest law.
+    fk_error_m : float
+        Largest deviation of the joint spline from the path, measured between knots [m].
+    """
+
+    frame: str = ""
+    path: object = None
+    move_time: float = 0.0
+    fk_error_m: float = 0.0
+
+    def target(self, t) -> np.ndarray:
+        """Target point of the frame's origin at times ``t`` [s], shape (N,) -> (N, 3) [m].
+
+        Before 0 the path's start, after :attr:`move_time` its end (at rest, as the spline).
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return self.path.point(_quintic(t / self.move_time)[0])
+
+    def tracking_error(self, robot, t, q) -> np.ndarray:
+        r"""Task-space error of a run: where the frame is, minus where the path wants it.
+
+        .. math:: e_x(t_k) = p(q_k) - p^*(t_k)
+
+        with ``p(q)`` the frame origin by ``robot``'s forward kinematics (Pinocchio) and
+        ``p^*`` the path (:meth:`target`), not the joint spline's own kinematics: the error
+        includes the spline's deviation (:attr:`fk_error_m`) and, for an uncertain plant, the
+        plant's kinematics (its link lengths differ from the nominal ones).
+
+        Parameters
+        ----------
+        robot : Robot
+            The arm that moved (the plant), with a frame named :attr:`frame`.
+        t : array-like, shape (N,)
+            Times [s].
+        q : array-like, shape (N, n)
+            Joint positions of the run [rad].
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            Error [m], base frame.
+        """
+        import pinocchio as pin
+
+        if not robot.model.existFrame(self.frame):
+            raise ValueError(f"frame {self.frame!r} of the task-space reference is not in "
+                             f"robot {robot.name!r}")
+        fid = robot.model.getFrameId(self.frame)
+        t = np.asarray(t, dtype=float)
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape != (t.shape[0], robot.nq):
+            raise ValueError(f"q must have shape ({t.shape[0]}, {robot.nq}), got {q.shape}")
+        model, data = robot.model, robot.model.createData()
+        p = np.empty((t.shape[0], 3))
+        for k in range(t.shape[0]):
+            pin.forwardKinematics(model, data, q[k])
+            p[k] = pin.updateFramePlacement(model, data, fid).translation
+        return p - self.target(t)
+
+    def to_dict(self) -> dict:
+        """JSON-ready description: the spline's, plus ``task_space`` (frame, path, timing)."""
+        return {**super().to_dict(),
+                "task_space": {"frame": self.frame, "path": self.path.to_dict(),
+                               "move_time_s": self.move_time, "fk_error_m": self.fk_error_m}}
+
+
 def task_space_reference(robot, frame: str, path, move_time: float, *, q_start=None,
                          rate: float = 200.0, tol: float = 1e-6,
-                         fk_tol: float = 1e-4) -> SplineReference:
+                         fk_tol: float = 1e-4) -> TaskSpaceReference:
     r"""Joint reference that moves ``frame``'s origin along a task-space ``path``.
 
     The path parameter follows the quintic rest-to-rest time law over ``move_time``; the path
@@ -523,7 +605,7 @@ def task_space_reference(robot, frame: str, path, move_time: float, *, q_start=N
 
     Returns
     -------
-    SplineReference
+    TaskSpaceReference
         Its ``source`` (also in ``to_dict``) records the frame, the path and ``fk_error_m``, the
         largest deviation measured [m].
 
@@ -561,7 +643,8 @@ def task_space_reference(robot, frame: str, path, move_time: float, *, q_start=N
                 f"(t = {t[k]:.4g} s, target {np.round(p, 6).tolist()} m): residual "
                 f"{err:.3g} m > {tol:g} m; the point is probably out of reach")
         Q[k] = q
-    ref = SplineReference(t, Q, source=f"task-space {path.to_dict()['kind']} of frame {frame!r}")
+    ref = TaskSpaceReference(t, Q, source=f"task-space {path.to_dict()['kind']} of frame "
+                                          f"{frame!r}", frame=frame, path=path, move_time=T)
     tm = 0.5 * (t[1:] + t[:-1])
     Rm = ref.positions(tm)
     sm = _quintic(tm / T)[0]
@@ -575,6 +658,7 @@ def task_space_reference(robot, frame: str, path, move_time: float, *, q_start=N
         raise ValueError(f"the joint spline deviates {dev:.3g} m from the path of {frame!r} "
                          f"between knots (> fk_tol = {fk_tol:g} m); raise rate (now {rate:g} Hz)")
     object.__setattr__(ref, "source", f"{ref.source}, {path.to_dict()}, fk_error_m={dev:.3g}")
+    object.__setattr__(ref, "fk_error_m", dev)
     return ref
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..validation import check_positive, check_vector
-from .paths import circle_from_start
+from .paths import circle_from_start, task_start
 from .references import (
     LinePath,
     QuinticReference,
@@ -51,7 +51,9 @@ class ReferenceSpec:
         ``sine``: amplitude [rad] and frequency [Hz], finite and >= 0.
     home : tuple of float, shape (n,), optional
         Centre of the sinusoid, start of a quintic or task-space motion [rad]; default the
-        URDF's neutral configuration (moved inside the limits).
+        URDF's neutral configuration (moved inside the limits), and for a task-space motion
+        :func:`~rrr_pin.control.paths.task_start` (the neutral one unless the frame is
+        singular there).
     to : tuple of float, shape (n,), optional
         ``quintic``: goal [rad].
     move_time : float, optional
@@ -124,6 +126,8 @@ class ReferenceSpec:
                                  f"(the goal, one value per joint)")
             return QuinticReference(start, check_vector(label("to"), self.to, n), move)
         frame = self.frame or robot.model.frames[len(robot.model.frames) - 1].name
+        if home is None:
+            start = task_start(robot, frame)  # neutral, unless singular there (see task_start)
         p0 = robot.frame_placement(start, frame)[:3, 3]
         if kind == "line":
             if self.end is None:

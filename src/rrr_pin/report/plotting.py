@@ -345,7 +345,10 @@ def plot_study_uncertain(result, path):
 
 
 def save_study_figures(result, out_dir) -> list[Path]:
-    """Write ``fig5_nominal.png``, ``fig6_uncertain.png`` and, if certified, ``certificates.png``.
+    """Write the study's figures: Fig. 5, Fig. 6, certificates and task space.
+
+    ``fig5_nominal.png``, ``fig6_uncertain.png``, ``certificates.png`` if certified, and
+    ``task_space.png`` for a task-space reference (:func:`plot_task_space`).
 
     Parameters
     ----------
@@ -369,7 +372,81 @@ def save_study_figures(result, out_dir) -> list[Path]:
             [x["certificate"]["nugap_max"] for x in certified],
             certified[0]["certificate"]["b"], [x["status"] == "ok" for x in certified],
             out / "certificates.png"))
+    if result.task_space:
+        figures.append(plot_task_space(result, out / "task_space.png"))
     return figures
+
+
+def plot_task_space(result, path=None, axes=None):
+    """Task-space tracking of a study: the frame's path, and its Cartesian error over time.
+
+    Left: the path (dashed) and, for every controller, the frame's path on the nominal plant,
+    seen along the base axis over which the path varies least. Right: norm of the Cartesian
+    error [mm] (log scale) against time: the nominal plant thick, each uncertain plant thin
+    (by the nominal kinematics: the tracking error; see
+    :func:`~rrr_pin.campaign.study.task_space_errors`).
+
+    Parameters
+    ----------
+    result : rrr_pin.campaign.study.StudyResult
+        A study with a task-space reference (``result.task_space`` not empty).
+    path : str or Path, optional
+        PNG to write (the figure is then closed and the path returned).
+    axes : sequence of two matplotlib Axes, optional
+        Draw into these (e.g. in a notebook); the figure is returned, open.
+
+    Returns
+    -------
+    Path or matplotlib.figure.Figure
+        ``path`` if given, else the figure.
+    """
+    ts = result.task_space
+    if not ts:
+        raise ValueError("the study's reference is not a task-space motion (line or circle)")
+
+    if axes is None:
+        fig, axes = plt.subplots(1, 2, figsize=(12, 5), gridspec_kw={"width_ratios": [1, 1.4]})
+    else:
+        fig = axes[0].figure
+    ref = result.reference
+    names = result.names
+    t = result.nominal[names[0]].t
+    target = ref.target(t)
+    keep = np.sort(np.argsort(np.ptp(target, axis=0))[1:])  # the two axes of largest extent
+    xyz = "xyz"
+    ax = axes[0]
+    ax.plot(target[:, keep[0]], target[:, keep[1]], "k--", lw=2.5, label="path")
+    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colours = [cycle[i % len(cycle)] for i in range(len(names))]
+    for c, name in zip(colours, names, strict=True):
+        p = target + ts["errors"]["nominal"][name]
+        ax.plot(p[:, keep[0]], p[:, keep[1]], color=c, lw=1.2, label=result.label(name))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel(f"{xyz[keep[0]]} [m]")
+    ax.set_ylabel(f"{xyz[keep[1]]} [m]")
+    ax.set_title(f"frame {ts['frame']!r} on the nominal plant")
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=2, fontsize=8)
+    ax = axes[1]
+    floor = 1e-9  # [mm]: a log axis cannot show an exact zero
+    for c, name in zip(colours, names, strict=True):
+        for k, d in enumerate(ts["errors"]["uncertain"].get(name, [])):
+            ax.semilogy(t[: len(d)], np.maximum(1e3 * d, floor), color=c, lw=0.6, alpha=0.4,
+                        label=f"{result.label(name)}, uncertain plants (nominal kinematics)"
+                        if k == 0 else None)
+        d = np.linalg.norm(ts["errors"]["nominal"][name], axis=1)
+        ax.semilogy(t, np.maximum(1e3 * d, floor), color=c, lw=2.0,
+                    label=f"{result.label(name)}, nominal plant")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("Cartesian error |p(q) - p*(t)| [mm]")
+    ax.set_title("task-space tracking error")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=2, fontsize=8)
+    fig.tight_layout()
+    if path is None:
+        return fig
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return Path(path)
 
 
 # --- Monte Carlo campaign ----------------------------------------------------------------------

@@ -177,6 +177,22 @@ def results_markdown(result: StudyResult, data: dict | None = None) -> str:
             cells = [" ".join(_fmt(v) for v in row[m])
                      for m in ("rms_error", "max_error", "rms_torque", "peak_torque")]
             lines.append(f"| {label} | {result.label(key)} | " + " | ".join(cells) + " |")
+    ts = data.get("task_space")
+    if ts:
+        lines += ["", f"## Task space: error of frame `{ts['frame']}` against the path", "",
+                  "Norm of the 3D error of the frame's origin, RMS over time and plants. "
+                  "Uncertain plants two ways: by the nominal kinematics (the joint tracking "
+                  "error seen in task space) and by each plant's own kinematics (where the "
+                  "arm really is: its perturbed link lengths count).", "",
+                  "| Controller | nominal RMS [mm] | nominal max [mm] | uncertain, tracking RMS "
+                  "[mm] | uncertain, tracking max [mm] | uncertain, true RMS [mm] | "
+                  "uncertain, true max [mm] |", "|---|---|---|---|---|---|---|"]
+        for key in names:
+            nom, unc = ts["nominal"].get(key, {}), ts["uncertain"].get(key, {})
+            cells = [_fmt(1e3 * d[m]) if m in d else "-" for d, m in (
+                (nom, "rms_error_m"), (nom, "max_error_m"), (unc, "rms_tracking_error_m"),
+                (unc, "max_tracking_error_m"), (unc, "rms_error_m"), (unc, "max_error_m"))]
+            lines.append(f"| {result.label(key)} | " + " | ".join(cells) + " |")
     lines += ["", f"Verdict rules: nominal errors below {NOMINAL_NOISE:g} of the reference "
               "amplitude (half its peak-to-peak range) count as equivalent; an error ratio "
               "within a factor of 2 of the paper's 10 agrees; a torque ratio within 10 % of 1 "
@@ -193,6 +209,12 @@ def _describe_reference(d: dict) -> str:
     if kind == "quintic":
         return (f"quintic rest-to-rest from {_list(d['start_rad'])} to {_list(d['goal_rad'])} "
                 f"rad in {d['move_time_s']:g} s")
+    if kind == "spline" and "task_space" in d:
+        ts = d["task_space"]
+        return (f"task-space {ts['path']['kind']} of frame `{ts['frame']}` in "
+                f"{ts['move_time_s']:g} s (inverse kinematics into a C2 joint spline through "
+                f"{len(d['times_s'])} knots, {1e3 * ts['fk_error_m']:.3g} mm from the path at "
+                f"most)")
     if kind == "spline":
         return (f"C2 spline through {len(d['times_s'])} waypoints"
                 + (f" ({d['source']})" if d.get("source") else ""))
@@ -297,6 +319,14 @@ def summary_lines(result: StudyResult, summary: dict) -> list[str]:
         lines.append(f"certified (frozen nu-gap < b = {s['certificate_b']:.4g}): "
                      f"{s['samples_certified']} of {checked} plants, largest nu-gap "
                      f"{s['nugap_max']:.4g}")
+    ts = result.task_space
+    if ts:
+        lines.append(f"task space, frame {ts['frame']!r}, RMS |e_x| [mm] nominal / uncertain "
+                     "(tracking; true): " + ", ".join(
+                         f"{k} {1e3 * v['rms_error_m']:.3g}"
+                         + (f" / {1e3 * ts['uncertain'][k]['rms_tracking_error_m']:.3g}; "
+                            f"{1e3 * ts['uncertain'][k]['rms_error_m']:.3g}"
+                            if k in ts["uncertain"] else "") for k, v in ts["nominal"].items()))
     if s["samples_diverged"]:
         lines.append(f"{s['samples_diverged']} uncertain plant(s) with a diverged run (see "
                      f"results.json)")
