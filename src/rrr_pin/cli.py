@@ -285,11 +285,11 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
 
 
 def _add_force_argument(p) -> None:
-    from .sim.simulation import MAX_SAMPLES, MAX_SUBSTEPS
-
+    # The bounds are named, not imported: --help must not load NumPy (rrr_pin.sim does).
     p.add_argument("--force", action="store_true",
-                   help=f"run even above the work bounds of one run ({MAX_SUBSTEPS:.0e} RK4 "
-                        f"steps, {MAX_SAMPLES:.0e} stored samples), refused otherwise")
+                   help="run even above the work bounds of one run (MAX_SUBSTEPS RK4 steps "
+                        "and MAX_SAMPLES stored samples of rrr_pin.sim.simulation, 1e7 and "
+                        "1e6), refused otherwise before any work")
 
 
 def _option(field: str) -> str:

@@ -115,8 +115,9 @@ class RunSettings:
         """JSON-ready settings (units in the key names)."""
         d = asdict(self)
         fx = self.effects.to_dict() if self.effects is not None else None
-        if fx is not None and self.effects.delay:
-            fx["delay_substeps"] = self.effects.delay_substeps(self.dt)
+        if fx is not None and self.effects.delay:  # the delay as realized: d sub-steps h
+            d = self.effects.delay_substeps(self.dt)
+            fx["delay_s"], fx["delay_substeps"] = d * self.dt, d
         return {"duration_s": d["duration"], "dt_s": d["dt"], "rate_hz": d["rate"],
                 "method": d["method"], "engine": d["engine"],
                 "limit_margin_rad": d["limit_margin"],

@@ -25,7 +25,8 @@ output ``a`` otherwise. The law always measures the **link** side.
 Discretization (both engines, :mod:`rrr_pin.sim.simulation` and the C++ rollout):
 
 * the arm, the actuator state ``a`` and the motor state ``(th, th')`` are integrated together
-  by classical RK4 with the plant sub-step ``h = Ts / substeps`` (``substeps = ceil(Ts / dt)``);
+  by classical RK4 with the plant sub-step ``h = Ts / substeps`` (``dt``, which must divide
+  ``Ts``: :func:`rrr_pin.sim.simulation.time_grid`);
 * the delay is realized exactly on that sub-step grid: ``tau_d`` must be a whole number
   ``d`` of sub-steps ``h`` (to a relative 1e-9, :func:`rrr_pin.validation.check_multiple`);
   any other delay is refused, naming ``h`` and the two nearest realizable delays, never

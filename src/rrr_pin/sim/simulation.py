@@ -21,6 +21,11 @@ Integration method: classical fixed-step Runge-Kutta 4.
   state and outputs ``tau_k``, held constant (zero-order hold) while the arm is integrated over
   ``[t_k, t_k + Ts]`` by ``substeps`` RK4 steps of ``Ts / substeps``.
 
+The grid is realized exactly or refused (:func:`time_grid`): a duration must be a whole number
+of steps and a sampled run's ``dt`` must divide ``Ts``; nothing is rounded. Before anything is
+allocated the run's work is estimated and refused above :data:`MAX_SUBSTEPS` RK4 steps or
+:data:`MAX_SAMPLES` stored samples unless ``force=True``.
+
 Divergence (one definition for both engines, :func:`diverged_joint`): a run diverges when, at the
 end of a control period (sampled) or of an RK4 step (continuous), a joint's ``q`` or ``qd`` is
 NaN/inf, ``|qd|`` exceeds :data:`VELOCITY_LIMIT`, or ``q`` leaves the plant's joint limits
