@@ -261,7 +261,8 @@ def test_force_lifts_the_work_bound(monkeypatch, capsys, tmp_path):
     assert "above the bounds of 1e+01 RK4 steps" in capsys.readouterr().err
     assert cli.main(argv + ["--out", str(tmp_path / "b"), "--force"]) == 0
     summary = json.loads((tmp_path / "b" / "summary.json").read_text())
-    assert summary["samples"] == 1 and "force" not in summary
+    assert summary["summary"]["samples"] == 1
+    assert "force" not in summary["settings"]  # a permission, not a setting of the numbers
 
 
 def test_force_help_names_the_bounds():

@@ -84,19 +84,21 @@ def test_every_kind_is_documented():
     assert set(KINDS) == {"sine", "quintic", "spline", "line", "circle"}
 
 
-@pytest.mark.parametrize("amp, home, largest", [
-    (10.0, None, 2.0 * np.pi / 2.2),  # issue 24: ran at 2.83 rad (45 % of the range)
-    (3.0, None, 2.0 * np.pi / 2.2),
-    (2.0, (3.0, 0.0, 0.0), np.pi - 3.0),  # joint1 at 3 rad: 0.1416 rad to its upper limit
-], ids=["amp-10", "amp-3", "amp-near-home-limit"])
-def test_an_amplitude_the_limits_cannot_hold_is_refused_not_reduced(rrr, amp, home, largest):
-    # The RRR's joints span [-pi, pi]; the largest amplitude is the range / 2.2 about the
-    # default home (10 % to spare), or the distance to the nearer limit about a given home.
+@pytest.mark.parametrize("amp", [10.0, 3.0], ids=["amp-10", "amp-3"])
+def test_an_amplitude_the_limits_cannot_hold_is_refused_not_reduced(rrr, amp):
+    # The RRR's joints span [-pi, pi]: about the default home (10 % to spare) the largest
+    # amplitude is 2 pi / 2.2 = 2.856 rad. Issue 24: --amp 10 ran at 2.83 rad (45 % of the range).
     with pytest.raises(ValueError, match=rf"^--amp = {amp:g} rad is too large for joint "
                                          rf"'joint1' \(limits \[-3.142, 3.142\] rad\): the "
-                                         rf"largest amplitude they allow .* is "
-                                         rf"{largest:.4g} rad"):
-        ReferenceSpec(amp=amp, home=home).build(rrr, 4.0, label=option)
+                                         rf"largest amplitude they allow about the default "
+                                         rf"home \(range / 2.2\) is {2 * np.pi / 2.2:.4g} rad"):
+        ReferenceSpec(amp=amp).build(rrr, 4.0, label=option)
+
+
+def test_an_amplitude_beyond_the_limits_about_a_given_home_is_refused(rrr):
+    # joint1 at 3 rad with amp 2: spans [1, 5] rad, beyond pi; the amplitude is not reduced.
+    with pytest.raises(ValueError, match=r"reference for joint 'joint1' spans \[1, 5\] rad"):
+        ReferenceSpec(amp=2.0, home=(3.0, 0.0, 0.0)).build(rrr, 4.0, label=option)
 
 
 def test_the_largest_amplitude_is_accepted_as_given(rrr):

@@ -116,8 +116,8 @@ class RunSettings:
         d = asdict(self)
         fx = self.effects.to_dict() if self.effects is not None else None
         if fx is not None and self.effects.delay:  # the delay as realized: d sub-steps h
-            d = self.effects.delay_substeps(self.dt)
-            fx["delay_s"], fx["delay_substeps"] = d * self.dt, d
+            k = self.effects.delay_substeps(self.dt)
+            fx["delay_s"], fx["delay_substeps"] = k * self.dt, k
         return {"duration_s": d["duration"], "dt_s": d["dt"], "rate_hz": d["rate"],
                 "method": d["method"], "engine": d["engine"],
                 "limit_margin_rad": d["limit_margin"],

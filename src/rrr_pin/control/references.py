@@ -589,8 +589,8 @@ def default_reference(robot, amp: float = 0.5, freq: float = 0.5,
     amp : float, default 0.5
         Amplitude [rad], finite and >= 0, the same on every joint. Never reduced: an amplitude
         a joint's limits cannot hold is refused (with ``home`` None, at most its range / 2.2,
-        keeping 10 % of the amplitude to spare; with ``home`` given, at most the distance from
-        home to the nearer limit).
+        keeping 10 % of the amplitude to spare; with ``home`` given, ``home +- amp`` must stay
+        inside the limits).
     freq : float, default 0.5
         Frequency [Hz], finite and >= 0.
     home : array-like, shape (n,), optional
@@ -605,30 +605,29 @@ def default_reference(robot, amp: float = 0.5, freq: float = 0.5,
 
     Raises
     ------
-    rrr_pin.validation.FieldError
+    ValueError
         ``amp`` out of range, or larger than a joint's limits allow: the message names the
-        amplitude, the joint, its limits and the largest amplitude they allow.
+        amplitude, the joint, its limits and the largest amplitude they allow (or, with
+        ``home`` given, the span ``home +- amp`` that leaves them).
     """
     amp = check_positive("amp", amp, allow_zero=True, unit="rad")
     freq = check_positive("freq", freq, allow_zero=True, unit="Hz")
     n = robot.nq
     lower, upper = robot.lower, robot.upper
     if home is None:
-        largest, about = (upper - lower) / 2.2, "about the default home (range / 2.2)"
-    else:
-        home = check_vector("home", home, n)
-        largest, about = np.minimum(home - lower, upper - home), "about home"
-    too = np.flatnonzero(amp > largest)
-    if too.size:
-        j = int(too[0])
-        raise FieldError("amp", (
-            f"{{name}} = {amp:g} rad is too large for joint {robot.joint_names[j]!r} (limits "
-            f"[{lower[j]:.4g}, {upper[j]:.4g}] rad): the largest amplitude they allow {about} "
-            f"is {max(float(largest[j]), 0.0):.4g} rad"
-            + (f" ({too.size} joints refuse it)" if too.size > 1 else "")))
-    if home is None:
+        largest = (upper - lower) / 2.2
+        too = np.flatnonzero(amp > largest)
+        if too.size:
+            j = int(too[0])
+            raise FieldError("amp", (
+                f"{{name}} = {amp:g} rad is too large for joint {robot.joint_names[j]!r} "
+                f"(limits [{lower[j]:.4g}, {upper[j]:.4g}] rad): the largest amplitude they "
+                f"allow about the default home (range / 2.2) is {float(largest[j]):.4g} rad"
+                + (f" ({too.size} joints refuse it)" if too.size > 1 else "")))
         # 10 % of the amplitude to spare, so tracking errors cannot touch the limits.
         home = np.clip(robot.neutral(), lower + 1.1 * amp, upper - 1.1 * amp)
+    else:  # home +- amp outside the limits: refused by SineReference.check_limits below
+        home = check_vector("home", home, n)
     ref = SineReference(home=home, amp=amp, freq=freq, phase=2.0 * math.pi * np.arange(n) / n)
     ref.check_limits(robot)
     return ref
