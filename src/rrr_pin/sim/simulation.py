@@ -287,8 +287,8 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
         (finite, > 0; ``limit_margin`` >= 0). ``False`` trusts them as validated by the caller
         (e.g. :class:`rrr_pin.campaign.runner.RunSettings`, which checks them when it is made)
         and only converts them to float. What depends on the plant, the law or the reference
-        (sizes, the initial state, joint limits, at least one step, the RK4 step of a linear
-        law's fastest pole) is checked either way.
+        (sizes, the initial state, joint limits, the RK4 step of a linear law's fastest pole)
+        is checked either way; the time grid (whole steps, work bounds) only with ``check``.
     force : bool, default False
         Run even above the work bounds :data:`MAX_SUBSTEPS` (plant RK4 steps) and
         :data:`MAX_SAMPLES` (stored samples), which are otherwise refused before anything is
