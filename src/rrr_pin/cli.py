@@ -386,7 +386,7 @@ def _cmd_reproduce(args) -> int:
     from tqdm import tqdm
 
     from .campaign.store import check_writable
-    from .campaign.study import StudyConfig, run_study
+    from .campaign.study import StudyConfig, check_study_size, run_study
     from .model.dynamics import load_robot
     from .report.design import study_design
     from .report.plotting import save_design_figures, save_study_figures
@@ -407,6 +407,7 @@ def _cmd_reproduce(args) -> int:
                                      d.K_reduced)
     config = StudyConfig(run=settings, samples=args.samples, seed=args.seed, jobs=args.jobs,
                          baseline=baseline)
+    check_study_size(config, len(laws), robot.nq)  # before the design figures are written
     figures = save_design_figures(d, out)
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{robot.name}: simulating",
                disable=args.no_progress)
