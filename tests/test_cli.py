@@ -201,3 +201,86 @@ def test_negative_option_values_reach_the_options_check(capsys, tmp_path, value,
                      "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert f"--dt must be a finite number > 0 [s], got {shown}" in err
+
+
+# --- issue 24: nothing silently substituted (rounded, clipped) and no endless work -------------
+
+@pytest.mark.parametrize("argv, message", [
+    # Before: no delay at all (campaign.csv byte-identical to a run without --delay).
+    (["montecarlo", "--samples", "1", "--delay", "0.0004"],
+     "--delay = 0.0004 s is not a whole number of plant sub-steps h = 0.001 s (0.4 of them): "
+     "the nearest realizable values are 0 s and 0.001 s"),
+    # Before: ran as 2 ms, summary.json said 1.6 ms.
+    (["montecarlo", "--samples", "1", "--delay", "0.0016"],
+     "the nearest realizable values are 0.001 s and 0.002 s"),
+    # Before: accepted and recorded, the sub-step became 1/rate.
+    (["stress", "--effect", "delay", "--dt", "0.5"],
+     "--dt = 0.5 s does not divide the control period 1/rate = 0.001 s into whole RK4 "
+     "sub-steps (0.002 of them): the nearest realizable sub-steps are 0.001 s (1 sub-step)"),
+    (["reproduce", "--rate", "1000", "--dt", "3e-4"],
+     "the nearest realizable sub-steps are 0.000333333333333 s (3 sub-steps) and 0.00025 s "
+     "(4 sub-steps)"),
+    (["reproduce", "--rate", "1000", "--duration", "0.0015"],
+     "--duration = 0.0015 s is not a whole number of control periods 1/rate = 0.001 s"),
+    (["reproduce", "--duration", "1.00005"],
+     "--duration = 1.00005 s is not a whole number of RK4 steps dt = 0.001 s"),
+    # Before: ran at 2.83 rad (45 % of the joint's range).
+    (["reproduce", "--amp", "10"],
+     "--amp = 10 rad is too large for joint 'joint1' (limits [-3.142, 3.142] rad): the largest "
+     "amplitude they allow about the default home (range / 2.2) is 2.856 rad"),
+    # Before: hung (1e10 control periods).
+    (["montecarlo", "--samples", "1", "--rate", "1e9"],
+     "--duration = 10 s at rate = 1e+09 Hz is 1e+10 control periods"),
+    # Before: hung (2e8 RK4 steps).
+    (["reproduce", "--duration", "2000", "--dt", "1e-5"],
+     "--duration = 2000 s is 2e+08 RK4 steps dt = 1e-05 s: 2e+08 RK4 steps and 2e+08 stored "
+     "samples"),
+    # Before: a MemoryError traceback after allocating gigabytes.
+    (["montecarlo", "--samples", "1", "--duration", "1e5"],
+     "above the bounds of 1e+07 RK4 steps and 1e+06 samples"),
+], ids=["delay-below-step", "delay-between-steps", "stress-dt-above-period", "dt-not-dividing",
+        "duration-off-period", "duration-off-dt", "amp-too-large", "rate-1e9", "duration-dt",
+        "duration-1e5"])
+def test_nothing_silently_substituted(argv, message, capsys, tmp_path):
+    out = tmp_path / "o"
+    assert cli.main(argv + ["--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not out.exists() or not any(out.iterdir())  # refused before any work
+
+
+def test_force_lifts_the_work_bound(monkeypatch, capsys, tmp_path):
+    # With the bound lowered to 10 RK4 steps, a 20 ms run at 1 kHz (20 steps) is refused, and
+    # runs with --force.
+    from rrr_pin.sim import simulation
+
+    monkeypatch.setattr(simulation, "MAX_SUBSTEPS", 10)
+    argv = ["montecarlo", "--samples", "1", "--jobs", "1", "--duration", "0.02",
+            "--no-progress", "--controllers", "fl"]
+    assert cli.main(argv + ["--out", str(tmp_path / "a")]) == 2
+    assert "above the bounds of 1e+01 RK4 steps" in capsys.readouterr().err
+    assert cli.main(argv + ["--out", str(tmp_path / "b"), "--force"]) == 0
+    summary = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert summary["summary"]["samples"] == 1
+    assert "force" not in summary["settings"]  # a permission, not a setting of the numbers
+
+
+def test_force_help_names_the_bounds():
+    # The help spells the bounds without importing them (it must not load NumPy).
+    from rrr_pin.sim.simulation import MAX_SAMPLES, MAX_SUBSTEPS
+
+    text = cli._build_parser()._subparsers._group_actions[0].choices["montecarlo"].format_help()
+    assert f"{MAX_SUBSTEPS:.0e}".replace("+0", "") in text
+    assert f"{MAX_SAMPLES:.0e}".replace("+0", "") in text
+
+
+def test_summary_records_the_delay_realized(tmp_path):
+    # 2 ms at 1 kHz with the default sub-step (1 ms): 2 sub-steps, recorded as realized.
+    out = tmp_path / "o"
+    assert cli.main(["montecarlo", "--samples", "1", "--jobs", "1", "--duration", "0.05",
+                     "--controllers", "fl", "--rate", "1000", "--delay", "0.002",
+                     "--no-progress", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["settings"]["dt_s"] == 1e-3
+    fx = s["settings"]["effects"]
+    assert fx["delay_substeps"] == 2 and fx["delay_s"] == 2 * 1e-3

@@ -17,6 +17,7 @@ from rrr_pin.control.laws import SampledLaw, fl_controller
 from rrr_pin.control.references import QuinticReference, default_reference
 from rrr_pin.model.dynamics import load_robot
 from rrr_pin.sim.simulation import simulate
+from rrr_pin.validation import FieldError
 
 TS = 1e-3  # [s] control period (1 kHz)
 C = 2.0  # [N m] commanded torque after t = 0
@@ -75,10 +76,66 @@ def test_delay_shifts_the_torque(joint1, rest):
     assert_allclose(traj.qd[:, 0], C / inertia(joint1) * s, rtol=0, atol=1e-11)
 
 
-def test_delay_is_rounded_to_the_sub_step(joint1, rest):
-    traj = run(joint1, rest, PlantEffects(delay=1.26e-3), dt=5e-4)
-    assert traj.info["effects"]["delay_substeps"] == 3
-    assert traj.info["effects"]["delay_s"] == pytest.approx(1.5e-3, abs=1e-15)
+@pytest.mark.parametrize("delay, dt, near", [
+    (1.26e-3, 5e-4, "0.001 s and 0.0015 s"),
+    (4e-4, 1e-3, "0 s and 0.001 s"),  # issue 24: ran with no delay at all
+    (1.6e-3, 1e-3, "0.001 s and 0.002 s"),  # issue 24: ran as 2 ms
+], ids=["between", "below-one-step", "above-one-step"])
+def test_a_delay_off_the_sub_step_grid_is_refused(joint1, rest, delay, dt, near):
+    with pytest.raises(FieldError, match=rf"delay = {delay:g} s is not a whole number of "
+                                         rf"plant sub-steps h = {dt:g} s .*: the nearest "
+                                         rf"realizable values are {near}"):
+        run(joint1, rest, PlantEffects(delay=delay), dt=dt)
+
+
+def test_a_delay_of_two_sub_steps_is_realized_exactly(joint1, rest):
+    # 2 sub-steps of h = 2.5e-4 s: the step commanded at t = Ts reaches the joint 0.5 ms later
+    # (closed form qd = C / I (t - Ts - 2 h), exact for RK4 up to round-off), and the run records
+    # the delay it realized.
+    h = 2.5e-4
+    traj = run(joint1, rest, PlantEffects(delay=2 * h), dt=h, duration=0.01)
+    assert traj.info["effects"]["delay_substeps"] == 2
+    assert traj.info["effects"]["delay_s"] == 2 * h
+    s = np.maximum(traj.t - TS - 2 * h, 0.0)
+    assert_allclose(traj.qd[:, 0], C / inertia(joint1) * s, rtol=0, atol=1e-12)
+
+
+class HoldPrevious(SampledLaw):
+    """A law that applies, over period k, the command ``inner`` computed at period k - 1.
+
+    Without plant effects this is the loop with a transport delay of exactly one period
+    (before t = 0 the delay line holds the first command, so period 0 applies tau_0), written
+    without the engines' delay line.
+    """
+
+    def __init__(self, inner):
+        self.inner, self.previous = inner, None
+        self.name, self.n, self.nx, self.rate = "hold", inner.n, inner.nx, inner.rate
+
+    def initial_state(self):
+        return self.inner.initial_state()
+
+    def step(self, t, q, qd, r, rd, rdd, x):
+        tau, x = self.inner.step(t, q, qd, r, rd, rdd, x)
+        out = tau if self.previous is None else self.previous
+        self.previous = tau
+        return out, x
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_a_one_period_delay_equals_holding_the_previous_command(rrr, engine):
+    # A delay of 4 sub-steps of 2.5e-4 s = one control period of 1 ms, on the RRR under FL.
+    ref = default_reference(rrr)
+    fl = fl_controller(rrr).sampled(1000.0)
+    delayed = simulate(rrr, fl, ref, 0.3, dt=2.5e-4, engine=engine,
+                       effects=PlantEffects(delay=1e-3))
+    held = simulate(rrr, HoldPrevious(fl), ref, 0.3, dt=2.5e-4, engine="python")
+    assert delayed.info["effects"]["delay_substeps"] == 4
+    # Same RK4 arithmetic on both sides; the compiled engine adds its round-off (test_engines
+    # pins the engines to 1e-9 rad).
+    assert_allclose(delayed.q, held.q, rtol=0, atol=1e-9)
+    ideal = simulate(rrr, fl, ref, 0.3, dt=2.5e-4, engine="python")
+    assert np.abs(ideal.q - held.q).max() > 1e-6  # the delay changed the run
 
 
 def test_saturation_clips_the_torque(joint1, rest):

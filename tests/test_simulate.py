@@ -147,3 +147,57 @@ def test_trusted_settings_give_the_same_run(setup, rate):
                  check=False)
     assert np.array_equal(a.q, b.q) and np.array_equal(a.tau, b.tau)
     assert a.info == b.info and repr(a.info) == repr(b.info)
+
+
+# --- the time grid: realized exactly or refused, and bounded (issue 24) -----------------------
+
+@pytest.mark.parametrize("duration, dt, rate, grid", [
+    (10.0, None, 1000.0, (10000, 1, 1e-3)),
+    (2.0, 1e-4, 1000.0, (2000, 10, 1e-4)),
+    (0.3, 0.1, None, (3, 1, 0.1)),  # 0.3 / 0.1 = 2.9999999999999996 in floats: 3 steps
+    (10.0, None, 300.0, (3000, 4, 1.0 / 1200.0)),  # the largest divisor of 1/300 s <= 1 ms
+], ids=["default-1khz", "sub-steps", "decimal-roundoff", "default-300hz"])
+def test_time_grid_realizes_the_settings(duration, dt, rate, grid):
+    from rrr_pin.sim.simulation import time_grid
+
+    g = time_grid(duration, dt, rate)
+    assert (g.n_steps, g.substeps) == grid[:2]
+    assert_allclose(g.h, grid[2], rtol=1e-15, atol=0)  # Ts / substeps, to round-off
+
+
+def test_a_sampled_run_uses_the_sub_step_it_records(setup):
+    rrr, _, _, ref = setup
+    traj = simulate(rrr, fl_controller(rrr), ref, 0.05, rate=300.0)
+    assert traj.info["substeps"] == 4 and traj.info["dt"] == 1.0 / 300.0 / 4
+    assert_allclose(traj.t[-1], 15 / 300.0, rtol=1e-15)  # 0.05 s = 15 periods of 1/300 s
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"duration": 0.0015, "rate": 1000.0},
+     r"duration = 0.0015 s is not a whole number of control periods 1/rate = 0.001 s"),
+    ({"duration": 0.1, "rate": 1000.0, "dt": 3e-4}, r"dt = 0.0003 s does not divide"),
+    ({"duration": 0.1, "rate": 1000.0, "dt": 0.5}, r"dt = 0.5 s does not divide"),
+    ({"duration": 0.0105, "dt": 1e-3}, r"duration = 0.0105 s is not a whole number of RK4"),
+], ids=["duration-sampled", "dt-sampled", "dt-above-period", "duration-continuous"])
+def test_simulate_refuses_settings_off_the_grid(setup, kwargs, match):
+    rrr, _, _, ref = setup
+    duration = kwargs.pop("duration")
+    with pytest.raises(ValueError, match=match):
+        simulate(rrr, fl_controller(rrr), ref, duration, **kwargs)
+
+
+def test_work_bound_and_force(setup, monkeypatch):
+    from rrr_pin.sim import simulation
+
+    rrr, _, _, ref = setup
+    monkeypatch.setattr(simulation, "MAX_SUBSTEPS", 50)
+    # 0.01 s at 1 kHz with 10 sub-steps: 100 RK4 steps > 50.
+    with pytest.raises(ValueError, match=r"^duration = 0.01 s at rate = 1000 Hz is 10 control "
+                                         r"periods of 10 RK4 sub-step\(s\) h = 0.0001 s: 100 "
+                                         r"RK4 steps"):
+        simulate(rrr, fl_controller(rrr), ref, 0.01, rate=1000.0, dt=1e-4)
+    traj = simulate(rrr, fl_controller(rrr), ref, 0.01, rate=1000.0, dt=1e-4, force=True)
+    assert traj.q.shape == (11, 3)
+    monkeypatch.setattr(simulation, "MAX_SAMPLES", 5)
+    with pytest.raises(ValueError, match=r"11 stored samples \(about 0\.002992 MB for 3 joints\)"):
+        simulate(rrr, fl_controller(rrr), ref, 0.01)  # continuous: 10 steps, 11 samples

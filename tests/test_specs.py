@@ -82,3 +82,26 @@ def test_default_label_is_the_field_name(rrr):
 
 def test_every_kind_is_documented():
     assert set(KINDS) == {"sine", "quintic", "spline", "line", "circle"}
+
+
+@pytest.mark.parametrize("amp", [10.0, 3.0], ids=["amp-10", "amp-3"])
+def test_an_amplitude_the_limits_cannot_hold_is_refused_not_reduced(rrr, amp):
+    # The RRR's joints span [-pi, pi]: about the default home (10 % to spare) the largest
+    # amplitude is 2 pi / 2.2 = 2.856 rad. Issue 24: --amp 10 ran at 2.83 rad (45 % of the range).
+    with pytest.raises(ValueError, match=rf"^--amp = {amp:g} rad is too large for joint "
+                                         rf"'joint1' \(limits \[-3.142, 3.142\] rad\): the "
+                                         rf"largest amplitude they allow about the default "
+                                         rf"home \(range / 2.2\) is {2 * np.pi / 2.2:.4g} rad"):
+        ReferenceSpec(amp=amp).build(rrr, 4.0, label=option)
+
+
+def test_an_amplitude_beyond_the_limits_about_a_given_home_is_refused(rrr):
+    # joint1 at 3 rad with amp 2: spans [1, 5] rad, beyond pi; the amplitude is not reduced.
+    with pytest.raises(ValueError, match=r"reference for joint 'joint1' spans \[1, 5\] rad"):
+        ReferenceSpec(amp=2.0, home=(3.0, 0.0, 0.0)).build(rrr, 4.0, label=option)
+
+
+def test_the_largest_amplitude_is_accepted_as_given(rrr):
+    amp = 2.0 * np.pi / 2.2 * (1 - 1e-12)
+    ref = default_reference(rrr, amp=amp)
+    assert_allclose(ref.amp, amp, rtol=0, atol=0)  # not reduced

@@ -100,7 +100,10 @@ def test_python_engine_spot_check(rrr, effect, factor, broken):
     pred = linear_boundary(law, effect, 1000.0)
     settings = StressSettings(run=RunSettings(duration=1.5, dt=1e-4, rate=1000.0,
                                               engine="python"))
-    rms = _rms(rrr, law, default_reference(rrr), effect, factor * pred, settings, 1.5)
+    size = factor * pred
+    if effect == "delay":  # a delay is realized (and accepted) on whole sub-steps of 1e-4 s
+        size = round(size / 1e-4) * 1e-4
+    rms = _rms(rrr, law, default_reference(rrr), effect, size, settings, 1.5)
     assert (rms > settings.budget) is broken
 
 
@@ -229,3 +232,28 @@ def test_each_searchable_effect_is_one_catalog_entry(effect, expected):
 
     assert effects_of(effect, 0.003, seed=7) == expected
     assert set(EFFECTS) == {"delay", "actuator", "stiffness", "torque", "noise"}
+
+
+def test_delays_are_searched_on_whole_sub_steps(rrr):
+    # A run realizes only whole sub-steps of delay (others are refused): every delay tried is a
+    # multiple of h = 0.5 ms, and the bracket is one sub-step wide or rtol narrow.
+    h = 5e-4
+    settings = StressSettings(run=RunSettings(duration=1.0, dt=h, rate=1000.0), sweep=2,
+                              rtol=0.01)
+    out = breaking_point(rrr, fl_controller(rrr), default_reference(rrr), "delay", settings,
+                         guess=6e-3)
+    k = np.array([size for size, _ in out["samples"]]) / h
+    assert_allclose(k, np.round(k), rtol=0, atol=1e-9)  # multiples of h, to round-off
+    lo, hi = out["bracket"]
+    assert out["simulated"] == lo and round((hi - lo) / h) == 1
+    passed = {round(size / h): rms <= settings.budget for size, rms in out["samples"]}
+    assert passed[round(lo / h)] and not passed[round(hi / h)]
+
+
+def test_an_offset_start_outside_the_limits_is_refused(rrr):
+    # r(0) + offset beyond pi on joint 1: refused, not clipped to the limit.
+    ref = default_reference(rrr)
+    settings = StressSettings(run=RunSettings(duration=1.0, dt=1e-3, rate=1000.0), offset=4.0)
+    with pytest.raises(ValueError, match=r"offset = 4 rad puts joint 'joint1' at .* outside its "
+                                         r"limits \[-3.142, 3.142\]"):
+        breaking_point(rrr, fl_controller(rrr), ref, "delay", settings)

@@ -242,3 +242,16 @@ def test_plant_tasks_are_frozen_and_rrr_plants_come_from_the_papers_parameters(r
     assert [t.certify for t in seen[:2]] == [False, True]
     assert a.plants[0].urdf == b.plants[0].urdf
     assert a.to_json()["uncertain"]["samples"] == b.to_json()["uncertain"]["samples"]
+
+
+def test_a_study_too_large_to_keep_is_refused_before_any_work():
+    from rrr_pin.campaign.study import check_study_size
+
+    # 1001 runs of 2 laws, 40001 samples of t, q, qd, r, tau (1 + 4 x 3 floats) each.
+    expected = 1001 * 2 * 40001 * 8 * (1 + 4 * 3)
+    big = StudyConfig(samples=1000, run=RunSettings(duration=40.0))
+    with pytest.raises(ValueError, match=r"1001 plants x 2 laws x 40001 samples of 3 joints "
+                                         r"take about 8.33 GB, above .*MAX_STUDY_BYTES = 2 GB"):
+        check_study_size(big, 2, 3)
+    forced = StudyConfig(samples=1000, run=RunSettings(duration=40.0, force=True))
+    assert check_study_size(forced, 2, 3) == expected

@@ -239,3 +239,26 @@ def test_check_matrix_readonly_copies_a_writable_input():
     assert not out.flags.writeable and src.flags.writeable  # the caller's array is untouched
     np.testing.assert_array_equal(out, src)  # same numbers, exactly
     assert check_matrix("K", [[1, 2]], (1, 2)).dtype == float
+
+
+@pytest.mark.parametrize("value, step, k", [
+    (0.3, 0.1, 3),  # 0.3 / 0.1 = 2.9999999999999996 in floats
+    (0.0, 1e-3, 0), (10.0, 1e-3, 10000), (2e-3, 1e-4, 20),
+], ids=["decimal", "zero", "many", "sub-steps"])
+def test_check_multiple_returns_the_whole_count(value, step, k):
+    from rrr_pin.validation import check_multiple
+
+    assert check_multiple("x", value, step) == k
+
+
+def test_check_multiple_refuses_values_between_steps_and_below_low():
+    from rrr_pin.validation import FieldError, check_multiple
+
+    with pytest.raises(FieldError, match=r"^delay = 0.25 s is not a whole number of steps = "
+                                         r"0.1 s \(2.5 of them\): the nearest realizable values "
+                                         r"are 0.2 s and 0.3 s$"):
+        check_multiple("delay", 0.25, 0.1, unit="s")
+    with pytest.raises(FieldError, match=r"the nearest realizable value is 0.1 s$"):
+        check_multiple("x", 0.05, 0.1, low=1, unit="s")  # 0 is below low: one candidate
+    with pytest.raises(FieldError, match=r"^x = 0 s is below 1 steps = 0.1 s$"):
+        check_multiple("x", 0.0, 0.1, low=1, unit="s")

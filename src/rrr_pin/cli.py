@@ -235,7 +235,9 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
                    help="controller the others are compared with (default: the first)")
     p.add_argument("--duration", type=float, default=default_duration,
                    help=f"simulated time [s] ({default_duration:g})")
-    p.add_argument("--dt", type=float, default=1e-3, help="RK4 step [s] (1e-3)")
+    p.add_argument("--dt", type=float, default=None,
+                   help="RK4 step [s] (1e-3); with --rate the plant sub-step, which must "
+                        "divide 1/rate (default: the largest such step up to 1e-3)")
     p.add_argument("--rate", type=float, default=default_rate, metavar="HZ",
                    help="sampled controllers at this rate [Hz] (zero-order hold, Tustin K)"
                         + (f" ({default_rate:g})" if default_rate else
@@ -252,12 +254,13 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the uncertain plants (0)")
     p.add_argument("--delay", type=float, default=None, metavar="S",
                    help="plant effect: actuator transport delay [s] (sampled controllers; "
-                        "rounded to the plant sub-step, see rrr_pin.control.effects)")
+                        "a whole number of plant sub-steps --dt, others are refused)")
     p.add_argument("--actuator-bandwidth", type=float, default=None, metavar="RAD_S",
                    help="plant effect: first-order actuator wa/(s + wa), wa [rad/s] "
                         "(sampled controllers)")
     p.add_argument("--jobs", type=int, default=None,
                    help="worker processes (default: min(2, CPUs))")
+    _add_force_argument(p)
     g = p.add_argument_group("reference")
     g.add_argument("--reference", default="sine",
                    choices=("sine", "quintic", "spline", "line", "circle"),
@@ -281,6 +284,14 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
                    help="circle: radius [m]; the circle starts where the frame is at --home")
     g.add_argument("--normal", metavar="X,Y,Z", default="0,0,1",
                    help="circle: normal of its plane (0,0,1)")
+
+
+def _add_force_argument(p) -> None:
+    # The bounds are named, not imported: --help must not load NumPy (rrr_pin.sim does).
+    p.add_argument("--force", action="store_true",
+                   help="run even above the work bounds of one run (MAX_SUBSTEPS RK4 steps "
+                        "and MAX_SAMPLES stored samples of rrr_pin.sim.simulation, 1e7 and "
+                        "1e6), refused otherwise before any work")
 
 
 def _option(field: str) -> str:
@@ -336,7 +347,8 @@ def _settings_from_args(args, n: int):
                for text, name in ((args.q0, "--q0"), (args.qd0, "--qd0")))
     with _as_options():
         return RunSettings(duration=args.duration, dt=args.dt, rate=args.rate,
-                           engine=args.engine, q0=q0, qd0=qd0, effects=effects)
+                           engine=args.engine, q0=q0, qd0=qd0, effects=effects,
+                           force=args.force)
 
 
 def _laws_from_args(args, robot, K=None):
@@ -376,7 +388,7 @@ def _cmd_reproduce(args) -> int:
     from tqdm import tqdm
 
     from .campaign.store import check_writable
-    from .campaign.study import StudyConfig, run_study
+    from .campaign.study import StudyConfig, check_study_size, run_study
     from .model.dynamics import load_robot
     from .report.design import study_design
     from .report.plotting import save_design_figures, save_study_figures
@@ -397,6 +409,7 @@ def _cmd_reproduce(args) -> int:
                                      d.K_reduced)
     config = StudyConfig(run=settings, samples=args.samples, seed=args.seed, jobs=args.jobs,
                          baseline=baseline)
+    check_study_size(config, len(laws), robot.nq)  # before the design figures are written
     figures = save_design_figures(d, out)
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{robot.name}: simulating",
                disable=args.no_progress)
@@ -536,10 +549,12 @@ def _add_stress(sub) -> None:
                    help="shortest simulated time per run [s] (2; slow loops run longer)")
     p.add_argument("--rate", type=float, default=1000.0, metavar="HZ",
                    help="sampling rate of the controllers [Hz] (1000)")
-    p.add_argument("--dt", type=float, default=1e-4,
-                   help="plant RK4 sub-step [s], also the delay's resolution (1e-4)")
+    p.add_argument("--dt", type=float, default=None,
+                   help="plant RK4 sub-step [s], which must divide 1/rate; also the grid the "
+                        "delay is searched on (default: the largest such step up to 1e-4)")
     p.add_argument("--engine", choices=("auto", "python", "compiled"), default="auto",
                    help="simulation engine (auto)")
+    _add_force_argument(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--out", default="results/stress", metavar="DIR",
                    help="folder for the figure and the JSON (results/stress)")
@@ -561,9 +576,15 @@ def _cmd_stress(args) -> int:
     if args.effect not in EFFECTS:
         raise ValueError(f"--effect {args.effect!r} is unknown; known effects: "
                          f"{', '.join(EFFECTS)}")
+    from .sim.simulation import largest_substep
+    from .validation import check_rate
+
+    rate = check_rate("--rate", args.rate)
     with _as_options():
-        settings = StressSettings(run=RunSettings(duration=args.duration, dt=args.dt,
-                                                  rate=args.rate, engine=args.engine),
+        dt = args.dt if args.dt is not None else largest_substep(rate, 1e-4)
+        settings = StressSettings(run=RunSettings(duration=args.duration, dt=dt,
+                                                  rate=rate, engine=args.engine,
+                                                  force=args.force),
                                   budget=args.budget)
     check_writable(args.out)
     robot = load_robot(args.robot, lock=_parse_lock(args.lock))

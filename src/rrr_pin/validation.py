@@ -8,6 +8,7 @@ and the expected range, in the same words everywhere:
 * :func:`check_count`: an integer >= a bound (sizes, samples, seeds, jobs);
 * :func:`check_size`: a dimension, an integer >= 1;
 * :func:`check_rate`: a sampling rate [Hz], finite and > 0;
+* :func:`check_multiple`: a whole number of steps (a delay, a duration on a time grid);
 * :func:`check_probability`: a number in [0, 1];
 * :func:`check_vector`: a finite vector of shape (n,);
 * :func:`check_matrix`: a finite matrix of a given shape.
@@ -34,6 +35,8 @@ __all__ = [
     "check_count",
     "check_size",
     "check_rate",
+    "check_multiple",
+    "MULTIPLE_RTOL",
     "check_probability",
     "check_vector",
     "check_matrix",
@@ -148,6 +151,55 @@ def check_rate(name: str, rate) -> float:
         ``"{name} must be a finite number > 0 [Hz], got ..."``.
     """
     return check_positive(name, rate, unit="Hz")
+
+
+#: Relative tolerance of :func:`check_multiple`: ``value / step`` may miss an integer by this
+#: much (times the integer), the round-off of a value written in decimal (``0.3 / 0.1``).
+MULTIPLE_RTOL = 1e-9
+
+
+def check_multiple(name: str, value: float, step: float, *, low: int = 0, unit: str = "",
+                   step_name: str = "steps") -> int:
+    """Return the integer ``k >= low`` with ``value = k step``, or refuse ``value``.
+
+    A time grid realizes only whole steps: a value in between would be rounded to the grid,
+    which is computing something else than what was asked. Accepted when ``value / step``
+    is within :data:`MULTIPLE_RTOL` (relative) of an integer.
+
+    Parameters
+    ----------
+    name : str
+        The field, for the message.
+    value : float
+        Finite, >= 0 (checked by the caller).
+    step : float
+        The grid's step, > 0.
+    low : int, default 0
+        Smallest accepted ``k``.
+    unit : str
+        Unit of ``value`` and ``step``, for the message.
+    step_name : str
+        What the steps are, for the message (``"plant sub-steps h"``).
+
+    Raises
+    ------
+    FieldError
+        ``"{name} = 0.0004 s is not a whole number of <step_name> = 0.001 s (0.4 of them):
+        the nearest realizable values are 0 s and 0.001 s"``, or ``value`` below ``low``
+        steps.
+    """
+    x = value / step
+    k = round(x)
+    u = f" {unit}" if unit else ""
+    if abs(x - k) > MULTIPLE_RTOL * max(1.0, abs(x)):
+        near = [f"{j * step:.12g}{u}" for j in (math.floor(x), math.ceil(x)) if j >= low]
+        which = (f"values are {near[0]} and {near[1]}" if len(near) == 2 else
+                 f"value is {near[0]}")
+        raise _fail(name, f" = {value:.12g}{u} is not a whole number of {step_name} = "
+                          f"{step:.12g}{u} ({x:.6g} of them): the nearest realizable {which}")
+    if k < low:
+        raise _fail(name, f" = {value:.12g}{u} is below {low} {step_name} = {step:.12g}{u}")
+    return int(k)
 
 
 def check_probability(name: str, p) -> float:

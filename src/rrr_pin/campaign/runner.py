@@ -21,7 +21,7 @@ import numpy as np
 from ..control.catalog import BUILTIN_LAWS, make_law
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import check_law
-from ..sim.simulation import DEFAULT_DT, ENGINES, reuse_preparation, simulate
+from ..sim.simulation import ENGINES, reuse_preparation, simulate, time_grid
 from ..sim.trajectory import SimulationDiverged, Trajectory
 from ..validation import check_positive, check_rate, check_vector
 
@@ -41,9 +41,12 @@ class RunSettings:
     Parameters
     ----------
     duration : float, default 4
-        Simulated time [s], > 0.
-    dt : float, default 1e-3
-        RK4 step [s] (plant sub-step for sampled laws), > 0.
+        Simulated time [s], > 0: a whole number of steps (``dt``, or ``1/rate``).
+    dt : float, optional
+        RK4 step [s] (plant sub-step for sampled laws, which must divide ``1/rate``), > 0.
+        None: 1e-3 s, or for sampled laws the largest sub-step not above 1e-3 s that divides
+        ``1/rate``; the field then holds the step used. Nothing is rounded: settings off the
+        grid are refused (:func:`rrr_pin.sim.simulation.time_grid`).
     rate : float, optional
         Sampling rate of the laws [Hz]; None for continuous-time laws.
     method : str, default "tustin"
@@ -55,10 +58,21 @@ class RunSettings:
         Initial state [rad, rad/s]; default on the reference.
     effects : PlantEffects, optional
         Unmodeled plant dynamics (:mod:`rrr_pin.control.effects`); sampled laws only (``rate``).
+        A delay must be a whole number of plant sub-steps.
+    force : bool, default False
+        Accept runs above the work bounds of one run (``rrr_pin.sim.simulation.MAX_SUBSTEPS``
+        RK4 steps, ``MAX_SAMPLES`` stored samples), refused otherwise when the settings are
+        made. Not recorded by :meth:`to_dict`: it allows a run, it does not change its numbers.
+
+    Raises
+    ------
+    ValueError
+        A field out of range, settings off the time grid or above the work bounds (a
+        :class:`~rrr_pin.validation.FieldError` naming the field).
     """
 
     duration: float = 4.0
-    dt: float = DEFAULT_DT
+    dt: float | None = None
     rate: float | None = None
     method: str = "tustin"
     engine: str = "auto"
@@ -66,18 +80,18 @@ class RunSettings:
     q0: tuple | None = None
     qd0: tuple | None = None
     effects: PlantEffects | None = None
+    force: bool = False
 
     def __post_init__(self) -> None:
         check_positive("duration", self.duration, unit="s")
-        check_positive("dt", self.dt, unit="s")
+        if self.dt is not None:
+            check_positive("dt", self.dt, unit="s")
         if self.rate is not None:
             check_rate("rate", self.rate)
-            if self.duration * self.rate < 1.0 - 1e-9:
-                raise ValueError(f"duration = {self.duration:g} s is shorter than one control "
-                                 f"period (1/rate = {1 / self.rate:g} s)")
-        elif self.duration < self.dt * (1.0 - 1e-9):
-            raise ValueError(f"duration = {self.duration:g} s is shorter than one RK4 step "
-                             f"(dt = {self.dt:g} s)")
+        if not isinstance(self.force, bool):
+            raise TypeError(f"force must be a bool, got {type(self.force).__name__}")
+        grid = time_grid(self.duration, self.dt, self.rate, force=self.force)
+        object.__setattr__(self, "dt", grid.h)
         if self.engine not in ENGINES:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
         check_positive("limit_margin", self.limit_margin, allow_zero=True, unit="rad")
@@ -88,22 +102,28 @@ class RunSettings:
         check_effects(self.effects)
         if self.effects is not None and self.effects.active and self.rate is None:
             raise ValueError("effects apply to sampled controllers only: give a rate")
+        if self.effects is not None:
+            self.effects.delay_substeps(grid.h)
 
     def simulate_kwargs(self) -> dict:
         """Keyword arguments of :func:`rrr_pin.sim.simulation.simulate`."""
         return {"dt": self.dt, "rate": self.rate, "method": self.method, "engine": self.engine,
                 "limit_margin": self.limit_margin, "q0": self.q0, "qd0": self.qd0,
-                "effects": self.effects}
+                "effects": self.effects, "force": self.force}
 
     def to_dict(self) -> dict:
         """JSON-ready settings (units in the key names)."""
         d = asdict(self)
+        fx = self.effects.to_dict() if self.effects is not None else None
+        if fx is not None and self.effects.delay:  # the delay as realized: d sub-steps h
+            k = self.effects.delay_substeps(self.dt)
+            fx["delay_s"], fx["delay_substeps"] = k * self.dt, k
         return {"duration_s": d["duration"], "dt_s": d["dt"], "rate_hz": d["rate"],
                 "method": d["method"], "engine": d["engine"],
                 "limit_margin_rad": d["limit_margin"],
                 "q0_rad": list(d["q0"]) if d["q0"] is not None else None,
                 "qd0_rad_s": list(d["qd0"]) if d["qd0"] is not None else None,
-                "effects": self.effects.to_dict() if self.effects is not None else None}
+                "effects": fx}
 
 
 def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,

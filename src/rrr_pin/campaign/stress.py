@@ -69,8 +69,8 @@ class StressSettings:
     ----------
     run : RunSettings
         Simulation of each run (at least; see ``cycles``): default 2 s, sampled at 1 kHz,
-        plant sub-step ``1e-4`` s (the
-        delay's resolution, see :mod:`rrr_pin.control.effects`), compiled engine where possible.
+        plant sub-step ``1e-4`` s (the grid of the delays tried: a delay is a whole number of
+        sub-steps, see :mod:`rrr_pin.control.effects`), compiled engine where possible.
     budget : float, default 0.05
         RMS tracking error [rad] (over all joints and samples) above which the loop counts as
         broken; a diverged run is broken too.
@@ -86,10 +86,11 @@ class StressSettings:
         baseline, 15.6 rad/s on the RRR, runs 9.6 s).
     offset : float, default 0.01
         Every run starts this far off the reference on every joint [rad] (``q0 = r(0) +
-        offset``, unless ``run.q0`` is given), so that an unstable loop has a mode to grow
-        from: started exactly on the reference, a slowly unstable loop (growth of a few 1/s
-        near the boundary) can stay under the budget for seconds and the search would report
-        a boundary beyond the true one. A stable loop forgets the offset within ~5 / lam.
+        offset``, unless ``run.q0`` is given; refused if that leaves a joint's limits), so
+        that an unstable loop has a mode to grow from: started exactly on the reference, a
+        slowly unstable loop (growth of a few 1/s near the boundary) can stay under the budget
+        for seconds and the search would report a boundary beyond the true one. A stable loop
+        forgets the offset within ~5 / lam.
     """
 
     run: RunSettings = field(default_factory=lambda: RunSettings(duration=2.0, dt=1e-4,
@@ -231,6 +232,20 @@ def _bisect(stable, lo, hi, rtol):
     return lo, hi
 
 
+def _bisect_steps(stable, lo: int, hi: int, h: float, rtol: float) -> tuple[int, int]:
+    """:func:`_bisect` on whole numbers of steps ``h``: ``stable(k h)`` at ``lo``, not at ``hi``.
+
+    Stops when the bracket is ``rtol`` narrow or one step wide.
+    """
+    while hi - lo > 1 and hi / lo - 1.0 > rtol:
+        mid = min(max(round(math.sqrt(lo * hi)), lo + 1), hi - 1)
+        if stable(mid * h):
+            lo = mid
+        else:
+            hi = mid
+    return lo, hi
+
+
 def linear_boundary(law, effect: str, rate: float, home=None, rtol: float = 1e-4):
     """Predicted breaking point of the linear digital loop (see the module docstring).
 
@@ -351,13 +366,31 @@ def loop_bandwidth(law, home) -> float | None:
     return model.bandwidth(home) if model is not None else None
 
 
+def _start(plant, reference, settings: StressSettings):
+    """Return the start of every run [rad]: ``run.q0``, or ``r(0) + offset`` (None: on r).
+
+    Raises
+    ------
+    ValueError
+        ``r(0) + offset`` outside a joint's limits (it is not moved inside them).
+    """
+    if settings.run.q0 is not None or not settings.offset:
+        return settings.run.q0
+    r0 = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
+    q0 = r0 + settings.offset
+    for j, name in enumerate(plant.joint_names):
+        if not plant.lower[j] <= q0[j] <= plant.upper[j]:
+            raise ValueError(f"offset = {settings.offset:g} rad puts joint {name!r} at "
+                             f"{q0[j]:.6g} rad, outside its limits [{plant.lower[j]:.4g}, "
+                             f"{plant.upper[j]:.4g}]: choose a smaller offset or give run.q0")
+    return q0
+
+
 def _rms(plant, law, reference, effect, size, settings: StressSettings, duration):
-    """RMS tracking error [rad] of one run, ``inf`` if it diverged."""
+    """RMS tracking error [rad] of one run (from :func:`_start`), ``inf`` if it diverged."""
     kwargs = settings.run.simulate_kwargs()
     kwargs.pop("effects", None)  # the effect under test replaces any in the settings
-    if kwargs["q0"] is None and settings.offset:
-        r0 = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
-        kwargs["q0"] = np.clip(r0 + settings.offset, plant.lower, plant.upper)
+    kwargs["q0"] = _start(plant, reference, settings)
     try:
         traj = simulate(plant, law, reference, duration, effects=effects_of(effect, size),
                         **kwargs)
@@ -393,10 +426,17 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
     dict
         ``simulated`` (the last size that passed, or None if even the mildest tried failed),
         ``bracket`` [pass, fail] and ``samples``: ``[[size, rms_error], ...]`` of every run
-        (``inf`` = diverged), ``duration`` [s] of each run.
+        (``inf`` = diverged), ``duration`` [s] of each run. A delay is searched on whole
+        numbers of plant sub-steps ``h = settings.run.dt`` (the only delays a run realizes):
+        ``simulated`` and the bracket are multiples of ``h``, the bracket at least ``h`` wide,
+        and the true boundary of the simulated loop lies inside it.
     """
     settings = settings or StressSettings()
     unit, direction, _, _ = EFFECTS[_check_effect(effect)]
+    # A delay is realized only as a whole number of plant sub-steps h (any other is refused,
+    # rrr_pin.control.effects): the delays tried are multiples of h, and the bracket is at
+    # least h wide.
+    h = settings.run.dt if effect == "delay" else None
     samples = []
     if home is None:
         home = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
@@ -406,6 +446,8 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
         rate = settings.run.rate
         duration = max(duration, math.ceil(settings.cycles / wb * rate) / rate)
 
+    _start(plant, reference, settings)  # an offset off the limits: refused before any run
+
     def ok(size):
         rms = _rms(plant, law, reference, effect, size, settings, duration)
         samples.append([size, rms])
@@ -413,26 +455,44 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
 
     default = {"delay": 5e-3, "actuator": 100.0, "stiffness": 1e3, "torque": 50.0,
                "noise": 1e-3}[effect]
+    def snap(x, up):
+        """``x``, or for a delay the multiple of ``h`` (>= h) below it (above it if ``up``)."""
+        if h is None:
+            return x
+        k = math.ceil(x / h - 1e-9) if up else math.floor(x / h + 1e-9)
+        return max(1, k) * h
+
     g = guess if guess is not None and math.isfinite(guess) and guess > 0 else default
     # "up": pass below, fail above; "down": pass above, fail below.
-    mild, harsh = (g / 2, 2 * g) if direction == "up" else (2 * g, g / 2)
+    mild, harsh = (snap(g / 2, False), snap(2 * g, True)) if direction == "up" else (2 * g, g / 2)
     for _ in range(12):
         if ok(mild):
             break
-        mild, harsh = (mild / 4, mild) if direction == "up" else (mild * 4, mild)
+        if h is not None and mild <= h * (1 + 1e-9):  # even one sub-step of delay fails
+            return {"simulated": None, "bracket": [None, mild], "samples": samples,
+                    "duration": duration}
+        mild, harsh = (snap(mild / 4, False), mild) if direction == "up" else (mild * 4, mild)
     else:
         return {"simulated": None, "bracket": [None, mild], "samples": samples,
                 "duration": duration}
     for _ in range(12):
         if not ok(harsh):
             break
-        mild, harsh = (harsh, harsh * 4) if direction == "up" else (harsh, harsh / 4)
+        mild, harsh = (harsh, snap(harsh * 4, True)) if direction == "up" else (harsh,
+                                                                                harsh / 4)
     else:
         return {"simulated": math.inf if direction == "up" else 0.0,
                 "bracket": [harsh, None], "samples": samples, "duration": duration}
-    mild, harsh = _bisect(ok, mild, harsh, settings.rtol)
-    for x in np.geomspace(mild / 4 if direction == "up" else mild * 4, mild,
-                          settings.sweep + 1)[:-1]:
+    if h is None:
+        mild, harsh = _bisect(ok, mild, harsh, settings.rtol)
+        sweep = np.geomspace(mild / 4 if direction == "up" else mild * 4, mild,
+                             settings.sweep + 1)[:-1]
+    else:
+        k_lo, k_hi = _bisect_steps(ok, round(mild / h), round(harsh / h), h, settings.rtol)
+        mild, harsh = k_lo * h, k_hi * h
+        ks = np.unique(np.floor(np.geomspace(max(1.0, k_lo / 4), k_lo, settings.sweep + 1)))
+        sweep = [k * h for k in ks if k < k_lo]
+    for x in sweep:
         ok(float(x))
     samples.sort()
     return {"simulated": mild, "bracket": [mild, harsh], "samples": samples,
@@ -460,8 +520,9 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
     dict
         ``{"effect", "unit", "budget_rad", "settings", "rows": [...]}``; each row has
         ``controller``, ``effect``, ``unit``, ``predicted`` (digital loop),
-        ``predicted_continuous``, ``simulated``, ``bracket``, ``guaranteed``, ``barrier_met``,
-        ``agreement`` (simulated / predicted), ``samples``.
+        ``predicted_continuous``, ``simulated``, ``bracket``, ``resolution`` (the grid a
+        delay is searched on, the plant sub-step [s]; None for other effects),
+        ``guaranteed``, ``barrier_met``, ``agreement`` (simulated / predicted), ``samples``.
     """
     settings = settings or StressSettings()
     effect = _check_effect(effect)
@@ -484,6 +545,7 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
             "controller": law.name, "label": law.label or law.name, "effect": effect,
             "unit": unit, "predicted": pred, "predicted_continuous": cont, "simulated": sim,
             "bracket": found["bracket"], "duration_s": found["duration"],
+            "resolution": settings.run.dt if effect == "delay" else None,
             "guaranteed": guarantee if (guarantee is not None and met) else None,
             "barrier_met": met,
             "agreement": sim / pred if (sim and pred and math.isfinite(pred)) else None,

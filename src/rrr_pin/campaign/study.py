@@ -20,6 +20,7 @@ from ..control.references import Reference, TaskSpaceReference, default_referenc
 from ..model.dynamics import Robot, robot_from_xml
 from ..model.robots import nominal_params
 from ..model.uncertainty import PlantSample, sample_plants
+from ..sim.simulation import time_grid
 from ..sim.trajectory import SimulationDiverged, metrics
 from .executors import check_jobs, default_jobs
 from .runner import RunSettings, check_laws, run_laws
@@ -36,7 +37,15 @@ __all__ = [
     "run_study",
     "summarize",
     "task_space_errors",
+    "MAX_STUDY_BYTES",
+    "check_study_size",
 ]
+
+
+#: Most memory [bytes] the trajectories a study keeps (every law on every plant, for its
+#: figures) may take unless ``config.run.force``: ``8 (1 + 4 n)`` bytes per sample and joint
+#: count ``n`` (t, q, qd, r, tau), 2 GB, 200 times the paper's study (11 plants, 2 laws, 4 s).
+MAX_STUDY_BYTES = 2_000_000_000
 
 
 @dataclass(frozen=True)
@@ -292,6 +301,30 @@ def run_plant(task: PlantTask) -> tuple[dict, dict | None]:
     return runs, cert
 
 
+def check_study_size(config: StudyConfig, n_laws: int, n: int) -> int:
+    """Return the memory [bytes] of the trajectories a study keeps, refused above the bound.
+
+    ``(samples + 1) x n_laws`` runs (the nominal plant and the uncertain ones) of
+    ``n_steps + 1`` samples each, ``8 (1 + 4 n)`` bytes per sample for ``n`` joints.
+
+    Raises
+    ------
+    ValueError
+        The estimate is above :data:`MAX_STUDY_BYTES` and ``config.run.force`` is False.
+    """
+    run = config.run
+    samples = time_grid(run.duration, run.dt, run.rate, force=True).n_steps + 1
+    kept = (config.samples + 1) * n_laws * samples * 8 * (1 + 4 * n)
+    if kept > MAX_STUDY_BYTES and not run.force:
+        raise ValueError(
+            f"the study keeps every trajectory: {config.samples + 1} plants x {n_laws} laws "
+            f"x {samples} samples of {n} joints take about {kept / 1e9:.3g} GB, above "
+            f"rrr_pin.campaign.study.MAX_STUDY_BYTES = {MAX_STUDY_BYTES / 1e9:g} GB; use fewer "
+            f"samples (--samples) or a shorter run, a Monte Carlo campaign (which keeps "
+            f"metrics only), or force it (RunSettings(force=True), --force)")
+    return kept
+
+
 def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
               reference: Reference | None = None, params=None, skip_joints=(),
               progress=None, certificate=None) -> StudyResult:
@@ -328,8 +361,12 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     ------
     SimulationDiverged
         A law diverged on the nominal plant.
+    ValueError
+        The trajectories kept would take more than :data:`MAX_STUDY_BYTES`
+        (:func:`check_study_size`, before any work; ``config.run.force`` lifts the bound).
     """
     laws = check_laws(laws, nominal.nq, config.baseline)
+    check_study_size(config, len(laws), nominal.nq)
     reference = default_reference(nominal) if reference is None else reference
     reference.check_limits(nominal, duration=config.run.duration)
     if params is None:

@@ -25,10 +25,13 @@ output ``a`` otherwise. The law always measures the **link** side.
 Discretization (both engines, :mod:`rrr_pin.sim.simulation` and the C++ rollout):
 
 * the arm, the actuator state ``a`` and the motor state ``(th, th')`` are integrated together
-  by classical RK4 with the plant sub-step ``h = Ts / substeps`` (``substeps = ceil(Ts / dt)``);
-* the delay is realized on that sub-step grid: ``tau_d`` is rounded to the nearest multiple
-  ``d h`` and the run records the realized value (``Trajectory.info["effects"]["delay_s"]``,
-  next to the requested one). Choose ``dt`` small enough for the resolution you need;
+  by classical RK4 with the plant sub-step ``h = Ts / substeps`` (``dt``, which must divide
+  ``Ts``: :func:`rrr_pin.sim.simulation.time_grid`);
+* the delay is realized exactly on that sub-step grid: ``tau_d`` must be a whole number
+  ``d`` of sub-steps ``h`` (to a relative 1e-9, :func:`rrr_pin.validation.check_multiple`);
+  any other delay is refused, naming ``h`` and the two nearest realizable delays, never
+  rounded. The run records ``d`` and ``d h`` (``Trajectory.info["effects"]["delay_substeps"]``,
+  ``["delay_s"]``). Choose ``dt`` to divide the delays you need;
 * before ``t = 0`` the loop is taken at rest on its first command: the delay line and the
   actuator state hold ``tau_0``; a flexible joint starts with its spring carrying ``tau_0``
   (``th(0) = q(0) + tau_0 / K``, ``th'(0) = qd(0)``);
@@ -52,6 +55,8 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
+
+from ..validation import check_multiple
 
 __all__ = ["PlantEffects", "Resolved", "EffectsError", "check_effects"]
 
@@ -80,7 +85,8 @@ class PlantEffects:
     ----------
     delay : float, default 0
         Transport delay ``tau_d`` [s] >= 0: the torque computed at ``t`` reaches the joints at
-        ``t + tau_d`` (realized on the RK4 sub-step grid, rounded to the nearest sub-step).
+        ``t + tau_d``: a whole number of RK4 sub-steps ``h`` of the run (others are refused
+        when the run is prepared, :meth:`delay_substeps`).
     bandwidth : float, optional
         First-order actuator bandwidth ``wa`` [rad/s] > 0: applied = ``wa/(s + wa)`` times the
         commanded torque. None: ideal actuator.
@@ -192,6 +198,18 @@ class PlantEffects:
                  "damping": "damping_Nms", "seed": "seed"}
         return {units[k]: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
 
+    def delay_substeps(self, h: float) -> int:
+        """Return the delay as a whole number of plant sub-steps ``h`` [s], or refuse it.
+
+        Raises
+        ------
+        rrr_pin.validation.FieldError
+            ``delay`` is not a multiple of ``h`` (to a relative 1e-9): the message names the
+            delay, ``h`` and the two nearest realizable delays.
+        """
+        return check_multiple("delay", self.delay, h, unit="s",
+                              step_name="plant sub-steps h")
+
     def resolve(self, plant, substeps: int, h: float, n_steps: int) -> Resolved:
         """Per-joint arrays for a run of ``n_steps`` control periods on ``plant`` (engines' input).
 
@@ -200,6 +218,8 @@ class PlantEffects:
         EffectsError
             A per-joint field of the wrong length, a URDF without effort limits, or a sub-step
             ``h`` too large for the actuator bandwidth or the joint resonance (RK4).
+        rrr_pin.validation.FieldError
+            A delay that is not a whole number of sub-steps ``h`` (:meth:`delay_substeps`).
         """
         n = plant.nq
 
@@ -212,7 +232,7 @@ class PlantEffects:
                                    f"{arr.size}")
             return arr.copy()
 
-        d = int(round(self.delay / h))
+        d = self.delay_substeps(h)
         limit = None
         if self.torque_limit == "urdf":
             limit = np.asarray(plant.model.effortLimit, dtype=float).copy()
@@ -246,8 +266,7 @@ class PlantEffects:
         nq = rng.standard_normal((n_steps, n)) * sq if np.any(sq > 0) else None
         nqd = rng.standard_normal((n_steps, n)) * sqd if np.any(sqd > 0) else None
         quantum = 2.0 * math.pi / self.encoder_counts if self.encoder_counts else 0.0
-        info = {**self.to_dict(), "delay_requested_s": self.delay, "delay_s": d * h,
-                "delay_substeps": d}
+        info = {**self.to_dict(), "delay_s": d * h, "delay_substeps": d}
         return Resolved(delay_steps=d, wa=wa, limit=limit, Fv=Fv, Fc=Fc, veps=veps, noise_q=nq,
                         noise_qd=nqd, quantum=quantum, Bm=Bm, Kf=Kf, Df=Df, info=info)
 
@@ -281,8 +300,8 @@ class Resolved:
         Flexible joints: motor inertia [kg m^2], stiffness [N m/rad], damping [N m s/rad] (all
         three or none).
     info : dict
-        What the run records (``Trajectory.info["effects"]``): the settings, the requested and
-        the realized delay.
+        What the run records (``Trajectory.info["effects"]``): the settings, with the delay as
+        realized (``delay_s = delay_substeps h``).
     """
 
     delay_steps: int

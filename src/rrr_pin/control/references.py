@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..validation import check_positive, check_vector
+from ..validation import FieldError, check_positive, check_vector
 
 __all__ = [
     "default_reference",
@@ -671,30 +671,47 @@ def default_reference(robot, amp: float = 0.5, freq: float = 0.5,
     robot : Robot
         The arm (for its neutral configuration and limits).
     amp : float, default 0.5
-        Amplitude [rad], finite and >= 0. Where a joint's range is narrower than ``2.2 amp``
-        it is reduced to 45 % of that range.
+        Amplitude [rad], finite and >= 0, the same on every joint. Never reduced: an amplitude
+        a joint's limits cannot hold is refused (with ``home`` None, at most its range / 2.2,
+        keeping 10 % of the amplitude to spare; with ``home`` given, ``home +- amp`` must stay
+        inside the limits).
     freq : float, default 0.5
         Frequency [Hz], finite and >= 0.
     home : array-like, shape (n,), optional
         Centre of the motion [rad]; default the URDF's neutral configuration, moved inside the
-        limits where it is closer to them than ``1.1 amp``.
+        limits where it is closer to them than ``1.1 amp`` (the home used is recorded in
+        :meth:`SineReference.to_dict`).
 
     Returns
     -------
     SineReference
         Phases ``2 pi j / n`` for joint ``j``, so the joints do not move in lockstep.
+
+    Raises
+    ------
+    ValueError
+        ``amp`` out of range, or larger than a joint's limits allow: the message names the
+        amplitude, the joint, its limits and the largest amplitude they allow (or, with
+        ``home`` given, the span ``home +- amp`` that leaves them).
     """
     amp = check_positive("amp", amp, allow_zero=True, unit="rad")
     freq = check_positive("freq", freq, allow_zero=True, unit="Hz")
     n = robot.nq
     lower, upper = robot.lower, robot.upper
-    width = upper - lower
-    a = np.where(width >= 2.2 * amp, amp, 0.45 * width)
     if home is None:
+        largest = (upper - lower) / 2.2
+        too = np.flatnonzero(amp > largest)
+        if too.size:
+            j = int(too[0])
+            raise FieldError("amp", (
+                f"{{name}} = {amp:g} rad is too large for joint {robot.joint_names[j]!r} "
+                f"(limits [{lower[j]:.4g}, {upper[j]:.4g}] rad): the largest amplitude they "
+                f"allow about the default home (range / 2.2) is {float(largest[j]):.4g} rad"
+                + (f" ({too.size} joints refuse it)" if too.size > 1 else "")))
         # 10 % of the amplitude to spare, so tracking errors cannot touch the limits.
-        home = np.clip(robot.neutral(), lower + 1.1 * a, upper - 1.1 * a)
-    else:
+        home = np.clip(robot.neutral(), lower + 1.1 * amp, upper - 1.1 * amp)
+    else:  # home +- amp outside the limits: refused by SineReference.check_limits below
         home = check_vector("home", home, n)
-    ref = SineReference(home=home, amp=a, freq=freq, phase=2.0 * math.pi * np.arange(n) / n)
+    ref = SineReference(home=home, amp=amp, freq=freq, phase=2.0 * math.pi * np.arange(n) / n)
     ref.check_limits(robot)
     return ref

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..validation import check_positive, check_vector
+from ..validation import FieldError, check_positive, check_vector
 from .paths import circle_from_start, task_start
 from .references import (
     LinePath,
@@ -112,7 +112,10 @@ class ReferenceSpec:
         if kind == "sine":
             amp = check_positive(label("amp"), self.amp, allow_zero=True)
             freq = check_positive(label("freq"), self.freq, allow_zero=True)
-            return default_reference(robot, amp=amp, freq=freq, home=home)
+            try:
+                return default_reference(robot, amp=amp, freq=freq, home=home)
+            except FieldError as exc:  # an amplitude the limits cannot hold, as the caller says
+                raise exc.relabelled(label) from None
         if kind == "spline":
             if self.csv is None:
                 raise ValueError(f"{label('reference')} spline needs {label('csv')} PATH")

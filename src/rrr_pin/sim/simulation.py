@@ -21,6 +21,11 @@ Integration method: classical fixed-step Runge-Kutta 4.
   state and outputs ``tau_k``, held constant (zero-order hold) while the arm is integrated over
   ``[t_k, t_k + Ts]`` by ``substeps`` RK4 steps of ``Ts / substeps``.
 
+The grid is realized exactly or refused (:func:`time_grid`): a duration must be a whole number
+of steps and a sampled run's ``dt`` must divide ``Ts``; nothing is rounded. Before anything is
+allocated the run's work is estimated and refused above :data:`MAX_SUBSTEPS` RK4 steps or
+:data:`MAX_SAMPLES` stored samples unless ``force=True``.
+
 Divergence (one definition for both engines, :func:`diverged_joint`): a run diverges when, at the
 end of a control period (sampled) or of an RK4 step (continuous), a joint's ``q`` or ``qd`` is
 NaN/inf, ``|qd|`` exceeds :data:`VELOCITY_LIMIT`, or ``q`` leaves the plant's joint limits
@@ -34,6 +39,7 @@ from __future__ import annotations
 
 import math
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -41,7 +47,14 @@ import pinocchio as pin
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import ControlLaw, SampledLaw, check_law
 from ..control.references import Reference, check_reference
-from ..validation import check_positive, check_rate, check_vector
+from ..validation import (
+    MULTIPLE_RTOL,
+    FieldError,
+    check_multiple,
+    check_positive,
+    check_rate,
+    check_vector,
+)
 from .trajectory import (
     VELOCITY_LIMIT,
     Run,
@@ -53,12 +66,27 @@ from .trajectory import (
 
 __all__ = [
     "simulate",
+    "time_grid",
+    "TimeGrid",
+    "largest_substep",
     "DEFAULT_DT",
     "ENGINES",
+    "MAX_SUBSTEPS",
+    "MAX_SAMPLES",
 ]
 
-#: Default RK4 step of the continuous-time simulation [s].
+#: Default RK4 step of the continuous-time simulation [s], and the largest default plant
+#: sub-step of a sampled one.
 DEFAULT_DT = 1e-3
+
+#: Most plant RK4 steps one run may take unless ``force=True``: about a minute on the compiled
+#: engine (~1.6e5 steps/s for the RRR), an hour on the Python engine.
+MAX_SUBSTEPS = 10_000_000
+
+#: Most stored samples one run may hold unless ``force=True``: its arrays take about
+#: ``8 (1 + 11 n)`` bytes per sample for ``n`` joints (t, q, qd, tau, the sampled reference
+#: and its half-step grid, sensor noise), 270 MB for the RRR, 630 MB for a 7-joint arm.
+MAX_SAMPLES = 1_000_000
 
 #: Accepted values of ``simulate(engine=...)``.
 ENGINES = ("auto", "python", "compiled", "codegen")
@@ -84,10 +112,137 @@ def _state(name: str, value, default: np.ndarray) -> np.ndarray:
     return check_vector(name, value, default.shape[0])
 
 
-def simulate(plant, law, reference: Reference, duration: float, *, dt: float = DEFAULT_DT,
+@dataclass(frozen=True)
+class TimeGrid:
+    """The time grid of one run, as :func:`time_grid` realizes it.
+
+    Attributes
+    ----------
+    n_steps : int
+        Control periods (sampled) or RK4 steps (continuous); the run stores ``n_steps + 1``
+        samples.
+    substeps : int
+        Plant RK4 sub-steps per control period (1 for a continuous run).
+    h : float
+        Plant RK4 step [s]: ``1/rate / substeps``, or ``dt``.
+    """
+
+    n_steps: int
+    substeps: int
+    h: float
+
+    @property
+    def work(self) -> int:
+        """Plant RK4 steps of the run, ``n_steps * substeps``."""
+        return self.n_steps * self.substeps
+
+    def nbytes(self, n: int) -> int:
+        """Estimated memory [bytes] of the arrays of a run with ``n`` joints (see MAX_SAMPLES)."""
+        return 8 * (1 + 11 * n) * (self.n_steps + 1)
+
+
+def largest_substep(rate: float, dt_max: float = DEFAULT_DT) -> float:
+    """Largest plant sub-step [s] not above ``dt_max`` [s] that divides ``1/rate`` [Hz].
+
+    ``Ts / ceil(Ts / dt_max)`` with ``Ts = 1/rate`` (``dt_max`` itself when it divides
+    ``Ts``, to a relative 1e-9).
+    """
+    Ts = 1.0 / rate
+    return Ts / max(1, math.ceil(Ts / dt_max - 1e-9))
+
+
+def time_grid(duration: float, dt: float | None = None, rate: float | None = None, *,
+              n: int | None = None, force: bool = False) -> TimeGrid:
+    """Realize ``duration``, ``dt`` and ``rate`` as a grid exactly, or refuse them.
+
+    Nothing is rounded: a sampled run needs ``duration`` to be a whole number of control
+    periods ``Ts = 1/rate`` and ``dt`` to divide ``Ts`` into whole sub-steps; a continuous run
+    needs ``duration`` to be a whole number of ``dt`` (to a relative
+    :data:`rrr_pin.validation.MULTIPLE_RTOL`). The work is estimated before anything is
+    allocated and refused above :data:`MAX_SUBSTEPS` plant RK4 steps or :data:`MAX_SAMPLES`
+    stored samples per run, unless ``force``.
+
+    Parameters
+    ----------
+    duration : float
+        Simulated time [s], finite and > 0 (checked by the caller).
+    dt : float, optional
+        RK4 step [s] (continuous) or plant sub-step (sampled), finite and > 0. None: 1e-3 s
+        (:data:`DEFAULT_DT`) for a continuous run; for a sampled run the largest sub-step not
+        above 1e-3 s that divides ``Ts`` (``Ts / ceil(Ts / 1e-3)``).
+    rate : float, optional
+        Sampling rate [Hz], finite and > 0; None: a continuous run.
+    n : int, optional
+        Joints, for the memory estimate in the message.
+    force : bool, default False
+        Accept a run above the work bounds.
+
+    Returns
+    -------
+    TimeGrid
+
+    Raises
+    ------
+    FieldError
+        A ``duration`` or ``dt`` off the grid (the message gives the nearest realizable
+        values), a ``duration`` shorter than one step, or a run above the bounds (the message
+        gives the estimate).
+    """
+    if rate is not None:
+        Ts = 1.0 / rate
+        if dt is None:
+            substeps = round(Ts / largest_substep(rate))
+        else:
+            x = Ts / dt
+            substeps = round(x)
+            if substeps < 1 or abs(x - substeps) > MULTIPLE_RTOL * x:
+                raise _dt_refusal(dt, Ts, sorted({max(1, math.floor(x)), max(1, math.ceil(x))}))
+        h = Ts / substeps
+        if duration < Ts * (1.0 - MULTIPLE_RTOL):
+            raise FieldError("duration", f"{{name}} = {duration:g} s is shorter than one "
+                                         f"control period (1/rate = {Ts:g} s): nothing to "
+                                         f"simulate")
+        n_steps = check_multiple("duration", duration, Ts, low=1, unit="s",
+                                 step_name="control periods 1/rate")
+    else:
+        h = DEFAULT_DT if dt is None else dt
+        substeps = 1
+        if duration < h * (1.0 - MULTIPLE_RTOL):
+            raise FieldError("duration", f"{{name}} = {duration:g} s is shorter than one RK4 "
+                                         f"step (dt = {h:g} s): nothing to simulate")
+        n_steps = check_multiple("duration", duration, h, low=1, unit="s",
+                                 step_name="RK4 steps dt")
+    grid = TimeGrid(n_steps, substeps, h)
+    if not force and (grid.work > MAX_SUBSTEPS or n_steps + 1 > MAX_SAMPLES):
+        mem = (f"{grid.nbytes(n) / 1e6:.4g} MB for {n} joints" if n is not None else
+               f"{8e-6 * 11 * (n_steps + 1):.4g} MB per joint")
+        steps = (f"{n_steps:.4g} control periods of {substeps} RK4 sub-step(s) h = {h:.4g} s"
+                 if rate is not None else f"{n_steps:.4g} RK4 steps dt = {h:.4g} s")
+        raise FieldError("duration", (
+            f"{{name}} = {duration:g} s"
+            + (f" at rate = {rate:g} Hz" if rate is not None else "")
+            + f" is {steps}: {grid.work:.4g} RK4 steps and {n_steps + 1:.4g} stored samples "
+            f"(about {mem}) per run of each law, above the bounds of {MAX_SUBSTEPS:.0e} RK4 "
+            f"steps and {MAX_SAMPLES:.0e} samples (rrr_pin.sim.simulation.MAX_SUBSTEPS, "
+            f"MAX_SAMPLES); shorten the run, coarsen the step, or force it (force=True, "
+            f"--force)"))
+    return grid
+
+
+def _dt_refusal(dt: float, Ts: float, counts) -> FieldError:
+    """Return the refusal of a sub-step that does not divide the control period ``Ts``."""
+    near = " and ".join(f"{Ts / k:.12g} s ({k} sub-step{'s' if k > 1 else ''})" for k in counts)
+    return FieldError("dt", (
+        f"{{name}} = {dt:.12g} s does not divide the control period 1/rate = {Ts:.12g} s into "
+        f"whole RK4 sub-steps ({Ts / dt:.6g} of them): the nearest realizable sub-steps are "
+        f"{near}"))
+
+
+def simulate(plant, law, reference: Reference, duration: float, *, dt: float | None = None,
              rate: float | None = None, method: str = "tustin", q0=None, qd0=None,
              limit_margin: float = 0.0, engine: str = "auto",
-             effects: PlantEffects | None = None, check: bool = True) -> Trajectory:
+             effects: PlantEffects | None = None, check: bool = True,
+             force: bool = False) -> Trajectory:
     """Simulate the closed loop of ``plant`` and ``law`` tracking ``reference``.
 
     Parameters
@@ -99,10 +254,13 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float = D
     reference : Reference
         Joint reference with ``plant.nq`` joints (:mod:`rrr_pin.control.references`).
     duration : float
-        Simulated time [s]; at least one step (``dt``, or ``1/rate`` for sampled laws).
-    dt : float, default 1e-3
-        RK4 step [s] for continuous-time laws; for sampled laws, the largest plant sub-step
-        (``substeps = ceil(Ts / dt)``).
+        Simulated time [s]: a whole number (>= 1) of steps (``dt``, or ``1/rate`` for sampled
+        laws); anything else is refused, not rounded (:func:`time_grid`).
+    dt : float, optional
+        RK4 step [s] for continuous-time laws (default 1e-3); for sampled laws the plant
+        sub-step, which must divide ``Ts = 1/rate`` into whole sub-steps (default: the largest
+        such sub-step not above 1e-3 s, ``Ts / ceil(Ts / 1e-3)``). The step used is recorded
+        in ``Trajectory.info["dt"]``.
     rate : float, optional
         Run a continuous law as a digital controller at this rate [Hz] (zero-order hold, the
         law's :meth:`~rrr_pin.control.laws.ControlLaw.sampled` form with ``method``). A
@@ -129,8 +287,12 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float = D
         (finite, > 0; ``limit_margin`` >= 0). ``False`` trusts them as validated by the caller
         (e.g. :class:`rrr_pin.campaign.runner.RunSettings`, which checks them when it is made)
         and only converts them to float. What depends on the plant, the law or the reference
-        (sizes, the initial state, joint limits, at least one step, the RK4 step of a linear
-        law's fastest pole) is checked either way.
+        (sizes, the initial state, joint limits, the RK4 step of a linear law's fastest pole)
+        is checked either way; the time grid (whole steps, work bounds) only with ``check``.
+    force : bool, default False
+        Run even above the work bounds :data:`MAX_SUBSTEPS` (plant RK4 steps) and
+        :data:`MAX_SAMPLES` (stored samples), which are otherwise refused before anything is
+        allocated (only checked with ``check=True``).
 
     Returns
     -------
@@ -143,13 +305,15 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float = D
         See :func:`diverged_joint`.
     ValueError
         Inconsistent sizes, non-finite or non-positive settings, a duration shorter than one
-        step, a reference or initial state outside the joint limits, an engine that cannot run
-        the law, effects with a continuous-time law.
+        step or not a whole number of steps, a ``dt`` that does not divide ``1/rate``, a run
+        above the work bounds (without ``force``), a reference or initial state outside the
+        joint limits, an engine that cannot run the law, effects with a continuous-time law.
     TypeError
         ``law`` or ``reference`` of the wrong type.
     """
     run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
-                   qd0=qd0, limit_margin=limit_margin, effects=effects, check=check)
+                   qd0=qd0, limit_margin=limit_margin, effects=effects, check=check,
+                   force=force)
     form, engine = _choose_engine(run.law, engine)
     if engine in ("compiled", "codegen"):
         from .compiled import run_compiled
@@ -262,8 +426,18 @@ def _check_limits(reference, plant, duration: float) -> None:
         _REUSE[key] = reference
 
 
+def _trusted_grid(duration: float, dt: float | None, rate: float | None) -> TimeGrid:
+    """Return the grid of settings :func:`time_grid` accepted (no check, no bound)."""
+    if rate is None:
+        h = DEFAULT_DT if dt is None else dt
+        return TimeGrid(round(duration / h), 1, h)
+    Ts = 1.0 / rate
+    substeps = round(Ts / (largest_substep(rate) if dt is None else dt))
+    return TimeGrid(round(duration * rate), substeps, Ts / substeps)
+
+
 def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
-             limit_margin, effects=None, check=True) -> Run:
+             limit_margin, effects=None, check=True, force=False) -> Run:
     """Validate every input once and sample the reference (the edge of the simulator).
 
     ``check=False`` trusts the scalar settings (``duration``, ``dt``, ``rate``,
@@ -274,13 +448,14 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
     check_reference(reference, plant)
     if check:
         duration = check_positive("duration", duration, unit="s")
-        dt = check_positive("dt", dt, unit="s")
+        dt = None if dt is None else check_positive("dt", dt, unit="s")
         limit_margin = check_positive("limit_margin", limit_margin, allow_zero=True,
                                       unit="rad")
         if rate is not None:
             rate = check_rate("rate", rate)
     else:
-        duration, dt, limit_margin = float(duration), float(dt), float(limit_margin)
+        duration, limit_margin = float(duration), float(limit_margin)
+        dt = None if dt is None else float(dt)
         rate = None if rate is None else float(rate)
     effects = check_effects(effects)
     if effects is not None and not effects.active:
@@ -300,25 +475,20 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         raise TypeError(f"law must be a ControlLaw or SampledLaw, got {type(law).__name__}")
     lower = plant.lower - limit_margin
     upper = plant.upper + limit_margin
+    if check:
+        tg = time_grid(duration, dt, rate, n=n, force=force)
+    else:  # validated by the caller (RunSettings): only the grid's numbers
+        tg = _trusted_grid(duration, dt, rate)
+    n_steps, substeps, h = tg.n_steps, tg.substeps, tg.h
     if rate is not None:
         Ts = 1.0 / rate
-        n_steps = int(round(duration * rate))
-        if n_steps < 1:
-            raise ValueError(f"duration = {duration:g} s is shorter than one control period "
-                             f"(1/rate = {Ts:g} s): nothing to simulate")
-        substeps = max(1, math.ceil(Ts / dt - 1e-9))
-        h = Ts / substeps
         t = Ts * np.arange(n_steps + 1)
         grid = t
         info = {"method": "RK4 plant, zero-order-hold sampled law", "rate_hz": rate,
                 "substeps": substeps, "dt": h}
     else:
-        n_steps = int(round(duration / dt))
-        if n_steps < 1:
-            raise ValueError(f"duration = {duration:g} s is shorter than one RK4 step "
-                             f"(dt = {dt:g} s): nothing to simulate")
+        dt = h
         _check_rk4_step(law, dt)
-        substeps, h = 1, dt
         t = dt * np.arange(n_steps + 1)
         grid = 0.5 * dt * np.arange(2 * n_steps + 1)
         info = {"method": "RK4 (continuous-time law)", "dt": dt}
