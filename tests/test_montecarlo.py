@@ -95,6 +95,16 @@ def test_cli_three_controllers(tmp_path, capsys):
     with open(out / "campaign.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert [r["index"] for r in rows] == ["0", "1", "2"]
+    # seed and index are integers, and they name the plant: default_rng([seed, index])
+    from rrr_pin.model.dh import paper_params
+    from rrr_pin.model.uncertainty import sample_plant
+
+    assert {r["seed"] for r in rows} == {"0"}
+    recorded = [json.loads(line) for line in (out / "samples.jsonl").read_text().splitlines()]
+    for row, rec in zip(rows, recorded, strict=True):
+        assert rec["seed"] == [int(row["seed"]), int(row["index"])]
+        redrawn = sample_plant(paper_params(), int(row["seed"]), int(row["index"]))
+        assert json.loads(json.dumps(redrawn.parameters)) == rec["parameters"]
     for col in ("hinf_rms_error_joint3", "pd_rms_error_joint3", "error_ratio_pd",
                 "torque_ratio_hinf"):
         assert col in rows[0]

@@ -31,6 +31,10 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
                    certificate_b: float | None = None) -> dict:
     """Write ``campaign.csv``, ``samples.jsonl`` (parameters), ``summary.json`` and figures.
 
+    ``campaign.csv`` has one row per sample: ``index`` ``k`` and ``seed`` ``s`` (integers; the
+    plant is the one of ``numpy.random.default_rng([s, k])``), ``status``, then the metrics;
+    ``samples.jsonl`` records ``"seed": [s, k]``.
+
     With a ``store``, the files are written through it (atomically, recorded as this run's).
     ``montecarlo.png`` is drawn when a sample ran every law; ``certificates.png``
     (:func:`rrr_pin.report.plotting.plot_certificates`) when the rows are certified and
@@ -50,7 +54,8 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
                             lineterminator="\n")
     writer.writeheader()
     for row in campaign.rows:
-        writer.writerow({**row, "seed": f"{row['seed'][0]}:{row['seed'][1]}"})
+        # seed: the campaign's seed s, an integer; row k is the plant of default_rng([s, k])
+        writer.writerow({**row, "seed": row["seed"][0]})
     params = "".join(json.dumps({"index": row["index"], "seed": list(row["seed"]),
                                  "status": row["status"], "parameters": row["parameters"]})
                      + "\n" for row in campaign.rows)
