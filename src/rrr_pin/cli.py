@@ -177,9 +177,8 @@ def _add_design(sub) -> None:
 
 
 def _cmd_design(args) -> int:
-    import json
-
     from .report.design import design_lines, design_summary
+    from .report.jsondata import dumps
     from .robust.loopshaping import design
 
     d = design(lam=args.lam, n=args.joints, factor=args.factor)
@@ -189,7 +188,7 @@ def _cmd_design(args) -> int:
 
         figures = [str(f) for f in save_design_figures(d, args.out)]
     if args.json:
-        print(json.dumps({**design_summary(d), **({"figures": figures} if figures else {})}))
+        print(dumps({**design_summary(d), **({"figures": figures} if figures else {})}))
         return 0
     print("\n".join(design_lines(d) + [f"wrote {f}" for f in figures]))
     return 0
@@ -557,7 +556,6 @@ def _add_stress(sub) -> None:
 
 
 def _cmd_stress(args) -> int:
-    import json
     import time
 
     from .campaign.runner import RunSettings, make_laws
@@ -566,6 +564,7 @@ def _cmd_stress(args) -> int:
     from .control.catalog import EFFECTS
     from .control.specs import ReferenceSpec
     from .model.dynamics import load_robot
+    from .report.jsondata import dumps
     from .report.stress import stress_lines, write_stress
 
     if args.effect not in EFFECTS:
@@ -587,7 +586,7 @@ def _cmd_stress(args) -> int:
     result["robot"] = robot.name
     fig = write_stress(result, args.out)
     if args.json:
-        print(json.dumps(result))
+        print(dumps(result))
         return 0
     print("\n".join(stress_lines(result) + [f"wrote {fig}"]))
     return 0

@@ -391,9 +391,13 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
     Returns
     -------
     dict
-        ``simulated`` (the last size that passed, or None if even the mildest tried failed),
-        ``bracket`` [pass, fail] and ``samples``: ``[[size, rms_error], ...]`` of every run
-        (``inf`` = diverged), ``duration`` [s] of each run.
+        ``simulated`` (the last size that passed; None when there is no boundary to give),
+        ``status`` (``"found"``; ``"not broken"``: even the harshest size tried passed,
+        ``bracket[0]``; ``"broken at the mildest size tried"``: even ``bracket[1]`` failed),
+        ``bracket`` [pass, fail] (None where that side was not reached), ``samples``: one
+        ``{"size", "rms_error", "status"}`` per run, sorted by size (``rms_error`` None and
+        ``status`` ``"diverged"`` for a run that diverged, else ``"passed"`` or
+        ``"over budget"``), and ``duration`` [s] of each run.
     """
     settings = settings or StressSettings()
     unit, direction, _, _ = EFFECTS[_check_effect(effect)]
@@ -408,8 +412,11 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
 
     def ok(size):
         rms = _rms(plant, law, reference, effect, size, settings, duration)
-        samples.append([size, rms])
-        return rms <= settings.budget
+        passed = rms <= settings.budget
+        samples.append({"size": size, "rms_error": rms if math.isfinite(rms) else None,
+                        "status": "passed" if passed else "over budget" if math.isfinite(rms)
+                        else "diverged"})
+        return passed
 
     default = {"delay": 5e-3, "actuator": 100.0, "stiffness": 1e3, "torque": 50.0,
                "noise": 1e-3}[effect]
@@ -421,22 +428,25 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
             break
         mild, harsh = (mild / 4, mild) if direction == "up" else (mild * 4, mild)
     else:
-        return {"simulated": None, "bracket": [None, mild], "samples": samples,
-                "duration": duration}
+        return {"simulated": None, "status": "broken at the mildest size tried",
+                "bracket": [None, harsh], "samples": _sorted(samples), "duration": duration}
     for _ in range(12):
         if not ok(harsh):
             break
         mild, harsh = (harsh, harsh * 4) if direction == "up" else (harsh, harsh / 4)
     else:
-        return {"simulated": math.inf if direction == "up" else 0.0,
-                "bracket": [harsh, None], "samples": samples, "duration": duration}
+        return {"simulated": None, "status": "not broken", "bracket": [mild, None],
+                "samples": _sorted(samples), "duration": duration}
     mild, harsh = _bisect(ok, mild, harsh, settings.rtol)
     for x in np.geomspace(mild / 4 if direction == "up" else mild * 4, mild,
                           settings.sweep + 1)[:-1]:
         ok(float(x))
-    samples.sort()
-    return {"simulated": mild, "bracket": [mild, harsh], "samples": samples,
-            "duration": duration}
+    return {"simulated": mild, "status": "found", "bracket": [mild, harsh],
+            "samples": _sorted(samples), "duration": duration}
+
+
+def _sorted(samples):
+    return sorted(samples, key=lambda s: s["size"])
 
 
 def stress(plant, laws, reference, effect: str, settings: StressSettings | None = None,
@@ -460,8 +470,10 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
     dict
         ``{"effect", "unit", "budget_rad", "settings", "rows": [...]}``; each row has
         ``controller``, ``effect``, ``unit``, ``predicted`` (digital loop),
-        ``predicted_continuous``, ``simulated``, ``bracket``, ``guaranteed``, ``barrier_met``,
-        ``agreement`` (simulated / predicted), ``samples``.
+        ``predicted_continuous``, ``simulated``, ``status``, ``bracket`` and ``samples`` (of
+        :func:`breaking_point`), ``guaranteed``, ``barrier_met``, ``agreement`` (simulated /
+        predicted). A prediction is ``inf`` when no size breaks the linear loop; the JSON
+        writers (:mod:`rrr_pin.report.jsondata`) write it as ``null`` with a status.
     """
     settings = settings or StressSettings()
     effect = _check_effect(effect)
@@ -483,7 +495,7 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
         rows.append({
             "controller": law.name, "label": law.label or law.name, "effect": effect,
             "unit": unit, "predicted": pred, "predicted_continuous": cont, "simulated": sim,
-            "bracket": found["bracket"], "duration_s": found["duration"],
+            "status": found["status"], "bracket": found["bracket"], "duration_s": found["duration"],
             "guaranteed": guarantee if (guarantee is not None and met) else None,
             "barrier_met": met,
             "agreement": sim / pred if (sim and pred and math.isfinite(pred)) else None,

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from pathlib import Path
 
 from ..campaign.montecarlo import Campaign, campaign_columns, campaign_summary
 from ..campaign.store import CampaignStore
 from .html import write_report_html
+from .jsondata import dumps
 from .plotting import plot_campaign, plot_certificates
 
 __all__ = ["write_campaign", "write_campaign_report", "summary_lines"]
@@ -56,11 +56,11 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
     for row in campaign.rows:
         # seed: the campaign's seed s, an integer; row k is the plant of default_rng([s, k])
         writer.writerow({**row, "seed": row["seed"][0]})
-    params = "".join(json.dumps({"index": row["index"], "seed": list(row["seed"]),
+    params = "".join(dumps({"index": row["index"], "seed": list(row["seed"]),
                                  "status": row["status"], "parameters": row["parameters"]})
                      + "\n" for row in campaign.rows)
     summary = campaign_summary(campaign)
-    text = json.dumps({"robot": campaign.robot, "controllers": campaign.laws,
+    text = dumps({"robot": campaign.robot, "controllers": campaign.laws,
                        "settings": campaign.settings, "summary": summary}, indent=1) + "\n"
     written = []
     for name, content in (("campaign.csv", table.getvalue()), ("samples.jsonl", params),
