@@ -10,8 +10,9 @@ Everything is read from README.md at test time, so a section added later is chec
   options its sub-command has;
 * ``make`` targets, ``scripts/*.py`` paths, the ``test`` extra and the ``slow`` marker that the
   shell blocks use exist;
-* every fenced ``python`` block is executed, except those of :data:`COMPILE_ONLY` (too slow:
-  compiled, with the reason);
+* every fenced ``python`` block (of README.md and docs/*.md) is executed, except those of
+  :data:`COMPILE_ONLY` (too slow: compiled, with the reason); the inline ``rrr-pin`` spans of
+  docs/*.md name real options too;
 * the numbers the README states that take seconds to recompute are recomputed (the design,
   the analysis block's comments, the nominal tracking errors, the off-reference bound, the
   built-in laws, robot names, the layer table, Pinocchio against the closed form). Each is
@@ -40,6 +41,8 @@ from rrr_pin import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
+#: The other documents: their Python blocks run and their rrr-pin spans name real options too.
+DOCS = {p.relative_to(ROOT).as_posix(): p.read_text() for p in sorted(ROOT.glob("docs/*.md"))}
 
 #: Options added to a README command of that sub-command before it runs (argparse keeps the
 #: last value of an option, so these override the README's own): the README's settings take
@@ -108,9 +111,9 @@ def rrr_pin_commands():
     return [(t[1:], line) for t, line in shell_commands() if t[0] == "rrr-pin"]
 
 
-def inline_rrr_pin() -> list[str]:
+def inline_rrr_pin(text: str = README) -> list[str]:
     """Inline code spans of the prose that are ``rrr-pin`` commands (fenced blocks excluded)."""
-    prose = re.sub(r"^```.*?^```", "", README, flags=re.S | re.M)
+    prose = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
     return [s for s in re.findall(r"`([^`\n]+)`", prose.replace("\n", " "))
             if s.startswith("rrr-pin ")]
 
@@ -162,7 +165,10 @@ def test_fenced_command_parses(argv, line):
             pytest.fail(f"README line {line}: `rrr-pin {' '.join(argv)}` does not parse")
 
 
-@pytest.mark.parametrize("span", inline_rrr_pin())
+INLINE = inline_rrr_pin() + [s for text in DOCS.values() for s in inline_rrr_pin(text)]
+
+
+@pytest.mark.parametrize("span", INLINE)
 def test_inline_command_names_real_options(span):
     argv = span.split()[1:]
     assert argv[0] in SUBCOMMANDS, f"README: `{span}`: no sub-command {argv[0]!r}"
@@ -235,12 +241,13 @@ def test_other_shell_commands_name_what_exists():
 
 # --- Python blocks ---------------------------------------------------------------------------
 
-PYTHON = [(code, first) for lang, code, first in fenced_blocks(README) if lang == "python"]
+PYTHON = [(name, code, first) for name, text in {"README.md": README, **DOCS}.items()
+          for lang, code, first in fenced_blocks(text) if lang == "python"]
 
 
-@pytest.mark.parametrize("code, line", PYTHON, ids=[f"line{n}" for _, n in PYTHON])
-def test_python_block(code, line, tmp_path, monkeypatch):
-    compiled = compile(code, f"README.md:{line}", "exec")
+@pytest.mark.parametrize("name, code, line", PYTHON, ids=[f"{n}:{i}" for n, _, i in PYTHON])
+def test_python_block(name, code, line, tmp_path, monkeypatch):
+    compiled = compile(code, f"{name}:{line}", "exec")
     if any(key in code for key in COMPILE_ONLY):
         return  # compiled only (COMPILE_ONLY says why)
     monkeypatch.chdir(tmp_path)
