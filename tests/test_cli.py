@@ -27,9 +27,9 @@ def test_reproduce_writes_everything(reproduced):
     assert "| Uncertain plants: RMS error FL alone / H-inf+FL" in (out / "results.md").read_text()
 
 
-def test_results_json_layout(reproduced):
+def test_results_json_layout(reproduced, strict_json):
     _, out = reproduced
-    data = json.loads((out / "results.json").read_text())
+    data = strict_json((out / "results.json").read_text())
     assert {"kind", "home_rad", "amp_rad", "freq_hz", "phase_rad", "duration_s"} <= set(
         data["reference"])
     for group in ("nominal", "uncertain"):

@@ -1,6 +1,5 @@
 """Tests of rrr_pin.robust.loopshaping: barriers, plant, weights, ncfsyn, reduction, design, CLI."""
 
-import json
 
 import control
 import numpy as np
@@ -312,9 +311,9 @@ def test_design_interface(paper):
 
 # --- CLI --------------------------------------------------------------------------------------
 
-def test_cli_design_json(capsys, tmp_path):
+def test_cli_design_json(capsys, tmp_path, strict_json):
     assert main(["design", "--json", "--joints", "2", "--out", str(tmp_path)]) == 0
-    out = json.loads(capsys.readouterr().out)
+    out = strict_json(capsys.readouterr().out)
     for key in ("gamma_min", "gamma", "emax", "K_full", "K_reduced",
                 "robust_stability", "robust_performance"):
         assert key in out

@@ -86,7 +86,7 @@ def test_summary_statistics(serial):
     assert s["fraction_better"]["hinf"] == np.mean([x > 1 for x in ratios])
 
 
-def test_cli_three_controllers(tmp_path, capsys):
+def test_cli_three_controllers(tmp_path, capsys, strict_json):
     out = tmp_path / "mc"
     code = cli.main(["montecarlo", "--samples", "3", "--duration", "0.2", "--jobs", "1",
                      "--controllers", "fl,hinf,pd", "--engine", "python", "--out", str(out),
@@ -95,10 +95,20 @@ def test_cli_three_controllers(tmp_path, capsys):
     with open(out / "campaign.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert [r["index"] for r in rows] == ["0", "1", "2"]
+    # seed and index are integers, and they name the plant: default_rng([seed, index])
+    from rrr_pin.model.dh import paper_params
+    from rrr_pin.model.uncertainty import sample_plant
+
+    assert {r["seed"] for r in rows} == {"0"}
+    recorded = [strict_json(line) for line in (out / "samples.jsonl").read_text().splitlines()]
+    for row, rec in zip(rows, recorded, strict=True):
+        assert rec["seed"] == [int(row["seed"]), int(row["index"])]
+        redrawn = sample_plant(paper_params(), int(row["seed"]), int(row["index"]))
+        assert json.loads(json.dumps(redrawn.parameters)) == rec["parameters"]
     for col in ("hinf_rms_error_joint3", "pd_rms_error_joint3", "error_ratio_pd",
                 "torque_ratio_hinf"):
         assert col in rows[0]
-    data = json.loads((out / "summary.json").read_text())
+    data = strict_json((out / "summary.json").read_text())
     assert data["summary"]["samples"] == 3
     assert [c["name"] for c in data["controllers"]] == ["fl", "hinf", "pd"]
     assert data["settings"]["engine"] == "python" and data["settings"]["rate_hz"] == 1000.0

@@ -4,18 +4,16 @@ The browser test opens the report from disk in headless Chromium (Debian's ``chr
 ``chromium-driver``, driven by selenium), waits for the MeshCat scene, and checks that the
 nominal arm is drawn where DH forward kinematics (``rrr_pin.model.dh``, independent of Pinocchio and
 of the viewer) projected through the scene's camera puts it, at two instants of the animation,
-and that the console shows no error. With ``RRR_PIN_REPORT_SCREENSHOT=path.png`` set it also
-saves a screenshot of the report there (``docs/figures/report.png`` is made that way).
+and that the console shows no error. The README's screenshot is made by
+``scripts/report_screenshot.py`` from the default study's report.
 """
 
 import base64
 import io
 import math
-import os
 import re
 import shutil
 import time
-from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -217,13 +215,6 @@ def test_report_renders_in_headless_chromium(rrr, figure, tmp_path):
         driver.switch_to.frame(frame)
         _wait(driver, "return document.body.getAttribute('data-scene-ready') === '1';")
         time.sleep(1.0)  # let it play a moment
-        shot = os.environ.get("RRR_PIN_REPORT_SCREENSHOT")
-        if shot:  # the README's picture: late in the run, where the ghosts have drifted
-            _frame_state(driver, 1.8)
-            driver.switch_to.default_content()
-            Path(shot).parent.mkdir(parents=True, exist_ok=True)
-            driver.save_screenshot(shot)
-            driver.switch_to.frame(frame)
         driver.execute_script("viewer.gui.close();")
         width, height = driver.execute_script(
             "return [window.innerWidth, window.innerHeight];")

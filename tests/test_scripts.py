@@ -35,8 +35,48 @@ def run_script(script, args, monkeypatch):
 
 
 def test_every_script_is_tested():
-    assert {p.name for p in SCRIPTS.glob("*.py")} == {r[0] for r in RUNS} | {"bench.py",
-                                                                                "codegen.py"}
+    assert {p.name for p in SCRIPTS.glob("*.py")} == {r[0] for r in RUNS} | {
+        "bench.py", "codegen.py", "report_screenshot.py"}
+
+
+def test_report_screenshot_refuses_a_missing_report(tmp_path, monkeypatch, capsys):
+    with pytest.raises(SystemExit) as exc:
+        run_script("report_screenshot.py", [str(tmp_path / "none.html"),
+                                            str(tmp_path / "x.png")], monkeypatch)
+    assert exc.value.code == 2
+    assert "none.html: no such file" in capsys.readouterr().err
+
+
+def test_report_screenshot_draws_the_scene(tmp_path, monkeypatch, capsys):
+    # A small report (one 0.5 s scene, one ghost) instead of the README's full study.
+    import shutil
+
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    if not (shutil.which("chromium") or shutil.which("chromium-browser")) \
+            or not shutil.which("chromedriver"):
+        pytest.skip("Chromium is missing: apt-get install chromium chromium-driver")
+    pytest.importorskip("selenium")
+    from rrr_pin.model.dynamics import load_robot
+    from rrr_pin.report.html import write_report_html
+    from rrr_pin.report.viewer import Scene, Track
+
+    t = np.arange(0.0, 0.5005, 1e-3)
+    q = 0.5 * np.sin(np.pi * t[:, None] + 2 * np.pi * np.arange(3) / 3)
+    robot = load_robot("rrr")
+    scene = Scene("H-inf + FL", robot, [Track("nominal", t, q),
+                                        Track("plant 0", t, q + 0.2, opacity=0.35)])
+    report = write_report_html(tmp_path / "report.html", title="small", scenes=[scene])
+    out = tmp_path / "shot.png"
+    run_script("report_screenshot.py", [str(report), str(out), "--scene", "0", "--time", "0.25",
+                                        "--width", "640", "--height", "480"], monkeypatch)
+    assert f"wrote {out}" in capsys.readouterr().out
+    rgb = (plt.imread(out)[..., :3] * 255).astype(int)
+    assert rgb.shape == (480, 640, 3)
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    # the nominal arm is drawn in orange (MeshCat rendered the scene, not a blank page)
+    assert np.count_nonzero((r > 180) & (g > 80) & (g < 180) & (b < 100)) > 200
 
 
 def test_codegen_check_runs(monkeypatch, capsys):

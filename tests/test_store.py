@@ -47,7 +47,7 @@ def write_tables(store: CampaignStore) -> None:
                                              "hinf_rms_error"], extrasaction="ignore")
     writer.writeheader()
     for row in rows:
-        writer.writerow({**row, "seed": f"{row['seed'][0]}:{row['seed'][1]}"})
+        writer.writerow({**row, "seed": row["seed"][0]})
     store.write_text("campaign.csv", buf.getvalue())
     ok = [r for r in rows if r["status"] == "ok"]
     summary = {"samples": len(rows), "ok": len(ok),

@@ -1,7 +1,6 @@
 """Breaking points (rrr_pin.campaign.stress): linear predictions against closed forms, the nonlinear
 boundary against the linear prediction on the nominal RRR, the CLI."""
 
-import json
 import math
 
 import numpy as np
@@ -197,14 +196,51 @@ def test_stress_leaves_the_predictions_of_a_law_without_a_model_empty(rrr):
     assert lo / 1.1 <= hand["simulated"] <= hi * 1.1
 
 
-def test_cli_stress_json(tmp_path, capsys):
+def test_cli_stress_json(tmp_path, capsys, strict_json):
     assert main(["stress", "--controllers", "fl", "--effect", "delay", "--json",
                  "--duration", "1", "--out", str(tmp_path)]) == 0
-    data = json.loads(capsys.readouterr().out)
+    data = strict_json(capsys.readouterr().out)
     row = data["rows"][0]
-    for key in ("controller", "effect", "unit", "predicted", "simulated", "guaranteed"):
+    for key in ("controller", "effect", "unit", "predicted", "simulated", "status",
+                "guaranteed"):
         assert key in row
     assert row["unit"] == "s" and (tmp_path / "stress_delay.png").is_file()
+    assert row["status"] == "found"
+    # the runs past the boundary diverge: null with a status (was Infinity, not JSON)
+    diverged = [x for x in row["samples"] if x["status"] == "diverged"]
+    assert diverged and all(x["rms_error"] is None for x in diverged)
+    assert strict_json((tmp_path / "stress_delay.json").read_text())["rows"][0] == row
+
+
+@pytest.mark.parametrize("rms, status, simulated, bracket", [
+    (0.0, "not broken", None, lambda sizes: [max(sizes), None]),
+    (math.inf, "broken at the mildest size tried", None, lambda sizes: [None, min(sizes)]),
+], ids=["never-breaks", "always-diverges"])
+def test_breaking_point_without_a_boundary(rrr, monkeypatch, strict_json, rms, status,
+                                           simulated, bracket):
+    # No size breaks (or every size breaks) the loop: no boundary is made up (it was inf or
+    # 0.0, and the bracket named a size never run); the bracket holds the extreme size run.
+    import rrr_pin.campaign.stress as st
+
+    monkeypatch.setattr(st, "_rms", lambda *args: rms)
+    out = breaking_point(rrr, fl_controller(rrr), default_reference(rrr), "delay",
+                         StressSettings(run=RunSettings(duration=0.1, rate=1000.0)))
+    sizes = [x["size"] for x in out["samples"]]
+    assert (out["status"], out["simulated"]) == (status, simulated)
+    assert out["bracket"] == bracket(sizes) and sizes == sorted(sizes)
+    assert {x["status"] for x in out["samples"]} == {"passed" if rms == 0 else "diverged"}
+    row = {"controller": "fl", "predicted": math.inf, "simulated": None, "agreement": None,
+           "guaranteed": None, **out}
+    result = {"robot": "rrr", "what": "delay", "unit": "s", "budget_rad": 0.05,
+              "direction": "up", "elapsed_s": 1.0, "settings": {"rate_hz": 1000.0},
+              "rows": [row]}
+    from rrr_pin.report.jsondata import dumps
+    from rrr_pin.report.stress import stress_lines
+
+    back = strict_json(dumps(result))["rows"][0]
+    assert back["predicted"] is None and back["predicted_status"] == "infinite"
+    shown = stress_lines(result)[2].split()[2]
+    assert shown == (f">{max(sizes):.4g}" if rms == 0 else "-")
 
 
 @pytest.mark.parametrize("argv, match", [

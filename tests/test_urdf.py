@@ -27,6 +27,22 @@ def test_cli_check(tmp_path, capsys):
     assert "differs" in capsys.readouterr().out
 
 
+def test_cli_bare_check_compares_the_committed_file(tmp_path, monkeypatch, capsys):
+    # `rrr-pin urdf --check` without --out checks urdf/rrr.urdf from the repository's root
+    monkeypatch.chdir(ROOT)
+    assert cli.main(["urdf", "--check"]) == 0
+    assert capsys.readouterr().out == "urdf/rrr.urdf: up to date\n"
+    monkeypatch.chdir(tmp_path)  # elsewhere: no committed file, said so, exit 1
+    assert cli.main(["urdf", "--check"]) == 1
+    assert "urdf/rrr.urdf: missing (run from the repository's root" in capsys.readouterr().out
+    (tmp_path / "urdf").mkdir()
+    (tmp_path / "urdf" / "rrr.urdf").write_text(COMMITTED.read_text() + " ")
+    assert cli.main(["urdf", "--check"]) == 1
+    assert "differs" in capsys.readouterr().out
+    assert cli.main(["urdf", "--check", "--out", "-"]) == 2
+    assert "--check compares a file" in capsys.readouterr().err
+
+
 def test_cli_writes_from_params_file(tmp_path):
     params = tmp_path / "p.json"
     paper_params().save(params)

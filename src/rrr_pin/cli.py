@@ -60,15 +60,22 @@ def _negative_values(argv: list[str]) -> list[str]:
 
 # --- urdf -------------------------------------------------------------------------------------
 
+#: The generator's committed output, relative to the repository's root (``urdf --check``).
+_COMMITTED_URDF = "urdf/rrr.urdf"
+
+
 def _add_urdf(sub) -> None:
     p = sub.add_parser("urdf", help="write (or check) the URDF generated from a DH parameter set")
     p.add_argument("--params", metavar="FILE",
                    help="DH parameter set as JSON (ArmParams.save); default: the paper's Tables "
                         "1-2")
-    p.add_argument("--out", metavar="PATH", default="-",
-                   help="where to write the URDF ('-' = standard output, the default)")
+    p.add_argument("--out", metavar="PATH", default=None,
+                   help="where to write the URDF (default: standard output; with --check, "
+                        f"the committed {_COMMITTED_URDF})")
     p.add_argument("--check", action="store_true",
-                   help="do not write: exit 1 if PATH differs from what the generator writes")
+                   help="do not write: exit 1 if PATH (default: the committed "
+                        f"{_COMMITTED_URDF}, from the repository's root) differs from what the "
+                        "generator writes")
     p.set_defaults(func=_cmd_urdf)
 
 
@@ -79,7 +86,10 @@ def _cmd_urdf(args) -> int:
     params = ArmParams.load(args.params) if args.params else paper_params()
     if args.check:
         if args.out == "-":
-            raise ValueError("--check needs --out PATH, the file to compare")
+            raise ValueError("--check compares a file: give --out PATH (default: "
+                             f"{_COMMITTED_URDF}), not standard output")
+        if args.out is None:
+            args.out = _COMMITTED_URDF
         if check_urdf(args.out, params):
             print(f"{args.out}: up to date")
             return 0
@@ -89,9 +99,11 @@ def _cmd_urdf(args) -> int:
             print(f"{args.out}: differs from the generator's output; regenerate with "
                   f"`rrr-pin urdf --out {args.out}`")
         else:
-            print(f"{args.out}: missing; write it with `rrr-pin urdf --out {args.out}`")
+            where = (" (run from the repository's root, or give --out PATH)"
+                     if args.out == _COMMITTED_URDF else "")
+            print(f"{args.out}: missing{where}; write it with `rrr-pin urdf --out {args.out}`")
         return 1
-    if args.out == "-":
+    if args.out in (None, "-"):
         sys.stdout.write(urdf_from_params(params))
         return 0
     try:
@@ -165,9 +177,8 @@ def _add_design(sub) -> None:
 
 
 def _cmd_design(args) -> int:
-    import json
-
     from .report.design import design_lines, design_summary
+    from .report.jsondata import dumps
     from .robust.loopshaping import design
 
     d = design(lam=args.lam, n=args.joints, factor=args.factor)
@@ -177,7 +188,7 @@ def _cmd_design(args) -> int:
 
         figures = [str(f) for f in save_design_figures(d, args.out)]
     if args.json:
-        print(json.dumps({**design_summary(d), **({"figures": figures} if figures else {})}))
+        print(dumps({**design_summary(d), **({"figures": figures} if figures else {})}))
         return 0
     print("\n".join(design_lines(d) + [f"wrote {f}" for f in figures]))
     return 0
@@ -562,7 +573,6 @@ def _add_stress(sub) -> None:
 
 
 def _cmd_stress(args) -> int:
-    import json
     import time
 
     from .campaign.runner import RunSettings, make_laws
@@ -571,6 +581,7 @@ def _cmd_stress(args) -> int:
     from .control.catalog import EFFECTS
     from .control.specs import ReferenceSpec
     from .model.dynamics import load_robot
+    from .report.jsondata import dumps
     from .report.stress import stress_lines, write_stress
 
     if args.effect not in EFFECTS:
@@ -598,7 +609,7 @@ def _cmd_stress(args) -> int:
     result["robot"] = robot.name
     fig = write_stress(result, args.out)
     if args.json:
-        print(json.dumps(result))
+        print(dumps(result))
         return 0
     print("\n".join(stress_lines(result) + [f"wrote {fig}"]))
     return 0

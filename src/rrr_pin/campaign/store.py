@@ -500,7 +500,7 @@ def _write_manifest(path: Path, settings: dict, outputs: list[str]) -> None:
     """Write the manifest ``campaign.json`` atomically (layout: module docstring)."""
     manifest = {"format": _FORMAT, "version": _VERSION, "settings": settings,
                 "outputs": outputs}
-    _atomic_write(path, (json.dumps(manifest, indent=1) + "\n").encode())
+    _atomic_write(path, (json.dumps(manifest, indent=1, allow_nan=False) + "\n").encode())
 
 
 def _remove_inside(out: Path, name: str) -> None:

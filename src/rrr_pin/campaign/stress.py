@@ -424,9 +424,13 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
     Returns
     -------
     dict
-        ``simulated`` (the last size that passed, or None if even the mildest tried failed),
-        ``bracket`` [pass, fail] and ``samples``: ``[[size, rms_error], ...]`` of every run
-        (``inf`` = diverged), ``duration`` [s] of each run. A delay is searched on whole
+        ``simulated`` (the last size that passed; None when there is no boundary to give),
+        ``status`` (``"found"``; ``"not broken"``: even the harshest size tried passed,
+        ``bracket[0]``; ``"broken at the mildest size tried"``: even ``bracket[1]`` failed),
+        ``bracket`` [pass, fail] (None where that side was not reached), ``samples``: one
+        ``{"size", "rms_error", "status"}`` per run, sorted by size (``rms_error`` None and
+        ``status`` ``"diverged"`` for a run that diverged, else ``"passed"`` or
+        ``"over budget"``), and ``duration`` [s] of each run. A delay is searched on whole
         numbers of plant sub-steps ``h = settings.run.dt`` (the only delays a run realizes):
         ``simulated`` and the bracket are multiples of ``h``, the bracket at least ``h`` wide,
         and the true boundary of the simulated loop lies inside it.
@@ -450,8 +454,11 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
 
     def ok(size):
         rms = _rms(plant, law, reference, effect, size, settings, duration)
-        samples.append([size, rms])
-        return rms <= settings.budget
+        passed = rms <= settings.budget
+        samples.append({"size": size, "rms_error": rms if math.isfinite(rms) else None,
+                        "status": "passed" if passed else "over budget" if math.isfinite(rms)
+                        else "diverged"})
+        return passed
 
     default = {"delay": 5e-3, "actuator": 100.0, "stiffness": 1e3, "torque": 50.0,
                "noise": 1e-3}[effect]
@@ -469,20 +476,20 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
         if ok(mild):
             break
         if h is not None and mild <= h * (1 + 1e-9):  # even one sub-step of delay fails
-            return {"simulated": None, "bracket": [None, mild], "samples": samples,
-                    "duration": duration}
+            return {"simulated": None, "status": "broken at the mildest size tried",
+                    "bracket": [None, mild], "samples": _sorted(samples), "duration": duration}
         mild, harsh = (snap(mild / 4, False), mild) if direction == "up" else (mild * 4, mild)
     else:
-        return {"simulated": None, "bracket": [None, mild], "samples": samples,
-                "duration": duration}
+        return {"simulated": None, "status": "broken at the mildest size tried",
+                "bracket": [None, harsh], "samples": _sorted(samples), "duration": duration}
     for _ in range(12):
         if not ok(harsh):
             break
         mild, harsh = (harsh, snap(harsh * 4, True)) if direction == "up" else (harsh,
                                                                                 harsh / 4)
     else:
-        return {"simulated": math.inf if direction == "up" else 0.0,
-                "bracket": [harsh, None], "samples": samples, "duration": duration}
+        return {"simulated": None, "status": "not broken", "bracket": [mild, None],
+                "samples": _sorted(samples), "duration": duration}
     if h is None:
         mild, harsh = _bisect(ok, mild, harsh, settings.rtol)
         sweep = np.geomspace(mild / 4 if direction == "up" else mild * 4, mild,
@@ -494,9 +501,12 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
         sweep = [k * h for k in ks if k < k_lo]
     for x in sweep:
         ok(float(x))
-    samples.sort()
-    return {"simulated": mild, "bracket": [mild, harsh], "samples": samples,
-            "duration": duration}
+    return {"simulated": mild, "status": "found", "bracket": [mild, harsh],
+            "samples": _sorted(samples), "duration": duration}
+
+
+def _sorted(samples):
+    return sorted(samples, key=lambda s: s["size"])
 
 
 def stress(plant, laws, reference, effect: str, settings: StressSettings | None = None,
@@ -520,9 +530,11 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
     dict
         ``{"effect", "unit", "budget_rad", "settings", "rows": [...]}``; each row has
         ``controller``, ``effect``, ``unit``, ``predicted`` (digital loop),
-        ``predicted_continuous``, ``simulated``, ``bracket``, ``resolution`` (the grid a
-        delay is searched on, the plant sub-step [s]; None for other effects),
-        ``guaranteed``, ``barrier_met``, ``agreement`` (simulated / predicted), ``samples``.
+        ``predicted_continuous``, ``simulated``, ``status``, ``bracket`` and ``samples`` (of
+        :func:`breaking_point`), ``resolution`` (the grid a delay is searched on, the plant
+        sub-step [s]; None for other effects), ``guaranteed``, ``barrier_met``, ``agreement``
+        (simulated / predicted). A prediction is ``inf`` when no size breaks the linear loop;
+        the JSON writers (:mod:`rrr_pin.report.jsondata`) write it as ``null`` with a status.
     """
     settings = settings or StressSettings()
     effect = _check_effect(effect)
@@ -544,7 +556,8 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
         rows.append({
             "controller": law.name, "label": law.label or law.name, "effect": effect,
             "unit": unit, "predicted": pred, "predicted_continuous": cont, "simulated": sim,
-            "bracket": found["bracket"], "duration_s": found["duration"],
+            "status": found["status"], "bracket": found["bracket"],
+            "duration_s": found["duration"],
             "resolution": settings.run.dt if effect == "delay" else None,
             "guaranteed": guarantee if (guarantee is not None and met) else None,
             "barrier_met": met,

@@ -334,7 +334,7 @@ class ArmParams:
 
     def save(self, path: str | Path) -> None:
         """Write the parameter set to a JSON file."""
-        Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
 
     @classmethod
     def load(cls, path: str | Path) -> ArmParams:

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from pathlib import Path
 
 from ..campaign.montecarlo import Campaign, campaign_columns, campaign_summary
 from ..campaign.store import CampaignStore
 from .html import write_report_html
+from .jsondata import dumps
 from .plotting import plot_campaign, plot_certificates
 
 __all__ = ["write_campaign", "write_campaign_report", "summary_lines"]
@@ -30,6 +30,10 @@ _TABLE_METRICS = ("error_ratio_{}", "torque_ratio_{}", "{}_rms_error", "{}_max_e
 def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | None = None,
                    certificate_b: float | None = None) -> dict:
     """Write ``campaign.csv``, ``samples.jsonl`` (parameters), ``summary.json`` and figures.
+
+    ``campaign.csv`` has one row per sample: ``index`` ``k`` and ``seed`` ``s`` (integers; the
+    plant is the one of ``numpy.random.default_rng([s, k])``), ``status``, then the metrics;
+    ``samples.jsonl`` records ``"seed": [s, k]``.
 
     With a ``store``, the files are written through it (atomically, recorded as this run's).
     ``montecarlo.png`` is drawn when a sample ran every law; ``certificates.png``
@@ -50,12 +54,13 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
                             lineterminator="\n")
     writer.writeheader()
     for row in campaign.rows:
-        writer.writerow({**row, "seed": f"{row['seed'][0]}:{row['seed'][1]}"})
-    params = "".join(json.dumps({"index": row["index"], "seed": list(row["seed"]),
+        # seed: the campaign's seed s, an integer; row k is the plant of default_rng([s, k])
+        writer.writerow({**row, "seed": row["seed"][0]})
+    params = "".join(dumps({"index": row["index"], "seed": list(row["seed"]),
                                  "status": row["status"], "parameters": row["parameters"]})
                      + "\n" for row in campaign.rows)
     summary = campaign_summary(campaign)
-    text = json.dumps({"robot": campaign.robot, "controllers": campaign.laws,
+    text = dumps({"robot": campaign.robot, "controllers": campaign.laws,
                        "settings": campaign.settings, "summary": summary}, indent=1) + "\n"
     written = []
     for name, content in (("campaign.csv", table.getvalue()), ("samples.jsonl", params),

@@ -564,7 +564,8 @@ def plot_stress(result: dict, path):
     top = budget * 30
     for i, row in enumerate(result["rows"]):
         color = f"C{i}"
-        s = np.array(row["samples"], dtype=float)
+        # [size, rms_error] per run; a diverged run (rms_error None) becomes NaN, drawn as x
+        s = np.array([[x["size"], x["rms_error"]] for x in row["samples"]], dtype=float)
         if s.size:
             fin = np.isfinite(s[:, 1])
             y = np.where(fin, s[:, 1], top)

@@ -10,7 +10,6 @@ verdict is computed from a missing or non-finite number.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import numpy as np
 from ..campaign.study import StudyResult
 from ..model.dynamics import Robot, robot_from_xml
 from .html import write_report_html
+from .jsondata import dumps
 from .viewer import Scene, Track
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "summary_lines",
@@ -244,7 +244,7 @@ def write_results(result: StudyResult, out: str | Path, design: dict | None = No
         stale.unlink()
     for plant in result.plants:
         plant.write(plants, stem=result.robot)
-    (out / "results.json").write_text(json.dumps(data, indent=1) + "\n")
+    (out / "results.json").write_text(dumps(data, indent=1) + "\n")
     (out / "results.md").write_text(results_markdown(result, data))
     return data
 

@@ -2,14 +2,15 @@
 
 Built from the dict :func:`rrr_pin.campaign.stress.stress` returns (with the caller's
 ``elapsed_s`` and ``robot`` added): the figure is
-:func:`rrr_pin.report.plotting.plot_stress`, the JSON is that dict with the figure's path.
+:func:`rrr_pin.report.plotting.plot_stress`, the JSON is that dict with the figure's path, strict
+(:func:`rrr_pin.report.jsondata.dumps`: an infinite prediction is ``null`` with a ``_status``).
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from .jsondata import dumps
 from .plotting import plot_stress
 
 __all__ = ["write_stress", "stress_lines"]
@@ -29,7 +30,7 @@ def write_stress(result: dict, out: str | Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     fig = plot_stress(result, out / f"stress_{result['effect']}.png")
     result["figure"] = str(fig)
-    (out / f"stress_{result['effect']}.json").write_text(json.dumps(result, indent=1))
+    (out / f"stress_{result['effect']}.json").write_text(dumps(result, indent=1))
     return fig
 
 
@@ -37,11 +38,19 @@ def _fmt(v) -> str:
     return "-" if v is None else f"{v:.4g}"
 
 
+def _simulated(row: dict, result: dict) -> str:
+    """Format the simulated boundary: ``>x`` (``<x``) if even the harshest size tried, x, passed."""
+    if row.get("status") == "not broken":
+        return f"{'>' if result['direction'] == 'up' else '<'}{row['bracket'][0]:.4g}"
+    return _fmt(row["simulated"])
+
+
 def stress_lines(result: dict) -> list[str]:
     """Return a stress search as text lines (no newlines), for a terminal.
 
     The effect, budget, rate and time taken, then per controller the predicted and simulated
-    breaking points, their ratio and what the robust-stability barrier guarantees (``-``: none).
+    breaking points, their ratio and what the robust-stability barrier guarantees (``-``: none;
+    ``>x`` or ``<x``: not broken by any size tried, the harshest being x).
     """
     lines = [f"{result['robot']}: {result['what']} [{result['unit']}], budget "
              f"{result['budget_rad']:g} rad RMS, {result['settings']['rate_hz']:g} Hz, "
@@ -49,7 +58,7 @@ def stress_lines(result: dict) -> list[str]:
              f"{'controller':12}{'predicted':>12}{'simulated':>12}{'sim/pred':>10}"
              f"{'guaranteed':>12}"]
     lines += [f"{row['controller']:12}{_fmt(row['predicted']):>12}"
-              f"{_fmt(row['simulated']):>12}{_fmt(row['agreement']):>10}"
+              f"{_simulated(row, result):>12}{_fmt(row['agreement']):>10}"
               f"{_fmt(row['guaranteed']):>12}" for row in result["rows"]]
     grid = {row.get("resolution") for row in result["rows"]} - {None}
     if grid:
