@@ -278,11 +278,11 @@ def test_delays_are_searched_on_whole_sub_steps(rrr):
                               rtol=0.01)
     out = breaking_point(rrr, fl_controller(rrr), default_reference(rrr), "delay", settings,
                          guess=6e-3)
-    k = np.array([size for size, _ in out["samples"]]) / h
+    k = np.array([run["size"] for run in out["samples"]]) / h
     assert_allclose(k, np.round(k), rtol=0, atol=1e-9)  # multiples of h, to round-off
     lo, hi = out["bracket"]
     assert out["simulated"] == lo and round((hi - lo) / h) == 1
-    passed = {round(size / h): rms <= settings.budget for size, rms in out["samples"]}
+    passed = {round(run["size"] / h): run["status"] == "passed" for run in out["samples"]}
     assert passed[round(lo / h)] and not passed[round(hi / h)]
 
 
