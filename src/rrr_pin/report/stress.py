@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..outputs import writing
 from .plotting import plot_stress
 
 __all__ = ["write_stress", "stress_lines"]
@@ -29,7 +30,9 @@ def write_stress(result: dict, out: str | Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     fig = plot_stress(result, out / f"stress_{result['effect']}.png")
     result["figure"] = str(fig)
-    (out / f"stress_{result['effect']}.json").write_text(json.dumps(result, indent=1))
+    path = out / f"stress_{result['effect']}.json"
+    with writing(path):  # a full disk names the file
+        path.write_text(json.dumps(result, indent=1))
     return fig
 
 
