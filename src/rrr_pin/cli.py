@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
-def _claim_out(args, tool: str):
+def _claim_out(args, tool: str, part: str | None = None):
     """Claim ``args.out`` for this run before any work (rrr_pin.outputs: the folder rule).
 
     Refuses a file, an unwritable folder, another tool's run, and a non-empty folder without
@@ -59,19 +59,20 @@ def _claim_out(args, tool: str):
     """
     from pathlib import Path
 
-    from .outputs import MANIFEST, OutputDir
+    from .outputs import OutputDir
 
     settings = {k: v for k, v in vars(args).items() if k not in ("func", "outputs")}
-    args.outputs = OutputDir.claim(args.out, tool, overwrite=args.overwrite, settings=settings)
-    args.write_hint = (f"; the files written so far are listed in "
-                       f"{Path(args.out) / MANIFEST}: free space, then rerun with --overwrite")
+    args.outputs = OutputDir.claim(args.out, tool, part=part, overwrite=args.overwrite,
+                                   settings=settings)
+    args.write_hint = (f"; the files written so far (if any) are listed in "
+                       f"{args.outputs.manifest}: free space, then rerun with --overwrite")
     return Path(args.out)
 
 
 def _add_overwrite(p) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace the previous run of this command in a non-empty --out (only "
-                        "the files its manifest rrr-pin-run.json lists are removed)")
+                        "the files its manifest rrr-pin-run*.json lists are removed)")
 
 
 def _negative_values(argv: list[str]) -> list[str]:
@@ -492,8 +493,8 @@ def _cmd_montecarlo(args) -> int:
 
     from .campaign.executors import CampaignInterrupted, WorkersLost
     from .campaign.montecarlo import CampaignSettings, open_store, run_campaign
-    from .campaign.store import check_writable
     from .model.dynamics import load_robot
+    from .outputs import check_writable
     from .report.campaign import summary_lines, write_campaign, write_campaign_report
     from .validation import check_count
 
@@ -600,7 +601,7 @@ def _cmd_stress(args) -> int:
         settings = StressSettings(run=RunSettings(duration=args.duration, dt=args.dt,
                                                   rate=args.rate, engine=args.engine),
                                   budget=args.budget)
-    _claim_out(args, "stress")
+    _claim_out(args, "stress", part=args.effect)  # one folder holds every effect's run
     robot = load_robot(args.robot, lock=_parse_lock(args.lock))
     home = _floats(args.home, "--home")
     reference = ReferenceSpec(home=None if home is None else tuple(home)).build(

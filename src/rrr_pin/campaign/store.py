@@ -54,7 +54,7 @@ from collections.abc import Iterable
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..outputs import OutputNotWritable, check_writable, refuse_other_tool, writing
+from ..outputs import check_writable, refuse_other_tool, writing
 
 try:  # POSIX advisory lock: one writer per output directory
     import fcntl
@@ -62,8 +62,8 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
 __all__ = [
-    "CampaignStore", "StoreError", "OutputNotWritable", "OutputNotEmpty", "SettingsMismatch",
-    "StoreCorrupt", "MANIFEST", "PARTS", "check_writable",
+    "CampaignStore", "StoreError", "OutputNotEmpty", "SettingsMismatch", "StoreCorrupt",
+    "MANIFEST", "PARTS",
 ]
 
 #: File names inside the output directory.
@@ -390,9 +390,10 @@ class CampaignStore:
         with _signals_deferred():  # written and recorded, or neither: never one without the other
             start = self._fh.tell()
             try:
-                self._fh.write("".join(lines).encode())
-                self._fh.flush()
-                os.fsync(self._fh.fileno())
+                with writing(self.parts_path):  # a full disk names the file
+                    self._fh.write("".join(lines).encode())
+                    self._fh.flush()
+                    os.fsync(self._fh.fileno())
             except OSError:  # e.g. disk full: leave no torn line between two good ones
                 self._fh.truncate(start)
                 raise
