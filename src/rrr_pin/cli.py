@@ -204,11 +204,11 @@ def _add_design(sub) -> None:
 def _cmd_design(args) -> int:
     import json
 
+    if args.out is not None:  # before the design and its imports: --out /proc/x refused at once
+        _claim_out(args, "design")
     from .report.design import design_lines, design_summary
     from .robust.loopshaping import design
 
-    if args.out is not None:
-        _claim_out(args, "design")  # before the design: --out /proc/x is refused at once
     d = design(lam=args.lam, n=args.joints, factor=args.factor)
     figures = []
     if args.out is not None:

@@ -54,6 +54,7 @@ from collections.abc import Iterable
 from contextlib import contextmanager
 from pathlib import Path
 
+from .. import outputs
 from ..outputs import check_writable, refuse_other_tool, writing
 
 try:  # POSIX advisory lock: one writer per output directory
@@ -77,8 +78,11 @@ class StoreError(ValueError):
     """An output directory that cannot hold this campaign (base class)."""
 
 
-class OutputNotEmpty(StoreError):
-    """``out`` holds files and neither ``resume`` nor ``overwrite`` was given."""
+class OutputNotEmpty(StoreError, outputs.OutputNotEmpty):
+    """``out`` holds files and neither ``resume`` nor ``overwrite`` was given.
+
+    Also a :class:`rrr_pin.outputs.OutputNotEmpty`, the refusal of every other command.
+    """
 
 
 class SettingsMismatch(StoreError):
