@@ -14,8 +14,9 @@ $(BIN)/python:
 install: $(BIN)/python
 	$(BIN)/python -m pip install '.[test]'
 
+# reproduce owns $(OUT): --overwrite replaces its previous run there (only the files it wrote)
 reproduce: install
-	$(BIN)/rrr-pin reproduce --out $(OUT)
+	$(BIN)/rrr-pin reproduce --out $(OUT) --overwrite
 
 test: install
 	$(BIN)/python -m pytest

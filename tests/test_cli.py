@@ -115,7 +115,7 @@ def test_reproduce_bad_input(argv, message, capsys, tmp_path):
                                  ["stress", "--effect", "delay"]],
                          ids=["reproduce", "montecarlo", "stress"])
 def test_out_is_a_file(tmp_path, capsys, cmd):
-    # One writability check (rrr_pin.campaign.store.check_writable) for every command.
+    # One writability check (rrr_pin.outputs.check_writable) for every command.
     f = tmp_path / "file"
     f.write_text("x")
     assert cli.main(cmd + ["--out", str(f)]) == 2

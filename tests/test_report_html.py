@@ -19,9 +19,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from rrr_pin.campaign.store import OutputNotWritable, check_writable
 from rrr_pin.model.dh import forward_kinematics, paper_params
 from rrr_pin.model.dynamics import load_robot
+from rrr_pin.outputs import OutputNotWritable, check_writable
 from rrr_pin.report.html import REPORT_MAX_BYTES, report_html, write_report_html
 from rrr_pin.report.viewer import CAMERA_FOV, Scene, Track, ViewerSizeError, camera_view
 

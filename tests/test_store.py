@@ -13,10 +13,10 @@ from rrr_pin.campaign.store import (
     PARTS,
     CampaignStore,
     OutputNotEmpty,
-    OutputNotWritable,
     SettingsMismatch,
     StoreCorrupt,
 )
+from rrr_pin.outputs import OutputNotWritable
 
 SETTINGS = {"seed": 7, "samples": 40, "reference": {"amp": [1.0, 0.5], "freq_hz": 0.2},
             "rate_hz": 1000.0, "engine": "python"}

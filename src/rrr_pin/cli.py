@@ -33,10 +33,46 @@ def main(argv: list[str] | None = None) -> int:
     parser = _build_parser()
     args = parser.parse_args(_negative_values(sys.argv[1:] if argv is None else list(argv)))
     try:
-        return int(args.func(args) or 0)
+        try:
+            return int(args.func(args) or 0)
+        finally:  # record the files written, also after an error (rrr_pin.outputs)
+            if getattr(args, "outputs", None) is not None:
+                args.outputs.close()
     except (ValueError, FileNotFoundError, RuntimeError) as exc:
         print(f"rrr-pin {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a full disk, a lost mount: while writing the outputs
+        import errno
+
+        where = f"cannot write {exc.filename}" if exc.filename else "cannot write the outputs"
+        code = f" ({errno.errorcode[exc.errno]})" if exc.errno in errno.errorcode else ""
+        print(f"rrr-pin {args.command}: error: {where}: {exc.strerror or exc}{code}"
+              f"{getattr(args, 'write_hint', '')}", file=sys.stderr)
+        return 2
+
+
+def _claim_out(args, tool: str, part: str | None = None):
+    """Claim ``args.out`` for this run before any work (rrr_pin.outputs: the folder rule).
+
+    Refuses a file, an unwritable folder, another tool's run, and a non-empty folder without
+    ``--overwrite``; :func:`main` records the files written when the command ends.
+    """
+    from pathlib import Path
+
+    from .outputs import OutputDir
+
+    settings = {k: v for k, v in vars(args).items() if k not in ("func", "outputs")}
+    args.outputs = OutputDir.claim(args.out, tool, part=part, overwrite=args.overwrite,
+                                   settings=settings)
+    args.write_hint = (f"; the files written so far (if any) are listed in "
+                       f"{args.outputs.manifest}: free space, then rerun with --overwrite")
+    return Path(args.out)
+
+
+def _add_overwrite(p) -> None:
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the previous run of this command in a non-empty --out (only "
+                        "the files its manifest rrr-pin-run*.json lists are removed)")
 
 
 def _negative_values(argv: list[str]) -> list[str]:
@@ -172,11 +208,14 @@ def _add_design(sub) -> None:
                    help="size n of the diagonal MIMO plant and controller (default 3)")
     p.add_argument("--out", metavar="DIR", default=None,
                    help="write fig2.png, fig3.png, fig4a.png, fig4b.png into DIR")
+    _add_overwrite(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_design)
 
 
 def _cmd_design(args) -> int:
+    if args.out is not None:  # before the design and its imports: --out /proc/x refused at once
+        _claim_out(args, "design")
     from .report.design import design_lines, design_summary
     from .report.jsondata import dumps
     from .robust.loopshaping import design
@@ -389,16 +428,14 @@ def _add_reproduce(sub) -> None:
     p.add_argument("--full-order", action="store_true",
                    help="use the full-order K instead of the reduced eq. (18)")
     p.add_argument("--out", default="results", metavar="DIR", help="output folder (results/)")
+    _add_overwrite(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_reproduce)
 
 
 def _cmd_reproduce(args) -> int:
-    from pathlib import Path
-
     from tqdm import tqdm
 
-    from .campaign.store import check_writable
     from .campaign.study import StudyConfig, check_study_size, run_study
     from .model.dynamics import load_robot
     from .report.design import study_design
@@ -408,13 +445,14 @@ def _cmd_reproduce(args) -> int:
     from .robust.loopshaping import design
     from .validation import check_count
 
-    out = Path(args.out)
-    check_writable(out)  # a file at --out, no permission, read-only: refused before any work
     check_count("--samples", args.samples)
     lock = _parse_lock(args.lock)
     robot = load_robot(args.robot, lock=lock)
     settings = _settings_from_args(args, robot.nq)
     reference = _reference_from_args(args, robot)
+    # A file, no permission, another run: refused before the design and the simulations, and
+    # after the options are checked, so that a bad option never costs the previous run.
+    out = _claim_out(args, "reproduce")
     d = design(lam=45.0, n=robot.nq)
     laws, baseline = _laws_from_args(args, robot, K=d.K_full if args.full_order else
                                      d.K_reduced)
@@ -483,13 +521,15 @@ def _cmd_montecarlo(args) -> int:
 
     from .campaign.executors import CampaignInterrupted, WorkersLost
     from .campaign.montecarlo import CampaignSettings, open_store, run_campaign
-    from .campaign.store import check_writable
     from .model.dynamics import load_robot
+    from .outputs import check_writable
     from .report.campaign import summary_lines, write_campaign, write_campaign_report
     from .validation import check_count
 
     check_count("--samples", args.samples, 1)
     check_writable(args.out)
+    args.write_hint = (f"; the samples finished so far are kept in {args.out}/parts.jsonl: "
+                       "free space, then rerun with --resume")
     lock = _parse_lock(args.lock)
     robot = load_robot(args.robot, lock=lock)
     run = _settings_from_args(args, robot.nq)
@@ -569,6 +609,7 @@ def _add_stress(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--out", default="results/stress", metavar="DIR",
                    help="folder for the figure and the JSON (results/stress)")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_stress)
 
 
@@ -576,7 +617,6 @@ def _cmd_stress(args) -> int:
     import time
 
     from .campaign.runner import RunSettings, make_laws
-    from .campaign.store import check_writable
     from .campaign.stress import StressSettings, stress
     from .control.catalog import EFFECTS
     from .control.specs import ReferenceSpec
@@ -597,7 +637,7 @@ def _cmd_stress(args) -> int:
                                                   rate=rate, engine=args.engine,
                                                   force=args.force),
                                   budget=args.budget)
-    check_writable(args.out)
+    _claim_out(args, "stress", part=args.effect)  # one folder holds every effect's run
     robot = load_robot(args.robot, lock=_parse_lock(args.lock))
     home = _floats(args.home, "--home")
     reference = ReferenceSpec(home=None if home is None else tuple(home)).build(

@@ -27,8 +27,12 @@ its index alone, so the final tables of an interrupted and resumed campaign are 
 to those of a run that was never interrupted. An existing non-empty output directory is
 refused unless ``resume`` (continue it) or ``overwrite`` (start afresh) is given; with
 ``overwrite``, the previous run's manifest, rows and recorded outputs are deleted first, and
-files the store does not know are left alone. Only files written by this run are listed in
-:attr:`CampaignStore.written`, so a stale figure is never reported as new.
+files the store does not know are left alone. A folder holding a run of another tool (the
+manifest of :mod:`rrr_pin.outputs`, e.g. a ``rrr-pin reproduce`` study) is refused even with
+``overwrite``, and a full disk while a final table is written leaves the rows and the
+previous table whole (no temporary file) and names the file in its ``OSError``. Only files
+written by this run are listed in :attr:`CampaignStore.written`, so a stale figure is never
+reported as new.
 
 Examples
 --------
@@ -45,11 +49,13 @@ from __future__ import annotations
 import json
 import os
 import signal
-import tempfile
 import threading
 from collections.abc import Iterable
 from contextlib import contextmanager
 from pathlib import Path
+
+from .. import outputs
+from ..outputs import check_writable, refuse_other_tool, writing
 
 try:  # POSIX advisory lock: one writer per output directory
     import fcntl
@@ -57,8 +63,8 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
 __all__ = [
-    "CampaignStore", "StoreError", "OutputNotWritable", "OutputNotEmpty", "SettingsMismatch",
-    "StoreCorrupt", "MANIFEST", "PARTS", "check_writable",
+    "CampaignStore", "StoreError", "OutputNotEmpty", "SettingsMismatch", "StoreCorrupt",
+    "MANIFEST", "PARTS",
 ]
 
 #: File names inside the output directory.
@@ -72,15 +78,11 @@ class StoreError(ValueError):
     """An output directory that cannot hold this campaign (base class)."""
 
 
-class OutputNotWritable(StoreError):
-    """An output folder that is a file, lies under one, or cannot be created or written.
+class OutputNotEmpty(StoreError, outputs.OutputNotEmpty):
+    """``out`` holds files and neither ``resume`` nor ``overwrite`` was given.
 
-    Raised by :func:`check_writable`, for campaigns and reports alike.
+    Also a :class:`rrr_pin.outputs.OutputNotEmpty`, the refusal of every other command.
     """
-
-
-class OutputNotEmpty(StoreError):
-    """``out`` holds files and neither ``resume`` nor ``overwrite`` was given."""
 
 
 class SettingsMismatch(StoreError):
@@ -148,55 +150,21 @@ def _fsync_dir(path: Path) -> None:
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename (never half a file)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-    _fsync_dir(path.parent)
+    """Write ``data`` to ``path`` through a temporary file and a rename (never half a file).
 
-
-def check_writable(out) -> Path:
-    """Make sure files can be written into the folder ``out``, before any work is done.
-
-    Creates the folder (and its parents) if needed, then creates and removes a probe file in
-    it, so a path that is a file or lies under one, a missing permission and a read-only file
-    system are all caught. The one writability check of the package (the campaign store and
-    :func:`rrr_pin.campaign.store.check_writable` both use it).
-
-    Parameters
-    ----------
-    out : path-like
-        The output folder.
-
-    Returns
-    -------
-    Path
-        ``out``, resolved.
-
-    Raises
-    ------
-    OutputNotWritable (a ValueError)
-        Naming the folder and the reason.
+    A failed write (a full disk) leaves the previous ``path`` and no temporary file, and its
+    ``OSError`` names ``path``.
     """
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise OutputNotWritable(f"output directory {str(out)!r} exists and is not a folder "
-                                "(it is an existing file); choose another --out")
+    tmp = path.with_name(f".{path.name}.tmp")
     try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputNotWritable(f"cannot create output directory {str(out)!r}, so it is not "
-                                f"writable: {exc.strerror or exc}") from exc
-    try:
-        with tempfile.NamedTemporaryFile(dir=out, prefix=".rrr-pin-probe-"):
-            pass
-    except OSError as exc:
-        raise OutputNotWritable(f"output directory {str(out)!r} is not writable: "
-                                f"{exc.strerror or exc}") from exc
-    return out.resolve()
+        with writing(path), open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    _fsync_dir(path.parent)
 
 
 @contextmanager
@@ -287,8 +255,11 @@ class CampaignStore:
 
         Raises
         ------
-        OutputNotWritable
+        rrr_pin.outputs.OutputNotWritable
             ``out`` is a file, lies under a file, or cannot be created or written.
+        rrr_pin.outputs.OutputInUse
+            ``out`` holds a run of another tool (``rrr-pin reproduce``, ...), even with
+            ``overwrite`` (see :mod:`rrr_pin.outputs`).
         OutputNotEmpty
             ``out`` holds files and neither ``resume`` nor ``overwrite`` is given, or ``resume``
             is given but ``out`` holds no campaign (no ``campaign.json``).
@@ -311,6 +282,7 @@ class CampaignStore:
             raise TypeError(f"settings must be JSON-able: {exc}") from exc
         out = Path(out)
         check_writable(out)
+        refuse_other_tool(out, "montecarlo")  # a study's folder is not overwritten
         manifest_path, parts_path = out / MANIFEST, out / PARTS
         entries = [p.name for p in out.iterdir()]
         recorded = None
@@ -422,9 +394,10 @@ class CampaignStore:
         with _signals_deferred():  # written and recorded, or neither: never one without the other
             start = self._fh.tell()
             try:
-                self._fh.write("".join(lines).encode())
-                self._fh.flush()
-                os.fsync(self._fh.fileno())
+                with writing(self.parts_path):  # a full disk names the file
+                    self._fh.write("".join(lines).encode())
+                    self._fh.flush()
+                    os.fsync(self._fh.fileno())
             except OSError:  # e.g. disk full: leave no torn line between two good ones
                 self._fh.truncate(start)
                 raise

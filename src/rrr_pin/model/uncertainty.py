@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outputs import writing
 from ..validation import check_count, check_real, check_vector
 from .dh import ArmParams, check_inertial
 from .urdf import urdf_from_params
@@ -100,7 +101,8 @@ class PlantSample:
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"{stem}_{self.index:03d}.urdf"
-        path.write_text(self.urdf)
+        with writing(path):  # a full disk names the file
+            path.write_text(self.urdf)
         return path
 
 

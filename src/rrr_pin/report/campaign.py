@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..campaign.montecarlo import Campaign, campaign_columns, campaign_summary
 from ..campaign.store import CampaignStore
+from ..outputs import writing
 from .html import write_report_html
 from .jsondata import dumps
 from .plotting import plot_campaign, plot_certificates
@@ -68,7 +69,8 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
         if store is not None:
             written.append(store.write_text(name, content))
         else:
-            (out / name).write_text(content)
+            with writing(out / name):  # a full disk names the file
+                (out / name).write_text(content)
             written.append(out / name)
     figure = out / "montecarlo.png"
     if figure.exists():

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..campaign.store import OutputNotWritable, check_writable
+from ..outputs import OutputNotWritable, check_writable
 from .viewer import Scene, scene_html
 
 __all__ = ["write_report_html", "report_html", "REPORT_MAX_BYTES"]
@@ -222,7 +222,8 @@ def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (
     try:
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, path)
-    except OSError as exc:
+    except OSError as exc:  # a full disk: no half page, no temporary file left
+        tmp.unlink(missing_ok=True)
         raise OutputNotWritable(f"cannot write {str(path)!r}: "
                                      f"{exc.strerror or exc}") from None
     return path

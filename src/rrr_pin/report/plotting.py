@@ -27,6 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after selecting the backend)
 import numpy as np  # noqa: E402
 
+from ..outputs import writing  # noqa: E402
 from ..robust.robustness import closed_loop, sigma  # noqa: E402
 
 __all__ = [
@@ -73,7 +74,8 @@ def _finish(fig, ax, title: str, path) -> Path:
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    with writing(path):  # a full disk names the figure
+        fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
 
@@ -278,7 +280,8 @@ def _finish_study(fig, axes, path):
     for ax in axes.flat:
         if ax.get_legend_handles_labels()[0]:
             ax.legend(loc="upper right", fontsize="small", ncol=2)
-    fig.savefig(path, dpi=120)
+    with writing(path):  # a full disk names the figure
+        fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)
 
@@ -514,7 +517,8 @@ def plot_campaign(campaign, path) -> Path:
     ax2.set_title("Per-joint error spread")
     ax2.legend()
     ax2.grid(True, alpha=0.3, which="both")
-    fig.savefig(path, dpi=120)
+    with writing(path):  # a full disk names the figure
+        fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)
 
@@ -552,7 +556,8 @@ def plot_certificates(nugap, b, ran, path, title: str = "") -> Path:
                  f"{len(nugap)} plants certified")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small")
-    fig.savefig(path, dpi=120)
+    with writing(path):  # a full disk names the figure
+        fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)
 
@@ -587,6 +592,7 @@ def plot_stress(result: dict, path):
     ax.set_title(f"Breaking points: {result['effect']}")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    with writing(path):  # a full disk names the figure
+        fig.savefig(path, dpi=120)
     plt.close(fig)
     return path

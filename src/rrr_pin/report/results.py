@@ -17,6 +17,7 @@ import numpy as np
 
 from ..campaign.study import StudyResult
 from ..model.dynamics import Robot, robot_from_xml
+from ..outputs import writing
 from .html import write_report_html
 from .jsondata import dumps
 from .viewer import Scene, Track
@@ -244,8 +245,10 @@ def write_results(result: StudyResult, out: str | Path, design: dict | None = No
         stale.unlink()
     for plant in result.plants:
         plant.write(plants, stem=result.robot)
-    (out / "results.json").write_text(dumps(data, indent=1) + "\n")
-    (out / "results.md").write_text(results_markdown(result, data))
+    for name, text in (("results.json", dumps(data, indent=1) + "\n"),
+                       ("results.md", results_markdown(result, data))):
+        with writing(out / name):  # a full disk names the file
+            (out / name).write_text(text)
     return data
 
 

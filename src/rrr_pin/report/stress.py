@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..outputs import writing
 from .jsondata import dumps
 from .plotting import plot_stress
 
@@ -30,7 +31,9 @@ def write_stress(result: dict, out: str | Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     fig = plot_stress(result, out / f"stress_{result['effect']}.png")
     result["figure"] = str(fig)
-    (out / f"stress_{result['effect']}.json").write_text(dumps(result, indent=1))
+    path = out / f"stress_{result['effect']}.json"
+    with writing(path):  # a full disk names the file
+        path.write_text(dumps(result, indent=1))
     return fig
 
 
