@@ -19,7 +19,7 @@ from pathlib import Path
 from ..campaign.montecarlo import Campaign, campaign_columns, campaign_summary
 from ..campaign.store import CampaignStore
 from .html import write_report_html
-from .plotting import plot_campaign, plot_certificates
+from .plotting import plot_campaign, plot_certificates, save_figure
 
 __all__ = ["write_campaign", "write_campaign_report", "summary_lines"]
 
@@ -69,13 +69,13 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
     if figure.exists():
         figure.unlink()
     if any(r["status"] == "ok" for r in campaign.rows):
-        plot_campaign(campaign, figure)
+        save_figure(plot_campaign(campaign), figure)
         written.append(store.wrote("montecarlo.png") if store is not None else figure)
     certs = [r for r in campaign.rows if "certified" in r]
     if certs and certificate_b is not None:
-        figure = plot_certificates([r["nugap_max"] for r in certs], certificate_b,
-                                   [r["status"] == "ok" for r in certs],
-                                   out / "certificates.png")
+        figure = save_figure(plot_certificates([r["nugap_max"] for r in certs], certificate_b,
+                                               [r["status"] == "ok" for r in certs]),
+                             out / "certificates.png")
         written.append(store.wrote("certificates.png") if store is not None else figure)
     summary["written"] = [str(p) for p in written]
     return summary

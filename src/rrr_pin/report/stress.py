@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .plotting import plot_stress
+from .plotting import plot_stress, save_figure
 
 __all__ = ["write_stress", "stress_lines"]
 
@@ -27,7 +27,7 @@ def write_stress(result: dict, out: str | Path) -> Path:
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    fig = plot_stress(result, out / f"stress_{result['effect']}.png")
+    fig = save_figure(plot_stress(result), out / f"stress_{result['effect']}.png")
     result["figure"] = str(fig)
     (out / f"stress_{result['effect']}.json").write_text(json.dumps(result, indent=1))
     return fig
