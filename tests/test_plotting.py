@@ -251,3 +251,85 @@ def test_study_and_campaign_repr_html_have_their_numbers(study, campaign):
         v = [r[f"{name}_rms_error"] for r in campaign.rows]
         assert f"{np.median(v):.4g}" in text and f"{np.max(v):.4g}" in text
     assert "median RMS error [rad]" in text and "ran on 12 of 12 plants" in text
+
+
+# --- report.html of a study and of a campaign: headings, captions, units -------------------
+
+class _Tables(HTMLParser):
+    """Headings in order, figure captions, and each table's rows of cells."""
+
+    def __init__(self):
+        super().__init__()
+        self.headings, self.captions, self.tables = [], [], []
+        self._open, self._text, self._row, self._cells = [], None, None, []
+
+    def handle_starttag(self, tag, attrs):
+        if tag in ("h1", "h2", "h3", "h4", "h5", "h6", "figcaption", "td", "th"):
+            self._text = []
+        if tag == "table":
+            self._open.append([])
+        if tag == "tr":
+            self._cells.append([])
+
+    def handle_endtag(self, tag):
+        text = "".join(self._text or []).strip()
+        if tag in ("h1", "h2", "h3", "h4", "h5", "h6"):
+            self.headings.append((int(tag[1]), text))
+        elif tag == "figcaption":
+            self.captions.append(text)
+        elif tag in ("td", "th") and self._cells:
+            self._cells[-1].append(text)
+        elif tag == "tr" and self._open:
+            self._open[-1].append(self._cells.pop())
+        elif tag == "table":
+            self.tables.append(self._open.pop())
+
+    def handle_data(self, data):
+        if self._text is not None:
+            self._text.append(data)
+
+
+def _check_report(page: str, n_figures: int):
+    p = _Tables()
+    p.feed(page)
+    levels = [lvl for lvl, _ in p.headings]
+    assert levels[0] == 1 and levels.count(1) == 1
+    assert all(b <= a + 1 for a, b in zip(levels, levels[1:], strict=False)), p.headings
+    figures = [c for c in p.captions if c.startswith(("Fig.", "Left:", "Frozen"))]
+    assert len(figures) == n_figures
+    assert not [c for c in p.captions if c.endswith(".png")]
+    number = r"^-?\d[\d.e+-]*$"
+    import re
+    for rows in p.tables:
+        header = rows[0]
+        if "unit" in header:  # key-value tables: every number has a unit
+            u = header.index("unit")
+            for row in rows[1:]:
+                if re.match(number, row[1]) or row[1].startswith("["):
+                    assert row[u], row
+            continue
+        for c, name in enumerate(header[1:], start=1):  # else: a number's column or row
+            for row in rows[1:]:                          # label says its unit
+                if len(row) > c and re.match(number, row[c]):
+                    assert "[" in name or "[" in row[0], (name, row)
+
+
+def test_study_report_has_one_hierarchy_captions_and_units(tmp_path, d, study, rrr):
+    from rrr_pin.report.design import study_design
+    from rrr_pin.report.results import write_results, write_study_report
+
+    info = study_design(d)
+    write_results(study, tmp_path, design=info)
+    figures = (plotting.save_design_figures(d, tmp_path)
+               + plotting.save_study_figures(study, tmp_path))
+    page = write_study_report(study, tmp_path, figures, info, rrr).read_text()
+    _check_report(page, len(figures))
+    assert "10.50 dB at 207.7 rad/s" in page and "RSB minus the controlled plant" in page
+
+
+def test_campaign_report_has_one_hierarchy_captions_and_units(tmp_path, campaign):
+    from rrr_pin.report.campaign import write_campaign, write_campaign_report
+
+    summary = write_campaign(campaign, tmp_path)
+    page = write_campaign_report(campaign, summary, tmp_path).read_text()
+    _check_report(page, 1)
