@@ -15,7 +15,7 @@ import argparse
 import rrr_pin
 from rrr_pin.campaign.runner import RunSettings, make_laws, run_laws
 from rrr_pin.control.references import default_reference
-from rrr_pin.report.plotting import plot_runs
+from rrr_pin.report.plotting import plot_runs, save_figure
 from rrr_pin.sim.trajectory import SimulationDiverged, metrics
 
 
@@ -47,8 +47,8 @@ def main(argv=None):
               + f"   ({traj.info['engine']} engine)")
     ok = {k: v for k, v in runs.items() if not isinstance(v, SimulationDiverged)}
     labels = {law.name: law.label or law.name for law in laws}
-    path = plot_runs(ok, robot.joint_names, args.out, title=f"{robot.name}: nominal",
-                     labels=labels)
+    path = save_figure(plot_runs(ok, robot.joint_names, title=f"{robot.name}: nominal",
+                                 labels=labels), args.out)
     print(f"wrote {path}")
 
 

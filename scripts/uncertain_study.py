@@ -14,7 +14,7 @@ import json
 import rrr_pin
 from rrr_pin.campaign.runner import RunSettings, make_laws
 from rrr_pin.campaign.study import StudyConfig, run_study, summarize
-from rrr_pin.report.plotting import plot_study_uncertain
+from rrr_pin.report.plotting import plot_study_uncertain, save_figure
 
 
 def main(argv=None):
@@ -39,7 +39,7 @@ def main(argv=None):
                          jobs=args.jobs)
     result = run_study(robot, laws, config=config)
     print(json.dumps(summarize(result), indent=1))
-    print(f"wrote {plot_study_uncertain(result, args.out)}")
+    print(f"wrote {save_figure(plot_study_uncertain(result), args.out)}")
 
 
 if __name__ == "__main__":

@@ -318,7 +318,7 @@ def test_campaign_report_and_summary_lines(small_campaign, tmp_path):
     text = path.read_text()
     assert path == tmp_path / "report.html" and "<img" not in text  # no montecarlo.png here
     m = s["pd_rms_torque"]  # in the page's table, not in the terminal's
-    assert (f"<td>pd_rms_torque</td>\n<td>{m['median']:.4g}</td>" in text)
+    assert (f"<td>pd_rms_torque</td>\n<td>N m</td>\n<td>{m['median']:.4g}</td>" in text)
     lines = summary_lines(small_campaign, s)
     assert lines[0] == "every controller ran on 3, a run diverged on 0"
     share = 100 * s["fraction_better"]["pd"]

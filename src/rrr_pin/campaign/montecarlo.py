@@ -149,6 +149,30 @@ class Campaign:
         """Name of the baseline law."""
         return self.settings["baseline"]
 
+    def _repr_html_(self) -> str:
+        """Summary table for notebooks: per law, median and worst RMS error and status."""
+        import html
+
+        s = campaign_summary(self)
+        run = self.settings
+        rate = (f"{run['rate_hz']:g} Hz (sampled laws)" if run.get("rate_hz")
+                else "continuous-time laws")
+        head = (f"<caption>Monte Carlo campaign on {html.escape(self.robot)}: "
+                f"{run['duration_s']:g} s, {rate}, {s['samples']} plants, baseline "
+                f"{html.escape(self.baseline)}</caption><tr><th>law</th>"
+                "<th>median RMS error [rad]</th><th>95th percentile RMS error [rad]</th>"
+                "<th>worst RMS error [rad]</th><th>status</th></tr>")
+        rows = []
+        for d in self.laws:
+            m = s.get(f"{d['name']}_rms_error")
+            cells = ("".join(f"<td>{m[k]:.4g}</td>" for k in ("median", "p95", "worst"))
+                     if m else "<td>-</td>" * 3)
+            ran = m["count"] if m else 0
+            rows.append(f"<tr><td>{html.escape(d['label'])} (<code>{html.escape(d['name'])}"
+                        f"</code>)</td>{cells}<td>ran on {ran} of {s['samples']} plants"
+                        f"</td></tr>")
+        return f"<table>{head}{''.join(rows)}</table>"
+
 
 def sample_row(job: CampaignJob, k: int) -> dict:
     """Generate sample ``k``, run every law on it and reduce it to one row."""

@@ -155,6 +155,31 @@ class StudyResult:
         """Display name of a law."""
         return next(d["label"] for d in self.laws if d["name"] == name)
 
+    def _repr_html_(self) -> str:
+        """Summary table for notebooks: per law, nominal and uncertain RMS errors and status."""
+        import html
+
+        run = self.config.run
+        rate = f"{run.rate:g} Hz (sampled laws)" if run.rate else "continuous-time laws"
+        head = (f"<caption>Study on {html.escape(self.robot)}: {run.duration:g} s, {rate}, "
+                f"{len(self.samples)} uncertain plants, baseline "
+                f"{html.escape(self.config.baseline)}</caption><tr><th>law</th>"
+                "<th>nominal RMS error [rad]</th><th>uncertain: mean RMS error [rad]</th>"
+                "<th>status</th></tr>")
+        rows = []
+        for name in self.names:
+            e = self.nominal[name].error
+            ran = [s["metrics"][name]["rms_error"] for s in self.samples
+                   if name in s.get("metrics", {})]
+            mean = (f"{np.mean(np.sqrt(np.mean(np.square(ran), axis=1))):.4g}" if ran
+                    else "-")
+            status = f"ran on {len(ran)} of {len(self.samples)} uncertain plants"
+            rows.append(f"<tr><td>{html.escape(self.label(name))} "
+                        f"(<code>{html.escape(name)}</code>)</td>"
+                        f"<td>{np.sqrt(np.mean(e * e)):.4g}</td><td>{mean}</td>"
+                        f"<td>{status}</td></tr>")
+        return f"<table>{head}{''.join(rows)}</table>"
+
     def to_json(self) -> dict:
         """Return the ``results.json`` content (layout in the README)."""
         uncertain = {}

@@ -20,9 +20,9 @@ from ..campaign.store import CampaignStore
 from ..outputs import writing
 from .html import write_report_html
 from .jsondata import dumps
-from .plotting import plot_campaign, plot_certificates
+from .plotting import plot_campaign, plot_certificates, save_figure
 
-__all__ = ["write_campaign", "write_campaign_report", "summary_lines"]
+__all__ = ["write_campaign", "write_campaign_report", "summary_lines", "SETTINGS_UNITS"]
 
 #: Metrics of the summary tables, per law, in order (``report.html`` also shows the torque).
 _TABLE_METRICS = ("error_ratio_{}", "torque_ratio_{}", "{}_rms_error", "{}_max_error")
@@ -76,13 +76,13 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
     if figure.exists():
         figure.unlink()
     if any(r["status"] == "ok" for r in campaign.rows):
-        plot_campaign(campaign, figure)
+        save_figure(plot_campaign(campaign), figure)
         written.append(store.wrote("montecarlo.png") if store is not None else figure)
     certs = [r for r in campaign.rows if "certified" in r]
     if certs and certificate_b is not None:
-        figure = plot_certificates([r["nugap_max"] for r in certs], certificate_b,
-                                   [r["status"] == "ok" for r in certs],
-                                   out / "certificates.png")
+        figure = save_figure(plot_certificates([r["nugap_max"] for r in certs], certificate_b,
+                                               [r["status"] == "ok" for r in certs]),
+                             out / "certificates.png")
         written.append(store.wrote("certificates.png") if store is not None else figure)
     summary["written"] = [str(p) for p in written]
     return summary
@@ -93,6 +93,29 @@ def _metrics(campaign: Campaign, summary: dict, torque: bool) -> list[str]:
     forms = _TABLE_METRICS + (("{}_rms_torque",) if torque else ())
     return [m for name in campaign.names for m in (f.format(name) for f in forms)
             if m in summary]
+
+
+#: Units of the campaign settings' keys that carry no unit suffix ("-": dimensionless).
+SETTINGS_UNITS = {"samples": "-", "seed": "-", "tolerance_inertia": "-",
+                  "tolerance_length": "-"}
+
+
+def _metric_unit(metric: str) -> str:
+    if metric.startswith(("error_ratio_", "torque_ratio_")):
+        return "-"
+    return "N m" if metric.endswith("_rms_torque") else "rad"
+
+
+def _captions(campaign: Campaign) -> dict:
+    """Caption of each figure a campaign may have, by file name."""
+    base = next(d["label"] for d in campaign.laws if d["name"] == campaign.baseline)
+    return {"montecarlo.png": f"Left: per controller, the ratio RMS error of the baseline "
+                              f"({base}) / RMS error of the controller over the plants "
+                              f"(above 1: better than the baseline). Right: per joint, the "
+                              f"spread of the RMS tracking error [rad] of every controller.",
+            "certificates.png": "Frozen-configuration certificates: each plant's largest "
+                                "nu-gap to the nominal shaped plant against b(Gs, Ks); below "
+                                "the line, certified."}
 
 
 def write_campaign_report(campaign: Campaign, summary: dict, out: str | Path,
@@ -107,7 +130,8 @@ def write_campaign_report(campaign: Campaign, summary: dict, out: str | Path,
     summary : dict
         :func:`write_campaign`'s (or :func:`rrr_pin.campaign.montecarlo.campaign_summary`'s).
     out : path-like
-        The campaign's folder; ``montecarlo.png`` there is shown if it exists.
+        The campaign's folder; ``montecarlo.png`` and ``certificates.png`` there are shown,
+        with captions, if they exist.
     store : CampaignStore, optional
         Record ``report.html`` as this run's output.
 
@@ -117,17 +141,20 @@ def write_campaign_report(campaign: Campaign, summary: dict, out: str | Path,
         The file written.
     """
     out = Path(out)
-    lines = ["| metric | median | 95th percentile | worst | samples |", "|---|---|---|---|---|"]
+    lines = ["| metric | unit | median | 95th percentile | worst | samples |",
+             "|---|---|---|---|---|---|"]
     for metric in _metrics(campaign, summary, torque=True):
         m = summary[metric]
-        lines.append(f"| {metric} | {m['median']:.4g} | {m['p95']:.4g} | {m['worst']:.4g} | "
-                     f"{m['count']} |")
-    figure = out / "montecarlo.png"
+        lines.append(f"| {metric} | {_metric_unit(metric)} | {m['median']:.4g} | "
+                     f"{m['p95']:.4g} | {m['worst']:.4g} | {m['count']} |")
+    figures = [(out / name, caption) for name, caption in _captions(campaign).items()
+               if (out / name).exists()]
     path = write_report_html(
         out / "report.html", title=f"rrr-pin Monte Carlo campaign on {campaign.robot}",
         tables=[(f"{summary['samples']} plants, baseline {summary['baseline']}",
                  "\n".join(lines))],
-        figures=[figure] if figure.exists() else [], design=campaign.settings)
+        figures=figures, design=campaign.settings, units=SETTINGS_UNITS,
+        design_title="Settings")
     return store.wrote("report.html") if store is not None else path
 
 

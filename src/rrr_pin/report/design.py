@@ -11,7 +11,13 @@ from __future__ import annotations
 
 from ..robust.loopshaping import zpk_data
 
-__all__ = ["zpk_dict", "design_summary", "design_lines", "study_design"]
+__all__ = ["zpk_dict", "design_summary", "design_lines", "study_design", "DESIGN_UNITS"]
+
+#: Units of the keys of :func:`study_design` and :func:`design_summary` that carry no unit
+#: suffix ("-": dimensionless; ``K`` maps the error [rad] to the correction ``y`` [rad]).
+DESIGN_UNITS = {"gamma_min": "-", "gamma": "-", "emax": "-", "gamma_reduced": "-",
+                "gain": "-", "zeros": "rad/s", "poles": "rad/s", "ok": "-",
+                "worst_frequency": "rad/s", "ncfmargin": "-"}
 
 
 def zpk_dict(K) -> dict:

@@ -48,21 +48,29 @@ nav a {margin-right: 1em;}
 """
 
 
-def _markdown(text: str) -> str:
+def _markdown(text: str, shift: int = 0) -> str:
+    """Render Markdown, its headings ``shift`` levels down (``#`` becomes ``h{1 + shift}``)."""
     from markdown_it import MarkdownIt
 
     md = MarkdownIt("commonmark", {"html": False}).enable("table")
     md.disable("image")  # a Markdown image would be a file or network reference
-    return md.render(text)
+    tokens = md.parse(text)
+    for token in tokens:
+        if token.type in ("heading_open", "heading_close"):
+            token.tag = f"h{min(6, int(token.tag[1:]) + shift)}"
+    return md.renderer.render(tokens, md.options, {})
 
 
 def _table_html(content: str) -> str:
-    """HTML of a table given as HTML (starts with ``<``) or as Markdown."""
-    return content if content.lstrip().startswith("<") else _markdown(content)
+    """HTML of a table given as HTML (starts with ``<``) or as Markdown (headings under h3)."""
+    return content if content.lstrip().startswith("<") else _markdown(content, shift=3)
 
 
-def _figure_html(path: Path) -> str:
+def _figure_html(entry) -> str:
+    """HTML of a figure given as a path or a ``(path, caption)`` pair (default: file name)."""
+    path, caption = ((entry[0], entry[1]) if isinstance(entry, tuple) else (entry, None))
     path = Path(path)
+    caption = path.name if caption is None else caption
     mime = _MIME.get(path.suffix.lower())
     if mime is None:
         raise ValueError(f"figure {str(path)!r}: expected one of {', '.join(sorted(_MIME))}, "
@@ -70,8 +78,8 @@ def _figure_html(path: Path) -> str:
     if not path.is_file():
         raise FileNotFoundError(f"figure not found: {path}")
     data = base64.b64encode(path.read_bytes()).decode("ascii")
-    return (f'<figure><img alt="{html.escape(path.stem, quote=True)}" '
-            f'src="data:{mime};base64,{data}"><figcaption>{html.escape(path.name)}'
+    return (f'<figure><img alt="{html.escape(caption, quote=True)}" '
+            f'src="data:{mime};base64,{data}"><figcaption>{html.escape(caption)}'
             f"</figcaption></figure>")
 
 
@@ -88,16 +96,37 @@ def _number(x) -> str:
     return f"{x:.6g}"
 
 
-def _value_html(value) -> str:
-    """Readable HTML of any JSON-like value: nested mappings as tables, numbers to 6 digits."""
+#: Units by key suffix, the convention of the project's JSON (``duration_s``, ``rate_hz``);
+#: longest suffixes first.
+_SUFFIX_UNITS = (("_rad_s", "rad/s"), ("_n_m", "N m"), ("_hz", "Hz"), ("_db", "dB"),
+                 ("_rad", "rad"), ("_s", "s"), ("_m", "m"))
+
+
+def _unit(key, value, units: Mapping) -> str:
+    """Return the unit of a key-value row: ``units[key]``, else its suffix's, else empty."""
+    if isinstance(value, Mapping):
+        return ""
+    key = str(key)
+    if key in units:
+        return units[key]
+    return next((u for suffix, u in _SUFFIX_UNITS if key.lower().endswith(suffix)), "")
+
+
+def _value_html(value, units: Mapping | None = None) -> str:
+    """Readable HTML of any JSON-like value: nested mappings as tables, numbers to 6 digits.
+
+    A mapping is a table of key, value and unit (``units[key]``, else the key's suffix).
+    """
+    units = {} if units is None else units
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if isinstance(value, Mapping):
         if not value:
             return "<i>(empty)</i>"
-        rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{_value_html(v)}"
-                       f"</td></tr>" for k, v in value.items())
-        return f"<table>{rows}</table>"
+        rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{_value_html(v, units)}</td>"
+                       f"<td>{html.escape(_unit(k, v, units))}</td></tr>"
+                       for k, v in value.items())
+        return f"<table><tr><th>quantity</th><th>value</th><th>unit</th></tr>{rows}</table>"
     if isinstance(value, str):
         return html.escape(value)
     if value is None:
@@ -110,7 +139,7 @@ def _value_html(value) -> str:
             shown = ", ".join(_number(v) for v in items[:24])
             more = f", ... ({len(items)} values)" if len(items) > 24 else ""
             return f"<code>[{shown}{more}]</code>"
-        return "<ol>" + "".join(f"<li>{_value_html(v)}</li>" for v in items) + \
+        return "<ol>" + "".join(f"<li>{_value_html(v, units)}</li>" for v in items) + \
             "</ol>"
     return html.escape(str(value))
 
@@ -129,7 +158,8 @@ def _page(title: str, sections: list[tuple[str, str, str]]) -> str:
 def report_html(*, title: str, tables: Sequence[tuple[str, str]] = (),
                 figures: Sequence = (), design: Mapping | None = None,
                 scenes: Sequence[Scene] = (), max_bytes: int = REPORT_MAX_BYTES,
-                fps: float = 30.0) -> str:
+                fps: float = 30.0, units: Mapping | None = None,
+                design_title: str = "Design") -> str:
     """Build the report page as a string; see :func:`write_report_html`."""
     if isinstance(max_bytes, bool) or not (isinstance(max_bytes, numbers.Integral)
                                            and max_bytes > 0):
@@ -148,9 +178,9 @@ def report_html(*, title: str, tables: Sequence[tuple[str, str]] = (),
             parts.append(f"<h3>{html.escape(caption)}</h3>{_table_html(content)}")
         sections.append(("results", "Results", "".join(parts)))
     if design is not None:
-        sections.append(("design", "Design", _value_html(design)))
+        sections.append(("design", design_title, _value_html(design, units)))
     if figures:
-        sections.append(("figures", "Figures", "".join(_figure_html(Path(f)) for f in figures)))
+        sections.append(("figures", "Figures", "".join(_figure_html(f) for f in figures)))
     scenes = list(scenes)
     if scenes:
         for k, scene in enumerate(scenes):
@@ -174,7 +204,8 @@ def report_html(*, title: str, tables: Sequence[tuple[str, str]] = (),
 def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (),
                       figures: Sequence = (), design: Mapping | None = None,
                       scenes: Sequence[Scene] = (), max_bytes: int = REPORT_MAX_BYTES,
-                      fps: float = 30.0) -> Path:
+                      fps: float = 30.0, units: Mapping | None = None,
+                      design_title: str = "Design") -> Path:
     """Write one self-contained HTML report.
 
     Parameters
@@ -184,13 +215,16 @@ def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (
     title : str
         Page title.
     tables : sequence of (str, str)
-        ``(caption, content)`` pairs; ``content`` is Markdown (pipe tables, headings, lists;
-        raw HTML in it is escaped) or, when it starts with ``<``, HTML inserted as is.
-    figures : sequence of path-like
-        Image files (PNG, JPEG, GIF, SVG), inlined as base64 ``data:`` URIs.
+        ``(caption, content)`` pairs, each caption an ``h3`` heading; ``content`` is Markdown
+        (pipe tables, headings, lists; raw HTML in it is escaped; its headings are moved
+        three levels down, ``#`` to ``h4``, so the page keeps one heading hierarchy) or, when
+        it starts with ``<``, HTML inserted as is.
+    figures : sequence of path-like or (path-like, str)
+        Image files (PNG, JPEG, GIF, SVG), inlined as base64 ``data:`` URIs, each with its
+        caption (default: the file name).
     design : dict, optional
         Design summary (e.g. gamma, K, margins): any JSON-like mapping, shown as nested
-        tables, numbers to 6 significant digits.
+        tables of quantity, value (numbers to 6 significant digits) and unit.
     scenes : sequence of rrr_pin.report.viewer.Scene
         3D animations, e.g. one per controller; each is rendered with
         :func:`rrr_pin.report.viewer.scene_html`, the byte budget left by the rest of the page
@@ -199,6 +233,12 @@ def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (
         Byte budget of the file [bytes]; the scenes' frames are decimated to fit.
     fps : float, default 30
         Frames per second of the animations before decimation [1/s].
+    units : dict, optional
+        Unit of each ``design`` key (``"-"``: dimensionless); a key not in it takes the unit
+        of its suffix (``_s``, ``_hz``, ``_rad``, ``_rad_s``, ``_db``, ``_m``, ``_n_m``), else
+        none.
+    design_title : str, default "Design"
+        Heading of the ``design`` section (e.g. "Settings").
 
     Returns
     -------
@@ -215,7 +255,8 @@ def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (
         The file cannot be written.
     """
     text = report_html(title=title, tables=tables, figures=figures, design=design,
-                       scenes=scenes, max_bytes=max_bytes, fps=fps)
+                       scenes=scenes, max_bytes=max_bytes, fps=fps, units=units,
+                       design_title=design_title)
     path = Path(path)
     check_writable(path.parent)
     tmp = path.with_name(f".{path.name}.tmp")

@@ -1,18 +1,27 @@
-"""Figures of the paper, written as PNG files (matplotlib, Agg backend, no window).
+"""Figures of the paper and of the campaigns, as matplotlib figures (notebook-friendly).
 
-Loop-shaping figures of section 4 (each takes a :class:`rrr_pin.robust.loopshaping.Design` and an
-output path): Fig. 2 :func:`plot_barriers`, Fig. 3 :func:`plot_shaped_plant`, Fig. 4a
+Every ``plot_*`` function draws into the axes it is given (``ax=`` for one axes, ``axes=`` for
+a figure of several) or, without one, into a new :class:`matplotlib.figure.Figure` that is
+not registered with pyplot (no window, no backend switched, nothing to close), and returns
+the figure, never closed: in a notebook it shows as the cell's output. The ``save_*``
+functions and :func:`save_figure` write PNG files. Legends sit outside the axes, so they
+never cover data.
+
+Loop-shaping figures of section 4 (each takes a :class:`rrr_pin.robust.loopshaping.Design`):
+Fig. 2 :func:`plot_barriers`, Fig. 3 :func:`plot_shaped_plant`, Fig. 4a
 :func:`plot_robust_stability`, Fig. 4b :func:`plot_robust_performance`; and
 :func:`save_design_figures` for all four. Magnitudes in dB over frequency in rad/s (log).
 
 Simulation figures of section 5 (torques [N m] and tracking errors [rad] over time [s], one
-colour per joint): Fig. 5 :func:`plot_study_nominal`, Fig. 6 :func:`plot_study_uncertain`, and
-:func:`plot_runs` for any set of runs; one column per controller.
+colour per joint): Fig. 5 :func:`plot_study_nominal`, Fig. 6 :func:`plot_study_uncertain`
+(the nominal plant outlined in black among the uncertain ones), and :func:`plot_runs` for any
+set of runs; one column per controller. Campaigns: :func:`plot_campaign` (Monte Carlo),
+:func:`plot_certificates` (nu-gap certificates) and :func:`plot_stress` (breaking points).
 
 References
 ----------
 .. [1] The paper: "H-infinity control + feedback linearization of a 3-DOF RRR spatial serial
-   mechanism", Fig. 2-4.
+   mechanism", Fig. 2-6.
 """
 
 from __future__ import annotations
@@ -20,18 +29,19 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
+import matplotlib as mpl
+import matplotlib.ticker as mticker
+import numpy as np
+from matplotlib import patheffects
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
-matplotlib.use("Agg")
-
-import matplotlib.pyplot as plt  # noqa: E402  (after selecting the backend)
-import numpy as np  # noqa: E402
-
-from ..outputs import writing  # noqa: E402
-from ..robust.robustness import closed_loop, sigma  # noqa: E402
+from ..outputs import writing
+from ..robust.robustness import closed_loop, sigma
 
 __all__ = [
     "design_omega",
+    "save_figure",
     "plot_stress",
     "plot_barriers",
     "plot_shaped_plant",
@@ -41,14 +51,63 @@ __all__ = [
     "plot_runs",
     "plot_study_nominal",
     "plot_study_uncertain",
+    "save_study_figures",
+    "plot_task_space",
     "plot_campaign",
     "plot_certificates",
 ]
+
+#: Resolution of the written PNG files [dots per inch].
+DPI = 120
 
 
 def design_omega(num: int = 600) -> np.ndarray:
     """Frequency grid of the loop-shaping figures, ``logspace(-2, 4)`` [rad/s]."""
     return np.logspace(-2, 4, num)
+
+
+def save_figure(fig, path) -> Path:
+    """Write ``fig`` to ``path`` (parent folders created) at :data:`DPI`; return the path.
+
+    The figure is left open (a figure made by this module holds no pyplot state).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with writing(path):  # a full disk names the figure
+        fig.savefig(path, dpi=DPI)
+    return path
+
+
+def _new(figsize, ax=None):
+    """``(figure, axes)``: ``ax`` and its figure, or a new constrained-layout figure."""
+    if ax is not None:
+        return ax.figure, ax
+    fig = Figure(figsize=figsize, layout="constrained")
+    return fig, fig.add_subplot()
+
+
+def _grid(axes, rows: int, cols: int, figsize, **subplots):
+    """``(figure, axes array of shape (rows, cols))`` from ``axes`` (array, Figure or None)."""
+    if axes is None or isinstance(axes, Figure):
+        fig = Figure(figsize=figsize, layout="constrained") if axes is None else axes
+        return fig, fig.subplots(rows, cols, squeeze=False, **subplots)
+    grid = np.asarray(axes, dtype=object).reshape(-1)
+    if grid.size != rows * cols:
+        raise ValueError(f"axes: expected {rows} x {cols} axes, got {grid.size}")
+    grid = grid.reshape(rows, cols)
+    return grid[0, 0].figure, grid
+
+
+def _legend_below(ax, ncol: int = 2, **kw):
+    """Put the legend under the axes (outside them: it covers no data)."""
+    return ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=ncol,
+                     fontsize="small", **kw)
+
+
+def _legend_right(ax, **kw):
+    """Put the legend right of the axes (outside them: it covers no data)."""
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize="small",
+                     borderaxespad=0.0, **kw)
 
 
 def _db(x) -> np.ndarray:
@@ -64,20 +123,14 @@ def _sv_db(sys, omega, which: str) -> np.ndarray:
     return _db(sv[0] if which == "max" else sv[-1])
 
 
-def _finish(fig, ax, title: str, path) -> Path:
+def _finish(fig, ax, title: str):
     ax.set_xscale("log")
     ax.set_xlabel("Frequency [rad/s]")
     ax.set_ylabel("Magnitude [dB]")
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with writing(path):  # a full disk names the figure
-        fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    _legend_below(ax, ncol=1)
+    return fig
 
 
 def _barriers(ax, d, omega, rsb: bool = True, rpb: bool = True) -> None:
@@ -88,76 +141,79 @@ def _barriers(ax, d, omega, rsb: bool = True, rpb: bool = True) -> None:
                 label="RPB (robust performance)")
 
 
-def plot_barriers(d, path, omega=None) -> Path:
+def plot_barriers(d, omega=None, *, ax=None):
     """Fig. 2: robust-stability (eq. 13) and robust-performance (eq. 15) barriers.
 
     Parameters
     ----------
     d : rrr_pin.robust.loopshaping.Design
         The design (uses ``d.RSB``, ``d.RPB``).
-    path : str or Path
-        Output PNG file.
     omega : array-like, shape (N,), optional
         Frequencies [rad/s], default :func:`design_omega`.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into (default: a new figure).
 
     Returns
     -------
-    Path
-        The written file.
+    matplotlib.figure.Figure
+        The figure drawn into (not closed).
     """
     omega = design_omega() if omega is None else np.asarray(omega, dtype=float)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = _new((7, 6), ax)
     _barriers(ax, d, omega)
-    return _finish(fig, ax, "Frequency barriers (Fig. 2)", path)
+    return _finish(fig, ax, "Frequency barriers (Fig. 2)")
 
 
-def plot_shaped_plant(d, path, omega=None) -> Path:
-    """Fig. 3: barriers and the open-loop singular values of the shaped plant ``W2 G W1``.
+
+def plot_shaped_plant(d, omega=None, *, ax=None):
+    """Fig. 3: barriers and the open-loop largest singular value of the shaped plant ``W2 G W1``.
 
     Parameters
     ----------
     d : rrr_pin.robust.loopshaping.Design
         The design (uses ``d.RSB``, ``d.RPB``, ``d.Gs``).
-    path : str or Path
-        Output PNG file.
     omega : array-like, shape (N,), optional
         Frequencies [rad/s], default :func:`design_omega`.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into (default: a new figure).
 
     Returns
     -------
-    Path
-        The written file.
+    matplotlib.figure.Figure
+        The figure drawn into (not closed).
     """
     omega = design_omega() if omega is None else np.asarray(omega, dtype=float)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = _new((7, 6), ax)
     _barriers(ax, d, omega)
     ax.plot(omega, _sv_db(d.Gs, omega, "max"), "k-", lw=1.5,
             label=r"OLS shaped plant $\bar{\sigma}(W_2 G W_1)$")
-    return _finish(fig, ax, "Barriers and shaped plant open loop (Fig. 3)", path)
+    return _finish(fig, ax, "Barriers and shaped plant open loop (Fig. 3)")
 
 
-def plot_robust_stability(d, path, omega=None) -> Path:
+
+def plot_robust_stability(d, omega=None, *, ax=None):
     """Fig. 4a: RSB and the closed-loop largest singular values of shaped and controlled plants.
 
-    The shaped plant closes the loop with unit feedback, ``Gs (I + Gs)^-1``; the
-    controlled plant with the reduced controller, ``G K (I + G K)^-1``.
+    The shaped plant closes the loop with unit feedback, ``Gs (I + Gs)^-1``; the controlled
+    plant with the reduced controller, ``G K (I + G K)^-1``. The magenta bar is the smallest
+    margin, RSB minus the controlled plant's closed loop (``d.robust_stability``, in dB).
 
     Parameters
     ----------
     d : rrr_pin.robust.loopshaping.Design
         The design (uses ``d.RSB``, ``d.Gs``, ``d.G``, ``d.K``).
-    path : str or Path
-        Output PNG file.
     omega : array-like, shape (N,), optional
         Frequencies [rad/s], default :func:`design_omega`.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into (default: a new figure).
 
     Returns
     -------
-    Path
-        The written file.
+    matplotlib.figure.Figure
+        The figure drawn into (not closed).
     """
     omega = design_omega() if omega is None else np.asarray(omega, dtype=float)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = _new((7, 6), ax)
     _barriers(ax, d, omega, rpb=False)
     ax.plot(omega, _sv_db(closed_loop(d.Gs), omega, "max"), "k-", lw=1.5,
             label=r"CLS shaped plant $\bar{\sigma}(G_s (I+G_s)^{-1})$")
@@ -168,29 +224,34 @@ def plot_robust_stability(d, path, omega=None) -> Path:
         w = np.array([rs.worst_frequency])
         ax.plot([w[0], w[0]], [_sv_db(closed_loop(d.G, d.K), w, "max")[0],
                                _barrier_db(d.RSB, w)[0]], "m-", lw=3,
-                label=f"smallest margin {rs.margin_db:.2f} dB at {w[0]:.4g} rad/s")
-    return _finish(fig, ax, "Robust stability (Fig. 4a)", path)
+                label=f"smallest margin, RSB minus the controlled plant's CLS: "
+                      f"{rs.margin_db:.2f} dB at {w[0]:.4g} rad/s")
+    return _finish(fig, ax, "Robust stability (Fig. 4a)")
 
 
-def plot_robust_performance(d, path, omega=None) -> Path:
+
+def plot_robust_performance(d, omega=None, *, ax=None):
     """Fig. 4b: RPB and the open-loop smallest singular values of shaped and controlled plants.
+
+    The magenta bar is the smallest margin, the controlled plant's open loop minus the RPB,
+    within the performance band (``d.robust_performance``, in dB; negative: the RPB is not met).
 
     Parameters
     ----------
     d : rrr_pin.robust.loopshaping.Design
         The design (uses ``d.RPB``, ``d.Gs``, ``d.G``, ``d.K``, ``d.w_performance``).
-    path : str or Path
-        Output PNG file.
     omega : array-like, shape (N,), optional
         Frequencies [rad/s], default :func:`design_omega`.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into (default: a new figure).
 
     Returns
     -------
-    Path
-        The written file.
+    matplotlib.figure.Figure
+        The figure drawn into (not closed).
     """
     omega = design_omega() if omega is None else np.asarray(omega, dtype=float)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = _new((7, 6), ax)
     _barriers(ax, d, omega, rsb=False)
     ax.plot(omega, _sv_db(d.Gs, omega, "min"), "k-", lw=1.5,
             label=r"OLS shaped plant $\underline{\sigma}(W_2 G W_1)$")
@@ -202,8 +263,10 @@ def plot_robust_performance(d, path, omega=None) -> Path:
     if np.isfinite(rp.worst_frequency):
         w = np.array([rp.worst_frequency])
         ax.plot([w[0], w[0]], [_sv_db(d.G * d.K, w, "min")[0], _barrier_db(d.RPB, w)[0]],
-                "m-", lw=3, label=f"smallest margin {rp.margin_db:.2f} dB at {w[0]:.4g} rad/s")
-    return _finish(fig, ax, "Robust performance (Fig. 4b)", path)
+                "m-", lw=3, label=f"smallest margin, the controlled plant's OLS minus the "
+                                  f"RPB: {rp.margin_db:.2f} dB at {w[0]:.4g} rad/s")
+    return _finish(fig, ax, "Robust performance (Fig. 4b)")
+
 
 
 def save_design_figures(d, out_dir) -> list[Path]:
@@ -222,22 +285,24 @@ def save_design_figures(d, out_dir) -> list[Path]:
         The four files.
     """
     out = Path(out_dir)
-    return [plot_barriers(d, out / "fig2.png"),
-            plot_shaped_plant(d, out / "fig3.png"),
-            plot_robust_stability(d, out / "fig4a.png"),
-            plot_robust_performance(d, out / "fig4b.png")]
+    return [save_figure(plot(d), out / name) for plot, name in (
+        (plot_barriers, "fig2.png"), (plot_shaped_plant, "fig3.png"),
+        (plot_robust_stability, "fig4a.png"), (plot_robust_performance, "fig4b.png"))]
 
 
 # --- simulation figures (paper Fig. 5 and 6) ---------------------------------------------------
 
-_JOINT_COLOURS = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+_JOINT_COLOURS = mpl.rcParams["axes.prop_cycle"].by_key()["color"]
+
+#: The nominal plant's run among uncertain ones: a black outline around the joint's colour.
+_NOMINAL_OUTLINE = [patheffects.withStroke(linewidth=3.6, foreground="k")]
 
 
-def _study_axes(title: str, labels: list[str]):
+def _study_axes(title: str, labels: list[str], axes=None):
     cols = len(labels)
-    fig, axes = plt.subplots(2, cols, figsize=(1.0 + 5.0 * cols, 7), sharex=True,
-                             constrained_layout=True, squeeze=False)
-    fig.suptitle(title)
+    fig, axes = _grid(axes, 2, cols, (2.5 + 5.0 * cols, 7), sharex=True)
+    if title:
+        fig.suptitle(title)
     for ax in axes.flat:
         ax.grid(True, alpha=0.3)
     for ax in axes[1]:
@@ -250,26 +315,18 @@ def _study_axes(title: str, labels: list[str]):
     return fig, axes
 
 
-def _plot_runs(axes, runs: dict, names, joint_names, alpha=1.0, labelled=None):
-    # Joint names go in a column's legend once: with the first run plotted in it (``labelled``
-    # holds the columns already labelled across calls).
-    labelled = set() if labelled is None else labelled
+def _plot_runs(axes, runs: dict, names, joint_names, **style):
     for col, key in enumerate(names):
         traj = runs.get(key)
         if traj is None:
             continue
-        label = key not in labelled
-        labelled.add(key)
-        for j, name in enumerate(joint_names):
+        for j in range(len(joint_names)):
             colour = _JOINT_COLOURS[j % len(_JOINT_COLOURS)]
-            lab = name if label else None
-            axes[0, col].plot(traj.t, traj.tau[:, j], color=colour, lw=1.0, alpha=alpha,
-                              label=lab)
-            axes[1, col].plot(traj.t, traj.error[:, j], color=colour, lw=1.0, alpha=alpha,
-                              label=lab)
+            axes[0, col].plot(traj.t, traj.tau[:, j], color=colour, **style)
+            axes[1, col].plot(traj.t, traj.error[:, j], color=colour, **style)
 
 
-def _finish_study(fig, axes, path):
+def _finish_study(fig, axes, joint_names, extra=()):
     # Torques of all controllers on one scale, so their sizes compare at a glance.
     lo = min(ax.get_ylim()[0] for ax in axes[0])
     hi = max(ax.get_ylim()[1] for ax in axes[0])
@@ -277,16 +334,14 @@ def _finish_study(fig, axes, path):
         ax.set_ylim(lo, hi)
     for ax in axes[1]:
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
-    for ax in axes.flat:
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(loc="upper right", fontsize="small", ncol=2)
-    with writing(path):  # a full disk names the figure
-        fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    handles = [Line2D([], [], color=_JOINT_COLOURS[j % len(_JOINT_COLOURS)], lw=1.5,
+                      label=name) for j, name in enumerate(joint_names)]
+    _legend_right(axes[0, -1], handles=handles + list(extra))
+    return fig
 
 
-def plot_runs(runs: dict, joint_names, path, title: str = "", labels: dict | None = None) -> Path:
+def plot_runs(runs: dict, joint_names, *, title: str = "", labels: dict | None = None,
+              axes=None):
     """Torques and tracking errors of any number of controllers on one plant (layout of Fig. 5).
 
     Parameters
@@ -295,40 +350,62 @@ def plot_runs(runs: dict, joint_names, path, title: str = "", labels: dict | Non
         ``{name: Trajectory}``, one column per controller, in this order.
     joint_names : list of str
         Legend labels, one per joint.
-    path : str or Path
-        PNG to write.
     title : str
         Figure title.
     labels : dict, optional
         Display name per controller name (default: the names).
+    axes : array of matplotlib.axes.Axes, shape (2, len(runs)), or Figure, optional
+        Axes to draw into (row 0 torques, row 1 errors, one column per controller), or a
+        figure to add them to (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn into (not closed).
     """
     names = list(runs)
     labels = labels or {}
-    fig, axes = _study_axes(title, [labels.get(k, k) for k in names])
-    _plot_runs(axes, runs, names, joint_names)
-    return _finish_study(fig, axes, path)
+    fig, axes = _study_axes(title, [labels.get(k, k) for k in names], axes)
+    _plot_runs(axes, runs, names, joint_names, lw=1.0)
+    return _finish_study(fig, axes, joint_names)
 
 
-def plot_study_nominal(result, path):
+def plot_study_nominal(result, *, axes=None):
     """Paper Fig. 5: torques and tracking errors of every controller on the nominal plant.
 
     Parameters
     ----------
     result : rrr_pin.campaign.study.StudyResult
         A study.
-    path : str or Path
-        PNG to write.
+    axes : array of matplotlib.axes.Axes, shape (2, number of laws), or Figure, optional
+        As in :func:`plot_runs`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
-    return plot_runs({k: result.nominal[k] for k in result.names}, result.joint_names, path,
+    return plot_runs({k: result.nominal[k] for k in result.names}, result.joint_names,
                      title=f"{result.robot}: nominal plant (exact model)",
-                     labels={k: result.label(k) for k in result.names})
+                     labels={k: result.label(k) for k in result.names}, axes=axes)
 
 
-def plot_study_uncertain(result, path):
+def plot_study_uncertain(result, *, axes=None):
     """Paper Fig. 6: torques and tracking errors of every controller on every uncertain plant.
 
-    Each thin line is one plant (colour = joint); a controller's diverged runs are left out and
-    counted in the title.
+    Each thin line is one uncertain plant (colour = joint); the nominal plant's run is drawn
+    over them, outlined in black. A controller's diverged runs are left out and counted in the
+    title.
+
+    Parameters
+    ----------
+    result : rrr_pin.campaign.study.StudyResult
+        A study.
+    axes : array of matplotlib.axes.Axes, shape (2, number of laws), or Figure, optional
+        As in :func:`plot_runs`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     names = result.names
     n = len(result.samples)
@@ -339,12 +416,15 @@ def plot_study_uncertain(result, path):
     if any(lost.values()):
         title += ", diverged (not shown): " + ", ".join(
             f"{result.label(k)} {v}" for k, v in lost.items() if v)
-    fig, axes = _study_axes(title, [result.label(k) for k in names])
-    labelled: set = set()
+    fig, axes = _study_axes(title, [result.label(k) for k in names], axes)
     for sample in result.samples:
-        _plot_runs(axes, sample["trajectories"], names, result.joint_names, alpha=0.6,
-                   labelled=labelled)
-    return _finish_study(fig, axes, path)
+        _plot_runs(axes, sample["trajectories"], names, result.joint_names, lw=0.8, alpha=0.5)
+    _plot_runs(axes, result.nominal, names, result.joint_names, lw=1.6,
+               path_effects=_NOMINAL_OUTLINE)
+    extra = [Line2D([], [], color="0.4", lw=0.8, alpha=0.5, label="uncertain plants"),
+             Line2D([], [], color="0.6", lw=1.6, path_effects=_NOMINAL_OUTLINE,
+                    label="nominal plant")]
+    return _finish_study(fig, axes, result.joint_names, extra)
 
 
 def save_study_figures(result, out_dir) -> list[Path]:
@@ -366,21 +446,20 @@ def save_study_figures(result, out_dir) -> list[Path]:
         The files written, in that order.
     """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    figures = [plot_study_nominal(result, out / "fig5_nominal.png"),
-               plot_study_uncertain(result, out / "fig6_uncertain.png")]
+    figures = [save_figure(plot_study_nominal(result), out / "fig5_nominal.png"),
+               save_figure(plot_study_uncertain(result), out / "fig6_uncertain.png")]
     certified = [x for x in result.samples if "certificate" in x]
     if certified:
-        figures.append(plot_certificates(
+        figures.append(save_figure(plot_certificates(
             [x["certificate"]["nugap_max"] for x in certified],
-            certified[0]["certificate"]["b"], [x["status"] == "ok" for x in certified],
+            certified[0]["certificate"]["b"], [x["status"] == "ok" for x in certified]),
             out / "certificates.png"))
     if result.task_space:
-        figures.append(plot_task_space(result, out / "task_space.png"))
+        figures.append(save_figure(plot_task_space(result), out / "task_space.png"))
     return figures
 
 
-def plot_task_space(result, path=None, axes=None):
+def plot_task_space(result, *, axes=None):
     """Task-space tracking of a study: the frame's path, and its Cartesian error over time.
 
     Left: the path (dashed) and, for every controller, the frame's path on the nominal plant,
@@ -393,86 +472,86 @@ def plot_task_space(result, path=None, axes=None):
     ----------
     result : rrr_pin.campaign.study.StudyResult
         A study with a task-space reference (``result.task_space`` not empty).
-    path : str or Path, optional
-        PNG to write (the figure is then closed and the path returned).
-    axes : sequence of two matplotlib Axes, optional
-        Draw into these (e.g. in a notebook); the figure is returned, open.
+    axes : sequence of two matplotlib Axes, or a Figure, optional
+        Where to draw (default: a new figure).
 
     Returns
     -------
-    Path or matplotlib.figure.Figure
-        ``path`` if given, else the figure.
+    matplotlib.figure.Figure
+        The figure drawn into (not closed).
     """
     ts = result.task_space
     if not ts:
         raise ValueError("the study's reference is not a task-space motion (line or circle)")
-
-    if axes is None:
-        fig, axes = plt.subplots(1, 2, figsize=(12, 5), gridspec_kw={"width_ratios": [1, 1.4]})
-    else:
-        fig = axes[0].figure
-    ref = result.reference
+    fig, grid = _grid(axes, 1, 2, (12, 5.5), width_ratios=[1, 1.4])
+    ax, ax2 = grid[0]
     names = result.names
     t = result.nominal[names[0]].t
-    target = ref.target(t)
+    target = result.reference.target(t)
     keep = np.sort(np.argsort(np.ptp(target, axis=0))[1:])  # the two axes of largest extent
-    xyz = "xyz"
-    ax = axes[0]
     ax.plot(target[:, keep[0]], target[:, keep[1]], "k--", lw=2.5, label="path")
-    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    colours = [cycle[i % len(cycle)] for i in range(len(names))]
-    for c, name in zip(colours, names, strict=True):
+    for i, name in enumerate(names):
         p = target + ts["errors"]["nominal"][name]
-        ax.plot(p[:, keep[0]], p[:, keep[1]], color=c, lw=1.2, label=result.label(name))
+        ax.plot(p[:, keep[0]], p[:, keep[1]], color=f"C{i}", lw=1.2, label=result.label(name))
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel(f"{xyz[keep[0]]} [m]")
-    ax.set_ylabel(f"{xyz[keep[1]]} [m]")
+    ax.set_xlabel(f"{'xyz'[keep[0]]} [m]")
+    ax.set_ylabel(f"{'xyz'[keep[1]]} [m]")
     ax.set_title(f"frame {ts['frame']!r} on the nominal plant")
-    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=2, fontsize=8)
-    ax = axes[1]
+    _legend_below(ax, ncol=2)
     floor = 1e-9  # [mm]: a log axis cannot show an exact zero
-    for c, name in zip(colours, names, strict=True):
+    for i, name in enumerate(names):
         for k, d in enumerate(ts["errors"]["uncertain"].get(name, [])):
-            ax.semilogy(t[: len(d)], np.maximum(1e3 * d, floor), color=c, lw=0.6, alpha=0.4,
-                        label=f"{result.label(name)}, uncertain plants (nominal kinematics)"
-                        if k == 0 else None)
+            ax2.semilogy(t[: len(d)], np.maximum(1e3 * d, floor), color=f"C{i}", lw=0.6,
+                         alpha=0.4, label=f"{result.label(name)}, uncertain plants (nominal "
+                                          "kinematics)" if k == 0 else None)
         d = np.linalg.norm(ts["errors"]["nominal"][name], axis=1)
-        ax.semilogy(t, np.maximum(1e3 * d, floor), color=c, lw=2.0,
-                    label=f"{result.label(name)}, nominal plant")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("Cartesian error |p(q) - p*(t)| [mm]")
-    ax.set_title("task-space tracking error")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=2, fontsize=8)
-    fig.tight_layout()
-    if path is None:
-        return fig
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    return Path(path)
+        ax2.semilogy(t, np.maximum(1e3 * d, floor), color=f"C{i}", lw=2.0,
+                     label=f"{result.label(name)}, nominal plant")
+    ax2.set_xlabel("time [s]")
+    ax2.set_ylabel("Cartesian error |p(q) - p*(t)| [mm]")
+    ax2.set_title("task-space tracking error")
+    ax2.grid(True, which="both", alpha=0.3)
+    _legend_below(ax2, ncol=2)
+    return fig
 
 
 # --- Monte Carlo campaign ----------------------------------------------------------------------
 
-def plot_campaign(campaign, path) -> Path:
+def _log_limits(lo: float, hi: float, pad: float = 0.08) -> tuple[float, float]:
+    """Limits of a log axis around ``[lo, hi]`` (> 0), ``pad`` decades of margin each side."""
+    a, b = math.log10(lo), math.log10(hi)
+    return 10 ** (a - pad), 10 ** (b + pad)
+
+
+def plot_campaign(campaign, *, axes=None):
     """Distribution of the error ratios and per-joint spread of the RMS errors of a campaign.
 
     Left: for every controller but the baseline, histogram of ``RMS error of the baseline /
     RMS error of the controller`` over the plants (log scale; above 1 the controller tracks
-    better). Right: per joint, box plots of the RMS tracking error [rad] of every controller.
+    better), its median dashed. The axis spans the ratios; the line ratio = 1 is drawn where
+    it falls inside, otherwise the legend says on which side of it every plant lies. Right:
+    per joint, box plots of the RMS tracking error [rad] of every controller (median black,
+    box the quartiles, whiskers 1.5 IQR, dots beyond); the axis spans the data.
 
     Parameters
     ----------
     campaign : rrr_pin.campaign.montecarlo.Campaign
         A campaign with at least one sample that ran.
-    path : str or Path
-        PNG to write.
+    axes : sequence of two matplotlib.axes.Axes, or Figure, optional
+        Axes to draw into (histogram, box plots), or a figure to add them to (default: a new
+        figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn into (not closed).
     """
     rows, names, base = campaign.rows, campaign.names, campaign.baseline
     labels = {d["name"]: d["label"] for d in campaign.laws}
     colours = {k: _JOINT_COLOURS[(i + 1) % len(_JOINT_COLOURS)] for i, k in enumerate(names)}
     ok = sum(1 for r in rows if r["status"] == "ok")
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
+    fig, grid = _grid(axes, 1, 2, (12, 5.2))
+    ax1, ax2 = grid[0]
     fig.suptitle(f"{campaign.robot}: Monte Carlo campaign, {len(rows)} plants"
                  + (f" ({len(rows) - ok} with a diverged run)" if ok < len(rows) else ""))
     ratios = {k: np.array([r[f"error_ratio_{k}"] for r in rows if f"error_ratio_{k}" in r])
@@ -480,50 +559,68 @@ def plot_campaign(campaign, path) -> Path:
     ratios = {k: v for k, v in ratios.items() if v.size}
     if ratios:
         allv = np.concatenate(list(ratios.values()))
-        bins = np.logspace(np.log10(max(allv.min(), 1e-3)) - 0.05,
-                           np.log10(max(allv.max(), 1e-3)) + 0.05, 40)
+        lo, hi = _log_limits(max(allv.min(), 1e-3), max(allv.max(), 1e-3), pad=0.03)
+        bins = np.logspace(np.log10(lo), np.log10(hi), 40)
         for k, v in ratios.items():
-            ax1.hist(v, bins=bins, color=colours[k], alpha=0.6,
-                     label=f"{labels[k]} (median {np.median(v):.3g})")
-        ax1.axvline(1.0, color="tab:red", ls=":", label="ratio 1 (no benefit)")
+            ax1.hist(v, bins=bins, color=colours[k], alpha=0.6, label=labels[k])
+            ax1.axvline(np.median(v), color=colours[k], ls="--", lw=1.5,
+                        label=f"{labels[k]}: median {np.median(v):.3g}")
+        if lo <= 1.0 <= hi:
+            ax1.axvline(1.0, color="tab:red", ls=":", label="ratio 1 (no benefit)")
+        else:
+            side = "above" if lo > 1.0 else "below"
+            ax1.plot([], [], " ", label=f"every plant {side} ratio 1 "
+                                        f"({'better' if lo > 1.0 else 'worse'} than the "
+                                        f"baseline)")
         ax1.set_xscale("log")
-        ax1.legend(fontsize="small")
+        ax1.set_xlim(lo, hi)
+        span = math.log10(hi / lo)
+        if span < 2:  # a short log axis: label more than the powers of 10
+            subs = (1.0, 2.0, 5.0) if span >= 1 else (1.0, 1.5, 2.0, 3.0, 5.0, 7.0)
+            ax1.xaxis.set_major_locator(mticker.LogLocator(subs=subs))
+            ax1.xaxis.set_major_formatter(mticker.FormatStrFormatter("%g"))
+            ax1.xaxis.set_minor_formatter(mticker.NullFormatter())
+        _legend_below(ax1, ncol=1)
     else:
         ax1.text(0.5, 0.5, "one controller: no ratio", ha="center", va="center",
                  transform=ax1.transAxes)
     ax1.set_xlabel(f"RMS error {labels[base]} / RMS error of the controller [-]")
     ax1.set_ylabel("Number of plants [-]")
     ax1.set_title(f"Error ratio against the baseline ({labels[base]})")
-    ax1.grid(True, alpha=0.3)
+    ax1.grid(True, alpha=0.3, which="both")
     joints = campaign.joint_names
     pos = np.arange(len(joints))
     width = 0.8 / len(names)
+    values = []
     for i, key in enumerate(names):
         data = [[r[f"{key}_rms_error_{j}"] for r in rows if f"{key}_rms_error_{j}" in r]
                 for j in joints]
         if not any(data):
             continue
+        values += [v for col in data for v in col]
         offset = (i - (len(names) - 1) / 2) * width
         bp = ax2.boxplot(data, positions=pos + offset, widths=0.9 * width, patch_artist=True,
-                         showfliers=True, flierprops={"markersize": 2})
+                         showfliers=True, flierprops={"markersize": 2},
+                         medianprops={"color": "k", "lw": 2.0})
         for box in bp["boxes"]:
             box.set_facecolor(colours[key])
             box.set_alpha(0.6)
         ax2.plot([], [], color=colours[key], lw=6, alpha=0.6, label=labels[key])
+    ax2.plot([], [], color="k", lw=2.0, label="median")
     ax2.set_xticks(pos, joints, rotation=30 if len(joints) > 4 else 0)
     ax2.set_yscale("log")
+    positive = [v for v in values if v > 0 and math.isfinite(v)]
+    if positive:
+        ax2.set_ylim(*_log_limits(min(positive), max(positive)))
     ax2.set_xlabel("Joint")
     ax2.set_ylabel("RMS tracking error [rad]")
     ax2.set_title("Per-joint error spread")
-    ax2.legend()
+    _legend_below(ax2, ncol=len(names) + 1)
     ax2.grid(True, alpha=0.3, which="both")
-    with writing(path):  # a full disk names the figure
-        fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return fig
 
 
-def plot_certificates(nugap, b, ran, path, title: str = "") -> Path:
+def plot_certificates(nugap, b, ran, *, title: str = "", ax=None):
     """Frozen-configuration certificates: each plant's largest nu-gap against ``b(Gs, Ks)``.
 
     A plant below the line ``nu-gap = b`` is certified (:mod:`rrr_pin.robust.certificates`); the
@@ -537,13 +634,19 @@ def plot_certificates(nugap, b, ran, path, title: str = "") -> Path:
         The design's NCF margin ``b(Gs, Ks)`` [-].
     ran : array-like of bool, shape (N,)
         Whether the plant's simulations all ran (no divergence).
-    path : str or Path
-        PNG to write.
     title : str
+        Axes title (default: how many plants are certified).
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn into (not closed).
     """
     nugap, ran = np.asarray(nugap, dtype=float), np.asarray(ran, dtype=bool)
     idx = np.arange(len(nugap))
-    fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
+    fig, ax = _new((8, 5), ax)
     ax.scatter(idx[ran], nugap[ran], color="tab:green", s=14, label="simulation ran")
     if (~ran).any():
         ax.scatter(idx[~ran], nugap[~ran], color="tab:red", marker="x", s=24,
@@ -555,44 +658,69 @@ def plot_certificates(nugap, b, ran, path, title: str = "") -> Path:
     ax.set_title(title or f"Frozen-configuration certificates: {int((nugap < b).sum())} of "
                  f"{len(nugap)} plants certified")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small")
-    with writing(path):  # a full disk names the figure
-        fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    _legend_below(ax, ncol=3)
+    return fig
 
 
-def plot_stress(result: dict, path):
-    """Figure: RMS error against the effect's size per law, predicted boundaries dashed."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+#: Display unit of an effect's size: delays in ms (the search runs in s).
+_DISPLAY_UNITS = {"s": (1e3, "ms")}
+
+
+def plot_stress(result: dict, *, ax=None):
+    """Plot the breaking points: RMS error against the effect's size, simulated and predicted.
+
+    Per law: the simulated runs (dots; ``x`` a diverged run, drawn at 30 budgets), the
+    simulated breaking point (solid vertical line) and the linear prediction of the digital
+    loop (dashed), both in the legend; the eq. (12)-(13) guarantee dotted. Delays are shown
+    in ms.
+
+    Parameters
+    ----------
+    result : dict
+        :func:`rrr_pin.campaign.stress.stress`'s result.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn into (not closed).
+    """
+    fig, ax = _new((8, 6.5), ax)
+    scale, unit = _DISPLAY_UNITS.get(result["unit"], (1.0, result["unit"]))
     budget = result["budget_rad"]
     top = budget * 30
     for i, row in enumerate(result["rows"]):
         color = f"C{i}"
         # [size, rms_error] per run; a diverged run (rms_error None) becomes NaN, drawn as x
-        s = np.array([[x["size"], x["rms_error"]] for x in row["samples"]], dtype=float)
+        s = np.array([[x["size"], np.nan if x["rms_error"] is None else x["rms_error"]]
+                      for x in row["samples"]], dtype=float).reshape(-1, 2)
         if s.size:
+            x = s[:, 0] * scale
             fin = np.isfinite(s[:, 1])
             y = np.where(fin, s[:, 1], top)
-            ax.plot(s[:, 0], np.minimum(y, top), "-", color=color, alpha=0.6)
-            ax.plot(s[fin, 0], s[fin, 1], "o", color=color, ms=4,
-                    label=f"{row['label']}: simulated")
-            ax.plot(s[~fin, 0], y[~fin], "x", color=color, ms=6)
+            ax.plot(x, np.minimum(y, top), "-", color=color, alpha=0.6)
+            ax.plot(x[fin], s[fin, 1], "o", color=color, ms=4, label=f"{row['label']}: runs")
+            ax.plot(x[~fin], y[~fin], "x", color=color, ms=6)
+        sim = row.get("simulated")
+        if sim is not None and math.isfinite(sim):
+            ax.axvline(sim * scale, color=color, ls="-", lw=1.2,
+                       label=f"{row['label']}: simulated limit {sim * scale:.4g} {unit}")
         if row["predicted"] is not None and math.isfinite(row["predicted"]):
-            ax.axvline(row["predicted"], color=color, ls="--",
-                       label=f"{row['label']}: predicted {row['predicted']:.4g} {row['unit']}")
+            ax.axvline(row["predicted"] * scale, color=color, ls="--",
+                       label=f"{row['label']}: predicted limit {row['predicted'] * scale:.4g} "
+                             f"{unit}")
     g = next((r["guaranteed"] for r in result["rows"] if r["guaranteed"] is not None), None)
     if g is not None:
-        ax.axvline(g, color="k", ls=":", label=f"eq. (12)-(13) guarantee {g:.3g}")
+        ax.axvline(g * scale, color="k", ls=":",
+                   label=f"eq. (12)-(13) guarantee {g * scale:.3g} {unit}")
     ax.axhline(budget, color="gray", lw=0.8, label=f"budget {budget:g} rad")
+    ax.plot([], [], "x", color="0.3", label=f"diverged run (drawn at {top:g} rad)")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel(f"{result['what']} [{result['unit']}]")
-    ax.set_ylabel("RMS tracking error [rad] (x: diverged)")
+    ax.set_xlabel(f"{result['what']} [{unit}]")
+    ax.set_ylabel("RMS tracking error [rad]")
     ax.set_title(f"Breaking points: {result['effect']}")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    with writing(path):  # a full disk names the figure
-        fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    ax.grid(True, alpha=0.3, which="both")
+    _legend_below(ax, ncol=2)
+    return fig

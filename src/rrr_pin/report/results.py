@@ -18,11 +18,13 @@ import numpy as np
 from ..campaign.study import StudyResult
 from ..model.dynamics import Robot, robot_from_xml
 from ..outputs import writing
+from .design import DESIGN_UNITS
 from .html import write_report_html
 from .jsondata import dumps
 from .viewer import Scene, Track
 
-__all__ = ["write_results", "results_markdown", "write_study_report", "summary_lines",
+__all__ = ["write_results", "results_markdown", "write_study_report", "study_captions",
+           "summary_lines",
            "PAPER_ERROR_RATIO", "PAPER_LAWS"]
 
 #: The paper's claim for the uncertain plants: "almost a ten times better performance".
@@ -98,16 +100,16 @@ def _paper_rows(result: StudyResult, s: dict) -> list[str]:
         lines.append("| Uncertain plants | about 10x smaller error | no plant where both ran | "
                      "**no figure** |")
         return lines
-    lines.append(f"| Uncertain plants: RMS error FL alone / H-inf+FL (Fig. 6c) | about 10 | "
+    lines.append(f"| Uncertain plants: RMS error FL alone / H-inf+FL [-] (Fig. 6c) | about 10 | "
                  f"{_fmt(ratio)} | {_error_ratio_verdict(ratio)} |")
     per_joint = s["error_ratio_uncertain_per_joint"][hinf]
     better = ("**no verdict**: a ratio is not a finite number"
               if not all(math.isfinite(x) for x in per_joint)
               else "all joints better" if min(per_joint) > 1 else "**not on every joint**")
-    lines.append(f"| ... per joint ({', '.join(result.joint_names)}) | - | "
+    lines.append(f"| ... per joint ({', '.join(result.joint_names)}) [-] | - | "
                  f"{', '.join(_fmt(x) for x in per_joint)} | {better} |")
     torque = s["torque_ratio_uncertain"][hinf]
-    lines.append(f"| Uncertain plants: RMS torque H-inf+FL / FL alone (Fig. 6a-b) | about 1, "
+    lines.append(f"| Uncertain plants: RMS torque H-inf+FL / FL alone [-] (Fig. 6a-b) | about 1, "
                  f"slightly smaller | {_fmt(torque, 5)} | {_torque_verdict(torque)} |")
     return lines
 
@@ -141,8 +143,9 @@ def results_markdown(result: StudyResult, data: dict | None = None) -> str:
         "",
         f"## Every controller against the baseline ({result.label(base)})",
         "",
-        "| Controller | nominal max error [rad] | uncertain: RMS error baseline / controller | "
-        "per joint | uncertain: RMS torque controller / baseline | diverged plants |",
+        "| Controller | nominal max error [rad] | uncertain: RMS error baseline / controller "
+        "[-] | per joint [-] | uncertain: RMS torque controller / baseline [-] | "
+        "diverged plants [-] |",
         "|---|---|---|---|---|---|",
     ]
     ratios = s.get("error_ratio_uncertain", {})
@@ -297,9 +300,53 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
                                     opacity=0.35, robot=model(plant)))
         scenes.append(Scene(f"{result.label(name)}: nominal and uncertain plants", robot,
                             tracks))
+    captions = study_captions(result, design)
     return write_report_html(Path(out) / "report.html", title=f"rrr-pin study on {result.robot}",
-                             tables=[("Results", results_markdown(result))],
-                             figures=figures, design=design, scenes=scenes)
+                             tables=[("Study tables",
+                                      results_markdown(result))],
+                             figures=[(f, captions.get(Path(f).name, Path(f).name))
+                                      for f in figures],
+                             design=design, scenes=scenes, units=DESIGN_UNITS)
+
+
+def study_captions(result: StudyResult, design: dict | None = None) -> dict:
+    """Caption of each figure of a study, by file name (``fig2.png`` ... ``certificates.png``).
+
+    With ``design`` (:func:`rrr_pin.report.design.study_design`), the Fig. 4 captions give the
+    margins and say which curve they belong to.
+    """
+    def margin(key, what):
+        c = (design or {}).get(key)
+        if not c:
+            return ""
+        return (f" The magenta bar is the smallest margin, {what}: {c['margin_db']:.2f} dB at "
+                f"{c['worst_frequency']:.4g} rad/s.")
+
+    n = len(result.samples)
+    return {
+        "fig2.png": "Fig. 2: the robust-stability (RSB, eq. 13) and robust-performance (RPB, "
+                    "eq. 15) barriers, magnitude [dB] over frequency [rad/s].",
+        "fig3.png": "Fig. 3: the barriers and the largest singular value of the shaped plant "
+                    "W2 G W1 (open loop).",
+        "fig4a.png": "Fig. 4a, robust stability: the largest singular values of the closed "
+                     "loops of the shaped plant Gs (I + Gs)^-1 (black) and of the controlled "
+                     "plant G K (I + G K)^-1 (green) under the RSB."
+                     + margin("robust_stability", "RSB minus the controlled plant's closed "
+                                                  "loop G K (I + G K)^-1"),
+        "fig4b.png": "Fig. 4b, robust performance: the smallest singular values of the open "
+                     "loops of the shaped plant (black) and of the controlled plant G K "
+                     "(green) above the RPB, up to the performance band."
+                     + margin("robust_performance", "the controlled plant's open loop G K "
+                                                    "minus the RPB (negative: not met)"),
+        "fig5_nominal.png": "Fig. 5: joint torques [N m] and tracking errors [rad] of every "
+                            "controller on the nominal plant (exact model).",
+        "fig6_uncertain.png": f"Fig. 6: joint torques [N m] and tracking errors [rad] of every "
+                              f"controller on {n} uncertain plants (thin lines); the nominal "
+                              f"plant's run is outlined in black.",
+        "certificates.png": "Frozen-configuration certificates: each uncertain plant's largest "
+                            "nu-gap to the nominal shaped plant against b(Gs, Ks); below the "
+                            "line, certified.",
+    }
 
 
 def summary_lines(result: StudyResult, summary: dict) -> list[str]:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..outputs import writing
 from .jsondata import dumps
-from .plotting import plot_stress
+from .plotting import plot_stress, save_figure
 
 __all__ = ["write_stress", "stress_lines"]
 
@@ -29,7 +29,7 @@ def write_stress(result: dict, out: str | Path) -> Path:
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    fig = plot_stress(result, out / f"stress_{result['effect']}.png")
+    fig = save_figure(plot_stress(result), out / f"stress_{result['effect']}.png")
     result["figure"] = str(fig)
     path = out / f"stress_{result['effect']}.json"
     with writing(path):  # a full disk names the file

@@ -72,6 +72,26 @@ class Trajectory:
     plant: str = ""
     info: dict = field(default_factory=dict)
 
+    def _repr_html_(self) -> str:
+        """Summary table for notebooks: plant, law, duration, rate, engine, RMS error, status."""
+        import html
+
+        e, tau = self.error, self.tau
+        finite = bool(np.isfinite(self.q).all() and np.isfinite(tau).all())
+        rate = self.info.get("rate_hz")
+        rows = [("plant", self.plant), ("law", self.controller),
+                ("duration [s]", f"{self.t[-1] - self.t[0]:.6g} ({len(self.t)} samples)"),
+                ("rate [Hz]", f"{rate:g} (sampled law)" if rate else "continuous-time law"),
+                ("engine", self.info.get("engine", "")),
+                ("RMS error per joint [rad]", ", ".join(
+                    f"{v:.4g}" for v in np.sqrt(np.mean(e * e, axis=0)))),
+                ("max |error| [rad]", f"{np.max(np.abs(e)):.4g}"),
+                ("peak |torque| [N m]", f"{np.max(np.abs(tau)):.4g}"),
+                ("status", "ran" if finite else "non-finite values")]
+        body = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
+                       for k, v in rows)
+        return f"<table><caption>Trajectory</caption>{body}</table>"
+
     @property
     def error(self) -> np.ndarray:
         """Tracking error ``e = r - q`` [rad], shape (N, n)."""
