@@ -286,3 +286,13 @@ def test_montecarlo_full_disk_keeps_the_rows(tmp_path, capsys, monkeypatch):
     assert cli.main(argv + ["--resume"]) == 0
     assert "resuming: 2 of 2 samples already done" in capsys.readouterr().out
     assert (out / "montecarlo.png").is_file()
+
+
+def test_a_bad_option_under_overwrite_keeps_the_previous_run(tmp_path, capsys):
+    # --overwrite removes the previous run only once the options are checked: a mistyped
+    # option is refused with the previous results still there.
+    _run(tmp_path)
+    assert cli.main(["reproduce", "--out", str(tmp_path), "--overwrite", "--samples", "-1"]) == 2
+    assert "--samples" in capsys.readouterr().err
+    assert (tmp_path / "a.png").read_text() == "a.png"
+    assert (tmp_path / "sub" / "b.urdf").exists()

@@ -50,9 +50,14 @@ STRESS = {"effect": "delay", "unit": "s", "what": "actuator transport delay tau_
           "budget_rad": 0.05, "rows": [
               {"label": "FL alone", "unit": "s", "predicted": 0.00597, "simulated": 0.00604,
                "guaranteed": 0.00106,
-               "samples": [[0.002, 7e-4], [0.004, 7e-4], [0.006, 6e-3], [0.0065, np.inf]]},
+               "samples": [{"size": 0.002, "rms_error": 7e-4, "status": "passed"},
+                           {"size": 0.004, "rms_error": 7e-4, "status": "passed"},
+                           {"size": 0.006, "rms_error": 6e-3, "status": "passed"},
+                           {"size": 0.0065, "rms_error": None, "status": "diverged"}]},
               {"label": "PD", "unit": "s", "predicted": None, "simulated": 0.0131,
-               "guaranteed": None, "samples": [[0.01, 0.011], [0.0132, 0.07]]}]}
+               "guaranteed": None,
+               "samples": [{"size": 0.01, "rms_error": 0.011, "status": "passed"},
+                           {"size": 0.0132, "rms_error": 0.07, "status": "over budget"}]}]}
 
 
 def _figures(d, study, campaign):

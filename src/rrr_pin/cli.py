@@ -69,6 +69,23 @@ def _claim_out(args, tool: str, part: str | None = None):
     return Path(args.out)
 
 
+def _check_out_early(args, tool: str, part: str | None = None):
+    """Refuse before any work what ``--overwrite`` cannot fix; claim at once without it.
+
+    Without ``--overwrite`` the claim removes nothing, so it is made at once (returns the
+    folder). With it, only the checks are made (a file, an unwritable folder, another tool's
+    run; returns None), and :func:`_claim_out`, called once the options are checked, removes
+    the previous run: a mistyped option never costs that run.
+    """
+    if not args.overwrite:
+        return _claim_out(args, tool, part)
+    from .outputs import check_writable, refuse_other_tool
+
+    check_writable(args.out)
+    refuse_other_tool(args.out, tool)
+    return None
+
+
 def _add_overwrite(p) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace the previous run of this command in a non-empty --out (only "
@@ -445,14 +462,14 @@ def _cmd_reproduce(args) -> int:
     from .robust.loopshaping import design
     from .validation import check_count
 
+    out = _check_out_early(args, "reproduce")  # a file, no permission, another tool's run
     check_count("--samples", args.samples)
     lock = _parse_lock(args.lock)
     robot = load_robot(args.robot, lock=lock)
     settings = _settings_from_args(args, robot.nq)
     reference = _reference_from_args(args, robot)
-    # A file, no permission, another run: refused before the design and the simulations, and
-    # after the options are checked, so that a bad option never costs the previous run.
-    out = _claim_out(args, "reproduce")
+    if out is None:  # --overwrite: the previous run is removed now that the options hold
+        out = _claim_out(args, "reproduce")
     d = design(lam=45.0, n=robot.nq)
     laws, baseline = _laws_from_args(args, robot, K=d.K_full if args.full_order else
                                      d.K_reduced)
