@@ -29,14 +29,29 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``rrr-pin`` console script."""
-    parser = _build_parser()
-    args = parser.parse_args(_negative_values(sys.argv[1:] if argv is None else list(argv)))
+    """Entry point of the ``rrr-pin`` console script.
+
+    SIGINT (Ctrl-C) and SIGTERM stop any command with one line on standard error and the
+    exit status 130 or 143 (128 + the signal); its local worker processes are stopped.
+    """
+    from .campaign.executors import exit_status, interrupt_on_signals
+
+    args = None
     try:
-        return int(args.func(args) or 0)
+        with interrupt_on_signals():
+            parser = _build_parser()
+            args = parser.parse_args(
+                _negative_values(sys.argv[1:] if argv is None else list(argv)))
+            return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError, RuntimeError) as exc:
         print(f"rrr-pin {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:  # before the command ran, or one with no own message
+        name = " ".join(["rrr-pin"] + ([args.command] if args is not None else []))
+        out = getattr(args, "out", None)
+        left = f"; {out} may hold files of this unfinished run" if out not in (None, "-") else ""
+        print(f"{name}: interrupted ({exc or 'Ctrl-C'}){left}", file=sys.stderr)
+        return exit_status(exc)
 
 
 def _negative_values(argv: list[str]) -> list[str]:
@@ -455,7 +470,7 @@ def _cmd_montecarlo(args) -> int:
 
     from tqdm import tqdm
 
-    from .campaign.executors import CampaignInterrupted, WorkersLost
+    from .campaign.executors import CampaignInterrupted, WorkersLost, exit_status
     from .campaign.montecarlo import CampaignSettings, open_store, run_campaign
     from .campaign.store import check_writable
     from .model.dynamics import load_robot
@@ -495,8 +510,8 @@ def _cmd_montecarlo(args) -> int:
         except CampaignInterrupted as exc:
             bar.close()
             print(f"rrr-pin montecarlo: {exc}", file=sys.stderr)
-            # 130: stopped by a signal (the shell's convention); 3: workers lost.
-            return 3 if isinstance(exc, WorkersLost) else 130
+            # 3: workers lost; else 128 + the signal (130 SIGINT, 143 SIGTERM), as a shell does.
+            return 3 if isinstance(exc, WorkersLost) else exit_status(exc)
         bar.close()
         elapsed = time.perf_counter() - start
         s = write_campaign(campaign, args.out, store=store, certificate_b=None if
