@@ -52,8 +52,6 @@ from concurrent.futures import wait as _cf_wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 
-from ..validation import check_count, check_positive
-
 __all__ = [
     "run_tasks", "check_jobs", "default_jobs", "interrupt_on_signals", "exit_status",
     "ExecutorError", "CampaignInterrupted", "WorkersLost", "SchedulerUnreachable",
@@ -203,6 +201,8 @@ def run_tasks(fn: Callable, tasks: Iterable, *, jobs: int | None = None,
     if scheduler is not None and not isinstance(scheduler, str):
         raise TypeError(f"scheduler must be an address string such as "
                         f"'tcp://10.0.0.5:8786', got {scheduler!r}")
+    from ..validation import check_count, check_positive  # numpy: not for the CLI's --help
+
     jobs = check_jobs(jobs)
     if max_in_flight is not None:
         max_in_flight = check_count("max_in_flight", max_in_flight, 1)
