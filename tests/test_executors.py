@@ -63,12 +63,13 @@ def marked_square(task) -> int:
     return k * k
 
 
-def endless_pool(folder: str, sentinel_only: bool) -> None:
+def endless_pool(folder: str, method: str) -> None:
     """Run tasks on 2 local workers until killed (in a subprocess of the tests below)."""
     import rrr_pin.campaign.executors as ex
 
-    if sentinel_only:  # the portable path: inherited by the forked workers
+    if method == "fork-no-prctl":  # the portable watch alone: inherited by the forked workers
         ex._pdeathsig = lambda signum: False
+    multiprocessing.set_start_method(method.split("-")[0])
     for _ in run_tasks(marked_square, ((k, 0.05, folder) for k in range(10**9)), jobs=2):
         pass
 
@@ -195,12 +196,13 @@ def test_sigterm_inside_interrupt_on_signals_raises_keyboardinterrupt_and_stops_
     assert no_children_left()
 
 
-@pytest.mark.parametrize("sentinel_only", [False, True], ids=["pdeathsig", "parent-sentinel"])
-def test_local_workers_die_with_a_killed_parent(tmp_path, sentinel_only):
+@pytest.mark.parametrize("method", ["fork", "fork-no-prctl", "spawn", "forkserver"])
+def test_local_workers_die_with_a_killed_parent(tmp_path, method):
     # kill -9 of the main process: no handler runs there, so only the workers' own watch of
-    # their parent (prctl on Linux, the multiprocessing sentinel elsewhere) can stop them.
+    # their parent (prctl on Linux, the multiprocessing sentinel) can stop them. forkserver:
+    # the workers' parent is the server, which lives as long as they do (prctl cannot help).
     code = (f"import sys; sys.path.insert(0, {str(TESTS)!r}); import test_executors as t; "
-            f"t.endless_pool({str(tmp_path)!r}, {sentinel_only})")
+            f"t.endless_pool({str(tmp_path)!r}, {method!r})")
     proc = subprocess.Popen([sys.executable, "-c", code])
     try:
         deadline = time.monotonic() + 60

@@ -23,9 +23,10 @@ A Dask scheduler lost in the middle of a run (killed, its host gone) raises
 Rerun the campaign with ``--resume`` to compute only the samples that are missing.
 
 Local workers die with their parent: each worker process asks the Linux kernel for ``SIGKILL``
-when its parent dies (``prctl(PR_SET_PDEATHSIG)``), and elsewhere watches its parent's
-:mod:`multiprocessing` sentinel (a pipe that closes when the parent dies) from a thread. So
-``kill -9`` of the main process leaves no worker computing. Dask workers are not ours: they
+when its parent dies (``prctl(PR_SET_PDEATHSIG)``), and watches the main process's
+:mod:`multiprocessing` sentinel (a pipe that closes when it dies) from a thread, for the other
+systems and the forkserver start method. So ``kill -9`` of the main process leaves no worker
+computing, whatever the start method (fork, spawn, forkserver). Dask workers are not ours: they
 belong to the cluster the caller gives (``scheduler=``, or a ``distributed.Client``); when
 the main process dies, its client disconnects and the scheduler drops the client's tasks,
 but the workers stay, as the cluster's owner started them.
@@ -297,14 +298,14 @@ def _exit_with(sentinel) -> None:
 
 
 def _die_with_parent() -> None:
-    """Make this worker process die when the process that started it dies.
+    """Make this worker process die when the process that started the pool dies.
 
-    Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``. It fires on the death of the direct parent (a
-    forkserver, with that start method, which itself exits with the main process); the
-    parent may die before the call, hence the check after it. (Linux ties the signal to the
-    parent *thread* that started the worker: the one that first submits to the pool, which
-    drives it to the end.) Elsewhere: a daemon thread waits on the parent's
-    :mod:`multiprocessing` sentinel and exits the process.
+    Two watches, as each covers a case the other misses. Linux: ``prctl(PR_SET_PDEATHSIG,
+    SIGKILL)``, immediate on the death of the direct parent (the main process with the fork
+    and spawn start methods; the parent may die before the call, hence the check after it).
+    Everywhere: a daemon thread waits on the :mod:`multiprocessing` sentinel of the main
+    process and exits this one. That covers other systems, and the forkserver start method,
+    whose server (the direct parent) lives as long as any of its children does.
     """
     parent = multiprocessing.parent_process()
     if parent is None:  # not a multiprocessing child: nothing to watch
@@ -312,7 +313,6 @@ def _die_with_parent() -> None:
     if _pdeathsig(signal.SIGKILL):
         if os.getppid() != parent.pid and not _pid_exists(parent.pid):
             os._exit(1)  # the parent died before prctl took effect
-        return
     threading.Thread(target=_exit_with, args=(parent.sentinel,), daemon=True,
                      name="rrr-pin-parent-watch").start()
 
