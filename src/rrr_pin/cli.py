@@ -415,10 +415,12 @@ def _cmd_reproduce(args) -> int:
                disable=args.no_progress)
     certificate = None if args.no_certify else CertificateSpec.from_design(
         d, reduced=not args.full_order)
-    result = run_study(robot, laws, config=config, reference=reference,
-                       skip_joints=tuple(lock), certificate=certificate,
-                       progress=lambda done, total: bar.update(done - bar.n))
-    bar.close()
+    try:
+        result = run_study(robot, laws, config=config, reference=reference,
+                           skip_joints=tuple(lock), certificate=certificate,
+                           progress=lambda done, total: bar.update(done - bar.n))
+    finally:  # on Ctrl-C too, so the interrupt message starts on a line of its own
+        bar.close()
     design_info = study_design(d, full_order=args.full_order)
     data = write_results(result, out, design=design_info)
     figures += save_study_figures(result, out)
