@@ -55,6 +55,38 @@ def square_or_raise(k: int) -> int:
     return k * k
 
 
+def marked_square(task) -> int:
+    """Leave a file named after this worker's pid in ``folder``, then square slowly."""
+    k, delay, folder = task
+    Path(folder, str(os.getpid())).touch()
+    time.sleep(delay)
+    return k * k
+
+
+def endless_pool(folder: str, method: str) -> None:
+    """Run tasks on 2 local workers until killed (in a subprocess of the tests below)."""
+    import rrr_pin.campaign.executors as ex
+
+    if method == "fork-no-prctl":  # the portable watch alone: inherited by the forked workers
+        ex._pdeathsig = lambda signum: False
+    multiprocessing.set_start_method(method.split("-")[0])
+    for _ in run_tasks(marked_square, ((k, 0.05, folder) for k in range(10**9)), jobs=2):
+        pass
+
+
+def alive(pids) -> list[int]:
+    """The pids of ``pids`` still running (a zombie awaiting its reaper is dead)."""
+    psutil = pytest.importorskip("psutil")
+    out = []
+    for pid in pids:
+        try:
+            if psutil.Process(pid).status() != psutil.STATUS_ZOMBIE:
+                out.append(pid)
+        except psutil.NoSuchProcess:
+            pass
+    return out
+
+
 def no_children_left(timeout: float = 10.0) -> bool:
     """True once this process has no live child processes (pool workers all stopped)."""
     end = time.monotonic() + timeout
@@ -162,6 +194,33 @@ def test_sigterm_inside_interrupt_on_signals_raises_keyboardinterrupt_and_stops_
     assert signal.getsignal(signal.SIGTERM) is before  # handler restored
     assert 0 < len(got) < 100
     assert no_children_left()
+
+
+@pytest.mark.parametrize("method", ["fork", "fork-no-prctl", "spawn", "forkserver"])
+def test_local_workers_die_with_a_killed_parent(tmp_path, method):
+    # kill -9 of the main process: no handler runs there, so only the workers' own watch of
+    # their parent (prctl on Linux, the multiprocessing sentinel) can stop them. forkserver:
+    # the workers' parent is the server, which lives as long as they do (prctl cannot help).
+    code = (f"import sys; sys.path.insert(0, {str(TESTS)!r}); import test_executors as t; "
+            f"t.endless_pool({str(tmp_path)!r}, {method!r})")
+    proc = subprocess.Popen([sys.executable, "-c", code])
+    try:
+        deadline = time.monotonic() + 60
+        while len(list(tmp_path.iterdir())) < 2:  # both workers initialized and working
+            assert time.monotonic() < deadline and proc.poll() is None, "pool did not start"
+            time.sleep(0.05)
+        workers = [int(p.name) for p in tmp_path.iterdir()]
+        assert proc.pid not in workers and alive(workers) == workers
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(10)
+        end = time.monotonic() + 10  # liveness bound; they go within ~0.1 s here
+        while alive(workers) and time.monotonic() < end:
+            time.sleep(0.05)
+        assert alive(workers) == []
+    finally:
+        proc.kill()
+        for pid in alive([int(p.name) for p in tmp_path.iterdir()]):
+            os.kill(pid, signal.SIGKILL)
 
 
 # --- a whole interrupted campaign (subprocess, SIGTERM) and its resume -----------------------
@@ -295,3 +354,45 @@ def test_dask_all_workers_killed_fails_within_the_timeout(cluster):
     assert info.value.done == len(got) >= 3
     assert all(r == k * k for k, r in got)
     assert waited < 2 * timeout  # liveness bound: it gives up instead of hanging forever
+
+
+def test_dask_scheduler_killed_mid_run_gives_workers_lost(tmp_path):
+    # The scheduler in its own process, so that it can be killed as a crash would; one worker.
+    # Both import this module (the scheduler unpickles the task graph): PYTHONPATH.
+    pytest.importorskip("distributed")
+    info = tmp_path / "scheduler.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS),
+                                                        os.environ.get("PYTHONPATH", "")])}
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    scheduler = subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host",
+                                  "127.0.0.1", "--port", "0", "--dashboard-address", ":0",
+                                  "--scheduler-file", str(info)], env=env, **quiet)
+    worker = None
+    try:
+        deadline = time.monotonic() + 60
+        while not (info.exists() and info.stat().st_size):
+            assert time.monotonic() < deadline, "the scheduler did not start"
+            time.sleep(0.1)
+        time.sleep(0.2)  # the file is written whole, but give its writer a moment
+        address = json.loads(info.read_text())["address"]
+        worker = subprocess.Popen([sys.executable, "-m", "dask", "worker", address,
+                                   "--nthreads", "2", "--no-nanny", "--no-dashboard"],
+                                  env=env, **quiet)
+        got = []
+        with pytest.raises(WorkersLost, match="the Dask scheduler was lost") as lost:
+            for task, result in run_tasks(slow_square, ((k, 0.1) for k in range(10**6)),
+                                          scheduler=address, connect_timeout=3,
+                                          no_worker_timeout=60):
+                got.append((task[0], result))
+                if len(got) == 3:
+                    os.kill(scheduler.pid, signal.SIGKILL)
+                    killed = time.monotonic()
+        # well before no_worker_timeout: the closed client is seen, not an empty cluster
+        assert time.monotonic() - killed < 30
+        assert lost.value.done == len(got) >= 3
+        assert all(r == k * k for k, r in got)
+    finally:
+        for p in (scheduler, worker):
+            if p is not None:
+                p.kill()
+                p.wait(10)

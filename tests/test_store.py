@@ -1,6 +1,7 @@
 """CampaignStore: refusals before any work, append/resume, torn lines, byte-identical tables."""
 
 import csv
+import hashlib
 import io
 import json
 import os
@@ -12,6 +13,7 @@ from rrr_pin.campaign.store import (
     MANIFEST,
     PARTS,
     CampaignStore,
+    ChecksumMismatch,
     OutputNotEmpty,
     SettingsMismatch,
     StoreCorrupt,
@@ -277,3 +279,87 @@ def test_a_signal_during_the_write_is_held_until_the_rows_are_counted(tmp_path, 
         monkeypatch.setattr(os, "fsync", real_fsync)
         assert store.done() == {0, 1, 2, 3}
         assert [r["index"] for r in store.rows()] == [0, 1, 2, 3]
+
+
+# --- row checksums --------------------------------------------------------------------------
+
+def test_each_line_carries_the_documented_checksum(tmp_path):
+    # Recomputed here from the layout in the module docstring (hashlib on the JSON texts), not
+    # through the store: sha256(sha256(settings, sorted keys) + "\n" + row, sorted, compact).
+    out = tmp_path / "mc"
+    straight_run(out, samples=6)
+    digest = hashlib.sha256(json.dumps(SETTINGS, sort_keys=True).encode()).hexdigest()
+    assert json.loads((out / MANIFEST).read_text())["settings_sha256"] == digest
+    for line in (out / PARTS).read_text().splitlines():
+        row = json.loads(line)
+        assert list(row)[-1] == "_sha256"
+        recorded = row.pop("_sha256")
+        text = json.dumps(row, sort_keys=True, separators=(",", ":"))
+        assert recorded == hashlib.sha256(f"{digest}\n{text}".encode()).hexdigest()
+        assert row == json.loads(json.dumps(toy_row(7, row["index"])))
+
+
+def _edit_line(path, n, change):
+    """Apply ``change(row) -> row`` to line ``n`` (from 1) of a JSONL file, keeping the rest."""
+    lines = path.read_text().splitlines()
+    lines[n - 1] = json.dumps(change(json.loads(lines[n - 1])))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _other_campaigns_line(tmp_path, n):
+    """Line ``n`` of a campaign with another seed in its settings (a valid row there)."""
+    other = tmp_path / "other"
+    with CampaignStore.open(other, settings={**SETTINGS, "seed": 8}, resume=False,
+                            overwrite=False) as store:
+        store.append([toy_row(7, k) for k in range(40)])
+    return json.loads((other / PARTS).read_text().splitlines()[n - 1])
+
+
+@pytest.mark.parametrize("line,edit", [
+    (5, lambda row, _: {**row, "fl_rms_error": row["fl_rms_error"] * 2}),
+    (40, lambda row, _: {**row, "status": "ok" if row["status"] != "ok" else "diverged"}),
+    (12, lambda row, _: {k: v for k, v in row.items() if k != "_sha256"}),
+    (7, lambda row, tmp: _other_campaigns_line(tmp, 7)),
+], ids=["value-changed", "last-line", "checksum-removed", "row-from-other-settings"])
+def test_an_edited_row_is_refused_on_resume_naming_the_line(tmp_path, line, edit):
+    out = tmp_path / "mc"
+    straight_run(out)
+    _edit_line(out / PARTS, line, lambda row: edit(row, tmp_path))
+    before = (out / PARTS).read_bytes()
+    with pytest.raises(ChecksumMismatch,
+                       match=rf"parts.jsonl' line {line} \(sample \d+\) (does not match its "
+                             r"checksum|has no checksum).*--overwrite") as info:
+        CampaignStore.open(out, settings=SETTINGS, resume=True, overwrite=False,
+                           outputs=OUTPUTS)
+    assert info.value.line == line and info.value.path == out / PARTS
+    assert (out / PARTS).read_bytes() == before  # not truncated as a torn line
+
+
+def test_a_row_edited_during_the_run_is_refused_when_the_tables_are_built(tmp_path):
+    out = tmp_path / "mc"
+    with CampaignStore.open(out, settings=SETTINGS, resume=False, overwrite=False) as store:
+        store.append([toy_row(7, k) for k in range(3)])
+        _edit_line(out / PARTS, 2, lambda row: {**row, "parameters": {"mass": [1, 1, 1]}})
+        with pytest.raises(ChecksumMismatch, match=r"line 2 \(sample 1\) does not match"):
+            store.rows()
+
+
+def test_the_checksum_key_is_reserved(tmp_path):
+    with CampaignStore.open(tmp_path / "mc", settings=SETTINGS, resume=False,
+                            overwrite=False) as store:
+        with pytest.raises(ValueError, match="'_sha256' is reserved"):
+            store.append([{**toy_row(7, 0), "_sha256": "0" * 64}])
+        assert store.done() == set()
+
+
+def test_a_store_of_version_1_without_checksums_is_refused_on_resume(tmp_path):
+    # Written as rrr-pin 0.1.0 did before checksums: manifest version 1, bare JSON rows.
+    out = tmp_path / "mc"
+    out.mkdir()
+    (out / MANIFEST).write_text(json.dumps({"format": "rrr-pin-campaign", "version": 1,
+                                            "settings": SETTINGS, "outputs": []}))
+    (out / PARTS).write_text("".join(json.dumps(toy_row(7, k)) + "\n" for k in range(3)))
+    with pytest.raises(StoreCorrupt, match=r"store version 1.*cannot be verified.*--overwrite"):
+        CampaignStore.open(out, settings=SETTINGS, resume=True, overwrite=False)
+    with CampaignStore.open(out, settings=SETTINGS, resume=False, overwrite=True) as store:
+        assert store.done() == set()  # overwrite starts it afresh

@@ -29,15 +29,26 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``rrr-pin`` console script."""
-    parser = _build_parser()
-    args = parser.parse_args(_negative_values(sys.argv[1:] if argv is None else list(argv)))
+    """Entry point of the ``rrr-pin`` console script.
+
+    SIGINT (Ctrl-C) and SIGTERM stop any command with one line on standard error and the
+    exit status 130 or 143 (128 + the signal); its local worker processes are stopped. The
+    files a command wrote are recorded in its folder's manifest (:mod:`rrr_pin.outputs`)
+    however it ends.
+    """
+    from .campaign.executors import exit_status, interrupt_on_signals
+
+    args = None
     try:
-        try:
-            return int(args.func(args) or 0)
-        finally:  # record the files written, also after an error (rrr_pin.outputs)
-            if getattr(args, "outputs", None) is not None:
-                args.outputs.close()
+        with interrupt_on_signals():
+            parser = _build_parser()
+            args = parser.parse_args(
+                _negative_values(sys.argv[1:] if argv is None else list(argv)))
+            try:
+                return int(args.func(args) or 0)
+            finally:  # record the files written, also after an error or an interrupt
+                if getattr(args, "outputs", None) is not None:
+                    args.outputs.close()
     except (ValueError, FileNotFoundError, RuntimeError) as exc:
         print(f"rrr-pin {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -49,6 +60,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rrr-pin {args.command}: error: {where}: {exc.strerror or exc}{code}"
               f"{getattr(args, 'write_hint', '')}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:  # before the command ran, or one with no own message
+        name = " ".join(["rrr-pin"] + ([args.command] if args is not None else []))
+        out = getattr(args, "out", None)
+        left = f"; {out} may hold files of this unfinished run" if out not in (None, "-") else ""
+        print(f"{name}: interrupted ({exc or 'Ctrl-C'}){left}", file=sys.stderr)
+        return exit_status(exc)
 
 
 def _claim_out(args, tool: str, part: str | None = None):
@@ -481,10 +498,12 @@ def _cmd_reproduce(args) -> int:
                disable=args.no_progress)
     certificate = None if args.no_certify else CertificateSpec.from_design(
         d, reduced=not args.full_order)
-    result = run_study(robot, laws, config=config, reference=reference,
-                       skip_joints=tuple(lock), certificate=certificate,
-                       progress=lambda done, total: bar.update(done - bar.n))
-    bar.close()
+    try:
+        result = run_study(robot, laws, config=config, reference=reference,
+                           skip_joints=tuple(lock), certificate=certificate,
+                           progress=lambda done, total: bar.update(done - bar.n))
+    finally:  # on Ctrl-C too, so the interrupt message starts on a line of its own
+        bar.close()
     design_info = study_design(d, full_order=args.full_order)
     data = write_results(result, out, design=design_info)
     figures += save_study_figures(result, out)
@@ -536,7 +555,7 @@ def _cmd_montecarlo(args) -> int:
 
     from tqdm import tqdm
 
-    from .campaign.executors import CampaignInterrupted, WorkersLost
+    from .campaign.executors import CampaignInterrupted, WorkersLost, exit_status
     from .campaign.montecarlo import CampaignSettings, open_store, run_campaign
     from .model.dynamics import load_robot
     from .outputs import check_writable
@@ -578,8 +597,8 @@ def _cmd_montecarlo(args) -> int:
         except CampaignInterrupted as exc:
             bar.close()
             print(f"rrr-pin montecarlo: {exc}", file=sys.stderr)
-            # 130: stopped by a signal (the shell's convention); 3: workers lost.
-            return 3 if isinstance(exc, WorkersLost) else 130
+            # 3: workers lost; else 128 + the signal (130 SIGINT, 143 SIGTERM), as a shell does.
+            return 3 if isinstance(exc, WorkersLost) else exit_status(exc)
         bar.close()
         elapsed = time.perf_counter() - start
         s = write_campaign(campaign, args.out, store=store, certificate_b=None if

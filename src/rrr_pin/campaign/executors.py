@@ -18,17 +18,33 @@ default), :class:`WorkersLost` is raised instead of waiting forever, and an unre
 scheduler raises :class:`SchedulerUnreachable` after ``connect_timeout`` (10 s). Ctrl-C, or
 SIGTERM inside :func:`interrupt_on_signals`, raises :class:`KeyboardInterrupt` in the caller,
 and the pending tasks are cancelled and the local workers stopped without waiting for them.
+A Dask scheduler lost in the middle of a run (killed, its host gone) raises
+:class:`WorkersLost` too, with the count of the tasks that finished.
 Rerun the campaign with ``--resume`` to compute only the samples that are missing.
+
+Local workers die with their parent: each worker process asks the Linux kernel for ``SIGKILL``
+when its parent dies (``prctl(PR_SET_PDEATHSIG)``), and watches the main process's
+:mod:`multiprocessing` sentinel (a pipe that closes when it dies) from a thread, for the other
+systems and the forkserver start method. So ``kill -9`` of the main process leaves no worker
+computing, whatever the start method (fork, spawn, forkserver). Dask workers are not ours: they
+belong to the cluster the caller gives (``scheduler=``, or a ``distributed.Client``); when
+the main process dies, its client disconnects and the scheduler drops the client's tasks,
+but the workers stay, as the cluster's owner started them.
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import gc
 import itertools
+import multiprocessing
+import multiprocessing.connection
 import operator
 import os
 import queue
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -37,11 +53,10 @@ from concurrent.futures import wait as _cf_wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 
-from ..validation import check_count, check_positive
-
 __all__ = [
-    "run_tasks", "check_jobs", "default_jobs", "interrupt_on_signals",
+    "run_tasks", "check_jobs", "default_jobs", "interrupt_on_signals", "exit_status",
     "ExecutorError", "CampaignInterrupted", "WorkersLost", "SchedulerUnreachable",
+    "SignalReceived",
 ]
 
 
@@ -56,11 +71,39 @@ class CampaignInterrupted(ExecutorError):
     ----------
     done : int
         Tasks whose results were yielded to the caller before the stop.
+    signum : int or None
+        The signal that stopped it (``signal.SIGINT``, ``signal.SIGTERM``), or ``None``.
     """
 
-    def __init__(self, message: str, done: int):
+    def __init__(self, message: str, done: int, signum: int | None = None):
         super().__init__(message)
         self.done = done
+        self.signum = signum
+
+
+class SignalReceived(KeyboardInterrupt):
+    """SIGINT or SIGTERM received inside :func:`interrupt_on_signals`.
+
+    A :class:`KeyboardInterrupt`, so ``except KeyboardInterrupt`` handles both signals.
+
+    Attributes
+    ----------
+    signum : int
+        The signal received.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(f"received {signal.Signals(signum).name}")
+        self.signum = signum
+
+
+def exit_status(exc: BaseException) -> int:
+    """Exit status of a process stopped by ``exc``: 128 + the signal (130 SIGINT, 143 SIGTERM).
+
+    A plain :class:`KeyboardInterrupt` (Ctrl-C under Python's own handler) counts as SIGINT.
+    """
+    signum = getattr(exc, "signum", None)
+    return 128 + int(signal.SIGINT if signum is None else signum)
 
 
 class WorkersLost(CampaignInterrupted):
@@ -159,6 +202,8 @@ def run_tasks(fn: Callable, tasks: Iterable, *, jobs: int | None = None,
     if scheduler is not None and not isinstance(scheduler, str):
         raise TypeError(f"scheduler must be an address string such as "
                         f"'tcp://10.0.0.5:8786', got {scheduler!r}")
+    from ..validation import check_count, check_positive  # numpy: not for the CLI's --help
+
     jobs = check_jobs(jobs)
     if max_in_flight is not None:
         max_in_flight = check_count("max_in_flight", max_in_flight, 1)
@@ -180,7 +225,9 @@ def run_tasks(fn: Callable, tasks: Iterable, *, jobs: int | None = None,
 
 @contextmanager
 def interrupt_on_signals():
-    """Within the block, SIGTERM (and SIGINT) raise :class:`KeyboardInterrupt` in this process.
+    """Within the block, SIGTERM (and SIGINT) raise :class:`SignalReceived` in this process.
+
+    :class:`SignalReceived` is a :class:`KeyboardInterrupt` that carries the signal number.
 
     So ``kill <pid>`` from a batch system stops a campaign the way Ctrl-C does: the caller's
     ``except KeyboardInterrupt`` (or ``finally``) keeps what is finished and exits cleanly.
@@ -193,7 +240,7 @@ def interrupt_on_signals():
         return
 
     def handler(signum, frame):
-        raise KeyboardInterrupt(f"received {signal.Signals(signum).name}")
+        raise SignalReceived(signum)
 
     previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -230,8 +277,59 @@ def _run_serial(fn, tasks):
 
 # --- concurrent.futures (local processes or a caller's executor) ----------------------------
 
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
+
+
+def _pdeathsig(signum: int) -> bool:
+    """Ask Linux to send ``signum`` to this process when its parent dies; False elsewhere."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, int(signum), 0, 0, 0) == 0
+    except (OSError, AttributeError):  # no libc or no prctl: use the sentinel
+        return False
+
+
+def _exit_with(sentinel) -> None:
+    """Wait until ``sentinel`` (the parent's pipe) is ready, i.e. the parent died; then exit."""
+    multiprocessing.connection.wait([sentinel])
+    os._exit(1)
+
+
+def _die_with_parent() -> None:
+    """Make this worker process die when the process that started the pool dies.
+
+    Two watches, as each covers a case the other misses. Linux: ``prctl(PR_SET_PDEATHSIG,
+    SIGKILL)``, immediate on the death of the direct parent (the main process with the fork
+    and spawn start methods; the parent may die before the call, hence the check after it).
+    Everywhere: a daemon thread waits on the :mod:`multiprocessing` sentinel of the main
+    process and exits this one. That covers other systems, and the forkserver start method,
+    whose server (the direct parent) lives as long as any of its children does.
+    """
+    parent = multiprocessing.parent_process()
+    if parent is None:  # not a multiprocessing child: nothing to watch
+        return
+    if _pdeathsig(signal.SIGKILL):
+        if os.getppid() != parent.pid and not _pid_exists(parent.pid):
+            os._exit(1)  # the parent died before prctl took effect
+    threading.Thread(target=_exit_with, args=(parent.sentinel,), daemon=True,
+                     name="rrr-pin-parent-watch").start()
+
+
+def _pid_exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else
+        return True
+    return True
+
+
 def _worker_init() -> None:
-    """Local workers leave Ctrl-C to the main process, which stops them itself."""
+    """Local workers die with the main process and leave Ctrl-C to it (it stops them itself)."""
+    _die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
@@ -350,6 +448,8 @@ def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
     from concurrent.futures import CancelledError
 
     from distributed import KilledWorker
+    from distributed.client import ClosedClientError
+    from distributed.comm.core import CommClosedError
 
     own = client is None
     if own:
@@ -363,12 +463,22 @@ def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
     state["workers"], state["threads"] = _n_workers(client, poll)
 
     def submit(task, attempts):
-        f = client.submit(fn, task, pure=False)
+        try:
+            f = client.submit(fn, task, pure=False)
+        except (ClosedClientError, CommClosedError) as exc:
+            raise scheduler_lost(f"{type(exc).__name__}: {exc}") from None
         pending[f] = (task, attempts)
         f.add_done_callback(ready.put)
 
+    def scheduler_lost(reason: str) -> WorkersLost:
+        return WorkersLost(f"the Dask scheduler was lost (killed, or its host is gone: "
+                           f"{reason}); stopped after {state['done']} tasks had finished",
+                           state["done"])
+
     def watchdog():
         """Raise WorkersLost once the cluster had no worker for no_worker_timeout."""
+        if client.status == "closed":  # it gave up reconnecting to a lost scheduler
+            raise scheduler_lost("the client lost its connection and closed")
         now = time.monotonic()
         if now - state["checked"] >= poll:
             state["workers"], state["threads"] = _n_workers(client, poll)
@@ -426,6 +536,8 @@ def _run_dask(fn, tasks, scheduler, client, limit, no_worker_timeout, retries,
                     except (KilledWorker, CancelledError) as exc:
                         lost(f, exc)
                         continue
+                    except (ClosedClientError, CommClosedError) as exc:
+                        raise scheduler_lost(f"{type(exc).__name__}: {exc}") from None
                     task, _ = pending.pop(f)
                     collect.discard(f)
                     state["done"] += 1

@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
+import signal
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
@@ -254,7 +255,8 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
     Raises
     ------
     CampaignInterrupted
-        Ctrl-C or SIGTERM; ``.done`` samples are finished (and on disk, with a store).
+        Ctrl-C or SIGTERM (``.signum``); ``.done`` samples are finished (and on disk, with a
+        store).
     WorkersLost
         Local worker processes died or no Dask worker was left; finished samples are kept.
     SchedulerUnreachable
@@ -297,7 +299,8 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
                     progress(finished, samples)
     except KeyboardInterrupt as exc:
         raise CampaignInterrupted(f"campaign interrupted ({exc or 'Ctrl-C'}): {finished} of "
-                                  f"{samples} samples done{where}", done=finished) from None
+                                  f"{samples} samples done{where}", done=finished,
+                                  signum=getattr(exc, "signum", signal.SIGINT)) from None
     except CampaignInterrupted as exc:
         raise type(exc)(f"{exc}; {finished} of {samples} samples done{where}",
                         done=finished) from None

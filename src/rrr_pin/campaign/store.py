@@ -3,14 +3,17 @@
 A campaign writes into one output directory ``out``:
 
 ``out/campaign.json``
-    Manifest: ``{"format": "rrr-pin-campaign", "version": 1, "settings": {...},
-    "outputs": [...]}``. ``settings`` are the campaign's settings as given to
-    :meth:`CampaignStore.open` (after a JSON round trip); ``outputs`` lists the final files
+    Manifest: ``{"format": "rrr-pin-campaign", "version": 2, "settings": {...},
+    "settings_sha256": "...", "outputs": [...]}``. ``settings`` are the campaign's settings as
+    given to :meth:`CampaignStore.open` (after a JSON round trip), ``settings_sha256`` their
+    SHA-256 (of their JSON text with sorted keys); ``outputs`` lists the final files
     (relative names) a run has written through :meth:`CampaignStore.write_text` or
     :meth:`CampaignStore.wrote`.
 ``out/parts.jsonl``
     One JSON object per finished sample (a *row*, with an integer ``"index"``), appended in
-    completion order, flushed and ``fsync``-ed after every chunk.
+    completion order, flushed and ``fsync``-ed after every chunk. Each line ends with the
+    key ``"_sha256"``: the SHA-256 of ``settings_sha256``, a newline and the row's JSON text
+    with sorted keys and no spaces. :meth:`CampaignStore.rows` returns the rows without it.
 final tables (``campaign.csv``, ``summary.json``, figures, ...)
     Written by the caller from :meth:`CampaignStore.rows` (sorted by index), so they depend only
     on the set of finished rows, never on the order they finished in or on interruptions.
@@ -22,7 +25,13 @@ next one is recorded, so Ctrl-C, SIGTERM, a killed worker, a dead cluster or a f
 at most the chunks that were still running. A process killed in the middle of a write leaves at
 most one torn last line; the next ``--resume`` ignores it and truncates it away. Resuming needs
 the same settings as the interrupted run (a difference is refused, naming the settings that
-differ); it recomputes only the samples missing from ``parts.jsonl``. Each sample is seeded by
+differ); it recomputes only the samples missing from ``parts.jsonl``. Every row is checked
+against its checksum, on resume and when the rows are read for the final tables: a row edited
+after it was written (even to another valid value) or copied from a campaign with other
+settings is refused, naming the file and the line (:class:`ChecksumMismatch`). This detects
+changes, not forgery: anyone can recompute a SHA-256. A store written by an older rrr-pin
+(manifest version 1, rows without checksums) cannot be verified, so resuming it is refused;
+``overwrite`` starts it afresh. Each sample is seeded by
 its index alone, so the final tables of an interrupted and resumed campaign are byte-identical
 to those of a run that was never interrupted. An existing non-empty output directory is
 refused unless ``resume`` (continue it) or ``overwrite`` (start afresh) is given; with
@@ -46,6 +55,7 @@ Examples
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import signal
@@ -64,14 +74,15 @@ except ImportError:  # pragma: no cover - Windows
 
 __all__ = [
     "CampaignStore", "StoreError", "OutputNotEmpty", "SettingsMismatch", "StoreCorrupt",
-    "MANIFEST", "PARTS",
+    "ChecksumMismatch", "MANIFEST", "PARTS",
 ]
 
 #: File names inside the output directory.
 MANIFEST = "campaign.json"
 PARTS = "parts.jsonl"
 _FORMAT = "rrr-pin-campaign"
-_VERSION = 1
+_VERSION = 2  # 2: rows carry a checksum (version 1 had none)
+_CHECKSUM = "_sha256"  # key of a row's checksum in parts.jsonl
 
 
 class StoreError(ValueError):
@@ -101,6 +112,57 @@ class SettingsMismatch(StoreError):
 
 class StoreCorrupt(StoreError):
     """A recorded file that cannot be read (not a torn last line: real damage)."""
+
+
+class ChecksumMismatch(StoreCorrupt):
+    """A row of ``parts.jsonl`` whose checksum does not match its content and settings.
+
+    Attributes
+    ----------
+    path : Path
+        The rows file.
+    line : int
+        Line number of the row in it (from 1).
+    """
+
+    def __init__(self, message: str, path: Path, line: int):
+        super().__init__(message)
+        self.path = path
+        self.line = line
+
+
+def _digest(settings: dict) -> str:
+    """SHA-256 of the settings' JSON text with sorted keys (hex)."""
+    text = json.dumps(settings, sort_keys=True, allow_nan=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _checksum(row: dict, digest: str) -> str:
+    """Checksum of a row (as read back from JSON) under settings of SHA-256 ``digest``."""
+    text = json.dumps(row, sort_keys=True, allow_nan=True, separators=(",", ":"))
+    return hashlib.sha256(f"{digest}\n{text}".encode()).hexdigest()
+
+
+def _verified(line: bytes, n: int, path: Path, digest: str) -> dict:
+    """Return the row of line ``n`` of ``path``, its checksum checked and removed.
+
+    Raises ``ValueError`` (or ``KeyError``, ``TypeError``) for a line that is not a JSON row,
+    and :class:`ChecksumMismatch` for a row without a checksum or with a wrong one.
+    """
+    row = json.loads(line)
+    if not isinstance(row, dict):
+        raise ValueError("not a JSON object")
+    k = row.get("index")
+    if _CHECKSUM not in row:
+        raise ChecksumMismatch(f"{str(path)!r} line {n} (sample {k}) has no checksum, so it "
+                               "cannot be verified; use --overwrite to start afresh", path, n)
+    recorded = row.pop(_CHECKSUM)
+    if recorded != _checksum(row, digest):
+        raise ChecksumMismatch(
+            f"{str(path)!r} line {n} (sample {k}) does not match its checksum: the row was "
+            "changed after it was written, or comes from a campaign with other settings; "
+            "restore it, or use --overwrite to start afresh", path, n)
+    return row
 
 
 def _canonical(value):
@@ -217,6 +279,7 @@ class CampaignStore:
         self._outputs = outputs
         self._done = done
         self._fh = fh
+        self._digest = _digest(settings)
         self.resumed = len(done)
         self.written: list[Path] = []
 
@@ -304,6 +367,12 @@ class CampaignStore:
             raise OutputNotEmpty(f"cannot resume: output directory {str(out)!r} is not empty "
                                  f"but holds no campaign ({MANIFEST} missing); use "
                                  "--overwrite to start afresh there")
+        if resume and recorded is not None and recorded.get("version") != _VERSION:
+            raise StoreCorrupt(
+                f"cannot resume the campaign in {str(out)!r}: it was recorded by another "
+                f"version of rrr-pin (store version {recorded.get('version')!r}, this one "
+                f"writes {_VERSION}: rows with checksums), so its rows cannot be verified; "
+                "use --overwrite to start afresh")
         if resume and recorded is not None:
             keys = _diff_keys(recorded["settings"], settings)
             if keys:
@@ -330,7 +399,7 @@ class CampaignStore:
                 _remove_inside(out, name)
             if overwrite:
                 fh.truncate(0)
-            done = _recover(parts_path, fh) if resume else set()
+            done = _recover(parts_path, fh, _digest(settings)) if resume else set()
             if not resume and not overwrite:
                 fh.truncate(0)
             fh.seek(0, os.SEEK_END)
@@ -372,7 +441,8 @@ class CampaignStore:
             A row that is not a dict, an ``index`` that is not an int, a value that is not
             JSON-able (e.g. ``numpy.int64``).
         ValueError
-            An index already recorded, or repeated within ``rows``.
+            An index already recorded, or repeated within ``rows``; a row holding the key
+            ``"_sha256"`` (the store's checksum).
         """
         if self._fh is None:
             raise ValueError(f"campaign store {str(self.out)!r} is closed")
@@ -386,10 +456,15 @@ class CampaignStore:
             if k in self._done or k in seen:
                 raise ValueError(f"row index {k} is already recorded in "
                                  f"{str(self.parts_path)!r}")
+            if _CHECKSUM in row:
+                raise ValueError(f"row {k}: the key {_CHECKSUM!r} is reserved for the "
+                                 "store's checksum")
             try:
-                lines.append(json.dumps(row, allow_nan=True) + "\n")
+                canonical = json.loads(json.dumps(row, allow_nan=True))
             except (TypeError, ValueError) as exc:
                 raise TypeError(f"row {k} is not JSON-able: {exc}") from exc
+            canonical[_CHECKSUM] = _checksum(canonical, self._digest)
+            lines.append(json.dumps(canonical, allow_nan=True) + "\n")
             seen.add(k)
         with _signals_deferred():  # written and recorded, or neither: never one without the other
             start = self._fh.tell()
@@ -404,13 +479,19 @@ class CampaignStore:
             self._done |= seen
 
     def rows(self) -> list[dict]:
-        """Return every recorded row, sorted by ``index``."""
+        """Return every recorded row, sorted by ``index``, each checked against its checksum.
+
+        Raises
+        ------
+        ChecksumMismatch
+            A row changed since it was written (naming the file and the line).
+        """
         if self._fh is not None:
             self._fh.flush()
         rows = []
         with open(self.parts_path, "rb") as fh:
-            for line in fh:
-                rows.append(json.loads(line))
+            for n, line in enumerate(fh, 1):
+                rows.append(_verified(line, n, self.parts_path, self._digest))
         rows.sort(key=lambda r: r["index"])
         return rows
 
@@ -472,7 +553,7 @@ class CampaignStore:
 def _write_manifest(path: Path, settings: dict, outputs: list[str]) -> None:
     """Write the manifest ``campaign.json`` atomically (layout: module docstring)."""
     manifest = {"format": _FORMAT, "version": _VERSION, "settings": settings,
-                "outputs": outputs}
+                "settings_sha256": _digest(settings), "outputs": outputs}
     _atomic_write(path, (json.dumps(manifest, indent=1, allow_nan=False) + "\n").encode())
 
 
@@ -485,8 +566,12 @@ def _remove_inside(out: Path, name: str) -> None:
         path.unlink()
 
 
-def _recover(parts_path: Path, fh) -> set[int]:
-    """Read the indices in ``parts.jsonl``, truncating a torn last line; return them."""
+def _recover(parts_path: Path, fh, digest: str) -> set[int]:
+    """Read the indices in ``parts.jsonl``, truncating a torn last line; return them.
+
+    Every row is checked against its checksum (settings of SHA-256 ``digest``); a mismatch
+    is refused even on the last line (a torn write never parses as a whole row).
+    """
     fh.seek(0)
     data = fh.read()
     end = data.rfind(b"\n") + 1  # bytes after the last newline: a torn write
@@ -494,10 +579,12 @@ def _recover(parts_path: Path, fh) -> set[int]:
     done: set[int] = set()
     for i, line in enumerate(lines):
         try:
-            row = json.loads(line)
+            row = _verified(line, i + 1, parts_path, digest)
             k = row["index"]
             if not isinstance(k, int) or isinstance(k, bool) or k in done:
                 raise ValueError(f"bad or repeated index {k!r}")
+        except ChecksumMismatch:
+            raise
         except (ValueError, TypeError, KeyError) as exc:
             if i == len(lines) - 1:  # a damaged last line is a torn write too
                 end -= len(line) + 1

@@ -10,7 +10,6 @@ with a named baseline (``"fl"`` by default, the paper's).
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -22,7 +21,7 @@ from ..model.robots import nominal_params
 from ..model.uncertainty import PlantSample, sample_plants
 from ..sim.simulation import time_grid
 from ..sim.trajectory import SimulationDiverged, metrics
-from .executors import check_jobs, default_jobs
+from .executors import check_jobs, default_jobs, run_tasks
 from .runner import RunSettings, check_laws, run_laws
 from .settings import Settings
 
@@ -407,19 +406,14 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
 
     tasks = [task(nominal.urdf, f"{nominal.name} (nominal)", False)]
     tasks += [task(p.urdf, f"{nominal.name}_sample{p.index:03d}", True) for p in plants]
-    jobs = config.jobs or default_jobs()
-    outputs = []
-    if jobs <= 1 or len(tasks) <= 2:
-        for k, plant_task in enumerate(tasks):
-            outputs.append(run_plant(plant_task))
-            if progress:
-                progress(k + 1, len(tasks))
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for k, out in enumerate(pool.map(run_plant, tasks)):
-                outputs.append(out)
-                if progress:
-                    progress(k + 1, len(tasks))
+    jobs = 1 if len(tasks) <= 2 else config.jobs or default_jobs()
+    # run_tasks: workers that die with this process and stop on Ctrl-C/SIGTERM (see executors)
+    slot = {id(t): k for k, t in enumerate(tasks)}
+    outputs = [None] * len(tasks)
+    for done, (plant_task, out) in enumerate(run_tasks(run_plant, tasks, jobs=jobs), 1):
+        outputs[slot[id(plant_task)]] = out
+        if progress:
+            progress(done, len(tasks))
     failed = {k: v for k, v in outputs[0][0].items() if isinstance(v, SimulationDiverged)}
     if failed:
         name, exc = next(iter(failed.items()))
