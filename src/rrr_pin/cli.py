@@ -364,6 +364,11 @@ def _add_reproduce(sub) -> None:
     p.add_argument("--full-order", action="store_true",
                    help="use the full-order K instead of the reduced eq. (18)")
     p.add_argument("--out", default="results", metavar="DIR", help="output folder (results/)")
+    p.add_argument("--save-trajectories", nargs="?", const="npz", default=None,
+                   choices=("npz", "csv", "parquet"), metavar="FORMAT",
+                   help="also write every run's time series (t, q, qd, r, tau with units) as "
+                        "DIR/trajectories/<nominal|sampleNNN>_<controller>.FORMAT; FORMAT npz "
+                        "(default), csv or parquet; read with Trajectory.load")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_reproduce)
 
@@ -378,7 +383,7 @@ def _cmd_reproduce(args) -> int:
     from .model.dynamics import load_robot
     from .report.design import study_design
     from .report.plotting import save_design_figures, save_study_figures
-    from .report.results import summary_lines, write_results, write_study_report
+    from .report.results import summary_lines, write_results, write_study_report, write_trajectories
     from .robust.certificates import CertificateSpec
     from .robust.loopshaping import design
     from .validation import check_count
@@ -408,11 +413,15 @@ def _cmd_reproduce(args) -> int:
     data = write_results(result, out, design=design_info)
     figures += save_study_figures(result, out)
     report = write_study_report(result, out, figures, design_info, robot)
+    saved = write_trajectories(result, out, args.save_trajectories)  # None: clears old ones
     print(f"{robot.name}: {robot.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "
           f"{', '.join(result.names)} (baseline {baseline})")
     print("\n".join(summary_lines(result, data["summary"])))
     print(f"wrote {out}/results.json, results.md, plants/, {len(figures)} figures and "
           f"{report.name} (open it in a browser)")
+    if saved:
+        print(f"wrote {len(saved)} trajectories to {out}/trajectories/ "
+              f"({args.save_trajectories})")
     return 0
 
 

@@ -22,7 +22,7 @@ from .html import write_report_html
 from .viewer import Scene, Track
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "summary_lines",
-           "PAPER_ERROR_RATIO", "PAPER_LAWS"]
+           "write_trajectories", "PAPER_ERROR_RATIO", "PAPER_LAWS"]
 
 #: The paper's claim for the uncertain plants: "almost a ten times better performance".
 PAPER_ERROR_RATIO = 10.0
@@ -227,6 +227,64 @@ def write_results(result: StudyResult, out: str | Path, design: dict | None = No
     return data
 
 
+def write_trajectories(result: StudyResult, out: str | Path, fmt: str | None = "npz"
+                       ) -> list[Path]:
+    """Write every simulated run of a study as ``out/trajectories/<plant>_<law>.<fmt>``.
+
+    ``<plant>`` is ``nominal`` or ``sample<index:03d>`` (the uncertain plant of
+    ``plants/<robot>_<index:03d>.urdf``), ``<law>`` the law's name; a run that diverged has no
+    file. Each file is :meth:`rrr_pin.sim.trajectory.Trajectory.save`'s (units and metadata
+    in it; read back with :meth:`~rrr_pin.sim.trajectory.Trajectory.load`). Files of an
+    earlier study in ``out/trajectories`` are deleted first, also with ``fmt=None``, which
+    writes nothing (so no file there outlives the study it came from).
+
+    Parameters
+    ----------
+    result : StudyResult
+    out : path-like
+        The study's folder.
+    fmt : {"npz", "csv", "parquet"} or None, default "npz"
+
+    Returns
+    -------
+    list of Path
+        The files written: the nominal plant's first, in law order.
+
+    Raises
+    ------
+    ValueError
+        An unknown format, or a law name that is not a safe file name (letters, digits,
+        ``_ . -``).
+    """
+    import re
+
+    from ..sim.trajectory import FORMATS
+
+    suffix = f".{fmt}"
+    if fmt is not None and suffix not in FORMATS:
+        raise ValueError(f"trajectory format {fmt!r} is unknown; use one of "
+                         f"{', '.join(f[1:] for f in FORMATS)}")
+    folder = Path(out) / "trajectories"
+    for stale in folder.iterdir() if folder.is_dir() else ():
+        if stale.suffix in FORMATS:
+            stale.unlink()
+    if fmt is None:
+        return []
+    for name in result.names:
+        if not re.fullmatch(r"[A-Za-z0-9_.-]+", name) or name.startswith("."):
+            raise ValueError(f"law name {name!r} is not a safe file name (letters, digits, "
+                             f"'_', '.', '-'); cannot name its trajectory file")
+    folder.mkdir(parents=True, exist_ok=True)
+    runs = [("nominal", result.nominal)]
+    runs += [(f"sample{s['index']:03d}", s["trajectories"]) for s in result.samples]
+    written = []
+    for plant, trajectories in runs:
+        for name in result.names:
+            if name in trajectories:
+                written.append(trajectories[name].save(folder / f"{plant}_{name}{suffix}"))
+    return written
+
+
 def write_study_report(result: StudyResult, out: str | Path, figures, design: dict | None,
                        robot: Robot) -> Path:
     """Write ``out/report.html``: results table, figures, design and one 3D scene per law.
@@ -256,9 +314,13 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
 
     def model(plant) -> Robot:
         if plant.index not in models:
+            # label: the plant's mesh references are the nominal's, byte for byte (only
+            # inertials and joint origins are perturbed), so the viewer looks for them where
+            # it finds the nominal's (an example-robot-data folder, the URDF's own folder).
             models[plant.index] = robot_from_xml(plant.urdf, gravity=robot.gravity,
                                                  lock=dict(robot.locked),
-                                                 name=f"sample{plant.index}", check=False)
+                                                 name=f"sample{plant.index}", check=False,
+                                                 label=robot.source)
         return models[plant.index]
 
     scenes = []
