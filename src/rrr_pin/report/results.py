@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,7 @@ import numpy as np
 from ..campaign.study import StudyResult
 from ..model.dynamics import Robot, robot_from_xml
 from .html import write_report_html
-from .viewer import Scene, Track
+from .viewer import MissingMeshWarning, Scene, Track
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "summary_lines",
            "write_trajectories", "PAPER_ERROR_RATIO", "PAPER_LAWS"]
@@ -291,7 +292,9 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
 
     In each scene the nominal plant is opaque and the uncertain plants are translucent ghosts.
     Each uncertain plant's model is built once from its URDF (``result.plants``) and shared by
-    the scenes of every law that ran on it.
+    the scenes of every law that ran on it; its mesh files are looked for where the nominal's
+    are. Mesh files not found are drawn as simple shapes, with one
+    :class:`~rrr_pin.report.viewer.MissingMeshWarning` per distinct set of files.
 
     Parameters
     ----------
@@ -334,9 +337,22 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
                                     opacity=0.35, robot=model(plant)))
         scenes.append(Scene(f"{result.label(name)}: nominal and uncertain plants", robot,
                             tracks))
-    return write_report_html(Path(out) / "report.html", title=f"rrr-pin study on {result.robot}",
-                             tables=[("Results", results_markdown(result))],
-                             figures=figures, design=design, scenes=scenes)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        path = write_report_html(Path(out) / "report.html",
+                                 title=f"rrr-pin study on {result.robot}",
+                                 tables=[("Results", results_markdown(result))],
+                                 figures=figures, design=design, scenes=scenes)
+    # Every scene draws the nominal and its plants, which share the nominal's mesh files:
+    # each set of missing files is warned about once, not once per plant and law.
+    seen = set()
+    for w in caught:
+        if isinstance(w.message, MissingMeshWarning):
+            if w.message.missing in seen:
+                continue
+            seen.add(w.message.missing)
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+    return path
 
 
 def summary_lines(result: StudyResult, summary: dict) -> list[str]:
