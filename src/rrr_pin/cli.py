@@ -21,10 +21,15 @@ def _build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
     parser.add_argument("--version", action="version", version=f"rrr-pin {__version__}")
+    verbose = {"action": "count", "help": "log on stderr what the library does: -v steps "
+               "(INFO), -vv details (DEBUG), e.g. the engine chosen for each run"}
+    parser.add_argument("-v", "--verbose", default=0, **verbose)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_urdf, _add_check_dynamics, _add_design, _add_reproduce,
                 _add_montecarlo, _add_stress):
         add(sub)
+    for command in sub.choices.values():  # also after the command: rrr-pin reproduce -v
+        command.add_argument("-v", "--verbose", default=argparse.SUPPRESS, **verbose)
     return parser
 
 
@@ -33,10 +38,36 @@ def main(argv: list[str] | None = None) -> int:
     parser = _build_parser()
     args = parser.parse_args(_negative_values(sys.argv[1:] if argv is None else list(argv)))
     try:
-        return int(args.func(args) or 0)
+        with _logging(args.verbose):
+            return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError, RuntimeError) as exc:
         print(f"rrr-pin {args.command}: error: {exc}", file=sys.stderr)
         return 2
+
+
+@contextmanager
+def _logging(verbose: int):
+    """Show the ``rrr_pin`` loggers on stderr: WARNING, INFO (-v) or DEBUG (-vv and more).
+
+    Through tqdm's handler, so that a log line does not break a progress bar.
+    """
+    import logging
+
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    logger = logging.getLogger("rrr_pin")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    level = logger.level
+    logger.setLevel(logging.WARNING if verbose < 1 else logging.INFO if verbose == 1
+                    else logging.DEBUG)
+    logger.addHandler(handler)
+    try:
+        with logging_redirect_tqdm(loggers=[logger]):
+            yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def _negative_values(argv: list[str]) -> list[str]:
@@ -550,12 +581,15 @@ def _add_stress(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--out", default="results/stress", metavar="DIR",
                    help="folder for the figure and the JSON (results/stress)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_stress)
 
 
 def _cmd_stress(args) -> int:
     import json
     import time
+
+    from tqdm import tqdm
 
     from .campaign.runner import RunSettings, make_laws
     from .campaign.store import check_writable
@@ -579,7 +613,11 @@ def _cmd_stress(args) -> int:
         robot, args.duration, label=_option)
     laws = make_laws(args.controllers, robot)
     start = time.perf_counter()
-    result = stress(robot, laws, reference, args.effect, settings)
+    bar = tqdm(total=len(laws), unit="law", desc=f"{robot.name}: stress {args.effect}",
+               disable=args.no_progress)
+    result = stress(robot, laws, reference, args.effect, settings,
+                    progress=lambda done, total: bar.update(done - bar.n))
+    bar.close()
     result["elapsed_s"] = time.perf_counter() - start
     result["robot"] = robot.name
     fig = write_stress(result, args.out)

@@ -43,6 +43,7 @@ Examples
 from __future__ import annotations
 
 import json
+import logging
 import os
 import signal
 import tempfile
@@ -66,6 +67,8 @@ MANIFEST = "campaign.json"
 PARTS = "parts.jsonl"
 _FORMAT = "rrr-pin-campaign"
 _VERSION = 1
+
+logger = logging.getLogger(__name__)
 
 
 class StoreError(ValueError):
@@ -359,6 +362,10 @@ class CampaignStore:
             if overwrite:
                 fh.truncate(0)
             done = _recover(parts_path, fh) if resume else set()
+            if resume:
+                logger.info("store %s: resuming, %d samples already on disk", out, len(done))
+            elif overwrite:
+                logger.info("store %s: previous campaign deleted (overwrite)", out)
             if not resume and not overwrite:
                 fh.truncate(0)
             fh.seek(0, os.SEEK_END)

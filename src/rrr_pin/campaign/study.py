@@ -10,6 +10,8 @@ with a named baseline (``"fl"`` by default, the paper's).
 
 from __future__ import annotations
 
+import logging
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -36,6 +38,8 @@ __all__ = [
     "run_study",
     "summarize",
 ]
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -268,8 +272,14 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     if params is None:
         params = nominal_params(nominal)
     source = params if params is not None else nominal.urdf
+    start = time.perf_counter()
+    logger.info("study on %s: %d laws (%s), nominal + %d uncertain plants (seed %d), %g s runs",
+                nominal.name, len(laws), ", ".join(law.name for law in laws), config.samples,
+                config.seed, config.run.duration)
     plants: list[PlantSample] = sample_plants(source, config.samples, config.seed,
                                               config.tolerances, skip_joints=skip_joints)
+    for p in plants:
+        logger.debug("uncertain plant %d sampled with seed %s", p.index, p.seed)
 
     def task(xml: str, name: str, certify: bool) -> PlantTask:
         return PlantTask(laws=tuple(laws), reference=reference, run=config.run, nominal=nominal,
@@ -279,6 +289,8 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     tasks = [task(nominal.urdf, f"{nominal.name} (nominal)", False)]
     tasks += [task(p.urdf, f"{nominal.name}_sample{p.index:03d}", True) for p in plants]
     jobs = config.jobs or default_jobs()
+    logger.info("simulating %d plants in %s", len(tasks),
+                "this process" if jobs <= 1 or len(tasks) <= 2 else f"{jobs} processes")
     outputs = []
     if jobs <= 1 or len(tasks) <= 2:
         for k, plant_task in enumerate(tasks):
@@ -306,6 +318,9 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
         if cert is not None:
             entry["certificate"] = cert
         samples.append(entry)
+    logger.info("study on %s done in %.1f s: %d of %d uncertain plants ran every law",
+                nominal.name, time.perf_counter() - start,
+                sum(1 for s in samples if s["status"] == "ok"), len(samples))
     return StudyResult(robot=nominal.name, joint_names=nominal.joint_names, reference=reference,
                        config=config, laws=[law.describe() for law in laws],
                        nominal=outputs[0][0], samples=samples, plants=plants,
