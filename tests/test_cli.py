@@ -215,6 +215,22 @@ def test_version_prints_the_package_version(capsys):
     assert not hasattr(rrr_pin, "version")
 
 
+def test_verbose_shows_the_library_log_on_stderr(capsys):
+    import logging
+
+    argv = ["check-dynamics", "--samples", "1"]
+    line = ("INFO rrr_pin.model.dynamics: loaded rrr from <params>: 3 joints (joint1, joint2, "
+            "joint3)")
+    assert cli.main(argv) == 0
+    assert "INFO" not in capsys.readouterr().err
+    for verbose in (["-v"] + argv, argv + ["-v"], ["-vv"] + argv):
+        assert cli.main(verbose) == 0
+        err = capsys.readouterr().err
+        assert err.count(line) == 1, verbose  # once: an earlier call's handler is removed
+    logger = logging.getLogger("rrr_pin")
+    assert logger.handlers == [] and logger.level == logging.NOTSET
+
+
 def test_help_texts_have_no_doubled_percent(capsys):
     with pytest.raises(SystemExit):
         cli.main(["montecarlo", "--help"])

@@ -242,3 +242,18 @@ def test_plant_tasks_are_frozen_and_rrr_plants_come_from_the_papers_parameters(r
     assert [t.certify for t in seen[:2]] == [False, True]
     assert a.plants[0].urdf == b.plants[0].urdf
     assert a.to_json()["uncertain"]["samples"] == b.to_json()["uncertain"]["samples"]
+
+
+def test_study_logs_its_start_and_end(robot, caplog):
+    import logging
+    import re
+
+    with caplog.at_level(logging.INFO, logger="rrr_pin"):
+        result = run_study(robot, [fl_controller(robot)],
+                           config=StudyConfig(run=RunSettings(duration=0.05), samples=1, jobs=1))
+    study = [r.getMessage() for r in caplog.records if r.name == "rrr_pin.campaign.study"]
+    assert study[0] == ("study on rrr: 1 laws (fl), nominal + 1 uncertain plants (seed 0), "
+                        "0.05 s runs")
+    ok = sum(s["status"] == "ok" for s in result.samples)
+    assert re.fullmatch(rf"study on rrr done in [0-9.]+ s: {ok} of 1 uncertain plants ran "
+                        r"every law", study[-1])
