@@ -277,3 +277,17 @@ def test_a_signal_during_the_write_is_held_until_the_rows_are_counted(tmp_path, 
         monkeypatch.setattr(os, "fsync", real_fsync)
         assert store.done() == {0, 1, 2, 3}
         assert [r["index"] for r in store.rows()] == [0, 1, 2, 3]
+
+
+def test_resume_is_logged_with_the_rows_found(tmp_path, caplog):
+    import logging
+
+    out = tmp_path / "mc"
+    with CampaignStore.open(out, settings=SETTINGS, resume=False, overwrite=False) as store:
+        store.append([toy_row(7, k) for k in (0, 3, 5)])
+    with caplog.at_level(logging.INFO, logger="rrr_pin.campaign.store"):
+        with CampaignStore.open(out, settings=SETTINGS, resume=True, overwrite=False) as store:
+            found = len(store.done())
+    assert found == 3
+    assert [r.getMessage() for r in caplog.records] == [
+        f"store {out}: resuming, {found} samples already on disk"]
