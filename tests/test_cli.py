@@ -65,6 +65,35 @@ def test_reproduce_references_and_controllers(tmp_path, extra):
     assert set(data["summary"]["error_ratio_uncertain"]) == set(names[1:])
 
 
+def test_reproduce_saves_trajectories(tmp_path, capsys):
+    import numpy as np
+    from numpy.testing import assert_allclose
+
+    from rrr_pin.sim.trajectory import Trajectory
+
+    out = tmp_path / "r"
+    assert cli.main(["reproduce", "--out", str(out), "--samples", "1", "--duration", "0.2",
+                     "--jobs", "1", "--no-progress", "--no-certify",
+                     "--save-trajectories", "csv"]) == 0
+    assert "wrote 4 trajectories" in capsys.readouterr().out
+    files = sorted(p.name for p in (out / "trajectories").iterdir())
+    assert files == ["nominal_fl.csv", "nominal_hinf.csv", "sample000_fl.csv",
+                     "sample000_hinf.csv"]
+    data = json.loads((out / "results.json").read_text())
+    for plant, group in (("nominal", data["nominal"]), ("sample000",
+                                                        data["uncertain"]["samples"][0])):
+        traj = Trajectory.load(out / "trajectories" / f"{plant}_hinf.csv")
+        assert traj.joint_names == data["joint_names"] and traj.controller == "hinf"
+        assert_allclose(traj.t[-1], 0.2, rtol=0, atol=1e-12)  # the grid's last point
+        # The file holds the run whose figures results.json reports: RMS error recomputed
+        # from it (rtol 1e-12: the same float64 arrays, summed in the same order).
+        e = traj.r - traj.q
+        assert_allclose(np.sqrt(np.mean(e * e, axis=0)), group["hinf"]["rms_error"],
+                        rtol=1e-12)
+    args = cli._build_parser().parse_args(["reproduce", "--save-trajectories"])
+    assert args.save_trajectories == "npz"  # the documented default format
+
+
 @pytest.mark.parametrize("argv,message", [
     (["reproduce", "--robot", "nosuch"], "unknown robot 'nosuch'"),
     (["reproduce", "--lock", "joint1"], "--lock expects JOINT=VALUE"),
@@ -184,6 +213,22 @@ def test_version_prints_the_package_version(capsys):
     assert capsys.readouterr().out.strip() == f"rrr-pin {rrr_pin.__version__}"
     # the package's namespace holds its version string, not importlib's version() function
     assert not hasattr(rrr_pin, "version")
+
+
+def test_verbose_shows_the_library_log_on_stderr(capsys):
+    import logging
+
+    argv = ["check-dynamics", "--samples", "1"]
+    line = ("INFO rrr_pin.model.dynamics: loaded rrr from <params>: 3 joints (joint1, joint2, "
+            "joint3)")
+    assert cli.main(argv) == 0
+    assert "INFO" not in capsys.readouterr().err
+    for verbose in (["-v"] + argv, argv + ["-v"], ["-vv"] + argv):
+        assert cli.main(verbose) == 0
+        err = capsys.readouterr().err
+        assert err.count(line) == 1, verbose  # once: an earlier call's handler is removed
+    logger = logging.getLogger("rrr_pin")
+    assert logger.handlers == [] and logger.level == logging.NOTSET
 
 
 def test_help_texts_have_no_doubled_percent(capsys):

@@ -287,6 +287,36 @@ def test_study_report_builds_each_plant_model_once(small_study, rrr, tmp_path, m
     assert "rrr-pin study on rrr" in text
 
 
+@pytest.mark.parametrize("where", ["example-robot-data", "copied"])
+def test_study_report_warns_of_missing_meshes_once(where, tmp_path):
+    # UR5 from example-robot-data: the plants' package:// meshes resolve where the nominal's
+    # do (before: one 1.3 kB warning per plant and law). A copy of its URDF outside the
+    # package: the meshes are missing for the nominal and every plant, warned about once.
+    import warnings
+
+    from rrr_pin.campaign.runner import RunSettings, make_laws
+    from rrr_pin.campaign.study import StudyConfig, run_study
+    from rrr_pin.model.robots import erd_urdf_path
+    from rrr_pin.report.results import write_study_report
+    from rrr_pin.report.viewer import MissingMeshWarning
+
+    source = "ur5"
+    if where == "copied":
+        source = tmp_path / "ur5.urdf"
+        source.write_text(erd_urdf_path("ur5").read_text())
+    robot = load_robot(source)
+    run = RunSettings(duration=0.02, engine="python")
+    study = run_study(robot, make_laws("fl,pd", robot),
+                      config=StudyConfig(run=run, samples=2, jobs=1))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        write_study_report(study, tmp_path, [], None, robot)
+    meshes = [w for w in caught if issubclass(w.category, MissingMeshWarning)]
+    assert len(meshes) == (0 if where == "example-robot-data" else 1)
+    if meshes:
+        assert len(meshes[0].message.missing) == 14  # 7 visual + 7 collision meshes of the UR5
+
+
 def test_study_summary_lines(small_study):
     from rrr_pin.report.results import summary_lines
 

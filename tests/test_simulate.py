@@ -203,3 +203,27 @@ def test_work_bound_and_force(setup, monkeypatch):
     monkeypatch.setattr(simulation, "MAX_SAMPLES", 5)
     with pytest.raises(ValueError, match=r"11 stored samples \(about 0\.002992 MB for 3 joints\)"):
         simulate(rrr, fl_controller(rrr), ref, 0.01)  # continuous: 10 steps, 11 samples
+
+
+def test_auto_engine_choice_is_logged_with_its_reason(caplog):
+    import logging
+
+    from rrr_pin.control.laws import ControlLaw
+
+    robot = load_robot("rrr")
+    ref = default_reference(robot)
+
+    class Hold(ControlLaw):
+        name, n = "hold", 3
+
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            return robot.G(q)
+
+    with caplog.at_level(logging.DEBUG, logger="rrr_pin.sim.simulation"):
+        fl = simulate(robot, fl_controller(robot), ref, 0.01, dt=1e-3)
+        hold = simulate(robot, Hold(), ref, 0.01, dt=1e-3)
+    said = [r.getMessage() for r in caplog.records if "engine auto chose" in r.getMessage()]
+    # the engine named is the one the run records as used
+    assert said[0].startswith(f"engine auto chose {fl.info['engine']} for law 'fl' because ")
+    assert said[1] == ("engine auto chose python for law 'hold' because it declares no "
+                       "compiled form") and hold.info["engine"] == "python"

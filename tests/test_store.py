@@ -363,3 +363,17 @@ def test_a_store_of_version_1_without_checksums_is_refused_on_resume(tmp_path):
         CampaignStore.open(out, settings=SETTINGS, resume=True, overwrite=False)
     with CampaignStore.open(out, settings=SETTINGS, resume=False, overwrite=True) as store:
         assert store.done() == set()  # overwrite starts it afresh
+
+
+def test_resume_is_logged_with_the_rows_found(tmp_path, caplog):
+    import logging
+
+    out = tmp_path / "mc"
+    with CampaignStore.open(out, settings=SETTINGS, resume=False, overwrite=False) as store:
+        store.append([toy_row(7, k) for k in (0, 3, 5)])
+    with caplog.at_level(logging.INFO, logger="rrr_pin.campaign.store"):
+        with CampaignStore.open(out, settings=SETTINGS, resume=True, overwrite=False) as store:
+            found = len(store.done())
+    assert found == 3
+    assert [r.getMessage() for r in caplog.records] == [
+        f"store {out}: resuming, {found} samples already on disk"]

@@ -1,6 +1,7 @@
 """Breaking points (rrr_pin.campaign.stress): linear predictions against closed forms, the nonlinear
 boundary against the linear prediction on the nominal RRR, the CLI."""
 
+import logging
 import math
 
 import numpy as np
@@ -196,10 +197,31 @@ def test_stress_leaves_the_predictions_of_a_law_without_a_model_empty(rrr):
     assert lo / 1.1 <= hand["simulated"] <= hi * 1.1
 
 
+def test_stress_reports_progress_and_logs_each_run(rrr, caplog):
+    settings = StressSettings(run=RunSettings(duration=0.2, dt=1e-4, rate=1000.0), sweep=0,
+                              rtol=0.05, cycles=0.0)
+    calls = []
+    with caplog.at_level(logging.DEBUG, logger="rrr_pin.campaign.stress"):
+        out = stress(rrr, [fl_controller(rrr), fl_controller(rrr, lam=50.0, name="fl50")],
+                     default_reference(rrr), "delay", settings,
+                     progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(1, 2), (2, 2)]
+    for row in out["rows"]:
+        mine = [r for r in caplog.records if r.getMessage().startswith(row["controller"] + ",")]
+        assert len(mine) == len(row["samples"])  # one DEBUG line per simulated run
+        assert sum(r.levelno == logging.INFO and r.getMessage().startswith(
+            f"{row['controller']} breaks at delay = {row['simulated']:.4g} s")
+            for r in caplog.records) == 1
+
+
 def test_cli_stress_json(tmp_path, capsys, strict_json):
     assert main(["stress", "--controllers", "fl", "--effect", "delay", "--json",
-                 "--duration", "1", "--out", str(tmp_path)]) == 0
-    data = strict_json(capsys.readouterr().out)
+                 "--duration", "1", "--out", str(tmp_path), "-v"]) == 0
+    captured = capsys.readouterr()
+    data = strict_json(captured.out)
+    # stderr: the progress bar (tqdm) and, with -v, the library's INFO lines
+    assert "rrr: stress delay" in captured.err and "1/1" in captured.err
+    assert "INFO rrr_pin.campaign.stress: fl breaks at delay" in captured.err
     row = data["rows"][0]
     for key in ("controller", "effect", "unit", "predicted", "simulated", "status",
                 "guaranteed"):
@@ -241,6 +263,12 @@ def test_breaking_point_without_a_boundary(rrr, monkeypatch, strict_json, rms, s
     assert back["predicted"] is None and back["predicted_status"] == "infinite"
     shown = stress_lines(result)[2].split()[2]
     assert shown == (f">{max(sizes):.4g}" if rms == 0 else "-")
+
+
+def test_cli_stress_no_progress_prints_nothing_on_stderr(tmp_path, capsys):
+    assert main(["stress", "--controllers", "fl", "--effect", "delay", "--json",
+                 "--duration", "0.2", "--out", str(tmp_path), "--no-progress"]) == 0
+    assert capsys.readouterr().err == ""
 
 
 @pytest.mark.parametrize("argv, match", [

@@ -255,3 +255,18 @@ def test_a_study_too_large_to_keep_is_refused_before_any_work():
         check_study_size(big, 2, 3)
     forced = StudyConfig(samples=1000, run=RunSettings(duration=40.0, force=True))
     assert check_study_size(forced, 2, 3) == expected
+
+
+def test_study_logs_its_start_and_end(robot, caplog):
+    import logging
+    import re
+
+    with caplog.at_level(logging.INFO, logger="rrr_pin"):
+        result = run_study(robot, [fl_controller(robot)],
+                           config=StudyConfig(run=RunSettings(duration=0.05), samples=1, jobs=1))
+    study = [r.getMessage() for r in caplog.records if r.name == "rrr_pin.campaign.study"]
+    assert study[0] == ("study on rrr: 1 laws (fl), nominal + 1 uncertain plants (seed 0), "
+                        "0.05 s runs")
+    ok = sum(s["status"] == "ok" for s in result.samples)
+    assert re.fullmatch(rf"study on rrr done in [0-9.]+ s: {ok} of 1 uncertain plants ran "
+                        r"every law", study[-1])

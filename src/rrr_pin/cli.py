@@ -21,10 +21,15 @@ def _build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
     parser.add_argument("--version", action="version", version=f"rrr-pin {__version__}")
+    verbose = {"action": "count", "help": "log on stderr what the library does: -v steps "
+               "(INFO), -vv details (DEBUG), e.g. the engine chosen for each run"}
+    parser.add_argument("-v", "--verbose", default=0, **verbose)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_urdf, _add_check_dynamics, _add_design, _add_reproduce,
                 _add_montecarlo, _add_stress):
         add(sub)
+    for command in sub.choices.values():  # also after the command: rrr-pin reproduce -v
+        command.add_argument("-v", "--verbose", default=argparse.SUPPRESS, **verbose)
     return parser
 
 
@@ -45,7 +50,8 @@ def main(argv: list[str] | None = None) -> int:
             args = parser.parse_args(
                 _negative_values(sys.argv[1:] if argv is None else list(argv)))
             try:
-                return int(args.func(args) or 0)
+                with _logging(args.verbose):
+                    return int(args.func(args) or 0)
             finally:  # record the files written, also after an error or an interrupt
                 if getattr(args, "outputs", None) is not None:
                     args.outputs.close()
@@ -107,6 +113,31 @@ def _add_overwrite(p) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace the previous run of this command in a non-empty --out (only "
                         "the files its manifest rrr-pin-run*.json lists are removed)")
+
+
+@contextmanager
+def _logging(verbose: int):
+    """Show the ``rrr_pin`` loggers on stderr: WARNING, INFO (-v) or DEBUG (-vv and more).
+
+    Through tqdm's handler, so that a log line does not break a progress bar.
+    """
+    import logging
+
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    logger = logging.getLogger("rrr_pin")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    level = logger.level
+    logger.setLevel(logging.WARNING if verbose < 1 else logging.INFO if verbose == 1
+                    else logging.DEBUG)
+    logger.addHandler(handler)
+    try:
+        with logging_redirect_tqdm(loggers=[logger]):
+            yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def _negative_values(argv: list[str]) -> list[str]:
@@ -463,6 +494,11 @@ def _add_reproduce(sub) -> None:
                    help="use the full-order K instead of the reduced eq. (18)")
     p.add_argument("--out", default="results", metavar="DIR", help="output folder (results/)")
     _add_overwrite(p)
+    p.add_argument("--save-trajectories", nargs="?", const="npz", default=None,
+                   choices=("npz", "csv", "parquet"), metavar="FORMAT",
+                   help="also write every run's time series (t, q, qd, r, tau with units) as "
+                        "DIR/trajectories/<nominal|sampleNNN>_<controller>.FORMAT; FORMAT npz "
+                        "(default), csv or parquet; read with Trajectory.load")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_reproduce)
 
@@ -474,7 +510,7 @@ def _cmd_reproduce(args) -> int:
     from .model.dynamics import load_robot
     from .report.design import study_design
     from .report.plotting import save_design_figures, save_study_figures
-    from .report.results import summary_lines, write_results, write_study_report
+    from .report.results import summary_lines, write_results, write_study_report, write_trajectories
     from .robust.certificates import CertificateSpec
     from .robust.loopshaping import design
     from .validation import check_count
@@ -508,11 +544,15 @@ def _cmd_reproduce(args) -> int:
     data = write_results(result, out, design=design_info)
     figures += save_study_figures(result, out)
     report = write_study_report(result, out, figures, design_info, robot)
+    saved = write_trajectories(result, out, args.save_trajectories)  # None: clears old ones
     print(f"{robot.name}: {robot.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "
           f"{', '.join(result.names)} (baseline {baseline})")
     print("\n".join(summary_lines(result, data["summary"])))
     print(f"wrote {out}/results.json, results.md, plants/, {len(figures)} figures and "
           f"{report.name} (open it in a browser)")
+    if saved:
+        print(f"wrote {len(saved)} trajectories to {out}/trajectories/ "
+              f"({args.save_trajectories})")
     return 0
 
 
@@ -646,11 +686,14 @@ def _add_stress(sub) -> None:
     p.add_argument("--out", default="results/stress", metavar="DIR",
                    help="folder for the figure and the JSON (results/stress)")
     _add_overwrite(p)
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_stress)
 
 
 def _cmd_stress(args) -> int:
     import time
+
+    from tqdm import tqdm
 
     from .campaign.runner import RunSettings, make_laws
     from .campaign.stress import StressSettings, stress
@@ -680,7 +723,11 @@ def _cmd_stress(args) -> int:
         robot, args.duration, label=_option)
     laws = make_laws(args.controllers, robot)
     start = time.perf_counter()
-    result = stress(robot, laws, reference, args.effect, settings)
+    bar = tqdm(total=len(laws), unit="law", desc=f"{robot.name}: stress {args.effect}",
+               disable=args.no_progress)
+    result = stress(robot, laws, reference, args.effect, settings,
+                    progress=lambda done, total: bar.update(done - bar.n))
+    bar.close()
     result["elapsed_s"] = time.perf_counter() - start
     result["robot"] = robot.name
     fig = write_stress(result, args.out)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import itertools
+import logging
 import math
 import signal
 from concurrent.futures import Executor
@@ -44,6 +45,8 @@ if TYPE_CHECKING:
 __all__ = ["Campaign", "CampaignSettings", "CampaignJob", "CampaignChunk", "run_campaign",
            "run_chunk", "sample_row", "campaign_summary", "campaign_columns", "open_store",
            "store_settings", "OUTPUTS"]
+
+logger = logging.getLogger(__name__)
 
 #: Final files of a campaign, rebuilt from the stored rows at the end of every run.
 OUTPUTS = ("campaign.csv", "samples.jsonl", "summary.json", "montecarlo.png", "report.html",
@@ -286,6 +289,9 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
     rows: list[dict] = []
     finished = len(done)
     where = f" and saved in {str(store.out)!r}; rerun with --resume" if store is not None else ""
+    logger.info("campaign on %s: %d laws (%s), %d samples (seed %d), %d already done, "
+                "chunks of %d", robot.name, len(laws), ", ".join(law.name for law in laws),
+                samples, settings.seed, len(done), size)
     try:
         with interrupt_on_signals():
             for _, chunk_rows in run_tasks(run_chunk, tasks, jobs=jobs, scheduler=scheduler,
@@ -305,6 +311,7 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
         raise type(exc)(f"{exc}; {finished} of {samples} samples done{where}",
                         done=finished) from None
     rows = store.rows() if store is not None else sorted(rows, key=lambda r: r["index"])
+    logger.info("campaign on %s done: %d samples", robot.name, len(rows))
     return Campaign(robot=robot.name, joint_names=list(robot.joint_names),
                     laws=[law.describe() for law in laws], rows=rows,
                     settings={**settings.to_dict(), "reference": reference.to_dict()})

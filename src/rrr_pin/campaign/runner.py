@@ -13,6 +13,7 @@ the CLI's ``--controllers fl,hinf,pd`` and Python callers build the same objects
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import asdict, dataclass
 
@@ -24,6 +25,8 @@ from ..control.laws import check_law
 from ..sim.simulation import ENGINES, reuse_preparation, simulate, time_grid
 from ..sim.trajectory import SimulationDiverged, Trajectory
 from ..validation import check_positive, check_rate, check_vector
+
+logger = logging.getLogger(__name__)
 
 __all__ = [
     "RunSettings",
@@ -157,6 +160,8 @@ def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
                          f"{', '.join(BUILTIN_LAWS)}, got {names!r}")
     laws = [make_law(name, nominal, K=K, lam_fl=lam_fl, lam_hinf=lam_hinf) for name in names]
     check_laws(laws, nominal.nq)
+    for law in laws:
+        logger.info("law %r built for %s: %s", law.name, nominal.name, law.label or law.name)
     return laws
 
 

@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import os
 import signal
 import threading
@@ -83,6 +84,8 @@ PARTS = "parts.jsonl"
 _FORMAT = "rrr-pin-campaign"
 _VERSION = 2  # 2: rows carry a checksum (version 1 had none)
 _CHECKSUM = "_sha256"  # key of a row's checksum in parts.jsonl
+
+logger = logging.getLogger(__name__)
 
 
 class StoreError(ValueError):
@@ -400,6 +403,10 @@ class CampaignStore:
             if overwrite:
                 fh.truncate(0)
             done = _recover(parts_path, fh, _digest(settings)) if resume else set()
+            if resume:
+                logger.info("store %s: resuming, %d samples already on disk", out, len(done))
+            elif overwrite:
+                logger.info("store %s: previous campaign deleted (overwrite)", out)
             if not resume and not overwrite:
                 fh.truncate(0)
             fh.seek(0, os.SEEK_END)

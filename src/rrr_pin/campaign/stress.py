@@ -37,6 +37,7 @@ References
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
 
@@ -56,6 +57,8 @@ from .runner import RunSettings
 __all__ = ["StressSettings", "linear_boundary",
            "continuous_boundary", "barrier_guarantee", "barrier_met", "breaking_point",
            "stress", "effects_of", "spectral_radius", "loop_bandwidth"]
+
+logger = logging.getLogger(__name__)
 
 # EFFECTS and DEFAULT_BUDGET live in rrr_pin.control.catalog: the CLI's help lists them without
 # importing this module's numerical dependencies.
@@ -458,6 +461,8 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
         samples.append({"size": size, "rms_error": rms if math.isfinite(rms) else None,
                         "status": "passed" if passed else "over budget" if math.isfinite(rms)
                         else "diverged"})
+        logger.debug("%s, %s %.6g %s: RMS error %.4g rad (%s)", law.name, effect, size, unit, rms,
+                     "passes" if passed else "broken")
         return passed
 
     default = {"delay": 5e-3, "actuator": 100.0, "stiffness": 1e3, "torque": 50.0,
@@ -510,7 +515,7 @@ def _sorted(samples):
 
 
 def stress(plant, laws, reference, effect: str, settings: StressSettings | None = None,
-           home=None) -> dict:
+           home=None, progress=None) -> dict:
     """Find the breaking points of every law for one effect: simulated, predicted, guaranteed.
 
     Parameters
@@ -524,6 +529,8 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
     settings : StressSettings, optional
     home : array-like, shape (n,), optional
         Configuration of the PD loop's linear model [rad] (default: the reference at t = 0).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each law's search (``total = len(laws)``).
 
     Returns
     -------
@@ -544,7 +551,8 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
     rate = settings.run.rate
     guarantee = barrier_guarantee(effect)
     rows = []
-    for law in laws:
+    laws = list(laws)
+    for k, law in enumerate(laws):
         try:
             pred = linear_boundary(law, effect, rate, home)
             cont = continuous_boundary(law, effect, home)
@@ -564,6 +572,11 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
             "agreement": sim / pred if (sim and pred and math.isfinite(pred)) else None,
             "samples": found["samples"],
         })
+        logger.info("%s breaks at %s = %s %s (%d runs; linear prediction %s)", law.name,
+                    effect, "none found" if sim is None else f"{sim:.4g}", unit,
+                    len(found["samples"]), "none" if pred is None else f"{pred:.4g}")
+        if progress:
+            progress(k + 1, len(laws))
     return {"effect": effect, "unit": unit, "direction": direction, "what": what,
             "budget_rad": settings.budget, "settings": {**settings.run.to_dict(),
                                                         "rtol": settings.rtol},

@@ -10,6 +10,8 @@ with a named baseline (``"fl"`` by default, the paper's).
 
 from __future__ import annotations
 
+import logging
+import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -39,6 +41,8 @@ __all__ = [
     "MAX_STUDY_BYTES",
     "check_study_size",
 ]
+
+logger = logging.getLogger(__name__)
 
 
 #: Most memory [bytes] the trajectories a study keeps (every law on every plant, for its
@@ -396,8 +400,14 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     if params is None:
         params = nominal_params(nominal)
     source = params if params is not None else nominal.urdf
+    start = time.perf_counter()
+    logger.info("study on %s: %d laws (%s), nominal + %d uncertain plants (seed %d), %g s runs",
+                nominal.name, len(laws), ", ".join(law.name for law in laws), config.samples,
+                config.seed, config.run.duration)
     plants: list[PlantSample] = sample_plants(source, config.samples, config.seed,
                                               config.tolerances, skip_joints=skip_joints)
+    for p in plants:
+        logger.debug("uncertain plant %d sampled with seed %s", p.index, p.seed)
 
     def task(xml: str, name: str, certify: bool) -> PlantTask:
         return PlantTask(laws=tuple(laws), reference=reference, run=config.run, nominal=nominal,
@@ -407,6 +417,8 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     tasks = [task(nominal.urdf, f"{nominal.name} (nominal)", False)]
     tasks += [task(p.urdf, f"{nominal.name}_sample{p.index:03d}", True) for p in plants]
     jobs = 1 if len(tasks) <= 2 else config.jobs or default_jobs()
+    logger.info("simulating %d plants in %s", len(tasks),
+                "this process" if jobs <= 1 else f"{jobs} processes")
     # run_tasks: workers that die with this process and stop on Ctrl-C/SIGTERM (see executors)
     slot = {id(t): k for k, t in enumerate(tasks)}
     outputs = [None] * len(tasks)
@@ -431,6 +443,9 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
         samples.append(entry)
     task_space = (task_space_errors(reference, nominal, outputs[0][0], samples, plants)
                   if isinstance(reference, TaskSpaceReference) else {})
+    logger.info("study on %s done in %.1f s: %d of %d uncertain plants ran every law",
+                nominal.name, time.perf_counter() - start,
+                sum(1 for s in samples if s["status"] == "ok"), len(samples))
     return StudyResult(robot=nominal.name, joint_names=nominal.joint_names, reference=reference,
                        config=config, laws=[law.describe() for law in laws],
                        nominal=outputs[0][0], samples=samples, plants=plants,

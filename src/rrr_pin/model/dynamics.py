@@ -25,6 +25,7 @@ References
 
 from __future__ import annotations
 
+import logging
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -37,6 +38,8 @@ from .dh import ArmParams, check_inertial
 from .robots import RobotModelError, read_source
 
 __all__ = ["Robot", "load_robot", "robot_from_xml", "check_urdf_inertials", "DEFAULT_GRAVITY"]
+
+logger = logging.getLogger(__name__)
 
 #: Gravity magnitude [m/s^2] used unless told otherwise: the paper's "standard value" 9.8.
 DEFAULT_GRAVITY = 9.8
@@ -542,7 +545,11 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     if gravity is None:
         gravity = source.g if isinstance(source, ArmParams) else DEFAULT_GRAVITY
     raw, name, label = read_source(source)
-    return robot_from_xml(raw, name=name, gravity=gravity, lock=lock, label=label)
+    robot = robot_from_xml(raw, name=name, gravity=gravity, lock=lock, label=label)
+    logger.info("loaded %s from %s: %d joints (%s)%s", robot.name, label, robot.nq,
+                ", ".join(robot.joint_names),
+                f", locked {robot.locked}" if robot.locked else "")
+    return robot
 
 
 def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAULT_GRAVITY,

@@ -11,6 +11,7 @@ verdict is computed from a missing or non-finite number.
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -21,11 +22,10 @@ from ..outputs import writing
 from .design import DESIGN_UNITS
 from .html import write_report_html
 from .jsondata import dumps
-from .viewer import Scene, Track
+from .viewer import MissingMeshWarning, Scene, Track
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "study_captions",
-           "summary_lines",
-           "PAPER_ERROR_RATIO", "PAPER_LAWS"]
+           "summary_lines", "write_trajectories", "PAPER_ERROR_RATIO", "PAPER_LAWS"]
 
 #: The paper's claim for the uncertain plants: "almost a ten times better performance".
 PAPER_ERROR_RATIO = 10.0
@@ -255,13 +255,73 @@ def write_results(result: StudyResult, out: str | Path, design: dict | None = No
     return data
 
 
+def write_trajectories(result: StudyResult, out: str | Path, fmt: str | None = "npz"
+                       ) -> list[Path]:
+    """Write every simulated run of a study as ``out/trajectories/<plant>_<law>.<fmt>``.
+
+    ``<plant>`` is ``nominal`` or ``sample<index:03d>`` (the uncertain plant of
+    ``plants/<robot>_<index:03d>.urdf``), ``<law>`` the law's name; a run that diverged has no
+    file. Each file is :meth:`rrr_pin.sim.trajectory.Trajectory.save`'s (units and metadata
+    in it; read back with :meth:`~rrr_pin.sim.trajectory.Trajectory.load`). Files of an
+    earlier study in ``out/trajectories`` are deleted first, also with ``fmt=None``, which
+    writes nothing (so no file there outlives the study it came from).
+
+    Parameters
+    ----------
+    result : StudyResult
+    out : path-like
+        The study's folder.
+    fmt : {"npz", "csv", "parquet"} or None, default "npz"
+
+    Returns
+    -------
+    list of Path
+        The files written: the nominal plant's first, in law order.
+
+    Raises
+    ------
+    ValueError
+        An unknown format, or a law name that is not a safe file name (letters, digits,
+        ``_ . -``).
+    """
+    import re
+
+    from ..sim.trajectory import FORMATS
+
+    suffix = f".{fmt}"
+    if fmt is not None and suffix not in FORMATS:
+        raise ValueError(f"trajectory format {fmt!r} is unknown; use one of "
+                         f"{', '.join(f[1:] for f in FORMATS)}")
+    folder = Path(out) / "trajectories"
+    for stale in folder.iterdir() if folder.is_dir() else ():
+        if stale.suffix in FORMATS:
+            stale.unlink()
+    if fmt is None:
+        return []
+    for name in result.names:
+        if not re.fullmatch(r"[A-Za-z0-9_.-]+", name) or name.startswith("."):
+            raise ValueError(f"law name {name!r} is not a safe file name (letters, digits, "
+                             f"'_', '.', '-'); cannot name its trajectory file")
+    folder.mkdir(parents=True, exist_ok=True)
+    runs = [("nominal", result.nominal)]
+    runs += [(f"sample{s['index']:03d}", s["trajectories"]) for s in result.samples]
+    written = []
+    for plant, trajectories in runs:
+        for name in result.names:
+            if name in trajectories:
+                written.append(trajectories[name].save(folder / f"{plant}_{name}{suffix}"))
+    return written
+
+
 def write_study_report(result: StudyResult, out: str | Path, figures, design: dict | None,
                        robot: Robot) -> Path:
     """Write ``out/report.html``: results table, figures, design and one 3D scene per law.
 
     In each scene the nominal plant is opaque and the uncertain plants are translucent ghosts.
     Each uncertain plant's model is built once from its URDF (``result.plants``) and shared by
-    the scenes of every law that ran on it.
+    the scenes of every law that ran on it; its mesh files are looked for where the nominal's
+    are. Mesh files not found are drawn as simple shapes, with one
+    :class:`~rrr_pin.report.viewer.MissingMeshWarning` per distinct set of files.
 
     Parameters
     ----------
@@ -284,9 +344,13 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
 
     def model(plant) -> Robot:
         if plant.index not in models:
+            # label: the plant's mesh references are the nominal's, byte for byte (only
+            # inertials and joint origins are perturbed), so the viewer looks for them where
+            # it finds the nominal's (an example-robot-data folder, the URDF's own folder).
             models[plant.index] = robot_from_xml(plant.urdf, gravity=robot.gravity,
                                                  lock=dict(robot.locked),
-                                                 name=f"sample{plant.index}", check=False)
+                                                 name=f"sample{plant.index}", check=False,
+                                                 label=robot.source)
         return models[plant.index]
 
     scenes = []
@@ -301,12 +365,24 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
         scenes.append(Scene(f"{result.label(name)}: nominal and uncertain plants", robot,
                             tracks))
     captions = study_captions(result, design)
-    return write_report_html(Path(out) / "report.html", title=f"rrr-pin study on {result.robot}",
-                             tables=[("Study tables",
-                                      results_markdown(result))],
-                             figures=[(f, captions.get(Path(f).name, Path(f).name))
-                                      for f in figures],
-                             design=design, scenes=scenes, units=DESIGN_UNITS)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        path = write_report_html(Path(out) / "report.html",
+                                 title=f"rrr-pin study on {result.robot}",
+                                 tables=[("Study tables", results_markdown(result))],
+                                 figures=[(f, captions.get(Path(f).name, Path(f).name))
+                                          for f in figures],
+                                 design=design, scenes=scenes, units=DESIGN_UNITS)
+    # Every scene draws the nominal and its plants, which share the nominal's mesh files:
+    # each set of missing files is warned about once, not once per plant and law.
+    seen = set()
+    for w in caught:
+        if isinstance(w.message, MissingMeshWarning):
+            if w.message.missing in seen:
+                continue
+            seen.add(w.message.missing)
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+    return path
 
 
 def study_captions(result: StudyResult, design: dict | None = None) -> dict:

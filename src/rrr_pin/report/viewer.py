@@ -42,7 +42,8 @@ import pinocchio as pin
 from ..model.dynamics import Robot
 
 __all__ = ["Track", "Scene", "scene_html", "scene_document", "write_scene_html",
-           "camera_view", "ViewerSizeError", "MAX_SCENE_BYTES", "CAMERA_FOV"]
+           "camera_view", "ViewerSizeError", "MissingMeshWarning", "MAX_SCENE_BYTES",
+           "CAMERA_FOV"]
 
 #: Default byte budget of one scene's HTML document [bytes].
 MAX_SCENE_BYTES = 10_000_000
@@ -65,6 +66,14 @@ _MIN_FPS = 2.0
 
 class ViewerSizeError(ValueError):
     """A scene that cannot fit its byte budget, even with its frames decimated."""
+
+
+class MissingMeshWarning(UserWarning):
+    """Mesh files of a URDF not found (drawn as simple shapes); ``.missing`` lists them."""
+
+    def __init__(self, message: str, missing=()):
+        super().__init__(message)
+        self.missing = tuple(missing)
 
 
 @dataclass(frozen=True, eq=False)
@@ -289,8 +298,9 @@ def _geometry_models(robot: Robot, package_dirs) -> tuple[pin.GeometryModel, pin
     """Visual and collision geometry of ``robot`` (missing meshes warned about, replaced)."""
     text, missing = _geometry_urdf(robot, package_dirs)
     if missing:
-        warnings.warn(f"robot {robot.name!r}: mesh files not found, drawn as simple shapes "
-                      f"instead: {', '.join(missing)}", UserWarning, stacklevel=3)
+        warnings.warn(MissingMeshWarning(f"robot {robot.name!r}: mesh files not found, drawn as "
+                                         f"simple shapes instead: {', '.join(missing)}",
+                                         missing), stacklevel=3)
     visual = pin.buildGeomFromUrdfString(robot.model, text, pin.GeometryType.VISUAL)
     collision = pin.buildGeomFromUrdfString(robot.model, text, pin.GeometryType.COLLISION)
     return visual, collision, missing

@@ -37,6 +37,7 @@ the tracking errors move by orders of magnitude less than the differences the st
 
 from __future__ import annotations
 
+import logging
 import math
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -74,6 +75,8 @@ __all__ = [
     "MAX_SUBSTEPS",
     "MAX_SAMPLES",
 ]
+
+logger = logging.getLogger(__name__)
 
 #: Default RK4 step of the continuous-time simulation [s], and the largest default plant
 #: sub-step of a sampled one.
@@ -345,6 +348,13 @@ def _choose_engine(law, engine: str):
     from .extension import available
 
     ok = form is not None and available() and implements(form)
+    if logger.isEnabledFor(logging.DEBUG):
+        why = ("it declares a compiled form the extension implements" if ok
+               else "it declares no compiled form" if form is None
+               else "the compiled extension is not built" if not available()
+               else "the extension does not implement its compiled form")
+        logger.debug("engine auto chose %s for law %r because %s",
+                     "compiled" if ok else "python", law.name, why)
     return (form, "compiled") if ok else (None, "python")
 
 

@@ -3,12 +3,17 @@
 :class:`Trajectory` (the result), :class:`SimulationDiverged` and the divergence test
 (:func:`diverged_joint`, :data:`VELOCITY_LIMIT`: one definition for the Python and the compiled
 engines), and :class:`Run`, a validated run that :func:`rrr_pin.sim.simulation.simulate` hands
-to an engine. Imports nothing of rrr_pin.
+to an engine; :meth:`Trajectory.save` and :meth:`Trajectory.load` write and read a trajectory
+as CSV, NPZ or Parquet (:data:`FORMATS`). Imports nothing of rrr_pin.
 """
 
 from __future__ import annotations
 
+import csv
+import io
+import json
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +27,8 @@ __all__ = [
     "make_trajectory",
     "VELOCITY_LIMIT",
     "REASONS",
+    "FORMATS",
+    "TrajectoryFileError",
 ]
 
 #: A joint speed above this [rad/s] is taken as a blow-up of the simulation.
@@ -61,6 +68,11 @@ class Trajectory:
         The law's name and the plant's name.
     info : dict
         ``engine`` ("python", "compiled" or "codegen"), integration settings.
+    joint_names : list of str
+        Names of the n joints, base to tip (empty for a trajectory built by hand without them).
+    joint_units : list of str
+        Unit of each joint's position: ``"rad"`` (revolute) or ``"m"`` (prismatic, whose
+        velocity is in m/s and force in N); empty means every joint is revolute.
     """
 
     t: np.ndarray
@@ -71,6 +83,8 @@ class Trajectory:
     controller: str = ""
     plant: str = ""
     info: dict = field(default_factory=dict)
+    joint_names: list = field(default_factory=list)
+    joint_units: list = field(default_factory=list)
 
     def _repr_html_(self) -> str:
         """Summary table for notebooks: plant, law, duration, rate, engine, RMS error, status."""
@@ -96,6 +110,107 @@ class Trajectory:
     def error(self) -> np.ndarray:
         """Tracking error ``e = r - q`` [rad], shape (N, n)."""
         return self.r - self.q
+
+    def save(self, path) -> Path:
+        """Write the time series and their metadata to ``path``; the suffix picks the format.
+
+        Units are SI and written with the data: ``t`` [s], ``q`` and ``r`` [rad], ``qd``
+        [rad/s], ``tau`` [N m] (for a prismatic joint m, m/s and N). Every format holds the
+        same metadata, ``{"format": "rrr-pin trajectory", "version": 1, "controller",
+        "plant", "joint_names", "joint_units", "units", "info"}`` (``units`` maps each array
+        to its unit per joint), and the arrays bit for bit:
+
+        * ``.csv``: a preamble of ``# key: value`` lines, each value JSON (one line per
+          metadata key), then one header row ``t [s],q_<joint> [rad],...,qd_<joint> [rad/s],
+          ...,r_<joint> [rad],...,tau_<joint> [N m]`` and one row per sample. Floats are
+          written with :func:`repr`, the shortest text that reads back to the same float64,
+          so the round trip is exact.
+        * ``.npz``: arrays ``t, q, qd, r, tau`` and ``metadata``, the JSON text (read with
+          ``numpy.load(path)``; no pickle).
+        * ``.parquet``: one column per CSV header entry (pyarrow), the JSON text in the
+          schema metadata under ``b"rrr_pin"`` and each column's unit in its field metadata
+          under ``b"unit"``.
+
+        ``info`` is stored as JSON: tuples come back as lists, NumPy scalars as numbers.
+
+        Parameters
+        ----------
+        path : str or path-like
+            File to write (its folder must exist); suffix one of :data:`FORMATS`.
+
+        Returns
+        -------
+        Path
+            The file written.
+
+        Raises
+        ------
+        ValueError
+            An unknown suffix (the message names the allowed ones).
+        """
+        path = Path(path)
+        fmt = _format_of(path)
+        meta = _metadata(self)
+        if fmt == ".csv":
+            _write_csv(path, self, meta)
+        elif fmt == ".npz":
+            with open(path, "wb") as f:  # a file object: numpy would append .npz to a name
+                np.savez(f, t=self.t, q=self.q, qd=self.qd, r=self.r, tau=self.tau,
+                         metadata=np.array(json.dumps(meta)))
+        else:
+            _write_parquet(path, self, meta)
+        return path
+
+    @classmethod
+    def load(cls, path) -> Trajectory:
+        """Read a trajectory written by :meth:`save` (format from the suffix).
+
+        Parameters
+        ----------
+        path : str or path-like
+            A ``.csv``, ``.npz`` or ``.parquet`` file written by :meth:`save`.
+
+        Returns
+        -------
+        Trajectory
+            Arrays of shape ``(N,)`` and ``(N, n)``, metadata as saved.
+
+        Raises
+        ------
+        ValueError
+            An unknown suffix.
+        TrajectoryFileError (a ValueError)
+            The file is not an rrr-pin trajectory (no metadata, another format or version,
+            columns that do not match the joints), naming the file and what is wrong.
+        FileNotFoundError
+            No such file.
+        """
+        path = Path(path)
+        fmt = _format_of(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"trajectory file not found: {path}")
+        if fmt == ".csv":
+            meta, columns = _read_csv(path)
+        elif fmt == ".npz":
+            with np.load(path, allow_pickle=False) as data:
+                if "metadata" not in data.files:
+                    raise TrajectoryFileError(f"{path}: no 'metadata' entry; not written by "
+                                              f"Trajectory.save")
+                meta = _check_metadata(path, data["metadata"].item())
+                arrays = {k: np.array(data[k]) for k in ("t", "q", "qd", "r", "tau")
+                          if k in data.files}
+            n = len(meta["joint_names"]) or (arrays["q"].shape[1] if "q" in arrays else 0)
+            return _trajectory(path, meta, arrays, n)
+        else:
+            meta, columns = _read_parquet(path)
+        n = len(meta["joint_names"]) or (columns.shape[1] - 1) // 4
+        if columns.ndim != 2 or columns.shape[1] != 1 + 4 * n:
+            raise TrajectoryFileError(f"{path}: {columns.shape[-1]} columns, expected 1 + 4 x "
+                                      f"{n} (t, then q, qd, r, tau per joint)")
+        arrays = {"t": columns[:, 0]}
+        for k, key in enumerate(_ARRAYS):
+            arrays[key] = columns[:, 1 + k * n:1 + (k + 1) * n]
+        return _trajectory(path, meta, arrays, n)
 
 
 def metrics(traj: Trajectory) -> dict:
@@ -172,5 +287,171 @@ class Run:
 def make_trajectory(run: Run, Q, QD, TAU) -> Trajectory:
     """Build the :class:`Trajectory` of a finished run (states, torques of shape (N+1, n))."""
     R = run.R if run.sampled else run.R[::2]
+    plant = run.plant
+    units = ["m" if j.shortname().startswith("JointModelP") else "rad"
+             for j in list(plant.model.joints)[1:]]
     return Trajectory(t=run.t, q=Q, qd=QD, r=R, tau=TAU, controller=run.law.name,
-                      plant=run.plant.name, info=dict(run.info))
+                      plant=plant.name, info=dict(run.info),
+                      joint_names=list(plant.joint_names), joint_units=units)
+
+
+# --- files: Trajectory.save / Trajectory.load -------------------------------------------------
+
+#: Suffixes :meth:`Trajectory.save` and :meth:`Trajectory.load` accept.
+FORMATS = (".csv", ".npz", ".parquet")
+
+#: The joint-space arrays, in file order (after ``t``).
+_ARRAYS = ("q", "qd", "r", "tau")
+
+_MAGIC, _VERSION = "rrr-pin trajectory", 1
+
+
+class TrajectoryFileError(ValueError):
+    """A file that :meth:`Trajectory.load` cannot read as a trajectory (the reason is given)."""
+
+
+def _format_of(path: Path) -> str:
+    suffix = path.suffix.lower()
+    if suffix not in FORMATS:
+        raise ValueError(f"{path}: unknown trajectory format {path.suffix or '(no suffix)'!r}; "
+                         f"use one of {', '.join(FORMATS)}")
+    return suffix
+
+
+def _units(traj: Trajectory, n: int) -> dict:
+    pos = list(traj.joint_units) or ["rad"] * n
+    return {"t": "s", "q": pos, "qd": [f"{u}/s" for u in pos], "r": pos,
+            "tau": ["N" if u == "m" else "N m" for u in pos]}
+
+
+def _json_ready(value):
+    if isinstance(value, dict):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _json_ready(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _metadata(traj: Trajectory) -> dict:
+    n = np.shape(traj.q)[1] if np.ndim(traj.q) == 2 else 0
+    return {"format": _MAGIC, "version": _VERSION, "controller": traj.controller,
+            "plant": traj.plant, "joint_names": list(traj.joint_names),
+            "joint_units": list(traj.joint_units), "units": _units(traj, n),
+            "info": _json_ready(traj.info)}
+
+
+def _columns(traj: Trajectory, meta: dict) -> tuple[list[str], list[str], np.ndarray]:
+    """Column names (with units), units, and the (N, 1 + 4 n) table of a trajectory."""
+    q = np.asarray(traj.q, dtype=float)
+    n = q.shape[1]
+    joints = list(traj.joint_names) or [str(j + 1) for j in range(n)]
+    names, units = ["t [s]"], ["s"]
+    for key in _ARRAYS:
+        for joint, unit in zip(joints, meta["units"][key], strict=True):
+            names.append(f"{key}_{joint} [{unit}]")
+            units.append(unit)
+    table = np.column_stack([np.asarray(traj.t, dtype=float)]
+                            + [np.asarray(getattr(traj, k), dtype=float) for k in _ARRAYS])
+    return names, units, table
+
+
+def _write_csv(path: Path, traj: Trajectory, meta: dict) -> None:
+    names, _, table = _columns(traj, meta)
+    with open(path, "w", newline="") as f:
+        for key, value in meta.items():
+            f.write(f"# {key}: {json.dumps(value)}\n")
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(names)
+        for row in table.tolist():
+            f.write(",".join(map(repr, row)) + "\n")
+
+
+def _read_csv(path: Path) -> tuple[dict, np.ndarray]:
+    text = path.read_text()
+    lines = text.splitlines()
+    meta, k = {}, 0
+    while k < len(lines) and lines[k].startswith("#"):
+        key, sep, value = lines[k][1:].strip().partition(":")
+        if sep:
+            try:
+                meta[key.strip()] = json.loads(value)
+            except json.JSONDecodeError:
+                raise TrajectoryFileError(f"{path}, line {k + 1}: metadata {key.strip()!r} is "
+                                          f"not JSON: {value.strip()!r}") from None
+        k += 1
+    meta = _check_metadata(path, meta)
+    if k >= len(lines):
+        raise TrajectoryFileError(f"{path}: no header row after the metadata")
+    header = next(csv.reader([lines[k]]))
+    body = lines[k + 1:]
+    if not body:
+        return meta, np.empty((0, len(header)))
+    try:
+        table = np.loadtxt(io.StringIO("\n".join(body)), delimiter=",", ndmin=2)
+    except ValueError as exc:
+        raise TrajectoryFileError(f"{path}: the rows after the header are not numbers "
+                                  f"({exc})") from None
+    if table.shape[1] != len(header):
+        raise TrajectoryFileError(f"{path}: {table.shape[1]} values per row, header has "
+                                  f"{len(header)}")
+    return meta, table
+
+
+def _write_parquet(path: Path, traj: Trajectory, meta: dict) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    names, units, table = _columns(traj, meta)
+    fields = [pa.field(name, pa.float64(), metadata={b"unit": unit.encode()})
+              for name, unit in zip(names, units, strict=True)]
+    schema = pa.schema(fields, metadata={b"rrr_pin": json.dumps(meta).encode()})
+    arrays = [pa.array(np.ascontiguousarray(table[:, j])) for j in range(table.shape[1])]
+    pq.write_table(pa.Table.from_arrays(arrays, schema=schema), path)
+
+
+def _read_parquet(path: Path) -> tuple[dict, np.ndarray]:
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    raw = (table.schema.metadata or {}).get(b"rrr_pin")
+    if raw is None:
+        raise TrajectoryFileError(f"{path}: no b'rrr_pin' schema metadata; not written by "
+                                  f"Trajectory.save")
+    meta = _check_metadata(path, raw.decode())
+    columns = np.column_stack([table.column(j).to_numpy() for j in range(table.num_columns)]
+                              ) if table.num_columns else np.empty((0, 0))
+    return meta, np.asarray(columns, dtype=float)
+
+
+def _check_metadata(path: Path, meta) -> dict:
+    if isinstance(meta, str):
+        try:
+            meta = json.loads(meta)
+        except json.JSONDecodeError as exc:
+            raise TrajectoryFileError(f"{path}: metadata is not JSON ({exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != _MAGIC:
+        raise TrajectoryFileError(f"{path}: not an rrr-pin trajectory (no metadata "
+                                  f"'format: \"{_MAGIC}\"'); write it with Trajectory.save")
+    if meta.get("version") != _VERSION:
+        raise TrajectoryFileError(f"{path}: trajectory file version {meta.get('version')!r}; "
+                                  f"this rrr-pin reads version {_VERSION}")
+    return meta
+
+
+def _trajectory(path: Path, meta: dict, arrays: dict, n: int) -> Trajectory:
+    missing = [k for k in ("t",) + _ARRAYS if k not in arrays]
+    if missing:
+        raise TrajectoryFileError(f"{path}: arrays {missing} missing")
+    N = arrays["t"].shape[0]
+    for key in _ARRAYS:
+        if arrays[key].shape != (N, n):
+            raise TrajectoryFileError(f"{path}: {key} has shape {arrays[key].shape}, expected "
+                                      f"({N}, {n})")
+    return Trajectory(**arrays, controller=meta.get("controller", ""),
+                      plant=meta.get("plant", ""), info=meta.get("info", {}),
+                      joint_names=list(meta.get("joint_names", [])),
+                      joint_units=list(meta.get("joint_units", [])))
