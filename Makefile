@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 OUT ?= results
 
-.PHONY: install reproduce test test-slow bench clean
+.PHONY: install reproduce test test-slow docs bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -23,5 +23,11 @@ test: install
 test-slow: install
 	$(BIN)/python -m pytest -m slow
 
+# API reference, README and notes, and the gallery of scripts/ (runs the two examples):
+# docs/_build/html/index.html. Warnings are errors, as in CI.
+docs: $(BIN)/python
+	$(BIN)/python -m pip install '.[docs]'
+	$(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html
+
 clean:
-	rm -rf $(VENV) build results
+	rm -rf $(VENV) build results docs/_build docs/api docs/gallery
