@@ -37,3 +37,15 @@ def png_scraper(block, block_vars, gallery_conf):
     dest = Path(next(block_vars["image_path_iterator"]))
     shutil.move(src, dest)
     return figure_rst([str(dest)], gallery_conf["src_dir"])
+
+
+class ExamplesFirst:
+    """Gallery order (``within_subsection_order``): the executed scripts, then the others."""
+
+    def __init__(self, src_dir):
+        self.src_dir = src_dir
+
+    def __call__(self, filename):
+        """Sort key of one script's file name: ARGV's order, then by name."""
+        names = list(ARGV)
+        return (names.index(filename), "") if filename in ARGV else (len(names), filename)
