@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 OUT ?= results
 
-.PHONY: install reproduce test test-slow bench clean
+.PHONY: install reproduce test test-slow docs bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -24,5 +24,12 @@ test: install
 test-slow: install
 	$(BIN)/python -m pytest -m slow
 
+# API reference, README and notes, and the gallery of scripts/ (runs the two examples):
+# docs/_build/html/index.html. Warnings are errors, as in CI.
+docs: $(BIN)/python
+	$(BIN)/python -m pip install '.[docs]'
+	rm -rf docs/api  # autosummary's pages, regenerated: none left from a removed module
+	$(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html
+
 clean:
-	rm -rf $(VENV) build results
+	rm -rf $(VENV) build results docs/_build docs/api docs/gallery docs/sg_execution_times.rst

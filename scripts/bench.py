@@ -1,4 +1,5 @@
 """Benchmark: every figure of issue 13, each with its ratio and goal, measured side by side.
+=========================================================================================
 
 Everything is measured in one run on this machine (named in the output) and printed, never
 asserted:
@@ -15,6 +16,8 @@ asserted:
 4. a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes) against its bound
    ``2 N x floor / 2 cores``, and the throughput with 1 worker;
 5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes.
+
+Usage::
 
     python scripts/bench.py                  # table
     python scripts/bench.py --json           # one JSON object
@@ -170,7 +173,7 @@ def verdict(ratio, goal):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--duration", type=float, default=10.0, help="rollout length [s] (10)")
     parser.add_argument("--rate", type=float, default=1000.0, help="control rate [Hz] (1000)")

@@ -1,5 +1,6 @@
 #!/usr/bin/env python
 """Regenerate (or check) the committed generated dynamics of the nominal RRR.
+==========================================================================
 
 ``src/rrr_pin/_ext/codegen_rrr.c`` is plain C for CRBA, nonLinearEffects and ABA of the model
 ``rrr_pin.model.dynamics.load_robot("rrr")`` (``urdf/rrr.urdf``, gravity ``DEFAULT_GRAVITY`` =
@@ -91,7 +92,7 @@ void rrr_cg_rnea(const double * x, double * y) {{ rrr_rnea(x, y); }}
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     g = ap.add_mutually_exclusive_group(required=True)
     g.add_argument("--check", action="store_true",
                    help="exit 1 if the committed C was generated from another URDF or model")

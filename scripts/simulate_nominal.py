@@ -1,10 +1,13 @@
 """Any built-in laws on the nominal arm: the paper's Fig. 5 from the Python API.
+=============================================================================
 
 Loads the paper's RRR arm (or any URDF / example-robot-data arm), builds the laws by name
 (``fl``: FL alone, lam = 100 rad/s; ``hinf``: H-infinity + FL with the section-4 design,
 lam = 45 rad/s; ``pd``: PD + gravity compensation), runs them on the exact model through the
 runner (:func:`rrr_pin.campaign.runner.run_laws`), prints the per-joint figures and writes a PNG of
 torques and tracking errors.
+
+Usage::
 
     python scripts/simulate_nominal.py --out nominal.png
     python scripts/simulate_nominal.py --robot ur5 --controllers fl,hinf,pd --rate 1000
@@ -20,7 +23,7 @@ from rrr_pin.sim.trajectory import SimulationDiverged, metrics
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--robot", default="rrr", help="'rrr', an example-robot-data name or a "
                                                        "URDF path (default rrr)")
     parser.add_argument("--controllers", default="fl,hinf",

@@ -1,8 +1,11 @@
 """The paper's uncertain study (Fig. 6) from the Python API, for any built-in laws.
+================================================================================
 
 Draws seeded uncertain plants (20 % on masses and moments, 5 % on lengths), runs the laws on
 the nominal arm and on each plant (:func:`rrr_pin.campaign.study.run_study`), prints the headline
 ratios against the baseline law and writes the figure of every plant's torques and errors.
+
+Usage::
 
     python scripts/uncertain_study.py --samples 10 --out uncertain.png
     python scripts/uncertain_study.py --controllers fl,hinf,pd --rate 1000 --jobs 2
@@ -18,7 +21,7 @@ from rrr_pin.report.plotting import plot_study_uncertain, save_figure
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--robot", default="rrr", help="arm name or URDF path (default rrr)")
     parser.add_argument("--controllers", default="fl,hinf",
                         help="built-in laws, comma-separated: fl, hinf, pd (default fl,hinf)")

@@ -167,7 +167,7 @@ def _integrals(A, B, t):
 
 def spectral_radius(law, rate: float, home=None, *, delay: float = 0.0,
                     bandwidth: float | None = None) -> float:
-    """Largest |eigenvalue| of the linear digital loop with a delay [s] and an actuator [rad/s].
+    """Largest ``|eigenvalue|`` of the linear digital loop with a delay [s] and an actuator [rad/s].
 
     The plant ``qdd = M^-1 a`` (``a = u`` or ``a' = wa (u - a)``), driven by the law's
     zero-order-hold output delayed by ``delay``, is discretized exactly at ``Ts = 1/rate``;
