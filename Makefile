@@ -12,7 +12,7 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --upgrade pip
 
 install: $(BIN)/python
-	$(BIN)/python -m pip install '.[test]'
+	$(BIN)/python -m pip install '.[test,docs]'
 
 # reproduce owns $(OUT): --overwrite replaces its previous run there (only the files it wrote)
 reproduce: install
@@ -26,8 +26,11 @@ test-slow: install
 
 # API reference, README and notes, and the gallery of scripts/ (runs the two examples):
 # docs/_build/html/index.html. Warnings are errors, as in CI.
+# Installs the project with its docs extra unless `make install` (or test) already did: a second
+# install would compile the extension again.
 docs: $(BIN)/python
-	$(BIN)/python -m pip install '.[docs]'
+	$(BIN)/python -c "import rrr_pin, sphinx, numpydoc, sphinx_gallery, myst_parser" 2>/dev/null \
+		|| $(BIN)/python -m pip install '.[test,docs]'
 	rm -rf docs/api  # autosummary's pages, regenerated: none left from a removed module
 	$(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html
 
