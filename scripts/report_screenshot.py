@@ -1,4 +1,5 @@
 """Screenshot of a ``report.html``'s 3D animation in headless Chromium (the README's picture).
+===========================================================================================
 
 The README's ``docs/figures/report.png`` is made from the default study, so that it shows
 what ``rrr-pin reproduce`` writes::
@@ -76,7 +77,7 @@ def screenshot(report: Path, out: Path, scene: int = 1, seconds: float = 3.0,
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("report", type=Path, help="a report.html (e.g. results/report.html)")
     parser.add_argument("out", type=Path, help="PNG to write (e.g. docs/figures/report.png)")
     parser.add_argument("--scene", type=int, default=1,
