@@ -96,7 +96,8 @@ def test_mimic_joint_must_be_locked():
 
 
 def test_floating_base_refused(tmp_path):
-    with pytest.raises(RobotModelError, match="floating-base robot"):
+    with pytest.raises(RobotModelError, match=r"loads 'solo12' with a floating base .*give that "
+                                              r"path \(--robot PATH\)"):
         load_robot("solo12")
     text = ('<robot name="f"><link name="world"/><link name="b"><inertial><mass value="1"/>'
             '<inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>'
@@ -156,3 +157,27 @@ def test_every_listed_name_loads():
         lock = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0} if name == "panda" else {}
         robot = load_robot(name, lock=lock)
         assert robot.nq >= 3, name
+
+
+def test_so100_by_name_says_why_and_loads_by_path():
+    # example-robot-data declares the SO-ARM100 floating (SO100Loader.free_flyer = True); its
+    # URDF has no floating joint, so by path it is an arm fixed at its root link (issue 24:
+    # "so100 loads by path but is called floating by name").
+    from rrr_pin.model.robots import erd_urdf_path
+
+    with pytest.raises(RobotModelError, match=r"SO100Loader.free_flyer = True.*so100.urdf, has "
+                                              r"no floating joint"):
+        load_robot("so100")
+    from example_robot_data import robots_loader
+
+    loader = robots_loader.ROBOTS["so100"]
+    path = (Path(__import__("example_robot_data").getModelPath(
+        f"{loader.path}/{loader.urdf_subpath}/{loader.urdf_filename}"))
+        / loader.path / loader.urdf_subpath / loader.urdf_filename)
+    text = path.read_text()
+    assert "floating" not in text
+    arm = load_robot(str(path))
+    # as many coordinates as the URDF has moving joints (a free flyer would add 7)
+    assert arm.nq == len(re.findall(r'type="(?:revolute|continuous|prismatic)"', text))
+    with pytest.raises(RobotModelError):
+        erd_urdf_path("so100")

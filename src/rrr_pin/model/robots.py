@@ -109,6 +109,11 @@ def erd_urdf_path(name: str) -> Path:
     if not path.is_file():
         raise FileNotFoundError(f"example-robot-data URDF for {name!r} not found at {path}")
     if getattr(loader, "free_flyer", False):
-        raise RobotModelError(f"{name!r} is a floating-base robot; rrr-pin handles fixed-base "
-                              f"arms only")
+        # example-robot-data adds the floating root itself (its URDF files have no floating
+        # joint), so the file can still be read as a fixed-base tree: say both, and the way.
+        raise RobotModelError(
+            f"example-robot-data loads {name!r} with a floating base ({loader.__name__}."
+            f"free_flyer = True) and rrr-pin handles fixed-base arms only; its URDF, {path}, "
+            f"has no floating joint: to use it as an arm fixed at its root link, give that "
+            f"path (--robot PATH)")
     return path
