@@ -75,7 +75,7 @@ def fenced_blocks(text: str) -> list[tuple[str, str, int]]:
     """``(language, code, first line number)`` of every fenced block."""
     out, lines, i = [], text.splitlines(), 0
     while i < len(lines):
-        m = re.match(r"^```(\w*)\s*$", lines[i])
+        m = re.match(r"^```([^`\s]*)", lines[i])  # ```python, ```, or MyST's ```{include}
         if m:
             start, i = i + 1, i + 1
             while not lines[i].startswith("```"):
@@ -420,8 +420,8 @@ def test_gravity_and_pinocchio_against_the_closed_form():
 
 def test_layer_table_lists_every_module():
     rows = re.findall(r"^\| `rrr_pin\.(\w+)` \|([^|]*)\|", README, re.M)
-    assert {layer for layer, _ in rows} == {"validation", "model", "robust", "control", "sim",
-                                            "campaign", "report", "cli"}
+    assert {layer for layer, _ in rows} == {"validation", "outputs", "model", "robust", "control",
+                                            "sim", "campaign", "report", "cli"}
     for layer, modules in rows:
         listed = set(re.findall(r"`(\w+)`", modules))
         folder = ROOT / "src" / "rrr_pin" / layer
