@@ -220,14 +220,14 @@ namespace rrr_pin
           eval.state_map(x, xn);
           x.swap(xn);
         }
-        if constexpr (!Ideal)
-          fx.saturate(tau);
-        if (const int j = first_nonfinite(tau); j >= 0)
+        if (const int j = first_nonfinite(tau); j >= 0)  // the law's own output
         {
           out.TAU.row(k) = tau.transpose();
           out.law_failed(k, j);
           break;
         }
+        if constexpr (!Ideal)
+          fx.saturate(tau);
         if constexpr (Ideal)
         {
           out.TAU.row(k) = tau.transpose();

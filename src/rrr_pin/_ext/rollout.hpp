@@ -35,7 +35,7 @@ namespace rrr_pin
 
   /// Divergence reasons, mirrored in rrr_pin.sim.trajectory.REASONS (same order of tests as
   /// rrr_pin.sim.trajectory.diverged_joint: non-finite, then speed, then limits). kLawTorque:
-  /// the law's torque (after saturation) is NaN or inf; bad_step is then the step whose law
+  /// the law's torque (before any saturation) is NaN or inf; bad_step is then the step whose law
   /// evaluation (sampled: at its start; continuous: at one of its RK4 stages) returned it.
   enum Reason : int
   {

@@ -409,8 +409,9 @@ def plot_campaign(campaign, path) -> Path:
         ax1.set_xscale("log")
         ax1.legend(fontsize="small")
     else:
-        ax1.text(0.5, 0.5, "one controller: no ratio", ha="center", va="center",
-                 transform=ax1.transAxes)
+        text = ("one controller: no ratio" if len(names) < 2 else
+                "no ratio: undefined (0/0) or a diverged run on every plant")
+        ax1.text(0.5, 0.5, text, ha="center", va="center", transform=ax1.transAxes)
     ax1.set_xlabel(f"RMS error {labels[base]} / RMS error of the controller [-]")
     ax1.set_ylabel("Number of plants [-]")
     ax1.set_title(f"Error ratio against the baseline ({labels[base]})")
@@ -418,11 +419,13 @@ def plot_campaign(campaign, path) -> Path:
     joints = campaign.joint_names
     pos = np.arange(len(joints))
     width = 0.8 / len(names)
+    positive = True  # a log axis, unless some error is 0 (a reference held exactly)
     for i, key in enumerate(names):
         data = [[r[f"{key}_rms_error_{j}"] for r in rows if f"{key}_rms_error_{j}" in r]
                 for j in joints]
         if not any(data):
             continue
+        positive = positive and min(min(d, default=1.0) for d in data) > 0.0
         offset = (i - (len(names) - 1) / 2) * width
         bp = ax2.boxplot(data, positions=pos + offset, widths=0.9 * width, patch_artist=True,
                          showfliers=True, flierprops={"markersize": 2})
@@ -431,7 +434,7 @@ def plot_campaign(campaign, path) -> Path:
             box.set_alpha(0.6)
         ax2.plot([], [], color=colours[key], lw=6, alpha=0.6, label=labels[key])
     ax2.set_xticks(pos, joints, rotation=30 if len(joints) > 4 else 0)
-    ax2.set_yscale("log")
+    ax2.set_yscale("log" if positive else "linear")
     ax2.set_xlabel("Joint")
     ax2.set_ylabel("RMS tracking error [rad]")
     ax2.set_title("Per-joint error spread")

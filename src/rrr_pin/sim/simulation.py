@@ -535,6 +535,9 @@ def _python_effects(run: Run) -> Trajectory:
             qdm = qdm + nqd_[k]
         if k:
             tau, x = step(t[k], qm, qdm, R[k], RD[k], RDD[k], x)
+            # Checked at every step: a saturation would clip an inf, a delay hold a NaN back.
+            if not np.isfinite(tau).all():
+                raise _law_failure(run, (tau,), k)
         else:  # the edge where the law meets the engine: check its first output
             tau, x = check_step_output(law, step(t[0], qm, qdm, R[0], RD[0], RDD[0], x), t[0])
         if limit is not None:
@@ -572,12 +575,6 @@ def _python_effects(run: Run) -> Trajectory:
         Q[k + 1], QD[k + 1] = q, qd
         bad = check(q, qd, lower, upper)
         if bad is not None:
-            raise (_law_failure(run, TAU[:k + 1])
-                   or divergence(plant, float(t[k + 1]), q, qd, *bad))
-    # A NaN torque still in the delay line at the end drove no step; it stops the run all the
-    # same (the compiled engine stops where the law returned it).
-    stop = _law_failure(run, TAU[:N])
-    if stop is not None:
-        raise stop
+            raise divergence(plant, float(t[k + 1]), q, qd, *bad)
     TAU[N] = TAU[N - 1]
     return make_trajectory(run, Q, QD, TAU)
