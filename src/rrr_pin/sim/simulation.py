@@ -26,6 +26,15 @@ end of a control period (sampled) or of an RK4 step (continuous), a joint's ``q`
 NaN/inf, ``|qd|`` exceeds :data:`VELOCITY_LIMIT`, or ``q`` leaves the plant's joint limits
 widened by ``limit_margin``.
 
+A law's outputs (:mod:`rrr_pin.control.laws`) are checked on its first call, where a user's law
+meets the engine (:func:`~rrr_pin.control.laws.check_law_output`: a wrong type, shape or a NaN
+is a ``ValueError`` naming the law), and trusted afterwards. A NaN or inf torque later stops the
+run with its own reason (:func:`~rrr_pin.sim.trajectory.law_divergence`): at the control step
+where a sampled law returned it, or at the RK4 step one of whose stages did; both engines. Such
+a torque makes the state non-finite, so the Python engine looks for it only when the state goes
+bad (no cost per step), except with plant effects, where a saturation could clip an inf and a
+delay hold a NaN back: there every command is checked.
+
 Accuracy: RK4's global error is ``O(dt^4)``; ``tests/test_simulate.py`` halves the step and shows
 the tracking errors move by orders of magnitude less than the differences the study reports.
 """
