@@ -126,7 +126,7 @@ def test_reproduce_saves_trajectories(tmp_path, capsys):
     (["reproduce", "--reference", "circle", "--radius", "-0.1"],
      "--radius must be a finite number > 0, got -0.1"),
     (["reproduce", "--reference", "circle", "--radius", "0.05", "--normal", "0,0,0"],
-     "normal must be a non-zero vector"),
+     "--normal must be a non-zero vector (a direction), got [0.0, 0.0, 0.0]"),
     (["montecarlo", "--samples", "0"], "--samples must be an integer >= 1, got 0"),
 ], ids=["robot", "lock-syntax", "home-limits", "home-size", "lock-unknown", "amp-nan",
         "amp-inf", "short", "short-sampled", "jobs0", "jobs-1", "seed", "samples", "dt",
@@ -329,3 +329,40 @@ def test_summary_records_the_delay_realized(tmp_path):
     assert s["settings"]["dt_s"] == 1e-3
     fx = s["settings"]["effects"]
     assert fx["delay_substeps"] == 2 and fx["delay_s"] == 2 * 1e-3
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["urdf", "--params", "{dir}"], "--params"),
+    (["check-dynamics", "--urdf", "{dir}"], "--urdf"),
+    (["check-dynamics", "--params", "{dir}"], "--params"),
+    (["reproduce", "--robot", "{dir}", "--out", "{dir}/o"], "--robot"),
+    (["reproduce", "--reference", "spline", "--csv", "{dir}", "--out", "{dir}/o"], "--csv"),
+    (["montecarlo", "--samples", "1", "--robot", "{dir}", "--out", "{dir}/o"], "--robot"),
+    (["stress", "--effect", "delay", "--robot", "{dir}", "--out", "{dir}/o"], "--robot"),
+], ids=["urdf-params", "check-urdf", "check-params", "reproduce-robot", "reproduce-csv",
+        "montecarlo-robot", "stress-robot"])
+def test_a_folder_given_for_a_file_is_refused_as_a_folder(argv, option, tmp_path, capsys):
+    # It said "file not found" (the folder exists).
+    folder = tmp_path / "a.urdf"
+    folder.mkdir()
+    assert cli.main([a.format(dir=folder) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert f"{option} {folder}: is a directory, expected a file" in err
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--lam", "1e9"], "--lam must be in [1e-06, 1e+07] rad/s"),
+    (["--lam", "1e-9"], "--lam must be in [1e-06, 1e+07] rad/s"),
+    (["--lam", "nan"], "--lam must be a finite number > 0 [rad/s], got nan"),
+    (["--factor", "0.5"], "--factor must be >= 1 (1 = optimal controller), got 0.5"),
+    (["--factor", "inf"], "--factor must be finite, got inf"),
+    (["--joints", "0"], "--joints must be an integer >= 1, got 0"),
+], ids=["lam-huge", "lam-tiny", "lam-nan", "factor-below-1", "factor-inf", "joints-0"])
+def test_design_names_its_options(argv, message, capsys):
+    # --lam 1e9 failed deep inside the synthesis ("Riccati equation without stabilizing
+    # solution"); lam, factor and n were named as the Python arguments.
+    assert cli.main(["design", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+

@@ -90,3 +90,11 @@ def test_tip_position_closed_form():
         height = 1.0 + np.sin(q[1]) + np.sin(q[1] + q[2])
         tip = forward_kinematics(paper_params(), q)[-1][:3, 3]
         assert_allclose(tip, [reach * np.cos(q[0]), reach * np.sin(q[0]), height], atol=1e-14)
+
+
+def test_load_refuses_a_folder_as_a_folder(tmp_path):
+    # It said "parameter file not found" (the folder exists).
+    (tmp_path / "p.json").mkdir()
+    with pytest.raises(ValueError, match=r"p.json: is a directory; a parameter set is a JSON "
+                                         r"file"):
+        ArmParams.load(tmp_path / "p.json")

@@ -197,3 +197,53 @@ def test_gravity_is_a_magnitude():
     with pytest.raises(ValueError, match=r"gravity must be a finite number >= 0 \[m/s\^2\], "
                                          r"got -9\.8"):
         robot_from_xml(urdf_from_params(), gravity=-9.8)
+
+
+def _scaled_rrr(s_mass, s_length):
+    """The paper's arm with masses x s_mass, lengths x s_length (inertias x s_mass s_length^2)."""
+    import dataclasses
+
+    from rrr_pin.model.dh import paper_params
+
+    p = paper_params()
+    links = tuple(dataclasses.replace(
+        link, a=link.a * s_length, d=link.d * s_length, lg=link.lg * s_length,
+        mass=link.mass * s_mass, J=tuple(j * s_mass * s_length**2 for j in link.J))
+        for link in p.links)
+    return dataclasses.replace(p, links=links)
+
+
+@pytest.mark.parametrize("s_mass, s_length", [(1e-12, 1.0), (1e-6, 1e-3), (1.0, 1e12),
+                                              (1e12, 1.0), (1e-9, 1e6)],
+                         ids=["1e-12kg", "mm-mg", "1e12m", "1e12kg", "tiny-mass-long"])
+def test_a_tiny_or_huge_arm_loads_and_scales_as_m_l2(s_mass, s_length):
+    # An absolute floor (eig_min > 1e-12 max(eig_max, 1)) refused the 1e-12 kg arm as
+    # "singular". Reference: M is homogeneous of degree 1 in the masses and 2 in the lengths,
+    # so M_scaled(q) = s_mass s_length^2 M(q) exactly; rtol 1e-12 covers the round-off of the
+    # scaled parameters (~1e-16) through CRBA.
+    nominal = load_robot("rrr")
+    arm = load_robot(_scaled_rrr(s_mass, s_length))
+    q = np.array([0.3, -0.7, 1.1])
+    assert_allclose(arm.M(q), s_mass * s_length**2 * nominal.M(q), rtol=1e-12,
+                    atol=1e-12 * s_mass * s_length**2 * np.abs(nominal.M(q)).max())
+
+
+def test_a_joint_that_moves_no_inertia_is_still_refused():
+    # A point mass on joint 1's own axis: M = [0], singular whatever the scale.
+    text = ('<robot name="axis"><link name="base"/>'
+            '<link name="l1"><inertial><mass value="2"/><origin xyz="0 0 0.5"/>'
+            '<inertia ixx="0" iyy="0" izz="0" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+            '<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>'
+            '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/>'
+            '</joint></robot>')
+    with pytest.raises(RobotModelError, match=r"mass matrix is singular .* some joint moves "
+                                              r"no inertia about its axis"):
+        robot_from_xml(text)
+
+
+def test_a_folder_is_refused_as_a_folder(tmp_path):
+    # It said "URDF file not found" (the folder exists).
+    (tmp_path / "arm.urdf").mkdir()
+    with pytest.raises(RobotModelError, match=r"arm.urdf: is a directory; a robot is a URDF "
+                                              r"file or a name"):
+        load_robot(tmp_path / "arm.urdf")

@@ -19,12 +19,13 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rrr_pin import paper_params
-from rrr_pin.control.effects import Resolved
+from rrr_pin.control.effects import PlantEffects, Resolved
 from rrr_pin.control.laws import (
     CompiledForm,
     ControlLaw,
     FLForm,
     PDForm,
+    PDGravity,
     SampledLaw,
     TrackingController,
     fl_controller,
@@ -515,3 +516,48 @@ def test_engines_agree_with_each_plant_effect_alone(rrr_plant, rrr_laws, rrr_ref
                      dt=2.5e-4, engine="compiled")
     # Not a comparison of two ideal runs: the effect changes the trajectory.
     assert np.abs(b.q - ideal.q).max() > 1e-9
+
+
+# --- a law's NaN or inf torque: the same status on both engines (issue 24) ---------------------
+
+def test_a_torque_overflow_at_an_rk4_stage_stops_both_engines_alike(rrr):
+    # Kd = 1e306 with qd0 1e-3 rad/s off the reference: the first stage's torque is ~1e303 N m
+    # (finite), the arm's acceleration ~1e302, and the second stage's Kd (rd - v2) overflows to
+    # -inf. Both engines stop at the step from t = 0 with the law's reason.
+    law = PDGravity(nominal=rrr, Kp=np.full(3, 1e3), Kd=np.full(3, 1e306))
+    ref = default_reference(rrr)
+    qd0 = ref(0.0)[1] + [1e-3, 0.0, 0.0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        py, cc = run_both(rrr, law, ref, 0.05, qd0=qd0)
+    assert str(py) == str(cc) == (
+        "simulation of plant 'rrr' stopped at t = 0 s: law 'pd' returned a non-finite torque "
+        "(NaN or inf) for joint 'joint1' in the step from t = 0 s")
+
+
+def test_a_saturated_inf_torque_stops_both_engines_at_the_same_step(rrr):
+    # Kp = 1e308 under a 1 N m saturation: the arm falls under gravity, and once |r - q| > 1.8
+    # rad, Kp (r - q) overflows to inf. The saturation would clip it to 1 N m; both engines stop
+    # where the law returned it instead (the same control step, the same joint).
+    law = PDGravity(nominal=rrr, Kp=np.full(3, 1e308), Kd=np.zeros(3))
+    ref = QuinticReference(start=np.zeros(3), goal=np.zeros(3), move_time=1.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        py, cc = run_both(rrr, law, ref, 1.0, rate=RATE, effects=PlantEffects(torque_limit=1.0))
+    assert str(py) == str(cc)
+    assert (py.time, py.joint) == (cc.time, cc.joint)
+    assert py.joint == "joint2" and 0.1 < py.time < 1.0
+    assert "law 'pd' returned a non-finite torque (NaN or inf)" in str(py)
+
+
+@pytest.mark.parametrize("rate", [None, RATE], ids=["continuous", "sampled"])
+def test_a_non_finite_first_torque_is_the_same_value_error_on_both_engines(rrr, rate):
+    # 2 rad off the reference: Kp (r - q) = -2e308 overflows at the first call.
+    law = PDGravity(nominal=rrr, Kp=np.full(3, 1e308), Kd=np.zeros(3))
+    ref = default_reference(rrr)
+    q0 = ref(0.0)[0] + [2.0, 0.0, 0.0]
+    out = []
+    for engine in ("python", "compiled"):
+        with np.errstate(over="ignore"), pytest.raises(ValueError) as info:
+            simulate(rrr, law, ref, 0.05, rate=rate, q0=q0, engine=engine)
+        out.append(str(info.value))
+    assert out[0] == out[1]
+    assert "law 'pd'" in out[0] and "the non-finite [-inf, " in out[0]

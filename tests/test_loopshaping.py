@@ -12,7 +12,14 @@ from rrr_pin.robust.barriers import (
     robust_performance_barrier,
     robust_stability_barrier,
 )
-from rrr_pin.robust.loopshaping import design, fl_plant, lag_weight, loopsyn, zpk_data
+from rrr_pin.robust.loopshaping import (
+    LAM_RANGE,
+    design,
+    fl_plant,
+    lag_weight,
+    loopsyn,
+    zpk_data,
+)
 from rrr_pin.robust.lti import (
     DimensionMismatchError,
     ImproperSystemError,
@@ -416,3 +423,22 @@ def test_design_many_joints():
 def test_scalar_arguments_use_the_shared_validators(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+@pytest.mark.parametrize("lam", [1e-9, 0.99e-6, 1.01e7, 1e9], ids=["1e-9", "below", "above",
+                                                                    "1e9"])
+def test_design_refuses_lam_outside_its_range(lam):
+    # 1e9 failed deep inside the synthesis (no stabilizing Riccati solution), 1e8 with a
+    # spurious "uncontrollable mode", 1e-8 with an "improper controller".
+    with pytest.raises(ValueError, match=r"lam must be in \[1e-06, 1e\+07\] rad/s .* got "):
+        design(lam=lam)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("lam", LAM_RANGE, ids=["low end", "high end"])
+def test_design_succeeds_at_both_ends_of_lam_range(lam):
+    # The range keeps a decade inside the measured failures (1e-8 and 1e8 rad/s): the
+    # synthesis at the ends still meets its own optimality, gamma = gamma_min (factor 1).
+    d = design(lam=lam)
+    assert np.isfinite(d.ncf.gamma) and d.ncf.gamma >= 1.0
+    assert_allclose(d.ncf.gamma, d.ncf.gamma_min, rtol=1e-9)

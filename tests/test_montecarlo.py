@@ -250,3 +250,76 @@ def test_rrr_campaign_perturbs_the_papers_parameters(setup, serial):
     settings = mc.CampaignSettings(samples=1, run=RUN)
     given = mc.run_campaign(robot, laws, settings, params=paper_params(), jobs=1)
     assert given.rows == serial.rows[:1]
+
+
+# --- degenerate metrics (issue 24) ------------------------------------------------------------
+
+@pytest.mark.parametrize("num, den, expected", [
+    (2.0, 4.0, 0.5), (3.0, 0.0, np.inf), (0.0, 2.0, 0.0),
+    (0.0, 0.0, None), (np.nan, 1.0, None), (1.0, np.inf, None), (-1.0, 1.0, None),
+], ids=["plain", "x/0", "0/x", "0/0", "nan", "inf", "negative"])
+def test_ratio_is_undefined_for_0_over_0_and_non_finite_figures(num, den, expected):
+    from rrr_pin.campaign.runner import ratio
+
+    assert ratio(num, den) == expected
+
+
+def test_a_zero_error_of_both_laws_gives_no_ratio_but_a_stated_reason(tmp_path):
+    # A reference at rest without gravity: both laws hold it exactly, RMS errors and torques are
+    # 0 (exactly: the state never leaves q0 = r, tau = 0), so baseline / law is 0/0. It was
+    # recorded as inf ("infinitely better") and counted in the summary.
+    from rrr_pin.control.references import SineReference
+    from rrr_pin.report.campaign import summary_lines, write_campaign
+
+    robot = load_robot("rrr", gravity=0.0)
+    ref = SineReference(home=np.zeros(3), amp=np.zeros(3), freq=np.zeros(3), phase=np.zeros(3))
+    laws = make_laws("fl,pd", robot)
+    settings = mc.CampaignSettings(samples=2, seed=0, baseline="fl",
+                                   run=RunSettings(duration=0.02, rate=1000.0))
+    campaign = mc.run_campaign(robot, laws, settings, reference=ref, jobs=1)
+    for row in campaign.rows:
+        assert row["status"] == "ok" and row["fl_rms_error"] == 0.0 == row["pd_rms_error"]
+        assert "error_ratio_pd" not in row and "torque_ratio_pd" not in row
+        assert row["undefined"] == (
+            "error_ratio_pd undefined: RMS error of pd (0.0) and of the baseline fl (0.0) give "
+            "no ratio; torque_ratio_pd undefined: RMS torque of pd (0.0) and of the baseline fl "
+            "(0.0) give no ratio")
+    s = write_campaign(campaign, tmp_path)
+    assert s["undefined"] == {"error_ratio_pd": 2, "torque_ratio_pd": 2}
+    assert "error_ratio_pd" not in s and s["fraction_better"] == {}
+    with open(tmp_path / "campaign.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["error_ratio_pd"] for r in rows] == ["", ""]
+    assert all(r["undefined"].startswith("error_ratio_pd undefined") for r in rows)
+    assert ("error_ratio_pd undefined (no ratio: 0/0 or not finite) on 2 plants, left out; see "
+            "the column 'undefined' of campaign.csv") in summary_lines(campaign, s)
+
+
+def test_a_law_returning_nan_mid_run_gives_a_stated_status(setup):
+    # The campaign goes on; the status says which law returned what, and when.
+    from dataclasses import dataclass
+
+    from rrr_pin.control.laws import ControlLaw, pd_controller
+
+    robot, _ = setup
+    pd = pd_controller(robot)
+
+    @dataclass(frozen=True)
+    class NanLater(ControlLaw):
+        name: str = "nanlater"
+        n: int = 3
+
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            tau = pd.torque(t, q, qd, r, rd, rdd, x)
+            return tau if t < 0.01 - 1e-12 else tau * np.nan
+
+    settings = mc.CampaignSettings(samples=2, seed=0, baseline="pd",
+                                   run=RunSettings(duration=0.02, rate=1000.0))
+    campaign = mc.run_campaign(robot, [pd, NanLater()], settings, jobs=1)
+    for row in campaign.rows:
+        assert row["status"] == (
+            f"diverged: nanlater: simulation of plant 'sample{row['index']:05d}' stopped at "
+            f"t = 0.01 s: law 'nanlater' returned a non-finite torque (NaN or inf) for joint "
+            f"'joint1' in the step from t = 0.01 s")
+        assert "nanlater_rms_error" not in row and "error_ratio_nanlater" not in row
+    assert mc.campaign_summary(campaign)["samples_diverged"] == 2

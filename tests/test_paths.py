@@ -159,3 +159,16 @@ def test_study_reports_the_cartesian_error_of_a_task_space_reference(rrr, tmp_pa
     assert "## Task space: error of frame `ee`" in results_markdown(result)
     fig = plot_task_space(result)
     assert [ax.get_ylabel() for ax in fig.axes] == ["y [m]", "Cartesian error |p(q) - p*(t)| [mm]"]
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e300], ids=["tiny", "huge"])
+def test_a_normal_of_any_length_gives_the_circle_of_its_direction(scale):
+    # A tiny normal gave "center must be finite" (n @ n underflowed to 0, then 0/0); a huge
+    # one overflowed. The circle depends on the direction only: the unit normal's circle.
+    p0 = np.array([0.3, -0.2, 1.1])
+    normal = np.array([0.0, 0.6, 0.8])
+    got = circle_from_start(p0, 0.05, scale * normal)
+    want = circle_from_start(p0, 0.05, normal)
+    s = np.linspace(0.0, 1.0, 9)
+    assert_allclose(got.point(s), want.point(s), rtol=0, atol=1e-15)  # round-off of ~1 m
+    assert_allclose(got.normal, normal, rtol=0, atol=1e-15)

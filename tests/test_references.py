@@ -3,16 +3,20 @@ import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
+from rrr_pin.control.laws import pd_controller
 from rrr_pin.control.references import (
     CirclePath,
     IKError,
     LinePath,
     QuinticReference,
+    Reference,
     SineReference,
     SplineReference,
+    checked_sample,
     task_space_reference,
 )
 from rrr_pin.model.dynamics import load_robot
+from rrr_pin.sim.simulation import simulate
 
 
 @pytest.fixture(scope="module")
@@ -136,3 +140,54 @@ def test_unreachable_path_names_the_point(rrr):
 def test_unknown_frame(rrr):
     with pytest.raises(ValueError, match="frame 'nosuch' is not in robot"):
         task_space_reference(rrr, "nosuch", LinePath([0, 0, 1], [0, 0, 1.1]), 1.0)
+
+
+# --- a user's reference that returns the wrong thing (issue 24) -------------------------------
+
+class _Returns(Reference):
+    """A user's reference whose ``__call__`` returns ``out(t)``."""
+
+    def __init__(self, out, n=3):
+        self.out, self.n = out, n
+
+    def __call__(self, t):
+        return self.out(t)
+
+
+_Z = np.zeros(3)
+
+
+@pytest.mark.parametrize("out, message", [
+    (lambda t: 0.0, r"__call__\(0\) returned 0\.0 \(float\); expected a tuple \(r, rd, rdd\)"),
+    (lambda t: None, r"__call__\(0\) returned None \(NoneType\)"),
+    (lambda t: (_Z, _Z), r"__call__\(0\) returned \(array"),
+    (lambda t: (np.zeros(4), np.zeros(4), np.zeros(4)),
+     r"__call__\(0\) returned \(array.* of 3 arrays of shape \(3,\)"),
+    (lambda t: (_Z + np.nan, _Z, _Z), r"r is nan \(not finite\) at t = 0 s for joint 0"),
+    (lambda t: (_Z, _Z, _Z + (np.inf if t > 0.0105 else 0.0)),
+     r"rdd is inf \(not finite\) at t = 0\.011 s for joint 0"),
+], ids=["scalar", "None", "pair", "shape", "nan-r", "inf-rdd-later"])
+def test_a_wrong_reference_is_refused_naming_it(out, message):
+    # They gave a TypeError, an IndexError, numpy's "cannot reshape", or (a NaN rdd) nothing.
+    rrr = load_robot("rrr")
+    with pytest.raises(ValueError, match=r"reference _Returns: " + message):
+        simulate(rrr, pd_controller(rrr), _Returns(out), 0.05, engine="python")
+
+
+def test_a_wrong_sample_override_is_refused_naming_it():
+    class Flat(Reference):
+        n = 3
+
+        def __call__(self, t):
+            return _Z, _Z, _Z
+
+        def sample(self, t):
+            return np.zeros((len(t), 2)), np.zeros((len(t), 3)), np.zeros((len(t), 3))
+
+    t = np.linspace(0.0, 1.0, 5)
+    with pytest.raises(ValueError, match=r"reference Flat: sample\(\) returned r of shape "
+                                         r"\(5, 2\), expected \(5, 3\)"):
+        checked_sample(Flat(), t)
+    R, RD, RDD = checked_sample(_Returns(lambda s: (_Z + s, _Z + 1.0, _Z)), t)
+    assert_allclose(R[:, 0], t, rtol=0, atol=0)  # exact: the values the reference returned
+    assert_allclose(RD, 1.0, rtol=0, atol=0)

@@ -1,15 +1,25 @@
+from dataclasses import dataclass
+
 import control
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.control.laws import TrackingController, fl_controller, hinf_fl_controller
+from rrr_pin.control.effects import PlantEffects
+from rrr_pin.control.laws import (
+    ControlLaw,
+    SampledLaw,
+    TrackingController,
+    fl_controller,
+    hinf_fl_controller,
+    pd_controller,
+)
 from rrr_pin.control.references import SineReference, default_reference
 from rrr_pin.model.dh import ArmParams, paper_params
 from rrr_pin.model.dynamics import load_robot
 from rrr_pin.model.uncertainty import sample_plants
 from rrr_pin.sim.simulation import simulate
-from rrr_pin.sim.trajectory import SimulationDiverged, metrics
+from rrr_pin.sim.trajectory import REASONS, SimulationDiverged, metrics
 
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
                  [1.0, 513.37 + 0.19, 513.37 * 0.19])
@@ -227,3 +237,126 @@ def test_auto_engine_choice_is_logged_with_its_reason(caplog):
     assert said[0].startswith(f"engine auto chose {fl.info['engine']} for law 'fl' because ")
     assert said[1] == ("engine auto chose python for law 'hold' because it declares no "
                        "compiled form") and hold.info["engine"] == "python"
+
+
+# --- a user's law that returns the wrong thing (issue 24) -----------------------------------
+
+class _Out(ControlLaw):
+    """A static law whose torque is ``out(t, pd_torque)`` (the wrong thing under test)."""
+
+    def __init__(self, nominal, out, name="mylaw"):
+        object.__setattr__(self, "pd", pd_controller(nominal))
+        object.__setattr__(self, "out", out)
+        object.__setattr__(self, "name", name)
+        object.__setattr__(self, "n", nominal.nq)
+
+    def torque(self, t, q, qd, r, rd, rdd, x):
+        return self.out(t, self.pd.torque(t, q, qd, r, rd, rdd, x))
+
+
+class _SampledOut(SampledLaw):
+    """The same as a SampledLaw of its own (step returns ``(out(...), x)``)."""
+
+    def __init__(self, nominal, out, name="mysampled"):
+        self.pd, self.out, self.name, self.n = pd_controller(nominal), out, name, nominal.nq
+
+    def step(self, t, q, qd, r, rd, rdd, x):
+        return self.out(t, self.pd.torque(t, q, qd, r, rd, rdd, x)), x
+
+
+WRONG_OUTPUTS = {
+    "scalar": (lambda t, tau: 1.0, r"1\.0 \(float\)"),
+    "None": (lambda t, tau: None, r"None \(NoneType\)"),
+    "list": (lambda t, tau: tau.tolist(), r"\[.*\] \(list\)"),
+    "shape (4,)": (lambda t, tau: np.zeros(4), r"an array of shape \(4,\) and dtype float64"),
+    "shape (3, 1)": (lambda t, tau: tau[:, None], r"an array of shape \(3, 1\) and dtype float64"),
+    "int dtype": (lambda t, tau: np.zeros(3, dtype=int), r"an array of shape \(3,\) and dtype "
+                                                          r"int64"),
+    "NaN": (lambda t, tau: tau * np.nan, r"the non-finite \[nan, nan, nan\]"),
+    "inf": (lambda t, tau: tau + np.inf, r"the non-finite \[inf, inf, inf\]"),
+}
+
+
+@pytest.mark.parametrize("out, words", WRONG_OUTPUTS.values(), ids=WRONG_OUTPUTS.keys())
+@pytest.mark.parametrize("kind, rate", [("continuous", None), ("sampled form", 1000.0),
+                                        ("SampledLaw", None)])
+def test_a_wrong_first_output_is_refused_naming_the_law(setup, out, words, kind, rate):
+    nominal, _, _, ref = setup
+    law = _SampledOut(nominal, out) if kind == "SampledLaw" else _Out(nominal, out)
+    method = "torque\\(\\)" if kind == "continuous" else "step\\(\\) torque"
+    with pytest.raises(ValueError, match=rf"law '{law.name}' .*{method} returned {words} at "
+                                         rf"t = 0 s; expected a finite float64 ndarray of "
+                                         rf"shape \(3,\)"):
+        simulate(nominal, law, ref, 0.05, rate=rate, engine="python")
+
+
+def test_a_stateful_law_whose_derivative_has_the_wrong_shape_is_refused(setup):
+    nominal, _, _, ref = setup
+
+    @dataclass(frozen=True)
+    class Leaky(ControlLaw):
+        name: str = "leaky"
+        n: int = 3
+        nx: int = 2
+
+        def initial_state(self):
+            return np.zeros(2)
+
+        def torque(self, t, q, qd, r, rd, rdd, x):
+            return nominal.G(q)
+
+        def derivative(self, t, q, qd, r, rd, rdd, x):
+            return np.zeros(3)  # nx = 2
+
+    with pytest.raises(ValueError, match=r"law 'leaky' \(Leaky\): derivative\(\) returned an "
+                                         r"array of shape \(3,\)"):
+        simulate(nominal, Leaky(), ref, 0.05, engine="python")
+
+
+def _nan_after(t_nan):
+    return lambda t, tau: tau if t < t_nan - 1e-12 else tau * np.nan
+
+
+@pytest.mark.parametrize("kind, rate, t_stop", [
+    # Sampled at 1 kHz: the law returns NaN at its call at t = 20 ms. Continuous, dt = 1 ms:
+    # the 4th RK4 stage of the step from 19 ms is evaluated at 20 ms: that step stops the run.
+    ("continuous", None, 0.019), ("sampled form", 1000.0, 0.02), ("SampledLaw", None, 0.02)])
+def test_a_nan_torque_mid_run_stops_it_with_its_own_reason(setup, kind, rate, t_stop):
+    nominal, _, _, ref = setup
+    law = (_SampledOut if kind == "SampledLaw" else _Out)(nominal, _nan_after(0.02))
+    with pytest.raises(SimulationDiverged) as info:
+        simulate(nominal, law, ref, 0.05, rate=rate, engine="python")
+    assert_allclose(info.value.time, t_stop, rtol=0, atol=1e-12)
+    assert info.value.joint == "joint1"
+    assert str(info.value) == (
+        f"simulation of plant 'rrr' stopped at t = {t_stop:g} s: law '{law.name}' returned a "
+        f"non-finite torque (NaN or inf) for joint 'joint1' in the step from t = {t_stop:g} s")
+    assert REASONS[3] == "got a non-finite torque (NaN or inf) from the law"
+
+
+def test_a_nan_torque_at_the_last_sample_stops_a_continuous_run(setup):
+    # The torque at t = duration drives no RK4 step, yet it is in the trajectory (and its RMS).
+    # 50 RK4 steps call the law 4 times each; call 201 is the last sample's, and only it is NaN.
+    nominal, _, _, ref = setup
+    calls = []
+
+    def out(t, tau):
+        calls.append(t)
+        return tau * np.nan if len(calls) == 201 else tau
+
+    with pytest.raises(SimulationDiverged, match=r"stopped at t = 0\.05 s: law 'mylaw'"):
+        simulate(nominal, _Out(nominal, out), ref, 0.05, engine="python")
+    assert len(calls) == 201
+
+
+@pytest.mark.parametrize("effects", [PlantEffects(delay=0.005), PlantEffects(torque_limit=1000.0)],
+                         ids=["delay", "saturation"])
+def test_a_nan_torque_is_caught_where_the_law_returns_it_with_effects(setup, effects):
+    # A 5 ms delay holds the NaN back (a law's NaN at 48 ms would reach the plant after the
+    # 50 ms run); a saturation would clip an inf. Either way the run stops at the law's call.
+    nominal, _, _, ref = setup
+    law = _Out(nominal, lambda t, tau: tau if t < 0.048 - 1e-12 else tau + np.inf)
+    with pytest.raises(SimulationDiverged, match=r"stopped at t = 0\.048 s: law 'mylaw' "
+                                                 r"returned a non-finite torque"):
+        simulate(nominal, law, ref, 0.05, rate=1000.0, engine="python", effects=effects)
+

@@ -55,6 +55,16 @@ def test_line_and_circle_start_where_the_frame_is(rrr):
                                     q_start=home))
 
 
+@pytest.mark.parametrize("normal", [(0.0, 0.0, 1e-200), (0.0, 0.0, 1e300)],
+                         ids=["tiny", "huge"])
+def test_a_circle_normal_of_any_length_is_its_direction(rrr, normal):
+    # They gave "center must be finite, got [nan, nan, nan]" (n @ n under- or overflowed).
+    home = np.array([0.2, 0.6, -1.0])
+    got = ReferenceSpec(kind="circle", home=tuple(home), radius=0.05, normal=normal)
+    want = ReferenceSpec(kind="circle", home=tuple(home), radius=0.05, normal=(0.0, 0.0, 1.0))
+    _same(got.build(rrr, 2.0), want.build(rrr, 2.0))
+
+
 def option(field):
     return "--" + field.replace("_", "-")
 

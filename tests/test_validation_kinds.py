@@ -12,13 +12,16 @@ import numpy as np
 import pytest
 
 from rrr_pin.validation import (
+    FieldError,
     check_count,
+    check_direction,
     check_positive,
     check_probability,
     check_rate,
     check_real,
     check_size,
     check_vector,
+    describe_value,
 )
 
 # --- check_real --------------------------------------------------------------------------------
@@ -262,3 +265,35 @@ def test_check_multiple_refuses_values_between_steps_and_below_low():
         check_multiple("x", 0.05, 0.1, low=1, unit="s")  # 0 is below low: one candidate
     with pytest.raises(FieldError, match=r"^x = 0 s is below 1 steps = 0.1 s$"):
         check_multiple("x", 0.0, 0.1, low=1, unit="s")
+
+
+# --- check_direction ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("value, expected", [
+    ((0, 0, 2.5), (0, 0, 1)), ((3, 4, 0), (0.6, 0.8, 0)),
+    ((3e-200, 4e-200, 0), (0.6, 0.8, 0)),  # v @ v underflows to 0 in double precision
+    ((3e300, -4e300, 0), (0.6, -0.8, 0)),  # v @ v overflows to inf
+    ((5e-324, 0, 0), (1, 0, 0)),  # the smallest subnormal is still a direction
+], ids=["z", "3-4-5", "tiny", "huge", "subnormal"])
+def test_check_direction_returns_the_unit_vector(value, expected):
+    # Hand-computed unit vectors (3-4-5 triangle); 1e-15: a few ulps of values ~1.
+    np.testing.assert_allclose(check_direction("normal", value), expected, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("value, message", [
+    ((0, 0, 0), "normal must be a non-zero vector (a direction), got [0.0, 0.0, 0.0]"),
+    ((0, 0, -0.0), "normal must be a non-zero vector (a direction), got [0.0, 0.0, -0.0]"),
+    ((np.nan, 0, 1), "normal must be finite, got [nan, 0.0, 1.0]"),
+    ((0, 1), "Expected normal of shape (3,), got (2,)"),
+], ids=["zero", "minus-zero", "nan", "short"])
+def test_check_direction_refuses(value, message):
+    with pytest.raises(FieldError, match=re.escape(message)) as info:
+        check_direction("normal", value)
+    assert info.value.field == "normal"
+
+
+def test_describe_value_names_the_type_and_cuts_long_values():
+    assert describe_value(None) == "None (NoneType)"
+    assert describe_value([1.0, 2.0]) == "[1.0, 2.0] (list)"
+    long = describe_value(list(range(100)))
+    assert long.endswith("... (list)") and len(long) == 80 + len("... (list)")

@@ -184,6 +184,7 @@ def _cmd_urdf(args) -> int:
     from .model.dh import ArmParams, paper_params
     from .model.urdf import check_urdf, urdf_from_params, write_urdf
 
+    _not_a_folder(params=args.params)
     params = ArmParams.load(args.params) if args.params else paper_params()
     if args.check:
         if args.out == "-":
@@ -250,6 +251,7 @@ def _cmd_check_dynamics(args) -> int:
     check_positive("--rtol", args.rtol, allow_zero=True)
     check_count("--samples", args.samples, 1)
     check_count("--seed", args.seed)
+    _not_a_folder(urdf=args.urdf, params=args.params)
     params = ArmParams.load(args.params) if args.params else paper_params()
     robot = load_robot(args.urdf if args.urdf else params, gravity=params.g)
     result = compare_with_pinocchio(robot, params, samples=args.samples, seed=args.seed)
@@ -284,8 +286,12 @@ def _cmd_design(args) -> int:
     from .report.design import design_lines, design_summary
     from .report.jsondata import dumps
     from .robust.loopshaping import design
+    from .validation import FieldError
 
-    d = design(lam=args.lam, n=args.joints, factor=args.factor)
+    try:
+        d = design(lam=args.lam, n=args.joints, factor=args.factor)
+    except FieldError as exc:  # design's lam, n, factor are --lam, --joints, --factor
+        raise exc.relabelled(lambda f: "--joints" if f == "n" else _option(f)) from None
     figures = []
     if args.out is not None:
         from .report.plotting import save_design_figures
@@ -313,6 +319,15 @@ def _parse_lock(items) -> dict:
         except ValueError:
             raise ValueError(f"--lock {item!r}: {value!r} is not a number") from None
     return lock
+
+
+def _not_a_folder(**options) -> None:
+    """Refuse a folder given where a file is expected (``--urdf DIR``), naming the option."""
+    from pathlib import Path
+
+    for field, path in options.items():
+        if path is not None and Path(path).is_dir():
+            raise ValueError(f"{_option(field)} {path}: is a directory, expected a file")
 
 
 def _floats(text: str | None, name: str):
@@ -518,6 +533,7 @@ def _cmd_reproduce(args) -> int:
     out = _check_out_early(args, "reproduce")  # a file, no permission, another tool's run
     check_count("--samples", args.samples)
     lock = _parse_lock(args.lock)
+    _not_a_folder(robot=args.robot, csv=args.csv)
     robot = load_robot(args.robot, lock=lock)
     settings = _settings_from_args(args, robot.nq)
     reference = _reference_from_args(args, robot)
@@ -607,6 +623,7 @@ def _cmd_montecarlo(args) -> int:
     args.write_hint = (f"; the samples finished so far are kept in {args.out}/parts.jsonl: "
                        "free space, then rerun with --resume")
     lock = _parse_lock(args.lock)
+    _not_a_folder(robot=args.robot, csv=args.csv)
     robot = load_robot(args.robot, lock=lock)
     run = _settings_from_args(args, robot.nq)
     reference = _reference_from_args(args, robot)
@@ -717,6 +734,7 @@ def _cmd_stress(args) -> int:
                                                   force=args.force),
                                   budget=args.budget)
     _claim_out(args, "stress", part=args.effect)  # one folder holds every effect's run
+    _not_a_folder(robot=args.robot)
     robot = load_robot(args.robot, lock=_parse_lock(args.lock))
     home = _floats(args.home, "--home")
     reference = ReferenceSpec(home=None if home is None else tuple(home)).build(

@@ -11,7 +11,11 @@ and the expected range, in the same words everywhere:
 * :func:`check_multiple`: a whole number of steps (a delay, a duration on a time grid);
 * :func:`check_probability`: a number in [0, 1];
 * :func:`check_vector`: a finite vector of shape (n,);
+* :func:`check_direction`: a finite non-zero vector of shape (n,), returned of unit length;
 * :func:`check_matrix`: a finite matrix of a given shape.
+
+:func:`describe_value` words a value that is not what was expected (its repr and type), for
+the messages about what a user's law or reference returned.
 
 Public entry points call them once; inner loops trust what they were handed. Booleans, ``None``
 and strings are refused as numbers everywhere (``float(True)`` would read a JSON ``true`` as 1).
@@ -39,7 +43,9 @@ __all__ = [
     "MULTIPLE_RTOL",
     "check_probability",
     "check_vector",
+    "check_direction",
     "check_matrix",
+    "describe_value",
 ]
 
 
@@ -251,6 +257,26 @@ def check_vector(name: str, value, n: int | None = None, *, readonly: bool = Fal
     return v
 
 
+def check_direction(name: str, value, n: int = 3) -> np.ndarray:
+    """Return the unit vector of a direction ``value``: finite, shape ``(n,)``, not zero.
+
+    Any non-zero length is accepted, from 1e-300 to 1e300: the vector is scaled by its
+    largest entry before it is normalized, so that neither ``v @ v`` nor the norm under- or
+    overflows.
+
+    Raises
+    ------
+    ValueError
+        As :func:`check_vector`, or ``"{name} must be a non-zero vector, got [0.0, ...]"``.
+    """
+    v = check_vector(name, value, n)
+    scale = float(np.abs(v).max()) if v.size else 0.0
+    if scale == 0.0:
+        raise _fail(name, f" must be a non-zero vector (a direction), got {v.tolist()}")
+    v = v / scale
+    return v / np.linalg.norm(v)
+
+
 def check_matrix(name: str, value, shape: tuple[int, int], *,
                  readonly: bool = False) -> np.ndarray:
     """Return ``value`` as a finite float matrix of exactly ``shape``.
@@ -284,3 +310,9 @@ def check_matrix(name: str, value, shape: tuple[int, int], *,
         arr = arr.copy()
         arr.setflags(write=False)
     return arr
+
+
+def describe_value(value) -> str:
+    """Return a value's ``repr`` (cut at 80 characters) and type, for an error message."""
+    text = repr(value)
+    return f"{text[:80]}{'...' if len(text) > 80 else ''} ({type(value).__name__})"

@@ -38,6 +38,15 @@ namespace rrr_pin
       return {};
     }
 
+    /// Index of the first NaN or inf entry of a torque, or -1.
+    int first_nonfinite(const Vec & tau)
+    {
+      for (Eigen::Index j = 0; j < tau.size(); ++j)
+        if (!std::isfinite(tau[j]))
+          return static_cast<int>(j);
+      return -1;
+    }
+
     void check_inputs(
       const CompiledModel & plant, const CompiledModel & nominal, Eigen::Index nx,
       const RolloutInputs & in)
@@ -119,11 +128,14 @@ namespace rrr_pin
       Parts parts;
       std::int64_t k = 0;          // RK4 step
       const Vec * tau = nullptr;   // torque of the last slope
+      int bad_joint = -1;          // first joint of a NaN or inf torque of the law, or -1
 
       void slope(const State & y, int point, State & d)
       {
         const std::int64_t i = 2 * k + point;
         tau = &law.torque(y.q, y.qd, in.R.row(i), in.RD.row(i), in.RDD.row(i), y.x);
+        if (bad_joint < 0)
+          bad_joint = first_nonfinite(*tau);
         if (parts.x)
           law.state_map(y.x, d.x);
         d.q = y.qd;
@@ -154,6 +166,13 @@ namespace rrr_pin
           return true;
         bad_step = k + 1;
         return false;
+      }
+
+      /// Stop at step k: the law returned a NaN or inf torque for joint j.
+      void law_failed(std::int64_t k, int j)
+      {
+        bad_step = k;
+        bad = {j, kLawTorque};
       }
 
       RolloutResult result()
@@ -201,6 +220,14 @@ namespace rrr_pin
           eval.state_map(x, xn);
           x.swap(xn);
         }
+        if (const int j = first_nonfinite(tau); j >= 0)  // the law's own output
+        {
+          out.TAU.row(k) = tau.transpose();
+          out.law_failed(k, j);
+          break;
+        }
+        if constexpr (!Ideal)
+          fx.saturate(tau);
         if constexpr (Ideal)
         {
           out.TAU.row(k) = tau.transpose();
@@ -210,7 +237,6 @@ namespace rrr_pin
         }
         else
         {
-          fx.saturate(tau);
           out.TAU.row(k) = tau.transpose();  // also the delay line: row j = command j
           if (k == 0)
             fx.start(tau, y);
@@ -253,10 +279,14 @@ namespace rrr_pin
         loop.k = k;
         loop.slope(y, 0, w.k1);
         out.TAU.row(k) = loop.tau->transpose();
-        if (k == N)
+        if (k < N)
+          rk4_rest(loop, y, in.h, w);
+        if (loop.bad_joint >= 0)
+        {
+          out.law_failed(k, loop.bad_joint);
           break;
-        rk4_rest(loop, y, in.h, w);
-        if (!out.record(k, y, in))
+        }
+        if (k == N || !out.record(k, y, in))
           break;
       }
       return out.result();

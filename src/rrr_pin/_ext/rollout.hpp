@@ -34,13 +34,16 @@ namespace rrr_pin
   };
 
   /// Divergence reasons, mirrored in rrr_pin.sim.trajectory.REASONS (same order of tests as
-  /// rrr_pin.sim.trajectory.diverged_joint: non-finite, then speed, then limits).
+  /// rrr_pin.sim.trajectory.diverged_joint: non-finite, then speed, then limits). kLawTorque:
+  /// the law's torque (before any saturation) is NaN or inf; bad_step is then the step whose law
+  /// evaluation (sampled: at its start; continuous: at one of its RK4 stages) returned it.
   enum Reason : int
   {
     kOk = -1,
     kNonFinite = 0,
     kSpeed = 1,
     kLimits = 2,
+    kLawTorque = 3,
   };
 
   /// (q, qd, tau) of shape (N + 1, n), NaN after a divergence; bad_step (-1: none), bad_joint,

@@ -132,7 +132,8 @@ class Campaign:
         ``parameters`` and, per law that ran, ``<law>_rms_error``, ``<law>_max_error`` [rad],
         ``<law>_rms_torque`` [N m], ``<law>_rms_error_<joint>`` [rad]; per law other than the
         baseline, ``error_ratio_<law>`` and ``torque_ratio_<law>``
-        (:func:`rrr_pin.campaign.runner.error_ratios`).
+        (:func:`rrr_pin.campaign.runner.error_ratios`); a ratio that is undefined (0/0) is
+        left out and ``undefined`` says which and why.
     settings : dict
         :meth:`CampaignSettings.to_dict` plus the reference.
     """
@@ -194,9 +195,14 @@ def sample_row(job: CampaignJob, k: int) -> dict:
                if not isinstance(t, SimulationDiverged)}
     for name, m in figures.items():
         row.update({f"{name}_{key}": v for key, v in m.items()})
+    undefined = []
     for name, r in error_ratios(figures, settings.baseline).items():
-        row[f"error_ratio_{name}"] = r["error_ratio"]
-        row[f"torque_ratio_{name}"] = r["torque_ratio"]
+        for key in ("error_ratio", "torque_ratio"):
+            if r[key] is not None:  # an undefined ratio is left out, its reason stated
+                row[f"{key}_{name}"] = r[key]
+        undefined += r.get("undefined", [])
+    if undefined:
+        row["undefined"] = "; ".join(undefined)
     if job.certificate is not None:
         cert = job.certificate.certify(job.nominal, plant, job.reference, settings.run.duration)
         row["certified"], row["nugap_max"] = cert["certified"], cert["nugap_max"]
@@ -330,13 +336,14 @@ def _metrics(names, baseline):
     return out
 
 
-def campaign_columns(names, baseline, joint_names, certified: bool = False) -> list[str]:
-    """Columns of ``campaign.csv``, in order."""
+def campaign_columns(names, baseline, joint_names, certified: bool = False,
+                     undefined: bool = False) -> list[str]:
+    """Columns of ``campaign.csv``, in order (``undefined``: the reasons of undefined ratios)."""
     columns = ["index", "seed", "status"] + (["certified", "nugap_max"] if certified else [])
     columns += list(_metrics(names, baseline))
     for name in names:
         columns += [f"{name}_rms_error_{j}" for j in joint_names]
-    return columns
+    return columns + (["undefined"] if undefined else [])
 
 
 def campaign_summary(campaign: Campaign) -> dict:
@@ -349,7 +356,9 @@ def campaign_summary(campaign: Campaign) -> dict:
         indices), ``baseline``, ``fraction_better`` (per law other than the baseline: share of
         the samples where both ran in which the law's RMS error is smaller) and, per metric,
         ``{median, p95, worst, count}`` ("worst" is the maximum, except for the error ratios,
-        where it is the minimum: the least benefit over the baseline).
+        where it is the minimum: the least benefit over the baseline); ``undefined``
+        (when some ratio is undefined, e.g. 0/0): per ratio, the number of samples where it
+        is (they are left out of its figures).
     """
     rows, base = campaign.rows, campaign.baseline
     ok = [r for r in rows if r["status"] == "ok"]
@@ -367,6 +376,15 @@ def campaign_summary(campaign: Campaign) -> dict:
             out[metric] = {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)),
                            "worst": float(v.max() if worst == "max" else v.min()),
                            "count": int(v.size)}
+    undefined = {}
+    for name in campaign.names:  # both laws ran, yet no ratio: it is undefined on that row
+        ran = [r for r in rows if f"{name}_rms_error" in r and f"{base}_rms_error" in r]
+        for key in (f"error_ratio_{name}", f"torque_ratio_{name}"):
+            count = sum(1 for r in ran if key not in r) if name != base else 0
+            if count:
+                undefined[key] = count
+    if undefined:
+        out["undefined"] = undefined
     certs = [r for r in rows if "certified" in r]
     if certs:
         out["certified"] = sum(1 for r in certs if r["certified"])

@@ -35,6 +35,7 @@ __all__ = [
     "run_laws",
     "run_metrics",
     "error_ratios",
+    "ratio",
 ]
 
 @dataclass(frozen=True)
@@ -219,11 +220,25 @@ def run_metrics(traj: Trajectory, joint_names) -> dict:
     return out
 
 
+def ratio(num: float, den: float) -> float | None:
+    """``num / den`` of two figures >= 0; ``inf`` for ``x / 0`` (x > 0); None if undefined.
+
+    None for ``0 / 0`` and for a NaN or inf figure: no number states how the two compare.
+    """
+    if not (math.isfinite(num) and math.isfinite(den)) or num < 0 or den < 0:
+        return None
+    if den == 0.0:
+        return None if num == 0.0 else math.inf
+    return num / den
+
+
 def error_ratios(metrics_by_law: dict, baseline: str) -> dict:
     """Compare each law with the baseline.
 
     ``error_ratio`` = baseline RMS error / the law's (above 1: the law tracks better),
-    ``torque_ratio`` = the law's RMS torque / the baseline's.
+    ``torque_ratio`` = the law's RMS torque / the baseline's, each by :func:`ratio`: ``inf``
+    when only the denominator is 0, and None, with the reason in ``undefined``, when both are
+    0 (e.g. a reference at rest that both laws hold exactly) or one is not finite.
 
     Parameters
     ----------
@@ -234,8 +249,9 @@ def error_ratios(metrics_by_law: dict, baseline: str) -> dict:
     Returns
     -------
     dict
-        ``{name: {"error_ratio": float, "torque_ratio": float}}`` for every law but the
-        baseline; empty if the baseline did not run.
+        ``{name: {"error_ratio": float or None, "torque_ratio": float or None}}`` for every
+        law but the baseline, plus ``"undefined": [sentence, ...]`` when a ratio is None;
+        empty if the baseline did not run.
     """
     base = metrics_by_law.get(baseline)
     if base is None:
@@ -244,10 +260,17 @@ def error_ratios(metrics_by_law: dict, baseline: str) -> dict:
     for name, m in metrics_by_law.items():
         if name == baseline:
             continue
-        out[name] = {"error_ratio": base["rms_error"] / m["rms_error"]
-                     if m["rms_error"] > 0 else math.inf,
-                     "torque_ratio": m["rms_torque"] / base["rms_torque"]
-                     if base["rms_torque"] > 0 else math.inf}
+        r = {"error_ratio": ratio(base["rms_error"], m["rms_error"]),
+             "torque_ratio": ratio(m["rms_torque"], base["rms_torque"])}
+        undefined = [
+            f"{key}_{name} undefined: {what} of {name} ({m[metric]!r}) and of the baseline "
+            f"{baseline} ({base[metric]!r}) give no ratio"
+            for key, metric, what in (("error_ratio", "rms_error", "RMS error"),
+                                      ("torque_ratio", "rms_torque", "RMS torque"))
+            if r[key] is None]
+        if undefined:
+            r["undefined"] = undefined
+        out[name] = r
     return out
 
 

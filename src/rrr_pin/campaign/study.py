@@ -24,7 +24,7 @@ from ..model.uncertainty import PlantSample, sample_plants
 from ..sim.simulation import time_grid
 from ..sim.trajectory import SimulationDiverged, metrics
 from .executors import check_jobs, default_jobs, run_tasks
-from .runner import RunSettings, check_laws, run_laws
+from .runner import RunSettings, check_laws, ratio, run_laws
 from .settings import Settings
 
 if TYPE_CHECKING:
@@ -229,7 +229,8 @@ def summarize(result: StudyResult) -> dict:
         the samples where every law ran, per law other than the baseline:
         ``error_ratio_uncertain`` (RMS error over all joints, samples and time of the baseline
         divided by the law's: above 1, the law tracks better), ``error_ratio_uncertain_per_joint``
-        and ``torque_ratio_uncertain`` (RMS torque of the law over the baseline's).
+        and ``torque_ratio_uncertain`` (RMS torque of the law over the baseline's); each
+        ratio by :func:`rrr_pin.campaign.runner.ratio`, None where undefined (0/0).
     """
     names, base = result.names, result.config.baseline
     ok = [s for s in result.samples if s["status"] == "ok"]
@@ -252,13 +253,18 @@ def summarize(result: StudyResult) -> dict:
             return np.sqrt(np.mean(sq, axis=axis))
 
         others = [k for k in names if k != base]
-        out["error_ratio_uncertain"] = {k: float(rms(base, "rms_error") / rms(k, "rms_error"))
-                                        for k in others}
+        # ratio(): None where a ratio is undefined (0/0, e.g. a reference at rest held
+        # exactly by both laws), never a NaN that a verdict could be read from.
+        out["error_ratio_uncertain"] = {
+            k: ratio(float(rms(base, "rms_error")), float(rms(k, "rms_error"))) for k in others}
         out["error_ratio_uncertain_per_joint"] = {
-            k: (rms(base, "rms_error", axis=0) / rms(k, "rms_error", axis=0)).tolist()
+            k: [ratio(float(b), float(v)) for b, v in zip(rms(base, "rms_error", axis=0),
+                                                           rms(k, "rms_error", axis=0),
+                                                           strict=True)]
             for k in others}
-        out["torque_ratio_uncertain"] = {k: float(rms(k, "rms_torque") / rms(base, "rms_torque"))
-                                         for k in others}
+        out["torque_ratio_uncertain"] = {
+            k: ratio(float(rms(k, "rms_torque")), float(rms(base, "rms_torque")))
+            for k in others}
     return out
 
 

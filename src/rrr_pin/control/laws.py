@@ -71,7 +71,7 @@ from typing import ClassVar
 import numpy as np
 import pinocchio as pin
 
-from ..validation import check_matrix, check_positive, check_rate
+from ..validation import check_matrix, check_positive, check_rate, describe_value
 
 __all__ = [
     "ControlLaw",
@@ -88,6 +88,8 @@ __all__ = [
     "hinf_fl_controller",
     "pd_controller",
     "check_law",
+    "check_law_output",
+    "check_step_output",
     "DEFAULT_RATE",
     "PD_BANDWIDTH",
 ]
@@ -469,6 +471,67 @@ def check_law(law, n: int | None = None) -> None:
         raise ValueError(f"law {law.name!r} is for {law.n} joints, the plant has {n}")
     if int(law.nx) != law.nx or law.nx < 0:
         raise ValueError(f"law {law.name!r}: nx must be an integer >= 0, got {law.nx!r}")
+
+
+def _kind(law) -> str:
+    """Return the law's class for a message (a continuous law sampled here: its own class)."""
+    inner = getattr(law, "law", None)
+    if type(law).__name__.startswith("_") and inner is not None:
+        return f"{type(inner).__name__}, sampled at {law.rate:g} Hz"
+    return type(law).__name__
+
+
+def check_law_output(law, method: str, value, size: int, t: float) -> np.ndarray:
+    """Check one value a law returned: a finite float ndarray of shape ``(size,)``.
+
+    The simulator calls it on a law's first outputs (the edge where a user's law meets the
+    engine) and trusts the later ones; a NaN or inf torque later in a run stops the run with
+    its own reason (:data:`rrr_pin.sim.trajectory.REASONS`).
+
+    Parameters
+    ----------
+    law : ControlLaw or SampledLaw
+        The law, named in the message.
+    method : str
+        What returned ``value``, e.g. ``"torque()"``, ``"step() torque"``.
+    value : object
+        The returned value.
+    size : int
+        Required length (``n`` for a torque [N m], ``nx`` for a state).
+    t : float
+        Time of the call [s].
+
+    Returns
+    -------
+    ndarray, shape (size,)
+        ``value`` itself.
+
+    Raises
+    ------
+    ValueError
+        Naming the law, its class, the method, the time and what it returned: not a NumPy
+        array (a scalar, None, a list), an array of another shape or of non-numbers, or an
+        array with NaN or inf.
+    """
+    where = (f"law {law.name!r} ({_kind(law)}): {method} returned {{what}} at "
+             f"t = {t:.6g} s; expected a finite float64 ndarray of shape ({size},)")
+    if not isinstance(value, np.ndarray):
+        raise ValueError(where.format(what=describe_value(value)))
+    if value.shape != (size,) or value.dtype != np.float64:
+        raise ValueError(where.format(what=f"an array of shape {value.shape} and dtype "
+                                           f"{value.dtype}"))
+    if not np.all(np.isfinite(value)):
+        raise ValueError(where.format(what=f"the non-finite {value.tolist()}"))
+    return value
+
+
+def check_step_output(law, out, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """Check what :meth:`SampledLaw.step` returned: ``(tau, x_next)`` (:func:`check_law_output`)."""
+    if not isinstance(out, tuple) or len(out) != 2:
+        raise ValueError(f"law {law.name!r} ({_kind(law)}): step() returned "
+                         f"{describe_value(out)} at t = {t:.6g} s; expected a tuple (tau, x_next)")
+    return (check_law_output(law, "step() torque", out[0], law.n, t),
+            check_law_output(law, "step() next state", out[1], law.nx, t))
 
 
 class _StaticSampled(SampledLaw):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..validation import check_positive, check_vector
+from ..validation import check_direction, check_positive, check_vector
 from .references import CirclePath
 
 __all__ = ["circle_from_start", "task_start", "position_conditioning"]
@@ -38,7 +38,7 @@ def circle_from_start(p0, radius: float, normal=(0.0, 0.0, 1.0)) -> CirclePath:
     radius : float
         Radius [m], > 0.
     normal : array-like, shape (3,), default (0, 0, 1)
-        Normal of the circle's plane (any non-zero length).
+        Normal of the circle's plane (any non-zero length; it is made unit).
 
     Returns
     -------
@@ -51,9 +51,7 @@ def circle_from_start(p0, radius: float, normal=(0.0, 0.0, 1.0)) -> CirclePath:
     """
     p0 = check_vector("p0", p0, 3)
     radius = check_positive("radius", radius, unit="m")
-    normal = check_vector("normal", normal, 3)
-    if not np.any(normal):
-        raise ValueError("normal must be a non-zero vector")
+    normal = check_direction("normal", normal, 3)
     u = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 * np.linalg.norm(normal) else \
         np.array([0.0, 1.0, 0.0])
     u = u - normal * (u @ normal) / (normal @ normal)

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..validation import FieldError, check_positive, check_vector
+from ..validation import FieldError, check_direction, check_positive, check_vector, describe_value
 
 __all__ = [
     "default_reference",
@@ -44,6 +44,7 @@ __all__ = [
     "TaskSpaceReference",
     "IKError",
     "check_reference",
+    "checked_sample",
 ]
 
 
@@ -86,8 +87,17 @@ class Reference:
             Position [rad], velocity [rad/s] and acceleration [rad/s^2].
         """
         t = np.asarray(t, dtype=float)
-        out = [self(float(tk)) for tk in t]
-        return tuple(np.array([o[i] for o in out]).reshape(len(t), self.n) for i in range(3))
+        out = []
+        for tk in t:
+            o = self(float(tk))
+            if not (isinstance(o, tuple) and len(o) == 3
+                    and all(np.shape(v) == (self.n,) for v in o)):
+                raise ValueError(f"reference {type(self).__name__}: __call__({float(tk):g}) "
+                                 f"returned {describe_value(o)}; expected a tuple (r, rd, rdd) "
+                                 f"of 3 arrays of shape ({self.n},)")
+            out.append(o)
+        return tuple(np.array([o[i] for o in out], dtype=float).reshape(len(t), self.n)
+                     for i in range(3))
 
     def positions(self, t) -> np.ndarray:
         """Positions ``r`` [rad] on a time grid ``t`` [s] of shape (N,); returns (N, n)."""
@@ -102,7 +112,7 @@ class Reference:
         check_reference(self, robot)
         end = duration if duration is not None else (self.duration or 10.0)
         t = np.linspace(0.0, end, max(2, int(math.ceil(end / step)) + 1))
-        R = self.positions(t)
+        R = checked_sample(self, t)[0]
         lower, upper = robot.lower, robot.upper
         bad = (R < lower) | (R > upper) | ~np.isfinite(R)
         if bad.any():
@@ -114,6 +124,55 @@ class Reference:
     def to_dict(self) -> dict:
         """JSON-ready description (``kind`` plus parameters, units in the key names)."""
         return {"kind": type(self).__name__}
+
+
+def checked_sample(reference, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return ``reference.sample(t)`` as float arrays, checked: shape (N, n) each, finite.
+
+    The edge where a reference (a user's own, or a built-in) meets the simulator: both
+    engines and :meth:`Reference.check_limits` sample a reference through it.
+
+    Parameters
+    ----------
+    reference : Reference
+    t : ndarray, shape (N,)
+        Times [s].
+
+    Returns
+    -------
+    R, RD, RDD : ndarray, shape (N, n)
+        Position [rad], velocity [rad/s] and acceleration [rad/s^2].
+
+    Raises
+    ------
+    ValueError
+        Naming the reference's class: ``sample`` returned something other than three arrays
+        of shape (N, n), or a NaN or inf (with the quantity, the time and the joint).
+    """
+    t = np.asarray(t, dtype=float)
+    name = type(reference).__name__
+    out = reference.sample(t)
+    want = (len(t), reference.n)
+    if not (isinstance(out, tuple) and len(out) == 3):
+        raise ValueError(f"reference {name}: sample() returned {describe_value(out)}; expected "
+                         f"a tuple (R, RD, RDD) of 3 arrays of shape {want}")
+    arrays = []
+    for what, v in zip(("r", "rd", "rdd"), out, strict=True):
+        try:
+            v = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"reference {name}: sample() returned {describe_value(v)} for {what}; "
+                             f"expected an array of numbers of shape {want}") from None
+        if v.shape != want:
+            raise ValueError(f"reference {name}: sample() returned {what} of shape {v.shape}, "
+                             f"expected {want} (times x joints)")
+        bad = ~np.isfinite(v)
+        if bad.any():
+            k, j = np.argwhere(bad)[0]
+            raise ValueError(f"reference {name}: {what} is {float(v[k, j])!r} (not finite) at "
+                             f"t = {t[k]:.6g} s for joint {j}")
+        arrays.append(np.ascontiguousarray(v))
+    return tuple(arrays)
 
 
 def check_reference(reference, robot) -> None:
@@ -442,10 +501,7 @@ class CirclePath:
     def __post_init__(self) -> None:
         object.__setattr__(self, "center", check_vector("center", self.center, 3, readonly=True))
         object.__setattr__(self, "radius", check_positive("radius", self.radius, unit="m"))
-        nz = check_vector("normal", self.normal, 3)
-        if np.linalg.norm(nz) == 0.0:
-            raise ValueError("normal must be a non-zero vector")
-        nz = nz / np.linalg.norm(nz)
+        nz = check_direction("normal", self.normal, 3)
         u = check_vector("start_dir", self.start_dir, 3)
         u = u - nz * (u @ nz)
         if np.linalg.norm(u) < 1e-9:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..validation import FieldError, check_positive, check_vector
+from ..validation import FieldError, check_direction, check_positive, check_vector
 from .paths import circle_from_start, task_start
 from .references import (
     LinePath,
@@ -140,5 +140,5 @@ class ReferenceSpec:
             if self.radius is None:
                 raise ValueError(f"{label('reference')} circle needs {label('radius')} R [m]")
             path = circle_from_start(p0, check_positive(label("radius"), self.radius),
-                                     check_vector(label("normal"), self.normal, 3))
+                                     check_direction(label("normal"), self.normal, 3))
         return task_space_reference(robot, frame, path, move, q_start=start)

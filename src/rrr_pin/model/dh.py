@@ -345,9 +345,12 @@ class ArmParams:
         FileNotFoundError
             No such file.
         ValueError
-            Naming the file: not UTF-8 text, not JSON, or a field refused by :meth:`from_dict`.
+            Naming the file: a directory, not UTF-8 text, not JSON, or a field refused by
+            :meth:`from_dict`.
         """
         path = Path(path)
+        if path.is_dir():
+            raise ValueError(f"{path}: is a directory; a parameter set is a JSON file")
         if not path.is_file():
             raise FileNotFoundError(f"parameter file not found: {path}")
         try:

@@ -48,6 +48,10 @@ DEFAULT_GRAVITY = 9.8
 #: ``inf``); replaced by ``+-inf`` in the loaded model.
 _UNBOUNDED = 1e300
 
+#: The mass matrix at the neutral configuration counts as singular when its smallest
+#: eigenvalue is at most this fraction of its largest (a relative test: scale-free).
+_SINGULAR_RTOL = 1e-12
+
 #: dtype of the arrays the fast path hands to Pinocchio unconverted.
 _F64 = np.dtype(float)
 
@@ -613,9 +617,11 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
                   urdf=raw, locked=lock)
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
     eig = np.linalg.eigvalsh(robot.M(q0))
-    if not eig.min() > 1e-12 * max(eig.max(), 1.0):
+    if not eig.min() > _SINGULAR_RTOL * eig.max():
         # Every inertial is physical and every moving joint carries mass by now, so a singular
-        # M means some joint moves no inertia about its own axis.
+        # M means some joint moves no inertia about its own axis. Relative to the largest
+        # eigenvalue: M scales with mass x length^2, and an arm of 1e-12 kg m^2 is as regular
+        # as one of 1 kg m^2.
         raise RobotModelError(
             f"{label}: the mass matrix is singular at the neutral configuration (eigenvalues "
             f"{eig}): some joint moves no inertia about its axis (e.g. point masses on the "

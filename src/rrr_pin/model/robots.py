@@ -34,7 +34,8 @@ def read_source(source) -> tuple[str, str, str]:
     Raises
     ------
     TypeError, ValueError, FileNotFoundError, RobotModelError
-        Not a source, an unknown name, a missing file, a file that is not UTF-8 text.
+        Not a source, an unknown name, a missing file, a directory, a file that is not UTF-8
+        text.
     """
     if isinstance(source, ArmParams):
         return urdf_from_params(source), source.name, "<params>"
@@ -51,6 +52,8 @@ def read_source(source) -> tuple[str, str, str]:
     if path.suffix.lower() != ".urdf" and not path.exists():
         raise ValueError(f"unknown robot {text!r}: give a URDF path or one of "
                          f"{', '.join(robot_names())}")
+    if path.is_dir():
+        raise RobotModelError(f"{path}: is a directory; a robot is a URDF file or a name")
     if not path.is_file():
         raise FileNotFoundError(f"URDF file not found: {path}")
     return _read_text(path), path.stem, str(path)

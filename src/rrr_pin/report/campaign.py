@@ -49,7 +49,8 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     columns = campaign_columns(campaign.names, campaign.baseline, campaign.joint_names,
-                               any("certified" in r for r in campaign.rows))
+                               any("certified" in r for r in campaign.rows),
+                               any("undefined" in r for r in campaign.rows))
     table = io.StringIO(newline="")
     writer = csv.DictWriter(table, fieldnames=columns, extrasaction="ignore",
                             lineterminator="\n")
@@ -174,6 +175,9 @@ def summary_lines(campaign: Campaign, summary: dict) -> list[str]:
                      f"{s['not_certified_but_ran']}; largest nu-gap {s['nugap_max']:.4g}")
     lines += [f"{name} better than {s['baseline']} on {100 * frac:.1f} % of the plants"
               for name, frac in s["fraction_better"].items()]
+    lines += [f"{key} undefined (no ratio: 0/0 or not finite) on {count} plants, left out; "
+              f"see the column 'undefined' of campaign.csv"
+              for key, count in s.get("undefined", {}).items()]
     lines.append(f"{'metric':28}{'median':>12}{'p95':>12}{'worst':>12}")
     for metric in _metrics(campaign, s, torque=False):
         m = s[metric]

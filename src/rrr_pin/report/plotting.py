@@ -582,8 +582,9 @@ def plot_campaign(campaign, *, axes=None):
             ax1.xaxis.set_minor_formatter(mticker.NullFormatter())
         _legend_below(ax1, ncol=1)
     else:
-        ax1.text(0.5, 0.5, "one controller: no ratio", ha="center", va="center",
-                 transform=ax1.transAxes)
+        text = ("one controller: no ratio" if len(names) < 2 else
+                "no ratio: undefined (0/0) or a diverged run on every plant")
+        ax1.text(0.5, 0.5, text, ha="center", va="center", transform=ax1.transAxes)
     ax1.set_xlabel(f"RMS error {labels[base]} / RMS error of the controller [-]")
     ax1.set_ylabel("Number of plants [-]")
     ax1.set_title(f"Error ratio against the baseline ({labels[base]})")
@@ -608,10 +609,12 @@ def plot_campaign(campaign, *, axes=None):
         ax2.plot([], [], color=colours[key], lw=6, alpha=0.6, label=labels[key])
     ax2.plot([], [], color="k", lw=2.0, label="median")
     ax2.set_xticks(pos, joints, rotation=30 if len(joints) > 4 else 0)
-    ax2.set_yscale("log")
-    positive = [v for v in values if v > 0 and math.isfinite(v)]
-    if positive:
-        ax2.set_ylim(*_log_limits(min(positive), max(positive)))
+    finite = [v for v in values if math.isfinite(v)]
+    if finite and min(finite) > 0.0:
+        ax2.set_yscale("log")
+        ax2.set_ylim(*_log_limits(min(finite), max(finite)))
+    else:  # a log axis cannot show an error of exactly 0 (a reference held exactly)
+        ax2.set_yscale("linear")
     ax2.set_xlabel("Joint")
     ax2.set_ylabel("RMS tracking error [rad]")
     ax2.set_title("Per-joint error spread")

@@ -43,12 +43,14 @@ NOMINAL_NOISE = 1e-5
 
 
 def _fmt(x, digits=3) -> str:
+    if x is None:
+        return "undefined (0/0)"
     return f"{x:.{digits}g}"
 
 
 def _error_ratio_verdict(ratio: float) -> str:
-    if not math.isfinite(ratio):
-        return "**no verdict**: the ratio is not a finite number"
+    if ratio is None or not math.isfinite(ratio):
+        return "**no verdict**: the ratio is undefined or not a finite number"
     if ratio <= 1.0:
         return "**does not reproduce**: H-infinity + FL is not better"
     if ratio < PAPER_ERROR_RATIO / 2:
@@ -61,8 +63,8 @@ def _error_ratio_verdict(ratio: float) -> str:
 
 
 def _torque_verdict(ratio: float) -> str:
-    if not math.isfinite(ratio):
-        return "**no verdict**: the ratio is not a finite number"
+    if ratio is None or not math.isfinite(ratio):
+        return "**no verdict**: the ratio is undefined or not a finite number"
     if abs(ratio - 1.0) <= 0.1:
         side = "slightly smaller" if ratio < 1.0 else "slightly larger" if ratio > 1.0 else "equal"
         agree = "agrees" if ratio <= 1.0 else "agrees on 'about the same'; the paper says smaller"
@@ -95,16 +97,16 @@ def _paper_rows(result: StudyResult, s: dict) -> list[str]:
         verdict = f"**differs**: an error above {noise:.2g} rad"
     lines.append(f"| Nominal model: both controllers track alike (Fig. 5c) | equivalent | max abs "
                  f"error: FL {_fmt(nom[fl])} rad, H-inf+FL {_fmt(nom[hinf])} rad | {verdict} |")
-    ratio = s.get("error_ratio_uncertain", {}).get(hinf)
-    if ratio is None:
+    if hinf not in s.get("error_ratio_uncertain", {}):
         lines.append("| Uncertain plants | about 10x smaller error | no plant where both ran | "
                      "**no figure** |")
         return lines
+    ratio = s["error_ratio_uncertain"][hinf]
     lines.append(f"| Uncertain plants: RMS error FL alone / H-inf+FL [-] (Fig. 6c) | about 10 | "
                  f"{_fmt(ratio)} | {_error_ratio_verdict(ratio)} |")
     per_joint = s["error_ratio_uncertain_per_joint"][hinf]
-    better = ("**no verdict**: a ratio is not a finite number"
-              if not all(math.isfinite(x) for x in per_joint)
+    better = ("**no verdict**: a ratio is undefined or not a finite number"
+              if not all(x is not None and math.isfinite(x) for x in per_joint)
               else "all joints better" if min(per_joint) > 1 else "**not on every joint**")
     lines.append(f"| ... per joint ({', '.join(result.joint_names)}) [-] | - | "
                  f"{', '.join(_fmt(x) for x in per_joint)} | {better} |")
@@ -436,10 +438,11 @@ def summary_lines(result: StudyResult, summary: dict) -> list[str]:
     lines = ["nominal max |e| [rad]: " + ", ".join(f"{k} {v:.3g}"
                                                    for k, v in s["nominal_max_error"].items())]
     for name, ratio in s.get("error_ratio_uncertain", {}).items():
-        per_joint = ", ".join(f"{x:.3g}" for x in s["error_ratio_uncertain_per_joint"][name])
+        per_joint = ", ".join(_fmt(x) for x in s["error_ratio_uncertain_per_joint"][name])
+        torque = s["torque_ratio_uncertain"][name]
         lines.append(f"uncertain ({s['samples_ok']} plants): RMS error {base} / {name} = "
-                     f"{ratio:.3g} (per joint {per_joint}); RMS torque {name} / {base} = "
-                     f"{s['torque_ratio_uncertain'][name]:.4f}")
+                     f"{_fmt(ratio)} (per joint {per_joint}); RMS torque {name} / {base} = "
+                     + (_fmt(None) if torque is None else f"{torque:.4f}"))
     if "samples_certified" in s:
         checked = sum(1 for x in result.samples if "certificate" in x)
         lines.append(f"certified (frozen nu-gap < b = {s['certificate_b']:.4g}): "

@@ -36,7 +36,7 @@ import control
 import numpy as np
 import scipy.linalg as sla
 
-from ..validation import check_positive, check_real, check_size
+from ..validation import FieldError, check_positive, check_real, check_size
 from .barriers import (
     PAPER_MODEL_ERROR,
     PAPER_PERFORMANCE_SPECS,
@@ -75,10 +75,18 @@ __all__ = [
     "loopsyn",
     "Design",
     "design",
+    "LAM_RANGE",
 ]
 
 #: Paper eq. (16): lag compensator W1 = 25 (s + 11.5) / (s + 0.19).
 PAPER_W1 = (25.0, 11.5, 0.19)
+
+#: Range of ``lam`` [rad/s] that :func:`design` accepts. With the paper's weights the synthesis
+#: was measured to succeed from 1e-7 to 5e7 rad/s and to fail at 1e-8 and 1e8 rad/s (the
+#: shaped plant's poles, ``-lam`` and ``-0.19`` of W1, then lie so far apart that the Riccati
+#: solutions lose all accuracy: "improper controller", a spurious "uncontrollable mode", or
+#: no stabilizing solution); the range keeps a decade inside both ends.
+LAM_RANGE = (1e-6, 1e7)
 
 # Re-exported names that live in other modules (kept importable from here).
 _REEXPORTED = (PAPER_MODEL_ERROR, sla, ncf_gamma)
@@ -459,7 +467,8 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
     Parameters
     ----------
     lam : float
-        Natural frequency [rad/s] of the feedback-linearizing loop (paper: 45).
+        Natural frequency [rad/s] of the feedback-linearizing loop (paper: 45), in
+        :data:`LAM_RANGE`.
     n : int
         Number of joints (paper: 3).
     factor : float
@@ -477,8 +486,18 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
     Returns
     -------
     Design
+
+    Raises
+    ------
+    ValueError
+        ``lam`` not finite or outside :data:`LAM_RANGE`, ``n`` not an integer >= 1, ``factor``
+        not finite or below 1 (each a ``FieldError`` naming the field).
     """
     lam, n = check_positive("lam", lam, unit="rad/s"), check_size("n", n)
+    if not LAM_RANGE[0] <= lam <= LAM_RANGE[1]:
+        raise FieldError("lam", f"{{name}} must be in [{LAM_RANGE[0]:g}, {LAM_RANGE[1]:g}] "
+                                f"rad/s (LAM_RANGE, where the synthesis is well conditioned), "
+                                f"got {lam!r}")
     rel_error, w_error = model_error
     RSB = robust_stability_barrier(rel_error, w_error)
     RPB = robust_performance_barrier(specs, rel_error, w_error)

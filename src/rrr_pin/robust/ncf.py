@@ -33,7 +33,7 @@ import control
 import numpy as np
 import scipy.linalg as sla
 
-from ..validation import check_real
+from ..validation import FieldError, check_real
 from .lti import (
     DimensionMismatchError,
     IllPosedLoopError,
@@ -283,7 +283,8 @@ def ncfsyn(G, W1=None, W2=None, factor: float = 1.0) -> NCFSynResult:
     """
     factor = check_real("factor", factor)
     if factor < 1.0:
-        raise ValueError(f"factor must be >= 1 (1 = optimal controller), got {factor!r}")
+        raise FieldError("factor", f"{{name}} must be >= 1 (1 = optimal controller), got "
+                                   f"{factor!r}")
     G, W1, W2, dt = _plant_and_weights(G, W1, W2)
     Gs = _series(W2, G, W1)
     discrete = _is_discrete(Gs.dt)

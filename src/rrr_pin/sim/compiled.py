@@ -42,11 +42,13 @@ from __future__ import annotations
 
 from dataclasses import fields
 
+import numpy as np
+
 from ..control.effects import Resolved
-from ..control.laws import FLForm, PDForm
+from ..control.laws import FLForm, PDForm, check_law_output
 from .codegen import compile_robot_codegen
 from .extension import EXTENSION, CompiledRobot, cached, require
-from .trajectory import REASONS, VELOCITY_LIMIT, divergence, make_trajectory
+from .trajectory import REASONS, VELOCITY_LIMIT, divergence, law_divergence, make_trajectory
 
 __all__ = [
     "compile_robot",
@@ -164,6 +166,13 @@ def run_compiled(run, form, *, codegen: bool = False):
                    n_steps=len(run.t) - 1)
     Q, QD, TAU, bad_step, bad_joint, reason = EXTENSION.rollout(
         plant_m, nominal_m, _law(form), inputs, _effects(fx) if fx is not None else None)
+    law_failed = bad_step >= 0 and reason == 3  # kLawTorque (rollout.hpp), REASONS[3]
+    if law_failed and bad_step == 0 and not np.isfinite(TAU[0]).all():
+        # The Python engine checks a law's first output at the edge: the same ValueError.
+        check_law_output(run.law, "step() torque" if run.sampled else "torque()", TAU[0],
+                         plant.nq, float(run.t[0]))
+    if law_failed:
+        raise law_divergence(plant, run.law.name, float(run.t[bad_step]), bad_joint)
     if bad_step >= 0:
         raise divergence(plant, float(run.t[bad_step]), Q[bad_step], QD[bad_step], bad_joint,
                          REASONS[reason])

@@ -31,6 +31,15 @@ end of a control period (sampled) or of an RK4 step (continuous), a joint's ``q`
 NaN/inf, ``|qd|`` exceeds :data:`VELOCITY_LIMIT`, or ``q`` leaves the plant's joint limits
 widened by ``limit_margin``.
 
+A law's outputs (:mod:`rrr_pin.control.laws`) are checked on its first call, where a user's law
+meets the engine (:func:`~rrr_pin.control.laws.check_law_output`: a wrong type, shape or a NaN
+is a ``ValueError`` naming the law), and trusted afterwards. A NaN or inf torque later stops the
+run with its own reason (:func:`~rrr_pin.sim.trajectory.law_divergence`): at the control step
+where a sampled law returned it, or at the RK4 step one of whose stages did; both engines. Such
+a torque makes the state non-finite, so the Python engine looks for it only when the state goes
+bad (no cost per step), except with plant effects, where a saturation could clip an inf and a
+delay hold a NaN back: there every command is checked.
+
 Accuracy: RK4's global error is ``O(dt^4)``; ``tests/test_simulate.py`` halves the step and shows
 the tracking errors move by orders of magnitude less than the differences the study reports.
 """
@@ -46,8 +55,14 @@ import numpy as np
 import pinocchio as pin
 
 from ..control.effects import PlantEffects, check_effects
-from ..control.laws import ControlLaw, SampledLaw, check_law
-from ..control.references import Reference, check_reference
+from ..control.laws import (
+    ControlLaw,
+    SampledLaw,
+    check_law,
+    check_law_output,
+    check_step_output,
+)
+from ..control.references import Reference, check_reference, checked_sample
 from ..validation import (
     MULTIPLE_RTOL,
     FieldError,
@@ -62,6 +77,8 @@ from .trajectory import (
     Trajectory,
     diverged_joint,
     divergence,
+    first_bad_torque,
+    law_divergence,
     make_trajectory,
 )
 
@@ -403,17 +420,17 @@ def _sampled_law(law, rate: float, method: str):
 
 
 def _sample_reference(reference, grid_key, grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return ``reference.sample(grid)`` as contiguous float arrays.
+    """Return ``reference.sample(grid)`` as contiguous float arrays, checked (finite, (N, n)).
 
     Inside :func:`reuse_preparation`, sampled once per reference (by identity) and
     ``grid_key`` (which determines ``grid``); each call gets its own copies.
     """
     if _REUSE is None:
-        return tuple(np.ascontiguousarray(a, dtype=float) for a in reference.sample(grid))
+        return checked_sample(reference, grid)
     key = ("reference", id(reference), grid_key)
     hit = _REUSE.get(key)
     if hit is None or hit[0] is not reference:
-        arrays = tuple(np.ascontiguousarray(a, dtype=float) for a in reference.sample(grid))
+        arrays = checked_sample(reference, grid)
         hit = _REUSE[key] = (reference, arrays)
     return tuple(a.copy() for a in hit[1])
 
@@ -540,6 +557,20 @@ def _check_rk4_step(law, dt: float) -> None:
                 f"({fastest:.4g} rad/s): RK4 needs dt < {2.5 / fastest:.3g} s")
 
 
+def _law_failure(run: Run, tau, k: int | None = None):
+    """Return the :func:`law_divergence` of the first NaN or inf torque of ``tau``, or None.
+
+    ``tau`` has one row per control step (its time ``run.t[row]``), or, with ``k``, the
+    torques of the stages of RK4 step ``k``. A law's non-finite torque makes the state
+    non-finite, so the engines look for one only when a run diverges (and once at its end).
+    """
+    hit = first_bad_torque(np.asarray(tau))
+    if hit is None:
+        return None
+    return law_divergence(run.plant, run.law.name, float(run.t[hit[0] if k is None else k]),
+                          hit[1])
+
+
 def _run_python(run: Run) -> Trajectory:
     if run.effects is not None:
         return _python_effects(run)
@@ -563,7 +594,10 @@ def _python_sampled(run: Run) -> Trajectory:
     q, qd, x = run.q0, run.qd0, run.x0
     Q[0], QD[0] = q, qd
     for k in range(N):
-        tau, x = step(t[k], q, qd, R[k], RD[k], RDD[k], x)
+        if k:
+            tau, x = step(t[k], q, qd, R[k], RD[k], RDD[k], x)
+        else:  # the edge where the law meets the engine: check its first output
+            tau, x = check_step_output(law, step(t[0], q, qd, R[0], RD[0], RDD[0], x), t[0])
         TAU[k] = tau
         for _ in range(run.substeps):
             a1 = aba(model, data, q, qd, tau)
@@ -579,7 +613,8 @@ def _python_sampled(run: Run) -> Trajectory:
         if not inside(q, qd, low, up):
             bad = check(q, qd, lower, upper)
             if bad is not None:
-                raise divergence(plant, float(t[k + 1]), q, qd, *bad)
+                raise (_law_failure(run, TAU[:k + 1])
+                       or divergence(plant, float(t[k + 1]), q, qd, *bad))
     # The torque held on the last interval is also the one "at" the final sample.
     TAU[N] = TAU[N - 1]
     return make_trajectory(run, Q, QD, TAU)
@@ -606,6 +641,9 @@ def _python_continuous(run: Run) -> Trajectory:
         r, rd, rdd = R[i], RD[i], RDD[i]
         tau = torque(tk, q, qd, r, rd, rdd, x)
         xd = deriv(tk, q, qd, r, rd, rdd, x) if stateful else x
+        if not i:  # the edge where the law meets the engine: check its first outputs
+            check_law_output(law, "torque()", tau, law.n, tk)
+            check_law_output(law, "derivative()", xd, law.nx, tk)
         return aba(model, data, q, qd, tau), xd, tau
 
     q, qd, x = run.q0, run.qd0, run.x0
@@ -616,11 +654,11 @@ def _python_continuous(run: Run) -> Trajectory:
         if k == N:
             break
         v2 = qd + h2 * a1
-        a2, x2, _ = rhs(2 * k + 1, tk + h2, q + h2 * qd, v2, x + h2 * x1)
+        a2, x2, tau2 = rhs(2 * k + 1, tk + h2, q + h2 * qd, v2, x + h2 * x1)
         v3 = qd + h2 * a2
-        a3, x3, _ = rhs(2 * k + 1, tk + h2, q + h2 * v2, v3, x + h2 * x2)
+        a3, x3, tau3 = rhs(2 * k + 1, tk + h2, q + h2 * v2, v3, x + h2 * x2)
         v4 = qd + dt * a3
-        a4, x4, _ = rhs(2 * k + 2, tk + dt, q + dt * v3, v4, x + dt * x3)
+        a4, x4, tau4 = rhs(2 * k + 2, tk + dt, q + dt * v3, v4, x + dt * x3)
         q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
         qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
         if stateful:
@@ -628,7 +666,11 @@ def _python_continuous(run: Run) -> Trajectory:
         if not inside(q, qd, low, up):
             bad = check(q, qd, lower, upper)
             if bad is not None:
-                raise divergence(plant, float(t[k + 1]), q, qd, *bad)
+                raise (_law_failure(run, (tau, tau2, tau3, tau4), k)
+                       or divergence(plant, float(t[k + 1]), q, qd, *bad))
+    stop = _law_failure(run, TAU[N:], N)  # the torque at the last sample drives no step
+    if stop is not None:
+        raise stop
     return make_trajectory(run, Q, QD, TAU)
 
 
@@ -680,7 +722,13 @@ def _python_effects(run: Run) -> Trajectory:
             qm = quantum * np.rint(qm / quantum)
         if nqd_ is not None:
             qdm = qdm + nqd_[k]
-        tau, x = step(t[k], qm, qdm, R[k], RD[k], RDD[k], x)
+        if k:
+            tau, x = step(t[k], qm, qdm, R[k], RD[k], RDD[k], x)
+            # Checked at every step: a saturation would clip an inf, a delay hold a NaN back.
+            if not np.isfinite(tau).all():
+                raise _law_failure(run, (tau,), k)
+        else:  # the edge where the law meets the engine: check its first output
+            tau, x = check_step_output(law, step(t[0], qm, qdm, R[0], RD[0], RDD[0], x), t[0])
         if limit is not None:
             tau = np.minimum(np.maximum(tau, -limit), limit)
         U[k] = tau

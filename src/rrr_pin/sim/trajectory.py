@@ -24,6 +24,8 @@ __all__ = [
     "metrics",
     "diverged_joint",
     "divergence",
+    "law_divergence",
+    "first_bad_torque",
     "make_trajectory",
     "VELOCITY_LIMIT",
     "REASONS",
@@ -34,9 +36,11 @@ __all__ = [
 #: A joint speed above this [rad/s] is taken as a blow-up of the simulation.
 VELOCITY_LIMIT = 1e4
 
-#: Why a run diverged, by the code both engines use (0, 1, 2), in :func:`divergence`'s words.
+#: Why a run diverged, by the code both engines use (0, 1, 2), in :func:`divergence`'s words;
+#: code 3: the law returned a NaN or inf torque (:func:`law_divergence`), which stops the run
+#: at the step where it happened, whatever it would have done to the state.
 REASONS = ("became NaN or infinite", f"exceeded {VELOCITY_LIMIT:g} rad/s (blow-up)",
-           "left its joint limits")
+           "left its joint limits", "got a non-finite torque (NaN or inf) from the law")
 
 class SimulationDiverged(RuntimeError):
     """The simulated closed loop blew up; the message names the time [s] and the joint."""
@@ -260,6 +264,35 @@ def divergence(plant, t: float, q, qd, j: int, reason: str) -> SimulationDiverge
         f"simulation of plant {plant.name!r} diverged at t = {t:.6g} s: joint {name!r} "
         f"{reason} (q = {q[j]:.6g} rad, qd = {qd[j]:.6g} rad/s)", time=t, joint=name)
 
+
+def law_divergence(plant, law: str, t: float, j: int) -> SimulationDiverged:
+    """Build the :class:`SimulationDiverged` of both engines for a law's NaN or inf torque.
+
+    Parameters
+    ----------
+    plant : Robot
+    law : str
+        The law's name.
+    t : float
+        Start of the control period (sampled) or RK4 step (continuous) in which the law
+        returned the torque [s].
+    j : int
+        First joint whose torque is not finite.
+    """
+    name = plant.joint_names[j]
+    return SimulationDiverged(
+        f"simulation of plant {plant.name!r} stopped at t = {t:.6g} s: law {law!r} returned a "
+        f"non-finite torque (NaN or inf) for joint {name!r} in the step from t = {t:.6g} s",
+        time=t, joint=name)
+
+
+def first_bad_torque(tau) -> tuple[int, int] | None:
+    """``(row, joint)`` of the first non-finite entry of torques ``tau`` (shape (N, n)), or None."""
+    bad = ~np.isfinite(tau)
+    if not bad.any():
+        return None
+    k, j = np.argwhere(bad)[0]
+    return int(k), int(j)
 
 
 @dataclass(frozen=True)
