@@ -165,3 +165,17 @@ def test_reproduce_stops_with_one_line_and_no_worker_left(tmp_path, sig):
     assert lines == [f"rrr-pin reproduce: interrupted (received {sig.name}); {out} may hold "
                      "files of this unfinished run"]
     assert none_left(workers)
+
+
+def test_a_closed_stdout_stops_quietly():
+    # `rrr-pin ... | head -1`: the reader goes away; before, the CLI said "cannot write the
+    # outputs: Broken pipe (EPIPE) ... free space", a disk-full message for a closed pipe.
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "rrr_pin.cli", "check-dynamics", "--samples",
+                             "2000"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # nobody reads: the first print meets EPIPE
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert "Broken pipe" not in err and "Traceback" not in err
