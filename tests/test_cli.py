@@ -357,7 +357,7 @@ def test_a_folder_given_for_a_file_is_refused_as_a_folder(argv, option, tmp_path
     (["--lam", "nan"], "--lam must be a finite number > 0 [rad/s], got nan"),
     (["--factor", "0.5"], "--factor must be >= 1 (1 = optimal controller), got 0.5"),
     (["--factor", "inf"], "--factor must be finite, got inf"),
-    (["--joints", "0"], "--joints must be an integer >= 1, got 0"),
+    (["--joints", "0"], "--joints must be an integer in [1, 1000], got 0"),
 ], ids=["lam-huge", "lam-tiny", "lam-nan", "factor-below-1", "factor-inf", "joints-0"])
 def test_design_names_its_options(argv, message, capsys):
     # --lam 1e9 failed deep inside the synthesis ("Riccati equation without stabilizing

@@ -413,7 +413,7 @@ def test_design_many_joints():
     (lambda: fl_plant(n=0), r"n must be an integer >= 1, got 0"),
     (lambda: fl_plant(n=2.5), r"n must be an integer >= 1, got 2\.5"),
     (lambda: lag_weight(p=float("nan")), r"p must be a finite number > 0 \[rad/s\], got nan"),
-    (lambda: design(n="3"), r"n must be an integer >= 1, got '3'"),
+    (lambda: design(n="3"), r"n must be an integer in \[1, 1000\], got '3'"),
     (lambda: reduce_controller(fl_plant(45.0, 1), -1), r"order must be an integer >= 0, got -1"),
     (lambda: reduce_controller(fl_plant(45.0, 1), 1, fast_gap=0),
      r"fast_gap must be a finite number > 0, got 0"),

@@ -297,3 +297,23 @@ def test_describe_value_names_the_type_and_cuts_long_values():
     assert describe_value([1.0, 2.0]) == "[1.0, 2.0] (list)"
     long = describe_value(list(range(100)))
     assert long.endswith("... (list)") and len(long) == 80 + len("... (list)")
+
+
+def test_counts_with_a_work_bound_are_refused_above_it(capsys):
+    # design --joints 100000 asked numpy for a 75 GiB matrix (traceback); check-dynamics
+    # --samples 1e9 was killed by the kernel's OOM killer (exit 137, no message).
+    from rrr_pin import cli
+    from rrr_pin.model.closed_form import MAX_CHECK_SAMPLES
+    from rrr_pin.robust.loopshaping import MAX_JOINTS
+    from rrr_pin.validation import FieldError, check_count
+
+    assert check_count("n", 1000, 1, high=1000) == 1000
+    with pytest.raises(FieldError, match=r"^n must be an integer in \[1, 1000\], got 1001$"):
+        check_count("n", 1001, 1, high=1000)
+    for argv, message in (
+            (["design", "--joints", "100000"], f"--joints must be an integer in [1, {MAX_JOINTS}]"),
+            (["check-dynamics", "--samples", "1000000000"],
+             f"--samples must be an integer in [1, {MAX_CHECK_SAMPLES}]")):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err

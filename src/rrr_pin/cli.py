@@ -247,14 +247,14 @@ def _add_check_dynamics(sub) -> None:
 
 
 def _cmd_check_dynamics(args) -> int:
-    from .model.closed_form import compare_with_pinocchio
+    from .model.closed_form import MAX_CHECK_SAMPLES, compare_with_pinocchio
     from .model.dh import ArmParams, paper_params
     from .model.dynamics import load_robot
     from .report.dynamics import comparison_lines
     from .validation import check_count, check_positive
 
     check_positive("--rtol", args.rtol, allow_zero=True)
-    check_count("--samples", args.samples, 1)
+    check_count("--samples", args.samples, 1, high=MAX_CHECK_SAMPLES)
     check_count("--seed", args.seed)
     _not_a_folder(urdf=args.urdf, params=args.params)
     params = ArmParams.load(args.params) if args.params else paper_params()

@@ -127,19 +127,23 @@ def check_positive(name: str, value, *, allow_zero: bool = False, unit: str = ""
     return float(value)
 
 
-def check_count(name: str, value, low: int = 0) -> int:
+def check_count(name: str, value, low: int = 0, high: int | None = None) -> int:
     """Return ``value`` as an int >= ``low`` (an integral float such as 200.0 is accepted).
+
+    With ``high``, also <= ``high``: the documented bound of a count whose work or memory
+    grows with it (the caller names the bound in its docstring).
 
     Raises
     ------
     ValueError
         ``"{name} must be an integer >= {low}, got ..."`` for a bool, a string, NaN, inf, a
         fraction or a value below ``low`` (``int()`` alone would raise an unnamed ``ValueError``
-        or an ``OverflowError`` for some of them).
+        or an ``OverflowError`` for some of them); ``"... in [low, high]"`` with ``high``.
     """
+    where = f">= {low}" if high is None else f"in [{low}, {high}]"
     if (not _is_number(value) or not math.isfinite(value) or value != int(value)
-            or value < low):
-        raise _fail(name, f" must be an integer >= {low}, got {value!r}")
+            or value < low or (high is not None and value > high)):
+        raise _fail(name, f" must be an integer {where}, got {value!r}")
     return int(value)
 
 

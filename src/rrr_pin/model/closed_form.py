@@ -49,6 +49,7 @@ from .dh import ArmParams
 
 __all__ = [
     "coefficients",
+    "MAX_CHECK_SAMPLES",
     "printed_coefficients",
     "robot_coefficients",
     "M",
@@ -360,6 +361,11 @@ def robot_coefficients(robot, q) -> dict[str, float]:
     return D
 
 
+#: Largest number of random states of :func:`compare_with_pinocchio` (about 1 minute; each is
+#: kept for the comparison's report).
+MAX_CHECK_SAMPLES = 10**6
+
+
 def compare_with_pinocchio(robot, params: ArmParams, samples: int = 200, seed: int = 0,
                            qd_max: float = 5.0) -> dict[str, dict[str, float]]:
     """Largest differences between a Pinocchio model and the closed form on random states.
@@ -402,7 +408,8 @@ def compare_with_pinocchio(robot, params: ArmParams, samples: int = 200, seed: i
     if robot.nq != 3:
         raise ValueError(f"robot must have 3 joints to compare with the closed form, got "
                          f"{robot.nq}")
-    samples, seed = check_count("samples", samples, 1), check_count("seed", seed, 0)
+    samples = check_count("samples", samples, 1, high=MAX_CHECK_SAMPLES)
+    seed = check_count("seed", seed, 0)
     qd_max = check_positive("qd_max", qd_max, allow_zero=True, unit="rad/s")
     rng = np.random.default_rng(seed)
     qs = rng.uniform(-math.pi, math.pi, size=(samples, 3))
