@@ -1,6 +1,8 @@
 """Tests of rrr_pin.robust.loopshaping: barriers, plant, weights, ncfsyn, reduction, design, CLI."""
 
 
+import warnings
+
 import control
 import numpy as np
 import pytest
@@ -442,3 +444,22 @@ def test_design_succeeds_at_both_ends_of_lam_range(lam):
     d = design(lam=lam)
     assert np.isfinite(d.ncf.gamma) and d.ncf.gamma >= 1.0
     assert_allclose(d.ncf.gamma, d.ncf.gamma_min, rtol=1e-9)
+
+
+@pytest.mark.parametrize("factor", [1.0, 1.2], ids=["paper", "factor-1.2"])
+def test_design_lines_print_the_inequality_that_holds(factor):
+    # `rrr-pin design --factor 1.2` printed "nugap = 0.456 < b = 0.4024 ... NOT guaranteed"
+    # (issue 21, item 6): the sign is now read off the two printed numbers.
+    import re
+
+    from rrr_pin.report.design import design_lines
+
+    with warnings.catch_warnings():  # factor 1.2: the 2-state K raises gamma (warned, expected)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        d = design(lam=45.0, factor=factor)
+    lines = [x for x in design_lines(d) if " b = " in x]
+    assert len(lines) == 3
+    for line in lines:
+        x, op, b = re.search(r"= ([0-9.e+-]+) (<|>=) b = ([0-9.]+)", line).groups()
+        assert (float(x) < float(b)) == (op == "<"), line
+        assert ("NOT guaranteed" in line) == (op == ">="), line

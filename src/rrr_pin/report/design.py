@@ -67,6 +67,11 @@ def _verdict(name: str, c: dict, where: str) -> str:
             f"at {c['worst_frequency']:.4g} rad/s ({where})")
 
 
+def _vs(x: float, b: float) -> str:
+    """Return the inequality that holds between a distance and the margin ``b``: < or >=."""
+    return "<" if x < b else ">="
+
+
 def design_lines(d) -> list[str]:
     """Return a design as text lines (no newlines), for a terminal."""
     out = design_summary(d)
@@ -84,11 +89,11 @@ def design_lines(d) -> list[str]:
                      ("plant loop (G, K)", d.reduction)):
         state = "guaranteed" if r.guaranteed else "NOT guaranteed"
         lines.append(f"eq. (18) reduction on the {where}: nugap(full, reduced) = {r.nugap:.3g} "
-                     f"< b = {r.b:.4f}: stability {state}; b after >= {r.b_lower:.4f} "
-                     f"(computed {r.b_reduced:.4f}, lost {r.margin_lost:.2g})")
+                     f"{_vs(r.nugap, r.b)} b = {r.b:.4f}: stability {state}; b after >= "
+                     f"{r.b_lower:.4f} (computed {r.b_reduced:.4f}, lost {r.margin_lost:.2g})")
     r = d.ncf_reduction
     lines += [f"coprime-factor balanced truncation to {r.Kr.nstates} states: "
-              f"||[N - Nr; M - Mr]||_inf = {r.eps:.3g} < b = {r.b:.4f}: "
+              f"||[N - Nr; M - Mr]||_inf = {r.eps:.3g} {_vs(r.eps, r.b)} b = {r.b:.4f}: "
               f"{'guaranteed' if r.guaranteed else 'NOT guaranteed'}, b after {r.b_reduced:.4f}",
               f"NCF margin of the final loop b(G, K) = {d.ncfmargin:.4f}",
               _verdict("robust stability", out["robust_stability"],
