@@ -157,3 +157,29 @@ def test_discrete_paper_design_unit_circle_grid():
     peak = np.max(np.sqrt(1 + np.abs(k) ** 2) * np.sqrt(1 + np.abs(g) ** 2) / np.abs(1 + g * k))
     assert_allclose(peak, r.gamma, rtol=1e-5)                    # grid resolution
     assert np.abs(control.feedback(r.Gs, r.Ks).poles()).max() < 1
+
+
+def test_ncfsyn_unpacks_as_matlab_with_the_closed_loop_norm_gamma():
+    # [K, CL, gamma, info] = ncfsyn(G, W1, W2) as in MATLAB (issue 21, item 6). ||CL||_inf is
+    # checked by python-control's linfnorm (SLICOT AB13DD through slycot), an independent
+    # H-infinity norm, to its 1e-6 relative tolerance.
+    G = control.tf([200.0], [10.0, 1.0]) * control.tf([1.0], [0.05, 1.0]) ** 2
+    W1 = control.tf([1.0, 2.0], [1.0, 1e-3])
+    result = ncfsyn(G, W1)
+    K, CL, gamma, info = result
+    assert K is info.K and info is result and gamma == info.gamma
+    assert (CL.noutputs, CL.ninputs) == (2, 2)
+    assert_allclose(control.linfnorm(CL, tol=1e-8)[0], gamma, rtol=1e-6)
+
+
+def test_ncfmargin_takes_the_feedback_sign():
+    # MATLAB's ncfmargin(P, C, sign): the documented example (b = 0.7069 for P = 4/(s - 0.001),
+    # C = 1, negative feedback) and the same loop written with a positive-feedback C = -1.
+    P = control.tf(4, [1, -0.001])
+    b, _ = ncfmargin(P, 1.0)
+    assert_allclose(b, 0.7069, atol=5e-5)  # MATLAB documentation, 4 digits
+    assert ncfmargin(P, -1.0, sign=+1)[0] == b
+    assert ncfmargin(P, 1.0, sign=-1)[0] == b
+    for bad in (0, 2, True, "-1"):
+        with pytest.raises(ValueError, match=r"sign must be -1 \(u = -C y\) or \+1"):
+            ncfmargin(P, 1.0, sign=bad)

@@ -154,6 +154,12 @@ class NCFSynResult:
         uncertainty; the loop shape is kept when ``emax >= 0.2``).
     factor : float
         Requested ``gamma / gamma_min`` (``1`` = optimal).
+
+    Notes
+    -----
+    Unpacks as MATLAB's ``[K, CL, gamma, info] = ncfsyn(G, W1, W2)``: ``K, CL, gamma, info =
+    ncfsyn(G, W1, W2)`` gives :attr:`K` (negative feedback here; MATLAB's is ``-K``),
+    :attr:`CL`, :attr:`gamma` and this record as ``info``.
     """
 
     K: control.StateSpace
@@ -165,6 +171,22 @@ class NCFSynResult:
     gamma_min: float
     emax: float
     factor: float
+
+    @property
+    def CL(self) -> control.StateSpace:
+        r"""Closed loop of the shaped plant, whose H-infinity norm is :attr:`gamma`.
+
+        .. math:: CL = \begin{bmatrix} I \\ K_s \end{bmatrix} (I + G_s K_s)^{-1}
+                  \begin{bmatrix} I & G_s \end{bmatrix}
+
+        from the disturbances ``[w1; w2]`` at the shaped plant's output and input to
+        ``[y; u]`` (:func:`rrr_pin.robust.robustness.ncf_loop`).
+        """
+        return ncf_loop(self.Gs, self.Ks)
+
+    def __iter__(self):
+        """``K, CL, gamma, info`` (see Notes)."""
+        return iter((self.K, self.CL, self.gamma, self))
 
 
 def _check_hidden_modes(Gs: control.StateSpace, discrete: bool = False,
@@ -433,8 +455,8 @@ def _to_frequency(wc: float, dt) -> float:
     return 2.0 * np.arctan(wc) / (1.0 if dt is True else dt)     # arctan(inf) = pi / 2
 
 
-def ncfmargin(P, C) -> tuple[float, float]:
-    r"""Return the NCF stability margin ``b(P, C)`` of a negative-feedback loop.
+def ncfmargin(P, C, sign: int = -1) -> tuple[float, float]:
+    r"""Return the NCF stability margin ``b(P, C)`` of a feedback loop.
 
     .. math:: b(P, C) = \left\| \begin{bmatrix} I \\ C \end{bmatrix} (I + P C)^{-1}
               \begin{bmatrix} I & P \end{bmatrix} \right\|_\infty^{-1}
@@ -449,7 +471,11 @@ def ncfmargin(P, C) -> tuple[float, float]:
     P : control.LTI
         Plant, ``p x m``; continuous or discrete time.
     C : control.LTI or array-like
-        Negative-feedback controller (``u = -C y``), ``m x p``, same timebase.
+        Controller, ``m x p``, same timebase.
+    sign : {-1, +1}, default -1
+        Feedback sign, as MATLAB's ``ncfmargin(P, C, sign)``: ``-1`` for ``u = -C y`` (this
+        package's convention), ``+1`` for ``u = +C y`` (the controllers MATLAB's ``ncfsyn``
+        returns); ``ncfmargin(P, C, +1) == ncfmargin(P, -C)``.
 
     Returns
     -------
@@ -477,8 +503,11 @@ def ncfmargin(P, C) -> tuple[float, float]:
     >>> round(ncfmargin(control.tf(4, [1, -0.001]), 1.0)[0], 4)     # MATLAB doc: 0.7069
     0.7069
     """
+    if isinstance(sign, bool) or sign not in (-1, 1):
+        raise FieldError("sign", f"{{name}} must be -1 (u = -C y) or +1 (u = +C y), got "
+                                 f"{sign!r}")
     P, C, dt = _loop_pair(P, C)
-    gamma, w = hinf_norm(ncf_loop(P, C))
+    gamma, w = hinf_norm(ncf_loop(P, C if sign == -1 else -C))
     if not np.isfinite(gamma):
         return 0.0, float("nan")
     return 1.0 / gamma, float(_to_frequency(w, dt))
