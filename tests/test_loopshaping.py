@@ -1,6 +1,7 @@
 """Tests of rrr_pin.robust.loopshaping: barriers, plant, weights, ncfsyn, reduction, design, CLI."""
 
 
+import json
 import warnings
 
 import control
@@ -463,3 +464,19 @@ def test_design_lines_print_the_inequality_that_holds(factor):
         x, op, b = re.search(r"= ([0-9.e+-]+) (<|>=) b = ([0-9.]+)", line).groups()
         assert (float(x) < float(b)) == (op == "<"), line
         assert ("NOT guaranteed" in line) == (op == ">="), line
+
+
+def test_design_order_sets_the_reduced_controller_and_refuses_more_than_full(capsys):
+    # rrr-pin design --order N (issue 21, item 6). Order 3 is the full controller: no
+    # reduction, so its gamma on the shaped plant is the synthesis' own to round-off.
+    d = design(order=3)
+    assert d.K_reduced.nstates == 3
+    assert_allclose(d.gamma_reduced, d.ncf.gamma, rtol=1e-9)
+    with pytest.warns(RuntimeWarning, match="the 1-state reduced controller raises gamma"):
+        assert main(["design", "--order", "1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert len(out["K_reduced"]["poles"]) == 1
+    assert main(["design", "--order", "4"]) == 2
+    err = capsys.readouterr().err
+    assert ("--order = 4 is more states than the full-order controller has (3)" in err
+            and "Traceback" not in err)

@@ -278,6 +278,8 @@ def _add_design(sub) -> None:
                    help="gamma / gamma_min of ncfsyn, 1 = optimal (default 1.0)")
     p.add_argument("--joints", type=int, default=3,
                    help="size n of the diagonal MIMO plant and controller (default 3)")
+    p.add_argument("--order", type=int, default=2, metavar="N",
+                   help="states of the reduced controller, eq. (18) (2, the paper's)")
     p.add_argument("--out", metavar="DIR", default=None,
                    help="write fig2.png, fig3.png, fig4a.png, fig4b.png into DIR")
     _add_overwrite(p)
@@ -294,7 +296,7 @@ def _cmd_design(args) -> int:
     from .validation import FieldError
 
     try:
-        d = design(lam=args.lam, n=args.joints, factor=args.factor)
+        d = design(lam=args.lam, n=args.joints, factor=args.factor, order=args.order)
     except FieldError as exc:  # design's lam, n, factor are --lam, --joints, --factor
         raise exc.relabelled(lambda f: "--joints" if f == "n" else _option(f)) from None
     figures = []

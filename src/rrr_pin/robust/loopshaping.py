@@ -482,7 +482,8 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
         SISO weights (applied per joint) or ``n x n`` diagonal copies; defaults
         ``25 (s + 11.5) / (s + 0.19)`` and 1 (eq. 16-17).
     order : int
-        States of the reduced controller (paper: 2).
+        States of the reduced controller (paper: 2), at most the full-order controller's
+        (3 with the paper's weights; more is refused).
     specs : sequence of (float, float), shape (k, 2)
         Performance specs ``(error, omega [rad/s])`` (eq. 14).
     model_error : (float, float)
@@ -512,6 +513,11 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
     w2 = _siso_weight("W2", W2, n, np.eye(1))
     g = _fl_plant(lam, 1)
     siso = ncfsyn(g, w1, w2, factor)
+    order = check_count("order", order)
+    if order > siso.K.nstates:
+        raise FieldError("order", f"{{name}} = {order} is more states than the full-order "
+                                  f"controller has ({siso.K.nstates}): give at most "
+                                  f"{siso.K.nstates}")
     K_reduced = reduce_controller(siso.K, order)
     reduction_shaped = reduction_guarantee(siso.Gs, siso.Ks, _inv(w1) * K_reduced * _inv(w2))
     b_reduced = reduction_shaped.b_reduced                  # b = 1 / gamma, 0 if unstable
