@@ -34,8 +34,6 @@ but the workers stay, as the cluster's owner started them.
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import gc
 import itertools
 import multiprocessing
@@ -284,6 +282,9 @@ def _pdeathsig(signum: int) -> bool:
     """Ask Linux to send ``signum`` to this process when its parent dies; False elsewhere."""
     if not sys.platform.startswith("linux"):
         return False
+    import ctypes  # here, in the worker: not at the import of every CLI command
+    import ctypes.util
+
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or None, use_errno=True)
         return libc.prctl(_PR_SET_PDEATHSIG, int(signum), 0, 0, 0) == 0

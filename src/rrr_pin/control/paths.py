@@ -59,7 +59,7 @@ def circle_from_start(p0, radius: float, normal=(0.0, 0.0, 1.0)) -> CirclePath:
     return CirclePath(p0 - radius * u, radius, normal=normal, start_dir=u)
 
 
-def position_conditioning(robot, frame: str, q) -> float:
+def position_conditioning(robot, frame: str, q, data=None) -> float:
     r"""Condition number of the position rows of ``frame``'s Jacobian at ``q``.
 
     .. math:: \kappa = \sigma_1(J_p) / \sigma_m(J_p), \qquad m = \min(3, n)
@@ -75,11 +75,13 @@ def position_conditioning(robot, frame: str, q) -> float:
         A frame of ``robot.model``.
     q : array-like, shape (n,)
         Configuration [rad].
+    data : pinocchio.Data, optional
+        Workspace of ``robot.model`` to reuse across calls (default: a new one).
     """
     import pinocchio as pin
 
     fid = robot.model.getFrameId(frame)
-    data = robot.model.createData()
+    data = robot.model.createData() if data is None else data
     J = pin.computeFrameJacobian(robot.model, data, np.asarray(q, dtype=float), fid,
                                  pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
     s = np.linalg.svd(J, compute_uv=False)[: min(3, robot.nq)]
@@ -122,7 +124,8 @@ def task_start(robot, frame: str, *, cond_max: float = COND_MAX, step: float = 0
     if not robot.model.existFrame(frame):
         raise ValueError(f"frame {frame!r} is not in robot {robot.name!r}")
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
-    k0 = position_conditioning(robot, frame, q0)
+    data = robot.model.createData()  # one workspace for every candidate
+    k0 = position_conditioning(robot, frame, q0, data)
     if k0 <= cond_max:
         return q0
     for m in range(1, int(round(reach / step)) + 1):
@@ -131,7 +134,7 @@ def task_start(robot, frame: str, *, cond_max: float = COND_MAX, step: float = 0
                 q = q0.copy()
                 q[j] += sign * m * step
                 if robot.lower[j] <= q[j] <= robot.upper[j] and \
-                        position_conditioning(robot, frame, q) <= cond_max:
+                        position_conditioning(robot, frame, q, data) <= cond_max:
                     return q
     raise ValueError(
         f"frame {frame!r} of {robot.name!r} is badly conditioned at the neutral configuration "

@@ -114,7 +114,7 @@ class Reference:
         t = np.linspace(0.0, end, max(2, int(math.ceil(end / step)) + 1))
         R = checked_sample(self, t)[0]
         lower, upper = robot.lower, robot.upper
-        bad = (R < lower) | (R > upper) | ~np.isfinite(R)
+        bad = (R < lower) | (R > upper)  # finite: checked_sample refused NaN and inf
         if bad.any():
             k, j = np.argwhere(bad)[0]
             raise ValueError(

@@ -501,6 +501,7 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
         not finite or below 1 (each a ``FieldError`` naming the field).
     """
     lam, n = check_positive("lam", lam, unit="rad/s"), check_count("n", n, 1, high=MAX_JOINTS)
+    order = check_count("order", order)
     if not LAM_RANGE[0] <= lam <= LAM_RANGE[1]:
         raise FieldError("lam", f"{{name}} must be in [{LAM_RANGE[0]:g}, {LAM_RANGE[1]:g}] "
                                 f"rad/s (LAM_RANGE, where the synthesis is well conditioned), "
@@ -513,7 +514,6 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
     w2 = _siso_weight("W2", W2, n, np.eye(1))
     g = _fl_plant(lam, 1)
     siso = ncfsyn(g, w1, w2, factor)
-    order = check_count("order", order)
     if order > siso.K.nstates:
         raise FieldError("order", f"{{name}} = {order} is more states than the full-order "
                                   f"controller has ({siso.K.nstates}): give at most "

@@ -48,7 +48,14 @@ from ..control.effects import Resolved
 from ..control.laws import FLForm, PDForm, check_law_output
 from .codegen import compile_robot_codegen
 from .extension import EXTENSION, CompiledRobot, cached, require
-from .trajectory import REASONS, VELOCITY_LIMIT, divergence, law_divergence, make_trajectory
+from .trajectory import (
+    LAW_TORQUE,
+    REASONS,
+    VELOCITY_LIMIT,
+    divergence,
+    law_divergence,
+    make_trajectory,
+)
 
 __all__ = [
     "compile_robot",
@@ -166,7 +173,7 @@ def run_compiled(run, form, *, codegen: bool = False):
                    n_steps=len(run.t) - 1)
     Q, QD, TAU, bad_step, bad_joint, reason = EXTENSION.rollout(
         plant_m, nominal_m, _law(form), inputs, _effects(fx) if fx is not None else None)
-    law_failed = bad_step >= 0 and reason == 3  # kLawTorque (rollout.hpp), REASONS[3]
+    law_failed = bad_step >= 0 and reason == LAW_TORQUE
     if law_failed and bad_step == 0 and not np.isfinite(TAU[0]).all():
         # The Python engine checks a law's first output at the edge: the same ValueError.
         check_law_output(run.law, "step() torque" if run.sampled else "torque()", TAU[0],

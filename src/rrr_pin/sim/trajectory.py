@@ -42,6 +42,9 @@ VELOCITY_LIMIT = 1e4
 REASONS = ("became NaN or infinite", f"exceeded {VELOCITY_LIMIT:g} rad/s (blow-up)",
            "left its joint limits", "got a non-finite torque (NaN or inf) from the law")
 
+#: Index in :data:`REASONS` of a law's non-finite torque (``kLawTorque`` of rollout.hpp).
+LAW_TORQUE = 3
+
 class SimulationDiverged(RuntimeError):
     """The simulated closed loop blew up; the message names the time [s] and the joint."""
 
