@@ -61,13 +61,15 @@ from pathlib import Path
 
 __all__ = ["OutputError", "OutputNotWritable", "OutputNotEmpty", "OutputInUse", "OutputDir",
            "RecordedRun", "check_writable", "recorded_runs", "refuse_other_tool", "writing",
-           "manifest_name", "MANIFEST", "CAMPAIGN_MANIFEST"]
+           "manifest_name", "MANIFEST", "CAMPAIGN_MANIFEST", "CAMPAIGN_PARTS",
+           "CAMPAIGN_FORMAT"]
 
 #: The manifest a claimed folder holds (a part's: ``rrr-pin-run-<part>.json``).
 MANIFEST = "rrr-pin-run.json"
 #: The Monte Carlo store's manifest (:data:`rrr_pin.campaign.store.MANIFEST`) and its format.
 CAMPAIGN_MANIFEST = "campaign.json"
-_CAMPAIGN_FORMAT = "rrr-pin-campaign"
+CAMPAIGN_FORMAT = "rrr-pin-campaign"
+CAMPAIGN_PARTS = "parts.jsonl"  # a campaign's rows (rrr_pin.campaign.store)
 _FORMAT = "rrr-pin-run"
 _VERSION = 1
 _SHOWN = 3  # files named in a refusal
@@ -220,8 +222,8 @@ def recorded_runs(folder) -> list[RecordedRun]:
             data = json.loads(campaign.read_text())
         except (ValueError, OSError):
             data = None
-        if isinstance(data, dict) and data.get("format") == _CAMPAIGN_FORMAT:
-            runs.append(RecordedRun("montecarlo", None, (CAMPAIGN_MANIFEST, "parts.jsonl",
+        if isinstance(data, dict) and data.get("format") == CAMPAIGN_FORMAT:
+            runs.append(RecordedRun("montecarlo", None, (CAMPAIGN_MANIFEST, CAMPAIGN_PARTS,
                                                          *data.get("outputs", []))))
     return runs
 

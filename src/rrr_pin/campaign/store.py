@@ -66,7 +66,14 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from .. import outputs
-from ..outputs import check_writable, refuse_other_tool, writing
+from ..outputs import (
+    CAMPAIGN_FORMAT,
+    CAMPAIGN_MANIFEST,
+    CAMPAIGN_PARTS,
+    check_writable,
+    refuse_other_tool,
+    writing,
+)
 
 try:  # POSIX advisory lock: one writer per output directory
     import fcntl
@@ -79,9 +86,9 @@ __all__ = [
 ]
 
 #: File names inside the output directory.
-MANIFEST = "campaign.json"
-PARTS = "parts.jsonl"
-_FORMAT = "rrr-pin-campaign"
+MANIFEST = CAMPAIGN_MANIFEST  # named once, in rrr_pin.outputs, which recognizes campaigns
+PARTS = CAMPAIGN_PARTS
+_FORMAT = CAMPAIGN_FORMAT
 _VERSION = 2  # 2: rows carry a checksum (version 1 had none)
 _CHECKSUM = "_sha256"  # key of a row's checksum in parts.jsonl
 
