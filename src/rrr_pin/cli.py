@@ -566,7 +566,7 @@ def _cmd_reproduce(args) -> int:
     design_info = study_design(d, full_order=args.full_order)
     data = write_results(result, out, design=design_info)
     figures += save_study_figures(result, out)
-    report = write_study_report(result, out, figures, design_info, robot)
+    report = write_study_report(result, out, figures, design_info, robot, data=data)
     saved = write_trajectories(result, out, args.save_trajectories)  # None: clears old ones
     print(f"{robot.name}: {robot.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "
           f"{', '.join(result.names)} (baseline {baseline})")

@@ -316,7 +316,7 @@ def write_trajectories(result: StudyResult, out: str | Path, fmt: str | None = "
 
 
 def write_study_report(result: StudyResult, out: str | Path, figures, design: dict | None,
-                       robot: Robot) -> Path:
+                       robot: Robot, data: dict | None = None) -> Path:
     """Write ``out/report.html``: results table, figures, design and one 3D scene per law.
 
     In each scene the nominal plant is opaque and the uncertain plants are translucent ghosts.
@@ -336,6 +336,9 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
         Design summary shown as nested tables.
     robot : Robot
         The nominal arm (its gravity and locked joints are the plants').
+    data : dict, optional
+        The study's ``results.json`` content if already computed (:func:`write_results`
+        returns it); default ``result.to_json()``.
 
     Returns
     -------
@@ -367,24 +370,28 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
         scenes.append(Scene(f"{result.label(name)}: nominal and uncertain plants", robot,
                             tracks))
     captions = study_captions(result, design)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        path = write_report_html(Path(out) / "report.html",
-                                 title=f"rrr-pin study on {result.robot}",
-                                 tables=[("Study tables", results_markdown(result))],
-                                 figures=[(f, captions.get(Path(f).name, Path(f).name))
-                                          for f in figures],
-                                 design=design, scenes=scenes, units=DESIGN_UNITS)
-    # Every scene draws the nominal and its plants, which share the nominal's mesh files:
-    # each set of missing files is warned about once, not once per plant and law.
-    seen = set()
-    for w in caught:
-        if isinstance(w.message, MissingMeshWarning):
-            if w.message.missing in seen:
-                continue
-            seen.add(w.message.missing)
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
-    return path
+    caught: list = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            return write_report_html(Path(out) / "report.html",
+                                     title=f"rrr-pin study on {result.robot}",
+                                     tables=[("Study tables", results_markdown(result, data))],
+                                     figures=[(f, captions.get(Path(f).name, Path(f).name))
+                                              for f in figures],
+                                     design=design, scenes=scenes, units=DESIGN_UNITS)
+    finally:
+        # Every scene draws the nominal and its plants, which share the nominal's mesh files:
+        # each set of missing files is warned about once, not once per plant and law; also
+        # when the report could not be written (the warnings may say why).
+        seen = set()
+        for w in caught:
+            if isinstance(w.message, MissingMeshWarning):
+                if w.message.missing in seen:
+                    continue
+                seen.add(w.message.missing)
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno,
+                                   source=w.source)
 
 
 def study_captions(result: StudyResult, design: dict | None = None) -> dict:
