@@ -9,7 +9,13 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rrr_pin.robust.gap import gapmetric
-from rrr_pin.robust.ncf import graph_symbols, ncfmargin, ncfsyn
+from rrr_pin.robust.ncf import (
+    HiddenModeError,
+    SynthesisError,
+    graph_symbols,
+    ncfmargin,
+    ncfsyn,
+)
 from rrr_pin.robust.robustness import ncf_loop
 
 s = control.tf("s")
@@ -289,3 +295,23 @@ def test_ncfmargin_takes_the_feedback_sign():
     for bad in (0, 2, True, "-1"):
         with pytest.raises(ValueError, match=r"sign must be -1 \(u = -C y\) or \+1"):
             ncfmargin(P, 1.0, sign=bad)
+
+
+@pytest.mark.parametrize("factor", [1.0, 1.2], ids=["bilinear", "discrete-riccati"])
+def test_discrete_ncfsyn_refuses_an_unstabilizable_mode(factor):
+    # mode z = 1.5 is unstable and uncontrollable (PBH): no controller stabilizes it
+    P = control.ss([[0.5, 0.0], [0.0, 1.5]], [[1.0], [0.0]], [[1.0, 1.0]], [[0.0]], 0.1)
+    with pytest.raises(HiddenModeError, match=r"uncontrollable mode at z = 1.5 with \|z\| >= 1"):
+        ncfsyn(P, factor=factor)
+
+
+def test_discrete_ncfsyn_plant_pole_at_nyquist():
+    # a plant pole at z = -1 has no bilinear image: factor 1 is refused by name; factor > 1
+    # is solved in discrete time and must satisfy the defining property of the central
+    # controller, gamma_min <= gamma <= factor gamma_min, with a stable loop
+    P = control.tf([1.0], [1.0, 1.0], 0.1)
+    with pytest.raises(SynthesisError, match="pole at z = -1"):
+        ncfsyn(P)
+    r = ncfsyn(P, factor=1.2)
+    assert np.abs(control.feedback(control.ss(P), r.Ks).poles()).max() < 1
+    assert r.gamma_min * (1 - 1e-9) <= r.gamma <= 1.2 * r.gamma_min * (1 + 1e-9)

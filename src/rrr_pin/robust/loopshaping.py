@@ -234,8 +234,8 @@ class LoopsynResult:
     ----------
     K : control.StateSpace
         Controller for ``G``, shape (m, p), ``K = W1 Ks W2``; the loop is
-        ``control.feedback(G * K)``. (MATLAB's ``loopsyn`` also returns a negative-feedback
-        controller; its ``ncfsyn`` returns a positive-feedback one.)
+        ``control.feedback(G * K)``. (MATLAB's ``loopsyn`` is negative feedback too: its
+        example analyses ``diskmargin(G, K)``; MATLAB's ``ncfsyn`` is positive feedback.)
     Ks : control.StateSpace
         Controller of the shaped plant, shape (p, p): ``(1 - t) I + t Ks_opt``.
     Gs : control.StateSpace
@@ -250,9 +250,9 @@ class LoopsynResult:
         first-order sections ``(1 + s/z) / (1 + s/p)`` with real corners inside :attr:`band`.
     gamma : float
         Loop-shape performance (MATLAB's meaning), ``sup_w sigma_max([Gd S; Gd^-1 T])`` with
-        ``S = (I + G K)^-1``, ``T = I - S``: 1 when ``G K = Gd`` exactly, and
-        ``sigma_min(G K) >= sigma_max(Gd)/gamma - 1``-type bounds otherwise (see
-        :func:`loopsyn`). Taken over :attr:`band`.
+        ``S = (I + G K)^-1``, ``T = I - S``: 1 when ``G K = Gd`` exactly (for a SISO
+        ``Gd``), larger the worse ``G K`` follows ``Gd``; ``||Gd S|| <= gamma`` and
+        ``||Gd^-1 T|| <= gamma`` over the band. Taken over :attr:`band`.
     b : float
         NCF margin ``b(Gs, Ks)`` of the shaped loop, at least ``alpha * b_max``.
     b_max : float
@@ -272,6 +272,8 @@ class LoopsynResult:
         ``t`` in ``Ks = (1 - t) I + t Ks_opt`` (0: ``G K = Gs``, 1: ncfsyn).
     alpha : float
         The requested trade-off.
+    G : control.StateSpace
+        The plant, shape (p, m).
     """
 
     K: control.StateSpace
@@ -289,7 +291,7 @@ class LoopsynResult:
     band: tuple
     blend: float
     alpha: float
-    G: control.StateSpace = None
+    G: control.StateSpace
 
     @property
     def CL(self) -> control.StateSpace:
@@ -385,7 +387,7 @@ def _default_band(G: control.StateSpace, Gd: control.StateSpace) -> tuple[float,
     mags = [np.abs(np.concatenate([S.poles(), S.zeros()])) for S in (G, Gd)]
     w = np.logspace(-6, 6, 1201)
     sd = _sv(np.asarray(Gd(1j * w, squeeze=False)))
-    cross = w[np.nonzero(np.diff(np.sign(np.log(sd[:, 0]))))[0]]
+    cross = w[np.nonzero(np.diff(np.sign(sd[:, 0] - 1.0)))[0]]      # |Gd| crosses 1
     mags = np.concatenate(mags + [cross])
     mags = mags[(mags > 1e-6) & (mags < 1e6)]
     if mags.size == 0:

@@ -322,7 +322,8 @@ def ncfsyn(G, W1=None, W2=None, factor: float = 1.0) -> NCFSynResult:
     try:
         Gc = to_continuous(Gs) if discrete else Gs
     except ValueError as exc:
-        raise SynthesisError(f"shaped plant: {exc}") from exc
+        raise SynthesisError(f"shaped plant: {exc}; with factor > 1 the synthesis is done in "
+                             "discrete time, without this map") from exc
     _check_hidden_modes(Gc, discrete)
     Ks_c, gamma_min = _ncfsyn_ct(Gc, factor)
     gamma = ncf_gamma(Gc, Ks_c)
