@@ -306,6 +306,10 @@ class LoopsynResult:
 #: Points per decade of the frequency grids of :func:`loopsyn` (weight fit, gamma, fit).
 LOOPSYN_GRID_PER_DECADE = 60
 
+#: Largest number of pole-zero pairs the weight fit of :func:`loopsyn` adds to Bode's
+#: asymptotes where its error exceeds 1.5 dB.
+LOOPSYN_EXTRA_PAIRS = 3
+
 
 def _sv(H: np.ndarray) -> np.ndarray:
     """Singular values of a frequency response of shape (p, m, nw), shape (nw, min(p, m))."""
@@ -322,6 +326,32 @@ def _corner_model(u, logk, zeros, poles):
     return out
 
 
+def _gain(u, L, zeros, poles) -> tuple[float]:
+    """Least-squares log10 gain of the corner model with fixed corners."""
+    return (float(np.mean(L - _corner_model(u, 0.0, zeros, poles))),)
+
+
+def _refine_corners(u, L, zeros, poles):
+    """Corners (log10 rad/s) refined by least squares on ``L``, kept inside ``[u0, u-1]``."""
+    from scipy.optimize import least_squares
+
+    nz = len(zeros)
+    if nz + len(poles) == 0:
+        return list(zeros), list(poles)
+    x0 = np.concatenate([_gain(u, L, zeros, poles), zeros, poles])
+
+    def jac(x):
+        e = 10.0 ** (2.0 * (u[:, None] - x[None, 1:]))
+        d = -e / (1.0 + e)
+        d[:, nz:] *= -1.0
+        return np.hstack([np.ones((u.size, 1)), d])
+
+    x = least_squares(lambda x: _corner_model(u, x[0], x[1:1 + nz], x[1 + nz:]) - L, x0,
+                      jac=jac, bounds=(np.r_[-np.inf, np.full(x0.size - 1, u[0])],
+                                       np.r_[np.inf, np.full(x0.size - 1, u[-1])])).x
+    return list(x[1:1 + nz]), list(x[1 + nz:])
+
+
 def _fit_magnitude(u: np.ndarray, L: np.ndarray):
     """Stable, minimum-phase, biproper fit of log-magnitude data ``L = log10 |w(j 10^u)|``.
 
@@ -329,10 +359,10 @@ def _fit_magnitude(u: np.ndarray, L: np.ndarray):
     whole multiples of 20 dB/decade; a zero or pole where the rounded slope steps, poles and
     zeros at the band ends so that ``w`` is flat outside the band (biproper, finite DC gain);
     coincident pole-zero pairs dropped. The corners and the gain are then refined by least
-    squares on ``L`` (scipy). Real corners only: resonances are smoothed over, never inverted.
+    squares on ``L`` (scipy), and up to :data:`LOOPSYN_EXTRA_PAIRS` pole-zero pairs are added
+    where the error peaks while it exceeds 1.5 dB. Real corners only: resonances are smoothed
+    over, never inverted.
     """
-    from scipy.optimize import least_squares
-
     per = 1.0 / np.mean(np.diff(u))
     slope = np.gradient(L, u)
     k = max(1, int(round(per / 3.0)))
@@ -358,23 +388,29 @@ def _fit_magnitude(u: np.ndarray, L: np.ndarray):
             p_keep.remove(near[0])
             z_keep.remove(zc)
     zeros, poles = z_keep, p_keep
-    nz = len(zeros)
-    logk = float(np.mean(L - _corner_model(u, 0.0, zeros, poles)))
-    x0 = np.concatenate([[logk], zeros, poles])
-    if x0.size > 1:                             # corners stay inside the band
-        def jac(x):
-            e = 10.0 ** (2.0 * (u[:, None] - x[None, 1:]))
-            d = -e / (1.0 + e)
-            d[:, nz:] *= -1.0
-            return np.hstack([np.ones((u.size, 1)), d])
-
-        res = least_squares(lambda x: _corner_model(u, x[0], x[1:1 + nz], x[1 + nz:]) - L, x0,
-                            jac=jac,
-                            bounds=(np.r_[-np.inf, np.full(x0.size - 1, u[0])],
-                                    np.r_[np.inf, np.full(x0.size - 1, u[-1])]))
-        x0 = res.x
-    zeros, poles = np.sort(10.0 ** x0[1:1 + nz]), np.sort(10.0 ** x0[1 + nz:])
-    weight = static_gain([[10.0 ** x0[0]]])
+    zeros, poles = _refine_corners(u, L, zeros, poles)
+    # greedy: a zero-pole (or pole-zero) pair where the error peaks inside the band (a third
+    # of a decade from its ends, where the flat turn of the weight costs up to 3 dB per
+    # corner), while that error exceeds 1.5 dB and each pair lowers it by a tenth
+    inner = (u > u[0] + 1.0 / 3.0) & (u < u[-1] - 1.0 / 3.0)
+    if not np.any(inner):
+        inner[:] = True
+    for _ in range(LOOPSYN_EXTRA_PAIRS):
+        err = np.where(inner, _corner_model(u, *_gain(u, L, zeros, poles), zeros, poles) - L, 0)
+        i = int(np.argmax(np.abs(err)))
+        if abs(err[i]) <= 0.075:                # 1.5 dB
+            break
+        lo_c, hi_c = u[i] - 0.25, u[i] + 0.25
+        z2, p2 = (zeros + [lo_c], poles + [hi_c]) if err[i] < 0 else \
+            (zeros + [hi_c], poles + [lo_c])
+        z2, p2 = _refine_corners(u, L, z2, p2)
+        new = np.max(np.abs(_corner_model(u, *_gain(u, L, z2, p2), z2, p2) - L)[inner])
+        if not new < 0.9 * abs(err[i]):
+            break
+        zeros, poles = z2, p2
+    logk = _gain(u, L, zeros, poles)[0]
+    zeros, poles = np.sort(10.0 ** np.asarray(zeros)), np.sort(10.0 ** np.asarray(poles))
+    weight = static_gain([[10.0 ** logk]])
     for z, p in zip(zeros, poles, strict=True):  # (1 + s/z) / (1 + s/p), well conditioned
         r = p / z
         weight = control.ss(weight * control.ss([[-p]], [[np.sqrt(p)]],
