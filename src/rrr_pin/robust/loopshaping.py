@@ -466,8 +466,11 @@ def loopsyn(G, Gd, alpha: float = 0.5, band=None) -> LoopsynResult:
 
     subject to ``b(Gs, Ks(t)) >= alpha * b_max`` is chosen (a 41-point grid in ``t``, refined
     by bisection at the constraint). ``gamma = 1`` when ``G K = Gd``; MATLAB calls it the
-    mixed-sensitivity performance. This is a one-parameter search, not MATLAB's
-    mixsyn/ncfsyn blend: the same trade-off and the same measures, not the same controller.
+    mixed-sensitivity performance, ``||[W1 S; W3 T]||_inf`` with its own stable weights
+    ``W1 ~ Gd``, ``W3 ~ 1/Gd`` (a crossover tolerance included), so its values are of the
+    same meaning, not equal. This is a one-parameter search, not MATLAB's tuned fixed-order
+    blend (``systune``) or its ``alpha = 0`` mixsyn design: the same trade-off and measures,
+    not the same controller. ``CL = feedback(G K)`` as MATLAB's.
     ``gamma``, ``fit`` and ``weight_fit`` are taken on grids of
     :data:`LOOPSYN_GRID_PER_DECADE` points per decade; ``b``, ``b_max`` and ``margin`` are
     exact (Hamiltonian H-infinity norms).
