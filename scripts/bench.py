@@ -15,7 +15,8 @@ asserted:
    ``pin`` directly (:func:`handwritten_fl_rollout`, the yardstick): 10 s, 1 kHz, ZOH FL;
 4. a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes) against its bound
    ``2 N x floor / 2 cores``, and the throughput with 1 worker;
-5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes.
+5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
+6. ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant (:func:`loopsyn_3x3_s`).
 
 Usage::
 
@@ -63,6 +64,7 @@ GOALS = {
     "robot_call": 2.0,  # Robot.M/V/G / bare pin call
     "cli_help_s": 0.3,
     "import_s": 0.6,
+    "loopsyn_3x3_s": 5.0,  # issue 21
 }
 
 # The paper's H-infinity controller, eq. (18) (as rrr_pin.design().K_reduced reproduces it).
@@ -170,6 +172,24 @@ def subprocess_s(cmd, repeat):
 
 def verdict(ratio, goal):
     return f"goal <= {goal:g}: {'met' if ratio <= goal else 'NOT MET'}"
+
+
+def loopsyn_3x3_s(repeat: int = 1) -> float:
+    """Fastest of ``repeat`` wall times [s] of ``loopsyn(G, 10/s)``, ``G = fl_plant(45, 3) M``.
+
+    ``M`` couples the joints (a constant 3 x 3 matrix), so the synthesis is truly MIMO.
+    """
+    from rrr_pin.robust.loopshaping import fl_plant, loopsyn
+
+    M = np.array([[1.0, 0.3, 0.1], [0.2, 1.0, 0.4], [0.1, -0.2, 1.0]])
+    G = control.ss(fl_plant(45.0, 3) * control.ss(np.zeros((0, 0)), np.zeros((0, 3)),
+                                                  np.zeros((3, 0)), M))
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        loopsyn(G, control.tf(10.0, [1.0, 0.0]))
+        best = min(best, time.perf_counter() - t0)
+    return best
 
 
 def main(argv=None):
@@ -307,6 +327,9 @@ def main(argv=None):
     import_s = subprocess_s([sys.executable, "-c", "import rrr_pin"], args.startup_repeat)
     python_s = subprocess_s([sys.executable, "-c", "pass"], args.startup_repeat)
 
+    # 6. loopsyn on a 3 x 3 plant (issue 21).
+    loopsyn_s = loopsyn_3x3_s(1 if args.quick else 3)
+
     hinf_sampled = {r["reference"]: r for r in compiled_rows
                     if r["law"] == "hinf" and r["time"] == "sampled"}["sine"]
     fl_sampled = {r["reference"]: r for r in compiled_rows
@@ -341,6 +364,7 @@ def main(argv=None):
         "cli_help_s": cli_help_s,
         "import_s": import_s,
         "python_startup_s": python_s,
+        "loopsyn_3x3_s": loopsyn_s,
         "goals": GOALS,
         "settings": {"duration_s": args.duration, "rate_hz": args.rate, "substeps": 1,
                      "continuous_dt_s": 1e-3, "repeat": args.repeat, "calls": args.calls,
@@ -404,6 +428,9 @@ def report(res, args):
     for key, what in (("cli_help_s", "rrr-pin --help"), ("import_s", "import rrr_pin")):
         v, goal = res[key], GOALS[key]
         print(f"  {what:16}{v:8.3f} s   goal < {goal:g} s: {'met' if v < goal else 'NOT MET'}")
+    v, goal = res["loopsyn_3x3_s"], GOALS["loopsyn_3x3_s"]
+    print(f"\n6. loopsyn(G, 10/s), G coupled 3 x 3 (6 states): {v:.3f} s   goal < {goal:g} s: "
+          f"{'met' if v < goal else 'NOT MET'}")
 
 
 if __name__ == "__main__":

@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.robust.ncf import graph_symbols, ncfmargin, ncfsyn
+from rrr_pin.robust.gap import gapmetric
+from rrr_pin.robust.ncf import (
+    HiddenModeError,
+    SynthesisError,
+    graph_symbols,
+    ncfmargin,
+    ncfsyn,
+)
 from rrr_pin.robust.robustness import ncf_loop
 
 s = control.tf("s")
@@ -109,6 +116,111 @@ def test_discrete_ncfmargin_against_octave_controller():
     assert_allclose(1 / ncfmargin(P_D, -Ko)[0], 2.247579537483, rtol=1e-10)
 
 
+def test_discrete_ncfsyn_is_octaves_controller_sb10zd():
+    # Octave 7.3.0 / control 3.4.0: [K, N, gamma, info] = ncfsyn(P_D, [], [], 1.2) (SB10ZD,
+    # D != 0); info.Ks is the positive-feedback controller, ours the negative-feedback -Ks.
+    # Solved in discrete time now, it is the same controller: frequency responses to 1e-10
+    # (Octave's 17 printed digits) and the same achieved gamma.
+    r = ncfsyn(P_D, factor=1.2)
+    Ko = control.ss(*KS_OCTAVE, 0.1)
+    z = np.exp(1j * np.linspace(0.0, np.pi, 50))
+    assert_allclose(np.asarray(r.Ks(z)), -np.asarray(Ko(z)), rtol=1e-10, atol=1e-12)
+    assert_allclose(r.gamma, 2.247579537483, rtol=1e-11)
+    # gamma_min from the discrete Riccati equations = the bilinear route's (factor 1)
+    assert_allclose(r.gamma_min, ncfsyn(P_D).gamma_min, rtol=1e-10)
+
+
+def test_discrete_ncfsyn_is_octaves_controller_sb10kd():
+    # Octave 7.3.0 / control 3.4.0 (SB10KD, D = 0):
+    #   G = ss(tf([0.1 0.05], [1 -1.2 0.5], 0.05)); [K, N, gamma, info] = ncfsyn(G, [], [], 1.1)
+    #   -> gamma = 1.1118219261627, info.Ks below (positive feedback), G's realization below
+    G = control.ss([[1.6653345369377348e-16, 0.50000000000000022],
+                    [-0.99999999999999978, 1.2000000000000002]],
+                   [[-0.05000000000000001], [0.10000000000000001]], [[0.0, 1.0]], [[0.0]], 0.05)
+    Ko = control.ss([[-0.09948374901076569, 0.54258513721402613],
+                     [-0.80103250197846809, 0.99172495223982016]],
+                    [[0.035973764074064843], [0.051157245183998765]],
+                    [[1.9896749802153166, -1.511341120145675]], [[-0.059836905616138684]], 0.05)
+    r = ncfsyn(G, factor=1.1)
+    z = np.exp(1j * np.linspace(0.0, np.pi, 50))
+    assert_allclose(np.asarray(r.Ks(z)).ravel(), -np.asarray(Ko(z)).ravel(), rtol=1e-10)
+    # gamma: Octave's 1.1118219261627 is 1.2e-5 low; the loop with Octave's own controller
+    # has ||.||_inf = 1.11183499 by SLICOT AB13DD (control.linfnorm, discrete) and by a
+    # 200001-point unit-circle sweep (measured), and that is what ours must equal
+    loop = ncf_loop(G, -Ko)
+    ref = control.linfnorm(control.ss(loop.A, loop.B, loop.C, loop.D, 0.05), tol=1e-10)[0]
+    assert_allclose(r.gamma, ref, rtol=1e-9)
+    assert_allclose(r.gamma, 1.1118219261627, rtol=2e-5)
+    assert_allclose(r.gamma_min, ncfsyn(G).gamma_min, rtol=1e-10)   # bilinear route
+
+
+# SLICOT's own example programs (doc/SB10KD.html and doc/SB10ZD.html of SLICOT-Reference):
+# data and the controllers printed as "Program Results" (4 decimals, positive feedback, FACTOR
+# = 1.1). The printed matrices are the realization our formulas give too.
+A_KD = [[0.2, 0.0, 0.3, 0.0, -0.3, -0.1], [-0.3, 0.2, -0.4, -0.3, 0.0, 0.0],
+        [-0.1, 0.1, -0.1, 0.0, 0.0, -0.3], [0.1, 0.0, 0.0, -0.1, -0.1, 0.0],
+        [0.0, 0.3, 0.6, 0.2, 0.1, -0.4], [0.2, -0.4, 0.0, 0.0, 0.2, -0.2]]
+A_ZD = [[0.2, 0.0, 3.0, 0.0, -0.3, -0.1], [-3.0, 0.2, -0.4, -0.3, 0.0, 0.0],
+        [-0.1, 0.1, -1.0, 0.0, 0.0, -3.0], [1.0, 0.0, 0.0, -1.0, -1.0, 0.0],
+        [0.0, 0.3, 0.6, 2.0, 0.1, -0.4], [0.2, -4.0, 0.0, 0.0, 0.2, -2.0]]
+B_SL = [[-1.0, -2.0], [1.0, 3.0], [-3.0, -4.0], [1.0, -2.0], [0.0, 1.0], [1.0, 5.0]]
+C_SL = [[1.0, -1.0, 2.0, -2.0, 0.0, -3.0], [-3.0, 0.0, 1.0, -1.0, 1.0, -1.0]]
+SLICOT_EXAMPLES = {
+    "SB10KD": (control.ss(A_KD, B_SL, C_SL, np.zeros((2, 2)), True), (
+        [[0.0337, 0.0222, 0.0858, 0.1264, -0.1872, 0.1547],
+         [0.4457, 0.0668, -0.2255, -0.3204, -0.4548, -0.0691],
+         [-0.2419, -0.2506, -0.0982, -0.1321, -0.0130, -0.0838],
+         [-0.4402, 0.3654, -0.0335, -0.2444, 0.6366, -0.6469],
+         [-0.3623, 0.3854, 0.4162, 0.4502, 0.0065, 0.1261],
+         [-0.0121, -0.4377, 0.0604, 0.2265, -0.3389, 0.4542]],
+        [[0.0931, -0.0269], [-0.0872, 0.1599], [0.0956, -0.1469], [-0.1728, 0.0129],
+         [0.2022, -0.1154], [0.2419, -0.1737]],
+        [[-0.3677, 0.2188, 0.0403, -0.0854, 0.3564, -0.3535],
+         [0.1624, -0.0708, 0.0058, 0.0606, -0.2163, 0.1802]],
+        [[-0.0857, -0.0246], [0.0460, 0.0074]])),
+    "SB10ZD": (control.ss(A_ZD, B_SL, C_SL + [[2.0, 4.0, -3.0, 0.0, 5.0, 1.0]],
+                          [[10.0, -6.0], [-7.0, 8.0], [2.0, -4.0]], True), (
+        [[1.0128, 0.5101, -0.1546, 1.1300, 3.3759, 0.4911],
+         [-2.1257, -1.4517, -0.4486, 0.3493, -1.5506, -1.4296],
+         [-1.0930, -0.6026, -0.1344, 0.2253, -1.5625, -0.6762],
+         [0.3207, 0.1698, 0.2376, -1.1781, -0.8705, 0.2896],
+         [0.5017, 0.9006, 0.0668, 2.3613, 0.2049, 0.3703],
+         [1.0787, 0.6703, 0.2783, -0.7213, 0.4918, 0.7435]],
+        [[0.4132, 0.3112, -0.8077], [0.2140, 0.4253, 0.1811], [-0.0710, 0.0807, 0.3558],
+         [-0.0121, -0.2019, 0.0249], [0.1047, 0.1399, -0.0457], [-0.2542, -0.3472, 0.0523]],
+        [[-0.0372, -0.0456, -0.0040, 0.0962, -0.2059, -0.0571],
+         [0.1999, 0.2994, 0.1335, -0.0251, -0.3108, 0.2048]],
+        [[0.0629, -0.0022, 0.0363], [-0.0228, 0.0195, 0.0600]])),
+}
+
+
+@pytest.mark.parametrize("name", list(SLICOT_EXAMPLES))
+def test_discrete_ncfsyn_reproduces_slicot_example_results(name):
+    P, (Ak, Bk, Ck, Dk) = SLICOT_EXAMPLES[name]
+    r = ncfsyn(P, factor=1.1)
+    # the same matrices to the 4 printed decimals (negative feedback: Ck, Dk change sign)
+    for got, ref in zip((r.Ks.A, r.Ks.B, -r.Ks.C, -r.Ks.D), (Ak, Bk, Ck, Dk), strict=True):
+        assert_allclose(got, ref, atol=5.01e-5)
+    # the printed controller, as a system: a small nu-gap to ours (4-decimal rounding)
+    printed = control.ss(Ak, Bk, -np.asarray(Ck), -np.asarray(Dk), True)
+    assert gapmetric(r.Ks, printed)[1] < 1e-3
+    assert np.abs(control.feedback(P, r.Ks).poles()).max() < 1
+
+
+def test_discrete_ncfsyn_no_longer_copies_the_nyquist_gain():
+    # issue 21: the paper's shaped plant at 1 kHz with factor 1.01; through the bilinear map
+    # the central controller had a pole at z = -0.669 and |Ks(-1)| = 1.9e-4 (measured before
+    # the change). Solved in discrete time (SB10ZD's method, checked against Octave above), its
+    # poles are 0.989, 0.535 and 0.100 (measured); gamma stays within factor * gamma_min.
+    G = control.c2d(control.tf([45.0**2], [1.0, 90.0, 45.0**2]), 1e-3, "zoh")
+    W1 = control.c2d(control.tf([25.0, 25.0 * 11.5], [1.0, 0.19]), 1e-3, "tustin")
+    r = ncfsyn(G, W1, factor=1.01)
+    assert np.all(r.Ks.poles().real > 0)
+    assert r.gamma_min <= r.gamma <= 1.01 * r.gamma_min * (1 + 1e-9)
+    assert_allclose(1 / ncfmargin(r.Gs, r.Ks)[0], r.gamma, rtol=1e-9)
+    assert_allclose(r.gamma_min, ncfsyn(G, W1).gamma_min, rtol=1e-9)      # bilinear route
+
+
 @pytest.mark.parametrize(("P", "gamma_near_opt", "f"), [
     # Octave 7.3.0 / control 3.4.0: ncfsyn(P_D, [], [], 1.0001) (SB10ZD, D != 0) -> gamma
     (P_D, 2.031557145570, 1.0001),
@@ -183,3 +295,23 @@ def test_ncfmargin_takes_the_feedback_sign():
     for bad in (0, 2, True, "-1"):
         with pytest.raises(ValueError, match=r"sign must be -1 \(u = -C y\) or \+1"):
             ncfmargin(P, 1.0, sign=bad)
+
+
+@pytest.mark.parametrize("factor", [1.0, 1.2], ids=["bilinear", "discrete-riccati"])
+def test_discrete_ncfsyn_refuses_an_unstabilizable_mode(factor):
+    # mode z = 1.5 is unstable and uncontrollable (PBH): no controller stabilizes it
+    P = control.ss([[0.5, 0.0], [0.0, 1.5]], [[1.0], [0.0]], [[1.0, 1.0]], [[0.0]], 0.1)
+    with pytest.raises(HiddenModeError, match=r"uncontrollable mode at z = 1.5 with \|z\| >= 1"):
+        ncfsyn(P, factor=factor)
+
+
+def test_discrete_ncfsyn_plant_pole_at_nyquist():
+    # a plant pole at z = -1 has no bilinear image: factor 1 is refused by name; factor > 1
+    # is solved in discrete time and must satisfy the defining property of the central
+    # controller, gamma_min <= gamma <= factor gamma_min, with a stable loop
+    P = control.tf([1.0], [1.0, 1.0], 0.1)
+    with pytest.raises(SynthesisError, match="pole at z = -1"):
+        ncfsyn(P)
+    r = ncfsyn(P, factor=1.2)
+    assert np.abs(control.feedback(control.ss(P), r.Ks).poles()).max() < 1
+    assert r.gamma_min * (1 - 1e-9) <= r.gamma <= 1.2 * r.gamma_min * (1 + 1e-9)

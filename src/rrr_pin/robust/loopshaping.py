@@ -44,7 +44,14 @@ from .barriers import (
     robust_performance_barrier,
     robust_stability_barrier,
 )
-from .lti import DimensionMismatchError, ImproperSystemError, check_lti, expand_diagonal
+from .lti import (
+    DimensionMismatchError,
+    ImproperSystemError,
+    TimebaseMismatchError,
+    check_lti,
+    expand_diagonal,
+    static_gain,
+)
 from .ncf import (
     NCFSynResult,
     SynthesisError,
@@ -94,7 +101,7 @@ LAM_RANGE = (1e-6, 1e7)
 MAX_JOINTS = 1000
 
 # Re-exported names that live in other modules (kept importable from here).
-_REEXPORTED = (PAPER_MODEL_ERROR, sla, ncf_gamma)
+_REEXPORTED = (PAPER_MODEL_ERROR, sla, ncf_gamma, ImproperSystemError, SynthesisError)
 
 
 # --- plant and weights (paper 3 and 4.2) ------------------------------------------------------
@@ -218,160 +225,429 @@ def _siso_weight(name: str, W, n: int, default) -> control.StateSpace:
 
 @dataclass(frozen=True)
 class LoopsynResult:
-    """Result of :func:`loopsyn` (negative-feedback controllers).
+    """Result of :func:`loopsyn` (negative-feedback controllers, ``u = K (r - y)``).
+
+    Unpacks as MATLAB's ``[K, CL, gamma, info] = loopsyn(G, Gd, alpha)``: ``K, CL, gamma,
+    info = loopsyn(G, Gd)`` gives :attr:`K`, :attr:`CL`, :attr:`gamma` and this record.
 
     Attributes
     ----------
     K : control.StateSpace
-        Controller for ``G``, ``K = W1 Ks`` with ``W1 = G^-1 Gd``.
+        Controller for ``G``, shape (m, p), ``K = W1 Ks W2``; the loop is
+        ``control.feedback(G * K)``. (MATLAB's ``loopsyn`` is negative feedback too: its
+        example analyses ``diskmargin(G, K)``; MATLAB's ``ncfsyn`` is positive feedback.)
     Ks : control.StateSpace
-        Controller of the shaped plant ``Gs = G W1 = Gd``.
-    W1 : control.StateSpace
-        Pre-compensator ``G^-1 Gd``.
+        Controller of the shaped plant, shape (p, p): ``(1 - t) I + t Ks_opt``.
     Gs : control.StateSpace
-        Shaped plant, equal to the target ``Gd``.
+        Shaped plant ``W2 G W1``, shape (p, p).
+    W1 : control.StateSpace
+        Pre-compensator, shape (m, p): ``w(s) R`` with the fitted SISO weight ``w`` and a
+        constant ``m x p`` matrix ``R`` with orthonormal columns (``I`` for a square plant).
+    W2 : control.StateSpace
+        Post-compensator, ``p x p`` identity.
+    weight : control.StateSpace
+        The fitted stable, minimum-phase, biproper SISO weight ``w(s)``, a cascade of
+        first-order sections ``(1 + s/z) / (1 + s/p)`` with real corners inside :attr:`band`.
+    gamma : float
+        Loop-shape performance (MATLAB's meaning), ``sup_w sigma_max([Gd S; Gd^-1 T])`` with
+        ``S = (I + G K)^-1``, ``T = I - S``: 1 when ``G K = Gd`` exactly (for a SISO
+        ``Gd``), larger the worse ``G K`` follows ``Gd``; ``||Gd S|| <= gamma`` and
+        ``||Gd^-1 T|| <= gamma`` over the band. Taken over :attr:`band`.
     b : float
-        Achieved margin ``b(Gs, Ks)``, at least ``alpha * b_max``.
+        NCF margin ``b(Gs, Ks)`` of the shaped loop, at least ``alpha * b_max``.
     b_max : float
-        Largest achievable margin ``1 / gamma_min`` of ``Gs`` (ncfsyn).
+        Largest achievable margin ``1 / gamma_min`` of ``Gs`` (:func:`ncfsyn`).
     margin : float
         ``ncfmargin(G, K)`` of the unweighted loop.
+    weight_fit : float
+        Largest error [dB] over :attr:`band` between the log-mean singular value of ``Gs``
+        and that of ``Gd`` (how well ``Gs`` matches ``Gd``; the spread of ``G``'s singular
+        values around their mean is kept).
     fit : float
-        Relative loop-shape error ``sup_w |(G K - Gd) / Gd| = ||Ks - 1||_Linf`` (0 = exact).
+        Largest error [dB] over :attr:`band` between the singular values of the loop
+        ``G K`` and those of ``Gd``, ``max |20 log10(sigma_i(G K) / sigma_i(Gd))|``.
+    band : tuple of float
+        Frequency band ``(low, high)`` [rad/s] of the weight fit.
     blend : float
-        ``t`` in ``Ks = (1 - t) + t Ks_opt`` (0: ``G K = Gd`` exactly, 1: ncfsyn).
+        ``t`` in ``Ks = (1 - t) I + t Ks_opt`` (0: ``G K = Gs``, 1: ncfsyn).
     alpha : float
         The requested trade-off.
+    G : control.StateSpace
+        The plant, shape (p, m).
     """
 
     K: control.StateSpace
     Ks: control.StateSpace
-    W1: control.StateSpace
     Gs: control.StateSpace
+    W1: control.StateSpace
+    W2: control.StateSpace
+    weight: control.StateSpace
+    gamma: float
     b: float
     b_max: float
     margin: float
+    weight_fit: float
     fit: float
+    band: tuple
     blend: float
     alpha: float
+    G: control.StateSpace
+
+    @property
+    def CL(self) -> control.StateSpace:
+        """Closed loop ``r -> y``, ``T = G K (I + G K)^-1`` (MATLAB's ``CL``), shape (p, p)."""
+        return control.feedback(self.G * self.K, np.eye(self.G.noutputs))
+
+    def __iter__(self):
+        """``K, CL, gamma, info``."""
+        return iter((self.K, self.CL, self.gamma, self))
 
 
-def _linf_grid(sys: control.StateSpace) -> np.ndarray:
-    """Dense frequency grid [rad/s] around the poles and zeros of ``sys``."""
-    mags = np.abs(np.concatenate([sys.poles(), sys.zeros()]))
-    mags = mags[mags > 0]
-    lo = np.log10(mags.min()) - 3 if mags.size else -3
-    hi = np.log10(mags.max()) + 3 if mags.size else 3
-    return np.logspace(lo, hi, 4000)
+#: Points per decade of the frequency grids of :func:`loopsyn` (weight fit, gamma, fit).
+LOOPSYN_GRID_PER_DECADE = 60
+
+#: Largest number of pole-zero pairs the weight fit of :func:`loopsyn` adds to Bode's
+#: asymptotes where its error exceeds 1.5 dB.
+LOOPSYN_EXTRA_PAIRS = 3
 
 
-def loopsyn(G, Gd, alpha: float = 0.5) -> LoopsynResult:
-    r"""Loop shaping to a target loop ``Gd``, trading the fit against robustness (SISO).
+def _sv(H: np.ndarray) -> np.ndarray:
+    """Singular values of a frequency response of shape (p, m, nw), shape (nw, min(p, m))."""
+    return np.linalg.svd(np.moveaxis(H, -1, 0), compute_uv=False)
 
-    MATLAB's meaning of ``alpha``: the margin is kept at least ``alpha`` times the largest
-    achievable one, and within that the fit to ``Gd`` is made as good as possible; ``alpha
-    = 1`` is the pure ncfsyn (Glover-McFarlane) design, ``alpha = 0`` the best fit.
 
-    Here the pre-compensator ``W1 = G^{-1} G_d`` makes the shaped plant the target,
-    ``Gs = G W1 = Gd``, with the optimal ncfsyn controller ``Ks_opt`` (margin
-    ``b_max = 1/gamma_min``). Along the segment
+def _corner_model(u, logk, zeros, poles):
+    """``log10 |w(j 10^u)|`` of ``w(s) = k prod(1 + s/z) / prod(1 + s/p)`` (log10 corners)."""
+    out = np.full_like(u, logk)
+    for c in zeros:
+        out += 0.5 * np.log10(1.0 + 10.0 ** (2 * (u - c)))
+    for c in poles:
+        out -= 0.5 * np.log10(1.0 + 10.0 ** (2 * (u - c)))
+    return out
 
-    .. math:: K_s(t) = (1 - t) + t K_{s,\mathrm{opt}},\qquad K = W_1 K_s(t),\qquad
-              G K = G_d K_s(t),\qquad
-              \text{fit}(t) = \left\| \frac{G K - G_d}{G_d} \right\|_{L_\infty}
-                         = t\, \| K_{s,\mathrm{opt}} - 1 \|_{L_\infty}
 
-    the smallest ``t`` with ``b(Gs, Ks(tau)) >= alpha b_max`` for every ``tau >= t`` is
-    chosen (a 101-point grid in ``t``, refined by bisection). This is a one-parameter
-    search, not MATLAB's mixed-sensitivity optimization: the same trade-off, not the same
-    controller. The L-infinity norm is taken on a dense frequency grid.
+def _gain(u, L, zeros, poles) -> tuple[float]:
+    """Least-squares log10 gain of the corner model with fixed corners."""
+    return (float(np.mean(L - _corner_model(u, 0.0, zeros, poles))),)
+
+
+def _refine_corners(u, L, zeros, poles):
+    """Corners (log10 rad/s) refined by least squares on ``L``, kept inside ``[u0, u-1]``."""
+    from scipy.optimize import least_squares
+
+    nz = len(zeros)
+    if nz + len(poles) == 0:
+        return list(zeros), list(poles)
+    x0 = np.concatenate([_gain(u, L, zeros, poles), zeros, poles])
+
+    def jac(x):
+        e = 10.0 ** (2.0 * (u[:, None] - x[None, 1:]))
+        d = -e / (1.0 + e)
+        d[:, nz:] *= -1.0
+        return np.hstack([np.ones((u.size, 1)), d])
+
+    x = least_squares(lambda x: _corner_model(u, x[0], x[1:1 + nz], x[1 + nz:]) - L, x0,
+                      jac=jac, bounds=(np.r_[-np.inf, np.full(x0.size - 1, u[0])],
+                                       np.r_[np.inf, np.full(x0.size - 1, u[-1])])).x
+    return list(x[1:1 + nz]), list(x[1 + nz:])
+
+
+def _fit_magnitude(u: np.ndarray, L: np.ndarray):
+    """Stable, minimum-phase, biproper fit of log-magnitude data ``L = log10 |w(j 10^u)|``.
+
+    Bode's asymptotes: the slope of ``L`` (smoothed over a third of a decade) rounded to
+    whole multiples of 20 dB/decade; a zero or pole where the rounded slope steps, poles and
+    zeros at the band ends so that ``w`` is flat outside the band (biproper, finite DC gain);
+    coincident pole-zero pairs dropped. The corners and the gain are then refined by least
+    squares on ``L`` (scipy), and up to :data:`LOOPSYN_EXTRA_PAIRS` pole-zero pairs are added
+    where the error peaks while it exceeds 1.5 dB. Real corners only: resonances are smoothed
+    over, never inverted.
+    """
+    per = 1.0 / np.mean(np.diff(u))
+    slope = np.gradient(L, u)
+    k = max(1, int(round(per / 3.0)))
+    slope = np.convolve(np.pad(slope, (k, k), mode="edge"), np.ones(2 * k + 1) / (2 * k + 1),
+                        mode="valid")
+    n = np.round(slope).astype(int)
+    zeros, poles = [], []
+
+    def step(at, d):
+        (zeros if d > 0 else poles).extend([at] * abs(d))
+
+    step(u[0], n[0])
+    for i in np.nonzero(np.diff(n))[0]:
+        step(0.5 * (u[i] + u[i + 1]), n[i + 1] - n[i])
+    step(u[-1], -n[-1])
+    zeros.sort()
+    poles.sort()
+    # drop pole-zero pairs closer than a sixth of a decade (rounding chatter)
+    z_keep, p_keep = list(zeros), list(poles)
+    for zc in zeros:
+        near = [pc for pc in p_keep if abs(pc - zc) < 1.0 / 6.0]
+        if near:
+            p_keep.remove(near[0])
+            z_keep.remove(zc)
+    zeros, poles = z_keep, p_keep
+    zeros, poles = _refine_corners(u, L, zeros, poles)
+    # greedy: a zero-pole (or pole-zero) pair where the error peaks inside the band (a third
+    # of a decade from its ends, where the flat turn of the weight costs up to 3 dB per
+    # corner), while that error exceeds 1.5 dB and each pair lowers it by a tenth
+    inner = (u > u[0] + 1.0 / 3.0) & (u < u[-1] - 1.0 / 3.0)
+    if not np.any(inner):
+        inner[:] = True
+    for _ in range(LOOPSYN_EXTRA_PAIRS):
+        err = np.where(inner, _corner_model(u, *_gain(u, L, zeros, poles), zeros, poles) - L, 0)
+        i = int(np.argmax(np.abs(err)))
+        if abs(err[i]) <= 0.075:                # 1.5 dB
+            break
+        lo_c, hi_c = u[i] - 0.25, u[i] + 0.25
+        z2, p2 = (zeros + [lo_c], poles + [hi_c]) if err[i] < 0 else \
+            (zeros + [hi_c], poles + [lo_c])
+        z2, p2 = _refine_corners(u, L, z2, p2)
+        new = np.max(np.abs(_corner_model(u, *_gain(u, L, z2, p2), z2, p2) - L)[inner])
+        if not new < 0.9 * abs(err[i]):
+            break
+        zeros, poles = z2, p2
+    logk = _gain(u, L, zeros, poles)[0]
+    zeros, poles = np.sort(10.0 ** np.asarray(zeros)), np.sort(10.0 ** np.asarray(poles))
+    weight = static_gain([[10.0 ** logk]])
+    for z, p in zip(zeros, poles, strict=True):  # (1 + s/z) / (1 + s/p), well conditioned
+        r = p / z
+        weight = control.ss(weight * control.ss([[-p]], [[np.sqrt(p)]],
+                                                [[r * (z - p) / np.sqrt(p)]], [[r]]))
+    return weight
+
+
+def _default_band(G: control.StateSpace, Gd: control.StateSpace) -> tuple[float, float]:
+    """Band [rad/s] a decade beyond the poles, zeros and crossovers of ``G`` and ``Gd``."""
+    mags = [np.abs(np.concatenate([S.poles(), S.zeros()])) for S in (G, Gd)]
+    w = np.logspace(-6, 6, 1201)
+    sd = _sv(np.asarray(Gd(1j * w, squeeze=False)))
+    cross = w[np.nonzero(np.diff(np.sign(sd[:, 0] - 1.0)))[0]]      # |Gd| crosses 1
+    mags = np.concatenate(mags + [cross])
+    mags = mags[(mags > 1e-6) & (mags < 1e6)]
+    if mags.size == 0:
+        return 1e-2, 1e2
+    return float(mags.min() / 10.0), float(mags.max() * 10.0)
+
+
+def _squaring_down(G: control.StateSpace, w: np.ndarray) -> np.ndarray:
+    """``m x p`` matrix ``R`` with orthonormal columns spanning G's dominant input directions.
+
+    The ``p`` leading eigenvectors of ``sum_w Re(G(jw)^H G(jw))`` over the band grid ``w``.
+    """
+    H = np.asarray(G(1j * w, squeeze=False))
+    M = np.einsum("ikw,ilw->kl", H.conj(), H).real
+    d, V = np.linalg.eigh(0.5 * (M + M.T))
+    return V[:, ::-1][:, :G.noutputs]
+
+
+def loopsyn(G, Gd, alpha: float = 0.5, band=None) -> LoopsynResult:
+    r"""Loop shaping to a target loop ``Gd``, trading the fit against robustness (MATLAB's).
+
+    As MATLAB's ``loopsyn``, the weights come from the singular values of ``G`` and ``Gd``,
+    never by inverting ``G``: a stable, minimum-phase, biproper SISO weight ``w(s)`` is fitted
+    (Bode asymptotes refined by least squares, real corners) over ``band`` to
+
+    .. math:: |w(j\omega)| \approx \frac{\operatorname{gm}\sigma(G_d(j\omega))}
+              {\operatorname{gm}\sigma(G(j\omega) R)},
+
+    ``gm`` the geometric mean of the singular values, and ``W1 = w R``, ``W2 = I``: the
+    shaped plant ``Gs = G W1`` has the log-mean loop gain of ``Gd``, with ``G``'s spread of
+    singular values (no plant inversion, no cancelled flexible modes). ``R`` is ``I`` for a
+    square plant; with more inputs than outputs (``m > p``) it is the ``m x p`` matrix of
+    the dominant input directions of ``G`` over the band. Then ``Ks_opt = ncfsyn(Gs)`` with
+    ``b_max = 1/gamma_min``, and on the segment ``Ks(t) = (1 - t) I + t Ks_opt``
+    (``G K = Gs Ks(t)``; ``t = 0`` is the loop ``Gs``, ``t = 1`` the ncfsyn design) the
+    ``t`` with the smallest
+
+    .. math:: \gamma = \sup_\omega \bar\sigma\begin{bmatrix} G_d S \\ G_d^{-1} T
+              \end{bmatrix},\qquad S = (I + G K)^{-1},\ T = I - S
+
+    subject to ``b(Gs, Ks(t)) >= alpha * b_max`` is chosen (a 41-point grid in ``t``, refined
+    by bisection at the constraint). ``gamma = 1`` when ``G K = Gd``; MATLAB calls it the
+    mixed-sensitivity performance, ``||[W1 S; W3 T]||_inf`` with its own stable weights
+    ``W1 ~ Gd``, ``W3 ~ 1/Gd`` (a crossover tolerance included), so its values are of the
+    same meaning, not equal. This is a one-parameter search, not MATLAB's tuned fixed-order
+    blend (``systune``) or its ``alpha = 0`` mixsyn design: the same trade-off and measures,
+    not the same controller. ``CL = feedback(G K)`` as MATLAB's.
+    ``gamma``, ``fit`` and ``weight_fit`` are taken on grids of
+    :data:`LOOPSYN_GRID_PER_DECADE` points per decade; ``b``, ``b_max`` and ``margin`` are
+    exact (Hamiltonian H-infinity norms).
 
     Parameters
     ----------
     G : control.LTI
-        SISO continuous-time plant; stable and minimum phase, since ``W1 = G^-1 Gd``
-        cancels its poles and zeros.
+        Continuous-time plant, ``p`` outputs and ``m >= p`` inputs; may be unstable or non-
+        minimum phase (the fit uses magnitudes only).
     Gd : control.LTI
-        SISO target loop shape; must roll off at least as fast as ``G`` (``W1`` proper).
+        Continuous-time target loop shape, SISO (``Gd I``) or ``p x p``; integrators allowed
+        (the weight's fit stops at ``band[0]``: below it the weight is flat).
     alpha : float
-        Trade-off in ``[0, 1]`` (default 0.5, as MATLAB).
+        Trade-off in ``[0, 1]`` (default 0.5, as MATLAB): ``b(Gs, Ks) >= alpha b_max``.
+    band : (float, float), optional
+        Band ``(low, high)`` [rad/s] of the weight fit; default a decade beyond the nonzero
+        poles and zeros of ``G`` and ``Gd`` and the crossovers of ``Gd``.
 
     Returns
     -------
     LoopsynResult
-        ``K``, the achieved margin ``b`` (and ``margin`` on ``G``), the ``fit``.
+        Unpacks as ``K, CL, gamma, info``.
 
     Raises
     ------
+    FieldError
+        ``alpha`` not in ``[0, 1]``; ``band`` not two positive increasing frequencies.
     DimensionMismatchError
-        ``G`` or ``Gd`` not SISO.
-    ImproperSystemError
-        ``Gd`` rolls off slower than ``G``.
-    SynthesisError
-        The cancellation in ``W1`` leaves the loop of ``G`` and ``K`` internally unstable
-        (``G`` unstable or non-minimum phase).
+        ``G`` with more outputs than inputs (``G K`` could not reach the rank of ``Gd``; MATLAB
+        refuses it too); ``Gd`` neither SISO nor ``p x p``.
+    TimebaseMismatchError
+        A discrete-time ``G`` or ``Gd``.
+    ValueError
+        ``G`` or ``Gd`` loses rank (a zero singular value) on the band.
 
     References
     ----------
-    .. [1] MATLAB Robust Control Toolbox ``loopsyn`` (alpha); McFarlane and Glover (1992);
-       Skogestad and Postlethwaite (2005), sec. 9.4.
+    .. [1] MathWorks, Robust Control Toolbox, ``loopsyn`` (weights from singular values,
+       ``alpha``, ``gamma``, the HiMAT example); McFarlane and Glover (1992); Skogestad and
+       Postlethwaite (2005), sec. 9.4.
+
+    Examples
+    --------
+    >>> import control
+    >>> from rrr_pin.robust.loopshaping import loopsyn
+    >>> G = control.tf(200, [10, 1]) * control.tf(1, [0.05, 1]) ** 2
+    >>> K, CL, gamma, info = loopsyn(G, control.tf(10, [1, 0]))
+    >>> info.b >= 0.5 * info.b_max
+    True
     """
     alpha = check_real("alpha", alpha)
     if not 0.0 <= alpha <= 1.0:
-        raise ValueError(f"alpha must be in [0, 1], got {alpha!r}")
+        raise FieldError("alpha", f"{{name}} must be in [0, 1], got {alpha!r}")
     G, Gd = check_lti(G, "G"), check_lti(Gd, "Gd")
     for name, sys in (("G", G), ("Gd", Gd)):
-        if (sys.noutputs, sys.ninputs) != (1, 1):
-            raise DimensionMismatchError(
-                f"loopsyn supports SISO systems; {name} is {sys.noutputs} x {sys.ninputs} "
-                "(use ncfsyn with weights for MIMO plants)")
         if sys.dt not in (0, None):
-            raise ValueError(f"loopsyn takes continuous-time systems; {name} has dt={sys.dt!r}")
-    g, gd = control.tf(G), control.tf(Gd)
-    num = np.polymul(np.atleast_1d(gd.num[0][0]), np.atleast_1d(g.den[0][0]))
-    den = np.polymul(np.atleast_1d(gd.den[0][0]), np.atleast_1d(g.num[0][0]))
-    num, den = np.trim_zeros(num, "f"), np.trim_zeros(den, "f")
-    if num.size > den.size:
-        raise ImproperSystemError(
-            "Gd must roll off at least as fast as G: W1 = G^-1 Gd would be improper "
-            f"(relative degree of G {g.den[0][0].size - np.trim_zeros(g.num[0][0], 'f').size}"
-            f" > relative degree of Gd)")
-    W1 = control.ss(control.minreal(control.tf(num, den), verbose=False))
-    Gs = control.ss(Gd)
+            raise TimebaseMismatchError(
+                f"loopsyn takes continuous-time systems; {name} has dt={sys.dt!r}")
+    p, m = G.noutputs, G.ninputs
+    if p > m:
+        raise DimensionMismatchError(
+            f"G has more outputs than inputs ({p} x {m}): G K has rank {m} < {p} and cannot "
+            "follow the target loop shape (MATLAB's loopsyn refuses it too)")
+    if (Gd.noutputs, Gd.ninputs) not in ((1, 1), (p, p)):
+        raise DimensionMismatchError(
+            f"Gd must be SISO or {p} x {p} (the loop G K), got {Gd.noutputs} x {Gd.ninputs}")
+    if band is None:
+        band = _default_band(G, Gd)
+    else:
+        try:
+            lo, hi = (float(x) for x in band)
+        except (TypeError, ValueError):
+            raise FieldError("band", f"{{name}} must be two frequencies (low, high) [rad/s], "
+                                     f"got {band!r}") from None
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo < hi):
+            raise FieldError("band", f"{{name}} must be 0 < low < high finite [rad/s], got "
+                                     f"{band!r}")
+        band = (lo, hi)
+    if Gd.noutputs == 1 and p > 1:
+        Gd = expand_diagonal(Gd, p)
+    decades = np.log10(band[1] / band[0])
+    u = np.linspace(np.log10(band[0]), np.log10(band[1]),
+                    max(2, int(np.ceil(decades * LOOPSYN_GRID_PER_DECADE)) + 1))
+    w = 10.0 ** u
+    R = np.eye(p) if m == p else _squaring_down(G, w)
+    GR = control.ss(G * static_gain(R))
+    s_g = _sv(np.asarray(GR(1j * w, squeeze=False)))
+    s_d = _sv(np.asarray(Gd(1j * w, squeeze=False)))
+    for name, sv in (("G", s_g), ("Gd", s_d)):
+        bad = np.nonzero(~(sv[:, -1] > 1e-12 * np.maximum(sv[:, 0], 1e-300)))[0]
+        if bad.size:
+            raise ValueError(f"{name} loses rank at {w[bad[0]]:.4g} rad/s inside the band "
+                             f"{band}: a zero singular value has no log-magnitude to fit")
+    L = np.mean(np.log10(s_d), axis=1) - np.mean(np.log10(s_g), axis=1)
+    weight = _fit_magnitude(u, L)
+    W1 = control.ss((expand_diagonal(weight, p) if p > 1 else weight) * static_gain(R))
+    W2 = static_gain(np.eye(p))
+    Gs = control.ss(G * W1)
+    s_s = _sv(np.asarray(Gs(1j * w, squeeze=False)))
+    weight_fit = 20.0 * float(np.max(np.abs(np.mean(np.log10(s_s), axis=1)
+                                            - np.mean(np.log10(s_d), axis=1))))
     opt = ncfsyn(Gs)
     b_max = 1.0 / opt.gamma_min
-    one = control.ss([], [], [], [[1.0]])
+    eye = static_gain(np.eye(p))
+    Ks_opt = control.ss(opt.Ks)
+
+    hs = np.moveaxis(np.asarray(Gs(1j * w, squeeze=False)), -1, 0)
+    hk = np.moveaxis(np.asarray(Ks_opt(1j * w, squeeze=False)), -1, 0)
+    hd = np.moveaxis(np.asarray(Gd(1j * w, squeeze=False)), -1, 0)
+    hdi = np.linalg.inv(hd)
+    I = np.eye(p)
 
     def Ks_at(t):
-        return control.ss(control.parallel(opt.Ks * t, one * (1.0 - t)))
+        return control.ss(control.parallel(Ks_opt * t, eye * (1.0 - t)))
 
-    def b_at(t):
-        return ncfmargin(Gs, Ks_at(t))[0]
+    # Scan in t on frequency grids: the NCF 4-block norm on a grid two decades wider than the
+    # band and internal stability from the closed-loop eigenvalues; the chosen t is then
+    # checked with the exact margin (ncfmargin, a Hamiltonian H-infinity norm).
+    wide = np.logspace(u[0] - 2.0, u[-1] + 2.0, int(round((decades + 4.0) * 60)) + 1)
+    gs_w = np.moveaxis(np.asarray(Gs(1j * wide, squeeze=False)), -1, 0)
+    ks_w = np.moveaxis(np.asarray(Ks_opt(1j * wide, squeeze=False)), -1, 0)
+    A, B, C, D = (np.asarray(M, float) for M in (Gs.A, Gs.B, Gs.C, Gs.D))
+    Ak, Bk, Ck, Dk = (np.asarray(M, float) for M in (Ks_opt.A, Ks_opt.B, Ks_opt.C, Ks_opt.D))
+    I = np.eye(p)
+    top = np.concatenate([np.broadcast_to(I, gs_w.shape), gs_w], axis=2)
+
+    def b_grid(t):
+        Dt, Ct = t * Dk + (1.0 - t) * I, t * Ck             # u = -(Ct xk + Dt y)
+        Q = np.linalg.inv(I + Dt @ D)
+        Acl = np.block([[A - B @ Q @ Dt @ C, -B @ Q @ Ct],
+                        [Bk @ (C - D @ Q @ Dt @ C), Ak - Bk @ D @ Q @ Ct]])
+        if np.linalg.eigvals(Acl).real.max(initial=-np.inf) >= 0.0:
+            return 0.0
+        kt = t * ks_w + (1.0 - t) * I
+        S = np.linalg.inv(I + gs_w @ kt)
+        blk = np.concatenate([S, kt @ S], axis=1) @ top
+        return 1.0 / float(np.max(np.linalg.svd(blk, compute_uv=False)[:, 0]))
+
+    def gamma_at(t):
+        L = hs @ ((1.0 - t) * I + t * hk)
+        S = np.linalg.inv(I + L)
+        stack = np.concatenate([hd @ S, hdi @ (I - S)], axis=1)
+        return float(np.max(np.linalg.svd(stack, compute_uv=False)[:, 0]))
 
     target = alpha * b_max * (1 - 1e-9)
-    ts = np.linspace(0.0, 1.0, 101)
-    ok = np.array([b_at(t) >= target and b_at(t) > 0 for t in ts])
-    bad = np.nonzero(~ok)[0]
-    if bad.size == 0:
-        t = 0.0
-    else:
-        lo, hi = ts[bad[-1]], ts[bad[-1] + 1]
-        for _ in range(30):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (lo, mid) if b_at(mid) >= target and b_at(mid) > 0 else (mid, hi)
-        t = hi
-    Ks = Ks_at(t)
-    K = control.ss(W1 * Ks)
+
+    def feasible(b):                                # stabilizing, and the margin asked
+        return b > 0.0 and b >= target
+
+    ts = np.linspace(0.0, 1.0, 41)
+    ok = np.array([feasible(b_grid(t)) for t in ts[:-1]] + [True])   # t = 1: b = b_max
+    gam = np.array([gamma_at(t) if o else np.inf for t, o in zip(ts, ok, strict=True)])
+    i = int(np.argmin(gam))
+    t = float(ts[i])
+    if i > 0 and not ok[i - 1]:                     # the best lies on the constraint
+        lo_t, hi_t = ts[i - 1], ts[i]
+        for _ in range(20):
+            mid = 0.5 * (lo_t + hi_t)
+            lo_t, hi_t = (lo_t, mid) if feasible(b_grid(mid)) else (mid, hi_t)
+        if gamma_at(hi_t) < gam[i]:
+            t = float(hi_t)
+    if t < 1.0 and not feasible(ncfmargin(Gs, Ks_at(t))[0]):  # the grid was optimistic
+        lo_t, hi_t = t, 1.0
+        for _ in range(20):
+            mid = 0.5 * (lo_t + hi_t)
+            lo_t, hi_t = (lo_t, mid) if feasible(ncfmargin(Gs, Ks_at(mid))[0]) else (mid, hi_t)
+        t = float(hi_t)
+    Ks = Ks_at(t) if t < 1.0 else Ks_opt
+    K = control.ss(W1 * Ks * W2)
+    b = float(ncfmargin(Gs, Ks)[0]) if t < 1.0 else 1.0 / opt.gamma
     margin = ncfmargin(G, K)[0]
-    if margin <= 0.0:
-        raise SynthesisError("W1 = G^-1 Gd cancels an unstable pole or zero of G: the loop of "
-                             "G and K is not internally stable (loopsyn needs a stable, "
-                             "minimum-phase G)")
-    w = _linf_grid(control.ss(opt.Ks))
-    dev = np.abs(np.asarray(opt.Ks(1j * w)).ravel() - 1.0).max()
-    return LoopsynResult(K=K, Ks=Ks, W1=W1, Gs=Gs, b=float(b_at(t)), b_max=float(b_max),
-                         margin=float(margin), fit=float(t * dev), blend=float(t),
-                         alpha=alpha)
+    s_l = _sv(np.asarray((G * K)(1j * w, squeeze=False)))
+    fit = 20.0 * float(np.max(np.abs(np.log10(s_l) - np.log10(s_d))))
+    return LoopsynResult(K=K, Ks=Ks, Gs=Gs, W1=W1, W2=W2, weight=weight,
+                         gamma=gamma_at(t), b=b, b_max=float(b_max), margin=float(margin),
+                         weight_fit=weight_fit, fit=fit, band=band, blend=t,
+                         alpha=alpha, G=G)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@ Conventions (used everywhere in rrr-pin):
 * Shaped plant ``Gs = W2 G W1``, loop-shaping controller ``K = W1 Ks W2``.
 * Graph symbols with outputs first, ``G = [N; M]`` for ``P = N M^-1`` (normalized:
   ``G~ G = I``) and ``Gt = [-Mt, Nt]`` for ``P = Mt^-1 Nt`` (``Gt Gt~ = I``, ``Gt G = 0``).
-* Continuous time natively; discrete time through the exact bilinear map of
+* Continuous time natively; the discrete ``ncfsyn`` with ``factor > 1`` in discrete time
+  (SLICOT SB10ZD's method), everything else discrete through the exact bilinear map of
   :func:`rrr_pin.robust.lti.to_continuous`, which preserves every quantity computed here.
 
 References
@@ -249,12 +250,15 @@ def ncfsyn(G, W1=None, W2=None, factor: float = 1.0) -> NCFSynResult:
     whose magnitude grows like ``1 / (factor - 1)``;
     :func:`rrr_pin.robust.reduction.reduce_controller` removes it.
 
-    **Discrete time** (the problem SLICOT ``SB10KD``/``SB10ZD`` solve): ``Gs`` is mapped to
-    continuous time by the bilinear map ``z = (1 + s) / (1 - s)``
-    (:func:`rrr_pin.robust.lti.to_continuous`), which maps the unit circle onto the imaginary axis
-    and preserves internal stability and the H-infinity norm of the NCF loop; so
-    ``gamma_min`` is the discrete one and the continuous central controller, mapped back,
-    is a discrete controller of the same order achieving the same ``gamma``.
+    **Discrete time**, ``factor > 1``: solved in discrete time, by the method of SLICOT
+    ``SB10ZD`` (``SB10KD`` for ``D = 0``, the routines behind Octave's ``ncfsyn``): two
+    discrete Riccati equations, ``gamma_min = sqrt(1 + rho(Q P))`` and SB10ZD's central
+    controller (:func:`_ncfsyn_dt`), which reproduces SLICOT's published examples and
+    Octave's controller. ``factor == 1``: SB10ZD's ``X`` is singular at the optimum, so
+    ``Gs`` is mapped to continuous time by the bilinear map ``z = (1 + s) / (1 - s)``
+    (:func:`rrr_pin.robust.lti.to_continuous`), which preserves internal stability and the
+    H-infinity norm of the NCF loop, synthesized there with the exact elimination above,
+    and mapped back (the same ``gamma_min``; a discrete controller of lower order).
 
     Parameters
     ----------
@@ -310,10 +314,16 @@ def ncfsyn(G, W1=None, W2=None, factor: float = 1.0) -> NCFSynResult:
     G, W1, W2, dt = _plant_and_weights(G, W1, W2)
     Gs = _series(W2, G, W1)
     discrete = _is_discrete(Gs.dt)
+    if discrete and factor > 1.0:
+        Ks, gamma_min, gamma = _ncfsyn_dt(Gs, factor)
+        K = _series(W1, Ks, W2)
+        return NCFSynResult(K=K, Ks=Ks, Gs=Gs, W1=W1, W2=W2, gamma=gamma,
+                            gamma_min=gamma_min, emax=1.0 / gamma, factor=factor)
     try:
         Gc = to_continuous(Gs) if discrete else Gs
     except ValueError as exc:
-        raise SynthesisError(f"shaped plant: {exc}") from exc
+        raise SynthesisError(f"shaped plant: {exc}; with factor > 1 the synthesis is done in "
+                             "discrete time, without this map") from exc
     _check_hidden_modes(Gc, discrete)
     Ks_c, gamma_min = _ncfsyn_ct(Gc, factor)
     gamma = ncf_gamma(Gc, Ks_c)
@@ -359,6 +369,92 @@ def _ncfsyn_ct(Gs: control.StateSpace, factor: float):
     else:
         Ak, Bk = np.linalg.solve(E, Ak), np.linalg.solve(E, Bk)
     return control.ss(Ak, Bk, -Ck, -Dk), gamma_min        # negative-feedback convention
+
+
+def _sym_power(M: np.ndarray, e: float) -> np.ndarray:
+    """``M^e`` of a symmetric positive-definite matrix (eigendecomposition)."""
+    d, V = np.linalg.eigh(0.5 * (M + M.T))
+    return (V * d**e) @ V.T
+
+
+def _check_hidden_modes_dt(Gs: control.StateSpace) -> None:
+    """:func:`_check_hidden_modes` for a discrete ``Gs`` itself: modes with ``|z| >= 1``."""
+    A, B, C = (np.asarray(M, dtype=float) for M in (Gs.A, Gs.B, Gs.C))
+    n = A.shape[0]
+    scale = max(1.0, np.linalg.norm(A, 1))
+    for ev in np.linalg.eigvals(A):
+        if abs(ev) < 1.0 - 1e-9:
+            continue
+        M = A - ev * np.eye(n)
+        for kind, pbh in (("uncontrollable", np.hstack([M, B])),
+                          ("unobservable", np.vstack([M, C]))):
+            sv = np.linalg.svd(pbh, compute_uv=False)
+            if sv[-1] <= 1e-9 * max(scale, sv[0]):
+                raise HiddenModeError(
+                    f"the shaped plant has an {kind} mode at z = {ev:.6g} with |z| >= 1: no "
+                    "controller stabilizes it (check W1, W2 for pole-zero cancellations with "
+                    "G, or pass a minimal realization)")
+
+
+def _ncfsyn_dt(Gs: control.StateSpace, factor: float):
+    r"""Discrete central controller (negative feedback), gamma_min and gamma; factor > 1.
+
+    The method of SLICOT ``SB10ZD`` (``SB10KD`` when ``D = 0``; McFarlane and Glover 1992),
+    written here with numpy/scipy: with ``R1 = I + D D^T``, ``R2 = I + D^T D`` and
+    ``Ar = A - B R2^-1 D^T C``, ``P`` and ``Q`` solve the discrete Riccati equations
+
+    .. math::
+        A_r^T P (I + B R_2^{-1} B^T P)^{-1} A_r - P + C^T R_1^{-1} C = 0
+
+        A_r Q (I + C^T R_1^{-1} C Q)^{-1} A_r^T - Q + B R_2^{-1} B^T = 0
+
+    ``gamma_min = sqrt(1 + rho(Q P))``, ``X = ((gamma^2 - 1) I - P Q)^-1 gamma^2 P``, and the
+    controller follows SB10ZD's formulas step by step (its ``H``, ``Rx``, ``Bx``, ``Sx``,
+    ``F``). ``X`` is singular at the optimum: ``factor == 1`` goes through the bilinear map.
+    """
+    A, B, C, D = (np.asarray(M, dtype=float) for M in (Gs.A, Gs.B, Gs.C, Gs.D))
+    n, (p, m) = A.shape[0], D.shape
+    if n == 0:
+        raise SynthesisError("the shaped plant is a static gain; nothing to synthesize")
+    _check_hidden_modes_dt(Gs)
+    R1, R2 = np.eye(p) + D @ D.T, np.eye(m) + D.T @ D
+    R1h, R2h = _sym_power(R1, -0.5), _sym_power(R2, -0.5)
+    Ar = A - B @ np.linalg.solve(R2, D.T @ C)
+    Bt, Ct = B @ R2h, R1h @ C
+    try:
+        P = sla.solve_discrete_are(Ar, Bt, Ct.T @ Ct, np.eye(m))
+        Q = sla.solve_discrete_are(Ar.T, Ct.T, Bt @ Bt.T, np.eye(p))
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise SynthesisError(f"discrete Riccati equation without stabilizing solution: "
+                             f"{exc}") from exc
+    rho = max(float(np.max(np.linalg.eigvals(Q @ P).real)), 0.0)
+    gamma_min = float(np.sqrt(1.0 + rho))
+    g2 = (factor * gamma_min) ** 2
+    W = R1 + C @ Q @ C.T
+    Wh = _sym_power(W, 0.5)
+    H = -np.linalg.solve(W, (A @ Q @ C.T + B @ D.T).T).T
+    R1D = R1h @ D
+    Rx = np.block([[R1 - g2 * np.eye(p), Wh @ R1D], [(Wh @ R1D).T, np.eye(m)]])
+    Bx = np.hstack([-H @ Wh, Bt])
+    Sx = np.hstack([C.T @ Wh, C.T @ R1D])
+    X = np.linalg.solve((g2 - 1.0) * np.eye(n) - P @ Q, g2 * P)
+    F = -np.linalg.solve(Rx + Bx.T @ X @ Bx, Sx.T + Bx.T @ X @ A)
+    F1, F2 = F[:p], F[p:]
+    Dk = -np.linalg.solve(R2 + B.T @ X @ B, D.T - B.T @ X @ H)
+    Bk = -H + B @ Dk
+    Ck = R2h @ F2 - Dk @ (C + Wh @ F1)
+    Ak = A + H @ C + B @ Ck
+    Mi = np.linalg.inv(np.eye(m) + Dk @ D)
+    Ck, Dk_pos = Mi @ Ck, Mi @ Dk
+    Ak = Ak - Bk @ D @ Ck
+    Bk = Bk @ np.linalg.inv(np.eye(p) + D @ Dk)
+    Ks = control.ss(Ak, Bk, -Ck, -Dk_pos, Gs.dt)            # negative-feedback convention
+    loop = ncf_loop(Gs, Ks)
+    if not np.all(np.abs(np.linalg.eigvals(loop.A)) < 1.0):
+        raise SynthesisError("the discrete controller does not stabilize the shaped plant "
+                             "(numerical failure; try a larger factor)")
+    gamma = hinf_norm(to_continuous(loop))[0]        # the loop is stable: no pole at z = -1
+    return Ks, gamma_min, float(gamma)
 
 
 def _riccati_xz(A, B, C, D):
