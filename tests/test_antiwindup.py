@@ -223,3 +223,82 @@ def test_at_90_percent_hinf_diverges_and_hinf_aw_does_not(rrr, ref):
     assert isinstance(outs[0]["hinf"], SimulationDiverged)
     assert sum(isinstance(o["hinf"], SimulationDiverged) for o in outs[1:]) >= 1
     assert all(isinstance(o["hinf_aw"], float) and o["hinf_aw"] < AW_RMS_BOUND for o in outs)
+
+
+def test_study_under_a_limit_sets_aside_a_law_that_diverges_on_the_nominal_arm(rrr, ref):
+    from rrr_pin.campaign.runner import RunSettings, make_laws
+    from rrr_pin.campaign.study import StudyConfig, run_study
+
+    # hinf diverges on the nominal arm at 1.895 s at the issue's limits (issue 20): 2 s runs.
+    run = RunSettings(duration=2.0, rate=1000.0, effects=PlantEffects(torque_limit=ISSUE_LIMIT))
+    laws = make_laws("fl,hinf,hinf_aw", rrr, K=K18, torque_limit=ISSUE_LIMIT)
+    result = run_study(rrr, laws, config=StudyConfig(run=run, samples=1, jobs=1),
+                       reference=ref)
+    assert result.names == ["fl", "hinf_aw"] and list(result.dropped) == ["hinf"]
+    assert "diverged at t = 1.895 s" in result.dropped["hinf"]["nominal"]
+    tl = result.to_json()["summary"]["torque_limit"]
+    assert tl["limit_Nm"] == list(ISSUE_LIMIT)
+    hinf = tl["laws"]["hinf"]
+    assert hinf["nominal_diverged"] and hinf["nominal_rms_error"] is None
+    for name in ("fl", "hinf_aw"):
+        d, traj = tl["laws"][name], result.nominal[name]
+        assert not d["nominal_diverged"] and d["uncertain_diverged"] == 0
+        # From the trajectory's own arrays: periods with a joint at its limit, and the RMS error.
+        at = np.any(np.abs(traj.tau[:-1]) >= np.array(ISSUE_LIMIT), axis=1)
+        assert d["nominal_saturated"] == pytest.approx(at.mean(), abs=1e-15)
+        assert 0.0 < d["nominal_saturated"] < 1.0
+        assert d["nominal_rms_error"] == pytest.approx(np.sqrt(np.mean(traj.error ** 2)),
+                                                       rel=1e-12)
+
+
+def test_a_study_refuses_a_limit_below_gravity(rrr, ref):
+    from rrr_pin.campaign.runner import RunSettings, make_laws
+    from rrr_pin.campaign.study import StudyConfig, run_study
+
+    run = RunSettings(duration=0.1, rate=1000.0,
+                      effects=PlantEffects(torque_limit=(150.0, 100.0, 45.0)))
+    with pytest.raises(FieldError, match=r"joint 'joint2' is 100 N m, below the gravity torque "
+                                         r"202.41 N m"):
+        run_study(rrr, make_laws("fl", rrr), config=StudyConfig(run=run, samples=0),
+                  reference=ref)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--torque-limit=-1", "--rate", "1000"], "--torque-limit = [-1.0]: expected finite > 0"),
+    (["--torque-limit", "150,0,45", "--rate", "1000"],
+     "--torque-limit = [150.0, 0.0, 45.0]: expected finite > 0 per joint"),
+    (["--torque-limit", "nan,270,45", "--rate", "1000"],
+     "--torque-limit = [nan, 270.0, 45.0]: expected finite > 0"),
+    (["--torque-limit", "150,270", "--rate", "1000"],
+     "expected one value or 3 (one per joint), got 2"),
+    (["--torque-limit", "150,100,45", "--rate", "1000"],
+     "--torque-limit of joint 'joint2' is 100 N m, below the gravity torque 202.41 N m"),
+    (["--torque-limit", "50%", "--rate", "1000"],
+     "--torque-limit of joint 'joint2' is 149.718 N m, below the gravity torque 202.41 N m"),
+    (["--torque-limit", "0%", "--rate", "1000"], "the percent must be finite and > 0"),
+    (["--torque-limit", "x%", "--rate", "1000"], "expected auto, P% (a number P > 0"),
+    (["--torque-limit", "auto"], "give --rate HZ too"),
+], ids=["negative", "zero", "nan", "size", "below-gravity", "percent-below-gravity",
+        "percent-zero", "percent-word", "no-rate"])
+def test_reproduce_refuses_bad_torque_limits(argv, message, capsys, tmp_path):
+    from rrr_pin import cli
+
+    assert cli.main(["reproduce"] + argv + ["--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_reproduce_under_a_limit_records_it(tmp_path, capsys):
+    import json
+
+    from rrr_pin import cli
+
+    out = tmp_path / "o"
+    assert cli.main(["reproduce", "--torque-limit", "90%", "--rate", "1000", "--samples", "1",
+                     "--duration", "3", "--no-certify", "--no-progress", "--out", str(out)]) == 0
+    tl = json.loads((out / "results.json").read_text())["summary"]["torque_limit"]
+    assert tl["spec"] == "90%" and tl["percent"] == 90.0
+    assert_allclose(tl["limit_Nm"], 0.9 * np.array(tl["peak_torque_Nm"]), rtol=1e-15)
+    assert set(tl["laws"]) == {"fl", "hinf", "hinf_aw"}
+    assert "Under the torque limit" in (out / "results.md").read_text()

@@ -385,8 +385,8 @@ def check_torque_limit(robot, value="urdf", reference=None, *,
             raise FieldError(name, f"{{name}} = {value!r}: expected 'urdf', a number or {n} "
                                    f"numbers (one per joint) [N m]") from None
         shown = arr.tolist()
-        if arr.ndim == 0:
-            arr = np.full(n, float(arr))
+        if arr.ndim == 0 or arr.shape == (1,):  # one value: every joint's
+            arr = np.full(n, float(arr.ravel()[0]))
         if arr.shape != (n,):
             raise FieldError(name, f"{{name}} = {shown}: expected one value or {n} (one "
                                    f"per joint), got {arr.size}")
