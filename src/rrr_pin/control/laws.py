@@ -1,4 +1,4 @@
-r"""Control laws: the protocol every law follows, and the three built-ins.
+r"""Control laws: the protocol every law follows, and the built-ins.
 
 A **control law** computes the joint torque from the time, the measured state, the reference
 and its own state. Two kinds, as in Simulink's continuous and discrete blocks:
