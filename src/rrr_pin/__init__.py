@@ -20,6 +20,7 @@ except _metadata.PackageNotFoundError:  # running from a source tree that is not
 
 #: Public name -> submodule that defines it.
 _EXPORTS = {
+    "AntiWindupTracking": "control.laws",
     "ArmParams": "model.dh",
     "CampaignSettings": "campaign.montecarlo",
     "CertificateSpec": "robust.certificates",
@@ -35,10 +36,12 @@ _EXPORTS = {
     "DHLink": "model.dh",
     "expand_diagonal": "robust.lti",
     "fl_controller": "control.laws",
+    "FLAWForm": "control.laws",
     "FLForm": "control.laws",
     "forward_kinematics": "model.dh",
     "frozen_certificate": "robust.certificates",
     "gapmetric": "robust.gap",
+    "hinf_aw_controller": "control.laws",
     "hinf_fl_controller": "control.laws",
     "IKError": "control.references",
     "LinearModel": "control.laws",

@@ -488,10 +488,12 @@ def _settings_from_args(args, n: int):
                            force=args.force)
 
 
-def _laws_from_args(args, robot, K=None):
+def _laws_from_args(args, robot, K=None, torque_limit=None, extra=()):
     from .campaign.runner import make_laws
 
-    laws = make_laws(args.controllers, robot, K=K)
+    names = [s.strip() for s in args.controllers.split(",")]
+    names += [name for name in extra if name not in names]
+    laws = make_laws(names, robot, K=K, torque_limit=torque_limit)
     baseline = args.baseline or laws[0].name
     if baseline not in [law.name for law in laws]:
         raise ValueError(f"--baseline {baseline!r} is not among --controllers "
@@ -509,6 +511,13 @@ def _add_reproduce(sub) -> None:
     _add_robot_arguments(p)
     _add_law_arguments(p, 4.0, None)
     p.add_argument("--samples", type=int, default=10, help="uncertain plants (10, the paper's)")
+    p.add_argument("--torque-limit", default=None, metavar="auto|P%|T1,T2,...",
+                   help="run the study under actuator limits |tau_j| <= T_j [N m] (sampled "
+                        "controllers: give --rate too), with hinf_aw added to --controllers "
+                        "and told the limits: auto = the URDF's effort limits; P%% = P percent "
+                        "of the peak torque the reference asks of the nominal arm, per joint "
+                        "(its inverse dynamics over the control instants); or one number per "
+                        "joint. results.json records the limits used (summary.torque_limit)")
     p.add_argument("--no-certify", action="store_true",
                    help="skip the frozen-configuration nu-gap certificate of each uncertain "
                         "plant (about 0.3 s per plant)")
@@ -544,11 +553,23 @@ def _cmd_reproduce(args) -> int:
     robot = load_robot(args.robot, lock=lock)
     settings = _settings_from_args(args, robot.nq)
     reference = _reference_from_args(args, robot)
+    limit, limit_info = None, {}
+    if args.torque_limit is not None:
+        limit, limit_info = _torque_limit_from_args(args.torque_limit, robot, reference,
+                                                    settings)
+        import dataclasses
+
+        from .control.effects import PlantEffects
+
+        effects = dataclasses.replace(settings.effects or PlantEffects(),
+                                      torque_limit=tuple(limit.tolist()))
+        settings = dataclasses.replace(settings, effects=effects)
     if out is None:  # --overwrite: the previous run is removed now that the options hold
         out = _claim_out(args, "reproduce")
     d = design(lam=45.0, n=robot.nq)
     laws, baseline = _laws_from_args(args, robot, K=d.K_full if args.full_order else
-                                     d.K_reduced)
+                                     d.K_reduced, torque_limit=limit,
+                                     extra=("hinf_aw",) if limit is not None else ())
     config = StudyConfig(run=settings, samples=args.samples, seed=args.seed, jobs=args.jobs,
                          baseline=baseline)
     check_study_size(config, len(laws), robot.nq)  # before the design figures are written
@@ -563,6 +584,7 @@ def _cmd_reproduce(args) -> int:
                            progress=lambda done, total: bar.update(done - bar.n))
     finally:  # on Ctrl-C too, so the interrupt message starts on a line of its own
         bar.close()
+    result.torque_limit = limit_info
     design_info = study_design(d, full_order=args.full_order)
     data = write_results(result, out, design=design_info)
     figures += save_study_figures(result, out)
@@ -577,6 +599,48 @@ def _cmd_reproduce(args) -> int:
         print(f"wrote {len(saved)} trajectories to {out}/trajectories/ "
               f"({args.save_trajectories})")
     return 0
+
+
+def _torque_limit_from_args(text: str, robot, reference, settings):
+    """Return the limits [N m] of ``--torque-limit`` (shape (n,)) and how they were chosen.
+
+    ``auto``: the URDF's effort limits; ``P%``: P percent of the peak inverse-dynamics torque
+    of the reference on the nominal arm per joint, over the control instants of the run; or
+    numbers. Each is checked (finite, > 0, one per joint, not below the gravity torque at
+    the reference's start) as ``--torque-limit``.
+    """
+    import numpy as np
+
+    from .control.effects import check_torque_limit, peak_torque
+    from .validation import FieldError
+
+    name = "--torque-limit"
+    if settings.rate is None:
+        raise ValueError(f"{name} acts on sampled controllers (the plant clips the torque each "
+                         f"control period): give --rate HZ too, e.g. --rate 1000")
+    text = text.strip()
+    if text == "auto":
+        info = {"spec": "auto", "rule": "the URDF's effort limits"}
+        return check_torque_limit(robot, "urdf", reference, name=name), info
+    if text.endswith("%"):
+        try:
+            percent = float(text[:-1])
+        except ValueError:
+            raise FieldError(name, f"{{name}} {text!r}: expected auto, P% (a number P > 0, "
+                                   f"percent of the peak torque) or one number per joint "
+                                   f"[N m]") from None
+        if not (np.isfinite(percent) and percent > 0):
+            raise FieldError(name, f"{{name}} {text!r}: the percent must be finite and > 0")
+        n_steps = round(settings.duration * settings.rate)
+        peak = peak_torque(robot, reference, np.arange(n_steps + 1) / settings.rate)
+        limit = check_torque_limit(robot, percent / 100.0 * peak, reference, name=name)
+        info = {"spec": text, "percent": percent, "peak_torque_Nm": peak.tolist(),
+                "rule": f"{percent:g} % of the peak |M(r) rdd + V(r, rd) + G(r)| per joint "
+                        f"of the reference on the nominal arm, over the control instants"}
+        return limit, info
+    values = _floats(text, name)
+    info = {"spec": text, "rule": "given"}
+    return check_torque_limit(robot, values, reference, name=name), info
 
 
 # --- montecarlo (robustness campaign) ---------------------------------------------------------

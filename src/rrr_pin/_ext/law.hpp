@@ -7,8 +7,13 @@
 //          tau = Mhat(q) taubar + nle_hat(q, qd)                                       eq. (8)
 //          state: xdot = A x + B e (continuous) or x+ = A x + B e after the output (sampled,
 //          A..D already discrete).
+//   FLAWLaw: FLLaw's tau clipped, tau_s = clip(tau, -limit, limit); K conditioned on it (Hanus):
+//          x+ (or xdot) = A x + B e + L dy, dy = Mhat^-1 (tau_s - tau) / lam^2, L = B D^-1, the
+//          last term only at evaluations where a joint clips (FLAWForm).
 //   PDLaw: tau = Kp e + Kd (rd - qd) + Ghat(q); no state.
 #pragma once
+
+#include <Eigen/LU>
 
 #include "model.hpp"
 
@@ -80,12 +85,68 @@ namespace rrr_pin
         out.noalias() += p.B * e;
       }
 
+      /// Mhat(q) of the last torque() (symmetric).
+      const Mat & inertia() const { return M; }
+
     private:
       const FLLaw & p;
       Workspace nominal;
       Eigen::Index m;
       Vec e, y, taubar, tau;
       Mat M;
+    };
+  };
+
+  /// FLLaw with its torque clipped and K self-conditioned on the clipped torque (FLAWForm).
+  struct FLAWLaw : FLLaw
+  {
+    Mat L;      // (m, n) conditioning gain B D^-1
+    Vec limit;  // (n,) torque limits [N m]
+
+    void check(Eigen::Index n) const
+    {
+      FLLaw::check(n);
+      if (L.rows() != A.rows() || L.cols() != n || limit.size() != n)
+        throw std::invalid_argument("L must be m x nq and limit of size nq");
+    }
+
+    class Eval
+    {
+    public:
+      Eval(const FLAWLaw & law, const CompiledModel & nominal_model)
+      : p(law)
+      , fl(law, nominal_model)
+      , tau(nominal_model.model.nq)
+      , dy(nominal_model.model.nq)
+      {
+      }
+
+      /// FLLaw's torque clipped to the limits; keeps the correction dy if a joint clipped.
+      template<typename R1, typename R2, typename R3>
+      const Vec & torque(
+        const Vec & q, const Vec & qd, const R1 & r, const R2 & rd, const R3 & rdd, const Vec & x)
+      {
+        const Vec & raw = fl.torque(q, qd, r, rd, rdd, x);
+        tau = raw.cwiseMax(-p.limit).cwiseMin(p.limit);
+        clipped = tau != raw;
+        if (clipped)
+          dy = fl.inertia().partialPivLu().solve(tau - raw) / (p.lam * p.lam);
+        return tau;
+      }
+
+      /// FLLaw's state map, plus L dy after a torque() that clipped.
+      void state_map(const Vec & x, Vec & out) const
+      {
+        fl.state_map(x, out);
+        if (clipped)
+          out.noalias() += p.L * dy;
+      }
+
+    private:
+      const FLAWLaw & p;
+      FLLaw::Eval fl;
+      Vec tau, dy;
+      bool clipped = false;
     };
   };
 

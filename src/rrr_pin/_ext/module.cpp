@@ -1,6 +1,6 @@
 // Python bindings of the compiled rollout: rrr_pin.sim._rollout (private; use
 // rrr_pin.sim.compiled). Parameters travel as objects whose fields Python sets by name: a law
-// (FLLaw or PDLaw, one per compiled form), RolloutInputs and Effects.
+// (FLLaw, FLAWLaw or PDLaw, one per compiled form), RolloutInputs and Effects.
 #include <cstdint>
 #include <string>
 
@@ -92,6 +92,14 @@ NB_MODULE(_rollout, mod)
     .def_rw("B", &FLLaw::B)
     .def_rw("C", &FLLaw::C)
     .def_rw("D", &FLLaw::D);
+  def_law<FLAWLaw>(mod, "FLAWLaw", "FLLaw clipped, K conditioned on the clip (FLAWForm).")
+    .def_rw("lam", &FLAWLaw::lam)
+    .def_rw("A", &FLAWLaw::A)
+    .def_rw("B", &FLAWLaw::B)
+    .def_rw("C", &FLAWLaw::C)
+    .def_rw("D", &FLAWLaw::D)
+    .def_rw("L", &FLAWLaw::L)
+    .def_rw("limit", &FLAWLaw::limit);
   def_law<PDLaw>(mod, "PDLaw", "PD + gravity compensation (PDForm).")
     .def_rw("Kp", &PDLaw::Kp)
     .def_rw("Kd", &PDLaw::Kd);

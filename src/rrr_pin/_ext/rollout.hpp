@@ -68,10 +68,15 @@ namespace rrr_pin
   extern template RolloutResult rollout<FLLaw>(
     const CompiledModel &, const CompiledModel &, const FLLaw &, const RolloutInputs &,
     const Effects *);
+  extern template RolloutResult rollout<FLAWLaw>(
+    const CompiledModel &, const CompiledModel &, const FLAWLaw &, const RolloutInputs &,
+    const Effects *);
   extern template RolloutResult rollout<PDLaw>(
     const CompiledModel &, const CompiledModel &, const PDLaw &, const RolloutInputs &,
     const Effects *);
   extern template double floor_timing<FLLaw>(
+    const CompiledModel &, const CompiledModel &, bool, int, std::int64_t);
+  extern template double floor_timing<FLAWLaw>(
     const CompiledModel &, const CompiledModel &, bool, int, std::int64_t);
   extern template double floor_timing<PDLaw>(
     const CompiledModel &, const CompiledModel &, bool, int, std::int64_t);

@@ -7,8 +7,9 @@ both the study and the Monte Carlo campaign report; :func:`error_ratios` compare
 a named baseline. :mod:`rrr_pin.campaign.study` and :mod:`rrr_pin.campaign.montecarlo` sit side
 by side on this module and import nothing from each other.
 
-The built-in laws are made by name with :func:`make_laws` (``"fl"``, ``"hinf"``, ``"pd"``), so
-the CLI's ``--controllers fl,hinf,pd`` and Python callers build the same objects.
+The built-in laws are made by name with :func:`make_laws` (``"fl"``, ``"hinf"``, ``"pd"``,
+``"hinf_aw"``), so the CLI's ``--controllers fl,hinf,pd`` and Python callers build the same
+objects.
 """
 
 from __future__ import annotations
@@ -131,7 +132,7 @@ class RunSettings:
 
 
 def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
-              lam_hinf: float = 45.0) -> list:
+              lam_hinf: float = 45.0, torque_limit=None) -> list:
     """Build built-in laws by name, in the order given, from the registry ``catalog.LAWS``.
 
     Each name goes to :func:`rrr_pin.control.catalog.make_law`.
@@ -147,6 +148,8 @@ def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
         joints (``design(lam=lam_hinf).K_reduced``).
     lam_fl, lam_hinf : float
         Bandwidths [rad/s] of ``"fl"`` and ``"hinf"``.
+    torque_limit : float or array-like, shape (n,), optional
+        Actuator limits [N m] of the laws that know them (``"hinf_aw"``); None: the URDF's.
 
     Raises
     ------
@@ -159,7 +162,8 @@ def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
     if not names or any(not s for s in names):
         raise ValueError(f"controllers: expected comma-separated names from "
                          f"{', '.join(BUILTIN_LAWS)}, got {names!r}")
-    laws = [make_law(name, nominal, K=K, lam_fl=lam_fl, lam_hinf=lam_hinf) for name in names]
+    laws = [make_law(name, nominal, K=K, lam_fl=lam_fl, lam_hinf=lam_hinf,
+                     torque_limit=torque_limit) for name in names]
     check_laws(laws, nominal.nq)
     for law in laws:
         logger.info("law %r built for %s: %s", law.name, nominal.name, law.label or law.name)

@@ -6,6 +6,12 @@ loaded back), the laws (built-in or your own, :mod:`rrr_pin.control.laws`) and t
 (:mod:`rrr_pin.campaign.runner`), with the settings of :mod:`rrr_pin.campaign.settings`. Plants
 run in parallel processes; results do not depend on the number of processes. Laws are compared
 with a named baseline (``"fl"`` by default, the paper's).
+
+Under a torque limit (``config.run.effects.torque_limit``, the study of the paper under limits)
+a law that diverges on the nominal plant is a result, not an error: it is set aside
+(:attr:`StudyResult.dropped`, its outcome on every plant kept) and the others are reported as
+usual; ``summary["torque_limit"]`` gives, per law, the diverged plants, the RMS error and the
+time in saturation. Without a limit, such a divergence stops the study (``SimulationDiverged``).
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..control.effects import check_torque_limit
 from ..control.references import Reference, TaskSpaceReference, default_reference
 from ..model.dynamics import Robot, robot_from_xml
 from ..model.robots import nominal_params
@@ -135,6 +142,14 @@ class StudyResult:
         error, shape (N, 3) [m], and ``errors["uncertain"][law]``, a list of tracking-error
         norms (nominal kinematics) of shape (N,) [m], one per uncertain plant where the law
         ran. Empty for a joint-space reference.
+    dropped : dict
+        Under a torque limit, the laws that diverged on the nominal plant, by name:
+        ``label``, ``nominal`` (the divergence message) and ``samples`` (per uncertain plant,
+        :func:`~rrr_pin.sim.trajectory.metrics` with ``saturated``, the fraction of the run's
+        periods at the limit, or the divergence message). They are not in :attr:`laws`.
+    torque_limit : dict
+        How the torque limit was chosen (e.g. by the CLI: ``spec``, ``rule``,
+        ``peak_torque_Nm``), recorded in ``summary["torque_limit"]``.
     """
 
     robot: str
@@ -148,6 +163,8 @@ class StudyResult:
     design: dict = field(default_factory=dict)
     certificate: dict | None = None
     task_space: dict = field(default_factory=dict)
+    dropped: dict = field(default_factory=dict)
+    torque_limit: dict = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:
@@ -209,6 +226,7 @@ class StudyResult:
             "summary": summarize(self),
             **({"task_space": {k: v for k, v in self.task_space.items() if k != "errors"}}
                if self.task_space else {}),
+            **({"dropped": self.dropped} if self.dropped else {}),
         }
 
 
@@ -230,7 +248,8 @@ def summarize(result: StudyResult) -> dict:
         ``error_ratio_uncertain`` (RMS error over all joints, samples and time of the baseline
         divided by the law's: above 1, the law tracks better), ``error_ratio_uncertain_per_joint``
         and ``torque_ratio_uncertain`` (RMS torque of the law over the baseline's); each
-        ratio by :func:`rrr_pin.campaign.runner.ratio`, None where undefined (0/0).
+        ratio by :func:`rrr_pin.campaign.runner.ratio`, None where undefined (0/0). Under a
+        torque limit, ``torque_limit`` (:func:`_torque_limit_summary`).
     """
     names, base = result.names, result.config.baseline
     ok = [s for s in result.samples if s["status"] == "ok"]
@@ -242,6 +261,9 @@ def summarize(result: StudyResult) -> dict:
         "diverged": {k: sum(1 for s in result.samples if k not in s.get("metrics", {}))
                      for k in names},
     }
+    limit = _torque_limit_summary(result)
+    if limit:
+        out["torque_limit"] = limit
     certs = [s["certificate"] for s in result.samples if "certificate" in s]
     if certs:
         out["samples_certified"] = sum(1 for c in certs if c["certified"])
@@ -266,6 +288,56 @@ def summarize(result: StudyResult) -> dict:
             k: ratio(float(rms(k, "rms_torque")), float(rms(base, "rms_torque")))
             for k in others}
     return out
+
+
+def _overall_rms(m: dict) -> float:
+    """RMS error over every joint of a run [rad], from its per-joint ``rms_error``."""
+    return float(np.sqrt(np.mean(np.square(m["rms_error"]))))
+
+
+def _torque_limit_summary(result: StudyResult) -> dict:
+    """Per law under the study's torque limit: diverged plants, RMS error, time in saturation.
+
+    ``limit_Nm`` (the limits the plants clip to) and what :attr:`StudyResult.torque_limit`
+    says of their choice; per law (the dropped ones too): ``nominal_diverged`` (bool),
+    ``uncertain_diverged`` (count of the ``uncertain`` plants), ``nominal_rms_error`` and
+    ``uncertain_rms_error`` [rad] (RMS over joints, time and the plants where it ran; None
+    if none), ``nominal_saturated`` and ``uncertain_saturated`` [-] (the fraction of control
+    periods with any joint at its limit: on the nominal plant, and the mean over the uncertain
+    plants where it ran; None if none). Empty without a torque limit.
+    """
+    fx = result.config.run.effects
+    if fx is None or fx.torque_limit is None:
+        return {}
+    outcomes = {}  # name: (nominal metrics or None, [metrics or None per sample])
+    for name in result.names:
+        traj = result.nominal[name]
+        per = []
+        for s in result.samples:
+            t = s["trajectories"].get(name)
+            per.append(None if t is None else
+                       {**s["metrics"][name], "saturated": t.info["saturation"]["fraction"]})
+        outcomes[name] = ({**metrics(traj), "saturated": traj.info["saturation"]["fraction"]},
+                          per)
+    for name, d in result.dropped.items():
+        outcomes[name] = (None, [m if isinstance(m, dict) else None for m in d["samples"]])
+    laws = {}
+    for name, (nom, per) in outcomes.items():
+        ran = [m for m in per if m is not None]
+        laws[name] = {
+            "nominal_diverged": nom is None,
+            "uncertain_diverged": len(per) - len(ran),
+            "uncertain": len(per),
+            "nominal_rms_error": _overall_rms(nom) if nom is not None else None,
+            "uncertain_rms_error": (float(np.sqrt(np.mean([_overall_rms(m) ** 2 for m in ran])))
+                                    if ran else None),
+            "nominal_saturated": nom["saturated"] if nom is not None else None,
+            "uncertain_saturated": float(np.mean([m["saturated"] for m in ran])) if ran else None,
+        }
+    limit = result.nominal[result.names[0]].info["saturation"]["limit_Nm"]
+    return {**result.torque_limit, "limit_Nm": limit,
+            "saturated_means": "fraction [-] of the control periods with any joint at its limit",
+            "laws": laws}
 
 
 def task_space_errors(reference: TaskSpaceReference, nominal: Robot, runs: dict,
@@ -394,15 +466,23 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     Raises
     ------
     SimulationDiverged
-        A law diverged on the nominal plant.
+        A law diverged on the nominal plant (under a torque limit: only the baseline; another
+        law is set aside in :attr:`StudyResult.dropped`).
     ValueError
         The trajectories kept would take more than :data:`MAX_STUDY_BYTES`
         (:func:`check_study_size`, before any work; ``config.run.force`` lifts the bound).
+    rrr_pin.validation.FieldError
+        A torque limit below the gravity torque at the reference's start
+        (:func:`~rrr_pin.control.effects.check_torque_limit`), before any run.
     """
     laws = check_laws(laws, nominal.nq, config.baseline)
     check_study_size(config, len(laws), nominal.nq)
     reference = default_reference(nominal) if reference is None else reference
     reference.check_limits(nominal, duration=config.run.duration)
+    fx = config.run.effects
+    limited = fx is not None and fx.torque_limit is not None
+    if limited:  # the arm must at least hold itself where the reference starts
+        check_torque_limit(nominal, fx.torque_limit, reference)
     if params is None:
         params = nominal_params(nominal)
     source = params if params is not None else nominal.urdf
@@ -433,12 +513,25 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
         if progress:
             progress(done, len(tasks))
     failed = {k: v for k, v in outputs[0][0].items() if isinstance(v, SimulationDiverged)}
-    if failed:
+    if failed and (not limited or config.baseline in failed):
         name, exc = next(iter(failed.items()))
         raise SimulationDiverged(f"law {name!r} diverged on the nominal plant: {exc}",
                                  time=exc.time, joint=exc.joint)
+    dropped = {}
+    for name, exc in failed.items():  # under a torque limit: a result, set aside
+        logger.warning("law %r diverged on the nominal plant under the torque limit: %s",
+                       name, exc)
+        dropped[name] = {
+            "label": next(law.label or law.name for law in laws if law.name == name),
+            "nominal": str(exc),
+            "samples": [str(out[name]) if isinstance(out[name], SimulationDiverged) else
+                        {**metrics(out[name]),
+                         "saturated": out[name].info["saturation"]["fraction"]}
+                        for out, _ in outputs[1:]]}
+    laws = [law for law in laws if law.name not in dropped]
     samples = []
     for plant, (out, cert) in zip(plants, outputs[1:], strict=True):
+        out = {k: v for k, v in out.items() if k not in dropped}
         runs = {k: v for k, v in out.items() if not isinstance(v, SimulationDiverged)}
         bad = [f"{k}: {v}" for k, v in out.items() if isinstance(v, SimulationDiverged)]
         entry = {"index": plant.index, "seed": plant.seed, "parameters": plant.parameters,
@@ -447,14 +540,15 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
         if cert is not None:
             entry["certificate"] = cert
         samples.append(entry)
-    task_space = (task_space_errors(reference, nominal, outputs[0][0], samples, plants)
+    nominal_runs = {k: v for k, v in outputs[0][0].items() if k not in dropped}
+    task_space = (task_space_errors(reference, nominal, nominal_runs, samples, plants)
                   if isinstance(reference, TaskSpaceReference) else {})
     logger.info("study on %s done in %.1f s: %d of %d uncertain plants ran every law",
                 nominal.name, time.perf_counter() - start,
                 sum(1 for s in samples if s["status"] == "ok"), len(samples))
     return StudyResult(robot=nominal.name, joint_names=nominal.joint_names, reference=reference,
                        config=config, laws=[law.describe() for law in laws],
-                       nominal=outputs[0][0], samples=samples, plants=plants,
+                       nominal=nominal_runs, samples=samples, plants=plants,
                        certificate=certificate.to_dict() if certificate is not None else None,
-                       task_space=task_space)
+                       task_space=task_space, dropped=dropped)
 

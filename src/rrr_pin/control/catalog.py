@@ -16,14 +16,16 @@ __all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "make_law", "StressEffect", "EF
            "DEFAULT_BUDGET"]
 
 
-def _fl(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
-    """Feedback linearization alone at ``lam_fl`` [rad/s] (``K``, ``lam_hinf`` unused)."""
+def _fl(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
+        torque_limit=None):
+    """Feedback linearization alone at ``lam_fl`` [rad/s] (the other options unused)."""
     from .laws import fl_controller
 
     return fl_controller(nominal, lam_fl)
 
 
-def _hinf(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
+def _hinf(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
+          torque_limit=None):
     """H-infinity + FL at ``lam_hinf`` [rad/s]; ``K`` default: the paper's design for ``nq``."""
     from .laws import hinf_fl_controller
 
@@ -34,7 +36,21 @@ def _hinf(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
     return hinf_fl_controller(nominal, K, lam_hinf)
 
 
-def _pd(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
+def _hinf_aw(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
+             torque_limit=None):
+    """``_hinf``'s law told ``torque_limit`` [N m] (None: the URDF's), ``K`` self-conditioned."""
+    from .laws import hinf_aw_controller
+
+    if K is None:
+        from ..robust.loopshaping import design
+
+        K = design(lam=lam_hinf, n=nominal.nq).K_reduced
+    return hinf_aw_controller(nominal, K, lam_hinf,
+                              torque_limit="urdf" if torque_limit is None else torque_limit)
+
+
+def _pd(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
+        torque_limit=None):
     """PD + gravity with the default gains (the options are unused)."""
     from .laws import pd_controller
 
@@ -49,8 +65,10 @@ class BuiltinLaw(NamedTuple):
     description : str
         What the law is (the CLI's help).
     factory : callable
-        ``factory(nominal, *, K=None, lam_fl=100.0, lam_hinf=45.0) -> law``: the options of
-        :func:`rrr_pin.campaign.runner.make_laws`, each factory reading those that apply to it.
+        ``factory(nominal, *, K=None, lam_fl=100.0, lam_hinf=45.0, torque_limit=None) -> law``:
+        the options of :func:`rrr_pin.campaign.runner.make_laws`, each factory reading those
+        that apply to it (``torque_limit`` [N m]: the actuator limits a law that knows them
+        clips to; None: the URDF's effort limits).
     """
 
     description: str
@@ -63,6 +81,8 @@ LAWS = {
     "hinf": BuiltinLaw("H-infinity + feedback linearization, eq. (8)-(10), (18)-(19), "
                        "lam = 45 rad/s", _hinf),
     "pd": BuiltinLaw("PD + gravity compensation, critically damped at 20 rad/s per joint", _pd),
+    "hinf_aw": BuiltinLaw("hinf told the torque limits (default the URDF's), K self-conditioned "
+                          "on the saturated torque (Hanus anti-windup)", _hinf_aw),
 }
 
 #: Built-in laws by CLI name, with what each is (the descriptions of :data:`LAWS`).
@@ -70,7 +90,9 @@ BUILTIN_LAWS = {name: law.description for name, law in LAWS.items()}
 
 
 def make_law(name: str, nominal, **options):
-    """Build the built-in law ``name`` on ``nominal`` (options: ``K``, ``lam_fl``, ``lam_hinf``).
+    """Build the built-in law ``name`` on ``nominal``.
+
+    Options: ``K``, ``lam_fl``, ``lam_hinf``, ``torque_limit`` (:class:`BuiltinLaw`).
 
     Raises
     ------

@@ -56,9 +56,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..validation import check_multiple
+from ..validation import FieldError, check_multiple
+from .references import checked_sample
 
-__all__ = ["PlantEffects", "Resolved", "EffectsError", "check_effects"]
+__all__ = ["PlantEffects", "Resolved", "EffectsError", "check_effects", "check_torque_limit",
+           "peak_torque"]
 
 
 class EffectsError(ValueError):
@@ -335,3 +337,93 @@ def check_effects(effects) -> PlantEffects | None:
         return effects
     raise TypeError(f"effects must be a rrr_pin.PlantEffects or None, got "
                     f"{type(effects).__name__}")
+
+
+def check_torque_limit(robot, value="urdf", reference=None, *,
+                       name: str = "torque_limit") -> np.ndarray:
+    """Return actuator limits ``tau_max`` [N m] per joint, checked: finite, > 0, one per joint.
+
+    With a ``reference``, each limit must also hold the arm still where the reference starts:
+    ``tau_max_j >= |G_j(r(0))|`` on ``robot`` (below it the arm cannot even carry its own weight).
+
+    Parameters
+    ----------
+    robot : Robot
+        The arm (``n = robot.nq`` joints); its URDF effort limits for ``"urdf"``, its gravity
+        torque ``G(q)`` for the check against the reference.
+    value : "urdf", float or array-like, shape (n,)
+        The limits; a scalar is every joint's.
+    reference : Reference, optional
+        Check the limits against the gravity torque at ``r(0)``.
+    name : str, default "torque_limit"
+        The field, for the message.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The limits [N m] (read-only).
+
+    Raises
+    ------
+    rrr_pin.validation.FieldError
+        Naming the field and the value: not numbers, NaN or inf, <= 0, the wrong size, a URDF
+        without effort limits, or a limit below the gravity torque at the reference's start
+        (naming the joint, the limit and the torque).
+    """
+    n = robot.nq
+    if isinstance(value, str) and value == "urdf":
+        arr = np.asarray(robot.model.effortLimit, dtype=float).copy()
+        if arr.shape != (n,) or not np.all(np.isfinite(arr) & (arr > 0)):
+            raise FieldError(name, f"{{name}} = 'urdf': the URDF of {robot.name!r} has effort "
+                                   f"limits {arr.tolist()}, expected finite > 0 per joint [N m]")
+    else:
+        try:
+            if value is None or isinstance(value, (str, bool)):
+                raise TypeError
+            arr = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise FieldError(name, f"{{name}} = {value!r}: expected 'urdf', a number or {n} "
+                                   f"numbers (one per joint) [N m]") from None
+        shown = arr.tolist()
+        if arr.ndim == 0 or arr.shape == (1,):  # one value: every joint's
+            arr = np.full(n, float(arr.ravel()[0]))
+        if arr.shape != (n,):
+            raise FieldError(name, f"{{name}} = {shown}: expected one value or {n} (one "
+                                   f"per joint), got {arr.size}")
+        if not np.all(np.isfinite(arr) & (arr > 0)):
+            raise FieldError(name, f"{{name}} = {shown}: expected finite > 0 per joint [N m]")
+    if reference is not None:
+        r0 = checked_sample(reference, np.zeros(1))[0][0]
+        g = np.abs(robot.G(r0))
+        below = np.flatnonzero(arr < g)
+        if below.size:
+            j = below[0]
+            raise FieldError(name, (
+                f"{{name}} of joint {robot.joint_names[j]!r} is {arr[j]:.6g} N m, below the "
+                f"gravity torque {g[j]:.6g} N m at the reference's start r(0) = "
+                f"{np.round(r0, 6).tolist()} rad: the arm cannot even hold itself there"))
+    arr.setflags(write=False)
+    return arr
+
+
+def peak_torque(robot, reference, t) -> np.ndarray:
+    r"""Peak torque [N m] per joint the reference asks of ``robot``: its inverse dynamics.
+
+    .. math:: \tau_{peak, j} = \max_k |(M(r) \ddot r + V(r, \dot r) + G(r))_j|(t_k)
+
+    Parameters
+    ----------
+    robot : Robot
+        The arm (a law's nominal model).
+    reference : Reference
+    t : array-like, shape (N,)
+        Times [s] (e.g. a run's control instants).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    R, RD, RDD = checked_sample(reference, np.asarray(t, dtype=float))
+    tau = np.array([robot.inverse_dynamics(R[k], RD[k], RDD[k], check=False)
+                    for k in range(len(R))])
+    return np.max(np.abs(tau), axis=0)

@@ -1,4 +1,4 @@
-r"""Control laws: the protocol every law follows, and the three built-ins.
+r"""Control laws: the protocol every law follows, and the built-ins.
 
 A **control law** computes the joint torque from the time, the measured state, the reference
 and its own state. Two kinds, as in Simulink's continuous and discrete blocks:
@@ -19,6 +19,8 @@ Built in (each uses the NOMINAL model only; the simulated plant may differ):
 
 * :func:`fl_controller`, feedback linearization alone (eq. 20), ``lam = 100`` rad/s;
 * :func:`hinf_fl_controller`, H-infinity + feedback linearization (eq. 8-10, 18-19);
+* :func:`hinf_aw_controller`, the same law told the actuator limits, its ``K`` conditioned on
+  the torque actually applied (Hanus's self-conditioned form, :class:`AntiWindupTracking`);
 * :func:`pd_controller`, the industrial baseline: PD plus gravity compensation,
   ``tau = Kp e + Kd ed + Ghat(q)``.
 
@@ -59,6 +61,8 @@ References
    sec. 9.4 (two-degrees-of-freedom loop shaping).
 .. [3] B. Siciliano et al., *Robotics: Modelling, Planning and Control*, Springer 2009,
    sec. 8.5.2 (PD control with gravity compensation).
+.. [4] R. Hanus, M. Kinnaert, J.-L. Henrotte, "Conditioning technique, a general anti-windup
+   and bumpless transfer method", *Automatica* 23(6) (1987) 729-739.
 """
 
 from __future__ import annotations
@@ -71,21 +75,25 @@ from typing import ClassVar
 import numpy as np
 import pinocchio as pin
 
-from ..validation import check_matrix, check_positive, check_rate, describe_value
+from ..validation import check_matrix, check_positive, check_rate, check_vector, describe_value
+from .effects import check_torque_limit
 
 __all__ = [
     "ControlLaw",
     "SampledLaw",
     "CompiledForm",
     "FLForm",
+    "FLAWForm",
     "PDForm",
     "LinearModel",
     "FLLinearModel",
     "PDLinearModel",
     "TrackingController",
+    "AntiWindupTracking",
     "PDGravity",
     "fl_controller",
     "hinf_fl_controller",
+    "hinf_aw_controller",
     "pd_controller",
     "check_law",
     "check_law_output",
@@ -160,6 +168,57 @@ class FLForm(CompiledForm):
         for key, shape in (("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n))):
             value = check_matrix(key, getattr(self, key), shape, readonly=True)
             object.__setattr__(self, key, value)
+
+
+@dataclass(frozen=True, eq=False)
+class FLAWForm(CompiledForm):
+    r"""Feedback linearization with ``K`` self-conditioned on the saturated torque (Hanus).
+
+    The law of :class:`FLForm`, its torque clipped to the limits, and ``K``'s state driven by
+    the output ``y_hat`` the clipped torque realises (:class:`AntiWindupTracking`):
+
+    .. math:: \tau_s = \mathrm{sat}(\tau), \quad
+              \hat y - y = \hat M(q)^{-1} (\tau_s - \tau) / \lambda^2, \quad
+              x^+ = A x + B e + L (\hat y - y)
+
+    (sampled; continuous: ``xdot`` instead of ``x+``), with ``L = B D^-1``. The correction is
+    computed only at samples where a joint clips (it is exactly zero otherwise).
+
+    Attributes
+    ----------
+    nominal : Robot
+        The law's model (``n = nominal.nq`` joints).
+    lam : float
+        Bandwidth ``lambda`` [rad/s], > 0.
+    A, B, C, D : ndarray, shapes (m, m), (m, n), (n, m), (n, n)
+        The controller ``K`` on ``e`` [rad], as in :class:`FLForm` (``m >= 1``).
+    L : ndarray, shape (m, n)
+        Conditioning gain ``B D^-1``.
+    limit : ndarray, shape (n,)
+        Torque limits ``tau_max`` [N m], > 0.
+    """
+
+    lam: float
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    L: np.ndarray
+    limit: np.ndarray
+    kind: ClassVar[str] = "fl_aw"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
+        n = self.nominal.nq
+        m = np.shape(self.A)[0] if np.ndim(self.A) == 2 else -1
+        for key, shape in (("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n)),
+                           ("L", (m, n))):
+            value = check_matrix(key, getattr(self, key), shape, readonly=True)
+            object.__setattr__(self, key, value)
+        limit = check_vector("limit", self.limit, n, readonly=True)
+        if not np.all(limit > 0):
+            raise ValueError(f"limit must be > 0 per joint [N m], got {limit.tolist()}")
+        object.__setattr__(self, "limit", limit)
 
 
 @dataclass(frozen=True, eq=False)
@@ -769,6 +828,191 @@ class _SampledTracking(SampledLaw):
 
 
 @dataclass(frozen=True, eq=False)
+class AntiWindupTracking(TrackingController):
+    r"""H-infinity + FL told the actuator limits: ``K`` conditioned on the torque applied.
+
+    The torque of :class:`TrackingController` is clipped to the limits, and the state of ``K``
+    is driven by what the clipped torque realises instead of what ``K`` asked for (Hanus's
+    self-conditioned controller [4]_). Through the feedback-linearizing law (8), the applied
+    ``tau_s`` realises ``taubar_hat = Mhat^-1 (tau_s - Vhat - Ghat)``, hence the output of ``K``
+
+    .. math:: \hat y = \frac{\hat{\bar\tau} - \ddot r - 2\lambda(\dot r - \dot q)}
+              {\lambda^2} - e = y + \frac{\hat M(q)^{-1} (\tau_s - \tau)}{\lambda^2},
+
+    (``y_hat = tauhat_hat - Gfl^-1 r - e``, the ``tau-hat`` of eq. (8)-(10) actually realised,
+    minus the feed-forward and the error terms). Hanus's form runs ``K`` on the error that
+    would have produced ``y_hat``, ``e_r = D^-1 (y_hat - C x)`` (``D`` non-singular):
+
+    .. math:: \dot x = A x + B e_r = (A - B D^{-1} C) x + B D^{-1} \hat y
+              = A x + B e + B D^{-1} (\hat y - y), \qquad
+              \tau_s = \mathrm{sat}\big(\hat M \bar\tau + \hat V + \hat G\big)
+
+    with ``sat`` the clip to ``[-tau_max, tau_max]`` per joint. When no joint clips,
+    ``y_hat = y`` and the law is :class:`TrackingController`'s exactly (the correction is not
+    even computed). While saturated, ``x`` follows ``A - B D^-1 C``, whose eigenvalues are the
+    zeros of ``K``: they must be stable (the paper's ``K``, eq. 18: -134.75 and -12.17 rad/s),
+    so ``K`` cannot wind up. Sampled, the same with ``K``'s discrete matrices (``Dd``
+    non-singular too): ``x+ = Ad x + Bd e + Bd Dd^-1 (y_hat - y)``.
+
+    Parameters
+    ----------
+    nominal, lam, K, name, label
+        As :class:`TrackingController`; ``K`` is required (``n x n`` or SISO).
+    torque_limit : "urdf", float or array-like, shape (n,), default "urdf"
+        Actuator limits ``tau_max`` [N m] > 0 the law clips to; ``"urdf"``: the nominal URDF's
+        effort limits (:func:`rrr_pin.control.effects.check_torque_limit`).
+
+    Raises
+    ------
+    ValueError
+        No ``K``, a ``K`` whose ``D`` is singular (Hanus's form needs ``D^-1``), or whose zeros
+        (the eigenvalues of ``A - B D^-1 C``) are unstable; bad limits
+        (:class:`~rrr_pin.validation.FieldError` naming ``torque_limit``).
+
+    References
+    ----------
+    .. [4] R. Hanus, M. Kinnaert, J.-L. Henrotte, "Conditioning technique, a general
+       anti-windup and bumpless transfer method", *Automatica* 23(6) (1987) 729-739.
+    """
+
+    torque_limit: object = "urdf"
+    _limit: np.ndarray = field(init=False, repr=False, compare=False)
+    _gain: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.K is None:
+            raise ValueError(f"law {self.name!r}: the self-conditioned (Hanus) form needs a "
+                             f"controller K with a non-singular D; got K = None")
+        super().__post_init__()
+        limit = check_torque_limit(self.nominal, self.torque_limit)
+        object.__setattr__(self, "_limit", limit)
+        A, B, C, D = self._mats
+        object.__setattr__(self, "_gain", _hanus_gain(self.name, "D", A, B, C, D))
+
+    @property
+    def limit(self) -> np.ndarray:
+        """Torque limits ``tau_max`` [N m], shape (n,)."""
+        return self._limit
+
+    def _conditioned(self, q, qd, r, rd, rdd, y):
+        """Return ``(tau_s, dy)``: the clipped torque, and ``y_hat - y`` (None: no clip)."""
+        model, data, lam = self.nominal.model, self.nominal.data, self.lam
+        taubar = rdd + 2.0 * lam * (rd - qd) + lam * lam * ((r - q) + y)
+        M = pin.crba(model, data, q)
+        tau = M @ taubar + pin.nonLinearEffects(model, data, q, qd)
+        lim = self._limit
+        sat = np.minimum(np.maximum(tau, -lim), lim)
+        if np.array_equal(sat, tau):
+            return tau, None
+        return sat, np.linalg.solve(M, sat - tau) / (lam * lam)
+
+    def torque(self, t, q, qd, r, rd, rdd, x) -> np.ndarray:
+        """Eq. (8) clipped to the limits: ``sat(Mhat taubar + Vhat + Ghat)``."""
+        _, _, C, D = self._mats
+        return self._conditioned(q, qd, r, rd, rdd, C @ x + D @ (r - q))[0]
+
+    def derivative(self, t, q, qd, r, rd, rdd, x) -> np.ndarray:
+        """``xdot = A x + B e + B D^-1 (y_hat - y)`` (the last term only while clipped)."""
+        A, B, C, D = self._mats
+        e = r - q
+        dy = self._conditioned(q, qd, r, rd, rdd, C @ x + D @ e)[1]
+        xdot = A @ x + B @ e
+        return xdot if dy is None else xdot + self._gain @ dy
+
+    def sampled(self, rate: float = DEFAULT_RATE, method: str = "tustin") -> SampledLaw:
+        """Digital version: ``K`` discretized by ``method``, conditioned with ``Bd Dd^-1``.
+
+        Raises
+        ------
+        ValueError
+            The discrete ``Dd`` is singular (or its zeros unstable) at this rate and method.
+        """
+        rate = check_rate("rate", rate)
+        if type(self) is not AntiWindupTracking:
+            return ControlLaw.sampled(self, rate, method)
+        mats = self.discretize(rate, method)
+        gain = _hanus_gain(self.name, f"the discrete Dd ({method}, {rate:g} Hz)", *mats,
+                           discrete=True)
+        return _SampledAntiWindup(self, rate, method, mats, gain)
+
+    def linear_model(self) -> FLLinearModel | None:
+        """Return the loop while nothing clips: :class:`TrackingController`'s."""
+        if type(self) is not AntiWindupTracking:
+            return None
+        return FLLinearModel(self.n, self.lam, self._mats, self.discretize)
+
+    def compiled_form(self) -> FLAWForm | None:
+        """Return the :class:`FLAWForm` with ``K``'s continuous matrices (this exact class only)."""
+        if type(self) is not AntiWindupTracking:
+            return None
+        A, B, C, D = self._mats
+        return FLAWForm(self.nominal, self.lam, A, B, C, D, self._gain, self._limit)
+
+    def __reduce__(self):
+        state = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        state["K"] = self._mats
+        state["torque_limit"] = tuple(self._limit.tolist())
+        return (_rebuild_tracking, (type(self), state))
+
+    def describe(self) -> dict:
+        """As :class:`TrackingController`, with the limits and the conditioning."""
+        return {**super().describe(), "torque_limit_Nm": self._limit.tolist(),
+                "anti_windup": "Hanus self-conditioned K (B D^-1), on Mhat^-1 (tau_s - tau)"}
+
+
+def _hanus_gain(name: str, what: str, A, B, C, D, *, discrete: bool = False) -> np.ndarray:
+    """Return ``B D^-1`` of Hanus's form, or refuse a singular ``D`` or unstable zeros of K."""
+    sv = np.linalg.svd(D, compute_uv=False)
+    if sv.size == 0 or sv[-1] <= 1e-12 * max(sv[0], 1.0):
+        raise ValueError(f"law {name!r}: the self-conditioned (Hanus) form needs K's {what} "
+                         f"non-singular (it inverts it); its singular values are "
+                         f"{sv.tolist()}")
+    gain = np.linalg.solve(D.T, B.T).T  # B D^-1
+    if A.shape[0]:
+        zeros = np.linalg.eigvals(A - gain @ C)
+        worst = np.max(np.abs(zeros)) if discrete else np.max(zeros.real)
+        if worst >= (1.0 if discrete else 0.0):
+            raise ValueError(f"law {name!r}: K has unstable zeros (eigenvalues of A - B D^-1 C: "
+                             f"{np.round(zeros, 6).tolist()}), which the self-conditioned "
+                             f"form would follow while the torque saturates")
+    gain.setflags(write=False)
+    return gain
+
+
+class _SampledAntiWindup(SampledLaw):
+    """Sampled :class:`AntiWindupTracking`: ``x+ = Ad x + Bd e + Bd Dd^-1 (y_hat - y)``."""
+
+    def __init__(self, law: AntiWindupTracking, rate: float, method: str, mats, gain):
+        self.law, self.rate, self.method, self.mats, self.gain = law, rate, method, mats, gain
+        self.name, self.label, self.n, self.nx = law.name, law.label, law.n, law.nx
+
+    def step(self, t, q, qd, r, rd, rdd, x):
+        """Clipped output with the old state, then the conditioned state update."""
+        Ad, Bd, Cd, Dd = self.mats
+        e = r - q
+        tau, dy = self.law._conditioned(q, qd, r, rd, rdd, Cd @ x + Dd @ e)
+        x_next = Ad @ x + Bd @ e
+        return tau, (x_next if dy is None else x_next + self.gain @ dy)
+
+    def compiled_form(self):
+        """Return the :class:`FLAWForm` with the discrete matrices and ``Bd Dd^-1``."""
+        if type(self.law) is not AntiWindupTracking:
+            return None
+        Ad, Bd, Cd, Dd = self.mats
+        return FLAWForm(self.law.nominal, self.law.lam, Ad, Bd, Cd, Dd, self.gain,
+                        self.law.limit)
+
+    def linear_model(self):
+        """Return the unsaturated loop of the continuous law."""
+        return self.law.linear_model()
+
+    def describe(self):
+        """Describe the continuous law, sampled."""
+        return {**self.law.describe(), "time": "sampled", "rate_hz": self.rate,
+                "discretization": self.method}
+
+
+@dataclass(frozen=True, eq=False)
 class PDGravity(ControlLaw):
     r"""PD control with gravity compensation, the industrial baseline.
 
@@ -861,6 +1105,25 @@ def hinf_fl_controller(nominal, K, lam: float = 45.0, *,
     """
     return TrackingController(nominal=nominal, lam=lam, K=K, name=name,
                               label="H-infinity + FL")
+
+
+def hinf_aw_controller(nominal, K, lam: float = 45.0, *, torque_limit="urdf",
+                       name: str = "hinf_aw") -> AntiWindupTracking:
+    """H-infinity + FL with anti-windup: :class:`AntiWindupTracking` (default ``lam = 45``).
+
+    Parameters
+    ----------
+    nominal : Robot
+        The controller's model.
+    K : control LTI
+        As :func:`hinf_fl_controller` (its ``D`` must be non-singular).
+    lam : float, default 45
+        FL bandwidth [rad/s].
+    torque_limit : "urdf", float or array-like, shape (n,), default "urdf"
+        Actuator limits [N m] the law knows; ``"urdf"``: the nominal URDF's effort limits.
+    """
+    return AntiWindupTracking(nominal=nominal, lam=lam, K=K, name=name,
+                              label="H-infinity + FL, anti-windup", torque_limit=torque_limit)
 
 
 def pd_controller(nominal, wn: float = PD_BANDWIDTH, zeta: float = 1.0, *, q=None,

@@ -25,7 +25,8 @@ from .jsondata import dumps
 from .viewer import MissingMeshWarning, Scene, Track
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "study_captions",
-           "summary_lines", "write_trajectories", "PAPER_ERROR_RATIO", "PAPER_LAWS"]
+           "summary_lines", "write_trajectories", "torque_limit_table", "PAPER_ERROR_RATIO",
+           "PAPER_LAWS"]
 
 #: The paper's claim for the uncertain plants: "almost a ten times better performance".
 PAPER_ERROR_RATIO = 10.0
@@ -183,6 +184,9 @@ def results_markdown(result: StudyResult, data: dict | None = None) -> str:
             cells = [" ".join(_fmt(v) for v in row[m])
                      for m in ("rms_error", "max_error", "rms_torque", "peak_torque")]
             lines.append(f"| {label} | {result.label(key)} | " + " | ".join(cells) + " |")
+    limited = torque_limit_table(result, s)
+    if limited:
+        lines += ["", "## Under the torque limit", ""] + limited
     ts = data.get("task_space")
     if ts:
         lines += ["", f"## Task space: error of frame `{ts['frame']}` against the path", "",
@@ -466,4 +470,45 @@ def summary_lines(result: StudyResult, summary: dict) -> list[str]:
     if s["samples_diverged"]:
         lines.append(f"{s['samples_diverged']} uncertain plant(s) with a diverged run (see "
                      f"results.json)")
+    tl = s.get("torque_limit")
+    if tl:
+        lines.append(f"torque limit {', '.join(f'{v:.5g}' for v in tl['limit_Nm'])} N m"
+                     + (f" ({tl['spec']})" if "spec" in tl else "") + ", per controller "
+                     "(diverged nominal, uncertain; RMS error uncertain [rad]; saturated "
+                     "fraction uncertain [-]):")
+        for name, d in tl["laws"].items():
+            rms, sat = d["uncertain_rms_error"], d["uncertain_saturated"]
+            lines.append(f"  {name}: {'diverged' if d['nominal_diverged'] else 'ran'}, "
+                         f"{d['uncertain_diverged']} of {d['uncertain']} diverged; "
+                         f"{'-' if rms is None else f'{rms:.3g}'}; "
+                         f"{'-' if sat is None else f'{sat:.3g}'}")
+    return lines
+
+
+def torque_limit_table(result: StudyResult, summary: dict) -> list[str]:
+    """Markdown table of a study under a torque limit (``summary["torque_limit"]``), or [].
+
+    Per law (also those that diverged on the nominal plant): diverged plants, RMS error and
+    time in saturation, on the nominal plant and over the uncertain ones.
+    """
+    tl = summary.get("torque_limit")
+    if not tl:
+        return []
+    labels = {**{k: result.label(k) for k in result.names},
+              **{k: d["label"] for k, d in result.dropped.items()}}
+    how = f" ({tl['spec']}: {tl['rule']})" if "rule" in tl else ""
+    lines = [f"Torque limit {', '.join(f'{v:.5g}' for v in tl['limit_Nm'])} N m{how}; "
+             f"saturated = {tl['saturated_means']}.", "",
+             "| Controller | diverged: nominal | diverged: uncertain plants | RMS error nominal "
+             "[rad] | RMS error uncertain [rad] | saturated nominal [-] | saturated uncertain "
+             "(mean) [-] |", "|---|---|---|---|---|---|---|"]
+
+    def cell(x):
+        return "-" if x is None else f"{x:.3g}"
+
+    for name, d in tl["laws"].items():
+        lines.append(f"| {labels[name]} (`{name}`) | {'yes' if d['nominal_diverged'] else 'no'} "
+                     f"| {d['uncertain_diverged']} of {d['uncertain']} | "
+                     f"{cell(d['nominal_rms_error'])} | {cell(d['uncertain_rms_error'])} | "
+                     f"{cell(d['nominal_saturated'])} | {cell(d['uncertain_saturated'])} |")
     return lines

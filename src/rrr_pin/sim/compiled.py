@@ -17,6 +17,8 @@ per form, and refuses any other form with a ``ValueError`` naming it:
   with ``y = C x + D e`` and ``K``'s state ``xdot = A x + B e`` (continuous) or
   ``x+ = A x + B e`` after the output (sampled, matrices discretized), ``Mhat`` from CRBA
   (symmetrized from its upper triangle) and ``Vhat + Ghat`` from ``nonLinearEffects``;
+* :class:`~rrr_pin.control.laws.FLAWForm`, the same torque clipped to the law's limits, with
+  ``K``'s state conditioned on the clipped torque (Hanus; H-infinity + FL with anti-windup);
 * :class:`~rrr_pin.control.laws.PDForm`, PD + gravity compensation:
   ``tau = Kp e + Kd (rd - qd) + Ghat(q)``.
 
@@ -45,7 +47,7 @@ from dataclasses import fields
 import numpy as np
 
 from ..control.effects import Resolved
-from ..control.laws import FLForm, PDForm, check_law_output
+from ..control.laws import FLAWForm, FLForm, PDForm, check_law_output
 from .codegen import compile_robot_codegen
 from .extension import EXTENSION, CompiledRobot, cached, require
 from .trajectory import (
@@ -67,7 +69,7 @@ __all__ = [
 
 #: The compiled forms the C++ loop implements, by exact type, and the C++ law (a class of the
 #: extension whose fields are the form's, ``nominal`` aside) each one becomes.
-ENGINE_LAWS = {FLForm: "FLLaw", PDForm: "PDLaw"}
+ENGINE_LAWS = {FLForm: "FLLaw", PDForm: "PDLaw", FLAWForm: "FLAWLaw"}
 
 
 # The last few models loaded, by identity of the Robot's pin.Model (a campaign reuses the
@@ -206,8 +208,9 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
         RK4 steps per control step, >= 1 (sampled only).
     repeat : int, default 5
         Runs; the fastest is returned (the least disturbed by other processes).
-    kind : {"fl", "pd"}
-        The ``kind`` of a form in :data:`ENGINE_LAWS` (``FLForm.kind``, ``PDForm.kind``).
+    kind : {"fl", "pd", "fl_aw"}
+        The ``kind`` of a form in :data:`ENGINE_LAWS` (``FLForm.kind``, ``PDForm.kind``,
+        ``FLAWForm.kind``; ``"fl_aw"`` times FL's calls).
     sampled : bool, default True
 
     Returns

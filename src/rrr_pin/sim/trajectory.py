@@ -27,6 +27,7 @@ __all__ = [
     "law_divergence",
     "first_bad_torque",
     "make_trajectory",
+    "saturation",
     "VELOCITY_LIMIT",
     "REASONS",
     "FORMATS",
@@ -227,15 +228,20 @@ def metrics(traj: Trajectory) -> dict:
     -------
     dict
         ``rms_error`` and ``max_error`` [rad] of ``e = r - q``; ``rms_torque`` and
-        ``peak_torque`` [N m] of ``tau``. RMS over the samples of the run.
+        ``peak_torque`` [N m] of ``tau``. RMS over the samples of the run. A run with a
+        torque limit (``info["saturation"]``, :func:`saturation`) also has
+        ``saturated_fraction``, per joint the fraction [-] of its control periods at the limit.
     """
     e, tau = traj.error, traj.tau
-    return {
+    out = {
         "rms_error": np.sqrt(np.mean(e * e, axis=0)).tolist(),
         "max_error": np.max(np.abs(e), axis=0).tolist(),
         "rms_torque": np.sqrt(np.mean(tau * tau, axis=0)).tolist(),
         "peak_torque": np.max(np.abs(tau), axis=0).tolist(),
     }
+    if "saturation" in traj.info:
+        out["saturated_fraction"] = list(traj.info["saturation"]["per_joint_fraction"])
+    return out
 
 
 def diverged_joint(q, qd, lower, upper) -> tuple[int, str] | None:
@@ -326,9 +332,42 @@ def make_trajectory(run: Run, Q, QD, TAU) -> Trajectory:
     plant = run.plant
     units = ["m" if j.shortname().startswith("JointModelP") else "rad"
              for j in list(plant.model.joints)[1:]]
+    info = dict(run.info)
+    fx = run.effects
+    if fx is not None and fx.limit is not None:
+        info["saturation"] = saturation(TAU[:-1], fx.limit, float(run.t[1] - run.t[0]))
     return Trajectory(t=run.t, q=Q, qd=QD, r=R, tau=TAU, controller=run.law.name,
-                      plant=plant.name, info=dict(run.info),
+                      plant=plant.name, info=info,
                       joint_names=list(plant.joint_names), joint_units=units)
+
+
+def saturation(tau, limit, Ts: float) -> dict:
+    """Time a sampled run spent at its torque limit (``Trajectory.info["saturation"]``).
+
+    A control period counts as saturated for joint ``j`` when the torque applied over it is at
+    the limit, ``|tau_j| >= tau_max_j`` (after the plant's clip, that is where the clip acted,
+    or where the law itself asked for the limit exactly, as a law that knows the limits does).
+
+    Parameters
+    ----------
+    tau : ndarray, shape (N, n)
+        The torque applied over each of the N control periods [N m].
+    limit : ndarray, shape (n,)
+        ``tau_max`` [N m].
+    Ts : float
+        Control period [s].
+
+    Returns
+    -------
+    dict
+        ``fraction`` [-]: of the N periods, those where any joint is at its limit;
+        ``seconds`` [s]: ``fraction N Ts``; ``per_joint_fraction`` [-], length n.
+    """
+    at = np.abs(tau) >= limit
+    anyj = at.any(axis=1)
+    return {"fraction": float(anyj.mean()), "seconds": float(anyj.sum() * Ts),
+            "per_joint_fraction": at.mean(axis=0).tolist(),
+            "limit_Nm": np.asarray(limit, dtype=float).tolist()}
 
 
 # --- files: Trajectory.save / Trajectory.load -------------------------------------------------
