@@ -28,7 +28,7 @@ from dataclasses import fields
 import numpy as np
 
 from ..control.laws import FLForm, PDForm, check_law_output
-from ..model.dh import check_inertial
+from ..model.dh import INERTIA_RTOL, check_inertial
 from ..validation import FieldError
 from . import dyngen
 from .codegen import CodegenModelMismatch
@@ -44,7 +44,7 @@ from .trajectory import (
 )
 
 __all__ = ["GENERATED", "BATCH_LAWS", "BATCH_MAX", "StructureMismatch", "generated_structure",
-           "plant_parameters", "batchable", "run_batch", "raise_or_return"]
+           "plant_parameters", "batchable", "run_batch", "raise_or_return", "floor_ms"]
 
 #: The generated structures: name -> (robot source of :func:`rrr_pin.model.dynamics.load_robot`,
 #: joints locked) the generator reads the structure from (``scripts/gen_dynamics.py``).
@@ -118,36 +118,58 @@ def plant_parameters(robot, role: str = "plant") -> np.ndarray:
         (:func:`rrr_pin.model.dh.check_inertial`), a placement rotation that is not
         orthonormal, or a negative armature.
     """
-    if generated_structure(robot.model) is None:
-        raise _refusal(robot, role)
-    P = dyngen.parameters(robot.model)
-    names = dyngen.parameter_layout(robot.nq)
-    where = f"{role} {robot.name!r}"
-    bad = np.flatnonzero(~np.isfinite(P))
-    if bad.size:
-        k = bad[0]
-        raise FieldError(f"{where}: {names[k]}", f"{{name}} must be finite, got {P[k]!r}")
-    for j in range(robot.nq):
-        o = 3 + dyngen.PER_JOINT * j
-        R = P[o:o + 9].reshape(3, 3)
-        err = float(np.abs(R.T @ R - np.eye(3)).max())
-        if err > _ORTHO_TOL or np.linalg.det(R) < 0:
+    return _parameters([robot], role)[0]
+
+
+def _parameters(robots, role: str) -> np.ndarray:
+    """Parameter vectors (B, np) of robots of one generated structure, checked.
+
+    One vectorized screen for all bodies; a body it flags is checked again, alone, by
+    :func:`rrr_pin.model.dh.check_inertial` for the message.
+    """
+    for robot in robots:
+        if generated_structure(robot.model) is None:
+            raise _refusal(robot, role)
+    P = np.stack([dyngen.parameters(r.model) for r in robots])
+    n = robots[0].nq
+    names = dyngen.parameter_layout(n)
+    B = len(robots)
+    body = P[:, 3:].reshape(B, n, dyngen.PER_JOINT)
+    R = body[:, :, :9].reshape(B, n, 3, 3)
+    m = body[:, :, 12]
+    xx, xy, yy, xz, yz, zz = (body[:, :, 16 + k] for k in range(6))
+    inertia = np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1),
+                        np.stack([xz, yz, zz], -1)], -2)
+    arm = body[:, :, 22]
+    finite = np.isfinite(P)
+    if not finite.all():
+        b, k = np.argwhere(~finite)[0]
+        raise FieldError(f"{role} {robots[b].name!r}: {names[k]}",
+                         f"{{name}} must be finite, got {P[b, k]!r}")
+    ortho = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-1, -2))
+    det = np.linalg.det(R)
+    J = np.linalg.eigvalsh(inertia)
+    tol = INERTIA_RTOL * np.maximum(J.max(axis=-1), 0.0)
+    scale = np.abs(inertia).max(axis=(-1, -2))
+    body_ok = (m >= 0) & np.where(m == 0.0, scale == 0.0,
+                                  (J.min(axis=-1) >= -tol)
+                                  & (2.0 * J.max(axis=-1) <= J.sum(axis=-1) + tol))
+    for b, j in np.argwhere(~body_ok | (ortho > _ORTHO_TOL) | (det < 0) | (arm < 0)):
+        where = f"{role} {robots[b].name!r}"
+        if ortho[b, j] > _ORTHO_TOL or det[b, j] < 0:
             raise FieldError(f"{where}: R{j + 1}",
                              f"{{name}} (joint placement rotation) must be a rotation matrix; "
-                             f"|R^T R - 1| = {err:.3g}, det = {np.linalg.det(R):.6g}")
-        m = P[o + 12]
-        xx, xy, yy, xz, yz, zz = P[o + 16:o + 22]
+                             f"|R^T R - 1| = {ortho[b, j]:.3g}, det = {det[b, j]:.6g}")
+        if arm[b, j] < 0:
+            raise FieldError(f"{where}: arm{j + 1}",
+                             f"{{name}} (armature) must be >= 0 kg m^2, got {arm[b, j]!r}")
         try:
-            check_inertial(m, [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]],
-                           name=f"{where}: body of joint {j + 1}")
+            check_inertial(m[b, j], inertia[b, j], name=f"{where}: body of joint {j + 1}")
         except FieldError:
             raise
         except ValueError as exc:
             raise FieldError(f"{where}: m{j + 1}, I{j + 1}", "{name}: " + str(exc).replace(
                 "{", "{{").replace("}", "}}")) from None
-        if P[o + 22] < 0:
-            raise FieldError(f"{where}: arm{j + 1}",
-                             f"{{name}} (armature) must be >= 0 kg m^2, got {P[o + 22]!r}")
     return P
 
 
@@ -225,7 +247,7 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
     run0 = runs[0]
     nominal = plant_parameters(form.nominal, "nominal")
     name = generated_structure(form.nominal.model)
-    P = np.stack([plant_parameters(r.plant) for r in runs])
+    P = _parameters([r.plant for r in runs], "plant")
     for r in runs:
         if generated_structure(r.plant.model) != name:
             raise StructureMismatch(
@@ -275,3 +297,45 @@ def raise_or_return(result):
     if isinstance(result, SimulationDiverged):
         raise result
     return result
+
+
+def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *,
+             kind: str = "fl", sampled: bool = True, batch: int = 1) -> float:
+    """Time the generated-dynamics floor of a rollout, per plant [ms].
+
+    The calls :func:`rrr_pin.sim.compiled.floor_ms` times (sampled, per control step: the
+    law's calls on ``nominal`` and ``4 substeps`` forward dynamics on the plant; continuous, per
+    RK4 step, four times both), each on ``batch`` copies of ``plant`` at once, in a bare C++
+    loop; the fastest of ``repeat`` runs, divided by ``batch``.
+
+    Parameters
+    ----------
+    plant, nominal : Robot
+        Of one generated structure.
+    n_steps : int
+        Control (or RK4) steps, >= 0.
+    substeps, repeat : int
+        As for :func:`rrr_pin.sim.compiled.floor_ms`.
+    kind : {"fl", "pd"}
+    sampled : bool, default True
+    batch : int, default 1
+        Plants per call, 1 to :data:`BATCH_MAX`.
+
+    Returns
+    -------
+    float
+        Wall time [ms] per plant of the fastest run.
+    """
+    kinds = {cls.kind: name for cls, name in BATCH_LAWS.items()}
+    if kind not in kinds:
+        raise ValueError(f"kind must be one of {', '.join(kinds)}, got {kind!r}")
+    if repeat < 1 or not 1 <= batch <= BATCH_MAX:
+        raise ValueError(f"repeat >= 1 and batch in [1, {BATCH_MAX}] are required, got "
+                         f"{repeat!r}, {batch!r}")
+    name = generated_structure(plant.model)
+    P = np.stack([plant_parameters(plant)] * int(batch))
+    Pn = plant_parameters(nominal, "nominal")
+    law = getattr(EXTENSION, kinds[kind])()
+    return 1e3 * min(EXTENSION.batch_floor_timing(name, P, Pn, law, bool(sampled),
+                                                  int(substeps), int(n_steps))
+                     for _ in range(repeat)) / batch
