@@ -192,3 +192,13 @@ def test_campaign_rows_equal_for_every_batch_size_and_the_compiled_engine(rrr):
         for key, value in c.items():
             if key.endswith(("_rms_error", "_max_error")) or "_rms_error_" in key:
                 assert abs(a[key] - value) <= 1e-12, key  # [rad]
+
+
+@pytest.mark.slow
+def test_campaign_rows_equal_for_two_jobs_and_batch_sizes(rrr):
+    # Worker processes start slowly (~10 s on a loaded 2-core machine): slow.
+    laws = make_laws("fl,pd", rrr)
+    settings = mc.CampaignSettings(samples=5, seed=3, tolerances=Tolerances(),
+                                   run=RunSettings(duration=0.2, rate=RATE))
+    one = mc.run_campaign(rrr, laws, settings, jobs=1, batch=1).rows
+    assert mc.run_campaign(rrr, laws, settings, jobs=2, batch=16, chunk=2).rows == one
