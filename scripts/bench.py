@@ -13,8 +13,12 @@ asserted:
    loop);
 3. the Python engine (``simulate(..., engine="python")``) against a hand-written loop that calls
    ``pin`` directly (:func:`handwritten_fl_rollout`, the yardstick): 10 s, 1 kHz, ZOH FL;
-4. a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes) against its bound
-   ``2 N x floor / 2 cores``, and the throughput with 1 worker;
+2b/2c. engine ``"codegen"`` (parameter-input generated dynamics, :mod:`rrr_pin.sim.batched`)
+   on the nominal RRR, and per-plant rollouts of uncertain RRR, UR5 and Panda plants on the
+   compiled engine, the generated dynamics and 16 plants per batched call, with their floors;
+4. a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes; batched under
+   ``engine="auto"``) against its bounds ``2 N x floor / 2 cores`` (generic and batched
+   floors), and the throughput with 1 worker;
 5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
 6. ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant (:func:`loopsyn_3x3_s`).
 
@@ -53,13 +57,22 @@ from rrr_pin.control.references import (
     task_space_reference,
 )
 from rrr_pin.model import closed_form
+from rrr_pin.model.dynamics import robot_from_xml
+from rrr_pin.model.robots import nominal_params
+from rrr_pin.model.uncertainty import sample_plant
+from rrr_pin.sim.batched import GENERATED
+from rrr_pin.sim.batched import floor_ms as batch_floor_ms
 from rrr_pin.sim.compiled import floor_ms
-from rrr_pin.sim.simulation import simulate
+from rrr_pin.sim.simulation import simulate, simulate_batch
 
 #: Issue 13's goals: (largest ratio, what it is a ratio of). Start-up goals are in seconds.
 GOALS = {
     "compiled": 1.2,  # compiled rollout / C++ floor
     "campaign": 1.1,  # campaign wall time / (2 N floor / 2 cores)
+    "batched_rrr": 20.0,  # compiled / batched per-plant rollout, RRR (issue 23): at least
+    "batched_ur5": 5.0,  # the same for UR5: at least
+    "campaign_batched": 1.2,  # campaign wall time / (2 N batched floor / 2 cores)
+    "campaign_1000_s": 5.0,  # 1000-plant RRR campaign, 2 laws, 2 jobs [s]: under
     "python": 1.5,  # Python engine / hand-written loop
     "robot_call": 2.0,  # Robot.M/V/G / bare pin call
     "cli_help_s": 0.3,
@@ -170,6 +183,37 @@ def subprocess_s(cmd, repeat):
     return statistics.median(times)
 
 
+def batch_row(arm, args, n_steps):
+    """Section 2c for one arm: per-plant rollout times and floors [ms], side by side."""
+    source, lock = GENERATED[arm]
+    nominal = rrr_pin.load_robot(source, lock=dict(lock))
+    law = make_laws("hinf" if arm == "rrr" else "fl", nominal,
+                    K=K18 if arm == "rrr" else None)[0]
+    ref = default_reference(nominal)
+    src = nominal_params(nominal) or nominal.urdf
+    plants = [robot_from_xml(sample_plant(src, 0, k).urdf, gravity=nominal.gravity,
+                             lock=dict(lock), name=f"sample{k}", check=False) for k in range(16)]
+    kind = law.compiled_form().kind
+    go = {"rate": args.rate}
+    ms = side_by_side_ms({
+        "compiled": lambda: simulate(plants[0], law, ref, args.duration, engine="compiled", **go),
+        "codegen": lambda: simulate(plants[0], law, ref, args.duration, engine="codegen", **go),
+        "batched": lambda: simulate_batch(plants, law, ref, args.duration, batch=16, **go),
+        "floor": lambda: floor_ms(plants[0], nominal, n_steps, repeat=1, kind=kind),
+        "floor_codegen": lambda: batch_floor_ms(plants[0], nominal, n_steps, repeat=1,
+                                                kind=kind),
+        "floor_batched": lambda: batch_floor_ms(plants[0], nominal, n_steps, repeat=1,
+                                                kind=kind, batch=16),
+    }, args.repeat)
+    ms["batched"] /= 16  # per plant
+    a = simulate(plants[1], law, ref, args.duration, engine="compiled", **go)
+    b = simulate_batch(plants, law, ref, args.duration, batch=16, **go)[1]
+    return {"robot": arm, "law": law.name, **{f"{k}_ms": v for k, v in ms.items()},
+            "compiled_vs_batched": ms["compiled"] / ms["batched"],
+            "compiled_vs_codegen": ms["compiled"] / ms["codegen"],
+            "max_diff_rad": float(np.abs(a.q - b.q).max())}
+
+
 def verdict(ratio, goal):
     return f"goal <= {goal:g}: {'met' if ratio <= goal else 'NOT MET'}"
 
@@ -260,12 +304,9 @@ def main(argv=None):
                                       "compiled_ms": ms["compiled"], "floor_ms": ms["floor"],
                                       "ratio": ms["compiled"] / ms["floor"]})
 
-    # 2b. Engine "codegen" (issue 13, beyond the generic floor): the same loop on CppADCodeGen
-    # dynamics of the nominal RRR (rrr_pin.sim.codegen), against the compiled engine and its floor
-    # in the same interleaved rounds; sine reference.
-    from rrr_pin.sim.codegen import compile_robot_codegen
-
-    cg_robot = compile_robot_codegen(robot)
+    # 2b. Engine "codegen" (issues 13, 23): the same loop on the parameter-input generated
+    # dynamics (rrr_pin.sim.batched, one plant per call), against the compiled engine and both
+    # floors in the same interleaved rounds; sine reference.
     codegen_rows = []
     for name, law in laws.items():
         kind = law.compiled_form().kind
@@ -277,8 +318,8 @@ def main(argv=None):
                 for eng in ("compiled", "codegen")} | {
                 "floor": lambda kind=kind, rate=rate, steps=steps: floor_ms(
                     robot, robot, steps, repeat=1, kind=kind, sampled=rate is not None),
-                "floor_codegen": lambda kind=kind, rate=rate, steps=steps: floor_ms(
-                    cg_robot, cg_robot, steps, repeat=1, kind=kind, sampled=rate is not None),
+                "floor_codegen": lambda kind=kind, rate=rate, steps=steps: batch_floor_ms(
+                    robot, robot, steps, repeat=1, kind=kind, sampled=rate is not None),
             }, args.repeat)
             codegen_rows.append({"law": name, "time": timing, "reference": "sine",
                                  "codegen_ms": ms["codegen"], "compiled_ms": ms["compiled"],
@@ -286,6 +327,12 @@ def main(argv=None):
                                  "floor_codegen_ms": ms["floor_codegen"],
                                  "speedup": ms["compiled"] / ms["codegen"],
                                  "speedup_vs_floor": ms["floor"] / ms["codegen"]})
+
+    # 2c. Batched rollouts (issue 23): per-plant time of an uncertain-plant rollout (sampled
+    # at the rate, sine reference; H-inf + FL on the RRR, FL on UR5 and Panda) on the compiled
+    # engine, on the generated dynamics one plant per call, and 16 plants per call; each with
+    # its dynamics-call floor; same interleaved rounds.
+    batch_rows = [batch_row(arm, args, n_steps) for arm in ("rrr", "ur5", "panda")]
 
     # 3. Python engine against the hand-written loop (FL, ZOH, sine), and H-inf for the record.
     sine = refs["sine"]
@@ -319,6 +366,9 @@ def main(argv=None):
     campaign_s = campaign(args.campaign_samples, 2)
     campaign_load = [load_before, os.getloadavg()[0]]
     campaign_bound_s = 2 * args.campaign_samples * 1e-3 * floors["fl", "sampled"] / 2
+    # The batched bound: the same count of rollouts at the batched floor per plant (RRR).
+    campaign_batched_bound_s = (2 * args.campaign_samples * 1e-3
+                                * batch_rows[0]["floor_batched_ms"] / 2)
     one_job_s = campaign(args.mc_samples, 1)
 
     # 5. Start-up in fresh processes.
@@ -358,6 +408,8 @@ def main(argv=None):
         "handwritten_max_diff_rad": float(same),
         "campaign_s": campaign_s,
         "campaign_bound_s": campaign_bound_s,
+        "campaign_batched_bound_s": campaign_batched_bound_s,
+        "batched_vs_compiled": batch_rows,
         "campaign_load_avg": campaign_load,
         "montecarlo_rollouts_per_s": {"1": 2 * args.mc_samples / one_job_s,
                                       "2": 2 * args.campaign_samples / campaign_s},
@@ -396,14 +448,30 @@ def report(res, args):
     for r in res["compiled_vs_floor"]:
         print(f"  {r['law']:6}{r['time']:12}{r['reference']:10}{r['compiled_ms']:14.1f}"
               f"{r['floor_ms']:12.1f}{r['ratio']:8.2f}   {verdict(r['ratio'], GOALS['compiled'])}")
-    print("\n2b. engine='codegen' (generated dynamics of the nominal RRR), sine, same rounds "
-          "as the compiled engine and both floors")
+    print("\n2b. engine='codegen' (parameter-input generated dynamics), nominal RRR, sine, same "
+          "rounds as the compiled engine and both floors")
     print(f"  {'law':6}{'time':12}{'codegen [ms]':>13}{'compiled [ms]':>14}{'floor [ms]':>12}"
           f"{'cg floor [ms]':>14}{'compiled/cg':>12}{'floor/cg':>10}")
     for r in res["codegen_vs_compiled"]:
         print(f"  {r['law']:6}{r['time']:12}{r['codegen_ms']:13.2f}{r['compiled_ms']:14.1f}"
               f"{r['floor_ms']:12.1f}{r['floor_codegen_ms']:14.2f}{r['speedup']:12.2f}"
               f"{r['speedup_vs_floor']:10.2f}")
+    print(f"\n2c. batched rollouts (issue 23): per plant, an uncertain plant, {args.duration:g} s "
+          f"at {args.rate:g} Hz, sine-like default reference; 16 plants per batched call; same "
+          f"rounds")
+    print(f"  {'robot':6}{'law':6}{'compiled':>10}{'codegen':>9}{'batched':>9}{'floor':>8}"
+          f"{'cg floor':>9}{'b floor':>9}{'compiled/batched':>18}{'max |dq|':>10}   goal")
+    goals = {"rrr": GOALS["batched_rrr"], "ur5": GOALS["batched_ur5"]}
+    for r in res["batched_vs_compiled"]:
+        g = goals.get(r["robot"])
+        mark = (f">= {g:g}: {'met' if r['compiled_vs_batched'] >= g else 'NOT MET'}" if g
+                else "-")
+        print(f"  {r['robot']:6}{r['law']:6}{r['compiled_ms']:10.1f}{r['codegen_ms']:9.2f}"
+              f"{r['batched_ms']:9.2f}{r['floor_ms']:8.1f}{r['floor_codegen_ms']:9.2f}"
+              f"{r['floor_batched_ms']:9.2f}{r['compiled_vs_batched']:18.2f}"
+              f"{r['max_diff_rad']:10.1e}   {mark}")
+    print("  [ms]; codegen: generated dynamics, one plant per call; floors: the bare dynamics "
+          "calls (generic Pinocchio, generated, generated 16 at a time)")
     hw = res["handwritten_python_ms"]
     print(f"\n3. Python engine, {args.duration:g} s at {args.rate:g} Hz ZOH, sine (fastest of "
           f"{args.repeat} interleaved rounds)")
@@ -418,6 +486,13 @@ def report(res, args):
     print(f"  measured {c:8.2f} s; bound 2 x {args.campaign_samples} x "
           f"{res['floor_ms']:.1f} ms / 2 cores = {b:.2f} s; ratio {c / b:.2f}   "
           f"{verdict(c / b, GOALS['campaign'])}")
+    bb = res["campaign_batched_bound_s"]
+    goal_s = (f"; 1000 plants under {GOALS['campaign_1000_s']:g} s: "
+              f"{'met' if c < GOALS['campaign_1000_s'] else 'NOT MET'}"
+              if args.campaign_samples == 1000 else "")
+    print(f"  batched bound 2 x {args.campaign_samples} x "
+          f"{res['batched_vs_compiled'][0]['floor_batched_ms']:.2f} ms / 2 cores = {bb:.2f} s; "
+          f"ratio {c / bb:.2f}   {verdict(c / bb, GOALS['campaign_batched'])}{goal_s}")
     print("  1-minute load average {:.2f} before the campaign, {:.2f} after (2 cores)".format(
         *res["campaign_load_avg"]))
     print("  throughput: " + ", ".join(

@@ -1,10 +1,13 @@
-"""Engine "codegen": the compiled loop on CppADCodeGen-generated dynamics of the nominal RRR.
+"""Engine "codegen" against the compiled engine, and the record of the fixed-model C.
+
+``codegen_rrr.c`` (CppADCodeGen, the nominal RRR only) stays committed for C export; the engine
+now runs the parameter-input dynamics of ``rrr_pin.sim.batched`` (tests/test_batched.py).
 
 Reference: the compiled engine (``engine="compiled"``), whose dynamics are Pinocchio's generic
 CRBA / nonLinearEffects / ABA on the same model; the generated C is an independent evaluation
-(straight-line code taped from Pinocchio's templates on CppAD scalars, optimized by CppAD and
-recompiled), so agreement checks both the generated functions and their wiring. Any model other
-than the generated one must be refused, never run on the generated dynamics.
+(straight-line code of rrr_pin.sim.dyngen, forward dynamics by CRBA + RNEA + L D L^T), so
+agreement checks both the generated functions and their wiring. A structure
+without generated dynamics must be refused, never run on another's.
 """
 
 import hashlib
@@ -82,27 +85,35 @@ def test_codegen_equals_compiled_on_the_nominal_rrr(rrr, ref, kind, rate):
     assert np.abs(a.error).max() > 1e-2
 
 
-def test_codegen_refuses_a_perturbed_plant(rrr, ref):
-    plant = robot_from_xml(sample_plants(paper_params(), 1, 0)[0].urdf, gravity=rrr.gravity)
-    with pytest.raises(CodegenModelMismatch, match="plant model"):
-        simulate(plant, fl_controller(rrr), ref, 0.1, rate=RATE, engine="codegen")
-    # ... and a perturbed nominal model with the exact plant.
-    with pytest.raises(CodegenModelMismatch, match="nominal model"):
-        simulate(rrr, fl_controller(plant), ref, 0.1, rate=RATE, engine="codegen")
+def _perturbed(rrr):
+    return robot_from_xml(sample_plants(paper_params(), 1, 0)[0].urdf, gravity=rrr.gravity)
 
 
-def test_codegen_refuses_other_gravity(ref):
-    other = load_robot("rrr", gravity=9.81)
-    with pytest.raises(CodegenModelMismatch):
-        simulate(other, pd_controller(other), ref, 0.1, rate=RATE, engine="codegen")
+@pytest.mark.parametrize("case", ["perturbed plant", "perturbed nominal", "gravity 9.81", "ur5"])
+def test_codegen_runs_every_plant_of_a_generated_structure(rrr, ref, case):
+    # The fixed-model C refused these (fingerprint); the parameter-input C runs them, equal to
+    # the compiled engine.
+    if case == "ur5":
+        plant = nominal = load_robot("ur5")
+        ref = SineReference(home=np.zeros(6), amp=np.full(6, 0.1), freq=np.ones(6),
+                            phase=np.zeros(6))
+    elif case == "gravity 9.81":
+        plant = nominal = load_robot("rrr", gravity=9.81)
+    else:
+        plant, nominal = (_perturbed(rrr), rrr) if case == "perturbed plant" else (
+            rrr, _perturbed(rrr))
+    law = pd_controller(nominal) if case == "gravity 9.81" else fl_controller(nominal)
+    a = simulate(plant, law, ref, 0.1, rate=RATE, engine="compiled")
+    b = simulate(plant, law, ref, 0.1, rate=RATE, engine="codegen")
+    assert b.info["engine"] == "codegen"
+    assert_allclose(b.q, a.q, rtol=0.0, atol=ATOL_Q)
 
 
-def test_codegen_refuses_ur5():
-    ur5 = load_robot("ur5")
-    ref = SineReference(home=np.zeros(6), amp=np.full(6, 0.1), freq=np.ones(6),
-                        phase=np.zeros(6))
-    with pytest.raises(CodegenModelMismatch, match="ur5"):
-        simulate(ur5, fl_controller(ur5), ref, 0.1, rate=RATE, engine="codegen")
+def test_codegen_refuses_a_structure_without_generated_code(rrr, ref):
+    two = load_robot("rrr", lock={rrr.joint_names[0]: 0.0})
+    ref2 = SineReference(home=[0.1, -0.2], amp=[0.1, 0.1], freq=[1.0, 1.0], phase=[0.0, 0.0])
+    with pytest.raises(CodegenModelMismatch, match="no dynamics are generated"):
+        simulate(two, fl_controller(two), ref2, 0.1, rate=RATE, engine="codegen")
 
 
 def test_codegen_refuses_plant_effects(rrr, ref):

@@ -57,15 +57,16 @@ def test_diverged_sample_is_recorded_and_campaign_goes_on(setup, monkeypatch):
     robot, laws = setup
     import rrr_pin.campaign.runner as runner
 
-    real = runner.simulate
+    real = runner.simulate_batch
 
-    def flaky(plant, law, *args, **kwargs):
-        if plant.name == "sample00001" and law.name == "hinf":
-            raise SimulationDiverged("diverged at t = 0.1 s: joint 'joint2' blew up", 0.1,
-                                     "joint2")
-        return real(plant, law, *args, **kwargs)
+    def flaky(plants, law, *args, **kwargs):
+        out = real(plants, law, *args, **kwargs)
+        return [SimulationDiverged("diverged at t = 0.1 s: joint 'joint2' blew up", 0.1,
+                                   "joint2")
+                if plant.name == "sample00001" and law.name == "hinf" else r
+                for plant, r in zip(plants, out, strict=True)]
 
-    monkeypatch.setattr(runner, "simulate", flaky)
+    monkeypatch.setattr(runner, "simulate_batch", flaky)
     campaign = mc.run_campaign(robot, laws, SETTINGS, jobs=1)
     assert [r["status"] == "ok" for r in campaign.rows] == [True, False, True, True]
     assert "hinf: " in campaign.rows[1]["status"] and "joint2" in campaign.rows[1]["status"]

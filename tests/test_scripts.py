@@ -36,7 +36,7 @@ def run_script(script, args, monkeypatch):
 
 def test_every_script_is_tested():
     assert {p.name for p in SCRIPTS.glob("*.py")} == {r[0] for r in RUNS} | {
-        "bench.py", "codegen.py", "report_screenshot.py"}
+        "bench.py", "codegen.py", "gen_dynamics.py", "report_screenshot.py"}
 
 
 def test_report_screenshot_refuses_a_missing_report(tmp_path, monkeypatch, capsys):

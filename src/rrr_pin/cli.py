@@ -381,9 +381,11 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
                            "; default: continuous-time laws as in the paper's Simulink study"))
     p.add_argument("--engine", choices=("auto", "python", "compiled", "codegen"),
                    default="auto",
-                   help="simulation engine (auto: compiled where the law has a compiled form; "
-                        "codegen: generated dynamics of the nominal RRR only, refused for any "
-                        "other model, e.g. the uncertain plants: use it with --samples 0)")
+                   help="simulation engine (auto: compiled where the law has a compiled form, "
+                        "and for many plants the batched generated dynamics where the arm's "
+                        "structure has them; codegen: generated dynamics with the plant's "
+                        "parameters as inputs (RRR, UR5, Panda structures), refused for any "
+                        "other structure)")
     p.add_argument("--q0", metavar="Q1,Q2,...", default=None,
                    help="initial joint positions [rad] (default: on the reference)")
     p.add_argument("--qd0", metavar="V1,V2,...", default=None,

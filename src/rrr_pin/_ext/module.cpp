@@ -14,6 +14,11 @@
 namespace nb = nanobind;
 using namespace rrr_pin;
 
+namespace rrr_pin
+{
+  void bind_batch(nb::module_ & mod);  // batch_bind.cpp
+}
+
 namespace
 {
   /// Bind rollout() and floor_timing() for one law (overloads, selected by the law's type).
@@ -111,6 +116,8 @@ NB_MODULE(_rollout, mod)
       std::string(rrr_cg_gravity));
     return d;
   }, "Generated models: name -> (fingerprint, URDF sha256, gravity text).");
+
+  bind_batch(mod);
 
   mod.def("pinocchio_version", []() { return std::string(PINOCCHIO_VERSION); });
   mod.def("eigen_version", []() {

@@ -32,10 +32,12 @@ from ..model.dh import ArmParams
 from ..model.dynamics import Robot, robot_from_xml
 from ..model.robots import nominal_params
 from ..model.uncertainty import sample_plant
+from ..sim.batched import BATCH_MAX
 from ..sim.simulation import reuse_preparation
 from ..sim.trajectory import SimulationDiverged
+from ..validation import check_count
 from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
-from .runner import RunSettings, check_laws, error_ratios, run_laws, run_metrics
+from .runner import RunSettings, check_laws, error_ratios, run_laws, run_laws_batch, run_metrics
 from .settings import Settings
 from .store import CampaignStore
 
@@ -95,6 +97,9 @@ class CampaignJob:
     certificate : CertificateSpec or None
     nominal : Robot or None
         The nominal arm, for the certificate (None without one).
+    batch : int
+        Plants per batched rollout (:func:`rrr_pin.campaign.runner.run_laws_batch`); changes
+        no number, so it is not recorded.
     """
 
     settings: Settings
@@ -107,6 +112,7 @@ class CampaignJob:
     joint_names: tuple
     certificate: CertificateSpec | None = None
     nominal: Robot | None = None
+    batch: int = 16
 
 
 @dataclass(frozen=True)
@@ -181,13 +187,24 @@ class Campaign:
 
 def sample_row(job: CampaignJob, k: int) -> dict:
     """Generate sample ``k``, run every law on it and reduce it to one row."""
-    settings = job.settings
-    sample = sample_plant(job.source, settings.seed, k, settings.tolerances,
+    sample, plant = _sample(job, k)
+    return _row(job, k, sample, plant, run_laws(plant, job.laws, job.reference,
+                                                job.settings.run))
+
+
+def _sample(job: CampaignJob, k: int):
+    """Sample ``k``'s :class:`~rrr_pin.model.uncertainty.PlantSample` and its Robot."""
+    sample = sample_plant(job.source, job.settings.seed, k, job.settings.tolerances,
                           skip_joints=job.skip_joints)
-    row = {"index": k, "seed": sample.seed, "status": "ok", "parameters": sample.parameters}
     plant = robot_from_xml(sample.urdf, gravity=job.gravity, lock=dict(job.lock),
                            name=f"sample{k:05d}", label=f"sample {k}", check=False)
-    runs = run_laws(plant, job.laws, job.reference, settings.run)
+    return sample, plant
+
+
+def _row(job: CampaignJob, k: int, sample, plant, runs: dict) -> dict:
+    """Reduce sample ``k``'s runs (by law name) to its row, from its own values only."""
+    settings = job.settings
+    row = {"index": k, "seed": sample.seed, "status": "ok", "parameters": sample.parameters}
     bad = [f"{name}: {v}" for name, v in runs.items() if isinstance(v, SimulationDiverged)]
     if bad:
         row["status"] = "diverged: " + "; ".join(bad)
@@ -210,18 +227,29 @@ def sample_row(job: CampaignJob, k: int) -> dict:
 
 
 def run_chunk(task: CampaignChunk) -> list[dict]:
-    """Simulate the samples of one chunk, in order (runs in a worker)."""
+    """Simulate the samples of one chunk, in order (runs in a worker).
+
+    The chunk's plants run together, ``job.batch`` per batched rollout where the engine
+    allows (:func:`rrr_pin.campaign.runner.run_laws_batch`); each row is made from its own
+    plant's values only, so rows do not depend on the chunk or the batch.
+    """
     # One reference and one set of laws for every sample: sample the reference and discretize
     # the laws once per chunk (bit-identical to doing it per run).
+    job = task.job
     with reuse_preparation():
-        return [sample_row(task.job, k) for k in task.indices]
+        made = [_sample(job, k) for k in task.indices]
+        runs = run_laws_batch([plant for _, plant in made], job.laws, job.reference,
+                              job.settings.run, batch=job.batch)
+        return [_row(job, k, sample, plant, r)
+                for k, (sample, plant), r in zip(task.indices, made, runs, strict=True)]
 
 
 def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Reference | None = None,
                  params: ArmParams | None = None, jobs: int | None = None,
                  scheduler: str | None = None, executor: Executor | None = None,
                  skip_joints=(), chunk: int | None = None, progress=None,
-                 store: CampaignStore | None = None, certificate=None) -> Campaign:
+                 store: CampaignStore | None = None, certificate=None,
+                 batch: int = 16) -> Campaign:
     """Run every law on ``settings.samples`` seeded uncertain plants.
 
     Parameters
@@ -246,7 +274,11 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
     skip_joints : iterable of str
         Joints whose origins are not perturbed.
     chunk : int, optional
-        Samples per task (default: about 8 tasks per worker, at most 20 samples).
+        Samples per task (default: about 8 tasks per worker, at most 32 samples).
+    batch : int, default 16
+        Plants per batched rollout, 1 to 16 (:mod:`rrr_pin.sim.batched`, used under
+        ``engine="auto"`` when the arm's structure has generated dynamics); rows are the same
+        for every batch size, number of workers and chunk size.
     progress : callable, optional
         ``progress(done, total)`` after each finished chunk.
     certificate : rrr_pin.robust.certificates.CertificateSpec, optional
@@ -272,6 +304,7 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
         The Dask scheduler cannot be reached.
     """
     laws = check_laws(laws, robot.nq, settings.baseline)
+    batch = check_count("batch", batch, 1, BATCH_MAX)
     reference = default_reference(robot) if reference is None else reference
     reference.check_limits(robot, duration=settings.run.duration)
     if params is None:
@@ -281,13 +314,14 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
                       gravity=robot.gravity, lock=tuple(dict(robot.locked).items()),
                       skip_joints=tuple(skip_joints), joint_names=tuple(robot.joint_names),
                       certificate=certificate,
-                      nominal=robot if certificate is not None else None)
+                      nominal=robot if certificate is not None else None, batch=batch)
     samples = int(settings.samples)
     jobs = check_jobs(jobs)
     workers = jobs if executor is None and scheduler is None else 4
-    # About 8 tasks per worker, at most 20 samples (~2 s for the RRR at 10 s, 1 kHz): a task
-    # costs ~3 ms of set-up, while the last task of one worker leaves the other idle.
-    size = chunk or max(1, min(20, math.ceil(min(samples, 10**6) / (8 * workers))))
+    # About 8 tasks per worker, at most 32 samples (two batches of 16; ~0.5 s for the RRR at
+    # 10 s, 1 kHz on the batched engine): a task costs ~3 ms of set-up, while the last task of
+    # one worker leaves the other idle.
+    size = chunk or max(1, min(32, math.ceil(min(samples, 10**6) / (8 * workers))))
     done = store.done() if store is not None else set()
     todo = (k for k in range(samples) if k not in done)
     tasks = (CampaignChunk(job, block)

@@ -17,6 +17,7 @@ time in saturation. Without a limit, such a divergence stops the study (``Simula
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -31,7 +32,7 @@ from ..model.uncertainty import PlantSample, sample_plants
 from ..sim.simulation import time_grid
 from ..sim.trajectory import SimulationDiverged, metrics
 from .executors import check_jobs, default_jobs, run_tasks
-from .runner import RunSettings, check_laws, ratio, run_laws
+from .runner import RunSettings, check_laws, ratio, run_laws, run_laws_batch
 from .settings import Settings
 
 if TYPE_CHECKING:
@@ -42,6 +43,7 @@ __all__ = [
     "StudyResult",
     "PlantTask",
     "run_plant",
+    "run_plants",
     "run_study",
     "summarize",
     "task_space_errors",
@@ -395,6 +397,27 @@ def task_space_errors(reference: TaskSpaceReference, nominal: Robot, runs: dict,
     return out
 
 
+def run_plants(tasks: tuple) -> list[tuple[dict, dict | None]]:
+    """Simulate every law on several plants of one study, batched where the engine allows.
+
+    The plants run together (:func:`rrr_pin.campaign.runner.run_laws_batch`: under
+    ``engine="auto"``, many per call on the generated dynamics of :mod:`rrr_pin.sim.batched`
+    when the structure has them); each result is the one :func:`run_plant` gives its plant.
+    """
+    plants = [robot_from_xml(t.plant_xml, gravity=t.nominal.gravity,
+                             lock=dict(t.nominal.locked), name=t.plant_name,
+                             label=t.plant_name, check=False) for t in tasks]
+    task = tasks[0]
+    runs = run_laws_batch(plants, task.laws, task.reference, task.run)
+    out = []
+    for t, plant, r in zip(tasks, plants, runs, strict=True):
+        cert = None
+        if t.certificate is not None and t.certify:
+            cert = t.certificate.certify(t.nominal, plant, t.reference, t.run.duration)
+        out.append((r, cert))
+    return out
+
+
 def run_plant(task: PlantTask) -> tuple[dict, dict | None]:
     """Simulate every law on one plant, and certify it (runs in a worker process)."""
     nominal = task.nominal
@@ -505,13 +528,21 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     jobs = 1 if len(tasks) <= 2 else config.jobs or default_jobs()
     logger.info("simulating %d plants in %s", len(tasks),
                 "this process" if jobs <= 1 else f"{jobs} processes")
-    # run_tasks: workers that die with this process and stop on Ctrl-C/SIGTERM (see executors)
-    slot = {id(t): k for k, t in enumerate(tasks)}
-    outputs = [None] * len(tasks)
-    for done, (plant_task, out) in enumerate(run_tasks(run_plant, tasks, jobs=jobs), 1):
-        outputs[slot[id(plant_task)]] = out
+    # run_tasks: workers that die with this process and stop on Ctrl-C/SIGTERM (see executors).
+    # The uncertain plants go in groups of up to 16 (one batched rollout each), the nominal
+    # plant alone; about 2 groups per worker at least, so both cores work.
+    size = max(1, min(16, math.ceil((len(tasks) - 1) / (2 * max(jobs, 1)))))
+    groups = [tuple(tasks[:1])] + [tuple(tasks[k:k + size])
+                                   for k in range(1, len(tasks), size)]
+    slot = {id(g): k for k, g in enumerate(groups)}
+    outputs_by_group = [None] * len(groups)
+    done = 0
+    for group, out in run_tasks(run_plants, groups, jobs=jobs):
+        outputs_by_group[slot[id(group)]] = out
+        done += len(out)
         if progress:
             progress(done, len(tasks))
+    outputs = [o for group_out in outputs_by_group for o in group_out]
     failed = {k: v for k, v in outputs[0][0].items() if isinstance(v, SimulationDiverged)}
     if failed and (not limited or config.baseline in failed):
         name, exc = next(iter(failed.items()))

@@ -3,8 +3,10 @@
 Holds :mod:`~rrr_pin.sim.trajectory` (the leaf: ``Trajectory``, ``SimulationDiverged``, the
 divergence test), :mod:`~rrr_pin.sim.simulation` (``simulate``: validation and the Python
 engine), :mod:`~rrr_pin.sim.extension` (the C++ extension ``_rollout``),
-:mod:`~rrr_pin.sim.compiled` (the compiled engine) and :mod:`~rrr_pin.sim.codegen` (the
-generated-dynamics engine).
+:mod:`~rrr_pin.sim.compiled` (the compiled engine), :mod:`~rrr_pin.sim.codegen` (the
+fixed-model generated C and its fingerprint), :mod:`~rrr_pin.sim.dyngen` (the generator of
+parameter-input dynamics per structure) and :mod:`~rrr_pin.sim.batched` (engine ``"codegen"``:
+batched rollouts of many plants on them).
 
 Layer: above :mod:`rrr_pin.control`. May import :mod:`rrr_pin.validation`,
 :mod:`rrr_pin.model`, :mod:`rrr_pin.robust` and :mod:`rrr_pin.control`.

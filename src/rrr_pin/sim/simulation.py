@@ -74,6 +74,7 @@ from ..validation import (
 from .trajectory import (
     VELOCITY_LIMIT,
     Run,
+    SimulationDiverged,
     Trajectory,
     diverged_joint,
     divergence,
@@ -84,6 +85,7 @@ from .trajectory import (
 
 __all__ = [
     "simulate",
+    "simulate_batch",
     "time_grid",
     "TimeGrid",
     "largest_substep",
@@ -295,9 +297,11 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
         Slack beyond the plant's joint limits before the run counts as diverged [rad], >= 0.
     engine : {"auto", "python", "compiled", "codegen"}, default "auto"
         See the module docstring. ``"compiled"`` with a law that declares no compiled form
-        raises ``ValueError`` naming the law. ``"codegen"``: the compiled loop on generated
-        dynamics (:mod:`rrr_pin.sim.codegen`), only when plant and nominal model are the nominal
-        RRR; otherwise ``rrr_pin.sim.codegen.CodegenModelMismatch``. Never chosen by ``"auto"``.
+        raises ``ValueError`` naming the law. ``"codegen"``: the compiled loop on dynamics
+        generated with the plant's parameters as inputs (:mod:`rrr_pin.sim.batched`), for a
+        plant and nominal model of a generated structure (RRR, UR5, Panda); any other
+        structure raises ``rrr_pin.sim.batched.StructureMismatch``. Never chosen by ``"auto"``
+        for one run; :func:`simulate_batch` picks it for many.
     effects : PlantEffects, optional
         Unmodeled dynamics of the plant (delay, actuator bandwidth, friction, saturation,
         sensor noise, quantization, flexible joints; :mod:`rrr_pin.control.effects`), sampled
@@ -334,15 +338,90 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
     run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
                    qd0=qd0, limit_margin=limit_margin, effects=effects, check=check,
                    force=force)
+    return _execute(run, engine)
+
+
+def _execute(run: Run, engine: str) -> Trajectory:
+    """Run a validated run on ``engine`` (as :func:`simulate` chooses it); record the engine."""
     form, engine = _choose_engine(run.law, engine)
-    if engine in ("compiled", "codegen"):
+    if engine == "codegen":
+        from .batched import raise_or_return, run_batch
+
+        traj = raise_or_return(run_batch([run], form)[0])
+    elif engine == "compiled":
         from .compiled import run_compiled
 
-        traj = run_compiled(run, form, codegen=engine == "codegen")
+        traj = run_compiled(run, form)
     else:
         traj = _run_python(run)
     traj.info["engine"] = engine
     return traj
+
+
+def simulate_batch(plants, law, reference: Reference, duration: float, *, batch: int = 16,
+                   engine: str = "auto", **kwargs) -> list:
+    """Simulate one law on many plants; diverged runs are returned, not raised.
+
+    With ``engine="auto"`` the plants run ``batch`` at a time on the generated dynamics
+    (:func:`rrr_pin.sim.batched.run_batch`) when that engine can run them all (the law's
+    compiled form in :data:`rrr_pin.sim.batched.BATCH_LAWS`, the plants and the law's model of
+    a generated structure, no plant effects), and one at a time as :func:`simulate` picks
+    otherwise. ``engine="codegen"`` requires the batched engine (refusing what it cannot run);
+    any other engine runs one plant at a time. Each result is the one :func:`simulate` would
+    give with the engine recorded in its ``info["engine"]``; ``batch`` changes no number.
+
+    Parameters
+    ----------
+    plants : sequence of Robot
+        The true arms, each with ``reference``'s joints.
+    law, reference, duration
+        As for :func:`simulate`.
+    batch : int, default 16
+        Plants per batched call, 1 to :data:`rrr_pin.sim.batched.BATCH_MAX`.
+    engine : {"auto", "python", "compiled", "codegen"}, default "auto"
+    **kwargs
+        The other keywords of :func:`simulate` (``dt``, ``rate``, ``method``, ``q0``,
+        ``qd0``, ``limit_margin``, ``effects``, ``check``, ``force``).
+
+    Returns
+    -------
+    list
+        Per plant, in order: its :class:`Trajectory` or the :class:`SimulationDiverged` it
+        ended with.
+    """
+    from .batched import BATCH_MAX, batchable, run_batch
+
+    if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or not (
+            1 <= batch <= BATCH_MAX):
+        raise ValueError(f"batch must be an integer in [1, {BATCH_MAX}], got {batch!r}")
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    plants = list(plants)
+    if engine in ("auto", "codegen"):
+        with reuse_preparation():
+            runs = [_prepare(p, law, reference, duration,
+                             **{"dt": None, "rate": None, "method": "tustin", "q0": None,
+                                "qd0": None, "limit_margin": 0.0, **kwargs}) for p in plants]
+        form = runs[0].law.compiled_form() if runs else None
+        if engine == "codegen" and form is None:
+            _choose_engine(law, "codegen")  # the refusal of a law without a compiled form
+        if engine == "codegen" or batchable(runs, form):
+            out = run_batch(runs, form, batch=int(batch))
+            for r in out:
+                if not isinstance(r, SimulationDiverged):
+                    r.info["engine"] = "codegen"
+            return out
+    else:
+        runs = [_prepare(p, law, reference, duration,
+                         **{"dt": None, "rate": None, "method": "tustin", "q0": None,
+                            "qd0": None, "limit_margin": 0.0, **kwargs}) for p in plants]
+    out = []
+    for run in runs:
+        try:
+            out.append(_execute(run, engine))
+        except SimulationDiverged as exc:
+            out.append(exc)
+    return out
 
 
 def _choose_engine(law, engine: str):

@@ -1,0 +1,612 @@
+// Batched rollouts on generated dynamics (see batch.hpp).
+#include "batch.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+extern "C" {
+#define RRR_DYN_DECLARE(name)                                                                  \
+  extern const char name##_dyn_structure[];                                                    \
+  extern const int name##_dyn_nq;                                                              \
+  extern const int name##_dyn_np;                                                              \
+  void name##_crba(int, const double *, const double *, double *);                             \
+  void name##_nle(int, const double *, const double *, const double *, double *);              \
+  void name##_gravity(int, const double *, const double *, double *);                          \
+  void name##_fd(int, const double *, const double *, const double *, const double *, double *);
+RRR_DYN_DECLARE(rrr)
+RRR_DYN_DECLARE(ur5)
+RRR_DYN_DECLARE(panda)
+#undef RRR_DYN_DECLARE
+}
+
+namespace rrr_pin
+{
+  namespace
+  {
+#define RRR_DYN_ENTRY(name)                                                                    \
+  DynFunctions{#name,         name##_dyn_structure, name##_dyn_nq, name##_dyn_np, name##_crba, \
+               name##_nle,    name##_gravity,       name##_fd}
+    const DynFunctions kTable[] = {RRR_DYN_ENTRY(rrr), RRR_DYN_ENTRY(ur5), RRR_DYN_ENTRY(panda)};
+#undef RRR_DYN_ENTRY
+
+    using Lanes = std::vector<double>;  // n entries of B plants: [j * B + b]
+
+    /// The law's nominal model and the plants' parameters, structure-of-arrays.
+    struct Models
+    {
+      const DynFunctions & f;
+      int B, n;
+      Lanes plant, nominal;  // (np, B)
+
+      Models(const DynFunctions & fns, const RowMat & P, const Vec & Pn)
+      : f(fns)
+      , B(static_cast<int>(P.rows()))
+      , n(fns.nq)
+      , plant(static_cast<std::size_t>(fns.np) * B)
+      , nominal(plant.size())
+      {
+        for (int k = 0; k < f.np; ++k)
+          for (int b = 0; b < B; ++b)
+          {
+            plant[k * B + b] = P(b, k);
+            nominal[k * B + b] = Pn[k];
+          }
+      }
+    };
+
+    /// The batched form of a law: torque of every plant from its state and law state.
+    template<class Law>
+    struct BatchLaw;
+
+    template<>
+    struct BatchLaw<FLLaw>
+    {
+      const FLLaw & p;
+      const Models & md;
+      int B, n, m;
+      Lanes e, y, taubar, M, nle, tau;
+
+      BatchLaw(const FLLaw & law, const Models & models)
+      : p(law)
+      , md(models)
+      , B(models.B)
+      , n(models.n)
+      , m(static_cast<int>(law.nx()))
+      , e(n * B)
+      , y(n * B)
+      , taubar(n * B)
+      , M(n * n * B)
+      , nle(n * B)
+      , tau(n * B)
+      {
+      }
+
+      const Lanes & torque(
+        const double * q, const double * qd, const double * r, const double * rd,
+        const double * rdd, const double * x)
+      {
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+            e[j * B + b] = r[j] - q[j * B + b];
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            double s = 0.0;
+            for (int k = 0; k < n; ++k)
+              s += p.D(j, k) * e[k * B + b];
+            for (int l = 0; l < m; ++l)
+              s += p.C(j, l) * x[l * B + b];
+            y[j * B + b] = s;
+          }
+        const double lam = p.lam;
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            const int i = j * B + b;
+            taubar[i] = rdd[j] + 2.0 * lam * (rd[j] - qd[i]) + lam * lam * (e[i] + y[i]);
+          }
+        md.f.crba(B, md.nominal.data(), q, M.data());
+        md.f.nle(B, md.nominal.data(), q, qd, nle.data());
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            double s = 0.0;
+            for (int k = 0; k < n; ++k)
+              s += M[(j * n + k) * B + b] * taubar[k * B + b];
+            tau[j * B + b] = s + nle[j * B + b];
+          }
+        return tau;
+      }
+
+      /// out = A x + B e (e of the last torque()).
+      void state_map(const double * x, double * out) const
+      {
+        for (int l = 0; l < m; ++l)
+          for (int b = 0; b < B; ++b)
+          {
+            double s = 0.0;
+            for (int k = 0; k < m; ++k)
+              s += p.A(l, k) * x[k * B + b];
+            for (int k = 0; k < n; ++k)
+              s += p.B(l, k) * e[k * B + b];
+            out[l * B + b] = s;
+          }
+      }
+
+      static void model_calls(const Models & md, const double * q, const double * qd,
+                              double * M, double * tau)
+      {
+        md.f.crba(md.B, md.nominal.data(), q, M);
+        md.f.nle(md.B, md.nominal.data(), q, qd, tau);
+      }
+    };
+
+    template<>
+    struct BatchLaw<PDLaw>
+    {
+      const PDLaw & p;
+      const Models & md;
+      int B, n, m = 0;
+      Lanes e, g, tau;
+
+      BatchLaw(const PDLaw & law, const Models & models)
+      : p(law)
+      , md(models)
+      , B(models.B)
+      , n(models.n)
+      , e(n * B)
+      , g(n * B)
+      , tau(n * B)
+      {
+      }
+
+      const Lanes & torque(
+        const double * q, const double * qd, const double * r, const double * rd,
+        const double *, const double *)
+      {
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+            e[j * B + b] = r[j] - q[j * B + b];
+        md.f.gravity(B, md.nominal.data(), q, g.data());
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            double s = 0.0, d = 0.0;
+            for (int k = 0; k < n; ++k)
+              s += p.Kp(j, k) * e[k * B + b];
+            for (int k = 0; k < n; ++k)
+              d += p.Kd(j, k) * (rd[k] - qd[k * B + b]);
+            tau[j * B + b] = s + d + g[j * B + b];
+          }
+        return tau;
+      }
+
+      void state_map(const double *, double *) const {}
+
+      static void model_calls(const Models & md, const double * q, const double *, double *,
+                              double * tau)
+      {
+        md.f.gravity(md.B, md.nominal.data(), q, tau);
+      }
+    };
+
+    /// The arm state of B plants and a continuous law's state.
+    struct BState
+    {
+      Lanes q, qd, x;
+    };
+
+    struct BRK4
+    {
+      BState ys, k1, k2, k3, k4;
+      explicit BRK4(std::size_t nB, std::size_t mB)
+      {
+        for (BState * s : {&ys, &k1, &k2, &k3, &k4})
+          s->q.resize(nB), s->qd.resize(nB), s->x.resize(mB);
+      }
+    };
+
+    /// out = y + c k, entry by entry.
+    inline void axpy(const Lanes & y, double c, const Lanes & k, Lanes & out)
+    {
+      for (std::size_t i = 0; i < y.size(); ++i)
+        out[i] = y[i] + c * k[i];
+    }
+
+    inline void combine(Lanes & y, double h6, const BState & k1, const BState & k2,
+                        const BState & k3, const BState & k4, Lanes BState::*part)
+    {
+      Lanes & v = y;
+      const Lanes &a = k1.*part, &b = k2.*part, &c = k3.*part, &d = k4.*part;
+      for (std::size_t i = 0; i < v.size(); ++i)
+        v[i] += h6 * (a[i] + 2.0 * (b[i] + c[i]) + d[i]);
+    }
+
+    /// Classical RK4 (rk4.hpp's order: qd before q in each stage point).
+    template<class System>
+    void rk4_rest(System & sys, BState & y, double h, BRK4 & w)
+    {
+      const double h2 = 0.5 * h, h6 = h / 6.0;
+      const BState * ks[3] = {&w.k1, &w.k2, &w.k3};
+      BState * outs[3] = {&w.k2, &w.k3, &w.k4};
+      const double cs[3] = {h2, h2, h};
+      const int points[3] = {1, 1, 2};
+      for (int s = 0; s < 3; ++s)
+      {
+        axpy(y.qd, cs[s], ks[s]->qd, w.ys.qd);
+        axpy(y.q, cs[s], ks[s]->q, w.ys.q);
+        if (sys.with_x)
+          axpy(y.x, cs[s], ks[s]->x, w.ys.x);
+        sys.slope(w.ys, points[s], *outs[s]);
+      }
+      combine(y.q, h6, w.k1, w.k2, w.k3, w.k4, &BState::q);
+      combine(y.qd, h6, w.k1, w.k2, w.k3, w.k4, &BState::qd);
+      if (sys.with_x)
+        combine(y.x, h6, w.k1, w.k2, w.k3, w.k4, &BState::x);
+    }
+
+    /// The ideal sampled plant: B arms driven by their held commands u.
+    struct BatchPlant
+    {
+      const Models & md;
+      Lanes u;
+      bool with_x = false;
+
+      void slope(const BState & y, int, BState & k)
+      {
+        k.q = y.qd;
+        md.f.fd(md.B, md.plant.data(), y.q.data(), y.qd.data(), u.data(), k.qd.data());
+      }
+    };
+
+    /// A continuous law and B arms, integrated together.
+    template<class Law>
+    struct BatchContinuous
+    {
+      const Models & md;
+      BatchLaw<Law> & law;
+      const RolloutInputs & in;
+      bool with_x;
+      std::int64_t k = 0;
+      Lanes tau1;                     // torque of the step's first stage
+      std::vector<int> bad_joint;     // per plant: first joint of a non-finite torque, or -1
+
+      void slope(const BState & y, int point, BState & d)
+      {
+        const std::int64_t i = 2 * k + point;
+        const Lanes & tau = law.torque(y.q.data(), y.qd.data(), in.R.row(i).data(),
+                                       in.RD.row(i).data(), in.RDD.row(i).data(), y.x.data());
+        const int B = md.B, n = md.n;
+        for (int b = 0; b < B; ++b)
+          if (bad_joint[b] < 0)
+            for (int j = 0; j < n; ++j)
+              if (!std::isfinite(tau[j * B + b]))
+              {
+                bad_joint[b] = j;
+                break;
+              }
+        if (point == 0)
+          tau1 = tau;
+        if (with_x)
+          law.state_map(y.x.data(), d.x.data());
+        d.q = y.qd;
+        md.f.fd(B, md.plant.data(), y.q.data(), y.qd.data(), tau.data(), d.qd.data());
+      }
+    };
+
+    /// Per-plant outputs and status.
+    struct BatchOutputs
+    {
+      int B, n;
+      std::int64_t N;
+      RowMat Q, QD, TAU;
+      Eigen::VectorXi bad_step, bad_joint, reason;
+      std::vector<char> alive;
+      int n_alive;
+
+      BatchOutputs(int B_, int n_, std::int64_t N_)
+      : B(B_)
+      , n(n_)
+      , N(N_)
+      , Q(RowMat::Constant(B_ * (N_ + 1), n_, std::numeric_limits<double>::quiet_NaN()))
+      , QD(Q)
+      , TAU(Q)
+      , bad_step(Eigen::VectorXi::Constant(B_, -1))
+      , bad_joint(Eigen::VectorXi::Constant(B_, -1))
+      , reason(Eigen::VectorXi::Constant(B_, kOk))
+      , alive(B_, 1)
+      , n_alive(B_)
+      {
+      }
+
+      std::int64_t row(int b, std::int64_t k) const { return b * (N + 1) + k; }
+
+      void put(RowMat & out, int b, std::int64_t k, const Lanes & v) const
+      {
+        for (int j = 0; j < n; ++j)
+          out(row(b, k), j) = v[j * B + b];
+      }
+
+      void kill(int b, std::int64_t step, int joint, int why)
+      {
+        alive[b] = 0;
+        --n_alive;
+        bad_step[b] = static_cast<int>(step);
+        bad_joint[b] = joint;
+        reason[b] = why;
+      }
+
+      /// Record the states after step k; the plants that diverge are stopped.
+      void record(std::int64_t k, const BState & y, const RowMat & lower, const RowMat & upper,
+                  double vlim, std::vector<int> & stopped)
+      {
+        for (int b = 0; b < B; ++b)
+        {
+          if (!alive[b])
+            continue;
+          put(Q, b, k + 1, y.q);
+          put(QD, b, k + 1, y.qd);
+          int joint = -1, why = kOk;
+          for (int j = 0; j < n && why == kOk; ++j)
+            if (!std::isfinite(y.q[j * B + b]) || !std::isfinite(y.qd[j * B + b]))
+              joint = j, why = kNonFinite;
+          for (int j = 0; j < n && why == kOk; ++j)
+            if (std::abs(y.qd[j * B + b]) > vlim)
+              joint = j, why = kSpeed;
+          for (int j = 0; j < n && why == kOk; ++j)
+            if (y.q[j * B + b] < lower(b, j) || y.q[j * B + b] > upper(b, j))
+              joint = j, why = kLimits;
+          if (why != kOk)
+          {
+            kill(b, k + 1, joint, why);
+            stopped.push_back(b);
+          }
+        }
+      }
+
+      BatchResult result()
+      {
+        return {std::move(Q), std::move(QD), std::move(TAU), bad_step, bad_joint, reason};
+      }
+    };
+
+    /// Put a stopped plant back on its initial state (finite numbers, never recorded).
+    void park(BState & y, int b, int B, const RolloutInputs & in)
+    {
+      const int n = static_cast<int>(in.q0.size()), m = static_cast<int>(in.x0.size());
+      for (int j = 0; j < n; ++j)
+      {
+        y.q[j * B + b] = in.q0[j];
+        y.qd[j * B + b] = in.qd0[j];
+      }
+      for (int l = 0; l < m; ++l)
+        y.x[l * B + b] = in.x0[l];
+    }
+
+    BState initial(int B, const RolloutInputs & in)
+    {
+      const int n = static_cast<int>(in.q0.size()), m = static_cast<int>(in.x0.size());
+      BState y{Lanes(n * B), Lanes(n * B), Lanes(m * B)};
+      for (int b = 0; b < B; ++b)
+        park(y, b, B, in);
+      return y;
+    }
+
+    template<class Law>
+    BatchResult sampled_loop(const Models & md, const Law & law, const RolloutInputs & in,
+                             const RowMat & lower, const RowMat & upper)
+    {
+      const int B = md.B, n = md.n, m = static_cast<int>(law.nx());
+      const std::int64_t N = in.n_steps;
+      BatchOutputs out(B, n, N);
+      BatchLaw<Law> eval(law, md);
+      BatchPlant plant{md, Lanes(n * B)};
+      BState y = initial(B, in);
+      Lanes xn(m * B);
+      BRK4 w(n * B, 0);
+      std::vector<int> stopped;
+      for (int b = 0; b < B; ++b)
+      {
+        out.put(out.Q, b, 0, y.q);
+        out.put(out.QD, b, 0, y.qd);
+      }
+      for (std::int64_t k = 0; k < N && out.n_alive > 0; ++k)
+      {
+        const Lanes & tau =
+          eval.torque(y.q.data(), y.qd.data(), in.R.row(k).data(), in.RD.row(k).data(),
+                      in.RDD.row(k).data(), y.x.data());
+        if (m > 0)
+        {
+          eval.state_map(y.x.data(), xn.data());
+          y.x.swap(xn);
+        }
+        stopped.clear();
+        for (int b = 0; b < B; ++b)
+        {
+          if (!out.alive[b])
+            continue;
+          out.put(out.TAU, b, k, tau);
+          for (int j = 0; j < n; ++j)
+            if (!std::isfinite(tau[j * B + b]))  // the law's own output
+            {
+              out.kill(b, k, j, kLawTorque);
+              stopped.push_back(b);
+              break;
+            }
+        }
+        plant.u = tau;
+        for (int b : stopped)
+        {
+          park(y, b, B, in);
+          for (int j = 0; j < n; ++j)
+            plant.u[j * B + b] = 0.0;
+        }
+        for (int s = 0; s < in.substeps; ++s)
+        {
+          plant.slope(y, 0, w.k1);
+          rk4_rest(plant, y, in.h, w);
+        }
+        stopped.clear();
+        out.record(k, y, lower, upper, in.vlim, stopped);
+        for (int b : stopped)
+          park(y, b, B, in);
+      }
+      // The torque held on the last interval is also the one "at" the final sample.
+      for (int b = 0; b < B; ++b)
+        if (out.bad_step[b] < 0)
+          out.TAU.row(out.row(b, N)) = out.TAU.row(out.row(b, N - 1));
+      return out.result();
+    }
+
+    template<class Law>
+    BatchResult continuous_loop(const Models & md, const Law & law, const RolloutInputs & in,
+                                const RowMat & lower, const RowMat & upper)
+    {
+      const int B = md.B, n = md.n, m = static_cast<int>(law.nx());
+      const std::int64_t N = in.n_steps;
+      BatchOutputs out(B, n, N);
+      BatchLaw<Law> eval(law, md);
+      BatchContinuous<Law> loop{md, eval, in, m > 0, 0, Lanes(n * B), std::vector<int>(B, -1)};
+      BState y = initial(B, in);
+      BRK4 w(n * B, m * B);
+      std::vector<int> stopped;
+      for (int b = 0; b < B; ++b)
+      {
+        out.put(out.Q, b, 0, y.q);
+        out.put(out.QD, b, 0, y.qd);
+      }
+      for (std::int64_t k = 0; out.n_alive > 0; ++k)
+      {
+        loop.k = k;
+        loop.slope(y, 0, w.k1);
+        for (int b = 0; b < B; ++b)
+          if (out.alive[b])
+            out.put(out.TAU, b, k, loop.tau1);
+        if (k < N)
+          rk4_rest(loop, y, in.h, w);
+        stopped.clear();
+        for (int b = 0; b < B; ++b)
+          if (out.alive[b] && loop.bad_joint[b] >= 0)
+          {
+            out.kill(b, k, loop.bad_joint[b], kLawTorque);
+            stopped.push_back(b);
+          }
+        if (k == N)
+          break;
+        out.record(k, y, lower, upper, in.vlim, stopped);
+        for (int b : stopped)
+        {
+          park(y, b, B, in);
+          loop.bad_joint[b] = -1;
+        }
+      }
+      return out.result();
+    }
+
+    void check_batch(const DynFunctions & f, const RowMat & P, const Vec & Pn,
+                     const RolloutInputs & in, Eigen::Index nx, const RowMat & lower,
+                     const RowMat & upper)
+    {
+      const Eigen::Index n = f.nq, B = P.rows();
+      if (B < 1 || B > kBatchMax)
+        throw std::invalid_argument("a batch holds 1 to 16 plants");
+      if (P.cols() != f.np || Pn.size() != f.np)
+        throw std::invalid_argument("parameter vectors must have the structure's np entries");
+      if (lower.rows() != B || upper.rows() != B || lower.cols() != n || upper.cols() != n)
+        throw std::invalid_argument("limits must be (B, nq)");
+      if (in.x0.size() != nx)
+        throw std::invalid_argument("x0 must have the law's nx entries");
+      if (in.substeps < 1 || in.n_steps < 1 || !(in.h > 0.0))
+        throw std::invalid_argument("substeps >= 1, n_steps >= 1 and h > 0 are required");
+      const std::int64_t rows = in.sampled ? in.n_steps + 1 : 2 * in.n_steps + 1;
+      if (
+        in.R.rows() != rows || in.RD.rows() != rows || in.RDD.rows() != rows || in.R.cols() != n
+        || in.RD.cols() != n || in.RDD.cols() != n)
+        throw std::invalid_argument("reference arrays have the wrong shape");
+      if (in.q0.size() != n || in.qd0.size() != n)
+        throw std::invalid_argument("state vectors must have nq entries");
+    }
+  } // namespace
+
+  const DynFunctions * dyn_table(int & count)
+  {
+    count = static_cast<int>(sizeof(kTable) / sizeof(kTable[0]));
+    return kTable;
+  }
+
+  const DynFunctions & dyn_by_name(const std::string & name)
+  {
+    std::string known;
+    for (const DynFunctions & f : kTable)
+    {
+      if (name == f.name)
+        return f;
+      known += (known.empty() ? "" : ", ") + std::string(f.name);
+    }
+    throw std::invalid_argument("no generated dynamics named '" + name + "' (known: " + known
+                                + ")");
+  }
+
+  template<class Law>
+  BatchResult batch_rollout(
+    const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper)
+  {
+    const DynFunctions & f = dyn_by_name(name);
+    check_batch(f, plant, nominal, in, law.nx(), lower, upper);
+    law.check(f.nq);
+    const Models md(f, plant, nominal);
+    if (in.sampled)
+      return sampled_loop(md, law, in, lower, upper);
+    return continuous_loop(md, law, in, lower, upper);
+  }
+
+  template<class Law>
+  double batch_floor_timing(
+    const std::string & name, const RowMat & plant, const Vec & nominal, bool sampled,
+    int substeps, std::int64_t n_steps)
+  {
+    const DynFunctions & f = dyn_by_name(name);
+    if (plant.rows() < 1 || plant.rows() > kBatchMax || plant.cols() != f.np
+        || nominal.size() != f.np)
+      throw std::invalid_argument("1 to 16 parameter rows of the structure's np entries");
+    if (substeps < 1 || n_steps < 0)
+      throw std::invalid_argument("substeps must be >= 1 and n_steps >= 0");
+    const Models md(f, plant, nominal);
+    const int B = md.B, n = md.n;
+    Lanes q(n * B, 0.3), qd(n * B, 0.1), tau(n * B, 0.0), M(n * n * B), out(n * B);
+    double sink = 0.0;
+    const auto t0 = std::chrono::steady_clock::now();
+    for (std::int64_t k = 0; k < n_steps; ++k)
+    {
+      const int calls = sampled ? 1 : 4, fds = sampled ? 4 * substeps : 1;
+      for (int c = 0; c < calls; ++c)
+      {
+        BatchLaw<Law>::model_calls(md, q.data(), qd.data(), M.data(), tau.data());
+        for (int s = 0; s < fds; ++s)
+        {
+          f.fd(B, md.plant.data(), q.data(), qd.data(), tau.data(), out.data());
+          sink += out[0];
+        }
+      }
+    }
+    const auto t1 = std::chrono::steady_clock::now();
+    if (!std::isfinite(sink))
+      throw std::runtime_error("batch_floor_timing: non-finite result");
+    return std::chrono::duration<double>(t1 - t0).count();
+  }
+
+  template BatchResult batch_rollout<FLLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &);
+  template BatchResult batch_rollout<PDLaw>(
+    const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &);
+  template double batch_floor_timing<FLLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
+  template double batch_floor_timing<PDLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
+} // namespace rrr_pin

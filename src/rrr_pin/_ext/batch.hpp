@@ -1,0 +1,70 @@
+// Batched rollouts: B plants of one generated structure (dyn_*.c, rrr_pin.sim.dyngen) integrated
+// together, structure-of-arrays (entry j of plant b at [j * B + b]), each plant with its own
+// parameter vector, law state and divergence. Python entry point: rrr_pin.sim.batched.
+//
+// The loop is the compiled engine's (rollout.cpp: ideal sampled plant, or a continuous law
+// integrated with the arm), operation for operation per plant; only the dynamics calls are the
+// generated ones, on all B plants at once. A plant that diverges (same tests, same order as
+// rollout.cpp) is recorded and then carried along on its initial state, unrecorded, so it
+// touches no other plant's numbers: no operation crosses plants.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <tuple>
+
+#include "law.hpp"
+#include "rollout.hpp"
+
+namespace rrr_pin
+{
+  /// Generated dynamics of one structure (a dyn_<name>.c file).
+  struct DynFunctions
+  {
+    const char * name;
+    const char * structure;
+    int nq, np;
+    void (*crba)(int, const double *, const double *, double *);
+    void (*nle)(int, const double *, const double *, const double *, double *);
+    void (*gravity)(int, const double *, const double *, double *);
+    void (*fd)(int, const double *, const double *, const double *, const double *, double *);
+  };
+
+  /// The generated structures compiled in, and their count.
+  const DynFunctions * dyn_table(int & count);
+  /// The generated structure named `name` (throws std::invalid_argument naming the known ones).
+  const DynFunctions & dyn_by_name(const std::string & name);
+
+  /// Batch bound (dyn_common.h RRR_DYN_BMAX).
+  constexpr int kBatchMax = 16;
+
+  /// (Q, QD, TAU) of shape (B (N + 1), n), plant b in rows b (N + 1) ...; NaN after each
+  /// plant's divergence; bad_step (B,) (-1: none), bad_joint (B,), reason (B,).
+  using BatchResult = std::tuple<RowMat, RowMat, RowMat, Eigen::VectorXi, Eigen::VectorXi,
+                                 Eigen::VectorXi>;
+
+  /// Run `law` on B plants (parameter rows of `plant`, (B, np)) with the law's model
+  /// `nominal` (np,); `in` as for rollout() (q0, qd0, x0 shared), limits per plant (B, n).
+  template<class Law>
+  BatchResult batch_rollout(
+    const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper);
+
+  /// Wall time [s] of the bare generated dynamics calls of B plant-rollouts of a `Law`
+  /// (the calls floor_timing() times, on all B plants per call).
+  template<class Law>
+  double batch_floor_timing(
+    const std::string & name, const RowMat & plant, const Vec & nominal, bool sampled,
+    int substeps, std::int64_t n_steps);
+
+  extern template BatchResult batch_rollout<FLLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &);
+  extern template BatchResult batch_rollout<PDLaw>(
+    const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &);
+  extern template double batch_floor_timing<FLLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
+  extern template double batch_floor_timing<PDLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
+} // namespace rrr_pin

@@ -1,0 +1,80 @@
+// Python bindings of the batched rollouts (batch.hpp), added to rrr_pin.sim._rollout by
+// module.cpp (private; use rrr_pin.sim.batched).
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+#include <nanobind/eigen/dense.h>
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
+
+#include "batch.hpp"
+
+namespace nb = nanobind;
+
+namespace rrr_pin
+{
+  namespace
+  {
+    template<class Law>
+    void def_batch_law(nb::module_ & mod)
+    {
+      mod.def(
+        "batch_rollout", &batch_rollout<Law>, nb::arg("name"), nb::arg("plant"),
+        nb::arg("nominal"), nb::arg("law"), nb::arg("inputs"), nb::arg("lower"),
+        nb::arg("upper"), nb::call_guard<nb::gil_scoped_release>(),
+        "Run the closed loop on B plants; returns (Q, QD, TAU, bad_step, bad_joint, reason).");
+      mod.def(
+        "batch_floor_timing",
+        [](const std::string & name, const RowMat & plant, const Vec & nominal, const Law &,
+           bool sampled, int substeps, std::int64_t n_steps) {
+          return batch_floor_timing<Law>(name, plant, nominal, sampled, substeps, n_steps);
+        },
+        nb::arg("name"), nb::arg("plant"), nb::arg("nominal"), nb::arg("law"),
+        nb::arg("sampled"), nb::arg("substeps"), nb::arg("n_steps"),
+        nb::call_guard<nb::gil_scoped_release>(),
+        "Wall time [s] of the bare generated dynamics calls of B plant-rollouts of this law.");
+    }
+  } // namespace
+
+  void bind_batch(nb::module_ & mod)
+  {
+    def_batch_law<FLLaw>(mod);
+    def_batch_law<PDLaw>(mod);
+    mod.def("batch_models", []() {
+      nb::dict d;
+      int count = 0;
+      const DynFunctions * table = dyn_table(count);
+      for (int i = 0; i < count; ++i)
+        d[table[i].name] = nb::make_tuple(std::string(table[i].structure), table[i].nq,
+                                          table[i].np);
+      return d;
+    }, "Generated structures: name -> (structure, nq, number of parameters).");
+    mod.def("batch_max", []() { return kBatchMax; });
+    mod.def(
+      "batch_dynamics",
+      [](const std::string & name, const RowMat & P, const RowMat & q, const RowMat & v,
+         const RowMat & tau) {
+        const DynFunctions & f = dyn_by_name(name);
+        const Eigen::Index B = P.rows(), n = f.nq;
+        if (B < 1 || B > kBatchMax || P.cols() != f.np)
+          throw std::invalid_argument("P must be (B, np) with 1 <= B <= 16");
+        for (const RowMat * a : {&q, &v, &tau})
+          if (a->rows() != B || a->cols() != n)
+            throw std::invalid_argument("q, v and tau must be (B, nq)");
+        // Structure-of-arrays: transposed, row-major (entry k of plant b at [k * B + b]).
+        const RowMat Ps = P.transpose(), qs = q.transpose(), vs = v.transpose(),
+                     ts = tau.transpose();
+        RowMat M(n * n, B), nle(n, B), g(n, B), qdd(n, B);
+        f.crba(static_cast<int>(B), Ps.data(), qs.data(), M.data());
+        f.nle(static_cast<int>(B), Ps.data(), qs.data(), vs.data(), nle.data());
+        f.gravity(static_cast<int>(B), Ps.data(), qs.data(), g.data());
+        f.fd(static_cast<int>(B), Ps.data(), qs.data(), vs.data(), ts.data(), qdd.data());
+        return nb::make_tuple(RowMat(M.transpose()), RowMat(nle.transpose()),
+                              RowMat(g.transpose()), RowMat(qdd.transpose()));
+      },
+      nb::arg("name"), nb::arg("P"), nb::arg("q"), nb::arg("v"), nb::arg("tau"),
+      "Generated M (B, n n, row-major), nonLinearEffects, G and forward dynamics (B, n).");
+  }
+} // namespace rrr_pin

@@ -1,0 +1,204 @@
+"""Engine "codegen": parameter-input generated dynamics, batched rollouts, and their campaign.
+
+References: Pinocchio's own CRBA, nonLinearEffects, computeGeneralizedGravity and ABA on the
+same numbers (an independent implementation: Pinocchio's templates, ABA by articulated bodies,
+where the generated forward dynamics solve CRBA + RNEA), and the compiled engine (Pinocchio's
+dynamics in the same loop).
+"""
+
+import importlib.util
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from numpy.testing import assert_allclose
+
+from rrr_pin.campaign import montecarlo as mc
+from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.control.laws import fl_controller, hinf_fl_controller, pd_controller
+from rrr_pin.control.references import SineReference
+from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.uncertainty import Tolerances
+from rrr_pin.sim import dyngen
+from rrr_pin.sim.batched import GENERATED, StructureMismatch, plant_parameters
+from rrr_pin.sim.extension import EXTENSION, available
+from rrr_pin.sim.simulation import simulate, simulate_batch
+from rrr_pin.sim.trajectory import SimulationDiverged
+from rrr_pin.validation import FieldError
+
+pytestmark = pytest.mark.skipif(not available(), reason="compiled extension not built")
+
+ROOT = Path(__file__).resolve().parents[1]
+RATE = 1000.0  # [Hz]
+
+
+def _robot(name):
+    source, lock = GENERATED[name]
+    return load_robot(source, lock=dict(lock))
+
+
+def _random_model(model, rng):
+    """A copy of ``model`` with random physical parameters: placements, inertias, armature."""
+    m = model.copy()
+    for i in range(1, m.njoints):
+        R = pin.exp3(rng.normal(size=3))
+        m.jointPlacements[i] = pin.SE3(R, rng.uniform(-0.5, 0.5, 3))
+        # I = tr(S) 1 - S for a random positive definite S: a rigid body's inertia.
+        A = rng.normal(size=(3, 3))
+        S = 0.05 * (A @ A.T + 0.1 * np.eye(3))
+        m.inertias[i] = pin.Inertia(rng.uniform(0.5, 5.0), rng.uniform(-0.2, 0.2, 3),
+                                    np.trace(S) * np.eye(3) - S)
+    m.armature[:] = rng.uniform(0.0, 0.1, m.nv)
+    m.gravity = pin.Motion(np.r_[rng.normal(size=3), 0.0, 0.0, 0.0])
+    return m
+
+
+@pytest.mark.parametrize("name", list(GENERATED))
+def test_generated_equals_pinocchio_on_random_parameters(name):
+    model = _robot(name).model
+    rng = np.random.default_rng(23)
+    B, n = 8, model.nq
+    models = [_random_model(model, rng) for _ in range(B)]
+    P = np.stack([dyngen.parameters(m) for m in models])
+    q, v, tau = (rng.uniform(-3.0, 3.0, (B, n)) for _ in range(3))
+    M, nle, g, qdd = EXTENSION.batch_dynamics(name, P, q, v, tau)
+    for b, m in enumerate(models):
+        d = m.createData()
+        Mp = pin.crba(m, d, q[b])
+        Mp = np.triu(Mp) + np.triu(Mp, 1).T
+        # 1e-12 relative (issue 23): both are exact algorithms in double; measured ~1e-15.
+        for got, want in ((M[b].reshape(n, n), Mp),
+                          (nle[b], pin.nonLinearEffects(m, d, q[b], v[b])),
+                          (g[b], pin.computeGeneralizedGravity(m, d, q[b])),
+                          (qdd[b], pin.aba(m, d, q[b], v[b], tau[b]))):
+            assert_allclose(got, want, rtol=0.0, atol=1e-12 * np.abs(want).max())
+
+
+def test_committed_c_is_the_generators_output():
+    spec = importlib.util.spec_from_file_location("gen_dynamics",
+                                                  ROOT / "scripts/gen_dynamics.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    assert script.main(["--check"]) == 0
+    # ... and the structures compiled in are the generated ones.
+    for name, (st, nq, npar) in EXTENSION.batch_models().items():
+        model = _robot(name).model
+        assert (st, nq, npar) == (dyngen.structure(model), model.nq,
+                                  len(dyngen.parameter_layout(model.nq)))
+
+
+@pytest.fixture(scope="module")
+def rrr():
+    return load_robot("rrr")
+
+
+@pytest.fixture(scope="module")
+def ref():
+    return SineReference(home=[0.1, -0.2, 0.3], amp=[0.4, 0.3, 0.5], freq=[1.0, 1.5, 2.0],
+                         phase=[0.0, 1.0, 2.0])
+
+
+def _scaled(robot, factor, name):
+    """``robot`` with every body's mass and inertia scaled by ``factor``."""
+    m = robot.model.copy()
+    for i in range(1, m.njoints):
+        Y = m.inertias[i]
+        m.inertias[i] = pin.Inertia(factor * Y.mass, Y.lever, factor * Y.inertia)
+    return replace(robot, model=m, data=m.createData(), name=name)
+
+
+@pytest.fixture(scope="module")
+def plants(rrr):
+    return [_scaled(rrr, f, f"x{f:g}") for f in (0.7, 0.85, 1.0, 1.15, 1.3)]
+
+
+@pytest.mark.parametrize("rate", [RATE, None], ids=["sampled", "continuous"])
+@pytest.mark.parametrize("kind", ["fl", "hinf", "pd"])
+def test_batched_equals_compiled_and_one_at_a_time(rrr, ref, plants, kind, rate):
+    import control
+
+    K = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
+                   [1.0, 513.37 + 0.19, 513.37 * 0.19])  # the paper's eq. (18)
+    law = {"fl": fl_controller(rrr), "hinf": hinf_fl_controller(rrr, K),
+           "pd": pd_controller(rrr)}[kind]
+    q0 = ref.sample(np.array([0.0]))[0][0] + np.array([0.05, -0.04, 0.03])
+    together = simulate_batch(plants, law, ref, 0.3, rate=rate, q0=q0)
+    alone = simulate_batch(plants, law, ref, 0.3, rate=rate, q0=q0, batch=1)
+    for a, b, plant in zip(together, alone, plants, strict=True):
+        assert a.info["engine"] == "codegen"
+        # Bit-identical: no operation crosses plants, no fused multiply-add.
+        for key in ("q", "qd", "tau"):
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+        c = simulate(plant, law, ref, 0.3, rate=rate, q0=q0, engine="compiled")
+        # 1e-12 rad (issue 23): the dynamics differ by round-off (~1e-15 relative, above).
+        assert_allclose(a.q, c.q, rtol=0.0, atol=1e-12)
+        assert_allclose(a.qd, c.qd, rtol=0.0, atol=1e-11)
+    assert np.ptp(together[0].q, axis=0).max() > 0.2  # the arm moves
+
+
+def test_a_diverging_plant_leaves_its_batch_unchanged(rrr, ref, plants):
+    # A plant 100 times lighter than the law's model: FL's gain is 100x too high and the
+    # sampled loop goes unstable; its neighbours must not notice.
+    law = fl_controller(rrr)
+    light = _scaled(rrr, 0.01, "light")
+    mixed = plants[:2] + [light] + plants[2:]
+    out = simulate_batch(mixed, law, ref, 0.3, rate=RATE)
+    clean = simulate_batch(plants, law, ref, 0.3, rate=RATE)
+    assert isinstance(out[2], SimulationDiverged)
+    with pytest.raises(SimulationDiverged) as compiled:
+        simulate(light, law, ref, 0.3, rate=RATE, engine="compiled")
+    assert str(out[2]) == str(compiled.value)  # same time, joint, reason
+    for a, b in zip(out[:2] + out[3:], clean, strict=True):
+        np.testing.assert_array_equal(a.q, b.q)
+        np.testing.assert_array_equal(a.tau, b.tau)
+
+
+def test_a_structure_without_generated_code(rrr, ref):
+    two = load_robot("rrr", lock={rrr.joint_names[2]: 0.0})
+    ref2 = SineReference(home=[0.1, -0.2], amp=[0.1, 0.1], freq=[1.0, 1.0], phase=[0.0, 0.0])
+    with pytest.raises(StructureMismatch, match=r"structure 'RZ@0,RZ@1'.*engine='compiled'"):
+        simulate(two, fl_controller(two), ref2, 0.05, rate=RATE, engine="codegen")
+    # auto: the compiled engine, one plant at a time, recorded.
+    (traj,) = simulate_batch([two], fl_controller(two), ref2, 0.05, rate=RATE)
+    assert traj.info["engine"] == "compiled"
+
+
+def test_a_parameter_vector_outside_physical_consistency(rrr, ref):
+    m = rrr.model.copy()
+    Y = m.inertias[2]
+    I = Y.inertia.copy()
+    I[2, 2] = I[0, 0] + I[1, 1] + 1.0  # breaks the triangle inequality
+    m.inertias[2] = pin.Inertia(Y.mass, Y.lever, I)
+    bad = replace(rrr, model=m, data=m.createData(), name="bad")
+    with pytest.raises(FieldError, match="plant 'bad': body of joint 2"):
+        plant_parameters(bad)
+    with pytest.raises(FieldError, match="plant 'bad'"):
+        simulate(bad, fl_controller(rrr), ref, 0.05, rate=RATE, engine="codegen")
+
+
+def test_campaign_rows_equal_for_every_batch_size_and_the_compiled_engine(rrr):
+    laws = make_laws("fl,pd", rrr)
+    settings = mc.CampaignSettings(samples=5, seed=3, tolerances=Tolerances(),
+                                   run=RunSettings(duration=0.2, rate=RATE))
+    rows = {b: mc.run_campaign(rrr, laws, settings, jobs=1, batch=b, chunk=5).rows
+            for b in (1, 4, 16)}
+    assert rows[1] == rows[4] == rows[16]
+    compiled = mc.run_campaign(rrr, laws, replace(
+        settings, run=RunSettings(duration=0.2, rate=RATE, engine="compiled")), jobs=1).rows
+    for a, c in zip(rows[4], compiled, strict=True):
+        assert a["status"] == c["status"] == "ok"
+        for key, value in c.items():
+            if key.endswith(("_rms_error", "_max_error")) or "_rms_error_" in key:
+                assert abs(a[key] - value) <= 1e-12, key  # [rad]
+
+
+@pytest.mark.slow
+def test_campaign_rows_equal_for_two_jobs_and_batch_sizes(rrr):
+    # Worker processes start slowly (~10 s on a loaded 2-core machine): slow.
+    laws = make_laws("fl,pd", rrr)
+    settings = mc.CampaignSettings(samples=5, seed=3, tolerances=Tolerances(),
+                                   run=RunSettings(duration=0.2, rate=RATE))
+    one = mc.run_campaign(rrr, laws, settings, jobs=1, batch=1).rows
+    assert mc.run_campaign(rrr, laws, settings, jobs=2, batch=16, chunk=2).rows == one
