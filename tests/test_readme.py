@@ -393,7 +393,7 @@ def test_builtin_laws_and_robot_names():
     from rrr_pin.model.robots import robot_names
 
     default, = claim(r"rrr-pin reproduce \[--robot NAME\|PATH\] \[--lock JOINT=VALUE \.\.\.\] "
-                     r"\[--controllers ([a-z,]+)\]")
+                     r"\[--controllers ([a-z0-9_,]+)\]")
     assert default.split(",") == list(LAWS)
     builtins = claim(r"The built-ins are `(\w+)` \(eq. 20\),\s+`(\w+)` \(eq. 8-10, 18-19\) and "
                      r"`(\w+)`")

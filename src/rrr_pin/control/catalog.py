@@ -41,6 +41,13 @@ def _pd(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
     return pd_controller(nominal)
 
 
+def _hinf2dof(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
+    """2-DOF H-infinity + FL at ``lam_hinf`` [rad/s], its own design (``K``, ``lam_fl`` unused)."""
+    from .laws import hinf_2dof_controller
+
+    return hinf_2dof_controller(nominal, lam_hinf)
+
+
 class BuiltinLaw(NamedTuple):
     """One built-in law of the registry (a named tuple: immutable, and cheap to import).
 
@@ -63,6 +70,8 @@ LAWS = {
     "hinf": BuiltinLaw("H-infinity + feedback linearization, eq. (8)-(10), (18)-(19), "
                        "lam = 45 rad/s", _hinf),
     "pd": BuiltinLaw("PD + gravity compensation, critically damped at 20 rad/s per joint", _pd),
+    "hinf2dof": BuiltinLaw("2-DOF H-infinity (ncfsyn_2dof) + FL, lam = 45 rad/s, reference model "
+                           "(90/(s + 90))^2; Python engine only", _hinf2dof),
 }
 
 #: Built-in laws by CLI name, with what each is (the descriptions of :data:`LAWS`).

@@ -773,10 +773,24 @@ def _hinf_suboptimal(A, B, C, D, ncon: int, nmeas: int, factor: float):
     from slycot.exceptions import SlycotError
 
     n, m, np_ = A.shape[0], B.shape[1], C.shape[0]
+
+    def solve(gamma, job):
+        return sb10ad(n, m, np_, ncon, nmeas, gamma, A, B, C, D, job=job, gtol=_GTOL)
+
+    # SB10AD bisects from the gamma it is given: from 1e100 that is ~340 steps. Start from the
+    # first power of 10 (from 10) that admits a controller, ~15 steps.
+    start = 10.0
     try:
-        gamma_opt = sb10ad(n, m, np_, ncon, nmeas, 1e100, A, B, C, D, job=1,
-                           gtol=_GTOL)[0]
-        out = sb10ad(n, m, np_, ncon, nmeas, factor * gamma_opt, A, B, C, D, job=4)
+        while True:
+            try:
+                solve(start, 4)
+                break
+            except SlycotError:
+                if start >= 1e12:
+                    raise
+                start *= 10.0
+        gamma_opt = solve(start, 1)[0]
+        out = solve(factor * gamma_opt, 4)
     except (SlycotError, ValueError, np.linalg.LinAlgError) as exc:
         raise SynthesisError(f"2-DOF H-infinity synthesis (SLICOT SB10AD) failed: {exc}") from exc
     return control.ss(*out[1:5]), float(gamma_opt)
