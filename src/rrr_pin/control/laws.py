@@ -1019,7 +1019,8 @@ class TwoDOFController(ControlLaw):
         FL bandwidth [rad/s] the design assumed.
     K : control LTI
         Continuous ``n x 2n`` controller on ``[r; q]`` [rad] giving ``tauhat`` [rad], or a
-        ``1 x 2`` one copied per joint (:attr:`rrr_pin.robust.ncf.NCF2DOFResult.K`), stable.
+        ``1 x 2`` one copied per joint (the ``K`` of :class:`rrr_pin.robust.ncf.NCF2DOFResult`),
+        stable.
     name, label : str
         Key and display name.
     """
