@@ -41,8 +41,9 @@ def _pd(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
     return pd_controller(nominal)
 
 
-def _hinf2dof(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0):
-    """2-DOF H-infinity + FL at ``lam_hinf`` [rad/s], its own design (``K``, ``lam_fl`` unused)."""
+def _hinf2dof(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
+              torque_limit=None):
+    """2-DOF H-infinity + FL at ``lam_hinf`` [rad/s], its own design (other options unused)."""
     from .laws import hinf_2dof_controller
 
     return hinf_2dof_controller(nominal, lam_hinf)
