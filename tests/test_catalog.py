@@ -35,7 +35,7 @@ def test_catalog_imports_no_numerical_library():
 
 def test_descriptions_are_the_registry_s():
     assert BUILTIN_LAWS == {name: law.description for name, law in LAWS.items()}
-    assert list(LAWS) == ["fl", "hinf", "pd", "hinf_aw"]
+    assert list(LAWS) == ["fl", "hinf", "pd", "hinf_aw", "hinf2dof"]
 
 
 def test_each_name_builds_its_law(rrr):

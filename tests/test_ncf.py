@@ -315,3 +315,77 @@ def test_discrete_ncfsyn_plant_pole_at_nyquist():
     r = ncfsyn(P, factor=1.2)
     assert np.abs(control.feedback(control.ss(P), r.Ks).poles()).max() < 1
     assert r.gamma_min * (1 - 1e-9) <= r.gamma <= 1.2 * r.gamma_min * (1 + 1e-9)
+
+
+# --- two degrees of freedom (Hoyle, Hyde & Limebeer; S&P sec. 9.4.3) ----------------------------
+
+# The published case: RobustAndOptimalControl.jl, test/test_glover_mcfarlane.jl ("2 DOF GMcF",
+# commit d7f57a9, 2022): P = (s + 5)/(s^2 + 2 s + 10), W1 = 1/s, Tref = 1/(s + 1),
+# glover_mcfarlane_2dof(P, Tref, 1.1, 1.1; W1) gives dcgain(info.Gcl) = 1 (rtol 1e-4). The same
+# file's 1-DOF design of that plant, glover_mcfarlane(P, 1.1; W1), gives info.margin = 0.6325
+# (atol 1e-3), i.e. gamma = 1.1 gamma_min.
+_P_JL = control.tf([1, 5], [1, 2, 10])
+_W1_JL = control.tf(1, [1, 0])
+
+
+def _ncf_2dof_index(res, w):
+    """max_w sigma_max of S&P eq. (9.84) on a grid, from graph_symbols' Mt (not the Table 9.3 P)."""
+    from rrr_pin.robust.ncf import graph_symbols
+
+    _, Gt = graph_symbols(res.Gs)
+    mr, p = res.Tref.ninputs, res.Gs.noutputs
+    def fr(sys):
+        r = sys.frequency_response(w, squeeze=False)
+        return np.moveaxis(r.magnitude * np.exp(1j * r.phase), -1, 0)     # (len(w), p, m)
+
+    Gs, Ks, Tr, Mt = fr(res.Gs), fr(res.Ks), fr(res.Tref), -fr(Gt)[:, :, :p]
+    K1s, K2s = Ks[:, :, :mr], Ks[:, :, mr:]
+    Minv = np.linalg.inv(Mt)                                # stacked over the grid
+    S = np.linalg.inv(np.eye(p) - Gs @ K2s)
+    Si = np.linalg.inv(np.eye(K2s.shape[1]) - K2s @ Gs)
+    rho = res.rho
+    us = np.concatenate([rho * Si @ K1s, K2s @ S @ Minv], axis=2)
+    ys = np.concatenate([rho * S @ Gs @ K1s, S @ Minv], axis=2)
+    e = np.concatenate([rho * rho * (S @ Gs @ K1s - Tr), rho * S @ Minv], axis=2)
+    out = np.linalg.svd(np.concatenate([us, ys, e], axis=1), compute_uv=False)[:, 0]
+    return max(out)
+
+
+@pytest.mark.parametrize("Tref", [control.tf(1, [1, 1]),
+                                  pytest.param(control.tf(1, [1, 1]) ** 2, marks=pytest.mark.slow)],
+                         ids=["jl-test-1st-order", "jl-docs-2nd-order"])
+def test_ncfsyn_2dof_published_dc_gain_and_gamma(Tref):
+    from rrr_pin.robust.ncf import ncfsyn_2dof
+
+    res = ncfsyn_2dof(_P_JL, Tref, 1.1, _W1_JL)
+    K1, K2, gamma, info = res
+    # Published: dcgain(closed loop) = 1, rtol 1e-4 (RobustAndOptimalControl.jl).
+    assert_allclose(control.dcgain(res.CL), 1.0, rtol=1e-4)
+    assert np.all(np.real(res.CL.poles()) < 0)
+    # gamma is the norm of eq. (9.84): recomputed on a grid from the normalized left factor Mt
+    # (graph_symbols), not from the generalized plant. A grid only bounds a peak from below;
+    # 2000 points per 5 decades resolve these well-damped peaks to 1e-3.
+    index = _ncf_2dof_index(res, np.logspace(-3, 3, 2400))
+    assert index <= gamma * (1 + 1e-9)
+    assert_allclose(index, gamma, rtol=1e-3)
+    assert gamma <= 1.1 * res.gamma_opt * (1 + 1e-9)
+    # The 2-DOF index contains the 1-DOF one (its phi -> [us; ys] block is the NCF loop of
+    # (Gs, K2s)), so gamma_opt >= the 1-DOF gamma_min; the published 1-DOF margin 0.6325 at
+    # gamma = 1.1 gamma_min gives gamma_min = 1 / (1.1 * 0.6325).
+    one = ncfsyn(_P_JL, _W1_JL, factor=1.1)
+    assert_allclose(1.0 / one.gamma, 0.6325, atol=1e-3)
+    assert res.gamma_opt >= one.gamma_min
+
+
+def test_ncfsyn_2dof_refuses_a_bad_reference_model():
+    from rrr_pin.robust.ncf import ncfsyn_2dof
+    from rrr_pin.validation import FieldError
+
+    with pytest.raises(FieldError, match="Tref.*must be stable.*1"):
+        ncfsyn_2dof(_P_JL, control.tf(1, [1, -1]), 1.1, _W1_JL)
+    with pytest.raises(ValueError, match="Tref must be proper"):
+        ncfsyn_2dof(_P_JL, control.tf([1, 0, 0], [1, 1]), 1.1, _W1_JL)
+    with pytest.raises(FieldError, match="rho"):
+        ncfsyn_2dof(_P_JL, control.tf(1, [1, 1]), 0.0, _W1_JL)
+    with pytest.raises(FieldError, match="factor.*> 1"):
+        ncfsyn_2dof(_P_JL, control.tf(1, [1, 1]), 1.1, _W1_JL, factor=1.0)

@@ -276,7 +276,15 @@ def test_cli_stress_no_progress_prints_nothing_on_stderr(tmp_path, capsys):
     (["stress", "--effect", "delay", "--budget", "nan"], "--budget"),
     (["montecarlo", "--samples", "1", "--delay", "-0.001"], "--delay must be"),
     (["montecarlo", "--samples", "1", "--actuator-bandwidth", "0"], "--actuator-bandwidth"),
-], ids=["unknown-effect", "nan-budget", "neg-delay", "zero-bandwidth"])
+    (["stress", "--effect", "delay", "--with", "actuator"], "--with expects EFFECT=SIZE"),
+    (["stress", "--effect", "delay", "--with", "delay=0.001"], "--with: 'delay' is the effect "
+                                                               "searched"),
+    (["stress", "--effect", "delay", "--with", "wind=3"], "--with: unknown effect 'wind'"),
+    (["stress", "--effect", "delay", "--with", "actuator=nan"], "--with: actuator must be a "
+                                                                "finite number > 0"),
+    (["stress", "--effect", "delay", "--with", "actuator=300,actuator=200"], "each effect once"),
+], ids=["unknown-effect", "nan-budget", "neg-delay", "zero-bandwidth", "with-no-size",
+        "with-itself", "with-unknown", "with-nan", "with-twice"])
 def test_cli_bad_input_names_the_option(argv, match, capsys, tmp_path):
     assert main(argv + ["--out", str(tmp_path / "o")]) == 2
     assert match in capsys.readouterr().err
@@ -321,3 +329,111 @@ def test_an_offset_start_outside_the_limits_is_refused(rrr):
     with pytest.raises(ValueError, match=r"offset = 4 rad puts joint 'joint1' at .* outside its "
                                          r"limits \[-3.142, 3.142\]"):
         breaking_point(rrr, fl_controller(rrr), ref, "delay", settings)
+
+
+# --- combined effects ---------------------------------------------------------------------------
+
+def test_combined_delay_margin_with_a_fixed_actuator(rrr):
+    # FL alone, L = (2 lam s + lam^2)/s^2 times wa/(s + wa): PM / wc from a dense numpy grid
+    # (independent of control.margin), and the digital loop at 5 kHz tends to it (+ Ts/2, the
+    # hold's lag, as for the delay alone): measured 5e-6 apart, 1e-4 allowed (the grid's
+    # step is 1e-5 in log10 w).
+    lam, wa = 100.0, 300.0
+    law = fl_controller(rrr, lam)
+    w = np.logspace(0, 4, 400001)
+    L = (2 * lam * 1j * w + lam * lam) / (1j * w) ** 2 * wa / (1j * w + wa)
+    i = np.argmin(np.abs(np.abs(L) - 1.0))
+    dm = (math.pi + np.angle(L[i])) / w[i]
+    cont = continuous_boundary(law, "delay", fixed={"actuator": wa})
+    assert_allclose(cont, dm, rtol=1e-4)
+    assert_allclose(linear_boundary(law, "delay", 5000.0, fixed={"actuator": wa}) + 0.5 / 5000.0,
+                    dm, rtol=1e-4)
+    assert cont < continuous_boundary(law, "delay")          # the lag eats delay margin
+
+
+def test_fixed_effects_reach_the_plant_and_the_barrier(rrr):
+    assert effects_of("delay", 0.002, fixed={"actuator": 300.0}) == PlantEffects(
+        delay=0.002, bandwidth=300.0)
+    # Barrier with a fixed actuator: |e^{-jw tau} wa/(jw + wa) - 1| <= |e_M|; a 300 rad/s
+    # actuator alone already exceeds |e_M| (the actuator's own guarantee is 800 rad/s), so no
+    # delay is covered; a 2000 rad/s one leaves a smaller delay than none.
+    assert barrier_guarantee("delay", {"actuator": 300.0}) is None
+    assert 0 < barrier_guarantee("delay", {"actuator": 2000.0}) < barrier_guarantee("delay")
+    # No linear model for a fixed stiffness: no digital prediction rather than a wrong one.
+    law = fl_controller(rrr)
+    assert linear_boundary(law, "delay", 1000.0, fixed={"stiffness": 1e4}) is None
+
+
+@pytest.mark.slow
+def test_combined_breaking_point_of_hinf_matches_its_prediction(rrr):
+    # The README example: H-infinity + FL with a 300 rad/s actuator; the delay searched on whole
+    # 0.1 ms sub-steps. The digital prediction includes both; 10 % as for each effect alone.
+    law = make_laws("hinf", rrr)[0]
+    ref = default_reference(rrr)
+    pred = linear_boundary(law, "delay", 1000.0, fixed={"actuator": 300.0})
+    found = breaking_point(rrr, law, ref, "delay", guess=pred, fixed={"actuator": 300.0})
+    assert found["simulated"] == pytest.approx(pred, rel=0.10)
+    assert pred < linear_boundary(law, "delay", 1000.0)
+
+
+# --- torque limit -------------------------------------------------------------------------------
+
+def test_saturation_describing_function_is_the_lower_gain_margin(rrr):
+    # df_gain = 1 / |L(j w_pc)| at the phase crossover left of -1: python-control's
+    # stability_margins (returnall) lists every gain margin; the one below 1 is that crossing.
+    import control
+
+    from rrr_pin.campaign.stress import _saturation_df
+
+    for name in ("fl", "hinf"):
+        law = make_laws(name, rrr)[0]
+        gain, w = _saturation_df(law, None)
+        L = law.linear_model().loops(None)[0]
+        gms, _, _, wgs, _, _ = control.stability_margins(L, returnall=True)
+        lower = [(g, wg) for g, wg in zip(gms, wgs, strict=True) if 0 < g < 1]
+        if name == "fl":
+            assert gain is None and not lower
+        else:
+            (g, wg), = lower
+            # The crossing is interpolated between grid points 1e-4 apart in log10 w: 1e-6.
+            assert_allclose([gain, w], [g, wg], rtol=1e-6)
+
+
+def test_torque_guarantee_is_sufficient(rrr):
+    # At the guaranteed limit nothing saturates: the run equals the unsaturated one exactly;
+    # 5 % below it the saturation acts and the run changes.
+    from rrr_pin.campaign.stress import torque_prediction
+
+    law = make_laws("fl", rrr)[0]
+    ref = default_reference(rrr)
+    settings = StressSettings(run=RunSettings(duration=1.0, dt=1e-4, rate=1000.0))
+    pred = torque_prediction(rrr, law, ref, settings)
+    e_free = _rms(rrr, law, ref, "torque", 1e12, settings, 1.0)
+    assert _rms(rrr, law, ref, "torque", pred["guaranteed"], settings, 1.0) == e_free
+    assert _rms(rrr, law, ref, "torque", 0.95 * pred["guaranteed"], settings, 1.0) != e_free
+    # The estimate is the reference's own inverse dynamics: pin.rnea every 0.1 ms over the
+    # 1.5 s FL runs (150 / lam); a peak of a 3.14 rad/s sine found on another grid moves by
+    # ~(w h)^2 / 8, so 1e-5.
+    r, rd, rdd = ref.sample(np.linspace(0, 1.5, 15001))
+    need = max(np.max(np.abs(pin.rnea(rrr.model, rrr.data, *x))) for x in zip(r, rd, rdd,
+                                                                              strict=True))
+    assert_allclose(pred["predicted"], need, rtol=1e-5)
+    assert pred["expected"] == "below"
+
+
+@pytest.mark.slow
+def test_torque_breaking_points_against_the_predictions(rrr):
+    # Every simulated limit is at most the sufficient bound; FL alone and PD (loops never
+    # conditionally stable) break below the reference's peak torque but within 15 % of it
+    # (the budget tolerates a small shortfall); the H-infinity laws (conditionally stable)
+    # break above it.
+    laws = make_laws("fl,hinf,pd,hinf2dof", rrr)
+    res = stress(rrr, laws, default_reference(rrr), "torque")
+    for row in res["rows"]:
+        t = row["torque"]
+        assert row["simulated"] <= t["guaranteed"], row["controller"]
+        ratio = row["simulated"] / t["predicted"]
+        if t["expected"] == "below":
+            assert 0.85 <= ratio <= 1.0, (row["controller"], ratio)
+        else:
+            assert ratio > 1.0, (row["controller"], ratio)

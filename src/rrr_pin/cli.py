@@ -759,6 +759,9 @@ def _add_stress(sub) -> None:
                    help="comma-separated built-in controllers (fl,hinf,pd)")
     p.add_argument("--effect", required=True, metavar="NAME",
                    help="; ".join(f"{k}: {v.what} [{v.unit}]" for k, v in EFFECTS.items()))
+    p.add_argument("--with", dest="fixed", action="append", default=[], metavar="EFFECT=SIZE",
+                   help="hold another effect at a size in every run, e.g. actuator=300 "
+                        "(repeatable or comma-separated); predictions include it")
     p.add_argument("--budget", type=float, default=DEFAULT_BUDGET,
                    help=f"RMS tracking error [rad] above which a run is broken "
                         f"({DEFAULT_BUDGET:g})")
@@ -778,6 +781,28 @@ def _add_stress(sub) -> None:
     _add_overwrite(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_stress)
+
+
+def _parse_with(items, effect: str) -> dict:
+    """``["actuator=300", "delay=0.001,..."]`` -> ``{"actuator": 300.0, ...}`` (``--with``)."""
+    from .campaign.stress import check_fixed
+    from .validation import FieldError
+
+    fixed = {}
+    for item in (part.strip() for text in items for part in text.split(",")):
+        name, sep, size = item.partition("=")
+        try:
+            value = float(size)
+        except ValueError:
+            value = None
+        if not sep or value is None or name.strip() in fixed:
+            raise FieldError("--with", f"{{name}} expects EFFECT=SIZE, each effect once (e.g. "
+                                       f"actuator=300), got {item!r}")
+        fixed[name.strip()] = value
+    try:
+        return check_fixed(fixed, effect)
+    except FieldError as exc:
+        raise exc.relabelled(lambda _: "--with") from None
 
 
 def _cmd_stress(args) -> int:
@@ -800,13 +825,15 @@ def _cmd_stress(args) -> int:
     from .validation import check_rate
 
     rate = check_rate("--rate", args.rate)
+    fixed = _parse_with(args.fixed, args.effect)
     with _as_options():
         dt = args.dt if args.dt is not None else largest_substep(rate, 1e-4)
         settings = StressSettings(run=RunSettings(duration=args.duration, dt=dt,
                                                   rate=rate, engine=args.engine,
                                                   force=args.force),
                                   budget=args.budget)
-    _claim_out(args, "stress", part=args.effect)  # one folder holds every effect's run
+    stem = args.effect + "".join(f"_with_{k}{v:g}" for k, v in fixed.items())
+    _claim_out(args, "stress", part=stem)  # one folder holds every effect's run
     _not_a_folder(robot=args.robot)
     robot = load_robot(args.robot, lock=_parse_lock(args.lock))
     home = _floats(args.home, "--home")
@@ -816,11 +843,12 @@ def _cmd_stress(args) -> int:
     start = time.perf_counter()
     bar = tqdm(total=len(laws), unit="law", desc=f"{robot.name}: stress {args.effect}",
                disable=args.no_progress)
-    result = stress(robot, laws, reference, args.effect, settings,
+    result = stress(robot, laws, reference, args.effect, settings, fixed=fixed,
                     progress=lambda done, total: bar.update(done - bar.n))
     bar.close()
     result["elapsed_s"] = time.perf_counter() - start
     result["robot"] = robot.name
+    result["stem"] = stem
     fig = write_stress(result, args.out)
     if args.json:
         print(dumps(result))

@@ -28,6 +28,17 @@ For one law and one effect of :mod:`rrr_pin.control.effects`, three numbers side
   holds for a loop whose complementary sensitivity meets the barrier, ``|T| <= 1/|e_M|``
   (``barrier_met``); ``None`` where no such bound applies (stiffness, torque limit, noise).
 
+**Torque limit** (:func:`torque_prediction`): the predicted limit is an estimate, the peak
+inverse-dynamics torque of the reference, with a describing-function test of the loop at the
+torque input saying on which side of it the law breaks (below for a loop that is never
+conditionally stable, above for one that is, like the paper's H-infinity + FL, which winds up);
+the guaranteed one is a sufficient condition, the peak torque of the unsaturated run.
+
+**Combined effects** (``fixed``, CLI ``--with NAME=SIZE``): one effect is searched with others
+held at a size; the simulation, the digital prediction (delay and actuator together, exactly
+discretized), the continuous delay margin (with a fixed actuator) and the barrier's guarantee
+(``|e^{-jw tau} wa/(jw + wa) - 1| <= |e_M|``) all include them.
+
 References
 ----------
 .. [1] The paper, eq. (12)-(13).
@@ -51,12 +62,13 @@ from ..robust.lti import static_gain
 from ..robust.robustness import check_robust_stability
 from ..sim.simulation import simulate
 from ..sim.trajectory import SimulationDiverged
-from ..validation import check_count, check_positive
+from ..validation import FieldError, check_count, check_positive
 from .runner import RunSettings
 
 __all__ = ["StressSettings", "linear_boundary",
            "continuous_boundary", "barrier_guarantee", "barrier_met", "breaking_point",
-           "stress", "effects_of", "spectral_radius", "loop_bandwidth"]
+           "stress", "effects_of", "check_fixed", "spectral_radius", "loop_bandwidth",
+           "torque_prediction", "LINEAR_EFFECTS"]
 
 logger = logging.getLogger(__name__)
 
@@ -119,9 +131,41 @@ def _check_effect(effect: str) -> str:
     return effect
 
 
-def effects_of(effect: str, size: float, seed: int = 0) -> PlantEffects:
-    """Return the :class:`PlantEffects` of one effect at ``size`` (unit of :data:`EFFECTS`)."""
-    return PlantEffects(**EFFECTS[_check_effect(effect)].fields(size, seed))
+def check_fixed(fixed, effect: str | None = None) -> dict:
+    """Check the effects held fixed during a search: ``{name: size}`` (units of :data:`EFFECTS`).
+
+    Raises
+    ------
+    FieldError
+        ``fixed``: an unknown effect, the searched ``effect`` itself, or a size that is not a
+        positive finite number (the message names the effect and the size).
+    """
+    out = {}
+    for name, size in dict(fixed or {}).items():
+        if name not in EFFECTS:
+            raise FieldError("fixed", f"{{name}}: unknown effect {name!r}; known: "
+                                      f"{', '.join(EFFECTS)}")
+        if name == effect:
+            raise FieldError("fixed", f"{{name}}: {name!r} is the effect searched; hold only "
+                                      f"the others fixed")
+        try:
+            out[name] = check_positive(name, size, unit=EFFECTS[name].unit)
+        except FieldError as exc:
+            text = str(exc).replace("{", "{{").replace("}", "}}")
+            raise FieldError("fixed", "{name}: " + text) from None
+    return out
+
+
+def effects_of(effect: str, size: float, seed: int = 0, fixed=None) -> PlantEffects:
+    """Return the :class:`PlantEffects` of one effect at ``size``, plus the ``fixed`` ones.
+
+    ``fixed`` is ``{name: size}`` of other effects held at their size (:func:`check_fixed`).
+    """
+    effect = _check_effect(effect)
+    fields = {}
+    for name, value in {**check_fixed(fixed, effect), effect: size}.items():
+        fields.update(EFFECTS[name].fields(value, seed))
+    return PlantEffects(**fields)
 
 
 # --- linear loop -------------------------------------------------------------------------------
@@ -249,19 +293,42 @@ def _bisect_steps(stable, lo: int, hi: int, h: float, rtol: float) -> tuple[int,
     return lo, hi
 
 
-def linear_boundary(law, effect: str, rate: float, home=None, rtol: float = 1e-4):
+#: The effects the linear digital loop models (:func:`spectral_radius`): searched or held fixed.
+LINEAR_EFFECTS = ("delay", "actuator")
+
+
+def _linear_fixed(fixed) -> dict | None:
+    """``spectral_radius`` keywords of the fixed effects; None if one has no linear model."""
+    kw = {}
+    for name, size in (fixed or {}).items():
+        if name not in LINEAR_EFFECTS:
+            return None
+        kw["delay" if name == "delay" else "bandwidth"] = size
+    return kw
+
+
+def linear_boundary(law, effect: str, rate: float, home=None, rtol: float = 1e-4, fixed=None):
     """Predicted breaking point of the linear digital loop (see the module docstring).
+
+    Parameters
+    ----------
+    fixed : dict, optional
+        Other effects held at a size, ``{"actuator": 300.0}`` or ``{"delay": 0.002}``: the
+        loop includes them (the delay and the actuator lag together, exactly discretized).
 
     Returns
     -------
     float or None
         Largest delay [s] or smallest bandwidth [rad/s] that keeps the loop stable; None for
-        effects without a linear prediction (stiffness, torque, noise).
+        effects without a linear prediction (stiffness, torque, noise), searched or fixed.
     """
     effect = _check_effect(effect)
+    kw = _linear_fixed(check_fixed(fixed, effect))
+    if kw is None:
+        return None
     if effect == "delay":
         def stable(x):
-            return spectral_radius(law, rate, home, delay=x) < 1.0
+            return spectral_radius(law, rate, home, **{**kw, "delay": x}) < 1.0
         lo = 1e-5
         if not stable(lo):
             return 0.0
@@ -273,7 +340,7 @@ def linear_boundary(law, effect: str, rate: float, home=None, rtol: float = 1e-4
         return _bisect(stable, lo, hi, rtol)[0]
     if effect == "actuator":
         def stable(x):
-            return spectral_radius(law, rate, home, bandwidth=x) < 1.0
+            return spectral_radius(law, rate, home, **{**kw, "bandwidth": x}) < 1.0
         hi = 1e6
         if not stable(hi):
             return math.inf
@@ -291,16 +358,23 @@ def _siso_loops(law, home):
     return _linear_model(law).loops(home)
 
 
-def continuous_boundary(law, effect: str, home=None):
+def continuous_boundary(law, effect: str, home=None, fixed=None):
     """Return the continuous-time (no sampling) prediction.
 
-    The delay margin ``PM / w_c`` [s], or the smallest ``wa`` [rad/s] keeping ``L(s) wa/(s +
-    wa)`` closed-loop stable; None otherwise.
+    The delay margin ``PM / w_c`` [s] (of ``L(s) wa / (s + wa)`` with an actuator held fixed),
+    or the smallest ``wa`` [rad/s] keeping ``L(s) wa/(s + wa)`` closed-loop stable; None
+    otherwise, and for the actuator with a delay held fixed (a delay has no rational loop).
     """
     import control
 
     effect = _check_effect(effect)
+    fixed = check_fixed(fixed, effect)
+    if set(fixed) - {"actuator"} or (effect == "actuator" and fixed):
+        return None
     loops = _siso_loops(law, home)
+    if "actuator" in fixed:
+        wa = fixed["actuator"]
+        loops = [L * control.tf([wa], [1.0, wa]) for L in loops]
     if effect == "delay":
         out = []
         for L in loops:
@@ -330,23 +404,34 @@ def _eM(w):
     return np.abs(model_error_bound()(1j * w))
 
 
-def barrier_guarantee(effect: str):
+def barrier_guarantee(effect: str, fixed=None):
     """Return what eq. (12)-(13) covers.
 
     The largest delay [s] with ``|e^{-jw tau} - 1| <= |e_M(jw)|``,
     smallest ``wa`` [rad/s] with ``|jw/(jw + wa)| <= |e_M(jw)|`` for all w; None otherwise.
+    With ``fixed`` effects the multiplicative error is the product's,
+    ``Delta = e^{-jw tau} wa / (jw + wa) - 1``; None if the fixed ones leave no size covered
+    (or include an effect without a bound).
     """
     effect = _check_effect(effect)
+    fixed = check_fixed(fixed, effect)
+    if effect not in LINEAR_EFFECTS or set(fixed) - set(LINEAR_EFFECTS):
+        return None
     eM = _eM(_W)
+
+    def covered(delay, wa):
+        act = 1.0 if wa is None else wa / (1j * _W + wa)
+        return bool(np.all(np.abs(np.exp(-1j * _W * delay) * act - 1.0) <= eM))
+
     if effect == "delay":
-        def ok(tau):
-            return bool(np.all(np.abs(np.exp(-1j * _W * tau) - 1.0) <= eM))
-        return _bisect(ok, 1e-7, 1.0, 1e-6)[0]
-    if effect == "actuator":
-        def ok(wa):
-            return bool(np.all(np.abs(1j * _W / (1j * _W + wa)) <= eM))
-        return _bisect(ok, 1e9, 1.0, 1e-6)[0]
-    return None
+        wa = fixed.get("actuator")
+        if not covered(1e-7, wa):
+            return None
+        return _bisect(lambda tau: covered(tau, wa), 1e-7, 1.0, 1e-6)[0]
+    delay = fixed.get("delay", 0.0)
+    if not covered(delay, 1e9):
+        return None
+    return _bisect(lambda wa: covered(delay, wa), 1e9, 1.0, 1e-6)[0]
 
 
 def barrier_met(law, home=None) -> bool:
@@ -369,6 +454,16 @@ def loop_bandwidth(law, home) -> float | None:
     return model.bandwidth(home) if model is not None else None
 
 
+def _duration(law, home, settings: StressSettings) -> float:
+    """Length of each run [s]: ``run.duration``, at least ``cycles / w_b`` (see StressSettings)."""
+    wb = loop_bandwidth(law, home)
+    duration = settings.run.duration
+    if wb:
+        rate = settings.run.rate
+        duration = max(duration, math.ceil(settings.cycles / wb * rate) / rate)
+    return duration
+
+
 def _start(plant, reference, settings: StressSettings):
     """Return the start of every run [rad]: ``run.q0``, or ``r(0) + offset`` (None: on r).
 
@@ -389,14 +484,14 @@ def _start(plant, reference, settings: StressSettings):
     return q0
 
 
-def _rms(plant, law, reference, effect, size, settings: StressSettings, duration):
+def _rms(plant, law, reference, effect, size, settings: StressSettings, duration, fixed=None):
     """RMS tracking error [rad] of one run (from :func:`_start`), ``inf`` if it diverged."""
     kwargs = settings.run.simulate_kwargs()
     kwargs.pop("effects", None)  # the effect under test replaces any in the settings
     kwargs["q0"] = _start(plant, reference, settings)
     try:
-        traj = simulate(plant, law, reference, duration, effects=effects_of(effect, size),
-                        **kwargs)
+        traj = simulate(plant, law, reference, duration,
+                        effects=effects_of(effect, size, fixed=fixed), **kwargs)
     except SimulationDiverged:
         return math.inf
     e = traj.error
@@ -404,7 +499,7 @@ def _rms(plant, law, reference, effect, size, settings: StressSettings, duration
 
 
 def breaking_point(plant, law, reference, effect: str, settings: StressSettings | None = None,
-                   guess: float | None = None, home=None):
+                   guess: float | None = None, home=None, fixed=None):
     """Bisection on the effect's size for the boundary of the nonlinear closed loop.
 
     Parameters
@@ -423,6 +518,8 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
     guess : float, optional
         A first estimate of the boundary (e.g. the linear prediction): the bracket starts at
         ``[guess / 2, 2 guess]``.
+    fixed : dict, optional
+        Other effects held at a size in every run, ``{name: size}`` (:func:`check_fixed`).
 
     Returns
     -------
@@ -440,6 +537,7 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
     """
     settings = settings or StressSettings()
     unit, direction, _, _ = EFFECTS[_check_effect(effect)]
+    fixed = check_fixed(fixed, effect)
     # A delay is realized only as a whole number of plant sub-steps h (any other is refused,
     # rrr_pin.control.effects): the delays tried are multiples of h, and the bracket is at
     # least h wide.
@@ -447,16 +545,12 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
     samples = []
     if home is None:
         home = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
-    wb = loop_bandwidth(law, home)
-    duration = settings.run.duration
-    if wb:
-        rate = settings.run.rate
-        duration = max(duration, math.ceil(settings.cycles / wb * rate) / rate)
+    duration = _duration(law, home, settings)
 
     _start(plant, reference, settings)  # an offset off the limits: refused before any run
 
     def ok(size):
-        rms = _rms(plant, law, reference, effect, size, settings, duration)
+        rms = _rms(plant, law, reference, effect, size, settings, duration, fixed)
         passed = rms <= settings.budget
         samples.append({"size": size, "rms_error": rms if math.isfinite(rms) else None,
                         "status": "passed" if passed else "over budget" if math.isfinite(rms)
@@ -514,8 +608,95 @@ def _sorted(samples):
     return sorted(samples, key=lambda s: s["size"])
 
 
+# --- torque limit ------------------------------------------------------------------------------
+
+#: Frequencies [rad/s] where the describing-function test looks for phase crossovers of L.
+_W_DF = np.logspace(-3, 4, 70001)
+
+
+def _saturation_df(law, home):
+    """``(N*, w_pc)``: the smallest saturation gain the linear loop tolerates, or ``(None, None)``.
+
+    Describing function of ``tau_max``-saturation for a sinusoid of amplitude ``A``: a gain
+    ``N(A) in (0, 1]``. The loop ``N L`` (every joint's ``L`` of the linear model) keeps its
+    stability for every ``N`` in ``(0, 1]`` unless ``L(jw)`` crosses the negative real axis
+    left of ``-1`` (a conditionally stable loop); then it loses it for ``N < N* = 1 / |L(j
+    w_pc)|`` at the largest such crossing.
+    """
+    worst = (None, None)
+    for L in _siso_loops(law, home):
+        resp = L(1j * _W_DF)
+        crossing = np.nonzero(np.diff(np.sign(resp.imag)) != 0)[0]
+        for i in crossing:
+            # Linear interpolation of the crossing between grid points i and i + 1.
+            f = resp[i].imag / (resp[i].imag - resp[i + 1].imag)
+            re = float(resp[i].real + f * (resp[i + 1].real - resp[i].real))
+            if re < -1.0 and (worst[0] is None or -1.0 / re > worst[0]):
+                worst = (-1.0 / re, float(_W_DF[i] + f * (_W_DF[i + 1] - _W_DF[i])))
+    return worst
+
+
+def torque_prediction(plant, law, reference, settings: StressSettings | None = None, home=None,
+                      fixed=None) -> dict:
+    r"""Return what a torque limit (the same on every joint) does to a law: estimate, guarantee.
+
+    * ``predicted`` (an **estimate**): the peak inverse-dynamics torque of the reference
+      itself on the plant, ``max_{t, j} |M(r) rdd + V(r, rd) + G(r)|_j``. Below it no law can
+      follow ``r`` exactly; how far below it a law still meets the RMS budget depends on how
+      its loop takes saturation, which the describing-function test says:
+    * ``df_gain``, the describing-function test of the linear loop at the torque input
+      (:func:`_saturation_df`). Saturation acts on a sinusoid as a gain ``N in (0, 1]``. With
+      ``df_gain`` None, ``L(jw)`` never crosses the negative real axis left of -1 and the
+      loop stays stable for every such gain: it degrades gracefully, the error grows with the
+      shortfall, and it is expected to break a little **below** ``predicted`` (FL alone, PD).
+      A conditionally stable loop (a near-integral ``K``: the paper's H-infinity + FL crosses
+      at ``-21.7`` at 36.7 rad/s, ``df_gain = 1/21.7``) loses stability for ``N < df_gain``:
+      a deep saturation, such as the kick of the start's offset, winds it up, and it is
+      expected to break **above** ``predicted``. An approximation (the describing function
+      assumes a sinusoid at the saturation), so it ranks and brackets, it does not bound.
+    * ``guaranteed`` (a **sufficient** condition): the peak ``|tau|`` the law asks for in the
+      run without a limit (same start, length, rate and fixed effects as the search). At or
+      above it the saturation never acts and the run is the unsaturated one, so the simulated
+      breaking limit is at most this. It includes the start's offset kick, so it is loose.
+
+    Returns
+    -------
+    dict
+        ``predicted`` [N m], ``guaranteed`` [N m], ``df_gain`` (or None), ``df_frequency``
+        [rad/s] (or None), ``expected`` (``"below"`` or ``"above"`` ``predicted``; None
+        without a linear model), ``criterion`` (text).
+    """
+    settings = settings or StressSettings()
+    if home is None:
+        home = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
+    duration = _duration(law, home, settings)
+    kwargs = settings.run.simulate_kwargs()
+    kwargs.pop("effects", None)
+    kwargs["q0"] = _start(plant, reference, settings)
+    fields = {}
+    for name, size in check_fixed(fixed, "torque").items():
+        fields.update(EFFECTS[name].fields(size, 0))
+    traj = simulate(plant, law, reference, duration,
+                    effects=PlantEffects(**fields) if fields else None, **kwargs)
+    r, rd, rdd = reference.sample(traj.t)
+    need = max(float(np.max(np.abs(plant.inverse_dynamics(q, v, a))))
+               for q, v, a in zip(r, rd, rdd, strict=True))
+    try:
+        gain, wpc = _saturation_df(law, home)
+        expected = "below" if gain is None else "above"
+    except TypeError:                                     # no linear model
+        gain = wpc = expected = None
+    return {"predicted": need, "guaranteed": float(np.max(np.abs(traj.tau))),
+            "df_gain": gain, "df_frequency": wpc, "expected": expected,
+            "criterion": "predicted: peak inverse-dynamics torque of the reference (estimate); "
+                         "describing function of the loop at the torque input: breaks below "
+                         "it if never conditionally stable, above it if df_gain is set "
+                         "(estimate); guaranteed: peak |tau| of the unsaturated run "
+                         "(sufficient: nothing saturates at or above it)"}
+
+
 def stress(plant, laws, reference, effect: str, settings: StressSettings | None = None,
-           home=None, progress=None) -> dict:
+           home=None, progress=None, fixed=None) -> dict:
     """Find the breaking points of every law for one effect: simulated, predicted, guaranteed.
 
     Parameters
@@ -531,6 +712,11 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
         Configuration of the PD loop's linear model [rad] (default: the reference at t = 0).
     progress : callable, optional
         Called as ``progress(done, total)`` after each law's search (``total = len(laws)``).
+    fixed : dict, optional
+        Other effects held at a size in every run, ``{name: size}`` (:func:`check_fixed`),
+        e.g. ``{"actuator": 300.0}`` while the delay is searched: the simulation, the digital
+        prediction (:func:`linear_boundary`), the continuous one and the barrier's guarantee
+        all include them. Recorded as ``"with"``.
 
     Returns
     -------
@@ -542,32 +728,41 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
         sub-step [s]; None for other effects), ``guaranteed``, ``barrier_met``, ``agreement``
         (simulated / predicted). A prediction is ``inf`` when no size breaks the linear loop;
         the JSON writers (:mod:`rrr_pin.report.jsondata`) write it as ``null`` with a status.
+        For the torque limit, ``predicted`` and ``guaranteed`` are :func:`torque_prediction`'s
+        estimate and sufficient bound, and each row adds its whole ``torque`` dict.
     """
     settings = settings or StressSettings()
     effect = _check_effect(effect)
+    fixed = check_fixed(fixed, effect)
     unit, direction, what, _ = EFFECTS[effect]
     if home is None:
         home = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
     rate = settings.run.rate
-    guarantee = barrier_guarantee(effect)
+    guarantee = barrier_guarantee(effect, fixed)
     rows = []
     laws = list(laws)
     for k, law in enumerate(laws):
+        extra = {}
         try:
-            pred = linear_boundary(law, effect, rate, home)
-            cont = continuous_boundary(law, effect, home)
+            pred = linear_boundary(law, effect, rate, home, fixed=fixed)
+            cont = continuous_boundary(law, effect, home, fixed)
             met = barrier_met(law, home)
         except TypeError:
             pred = cont = met = None
-        found = breaking_point(plant, law, reference, effect, settings, guess=pred, home=home)
+        if effect == "torque":
+            extra["torque"] = torque_prediction(plant, law, reference, settings, home, fixed)
+            pred = extra["torque"]["predicted"]
+        found = breaking_point(plant, law, reference, effect, settings, guess=pred, home=home,
+                               fixed=fixed)
         sim = found["simulated"]
-        rows.append({
+        rows.append({**extra,
             "controller": law.name, "label": law.label or law.name, "effect": effect,
             "unit": unit, "predicted": pred, "predicted_continuous": cont, "simulated": sim,
             "status": found["status"], "bracket": found["bracket"],
             "duration_s": found["duration"],
             "resolution": settings.run.dt if effect == "delay" else None,
-            "guaranteed": guarantee if (guarantee is not None and met) else None,
+            "guaranteed": (extra["torque"]["guaranteed"] if effect == "torque"
+                           else guarantee if (guarantee is not None and met) else None),
             "barrier_met": met,
             "agreement": sim / pred if (sim and pred and math.isfinite(pred)) else None,
             "samples": found["samples"],
@@ -578,6 +773,6 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
         if progress:
             progress(k + 1, len(laws))
     return {"effect": effect, "unit": unit, "direction": direction, "what": what,
-            "budget_rad": settings.budget, "settings": {**settings.run.to_dict(),
+            "with": fixed, "budget_rad": settings.budget, "settings": {**settings.run.to_dict(),
                                                         "rtol": settings.rtol},
             "rows": rows}

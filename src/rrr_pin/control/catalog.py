@@ -57,6 +57,14 @@ def _pd(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
     return pd_controller(nominal)
 
 
+def _hinf2dof(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
+              torque_limit=None):
+    """2-DOF H-infinity + FL at ``lam_hinf`` [rad/s], its own design (other options unused)."""
+    from .laws import hinf_2dof_controller
+
+    return hinf_2dof_controller(nominal, lam_hinf)
+
+
 class BuiltinLaw(NamedTuple):
     """One built-in law of the registry (a named tuple: immutable, and cheap to import).
 
@@ -83,6 +91,8 @@ LAWS = {
     "pd": BuiltinLaw("PD + gravity compensation, critically damped at 20 rad/s per joint", _pd),
     "hinf_aw": BuiltinLaw("hinf told the torque limits (default the URDF's), K self-conditioned "
                           "on the saturated torque (Hanus anti-windup)", _hinf_aw),
+    "hinf2dof": BuiltinLaw("2-DOF H-infinity (ncfsyn_2dof) + FL, lam = 45 rad/s, reference model "
+                           "(90/(s + 90))^2; Python engine only", _hinf2dof),
 }
 
 #: Built-in laws by CLI name, with what each is (the descriptions of :data:`LAWS`).

@@ -674,7 +674,8 @@ def plot_stress(result: dict, *, ax=None):
 
     Per law: the simulated runs (dots; ``x`` a diverged run, drawn at 30 budgets), the
     simulated breaking point (solid vertical line) and the linear prediction of the digital
-    loop (dashed), both in the legend; the eq. (12)-(13) guarantee dotted. Delays are shown
+    loop (dashed), both in the legend; the eq. (12)-(13) guarantee dotted (for the torque limit,
+    each law's sufficient bound, dotted in its colour). Delays are shown
     in ms.
 
     Parameters
@@ -713,8 +714,12 @@ def plot_stress(result: dict, *, ax=None):
             ax.axvline(row["predicted"] * scale, color=color, ls="--",
                        label=f"{row['label']}: predicted limit {row['predicted'] * scale:.4g} "
                              f"{unit}")
+        if row.get("torque") and row["guaranteed"] is not None:
+            ax.axvline(row["guaranteed"] * scale, color=color, ls=":",
+                       label=f"{row['label']}: sufficient "
+                             f"{row['guaranteed'] * scale:.4g} {unit}")
     g = next((r["guaranteed"] for r in result["rows"] if r["guaranteed"] is not None), None)
-    if g is not None:
+    if g is not None and result["effect"] != "torque":
         ax.axvline(g * scale, color="k", ls=":",
                    label=f"eq. (12)-(13) guarantee {g * scale:.3g} {unit}")
     ax.axhline(budget, color="gray", lw=0.8, label=f"budget {budget:g} rad")
@@ -723,7 +728,11 @@ def plot_stress(result: dict, *, ax=None):
     ax.set_yscale("log")
     ax.set_xlabel(f"{result['what']} [{unit}]")
     ax.set_ylabel("RMS tracking error [rad]")
-    ax.set_title(f"Breaking points: {result['effect']}")
+    from ..control.catalog import EFFECTS
+
+    held = ", ".join(f"{k} = {v:g} {EFFECTS[k].unit}"
+                     for k, v in (result.get("with") or {}).items())
+    ax.set_title(f"Breaking points: {result['effect']}" + (f" (held: {held})" if held else ""))
     ax.grid(True, alpha=0.3, which="both")
     _legend_below(ax, ncol=2)
     return fig

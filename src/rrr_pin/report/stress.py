@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..control.catalog import EFFECTS
 from ..outputs import writing
 from .jsondata import dumps
 from .plotting import plot_stress, save_figure
@@ -18,9 +19,11 @@ __all__ = ["write_stress", "stress_lines"]
 
 
 def write_stress(result: dict, out: str | Path) -> Path:
-    """Write ``stress_<effect>.png`` and ``stress_<effect>.json`` into ``out``.
+    """Write ``stress_<stem>.png`` and ``stress_<stem>.json`` into ``out``.
 
-    Sets ``result["figure"]`` to the figure's path before writing the JSON.
+    ``stem`` is ``result["stem"]`` if given (the CLI's ``delay_with_actuator300`` for
+    ``--with``), else the effect. Sets ``result["figure"]`` to the figure's path before writing
+    the JSON.
 
     Returns
     -------
@@ -29,9 +32,10 @@ def write_stress(result: dict, out: str | Path) -> Path:
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    fig = save_figure(plot_stress(result), out / f"stress_{result['effect']}.png")
+    stem = result.get("stem") or result["effect"]
+    fig = save_figure(plot_stress(result), out / f"stress_{stem}.png")
     result["figure"] = str(fig)
-    path = out / f"stress_{result['effect']}.json"
+    path = out / f"stress_{stem}.json"
     with writing(path):  # a full disk names the file
         path.write_text(dumps(result, indent=1))
     return fig
@@ -63,6 +67,21 @@ def stress_lines(result: dict) -> list[str]:
     lines += [f"{row['controller']:12}{_fmt(row['predicted']):>12}"
               f"{_simulated(row, result):>12}{_fmt(row['agreement']):>10}"
               f"{_fmt(row['guaranteed']):>12}" for row in result["rows"]]
+    if result.get("with"):
+        lines.insert(1, "held fixed in every run and in the predictions: " + ", ".join(
+            f"{k} = {v:g} {EFFECTS[k].unit}" for k, v in result["with"].items()))
+    torque = [row for row in result["rows"] if row.get("torque")]
+    if torque:
+        lines.append("predicted: the reference's peak inverse-dynamics torque (an estimate); "
+                     "guaranteed: the unsaturated run's peak |tau| (sufficient: nothing "
+                     "saturates at or above it)")
+        lines += [f"  {row['controller']}: describing function of the loop at the torque "
+                  + ("input: never conditionally stable, expected to break below predicted"
+                     if row["torque"]["df_gain"] is None else
+                     f"input: conditionally stable (gain {row['torque']['df_gain']:.3g} at "
+                     f"{row['torque']['df_frequency']:.3g} rad/s), expected to break above "
+                     f"predicted (windup)")
+                  for row in torque if row["torque"]["expected"] is not None]
     grid = {row.get("resolution") for row in result["rows"]} - {None}
     if grid:
         lines.append(f"simulated: the largest delay that passed, searched on whole plant "

@@ -1,7 +1,8 @@
 """Robust-control design and analysis on python-control LTI objects (paper, section 4).
 
 Holds :mod:`~rrr_pin.robust.lti` (LTI input checks), :mod:`~rrr_pin.robust.barriers`
-(eq. 12-15), :mod:`~rrr_pin.robust.ncf` (``ncfsyn``, ``ncfmargin``), :mod:`~rrr_pin.robust.gap`
+(eq. 12-15), :mod:`~rrr_pin.robust.ncf` (``ncfsyn``, ``ncfsyn_2dof``, ``ncfmargin``),
+:mod:`~rrr_pin.robust.gap`
 (gap and nu-gap), :mod:`~rrr_pin.robust.reduction` (eq. 18 with its guarantee),
 :mod:`~rrr_pin.robust.loopshaping` (eq. 11, 16-17, ``design``, ``loopsyn``),
 :mod:`~rrr_pin.robust.robustness` (section 4.4) and :mod:`~rrr_pin.robust.certificates`

@@ -34,7 +34,7 @@ import control
 import numpy as np
 import scipy.linalg as sla
 
-from ..validation import FieldError, check_real
+from ..validation import FieldError, check_positive, check_real
 from .lti import (
     DimensionMismatchError,
     IllPosedLoopError,
@@ -56,6 +56,8 @@ __all__ = [
     "ncfsyn",
     "ncfmargin",
     "graph_symbols",
+    "NCF2DOFResult",
+    "ncfsyn_2dof",
 ]
 
 
@@ -635,3 +637,256 @@ def _descriptor_to_ss(E, A, B, C, D, r: int, scale: float):
     return si[:, None] * A11, si[:, None] * Br, Cr, Dr
 
 
+
+
+# --- two degrees of freedom ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class NCF2DOFResult:
+    r"""Result of :func:`ncfsyn_2dof`: the prefilter ``K1`` and the feedback ``K2``.
+
+    The control law is ``u = K1 r - K2 y`` (python-control's negative feedback on ``y``; the
+    form of Skogestad & Postlethwaite and RobustAndOptimalControl.jl is ``u = K1 r + K2' y``
+    with ``K2' = -K2``), and the closed loop from ``r`` to ``y`` is :attr:`CL`.
+
+    Attributes
+    ----------
+    K : control.StateSpace
+        The whole controller ``u = K [r; y] = W1 Ks [Wi r; W2 y]``, shape (m, mr + p), one
+        realization (the weights' states shared by both blocks); :attr:`K1` and :attr:`K2`
+        are its blocks, ``K = [K1, -K2]``.
+    Ks : control.StateSpace
+        The H-infinity controller of the shaped plant, inputs ``[r; ys]`` (positive feedback
+        on ``ys = W2 y``), output the shaped plant's input, without ``Wi``.
+    Gs, Tref, W1, W2 : control.StateSpace
+        Shaped plant ``W2 G W1``, reference model, weights actually used.
+    Wi : ndarray, shape (mr, mr)
+        Static prefilter that makes the steady-state closed loop equal ``Tref(0)``
+        (identity when ``match_dc`` is False).
+    rho : float
+        Model-matching weight (``rho = 0``: the 1-DOF design; larger: closer to ``Tref``).
+    gamma : float
+        Achieved H-infinity norm of the generalized closed loop (eq. 9.84 of S&P), checked by
+        :func:`control.linfnorm`.
+    gamma_opt : float
+        Optimal value found by SLICOT ``SB10AD``'s bisection (tolerance 1e-3).
+    factor : float
+        Requested ``gamma / gamma_opt``.
+    G : control.StateSpace
+        The plant.
+    """
+
+    K: control.StateSpace
+    Ks: control.StateSpace
+    Gs: control.StateSpace
+    Tref: control.StateSpace
+    W1: control.StateSpace
+    W2: control.StateSpace
+    Wi: np.ndarray
+    rho: float
+    gamma: float
+    gamma_opt: float
+    factor: float
+    G: control.StateSpace
+
+    @property
+    def K1(self) -> control.StateSpace:
+        """Reference block of :attr:`K`, shape (m, mr): ``u = K1 r - K2 y``."""
+        K, mr = self.K, self.Tref.ninputs
+        return control.ss(K.A, K.B[:, :mr], K.C, K.D[:, :mr])
+
+    @property
+    def K2(self) -> control.StateSpace:
+        """Feedback block, shape (m, p), for negative feedback: ``u = K1 r - K2 y``."""
+        K, mr = self.K, self.Tref.ninputs
+        return control.ss(K.A, K.B[:, mr:], -K.C, -K.D[:, mr:])
+
+    @property
+    def CL(self) -> control.StateSpace:
+        """Closed loop ``y = (I + G K2)^-1 G K1 r`` [shape (p, mr)], one realization of ``K``."""
+        return _close_2dof(self.G, self.K, self.Tref.ninputs)
+
+    def __iter__(self):
+        """``K1, K2, gamma, info``."""
+        return iter((self.K1, self.K2, self.gamma, self))
+
+
+def _inv_lti(W: control.StateSpace) -> control.StateSpace:
+    A, B, C, D = (np.asarray(M, float) for M in (W.A, W.B, W.C, W.D))
+    Di = np.linalg.inv(D)
+    return control.ss(A - B @ Di @ C, B @ Di, -Di @ C, Di)
+
+
+def _check_reference_model(Tref, p: int) -> control.StateSpace:
+    Tref = check_lti(Tref, "Tref")
+    if _is_discrete(Tref.dt):
+        raise FieldError("Tref", "{name} must be continuous time (ncfsyn_2dof is continuous "
+                                 "only), got dt = " + repr(Tref.dt))
+    if Tref.noutputs != p:
+        raise FieldError("Tref", f"{{name}} must have {p} outputs (one per plant output), got "
+                                 f"{Tref.noutputs} x {Tref.ninputs}")
+    poles = np.linalg.eigvals(np.asarray(Tref.A, float)) if Tref.nstates else np.zeros(0)
+    bad = poles[poles.real >= 0.0]
+    if bad.size:
+        raise FieldError("Tref", f"{{name}}, the reference model, must be stable, got poles "
+                                 f"{', '.join(f'{z:.4g}' for z in bad)} with Re(s) >= 0")
+    return Tref
+
+
+def ncfsyn_2dof(G, Tref, rho: float = 1.1, W1=None, W2=None, *, factor: float = 1.1,
+                match_dc: bool = True) -> NCF2DOFResult:
+    r"""Two-degrees-of-freedom Glover-McFarlane loop-shaping design (Hoyle, Hyde & Limebeer).
+
+    For the shaped plant ``Gs = W2 G W1 = (As, Bs, Cs, Ds)`` with normalized left coprime
+    factors ``Gs = Ms^-1 Ns``, the controller ``Ks = [K1s  K2s]`` (inputs ``[r; ys]``)
+    minimizes the H-infinity norm from ``[r; phi]`` to ``[us; ys; e]`` (S&P eq. 9.84)
+
+    .. math::
+        \begin{bmatrix} u_s \\ y_s \\ e \end{bmatrix} =
+        \begin{bmatrix} \rho (I - K_{2s} G_s)^{-1} K_{1s} & K_{2s} (I - G_s K_{2s})^{-1} M_s^{-1} \\
+        \rho (I - G_s K_{2s})^{-1} G_s K_{1s} & (I - G_s K_{2s})^{-1} M_s^{-1} \\
+        \rho^2 [(I - G_s K_{2s})^{-1} G_s K_{1s} - T_{ref}] & \rho (I - G_s K_{2s})^{-1} M_s^{-1}
+        \end{bmatrix}
+        \begin{bmatrix} r \\ \phi \end{bmatrix}
+
+    with the generalized plant of S&P Table 9.3 (``Zs`` the filter Riccati solution of
+    :func:`ncfsyn`, ``Rs = I + Ds Ds^T``), solved by SLICOT ``SB10AD`` (via slycot): first its
+    bisection for ``gamma_opt``, then the sub-optimal controller at ``gamma = factor *
+    gamma_opt``. With ``match_dc``, a constant prefilter ``Wi`` (S&P eq. 9.89) makes the
+    steady-state closed loop equal ``Tref(0)``. ``rho`` trades robustness (``rho -> 0``: the
+    1-DOF design of :func:`ncfsyn`) against model matching.
+
+    Parameters
+    ----------
+    G : control.LTI
+        Plant, ``p`` outputs and ``m`` inputs, continuous time, proper.
+    Tref : control.LTI
+        Reference model, ``p x mr``, continuous time, proper and stable (the desired closed
+        loop from ``r`` to ``y``).
+    rho : float, default 1.1
+        Model-matching weight, > 0 (S&P: usually ``1 < rho < 3``).
+    W1 : control.LTI, optional
+        Pre-compensator, ``m x m`` or SISO, with an invertible ``D``; default identity.
+    W2 : control.LTI, optional
+        Post-compensator, ``p x p`` or SISO, invertible ``D``; default identity.
+    factor : float, default 1.1
+        ``gamma / gamma_opt``, > 1 (as RobustAndOptimalControl.jl's ``gamma = 1.1``).
+    match_dc : bool, default True
+        Add the steady-state prefilter ``Wi``.
+
+    Returns
+    -------
+    NCF2DOFResult
+        ``K1`` (reference), ``K2`` (negative feedback), ``gamma``, ``CL``; unpacks as
+        ``K1, K2, gamma, info``.
+
+    Raises
+    ------
+    FieldError
+        ``Tref`` improper (an :class:`ImproperSystemError` from the LTI checks), unstable,
+        discrete or with the wrong number of outputs; ``rho`` not > 0; ``factor`` not > 1.
+    NonFiniteSystemError, ImproperSystemError, TimebaseMismatchError, WeightError
+        The checks of :func:`ncfsyn` on ``G``, ``W1``, ``W2``.
+    SynthesisError
+        No stabilizing controller found (SLICOT failure), or the loop is not stable.
+
+    References
+    ----------
+    .. [1] D. J. Hoyle, R. A. Hyde and D. J. N. Limebeer, "An H-infinity approach to two
+       degree of freedom design", Proc. 30th IEEE CDC, 1991, 1581-1585.
+    .. [2] Skogestad and Postlethwaite (2005), sec. 9.4.3, Table 9.3.
+    .. [3] RobustAndOptimalControl.jl, ``glover_mcfarlane_2dof`` (the same generalized plant).
+    """
+    rho = check_positive("rho", rho)
+    factor = check_real("factor", factor)
+    if not factor > 1.0:
+        raise FieldError("factor", f"{{name}} must be > 1 (gamma / gamma_opt of the sub-optimal "
+                                   f"controller), got {factor!r}")
+    G, W1, W2, dt = _plant_and_weights(G, W1, W2)
+    if _is_discrete(dt):
+        raise FieldError("G", "{name} must be continuous time (ncfsyn_2dof is continuous only)")
+    Tref = _check_reference_model(Tref, G.noutputs)
+    Gs = _series(W2, G, W1)
+    _check_hidden_modes(Gs)
+    As, Bs, Cs, Ds = (np.asarray(M, dtype=float) for M in (Gs.A, Gs.B, Gs.C, Gs.D))
+    Ar, Br, Cr, Dr = (np.asarray(M, dtype=float) for M in (Tref.A, Tref.B, Tref.C, Tref.D))
+    ns, nr = As.shape[0], Ar.shape[0]
+    ls, ms = Ds.shape
+    mr = Dr.shape[1]
+    _, Zs = _riccati_xz(As, Bs, Cs, Ds)
+    sRs = sla.sqrtm(np.eye(ls) + Ds @ Ds.T).real
+    Z = np.zeros
+    A = sla.block_diag(As, Ar)
+    B1 = np.block([[Z((ns, mr)), (Bs @ Ds.T + Zs @ Cs.T) @ np.linalg.inv(sRs)],
+                   [Br, Z((nr, ls))]])
+    B2 = np.vstack([Bs, Z((nr, ms))])
+    C1 = np.block([[Z((ms, ns + nr))], [Cs, Z((ls, nr))], [rho * Cs, -rho ** 2 * Cr]])
+    C2 = np.block([[Z((mr, ns + nr))], [Cs, Z((ls, nr))]])
+    D11 = np.block([[Z((ms, mr + ls))], [Z((ls, mr)), sRs], [-rho ** 2 * Dr, rho * sRs]])
+    D12 = np.vstack([np.eye(ms), Ds, rho * Ds])
+    D21 = np.block([[rho * np.eye(mr), Z((mr, ls))], [Z((ls, mr)), sRs]])
+    D22 = np.vstack([Z((mr, ms)), Ds])
+    B, C = np.hstack([B1, B2]), np.vstack([C1, C2])
+    D = np.block([[D11, D12], [D21, D22]])
+    Ks, gamma_opt = _hinf_suboptimal(A, B, C, D, ncon=ms, nmeas=mr + ls, factor=factor)
+    P = control.ss(A, B, C, D)
+    CLg = P.lft(Ks, nu=ms, ny=mr + ls)            # u = Ks y, SLICOT's positive feedback
+    if np.any(np.real(CLg.poles()) >= 0):
+        raise SynthesisError("the 2-DOF controller does not stabilize the generalized plant")
+    gamma = float(control.linfnorm(CLg)[0])
+    Wi = np.eye(mr)
+    if match_dc:
+        ys = _close_2dof(Gs, Ks, mr)                      # r -> ys with u = Ks [r; ys]
+        dc = _dcgain(_series(_inv_lti(W2), ys))
+        Wi = np.linalg.lstsq(dc, _dcgain(Tref), rcond=None)[0]
+    K = _series(W1, Ks, control.append(static_gain(Wi), W2))
+    return NCF2DOFResult(K=K, Ks=Ks, Gs=Gs, Tref=Tref, W1=W1, W2=W2, Wi=Wi, rho=rho,
+                         gamma=gamma, gamma_opt=gamma_opt, factor=factor, G=G)
+
+
+def _close_2dof(G: control.StateSpace, K: control.StateSpace, mr: int) -> control.StateSpace:
+    """Return the closed loop ``r -> y`` of ``y = G u``, ``u = K [r; y]`` (``K``'s own sign)."""
+    p = G.noutputs
+    route = static_gain(np.vstack([np.zeros((mr, p)), -np.eye(p)]))
+    loop = control.feedback(control.ss(G * K), route, sign=-1)
+    return control.ss(loop.A, loop.B[:, :mr], loop.C, loop.D[:, :mr])
+
+
+def _dcgain(sys: control.StateSpace) -> np.ndarray:
+    """``C (-A)^-1 B + D`` of a stable continuous system."""
+    A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
+    return D + C @ np.linalg.solve(-A, B) if A.size else D
+
+
+#: Tolerance of SB10AD's bisection on gamma_opt (its GTOL; the controller is then sub-optimal
+#: at ``factor * gamma_opt``, factor > 1, so this accuracy is ample).
+_GTOL = 1e-3
+
+
+def _hinf_suboptimal(A, B, C, D, ncon: int, nmeas: int, factor: float):
+    """SLICOT ``SB10AD``: ``gamma_opt`` by bisection, then the controller at ``factor`` times it."""
+    from slycot import sb10ad
+    from slycot.exceptions import SlycotError
+
+    n, m, np_ = A.shape[0], B.shape[1], C.shape[0]
+
+    def solve(gamma, job):
+        return sb10ad(n, m, np_, ncon, nmeas, gamma, A, B, C, D, job=job, gtol=_GTOL)
+
+    # SB10AD bisects from the gamma it is given: from 1e100 that is ~340 steps. Start from the
+    # first power of 10 (from 10) that admits a controller, ~15 steps.
+    start = 10.0
+    try:
+        while True:
+            try:
+                solve(start, 4)
+                break
+            except SlycotError:
+                if start >= 1e12:
+                    raise
+                start *= 10.0
+        gamma_opt = solve(start, 1)[0]
+        out = solve(factor * gamma_opt, 4)
+    except (SlycotError, ValueError, np.linalg.LinAlgError) as exc:
+        raise SynthesisError(f"2-DOF H-infinity synthesis (SLICOT SB10AD) failed: {exc}") from exc
+    return control.ss(*out[1:5]), float(gamma_opt)
