@@ -495,7 +495,7 @@ def _settings_from_args(args, n: int):
 
 
 def _tolerances_from_args(args, robot):
-    """The paper's tolerances, or ``--uncertainty``'s identified distribution (checked)."""
+    """Return the paper's tolerances, or ``--uncertainty``'s identified distribution."""
     from .model.uncertainty import Tolerances
 
     if args.uncertainty is None:
@@ -671,6 +671,7 @@ def _cmd_montecarlo(args) -> int:
     robot = load_robot(args.robot, lock=lock)
     run = _settings_from_args(args, robot.nq)
     reference = _reference_from_args(args, robot)
+    tolerances = _tolerances_from_args(args, robot)
     certificate = K = None
     if args.certify:  # one design serves the certificate and the H-infinity law
         from .robust.certificates import CertificateSpec
