@@ -101,6 +101,7 @@ __all__ = [
     "read_measurements",
     "estimate_derivatives",
     "Identification",
+    "least_squares",
     "identify",
     "consistent_parameters",
     "pseudo_inertia",
@@ -419,15 +420,15 @@ def read_measurements(path, robot, *, window: float | None = None) -> Measuremen
     if bad.any():
         k, c = np.argwhere(bad)[0]
         raise IdentificationError(f"{where} row {k + 2}, column {header[c]!r}: "
-                                  f"{values[k, c]!r} is not finite (every cell must be a "
-                                  f"finite number; drop or repair the sample)")
+                                  f"{rows[k + 1][c].strip()!r} is not finite (every cell must "
+                                  f"be a finite number; drop or repair the sample)")
     col = {name: values[:, header.index(name)] for name in header}
     t = col["t"]
     steps = np.diff(t)
     if np.any(steps <= 0.0):
         k = int(np.flatnonzero(steps <= 0.0)[0])
         raise IdentificationError(f"{where}: time must be strictly increasing; row {k + 3} has "
-                                  f"t = {t[k + 1]!r} s after t = {t[k]!r} s")
+                                  f"t = {float(t[k + 1])!r} s after t = {float(t[k])!r} s")
     q, tau = (np.column_stack([col[f"{kind}_{j}"] for j in joints]) for kind in ("q", "tau"))
     derived = {}
     if all(has["qd"]) and all(has["qdd"]):
@@ -728,6 +729,75 @@ def _unidentifiable(base: BaseParameters, R: np.ndarray) -> list[str]:
     return [base.names[i] for i in np.flatnonzero(involved)]
 
 
+def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
+                  method: str = "wls"):
+    r"""Estimate base parameters by ordinary or weighted least squares, with their covariance.
+
+    Parameters
+    ----------
+    base : BaseParameters
+        For the names of parameters that are not identifiable.
+    W : ndarray, shape (N n, p)
+        Base regressor, row ``k n + j`` = joint ``j`` at sample ``k``.
+    y : ndarray, shape (N n,)
+        Measured torques [N m], same rows.
+    n : int
+        Joints.
+    method : {"wls", "ols"}
+        ``wls``: the rows of joint ``j`` divided by its OLS residual standard deviation
+        ``sigma_j`` (``sigma_j^2 = ||r_j||^2 / (N - p / n)``), then solved again.
+
+    Returns
+    -------
+    theta : ndarray, shape (p,)
+    cov : ndarray, shape (p, p)
+        ``s2 (W_w^T W_w)^{-1}`` with ``W_w`` the (weighted) regressor and ``s2`` its residual
+        sum of squares over ``N n - p``.
+    R : ndarray, shape (p, p)
+        Triangular factor of ``W_w`` (``R^T R = W_w^T W_w``).
+    sigma_j : ndarray, shape (n,)
+        Per-joint noise standard deviations [N m] of the final fit.
+    s2 : float
+    cond : float
+        Condition number of the unweighted ``W`` (2-norm).
+
+    Raises
+    ------
+    IdentificationError
+        ``W`` is rank deficient (names the parameters not identifiable), or a joint's residual
+        is exactly zero under ``wls``.
+    """
+    N = len(y) // n
+    p = W.shape[1]
+    theta, R = _qr_solve(W, y)
+    lost = _unidentifiable(base, R)
+    if lost:
+        raise IdentificationError(
+            f"the trajectory does not excite every base parameter (the regressor of its "
+            f"{N} samples is rank deficient): not identifiable: {', '.join(lost)}. "
+            f"Move every joint with varied velocity and acceleration, e.g. the trajectory "
+            f"of `rrr-pin identify --design-excitation`")
+    cond = float(np.linalg.cond(R))
+    r = (y - W @ theta).reshape(N, n)
+    dof_j = N - p / n
+    sigma_j = np.sqrt(np.sum(r * r, axis=0) / dof_j)
+    weights = np.ones(n)
+    if method == "wls":
+        if not np.all(sigma_j > 0.0):
+            raise IdentificationError(f"weighted least squares needs every joint's residual "
+                                      f"noise > 0, got {sigma_j.tolist()} N m; use ols")
+        weights = 1.0 / sigma_j
+        Dw = np.tile(weights, N)
+        theta, R = _qr_solve(W * Dw[:, None], y * Dw)
+        r = (y - W @ theta).reshape(N, n)
+        sigma_j = np.sqrt(np.sum(r * r, axis=0) / dof_j)
+    rw = r * weights
+    s2 = float(np.sum(rw * rw)) / (N * n - p)
+    Rinv = np.linalg.inv(R)
+    cov = s2 * (Rinv @ Rinv.T)
+    return theta, cov, R, sigma_j, s2, cond
+
+
 def identify(robot, data: Measurements, *, method: str = "wls", held_out: float = 0.2,
              base: BaseParameters | None = None) -> Identification:
     """Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
@@ -781,32 +851,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     W = base.reduce(regressor(robot, data.q, data.qd, data.qdd))
     y = data.tau.reshape(-1)
     W1, y1 = W[:n_fit * n], y[:n_fit * n]
-    theta, R = _qr_solve(W1, y1)
-    lost = _unidentifiable(base, R)
-    if lost:
-        raise IdentificationError(
-            f"the trajectory does not excite every base parameter (the regressor of its "
-            f"{n_fit} samples is rank deficient): not identifiable: {', '.join(lost)}. "
-            f"Move every joint with varied velocity and acceleration, e.g. the trajectory "
-            f"of `rrr-pin identify --design-excitation`")
-    cond = float(np.linalg.cond(R))
+    theta, cov, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method)
     r = (y1 - W1 @ theta).reshape(n_fit, n)
-    dof_j = n_fit - p / n
-    sigma_j = np.sqrt(np.sum(r * r, axis=0) / dof_j)
-    weights = np.ones(n)
-    if method == "wls":
-        if not np.all(sigma_j > 0.0):
-            raise IdentificationError(f"weighted least squares needs every joint's residual "
-                                      f"noise > 0, got {sigma_j.tolist()} N m; use ols")
-        weights = 1.0 / sigma_j
-        Dw = np.tile(weights, n_fit)
-        theta, R = _qr_solve(W1 * Dw[:, None], y1 * Dw)
-        r = (y1 - W1 @ theta).reshape(n_fit, n)
-        sigma_j = np.sqrt(np.sum(r * r, axis=0) / dof_j)
-    rw = r * weights
-    s2 = float(np.sum(rw * rw)) / (n_fit * n - p)
-    Rinv = np.linalg.inv(R)
-    cov = s2 * (Rinv @ Rinv.T)
     rows = n_fit * n
     A = R / math.sqrt(rows)
     phi0 = standard_parameters(robot)
