@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
@@ -20,6 +21,7 @@ from scipy.stats import binom
 from rrr_pin.cli import main
 from rrr_pin.control.references import SplineReference
 from rrr_pin.model import identification as idn
+from rrr_pin.model.dh import paper_params
 from rrr_pin.model.dynamics import load_robot, robot_from_xml
 from rrr_pin.model.excitation import FourierTrajectory, design_excitation
 from rrr_pin.model.uncertainty import Tolerances, sample_plant, sample_plants
@@ -288,15 +290,16 @@ def test_plants_from_the_identified_distribution(identified, rrr):
     assert sample_plant(nominal.urdf, 4, 1, tol).urdf == plants[1].urdf
 
 
-def test_identified_uncertainty_refuses_other_kinematics(identified):
+def test_identified_uncertainty_refuses_other_kinematics(identified, ur5):
     out, _, _ = identified
     tol = idn.IdentifiedUncertainty(str(out / "identification.json"))
-    moved = robot_from_xml(sample_plant(load_robot("rrr").urdf, 1, 0,
-                                        Tolerances(0.0, 0.05)).urdf)
-    with pytest.raises(idn.IdentificationError, match="is not placed as in the identified"):
-        tol.check_robot(moved)
+    params = paper_params()
+    longer = params.with_links([replace(params.links[0], d=1.05 * params.links[0].d),
+                                *params.links[1:]])
+    with pytest.raises(idn.IdentificationError, match="'joint2' of 'rrr' is not placed as in"):
+        tol.check_robot(load_robot(longer))
     with pytest.raises(idn.IdentificationError, match="identified joints"):
-        tol.check_robot(load_robot("ur5"))
+        tol.check_robot(ur5)
 
 
 # --- refusals ---------------------------------------------------------------------------------
