@@ -825,7 +825,7 @@ def _add_identify(sub) -> None:
                    help="final fraction of the samples left out of the fit and predicted (0.2)")
     p.add_argument("--window", type=float, default=None, metavar="S",
                    help="Savitzky-Golay window [s] for derivatives missing from the data "
-                        "(default max(0.05 s, 11 samples))")
+                        "(default max(0.2 s, 11 samples))")
     g = p.add_argument_group("excitation")
     g.add_argument("--design-excitation", action="store_true",
                    help="design an excitation trajectory instead of identifying")
