@@ -37,6 +37,7 @@ from rrr_pin.control.references import SplineReference
 from rrr_pin.model import identification as idn
 from rrr_pin.model.dynamics import load_robot, robot_from_xml
 from rrr_pin.model.excitation import design_excitation
+from rrr_pin.model.uncertainty import sample_plants
 from rrr_pin.report.plotting import save_figure
 from rrr_pin.sim.simulation import simulate
 
@@ -68,7 +69,9 @@ def main(argv=None):
     parser.add_argument("--noise-tau", type=float, default=0.2, help="torque noise [N m]")
     parser.add_argument("--noise-q", type=float, default=1e-4, help="encoder noise [rad]")
     parser.add_argument("--quick", action="store_true",
-                        help="tiny settings (3 SLSQP steps, 1 plant, 0.2 s study)")
+                        help="tiny settings, to check that it runs: a 2 s excitation after 3 "
+                             "SLSQP steps, a 0.05 s derivative window, one plant drawn "
+                             "instead of the study")
     args = parser.parse_args(argv)
     if args.quick:
         args.maxiter, args.samples = 3, 1
@@ -77,7 +80,8 @@ def main(argv=None):
 
     nominal = load_robot("rrr")
     truth = hidden_truth(nominal)
-    traj, info = design_excitation(nominal, maxiter=args.maxiter, points=50)
+    quick = {"frequency": 0.5, "periods": 1, "points": 30} if args.quick else {"points": 50}
+    traj, info = design_excitation(nominal, maxiter=args.maxiter, **quick)
     csv_ref = traj.write_csv(out / "excitation.csv", 100.0, nominal.joint_names)
     reference = SplineReference.from_csv(csv_ref, nominal)
     law = make_laws("fl", nominal)[0]
@@ -96,17 +100,23 @@ def main(argv=None):
           f"{traj.duration:g} s tracked on the hidden arm; log {log}")
 
     status = cli(["identify", "--robot", "rrr", "--data", str(log), "--out",
-                  str(out / "identify"), "--overwrite"])
+                  str(out / "identify"), "--overwrite"]
+                 + (["--window", "0.05"] if args.quick else []))
     if status:
         raise SystemExit(status)
     record = json.loads((out / "identify" / "identification.json").read_text())
     urdf = out / "identify" / "identified.urdf"
-    study = ["reproduce", "--robot", str(urdf), "--uncertainty",
-             str(out / "identify" / "identification.json"), "--samples", str(args.samples),
-             "--out", str(out / "study"), "--overwrite", "--no-progress"]
-    status = cli(study + (["--duration", "0.2"] if args.quick else []))
-    if status:
-        raise SystemExit(status)
+    if args.quick:  # one plant of the identified set instead of the study
+        tol = idn.IdentifiedUncertainty(str(out / "identify" / "identification.json"))
+        plant = sample_plants(urdf.read_text(), 1, 0, tol)[0]
+        print(f"drew plant 0: {plant.parameters['identified']['rejected']} draws rejected")
+    else:
+        status = cli(["reproduce", "--robot", str(urdf), "--uncertainty",
+                      str(out / "identify" / "identification.json"), "--samples",
+                      str(args.samples), "--out", str(out / "study"), "--overwrite",
+                      "--no-progress"])
+        if status:
+            raise SystemExit(status)
 
     figures = [plot_torques(record, load_robot(str(urdf)), t, q, tau, nominal),
                plot_estimates(record, truth)]

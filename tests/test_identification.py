@@ -141,7 +141,7 @@ def test_noise_free_data_recover_base_parameters(name, request):
     robot = request.getfixturevalue(name)
     truth = _truth(robot)
     base = idn.base_parameters(robot)
-    data = _data(robot, truth, rate=100.0)
+    data = _data(robot, truth, rate=50.0)
     W = base.reduce(idn.regressor(robot, data.q, data.qd, data.qdd))
     theta = idn.least_squares(base, W, data.tau.reshape(-1), robot.nq, "ols")[0]
     expected = base(idn.standard_parameters(truth))  # from the truth's standard parameters
