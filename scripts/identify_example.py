@@ -130,10 +130,11 @@ def plot_torques(record, identified, t, q, tau, nominal):
 
     from rrr_pin.model.identification import estimate_derivatives
 
-    qd, qdd, _ = estimate_derivatives(t, q)
-    k0 = record["held_out"]["first_sample"]
+    qd, qdd, _ = estimate_derivatives(t, q, record["derivatives"]["window_s"])
+    k0, k1 = record["held_out"]["first_sample"], record["held_out"]["last_sample"] + 1
+    t, tau = t[:k1], tau[:k1]  # the samples the identification predicted (filter ends out)
     pred = np.array([identified.inverse_dynamics(q[k], qd[k], qdd[k]) for k in
-                     range(k0, len(t))])
+                     range(k0, k1)])
     fig, axes = plt.subplots(nominal.nq, 2, figsize=(11, 2.2 * nominal.nq), sharex=True,
                              layout="constrained")
     for j, (ax, ax_e) in enumerate(axes):
