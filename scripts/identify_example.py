@@ -1,5 +1,5 @@
 """Identification end to end: from a hidden arm's logs to the study on the identified set.
-========================================================================================
+=======================================================================================
 
 1. A "true" RRR that the user does not see: the paper's thin rods given 5 cm of thickness,
    each body's mass distribution deformed by a random affine map and its mass scaled by up to

@@ -366,3 +366,34 @@ def test_infeasible_consistency_is_refused(rrr, clean):
 def test_cli_identify_without_data_is_refused(capsys, tmp_path):
     assert main(["identify", "--out", str(tmp_path)]) == 2
     assert "--data FILE.csv is required" in capsys.readouterr().err
+
+
+def test_cli_identify_refuses_a_log_of_another_arm(rrr, clean, tmp_path, capsys):
+    path = _write_csv(tmp_path / "rrr.csv", rrr, clean)
+    assert main(["identify", "--robot", "ur5", "--data", str(path), "--out",
+                 str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "rrr-pin identify: error:" in err and "missing columns" in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "out").exists()  # refused before the folder is claimed
+
+
+def test_settings_record_the_identification(identified):
+    from rrr_pin.campaign.montecarlo import CampaignSettings
+
+    out, _, _ = identified
+    tol = idn.IdentifiedUncertainty(str(out / "identification.json"), confidence=0.9)
+    record = CampaignSettings(samples=1, tolerances=tol).to_dict()
+    assert record["uncertainty"] == "identified" and record["confidence"] == 0.9
+    assert record["identification_sha256"] == tol.sha256 and "tolerance_inertia" not in record
+
+
+@pytest.mark.slow
+def test_montecarlo_on_the_identified_set(identified, tmp_path, capsys):
+    out, _, _ = identified
+    assert main(["montecarlo", "--robot", str(out / "identified.urdf"), "--uncertainty",
+                 str(out / "identification.json"), "--samples", "2", "--duration", "0.2",
+                 "--jobs", "1", "--certify", "--no-progress", "--out", str(tmp_path)]) == 0
+    assert "identified uncertainty: 2 plants drawn" in capsys.readouterr().out
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["settings"]["uncertainty"] == "identified"
