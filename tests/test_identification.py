@@ -397,3 +397,17 @@ def test_montecarlo_on_the_identified_set(identified, tmp_path, capsys):
     assert "identified uncertainty: 2 plants drawn" in capsys.readouterr().out
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["settings"]["uncertainty"] == "identified"
+
+
+@pytest.mark.parametrize("kinds", [("qd", "qdd"), ("qd",), ("qdd",)], ids=str)
+def test_given_derivatives_are_kept(kinds, rrr, clean, tmp_path):
+    def add(c):
+        for kind in kinds:
+            for j, name in enumerate(rrr.joint_names):
+                c[f"{kind}_{name}"] = getattr(clean, kind)[:, j]
+        return c
+
+    data = idn.read_measurements(_write_csv(tmp_path / "d.csv", rrr, clean, add), rrr)
+    for kind in kinds:  # read back as written (repr round-trips floats)
+        assert_allclose(getattr(data, kind), getattr(clean, kind), rtol=0, atol=0)
+    assert data.derived.get("estimated", []) == [k for k in ("qd", "qdd") if k not in kinds]

@@ -432,17 +432,14 @@ def read_measurements(path, robot, *, window: float | None = None) -> Measuremen
         raise IdentificationError(f"{where}: time must be strictly increasing; row {k + 3} has "
                                   f"t = {float(t[k + 1])!r} s after t = {float(t[k])!r} s")
     q, tau = (np.column_stack([col[f"{kind}_{j}"] for j in joints]) for kind in ("q", "tau"))
+    given = {kind: np.column_stack([col[f"{kind}_{j}"] for j in joints])
+             for kind in ("qd", "qdd") if all(has[kind])}
     derived = {}
-    if all(has["qd"]) and all(has["qdd"]):
-        qd, qdd = (np.column_stack([col[f"{kind}_{j}"] for j in joints])
-                   for kind in ("qd", "qdd"))
-    else:
-        qd, qdd, derived = estimate_derivatives(t, q, window)
-        if all(has["qd"]):
-            qd = np.column_stack([col[f"qd_{j}"] for j in joints])
-            derived["estimated"] = ["qdd"]
-        else:
-            derived["estimated"] = ["qd", "qdd"]
+    if len(given) < 2:  # estimate what is missing; keep what the data give
+        qd_f, qdd_f, derived = estimate_derivatives(t, q, window)
+        derived["estimated"] = [k for k in ("qd", "qdd") if k not in given]
+        given = {"qd": qd_f, "qdd": qdd_f, **given}
+    qd, qdd = given["qd"], given["qdd"]
     return Measurements(t, q, qd, qdd, tau, tuple(joints), derived, str(path))
 
 
