@@ -45,6 +45,13 @@ standard deviation from the OLS residuals, Gautier & Poignet 2001), with the cov
 
 of the (weighted) base regressor ``W`` over the training samples, ``sigma^2`` the residual sum of
 squares over ``rows - p``. A final fraction of the samples (in time) is held out and predicted.
+When the log has no velocities or accelerations, they come from a Savitzky-Golay filter
+(:func:`estimate_derivatives`), the torques get the same filter (parallel filtering, so both
+sides of the equation see one frequency response), and the fit keeps one sample per filter
+window (decimation: the filter colours the residuals, and the covariance above assumes them
+independent) and none within half a window of either end of the log. The intervals cover the
+noise; a model error (unmodelled friction, a torque delayed against the positions) is not in
+them.
 
 Physical consistency (Wensing, Kim & Slotine 2017)
 --------------------------------------------------
