@@ -92,7 +92,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..validation import check_count, check_probability
+from ..validation import FieldError, check_count, check_probability
 
 __all__ = [
     "STANDARD_NAMES",
@@ -840,7 +840,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         raise ValueError(f"method must be 'wls' or 'ols', got {method!r}")
     held_out = check_probability("held_out", held_out)
     if held_out > 0.9:
-        raise ValueError(f"held_out must be in [0, 0.9], got {held_out!r}")
+        raise FieldError("held_out", "{name} must be in [0, 0.9] (the fraction of the samples "
+                         f"held out of the fit), got {held_out!r}")
     if tuple(data.joint_names) != tuple(robot.joint_names):
         raise IdentificationError(f"the data's joints {list(data.joint_names)} do not match the "
                                   f"URDF {robot.name!r}'s joints {robot.joint_names}")
