@@ -855,6 +855,10 @@ def _cmd_identify(args) -> int:
     if args.design_excitation:
         from .model.excitation import design_excitation
 
+        if args.data is not None:
+            raise ValueError("--data is not read by --design-excitation (it designs the "
+                             "motion to log); give one or the other")
+
         robot = load_robot(args.robot)
         with _as_options():
             traj, info = design_excitation(
