@@ -347,7 +347,7 @@ def main(argv=None):
                      "campaign_samples": args.campaign_samples, "campaign_jobs": 2,
                      "mc_samples": args.mc_samples, "startup_repeat": args.startup_repeat},
     }
-    result["identification"] = identification_bench(0.5 if args.quick else 10.0)
+    result["identification"] = identification_bench(5.0 if args.quick else 10.0)
     if args.json:
         print(json.dumps(result))
         return
