@@ -104,7 +104,7 @@ def test_standard_parameter_order_is_pinocchios():
 @pytest.mark.parametrize("name", ["rrr", "ur5"])
 def test_regressor_times_parameters_is_rnea(name, request):
     robot = request.getfixturevalue(name)
-    q, qd, qdd = idn._random_states(robot, 4, 3)
+    q, qd, qdd = idn.random_states(robot, 4, 3)
     Y = idn.regressor(robot, q, qd, qdd)
     tau = np.concatenate([pin.rnea(robot.model, robot.data, *x) for x in zip(q, qd, qdd,
                                                                             strict=True)])
@@ -118,7 +118,7 @@ def test_base_count_against_svd_rank(name, count, request):
     robot = request.getfixturevalue(name)
     base = idn.base_parameters(robot)
     assert base.p == count == idn.regressor_rank(robot, samples=40, seed=11)
-    W = idn.regressor(robot, *idn._random_states(robot, 20, 5))
+    W = idn.regressor(robot, *idn.random_states(robot, 20, 5))
     phi = np.random.default_rng(2).standard_normal(W.shape[1])
     # W phi = W_b (K phi) for any phi: round-off only.
     assert_allclose(base.reduce(W) @ base(phi), W @ phi, rtol=1e-9,

@@ -101,6 +101,7 @@ __all__ = [
     "standard_parameters",
     "standard_names",
     "regressor",
+    "random_states",
     "BaseParameters",
     "base_parameters",
     "regressor_rank",
@@ -177,7 +178,12 @@ def regressor(robot, q, qd, qdd) -> np.ndarray:
     return out
 
 
-def _random_states(robot, samples: int, seed: int):
+def random_states(robot, samples: int, seed: int):
+    """Draw seeded random states ``(q, qd, qdd)``, each shape (samples, nq).
+
+    ``q`` [rad] uniform within the limits (``[-pi, pi]`` where unbounded); ``qd`` [rad/s] and
+    ``qdd`` [rad/s^2] standard normal.
+    """
     rng = np.random.default_rng(seed)
     lo = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
     hi = np.where(np.isfinite(robot.upper), robot.upper, np.pi)
@@ -253,7 +259,7 @@ def base_parameters(robot, samples: int = 50, seed: int = 0) -> BaseParameters:
     from scipy.linalg import qr
 
     samples = check_count("samples", samples, 11)
-    W = regressor(robot, *_random_states(robot, samples, seed))
+    W = regressor(robot, *random_states(robot, samples, seed))
     R = qr(W, mode="r", pivoting=True)[0]
     d = np.abs(np.diag(R))
     rank = int(np.sum(d > RANK_RTOL * d[0]))
@@ -287,7 +293,7 @@ def regressor_rank(robot, samples: int = 50, seed: int = 1) -> int:
     An independent count of the base parameters (a check of :func:`base_parameters`).
     """
     samples = check_count("samples", samples, 1)
-    return int(np.linalg.matrix_rank(regressor(robot, *_random_states(robot, samples, seed))))
+    return int(np.linalg.matrix_rank(regressor(robot, *random_states(robot, samples, seed))))
 
 
 # --- measurements -----------------------------------------------------------------------------
