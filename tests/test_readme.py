@@ -51,6 +51,7 @@ SHRINK = {
     "montecarlo": ["--samples", "1", "--duration", "0.2", "--jobs", "1", "--overwrite",
                    "--no-progress"],
     "stress": ["--controllers", "fl", "--duration", "0.2"],
+    "identify": ["--maxiter", "2", "--overwrite"],
 }
 
 #: README commands that only parse: a word of the command (sub-command or option), and why it
@@ -61,6 +62,8 @@ PARSE_ONLY = {
     # even shrunk to 1 plant x 0.2 s, its 6 figures and report.html cost ~25 s of CPU;
     # tests/test_cli.py runs it small, and test_reproduce_arms_load below loads each arm
     "reproduce": "its figures take ~25 s even shrunk",
+    "--data": "needs a measured log (scripts/identify_example.py writes one)",
+    "--uncertainty": "needs an identification.json (rrr-pin identify writes one)",
 }
 
 #: Python blocks (named by a line they hold) that are compiled, not run, and why.

@@ -20,6 +20,7 @@ RUNS = [
                              "{tmp}/nominal_sampled.png"]),
     ("uncertain_study.py", ["--samples", "2", "--duration", "0.2", "--jobs", "1",
                             "--controllers", "fl,pd", "--out", "{tmp}/uncertain.png"]),
+    ("identify_example.py", ["--quick", "--out", "{tmp}"]),
 ]
 
 # issue 13's keys, and the keys the benchmark had before them (kept for the README's table).

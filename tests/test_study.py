@@ -207,7 +207,8 @@ def test_study_and_campaign_share_one_settings_record():
 
 @pytest.mark.parametrize("kwargs,error,message", [
     ({"run": {"duration": 1.0}}, TypeError, "run must be a RunSettings, got dict"),
-    ({"tolerances": 0.2}, TypeError, "tolerances must be a Tolerances, got float"),
+    ({"tolerances": 0.2}, TypeError,
+     "tolerances must be a Tolerances or IdentifiedUncertainty, got float"),
     ({"baseline": None}, TypeError, "baseline must be a str, got NoneType"),
     ({"samples": 2.5}, ValueError, "samples must be an integer >= 0, got 2.5"),
     ({"jobs": True}, TypeError, "jobs must be an integer >= 1"),

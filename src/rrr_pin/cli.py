@@ -26,7 +26,7 @@ def _build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", default=0, **verbose)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_urdf, _add_check_dynamics, _add_design, _add_reproduce,
-                _add_montecarlo, _add_stress):
+                _add_montecarlo, _add_stress, _add_identify):
         add(sub)
     for command in sub.choices.values():  # also after the command: rrr-pin reproduce -v
         command.add_argument("-v", "--verbose", default=argparse.SUPPRESS, **verbose)
@@ -391,6 +391,12 @@ def _add_law_arguments(p, default_duration: float, default_rate) -> None:
     p.add_argument("--qd0", metavar="V1,V2,...", default=None,
                    help="initial joint velocities [rad/s] (default: on the reference)")
     p.add_argument("--seed", type=int, default=0, help="seed of the uncertain plants (0)")
+    p.add_argument("--uncertainty", metavar="IDENTIFICATION.json", default=None,
+                   help="draw the uncertain plants from an identification (rrr-pin identify) "
+                        "instead of the paper's 20 %% inertia / 5 %% length tolerances; use "
+                        "--robot DIR/identified.urdf as the nominal")
+    p.add_argument("--confidence", type=float, default=0.95,
+                   help="with --uncertainty: confidence region the plants are drawn in (0.95)")
     p.add_argument("--delay", type=float, default=None, metavar="S",
                    help="plant effect: actuator transport delay [s] (sampled controllers; "
                         "a whole number of plant sub-steps --dt, others are refused)")
@@ -490,6 +496,34 @@ def _settings_from_args(args, n: int):
                            force=args.force)
 
 
+def _tolerances_from_args(args, robot):
+    """Return the paper's tolerances, or ``--uncertainty``'s identified distribution."""
+    from .model.uncertainty import Tolerances
+
+    if args.uncertainty is None:
+        return Tolerances()
+    from .model.identification import IdentifiedUncertainty
+
+    _not_a_folder(uncertainty=args.uncertainty)
+    with _as_options():
+        tol = IdentifiedUncertainty(args.uncertainty, confidence=args.confidence)
+    tol.check_robot(robot)
+    return tol
+
+
+def _rejections_line(entries) -> str | None:
+    """How many draws of an identified distribution were rejected, or None (tolerances)."""
+    drawn = [e["parameters"]["identified"]["rejected"] for e in entries
+             if "identified" in (e.get("parameters") or {})]
+    if not drawn:
+        return None
+    outside = sum(d["outside_confidence"] for d in drawn)
+    inconsistent = sum(d["inconsistent"] for d in drawn)
+    return (f"identified uncertainty: {len(drawn)} plants drawn; rejected and redrawn: "
+            f"{outside} outside the confidence region, {inconsistent} with no physically "
+            f"consistent arm")
+
+
 def _laws_from_args(args, robot, K=None, torque_limit=None, extra=()):
     from .campaign.runner import make_laws
 
@@ -566,6 +600,7 @@ def _cmd_reproduce(args) -> int:
         effects = dataclasses.replace(settings.effects or PlantEffects(),
                                       torque_limit=tuple(limit.tolist()))
         settings = dataclasses.replace(settings, effects=effects)
+    tolerances = _tolerances_from_args(args, robot)
     if out is None:  # --overwrite: the previous run is removed now that the options hold
         out = _claim_out(args, "reproduce")
     d = design(lam=45.0, n=robot.nq)
@@ -573,7 +608,7 @@ def _cmd_reproduce(args) -> int:
                                      d.K_reduced, torque_limit=limit,
                                      extra=("hinf_aw",) if limit is not None else ())
     config = StudyConfig(run=settings, samples=args.samples, seed=args.seed, jobs=args.jobs,
-                         baseline=baseline)
+                         baseline=baseline, tolerances=tolerances)
     check_study_size(config, len(laws), robot.nq)  # before the design figures are written
     figures = save_design_figures(d, out)
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{robot.name}: simulating",
@@ -595,6 +630,8 @@ def _cmd_reproduce(args) -> int:
     print(f"{robot.name}: {robot.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "
           f"{', '.join(result.names)} (baseline {baseline})")
     print("\n".join(summary_lines(result, data["summary"])))
+    if _rejections_line(result.samples):
+        print(_rejections_line(result.samples))
     print(f"wrote {out}/results.json, results.md, plants/, {len(figures)} figures and "
           f"{report.name} (open it in a browser)")
     if saved:
@@ -700,6 +737,7 @@ def _cmd_montecarlo(args) -> int:
     robot = load_robot(args.robot, lock=lock)
     run = _settings_from_args(args, robot.nq)
     reference = _reference_from_args(args, robot)
+    tolerances = _tolerances_from_args(args, robot)
     certificate = K = None
     if args.certify:  # one design serves the certificate and the H-infinity law
         from .robust.certificates import CertificateSpec
@@ -709,7 +747,7 @@ def _cmd_montecarlo(args) -> int:
         certificate, K = CertificateSpec.from_design(d), d.K_reduced
     laws, baseline = _laws_from_args(args, robot, K=K)
     settings = CampaignSettings(samples=args.samples, seed=args.seed, run=run,
-                                baseline=baseline)
+                                baseline=baseline, tolerances=tolerances)
     store = open_store(args.out, robot, laws, settings, reference, resume=args.resume,
                        overwrite=args.overwrite, certificate=certificate)
     with store:
@@ -738,6 +776,8 @@ def _cmd_montecarlo(args) -> int:
     print(f"{robot.name}: {ran} plants x {nl} controllers x {run.duration:g} s in "
           f"{elapsed:.1f} s ({nl * ran / max(elapsed, 1e-9):.1f} rollouts/s)")
     print("\n".join(summary_lines(campaign, s)))
+    if _rejections_line(campaign.rows):
+        print(_rejections_line(campaign.rows))
     print("wrote " + ", ".join(s["written"]))
     return 0
 
@@ -854,6 +894,107 @@ def _cmd_stress(args) -> int:
         print(dumps(result))
         return 0
     print("\n".join(stress_lines(result) + [f"wrote {fig}"]))
+    return 0
+
+
+# --- identify (base inertial parameters from measured torques) --------------------------------
+
+def _add_identify(sub) -> None:
+    p = sub.add_parser(
+        "identify", help="identify the arm's base inertial parameters from measured torques",
+        description="Reads --data (CSV: t, q_<joint>, optionally qd_<joint> and qdd_<joint>, "
+                    "tau_<joint>, SI units), estimates the base inertial parameters of --robot "
+                    "with their covariance, makes them physically consistent (SDP) and writes "
+                    "DIR/identified.urdf and DIR/identification.json. With "
+                    "--design-excitation, writes instead an optimised Fourier excitation, "
+                    "DIR/excitation.csv (for --reference spline --csv) and excitation.json.")
+    p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
+                   help="arm whose kinematics are trusted and whose inertials are the prior: "
+                        "'rrr' (default), an example-robot-data name or a URDF path")
+    p.add_argument("--data", metavar="FILE.csv", default=None,
+                   help="measurements (required unless --design-excitation)")
+    p.add_argument("--method", choices=("wls", "ols"), default="wls",
+                   help="weighted (per-joint noise, default) or ordinary least squares")
+    p.add_argument("--held-out", type=float, default=0.2, metavar="FRACTION",
+                   help="final fraction of the samples left out of the fit and predicted (0.2)")
+    p.add_argument("--window", type=float, default=None, metavar="S",
+                   help="Savitzky-Golay window [s] for derivatives missing from the data "
+                        "(default max(0.2 s, 11 samples))")
+    g = p.add_argument_group("excitation")
+    g.add_argument("--design-excitation", action="store_true",
+                   help="design an excitation trajectory instead of identifying")
+    g.add_argument("--harmonics", type=int, default=5, help="Fourier harmonics per joint (5)")
+    g.add_argument("--frequency", type=float, default=0.2, metavar="HZ",
+                   help="base frequency [Hz] (0.2: a 5 s period)")
+    g.add_argument("--periods", type=int, default=2, help="periods in the trajectory (2)")
+    g.add_argument("--max-acceleration", type=float, default=10.0, metavar="RAD_S2",
+                   help="acceleration limit of every joint [rad/s^2] (10)")
+    g.add_argument("--maxiter", type=int, default=60, help="SLSQP iterations (60)")
+    g.add_argument("--seed", type=int, default=0, help="seed of the starting point (0)")
+    g.add_argument("--csv-rate", type=float, default=100.0, metavar="HZ",
+                   help="waypoints per second in excitation.csv (100)")
+    p.add_argument("--out", default="results/identify", metavar="DIR",
+                   help="output folder (results/identify)")
+    _add_overwrite(p)
+    p.set_defaults(func=_cmd_identify)
+
+
+def _cmd_identify(args) -> int:
+    import json
+
+    from .model.dynamics import load_robot
+    from .outputs import writing
+
+    _not_a_folder(robot=args.robot, data=args.data)
+    if args.design_excitation:
+        from .model.excitation import design_excitation
+
+        if args.data is not None:
+            raise ValueError("--data is not read by --design-excitation (it designs the "
+                             "motion to log); give one or the other")
+
+        robot = load_robot(args.robot)
+        with _as_options():
+            traj, info = design_excitation(
+                robot, harmonics=args.harmonics, frequency=args.frequency,
+                max_acceleration=args.max_acceleration, periods=args.periods,
+                seed=args.seed, maxiter=args.maxiter)
+        out = _claim_out(args, "identify")
+        csv_path = traj.write_csv(out / "excitation.csv", args.csv_rate, robot.joint_names)
+        path = out / "excitation.json"
+        with writing(path):
+            path.write_text(json.dumps({"robot": robot.name, **info,
+                                        "trajectory": traj.to_dict()}, indent=1) + "\n")
+        print(f"{robot.name}: Fourier excitation, {info['harmonics']} harmonics at "
+              f"{info['frequency_hz']:g} Hz, {traj.duration:g} s; condition number of the "
+              f"base regressor {info['cond']:.4g} (random start {info['cond_random']:.4g})")
+        print(f"wrote {csv_path} and {path}; run it with --reference spline --csv {csv_path} "
+              f"--duration {traj.duration:g}")
+        return 0
+    if args.data is None:
+        raise ValueError("--data FILE.csv is required (or --design-excitation)")
+    from .model.identification import identify, read_measurements
+
+    robot = load_robot(args.robot)
+    with _as_options():
+        data = read_measurements(args.data, robot, window=args.window)
+        result = identify(robot, data, method=args.method, held_out=args.held_out)
+    out = _claim_out(args, "identify")
+    written = result.write(out)
+    s = result.summary
+    print(f"{robot.name}: {s['base_count']} base parameters from {s['samples_fit']} samples "
+          f"({s['method']}), condition number {s['condition_number']:.4g}")
+    print("residual RMS [N m]: " + ", ".join(f"{k} {v:.4g}"
+                                             for k, v in s["residual_rms_Nm"].items()))
+    if s["held_out"] is not None:
+        print(f"held-out {s['held_out']['samples']} samples, identified URDF's torque error "
+              "RMS [N m]: " + ", ".join(f"{k} {v:.4g}" for k, v in
+                                       s["held_out"]["rms_error_urdf_Nm"].items()))
+    c = s["consistency"]
+    print("physically consistent: " + ("the estimate itself" if c["feasible_at_estimate"]
+                                       else f"nearest consistent arm at RMS torque change "
+                                            f"{c['distance_rms_Nm']:.3g} N m"))
+    print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
 

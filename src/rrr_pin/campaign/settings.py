@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
+from ..model.identification import IdentifiedUncertainty
 from ..model.uncertainty import Tolerances
 from ..validation import check_count
 from .runner import RunSettings
@@ -37,8 +38,9 @@ class Settings:
     run : RunSettings
         Duration, step, rate, engine, initial state and plant effects of every run (default
         :class:`~rrr_pin.campaign.runner.RunSettings`: 4 s, continuous-time laws).
-    tolerances : Tolerances
-        20 % inertia, 5 % lengths by default.
+    tolerances : Tolerances or IdentifiedUncertainty
+        20 % inertia, 5 % lengths by default; or the distribution identified from data
+        (``rrr-pin identify``'s ``identification.json``).
     baseline : str, default "fl"
         Name of the law the others are compared with.
 
@@ -63,14 +65,21 @@ class Settings:
         object.__setattr__(self, "samples", check_count("samples", self.samples,
                                                         self.MIN_SAMPLES))
         object.__setattr__(self, "seed", check_count("seed", self.seed))
-        for key, kind in (("run", RunSettings), ("tolerances", Tolerances), ("baseline", str)):
+        for key, kind in (("run", RunSettings), ("tolerances", (Tolerances,
+                                                                IdentifiedUncertainty)),
+                          ("baseline", str)):
             value = getattr(self, key)
             if not isinstance(value, kind):
-                raise TypeError(f"{key} must be a {kind.__name__}, got "
-                                f"{type(value).__name__}")
+                names = " or ".join(k.__name__ for k in (kind if isinstance(kind, tuple)
+                                                          else (kind,)))
+                raise TypeError(f"{key} must be a {names}, got {type(value).__name__}")
 
     def to_dict(self) -> dict:
         """JSON-ready settings (units in the key names), as recorded in the outputs."""
-        return {**self.run.to_dict(), "samples": self.samples, "seed": self.seed,
-                "tolerance_inertia": self.tolerances.inertia,
-                "tolerance_length": self.tolerances.length, "baseline": self.baseline}
+        tol = self.tolerances
+        drawn = ({"tolerance_inertia": tol.inertia, "tolerance_length": tol.length}
+                 if isinstance(tol, Tolerances) else
+                 {"uncertainty": "identified", **{k: v for k, v in tol.to_dict().items()
+                                                  if k != "kind"}})
+        return {**self.run.to_dict(), "samples": self.samples, "seed": self.seed, **drawn,
+                "baseline": self.baseline}

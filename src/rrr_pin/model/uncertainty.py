@@ -22,6 +22,13 @@ link lengths"); every factor is drawn independently and uniformly in ``[1 - tol,
   distance ``lg`` scaled by the same factor (for a URDF: each joint origin's translation and the
   link's centre of mass).
 
+Identified uncertainty: with ``tol`` an
+:class:`~rrr_pin.model.identification.IdentifiedUncertainty` (an ``identification.json`` of
+``rrr-pin identify``) instead of :class:`Tolerances`, the kinematics stay nominal and the
+inertials are drawn from the identified distribution of the base parameters, each plant made
+physically consistent or rejected and redrawn (counted in its ``parameters["identified"]
+["rejected"]``): :meth:`~rrr_pin.model.identification.IdentifiedUncertainty.draw`.
+
 Seeding: sample ``k`` of a study with seed ``s`` uses ``numpy.random.default_rng([s, k])``
 (PCG64, identical on every platform), so a single plant can be regenerated alone.
 """
@@ -38,6 +45,7 @@ import numpy as np
 from ..outputs import writing
 from ..validation import check_count, check_real, check_vector
 from .dh import ArmParams, check_inertial
+from .identification import IdentifiedUncertainty
 from .urdf import urdf_from_params
 
 __all__ = [
@@ -72,6 +80,10 @@ class Tolerances:
             if not 0.0 <= value < 1.0:
                 raise ValueError(f"{name} tolerance must be in [0, 1), got {value!r}")
             object.__setattr__(self, name, value)
+
+    def describe(self) -> str:
+        """One line for reports: ``20% on masses and moments, 5% on lengths``."""
+        return f"{self.inertia:.0%} on masses and moments, {self.length:.0%} on lengths"
 
 
 @dataclass(frozen=True)
@@ -272,8 +284,9 @@ def sample_plants(nominal, count: int, seed: int = 0, tol: Tolerances = Toleranc
         Number of plants, >= 0.
     seed : int, default 0
         Study seed; sample ``k`` uses ``default_rng([seed, k])``.
-    tol : Tolerances
-        Relative tolerances (default 20 % inertia, 5 % lengths).
+    tol : Tolerances or IdentifiedUncertainty
+        Relative tolerances (default 20 % inertia, 5 % lengths), or the distribution of an
+        identification (see the module docstring).
     skip_joints : iterable of str
         For URDF input: joints whose origins stay nominal.
 
@@ -292,6 +305,11 @@ def sample_plant(nominal, seed: int, index: int, tol: Tolerances = Tolerances(),
     ``sample_plant(nominal, s, k)`` equals ``sample_plants(nominal, n, s)[k]`` for any ``n > k``.
     """
     rng = np.random.default_rng([int(seed), int(index)])
+    if isinstance(tol, IdentifiedUncertainty):
+        text = urdf_from_params(nominal) if isinstance(nominal, ArmParams) else str(nominal)
+        urdf, drawn = tol.draw(text, rng)
+        return PlantSample(index=int(index), seed=[int(seed), int(index)], urdf=urdf,
+                           parameters={"identified": drawn})
     if isinstance(nominal, ArmParams):
         params, factors = perturb_params(nominal, rng, tol)
         urdf = urdf_from_params(replace(params, name=f"{nominal.name}_sample{index:03d}"))

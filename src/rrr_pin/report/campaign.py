@@ -98,7 +98,8 @@ def _metrics(campaign: Campaign, summary: dict, torque: bool) -> list[str]:
 
 #: Units of the campaign settings' keys that carry no unit suffix ("-": dimensionless).
 SETTINGS_UNITS = {"samples": "-", "seed": "-", "tolerance_inertia": "-",
-                  "tolerance_length": "-"}
+                  "tolerance_length": "-", "uncertainty": "-", "identification": "-",
+                  "identification_sha256": "-", "confidence": "-", "base_count": "-"}
 
 
 def _metric_unit(metric: str) -> str:

@@ -409,9 +409,7 @@ def plot_study_uncertain(result, *, axes=None):
     """
     names = result.names
     n = len(result.samples)
-    title = (f"{result.robot}: {n} uncertain plants "
-             f"({result.config.tolerances.inertia:.0%} inertia, "
-             f"{result.config.tolerances.length:.0%} length tolerance)")
+    title = f"{result.robot}: {n} uncertain plants ({result.config.tolerances.describe()})"
     lost = {k: sum(1 for s in result.samples if k not in s["trajectories"]) for k in names}
     if any(lost.values()):
         title += ", diverged (not shown): " + ", ".join(

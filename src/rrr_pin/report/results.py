@@ -138,8 +138,7 @@ def results_markdown(result: StudyResult, data: dict | None = None) -> str:
         f"Reference: {_describe_reference(result.reference.to_dict())}, {run.duration:g} s, "
         f"{start}. Integration: RK4, step {run.dt:g} s; {mode}; engine {run.engine}. "
         f"Uncertain plants: {len(result.samples)} (seed {cfg.seed}), "
-        f"{cfg.tolerances.inertia:.0%} on masses and moments, {cfg.tolerances.length:.0%} on "
-        f"lengths; every controller ran on {s['samples_ok']}.",
+        f"{cfg.tolerances.describe()}; every controller ran on {s['samples_ok']}.",
         "",
         "Controllers: " + "; ".join(f"`{d['name']}` = {d['label']}" for d in result.laws)
         + f". Baseline: `{base}`.",
