@@ -25,7 +25,7 @@ def _build_parser() -> argparse.ArgumentParser:
                "(INFO), -vv details (DEBUG), e.g. the engine chosen for each run"}
     parser.add_argument("-v", "--verbose", default=0, **verbose)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_urdf, _add_check_dynamics, _add_design, _add_reproduce,
+    for add in (_add_urdf, _add_mjcf, _add_check_dynamics, _add_design, _add_reproduce,
                 _add_montecarlo, _add_stress):
         add(sub)
     for command in sub.choices.values():  # also after the command: rrr-pin reproduce -v
@@ -220,6 +220,39 @@ def _cmd_urdf(args) -> int:
               f"({exc.strerror or exc})", file=sys.stderr)
         return 2
     print(f"wrote {path}")
+    return 0
+
+
+# --- mjcf ---------------------------------------------------------------------------------
+
+def _add_mjcf(sub) -> None:
+    p = sub.add_parser("mjcf", help="write (or check) the MJCF of a parallel mechanism (5-bar, "
+                       "Delta) generated from its parameter set")
+    p.add_argument("mechanism", choices=("fivebar", "delta"))
+    p.add_argument("--out", metavar="PATH", default=None,
+                   help="where to write it (default: standard output; with --check, the "
+                        "committed mjcf/MECHANISM.xml)")
+    p.add_argument("--check", action="store_true",
+                   help="do not write: exit 1 if PATH differs from what the generator writes")
+    p.set_defaults(func=_cmd_mjcf)
+
+
+def _cmd_mjcf(args) -> int:
+    from .model.mechanisms import check_mjcf, mechanism_params, mjcf_from_params, write_mjcf
+
+    params = mechanism_params(args.mechanism)
+    if args.check:
+        out = args.out or f"mjcf/{args.mechanism}.xml"
+        if check_mjcf(out, params):
+            print(f"{out}: up to date")
+            return 0
+        print(f"{out}: missing or differs from the generator's output; regenerate with "
+              f"`rrr-pin mjcf {args.mechanism} --out {out}`")
+        return 1
+    if args.out in (None, "-"):
+        sys.stdout.write(mjcf_from_params(params))
+        return 0
+    print(f"wrote {write_mjcf(args.out, params)}")
     return 0
 
 

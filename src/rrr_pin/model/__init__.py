@@ -4,7 +4,10 @@ Holds :mod:`~rrr_pin.model.dh` (the paper's Tables 1-2), :mod:`~rrr_pin.model.ur
 generator), :mod:`~rrr_pin.model.robots` (where an arm comes from: the paper's RRR, an
 example-robot-data name or a URDF path), :mod:`~rrr_pin.model.dynamics` (``Robot``,
 ``load_robot``: M, V, G through Pinocchio), :mod:`~rrr_pin.model.closed_form` (the corrected
-eq. (2)-(7)) and :mod:`~rrr_pin.model.uncertainty` (seeded uncertain plants as URDF).
+eq. (2)-(7)), :mod:`~rrr_pin.model.uncertainty` (seeded uncertain plants as URDF),
+:mod:`~rrr_pin.model.mechanisms` (the 5-bar and Delta parameter sets, their MJCF generator
+and closed-form kinematics) and :mod:`~rrr_pin.model.closed_chain` (``ClosedChain``: loop
+closure and the reduced dynamics in actuated coordinates).
 
 Layer: the lowest. May import :mod:`rrr_pin.validation` only.
 """
