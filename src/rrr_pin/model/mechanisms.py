@@ -285,7 +285,7 @@ def delta_fk(params: DeltaParams, qa) -> np.ndarray:
 
 
 def home_configuration(params) -> np.ndarray:
-    """Return the closed configuration ``q`` of the ``home`` point (coordinates of the module docstring).
+    """Return the closed configuration ``q`` of the ``home`` point (module docstring).
 
     Shape (4,) for the 5-bar, (12,) for the Delta [rad, m].
     """
