@@ -272,21 +272,45 @@ class ClosedChain:
         """
         q = (self._q if seed is None else np.asarray(seed, dtype=float)).copy()
         q[self._act] = qa
+        pas = self._pas
         for _ in range(max_iter):
-            Jp = self.jacobian(q)[:, self._pas]  # also places the frames
+            J = self.jacobian(q)  # also places the frames
             phi = self.residual(q, kinematics=False)
-            cond = float(np.linalg.cond(Jp))
-            if not cond <= COND_LIMIT:
-                self._refuse_singular(q, cond)
             if float(np.max(np.abs(phi))) <= tol:
+                cond = float(np.linalg.cond(J[:, pas]))
+                if not cond <= COND_LIMIT:
+                    self._refuse_singular(q, cond)
                 self._q = q
+                self._Jq = (q.copy(), J)
                 return q.copy()
-            q[self._pas] -= np.linalg.solve(Jp, phi)
+            try:
+                q[pas] -= np.linalg.solve(J[:, pas], phi)
+            except np.linalg.LinAlgError:
+                self._refuse_singular(q, math.inf)
         raise LoopClosureError(
             f"{self.name}: the loop does not close at q_a = "
             f"{np.array2string(np.asarray(qa, dtype=float), precision=6)} rad (Newton from the "
             f"last configuration left a gap of {float(np.max(np.abs(self.residual(q)))):.3g} m "
             f"after {max_iter} iterations): out of the workspace")
+
+    def reduced(self, qa, qd_a) -> tuple[np.ndarray, np.ndarray]:
+        """``(M_r, V_r + G_r)`` at actuated ``(qa, qd_a)``, unchecked: the law's fast path.
+
+        Closes the loop from the last solution (:meth:`close`), then as
+        :meth:`reduced_terms`. Shapes (nq, nq) [kg m^2] and (nq,) [N m].
+        """
+        q = self.close(qa)
+        J = self._Jq[1]  # cond(J_p) checked by close
+        Jp = J[:, self._pas]
+        Sm = np.zeros((self.model.nv, self.nq))
+        Sm[self._act, np.arange(self.nq)] = 1.0
+        Sm[self._pas] = -np.linalg.solve(Jp, J[:, self._act])
+        qd = Sm @ qd_a
+        s0 = np.zeros(self.model.nv)
+        s0[self._pas] = -np.linalg.solve(Jp, self.gamma(q, qd))
+        M = pin.crba(self.model, self.data, q)
+        h = pin.rnea(self.model, self.data, q, qd, s0)
+        return Sm.T @ M @ Sm, Sm.T @ h
 
     def velocity(self, q, qd_a) -> np.ndarray:
         """Full velocity ``S qd_a`` [rad/s, m/s], shape (model.nv,), at a closed ``q``."""
@@ -426,7 +450,10 @@ class ClosedChain:
         are kept).
         """
         q = self.close(q[self._act], seed=q)
-        return q, self.velocity(q, qd[self._act])
+        J = self._Jq[1]
+        qd = qd.copy()
+        qd[self._pas] = -np.linalg.solve(J[:, self._pas], J[:, self._act] @ qd[self._act])
+        return q, qd
 
 
 def is_closed_chain_source(source) -> bool:

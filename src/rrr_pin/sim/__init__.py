@@ -3,8 +3,9 @@
 Holds :mod:`~rrr_pin.sim.trajectory` (the leaf: ``Trajectory``, ``SimulationDiverged``, the
 divergence test), :mod:`~rrr_pin.sim.simulation` (``simulate``: validation and the Python
 engine), :mod:`~rrr_pin.sim.extension` (the C++ extension ``_rollout``),
-:mod:`~rrr_pin.sim.compiled` (the compiled engine) and :mod:`~rrr_pin.sim.codegen` (the
-generated-dynamics engine).
+:mod:`~rrr_pin.sim.compiled` (the compiled engine), :mod:`~rrr_pin.sim.codegen` (the
+generated-dynamics engine) and :mod:`~rrr_pin.sim.closed_chain` (parallel mechanisms on
+Pinocchio's constraint dynamics, Python engine).
 
 Layer: above :mod:`rrr_pin.control`. May import :mod:`rrr_pin.validation`,
 :mod:`rrr_pin.model`, :mod:`rrr_pin.robust` and :mod:`rrr_pin.control`.
