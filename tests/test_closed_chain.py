@@ -127,7 +127,7 @@ def _fivebar_lagrangian(P: FiveBarParams, qa, g=9.8):
 def test_fivebar_reduced_model_equals_lagrangian(fivebar):
     rng = np.random.default_rng(3)
     for _ in range(5):
-        q, _ = _random_state(fivebar, rng, spread=0.1)
+        q, _ = _random_state(fivebar, rng, spread=0.06)
         qa = q[list(fivebar.actuated)]
         M_ref, G_ref = _fivebar_lagrangian(fivebar.params, qa)
         # Round-off of two exact derivations at ~1 kg m^2 scale entries.
@@ -140,7 +140,7 @@ def test_ik_and_fk_agree_with_the_loaded_loop(fivebar, delta):
     P5, PD = fivebar.params, delta.params
     tip = fivebar.model.getFrameId("tip1")
     for _ in range(10):
-        q, _ = _random_state(fivebar, rng, spread=0.1)
+        q, _ = _random_state(fivebar, rng, spread=0.06)
         qa = q[list(fivebar.actuated)]
         p = fivebar_fk(P5, qa)
         assert_allclose(fivebar_ik(P5, p), qa, atol=1e-12)  # same working mode, round-off

@@ -572,6 +572,8 @@ def _cmd_reproduce(args) -> int:
 
     out = _check_out_early(args, "reproduce")  # a file, no permission, another tool's run
     check_count("--samples", args.samples)
+    if args.robot in ("fivebar", "delta"):
+        return _reproduce_chain(args, out)
     lock = _parse_lock(args.lock)
     _not_a_folder(robot=args.robot, csv=args.csv)
     robot = load_robot(args.robot, lock=lock)
@@ -609,6 +611,42 @@ def _cmd_reproduce(args) -> int:
     if saved:
         print(f"wrote {len(saved)} trajectories to {out}/trajectories/ "
               f"({args.save_trajectories})")
+    return 0
+
+
+def _reproduce_chain(args, out) -> int:
+    """``reproduce --robot fivebar|delta``: the study on a parallel mechanism."""
+    from .campaign.closed_chain_study import ChainStudyConfig, run_chain_study
+    from .report.closed_chain import write_chain_study
+
+    unsupported = [opt for opt, given in (
+        ("--lock", args.lock), ("--csv", getattr(args, "csv", None)),
+        ("--engine compiled/codegen", args.engine in ("compiled", "codegen")),
+        ("--delay", args.delay), ("--actuator-bandwidth", args.actuator_bandwidth),
+        ("--q0", args.q0), ("--qd0", args.qd0), ("--home", args.home),
+        ("--full-order", args.full_order), ("--save-trajectories", args.save_trajectories),
+        ("--controllers other than fl,hinf", args.controllers != "fl,hinf"),
+        ("--reference other than sine", args.reference != "sine")) if given]
+    if unsupported:
+        raise ValueError(f"--robot {args.robot} (a closed chain) does not implement "
+                         f"{', '.join(unsupported)}; its study runs fl and hinf on the "
+                         f"mechanism's own reference, Python engine")
+    config = ChainStudyConfig(mechanism=args.robot, samples=args.samples, seed=args.seed,
+                              duration=args.duration, rate=args.rate)
+    if out is None:
+        out = _claim_out(args, "reproduce")
+    result = run_chain_study(config, progress=None if args.no_progress else
+                             lambda done, total: print(f"{args.robot}: plant {done}/{total}",
+                                                       file=sys.stderr))
+    from .model.mechanisms import mechanism_params
+
+    paths = write_chain_study(result, out, params=mechanism_params(args.robot))
+    for c in result.claims:
+        verdict = "undetermined" if c["holds"] is None else ("holds" if c["holds"] else
+                                                              "does not hold")
+        print(f"{c['claim']}: {c['value']:.4g} -> {verdict}")
+    print(f"wrote {', '.join(p.name for p in paths)} into {out} (engine: python; the "
+          f"compiled engine does not implement closed chains)")
     return 0
 
 

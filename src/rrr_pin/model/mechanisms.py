@@ -48,7 +48,7 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -57,7 +57,7 @@ from ..validation import check_positive, check_real
 
 __all__ = ["FiveBarParams", "DeltaParams", "MechanismError", "mjcf_from_params", "write_mjcf",
            "check_mjcf", "mechanism_params", "MECHANISMS", "fivebar_ik", "fivebar_fk",
-           "delta_ik", "delta_fk", "home_configuration"]
+           "delta_ik", "delta_fk", "home_configuration", "perturb_mechanism"]
 
 
 class MechanismError(ValueError):
@@ -109,7 +109,7 @@ class FiveBarParams:
     m2: float = 0.3
     radius: float = 0.01
     home_x: float = 0.0
-    home_z: float = 0.25
+    home_z: float = 0.32
     name: str = "fivebar"
 
     def __post_init__(self) -> None:
@@ -452,3 +452,52 @@ def check_mjcf(path: str | Path, params) -> bool:
     path = Path(path)
     return path.is_file() and path.read_bytes() == mjcf_from_params(params).encode()
 
+
+
+#: Length fields of each parameter set (perturbed by the length tolerance); the masses
+#: ``m*`` take the inertia tolerance, and the rods' moments follow from mass and length.
+_LENGTHS = {FiveBarParams: ("d", "l1", "l2"), DeltaParams: ("R", "r", "L", "l")}
+
+
+def perturb_mechanism(params, rng: np.random.Generator, inertia: float = 0.2,
+                      length: float = 0.05, attempts: int = 100):
+    """Draw an uncertain mechanism: masses and lengths scaled by uniform factors.
+
+    As the paper's uncertain RRR (sec. 5): every mass by a factor in ``[1 - inertia,
+    1 + inertia]`` and every length in ``[1 - length, 1 + length]``; the rods' moments of
+    inertia follow (uniform cylinders). A draw whose loop cannot close, or whose ``home``
+    point it cannot reach, is drawn again (at most ``attempts`` times), so the plant is always
+    closable.
+
+    Parameters
+    ----------
+    params : FiveBarParams or DeltaParams
+        Nominal parameters.
+    rng : numpy.random.Generator
+        Seeded generator.
+    inertia, length : float
+        Relative tolerances, in [0, 1).
+
+    Returns
+    -------
+    params : FiveBarParams or DeltaParams
+        The perturbed, closable set.
+    factors : dict
+        Field name -> factor drawn.
+    """
+    names = [f.name for f in fields(params) if f.name.startswith("m")]
+    names += list(_LENGTHS[type(params)])
+    for _ in range(attempts):
+        factors = {n: float(rng.uniform(1.0 - (length if n in _LENGTHS[type(params)]
+                                               else inertia),
+                                        1.0 + (length if n in _LENGTHS[type(params)]
+                                               else inertia)))
+                   for n in names}
+        try:
+            out = replace(params, **{n: getattr(params, n) * f for n, f in factors.items()})
+            home_configuration(out)
+        except MechanismError:
+            continue
+        return out, factors
+    raise MechanismError(f"no closable draw of {params.name} in {attempts} attempts "
+                         f"(tolerances inertia {inertia:g}, length {length:g})")
