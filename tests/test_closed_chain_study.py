@@ -73,9 +73,10 @@ def test_study_on_the_fivebar_small():
 def test_reproduce_fivebar_writes_claims_and_figures(tmp_path, capsys):
     out = tmp_path / "fb"
     assert cli.main(["reproduce", "--robot", "fivebar", "--samples", "0", "--duration",
-                     "0.02", "--rate", "1000", "--out", str(out), "--no-progress"]) == 0
+                     "0.2", "--rate", "1000", "--out", str(out), "--no-progress"]) == 0
     data = json.loads((out / "results.json").read_text())
     assert data["config"]["mechanism"] == "fivebar" and len(data["claims"]) == 1
+    assert data["claims"][0]["holds"] is True  # both laws track the exact model
     assert (out / "fig5_nominal.png").is_file() and (out / "results.md").is_file()
     assert "compiled engine does not implement closed chains" in capsys.readouterr().out
 
@@ -84,3 +85,9 @@ def test_reproduce_fivebar_refuses_what_it_does_not_implement(tmp_path, capsys):
     assert cli.main(["reproduce", "--robot", "fivebar", "--engine", "compiled", "--out",
                      str(tmp_path / "x")]) == 2
     assert "does not implement --engine compiled/codegen" in capsys.readouterr().err
+
+
+def test_reproduce_refuses_an_mjcf_path(tmp_path, capsys):
+    assert cli.main(["reproduce", "--robot", str(tmp_path / "mine.xml"), "--out",
+                     str(tmp_path / "x")]) == 2
+    assert "runs the built-in fivebar and delta only" in capsys.readouterr().err

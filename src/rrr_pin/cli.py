@@ -574,6 +574,10 @@ def _cmd_reproduce(args) -> int:
     check_count("--samples", args.samples)
     if args.robot in ("fivebar", "delta"):
         return _reproduce_chain(args, out)
+    if args.robot.lower().endswith(".xml"):
+        raise ValueError(f"--robot {args.robot}: an MJCF closed chain; the closed-chain study "
+                         f"runs the built-in fivebar and delta only (load your MJCF with "
+                         f"rrr_pin.load_robot and simulate it from Python)")
     lock = _parse_lock(args.lock)
     _not_a_folder(robot=args.robot, csv=args.csv)
     robot = load_robot(args.robot, lock=lock)

@@ -536,6 +536,7 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     Returns
     -------
     Robot
+        Or a :class:`~rrr_pin.model.closed_chain.ClosedChain` for a parallel mechanism.
 
     Raises
     ------

@@ -53,17 +53,25 @@ def _errors(fig: Figure, result, rows) -> None:
             if traj is None:
                 continue
             e = traj.q - traj.r
+            many = len(rows) > 1
             for j in range(e.shape[1]):
+                if many and i == 0:  # the nominal plant, in black over the uncertain ones
+                    label = "nominal plant" if j == 0 else None
+                else:
+                    first = rows[1] if many else rows[0]
+                    label = (f"{traj.joint_names[j]}" + (", uncertain" if many else "")
+                             if i == first else None)
                 ax.plot(traj.t, e[:, j], lw=1.2 if i == 0 else 0.6,
-                        color="black" if (i == 0 and len(rows) > 1) else f"C{j}",
-                        alpha=1.0 if i == 0 else 0.5,
-                        label=(traj.joint_names[j] if i == rows[0] else None))
+                        color="black" if (i == 0 and many) else f"C{j}",
+                        alpha=1.0 if i == 0 else 0.5, zorder=3 if i == 0 else 2, label=label)
         ax.set_title(label)
         ax.set_xlabel("time [s]")
         ax.grid(True, alpha=0.3)
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
     axes[0].set_ylabel("tracking error r - q_a [rad]")
-    axes[-1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
+    labelled = [ax for ax in axes if ax.get_legend_handles_labels()[0]]
+    if labelled:  # none when every run failed (their reasons are in results.md)
+        labelled[-1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
 
 
 def _adept(fig: Figure, result, params: DeltaParams) -> None:
