@@ -47,7 +47,7 @@ def claims_table(result) -> str:
 
 def _errors(fig: Figure, result, rows) -> None:
     axes = fig.subplots(1, len(result.names), sharey=True, squeeze=False)[0]
-    for ax, name, label in zip(axes, result.names, result.labels, strict=True):
+    for ax, name, title in zip(axes, result.names, result.labels, strict=True):
         for i in rows:
             traj = result.trajectories[i][name]
             if traj is None:
@@ -64,7 +64,7 @@ def _errors(fig: Figure, result, rows) -> None:
                 ax.plot(traj.t, e[:, j], lw=1.2 if i == 0 else 0.6,
                         color="black" if (i == 0 and many) else f"C{j}",
                         alpha=1.0 if i == 0 else 0.5, zorder=3 if i == 0 else 2, label=label)
-        ax.set_title(label)
+        ax.set_title(title)
         ax.set_xlabel("time [s]")
         ax.grid(True, alpha=0.3)
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
