@@ -62,7 +62,7 @@ def test_perturbed_mechanisms_stay_closable_within_tolerance(params):
 
 @pytest.mark.slow
 def test_study_on_the_fivebar_small():
-    result = run_chain_study(ChainStudyConfig(mechanism="fivebar", samples=1, duration=0.1))
+    result = run_chain_study(ChainStudyConfig(mechanism="fivebar", samples=1, duration=0.5))
     assert [m["plant"] for m in result.metrics] == ["nominal", "sample000"]
     assert all(m[k]["status"] == "ok" for m in result.metrics for k in result.names)
     nominal = result.claims[0]
