@@ -76,7 +76,12 @@ def test_reproduce_fivebar_writes_claims_and_figures(tmp_path, capsys):
                      "0.2", "--rate", "1000", "--out", str(out), "--no-progress"]) == 0
     data = json.loads((out / "results.json").read_text())
     assert data["config"]["mechanism"] == "fivebar" and len(data["claims"]) == 1
-    assert data["claims"][0]["holds"] is True  # both laws track the exact model
+    nominal = data["plants"][0]
+    assert nominal["fl"]["status"] == nominal["hinf"]["status"] == "ok"
+    # The claim is the larger of the two nominal RMS errors (a 50 mm circle in 0.2 s is fast:
+    # the verdict at the study's 2 s is in the slow test).
+    assert data["claims"][0]["value"] == max(nominal["fl"]["rms_error_rad"],
+                                             nominal["hinf"]["rms_error_rad"])
     assert (out / "fig5_nominal.png").is_file() and (out / "results.md").is_file()
     assert "compiled engine does not implement closed chains" in capsys.readouterr().out
 
