@@ -19,6 +19,8 @@ asserted:
 4. a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes; batched under
    ``engine="auto"``) against its bounds ``2 N x floor / 2 cores`` (generic and batched
    floors), and the throughput with 1 worker;
+4b. a closed chain (issue 22): a 10 s, 1 kHz FL run of the 5-bar (Python engine, the only one
+   that implements it) against its ``pin.constraintDynamics`` calls alone;
 5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
 6. ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant (:func:`loopsyn_3x3_s`).
 
@@ -153,6 +155,34 @@ def handwritten_fl_rollout(plant, nominal, lam, R, RD, RDD, Ts, n_steps):
         qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
         Q[k + 1] = q
     return Q
+
+
+def closed_chain_ms(duration, rate, repeat):
+    """Issue 22: a closed-loop FL run of the 5-bar against its constraintDynamics calls alone.
+
+    The run: ``simulate`` of the FL law on the reduced model, 1 sub-step per period (the
+    Python engine: the compiled one does not implement closed chains). The floor: the
+    ``4 x steps`` ``pin.constraintDynamics`` calls its RK4 plant makes, in a bare loop.
+    """
+    from rrr_pin.control.closed_chain import closed_chain_fl
+    from rrr_pin.control.references import SineReference
+    from rrr_pin.model.closed_chain import load_closed_chain
+
+    plant, nominal = load_closed_chain("fivebar"), load_closed_chain("fivebar")
+    ref = SineReference(home=plant.neutral(), amp=0.05, freq=0.5, phase=0.0)
+    law = closed_chain_fl(nominal)
+    q, qd = plant.home, plant.velocity(plant.home, np.array([0.1, -0.1]))
+    u = plant.actuation(np.array([0.1, 0.1]))
+    calls = 4 * int(round(duration * rate))
+
+    def calls_alone():
+        for _ in range(calls):
+            plant.constrained_acceleration(q, qd, u)
+
+    ms = side_by_side_ms({"run": lambda: simulate(plant, law, ref, duration, rate=rate),
+                          "calls": calls_alone}, repeat)
+    return {"closed_chain_rollout_ms": ms["run"], "constraint_dynamics_floor_ms": ms["calls"],
+            "closed_chain_goal_ms": 300.0 * duration / 10.0, "closed_chain_engine": "python"}
 
 
 def references(robot, duration):
@@ -362,6 +392,8 @@ def main(argv=None):
         run_campaign(robot, two, settings, jobs=jobs)
         return time.perf_counter() - t0
 
+    chain = closed_chain_ms(args.duration, args.rate, args.repeat)
+
     load_before = os.getloadavg()[0]
     campaign_s = campaign(args.campaign_samples, 2)
     campaign_load = [load_before, os.getloadavg()[0]]
@@ -413,6 +445,7 @@ def main(argv=None):
         "campaign_load_avg": campaign_load,
         "montecarlo_rollouts_per_s": {"1": 2 * args.mc_samples / one_job_s,
                                       "2": 2 * args.campaign_samples / campaign_s},
+        **chain,
         "cli_help_s": cli_help_s,
         "import_s": import_s,
         "python_startup_s": python_s,
@@ -500,6 +533,12 @@ def report(res, args):
     print("  throughput: " + ", ".join(
         f"{r:.1f} rollouts/s with {j} job{'s' if j != '1' else ''}"
         for j, r in res["montecarlo_rollouts_per_s"].items()))
+    cc, cf = res["closed_chain_rollout_ms"], res["constraint_dynamics_floor_ms"]
+    print(f"\n4b. closed chain (issue 22): 5-bar FL, {args.duration:g} s at {args.rate:g} Hz, "
+          f"Python engine (no compiled engine for closed chains)")
+    print(f"  run {cc:8.1f} ms; its constraintDynamics calls alone {cf:8.1f} ms ({cc / cf:.1f} "
+          f"x); goal < {res['closed_chain_goal_ms']:g} ms: "
+          f"{'met' if cc < res['closed_chain_goal_ms'] else 'NOT MET'}")
     print(f"\n5. start-up, fresh processes (median of {args.startup_repeat}; bare `python -c "
           f"pass` takes {res['python_startup_s']:.3f} s)")
     for key, what in (("cli_help_s", "rrr-pin --help"), ("import_s", "import rrr_pin")):

@@ -25,7 +25,7 @@ def _build_parser() -> argparse.ArgumentParser:
                "(INFO), -vv details (DEBUG), e.g. the engine chosen for each run"}
     parser.add_argument("-v", "--verbose", default=0, **verbose)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_urdf, _add_check_dynamics, _add_design, _add_reproduce,
+    for add in (_add_urdf, _add_mjcf, _add_check_dynamics, _add_design, _add_reproduce,
                 _add_montecarlo, _add_stress, _add_identify):
         add(sub)
     for command in sub.choices.values():  # also after the command: rrr-pin reproduce -v
@@ -220,6 +220,39 @@ def _cmd_urdf(args) -> int:
               f"({exc.strerror or exc})", file=sys.stderr)
         return 2
     print(f"wrote {path}")
+    return 0
+
+
+# --- mjcf ---------------------------------------------------------------------------------
+
+def _add_mjcf(sub) -> None:
+    p = sub.add_parser("mjcf", help="write (or check) the MJCF of a parallel mechanism (5-bar, "
+                       "Delta) generated from its parameter set")
+    p.add_argument("mechanism", choices=("fivebar", "delta"))
+    p.add_argument("--out", metavar="PATH", default=None,
+                   help="where to write it (default: standard output; with --check, the "
+                        "committed mjcf/MECHANISM.xml)")
+    p.add_argument("--check", action="store_true",
+                   help="do not write: exit 1 if PATH differs from what the generator writes")
+    p.set_defaults(func=_cmd_mjcf)
+
+
+def _cmd_mjcf(args) -> int:
+    from .model.mechanisms import check_mjcf, mechanism_params, mjcf_from_params, write_mjcf
+
+    params = mechanism_params(args.mechanism)
+    if args.check:
+        out = args.out or f"mjcf/{args.mechanism}.xml"
+        if check_mjcf(out, params):
+            print(f"{out}: up to date")
+            return 0
+        print(f"{out}: missing or differs from the generator's output; regenerate with "
+              f"`rrr-pin mjcf {args.mechanism} --out {out}`")
+        return 1
+    if args.out in (None, "-"):
+        sys.stdout.write(mjcf_from_params(params))
+        return 0
+    print(f"wrote {write_mjcf(args.out, params)}")
     return 0
 
 
@@ -584,6 +617,12 @@ def _cmd_reproduce(args) -> int:
 
     out = _check_out_early(args, "reproduce")  # a file, no permission, another tool's run
     check_count("--samples", args.samples)
+    if args.robot in ("fivebar", "delta"):
+        return _reproduce_chain(args, out)
+    if args.robot.lower().endswith(".xml"):
+        raise ValueError(f"--robot {args.robot}: an MJCF closed chain; the closed-chain study "
+                         f"runs the built-in fivebar and delta only (load your MJCF with "
+                         f"rrr_pin.load_robot and simulate it from Python)")
     lock = _parse_lock(args.lock)
     _not_a_folder(robot=args.robot, csv=args.csv)
     robot = load_robot(args.robot, lock=lock)
@@ -680,6 +719,42 @@ def _torque_limit_from_args(text: str, robot, reference, settings):
     values = _floats(text, name)
     info = {"spec": text, "rule": "given"}
     return check_torque_limit(robot, values, reference, name=name), info
+
+
+def _reproduce_chain(args, out) -> int:
+    """``reproduce --robot fivebar|delta``: the study on a parallel mechanism."""
+    from .campaign.closed_chain_study import ChainStudyConfig, run_chain_study
+    from .report.closed_chain import write_chain_study
+
+    unsupported = [opt for opt, given in (
+        ("--lock", args.lock), ("--csv", getattr(args, "csv", None)),
+        ("--engine compiled/codegen", args.engine in ("compiled", "codegen")),
+        ("--delay", args.delay), ("--actuator-bandwidth", args.actuator_bandwidth),
+        ("--q0", args.q0), ("--qd0", args.qd0), ("--home", args.home),
+        ("--full-order", args.full_order), ("--save-trajectories", args.save_trajectories),
+        ("--controllers other than fl,hinf", args.controllers != "fl,hinf"),
+        ("--reference other than sine", args.reference != "sine")) if given]
+    if unsupported:
+        raise ValueError(f"--robot {args.robot} (a closed chain) does not implement "
+                         f"{', '.join(unsupported)}; its study runs fl and hinf on the "
+                         f"mechanism's own reference, Python engine")
+    config = ChainStudyConfig(mechanism=args.robot, samples=args.samples, seed=args.seed,
+                              duration=args.duration, rate=args.rate)
+    if out is None:
+        out = _claim_out(args, "reproduce")
+    result = run_chain_study(config, progress=None if args.no_progress else
+                             lambda done, total: print(f"{args.robot}: plant {done}/{total}",
+                                                       file=sys.stderr))
+    from .model.mechanisms import mechanism_params
+
+    paths = write_chain_study(result, out, params=mechanism_params(args.robot))
+    for c in result.claims:
+        verdict = "undetermined" if c["holds"] is None else ("holds" if c["holds"] else
+                                                              "does not hold")
+        print(f"{c['claim']}: {c['value']:.4g} -> {verdict}")
+    print(f"wrote {', '.join(p.name for p in paths)} into {out} (engine: python; the "
+          f"compiled engine does not implement closed chains)")
+    return 0
 
 
 # --- montecarlo (robustness campaign) ---------------------------------------------------------

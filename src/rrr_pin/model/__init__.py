@@ -6,8 +6,11 @@ example-robot-data name or a URDF path), :mod:`~rrr_pin.model.dynamics` (``Robot
 ``load_robot``: M, V, G through Pinocchio), :mod:`~rrr_pin.model.closed_form` (the corrected
 eq. (2)-(7)), :mod:`~rrr_pin.model.uncertainty` (seeded uncertain plants as URDF),
 :mod:`~rrr_pin.model.identification` (base inertial parameters from measured torques, a
-physically consistent URDF, the identified uncertainty) and :mod:`~rrr_pin.model.excitation`
-(Fourier excitation trajectories for it).
+physically consistent URDF, the identified uncertainty), :mod:`~rrr_pin.model.excitation`
+(Fourier excitation trajectories for it),
+:mod:`~rrr_pin.model.mechanisms` (the 5-bar and Delta parameter sets, their MJCF generator
+and closed-form kinematics) and :mod:`~rrr_pin.model.closed_chain` (``ClosedChain``: loop
+closure and the reduced dynamics in actuated coordinates).
 
 Layer: the lowest. May import :mod:`rrr_pin.validation` only.
 """

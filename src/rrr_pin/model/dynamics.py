@@ -524,6 +524,8 @@ def load_robot(source="rrr", *, gravity: float | None = None,
         A URDF file path; ``"rrr"`` (the paper's arm, generated from :func:`paper_params`);
         an example-robot-data arm name (see :func:`robot_names`); or an :class:`ArmParams`,
         whose URDF is generated on the fly.
+        A parallel mechanism (``"fivebar"``, ``"delta"``, their parameter sets or an
+        ``.xml`` MJCF path) gives a :class:`rrr_pin.model.closed_chain.ClosedChain` instead.
     gravity : float, optional
         Gravity magnitude [m/s^2], along ``-z`` of the URDF's root link; default ``source.g``
         for an :class:`ArmParams`, else 9.8 (the paper's value).
@@ -534,6 +536,7 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     Returns
     -------
     Robot
+        Or a :class:`~rrr_pin.model.closed_chain.ClosedChain` for a parallel mechanism.
 
     Raises
     ------
@@ -546,6 +549,12 @@ def load_robot(source="rrr", *, gravity: float | None = None,
         moving joint without mass downstream, a joint to lock that is unknown or whose value
         is not finite or outside its limits, or a mass matrix that is not positive definite.
     """
+    from .closed_chain import is_closed_chain_source, load_closed_chain
+
+    if is_closed_chain_source(source):  # a parallel mechanism (MJCF): "fivebar", "delta"
+        if lock:
+            raise ValueError(f"lock: joints of a closed chain cannot be locked, got {lock}")
+        return load_closed_chain(source, gravity=DEFAULT_GRAVITY if gravity is None else gravity)
     if gravity is None:
         gravity = source.g if isinstance(source, ArmParams) else DEFAULT_GRAVITY
     raw, name, label = read_source(source)

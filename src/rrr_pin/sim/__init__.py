@@ -5,8 +5,9 @@ divergence test), :mod:`~rrr_pin.sim.simulation` (``simulate``: validation and t
 engine), :mod:`~rrr_pin.sim.extension` (the C++ extension ``_rollout``),
 :mod:`~rrr_pin.sim.compiled` (the compiled engine), :mod:`~rrr_pin.sim.codegen` (the
 fixed-model generated C and its fingerprint), :mod:`~rrr_pin.sim.dyngen` (the generator of
-parameter-input dynamics per structure) and :mod:`~rrr_pin.sim.batched` (engine ``"codegen"``:
-batched rollouts of many plants on them).
+parameter-input dynamics per structure), :mod:`~rrr_pin.sim.batched` (engine ``"codegen"``:
+batched rollouts of many plants on them) and :mod:`~rrr_pin.sim.closed_chain` (parallel
+mechanisms on Pinocchio's constraint dynamics, Python engine).
 
 Layer: above :mod:`rrr_pin.control`. May import :mod:`rrr_pin.validation`,
 :mod:`rrr_pin.model`, :mod:`rrr_pin.robust` and :mod:`rrr_pin.control`.

@@ -270,7 +270,9 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
     Parameters
     ----------
     plant : Robot
-        The true arm (may differ from the law's model).
+        The true arm (may differ from the law's model). A
+        :class:`~rrr_pin.model.closed_chain.ClosedChain` is run by
+        :func:`rrr_pin.sim.closed_chain.simulate_closed_chain` (no effects).
     law : ControlLaw or SampledLaw
         Any law (:mod:`rrr_pin.control.laws`): a built-in or your own.
     reference : Reference
@@ -335,6 +337,14 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
     TypeError
         ``law`` or ``reference`` of the wrong type.
     """
+    if hasattr(plant, "constraints"):  # a parallel mechanism (rrr_pin.model.closed_chain)
+        from .closed_chain import simulate_closed_chain
+
+        if effects is not None or limit_margin:
+            raise ValueError(f"plant {plant.name!r} is a closed chain: effects and "
+                             f"limit_margin are not implemented for it")
+        return simulate_closed_chain(plant, law, reference, duration, rate=rate, dt=dt,
+                                     method=method, q0=q0, qd0=qd0, engine=engine)
     run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
                    qd0=qd0, limit_margin=limit_margin, effects=effects, check=check,
                    force=force)

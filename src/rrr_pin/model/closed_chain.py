@@ -1,0 +1,561 @@
+r"""Closed-chain (parallel) mechanisms: loop closure, reduced dynamics in actuated coordinates.
+
+A :class:`ClosedChain` is a Pinocchio tree (all joints, actuated and passive) with loop-closure
+constraints, read from MJCF (:mod:`rrr_pin.model.mechanisms` writes the built-ins). Let
+``phi(q) = 0`` be the loop closure (the world-frame gap between the two anchor points of each
+``<connect>``, its independent rows only) and ``J = d phi / dq = [J_a  J_p]`` its Jacobian,
+split into actuated and passive columns. Then ``qd = S qd_a`` and the equation of motion
+projected on the actuated coordinates is eq. (1) of the paper in ``q_a``:
+
+.. math::
+
+    S = \begin{bmatrix} I \\ -J_p^{-1} J_a \end{bmatrix}, \quad
+    M_r = S^T M S, \quad
+    V_r + G_r = S^T \mathrm{rnea}(q, S \dot q_a, s_0), \quad
+    s_0 = \begin{bmatrix} 0 \\ -J_p^{-1} \gamma \end{bmatrix},
+
+with ``gamma = Jdot qd`` the constraint's drift term (the classical acceleration of the anchor
+gap at ``qdd = 0``), so that ``M_r qdd_a + V_r + G_r = tau`` (``S^T J^T = 0`` removes the
+constraint forces). The passive coordinates come from the actuated ones by Newton on
+``phi`` seeded from the previous solution (:meth:`ClosedChain.close`). A configuration where
+``J_p`` is singular (type-II, or parallel, singularity) is refused by name, with the
+condition number (:class:`SingularConfiguration`, above :data:`COND_LIMIT`).
+
+The full constrained dynamics, the plant's, is Pinocchio's ``constraintDynamics``
+(:meth:`ClosedChain.constrained_acceleration`).
+
+Pinocchio 4.1.0 traps, each pinned by a test in ``tests/test_closed_chain.py``: a
+``RigidConstraintData`` reused after ``lcaba`` corrupts a later ``constraintDynamics`` (fresh
+data here, and no ``lcaba``); the MJCF parser keeps only the first top-level body (the built-ins
+wrap everything in one jointless ``base``); ``buildModelsFromMJCF(..., constraints=True)``
+raises TypeError (``buildModelAndLegacyConstraintsFromMJCF`` is used); a ``CONTACT_3D`` on a
+planar loop has an identically zero row, so the proximal ``mu`` sets the accuracy
+(:data:`PROXIMAL_MU`).
+
+References
+----------
+.. [1] J. Carpentier, R. Budhiraja, N. Mansard, "Proximal and sparse resolution of constrained
+   dynamic equations", RSS 2021 (Pinocchio's ``constraintDynamics``).
+.. [2] C. Gosselin, J. Angeles, "Singularity analysis of closed-loop kinematic chains",
+   IEEE T-RA 6(3), 1990 (type-I and type-II singularities).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .mechanisms import MECHANISMS, DeltaParams, FiveBarParams, MechanismError, mjcf_from_params
+
+__all__ = ["ClosedChain", "load_closed_chain", "is_closed_chain_source", "SingularConfiguration",
+           "LoopClosureError", "COND_LIMIT", "CLOSURE_TOL", "PROXIMAL_MU"]
+
+#: Largest condition number of ``J_p`` accepted; above it the configuration is refused as
+#: type-II singular (``S`` and the FL torque scale with ``J_p^-1``). For the built-in 5-bar,
+#: ``cond(J_p)`` passes 1e4 about 1e-9 rad from its stretched singularity (27 at 1e-3 rad).
+COND_LIMIT = 1e4
+
+#: Loop-closure residual [m] at which Newton stops (:meth:`ClosedChain.close`).
+CLOSURE_TOL = 1e-12
+
+#: Proximal parameter of ``constraintDynamics``. With the identically zero row of a planar
+#: ``CONTACT_3D``, Pinocchio 4.1.0 reaches 6e-11 rad/s^2 at ``mu = 1e-4`` but only 5e-5 at
+#: ``mu = 1e-10`` (a test pins both).
+PROXIMAL_MU = 1e-4
+
+
+class SingularConfiguration(ValueError):
+    """A type-II singular configuration (``J_p`` singular): the message has ``cond(J_p)``.
+
+    Attributes
+    ----------
+    cond : float
+        Condition number of ``J_p`` there.
+    """
+
+    def __init__(self, message: str, cond: float):
+        super().__init__(message)
+        self.cond = cond
+
+
+class LoopClosureError(ValueError):
+    """The loop closure has no solution near the seed (the actuated angles cannot close it)."""
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+@dataclass
+class ClosedChain:
+    """A parallel mechanism: Pinocchio tree, loop closures, actuated and passive coordinates.
+
+    The dynamics face is the one of :class:`rrr_pin.model.dynamics.Robot`, in the actuated
+    coordinates ``q_a`` (``nq`` of them): :meth:`M`, :meth:`V`, :meth:`G`,
+    :meth:`forward_dynamics`, :meth:`inverse_dynamics`; the passive coordinates are solved by
+    :meth:`close`, seeded from the last solution (so the calls are not thread-safe).
+
+    Attributes
+    ----------
+    model : pinocchio.Model
+        The tree with every joint; ``model.nq == model.nv`` (revolute and prismatic joints).
+    data : pinocchio.Data
+        Workspace of ``model``.
+    constraints : list of pinocchio.RigidConstraintModel
+        The loop closures as Pinocchio reads them (``CONTACT_3D``), for ``constraintDynamics``.
+    name, source, mjcf : str
+        Model name, where it came from, its MJCF text.
+    actuated, passive : tuple of int
+        Velocity indices of the actuated and passive coordinates (``model.nv`` in all).
+    dof_names : tuple of str
+        Name of every coordinate (the MJCF joint names), shape (model.nv,).
+    rows : ndarray of int
+        Independent rows of the stacked world-frame anchor gaps (3 per closure), as many as
+        passive coordinates.
+    home : ndarray, shape (model.nq,)
+        A closed configuration [rad, m] (the MJCF ``home`` keyframe).
+    params : FiveBarParams, DeltaParams or None
+        The built-in's parameter set.
+    """
+
+    model: pin.Model = field(repr=False)
+    data: pin.Data = field(repr=False)
+    constraints: list = field(repr=False)
+    name: str
+    source: str
+    mjcf: str = field(repr=False)
+    actuated: tuple
+    passive: tuple
+    dof_names: tuple
+    rows: np.ndarray = field(repr=False)
+    home: np.ndarray = field(repr=False)
+    params: object = None
+
+    def __post_init__(self) -> None:
+        self._act = np.array(self.actuated, dtype=int)
+        self._pas = np.array(self.passive, dtype=int)
+        self._frames = []
+        for k, c in enumerate(self.constraints):
+            ids = []
+            for side, joint, place in (("a", c.joint1_id, c.joint1_placement),
+                                       ("b", c.joint2_id, c.joint2_placement)):
+                name = f"_loop{k}{side}"
+                if not self.model.existFrame(name):
+                    self.model.addFrame(pin.Frame(name, joint, 0, place, pin.OP_FRAME))
+                ids.append(self.model.getFrameId(name))
+            self._frames.append(tuple(ids))
+        self.data = self.model.createData()
+        self._cdatas = [c.createData() for c in self.constraints]
+        pin.initConstraintDynamics(self.model, self.data, self.constraints, self._cdatas)
+        self._prox = pin.ProximalSettings(1e-14, PROXIMAL_MU, 200)
+        self._q = self.home.copy()
+
+    # --- the Robot face in actuated coordinates ----------------------------------------------
+    @property
+    def nq(self) -> int:
+        """Number of actuated coordinates (the mechanism's mobility)."""
+        return len(self.actuated)
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Names of the actuated joints, shape (nq,)."""
+        return [self.dof_names[i] for i in self.actuated]
+
+    @property
+    def passive_names(self) -> list[str]:
+        """Names of the passive coordinates."""
+        return [self.dof_names[i] for i in self.passive]
+
+    @property
+    def constraint_names(self) -> list[str]:
+        """Names of the loop closures (the MJCF ``<connect>`` names)."""
+        return [c.name for c in self.constraints]
+
+    @property
+    def gravity(self) -> float:
+        """Gravity magnitude [m/s^2] (along ``-z``)."""
+        return float(-self.model.gravity.linear[2])
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Actuated joint limits: none (``-inf``), shape (nq,); the loop sets the workspace."""
+        return np.full(self.nq, -np.inf)
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Actuated joint limits: none (``+inf``), shape (nq,)."""
+        return np.full(self.nq, np.inf)
+
+    def neutral(self) -> np.ndarray:
+        """Actuated coordinates of the ``home`` configuration, shape (nq,) [rad]."""
+        return self.home[self._act].copy()
+
+    def check_state(self, name: str, x) -> np.ndarray:
+        """Return ``x`` as a finite float64 array of shape ``(nq,)``, or raise ValueError."""
+        x = np.asarray(x, dtype=float)
+        if x.shape != (self.nq,):
+            raise ValueError(f"Expected {name} of shape ({self.nq},), got {x.shape}")
+        if not np.isfinite(x).all():
+            raise ValueError(f"{name} must be finite, got {x}")
+        return x
+
+    # --- loop closure ------------------------------------------------------------------------
+    def residual(self, q, *, kinematics: bool = True) -> np.ndarray:
+        """Loop-closure gap ``phi(q)`` [m], its independent rows, shape (len(passive),).
+
+        Runs ``framesForwardKinematics`` (``kinematics=False`` trusts that the frames are
+        placed at ``q``).
+        """
+        if kinematics:
+            pin.framesForwardKinematics(self.model, self.data, q)
+        oMf = self.data.oMf
+        gap = np.concatenate([oMf[a].translation - oMf[b].translation for a, b in self._frames])
+        return gap[self.rows]
+
+    def jacobian(self, q, *, kinematics: bool = True) -> np.ndarray:
+        """Loop-closure Jacobian ``J = d phi / dq``, shape (len(passive), model.nv) [m/rad].
+
+        ``kinematics=False`` trusts that ``computeJointJacobians`` ran at ``q``.
+        """
+        if kinematics:
+            pin.computeJointJacobians(self.model, self.data, q)
+            pin.updateFramePlacements(self.model, self.data)
+        rows = []
+        for a, b in self._frames:
+            ja = pin.getFrameJacobian(self.model, self.data, a, pin.LOCAL_WORLD_ALIGNED)[:3]
+            jb = pin.getFrameJacobian(self.model, self.data, b, pin.LOCAL_WORLD_ALIGNED)[:3]
+            rows.append(ja - jb)
+        return np.vstack(rows)[self.rows]
+
+    def passive_jacobian_cond(self, q) -> float:
+        """Condition number of ``J_p`` at the full configuration ``q`` (inf if singular)."""
+        return float(np.linalg.cond(self.jacobian(q)[:, self._pas]))
+
+    def _refuse_singular(self, q, cond: float) -> None:
+        raise SingularConfiguration(
+            f"{self.name}: type-II (parallel) singularity at q_a = "
+            f"{np.array2string(q[self._act], precision=6)} rad: cond(J_p) = {cond:.3g} > "
+            f"{COND_LIMIT:g}; the actuated joints cannot determine the passive ones there",
+            cond)
+
+    def close(self, qa, seed=None, *, tol: float = CLOSURE_TOL, max_iter: int = 30
+              ) -> np.ndarray:
+        """Full configuration ``q`` [rad, m] with actuated part ``qa`` that closes the loop.
+
+        Newton on the passive coordinates, ``q_p <- q_p - J_p^-1 phi``, from ``seed`` (a full
+        configuration; default: the last solution).
+
+        Parameters
+        ----------
+        qa : array-like, shape (nq,)
+            Actuated coordinates [rad].
+        seed : array-like, shape (model.nq,), optional
+            Starting configuration.
+        tol : float
+            Largest residual accepted [m].
+        max_iter : int
+            Newton iterations before :class:`LoopClosureError`.
+
+        Raises
+        ------
+        SingularConfiguration
+            ``cond(J_p) > COND_LIMIT`` at the solution or on the way.
+        LoopClosureError
+            No convergence (the loop cannot close at ``qa``, or the seed is too far).
+        """
+        q = (self._q if seed is None else np.asarray(seed, dtype=float)).copy()
+        q[self._act] = qa
+        pas = self._pas
+        for _ in range(max_iter):
+            J = self.jacobian(q)  # also places the frames
+            phi = self.residual(q, kinematics=False)
+            if float(np.max(np.abs(phi))) <= tol:
+                cond = float(np.linalg.cond(J[:, pas]))
+                if not cond <= COND_LIMIT:
+                    self._refuse_singular(q, cond)
+                self._q = q
+                self._Jq = (q.copy(), J)
+                return q.copy()
+            try:
+                q[pas] -= np.linalg.solve(J[:, pas], phi)
+            except np.linalg.LinAlgError:
+                self._refuse_singular(q, math.inf)
+        raise LoopClosureError(
+            f"{self.name}: the loop does not close at q_a = "
+            f"{np.array2string(np.asarray(qa, dtype=float), precision=6)} rad (Newton from the "
+            f"last configuration left a gap of {float(np.max(np.abs(self.residual(q)))):.3g} m "
+            f"after {max_iter} iterations): out of the workspace")
+
+    def reduced(self, qa, qd_a) -> tuple[np.ndarray, np.ndarray]:
+        """``(M_r, V_r + G_r)`` at actuated ``(qa, qd_a)``, unchecked: the law's fast path.
+
+        Closes the loop from the last solution (:meth:`close`), then as
+        :meth:`reduced_terms`. Shapes (nq, nq) [kg m^2] and (nq,) [N m].
+        """
+        q = self.close(qa)
+        J = self._Jq[1]  # cond(J_p) checked by close
+        Jp = J[:, self._pas]
+        Sm = np.zeros((self.model.nv, self.nq))
+        Sm[self._act, np.arange(self.nq)] = 1.0
+        Sm[self._pas] = -np.linalg.solve(Jp, J[:, self._act])
+        qd = Sm @ qd_a
+        s0 = np.zeros(self.model.nv)
+        s0[self._pas] = -np.linalg.solve(Jp, self.gamma(q, qd))
+        M = pin.crba(self.model, self.data, q)
+        h = pin.rnea(self.model, self.data, q, qd, s0)
+        return Sm.T @ M @ Sm, Sm.T @ h
+
+    def velocity(self, q, qd_a) -> np.ndarray:
+        """Full velocity ``S qd_a`` [rad/s, m/s], shape (model.nv,), at a closed ``q``."""
+        Sm, _ = self.S(q)
+        return Sm @ np.asarray(qd_a, dtype=float)
+
+    def S(self, q) -> tuple[np.ndarray, float]:
+        """``S = [I; -J_p^-1 J_a]`` (rows in velocity order), shape (model.nv, nq), and cond(J_p).
+
+        Refuses a type-II singular ``q`` (:class:`SingularConfiguration`).
+        """
+        J = self.jacobian(q)
+        return self._S_of(q, J)
+
+    def _S_of(self, q, J):
+        Jp = J[:, self._pas]
+        cond = float(np.linalg.cond(Jp))
+        if not cond <= COND_LIMIT:
+            self._refuse_singular(q, cond)
+        Sm = np.zeros((self.model.nv, self.nq))
+        Sm[self._act, np.arange(self.nq)] = 1.0
+        Sm[self._pas] = -np.linalg.solve(Jp, J[:, self._act])
+        return Sm, cond
+
+    def gamma(self, q, qd) -> np.ndarray:
+        """Drift term ``gamma = Jdot qd`` [m/s^2], shape (len(passive),)."""
+        pin.forwardKinematics(self.model, self.data, q, qd, np.zeros(self.model.nv))
+        acc = []
+        for a, b in self._frames:
+            aa = pin.getFrameClassicalAcceleration(self.model, self.data, a,
+                                                   pin.LOCAL_WORLD_ALIGNED).linear
+            ab = pin.getFrameClassicalAcceleration(self.model, self.data, b,
+                                                   pin.LOCAL_WORLD_ALIGNED).linear
+            acc.append(aa - ab)
+        return np.concatenate(acc)[self.rows]
+
+    def reduced_terms(self, q, qd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(M_r, V_r + G_r, S)`` at a closed full state ``(q, qd)`` (module docstring).
+
+        Parameters
+        ----------
+        q : ndarray, shape (model.nq,)
+            Closed configuration [rad, m].
+        qd : ndarray, shape (model.nv,)
+            Consistent velocity (``J qd = 0``) [rad/s, m/s].
+
+        Returns
+        -------
+        M_r : ndarray, shape (nq, nq)
+            Reduced inertia [kg m^2].
+        h_r : ndarray, shape (nq,)
+            ``V_r + G_r`` [N m].
+        S : ndarray, shape (model.nv, nq)
+        """
+        J = self.jacobian(q)
+        Sm, _ = self._S_of(q, J)
+        s0 = np.zeros(self.model.nv)
+        s0[self._pas] = -np.linalg.solve(J[:, self._pas], self.gamma(q, qd))
+        M = pin.crba(self.model, self.data, q)
+        h = pin.rnea(self.model, self.data, q, qd, s0)
+        return Sm.T @ M @ Sm, Sm.T @ h, Sm
+
+    def state(self, qa, qd_a) -> tuple[np.ndarray, np.ndarray]:
+        """Full ``(q, qd)`` of actuated ``(qa, qd_a)``: :meth:`close`, then ``qd = S qd_a``."""
+        q = self.close(qa)
+        return q, self.velocity(q, qd_a)
+
+    def M(self, qa, *, check: bool = True) -> np.ndarray:
+        """Reduced inertia ``M_r = S^T M S`` at actuated ``qa`` [rad], shape (nq, nq)."""
+        if check:
+            qa = self.check_state("q", qa)
+        q = self.close(qa)
+        Sm, _ = self.S(q)
+        return Sm.T @ pin.crba(self.model, self.data, q) @ Sm
+
+    def G(self, qa, *, check: bool = True) -> np.ndarray:
+        """Reduced gravity ``G_r = S^T g(q)`` [N m], shape (nq,)."""
+        if check:
+            qa = self.check_state("q", qa)
+        q = self.close(qa)
+        Sm, _ = self.S(q)
+        return Sm.T @ pin.computeGeneralizedGravity(self.model, self.data, q)
+
+    def V(self, qa, qd_a, *, check: bool = True) -> np.ndarray:
+        """Reduced centrifugal and Coriolis torques ``V_r`` [N m], shape (nq,)."""
+        if check:
+            qa, qd_a = self.check_state("q", qa), self.check_state("qd", qd_a)
+        q, qd = self.state(qa, qd_a)
+        _, h, Sm = self.reduced_terms(q, qd)
+        return h - Sm.T @ pin.computeGeneralizedGravity(self.model, self.data, q)
+
+    def inverse_dynamics(self, qa, qd_a, qdd_a, *, check: bool = True) -> np.ndarray:
+        """Actuator torques ``M_r qdd_a + V_r + G_r`` [N m], shape (nq,)."""
+        if check:
+            qa, qd_a = self.check_state("q", qa), self.check_state("qd", qd_a)
+            qdd_a = self.check_state("qdd", qdd_a)
+        q, qd = self.state(qa, qd_a)
+        Mr, h, _ = self.reduced_terms(q, qd)
+        return Mr @ qdd_a + h
+
+    def forward_dynamics(self, qa, qd_a, tau, *, check: bool = True) -> np.ndarray:
+        """Actuated accelerations ``M_r^-1 (tau - V_r - G_r)`` [rad/s^2], shape (nq,)."""
+        if check:
+            qa, qd_a = self.check_state("q", qa), self.check_state("qd", qd_a)
+            tau = self.check_state("tau", tau)
+        q, qd = self.state(qa, qd_a)
+        Mr, h, _ = self.reduced_terms(q, qd)
+        return np.linalg.solve(Mr, tau - h)
+
+    # --- the plant ---------------------------------------------------------------------------
+    def actuation(self, tau) -> np.ndarray:
+        """Generalized force of actuator torques ``tau`` [N m], shape (model.nv,).
+
+        ``tau`` on the actuated coordinates, zero on the passive ones.
+        """
+        out = np.zeros(self.model.nv)
+        out[self._act] = tau
+        return out
+
+    def constrained_acceleration(self, q, qd, tau_full) -> np.ndarray:
+        """Pinocchio's ``constraintDynamics``: full ``qdd`` [rad/s^2, m/s^2], shape (model.nv,).
+
+        The loop forces are in ``self.data.lambda_c`` after the call.
+        """
+        return pin.constraintDynamics(self.model, self.data, q, qd, tau_full, self.constraints,
+                                      self._cdatas, self._prox)
+
+    def energy(self, q, qd) -> float:
+        """Kinetic plus potential energy [J] of the full state (Pinocchio)."""
+        return float(pin.computeKineticEnergy(self.model, self.data, q, qd)
+                     + pin.computePotentialEnergy(self.model, self.data, q))
+
+    def project(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
+        """Project a full state onto the constraint manifold.
+
+        Newton on the passive coordinates from ``q``, then ``qd = S qd_a`` (the actuated parts
+        are kept).
+        """
+        q = self.close(q[self._act], seed=q)
+        J = self._Jq[1]
+        qd = qd.copy()
+        qd[self._pas] = -np.linalg.solve(J[:, self._pas], J[:, self._act] @ qd[self._act])
+        return q, qd
+
+
+def is_closed_chain_source(source) -> bool:
+    """Whether :func:`rrr_pin.load_robot` hands ``source`` to :func:`load_closed_chain`."""
+    if isinstance(source, (FiveBarParams, DeltaParams)):
+        return True
+    if isinstance(source, (str, Path)):
+        text = str(source)
+        return text in MECHANISMS or text.lower().endswith(".xml")
+    return False
+
+
+def _mjcf_of(source) -> tuple[str, str, str, object]:
+    if isinstance(source, (FiveBarParams, DeltaParams)):
+        return mjcf_from_params(source), source.name, "<params>", source
+    text = str(source)
+    if text in MECHANISMS:
+        params = MECHANISMS[text]()
+        return mjcf_from_params(params), text, text, params
+    path = Path(text)
+    if not path.is_file():
+        raise FileNotFoundError(f"MJCF file not found: {path}")
+    return path.read_text(encoding="utf-8"), path.stem, str(path), None
+
+
+def load_closed_chain(source, *, gravity: float = 9.8) -> ClosedChain:
+    """Load a parallel mechanism from MJCF.
+
+    Parameters
+    ----------
+    source : str, path-like, FiveBarParams or DeltaParams
+        ``"fivebar"``, ``"delta"`` (the built-ins of :mod:`rrr_pin.model.mechanisms`), a
+        parameter set, or an MJCF file with ``<equality><connect>`` loop closures and one
+        ``<motor joint=...>`` per actuated joint.
+    gravity : float, default 9.8
+        Gravity magnitude [m/s^2] along ``-z`` (the paper's value).
+
+    Returns
+    -------
+    ClosedChain
+
+    Raises
+    ------
+    MechanismError
+        No loop closure, no motor, a motor on an unknown joint, a number of actuators that is
+        not the mobility (``nv - rank J``), or ``J_p`` singular at ``home``.
+    """
+    text, name, label, params = _mjcf_of(source)
+    root = ET.fromstring(text)
+    joints = [j.get("name") for j in root.find("worldbody").iter("joint")]
+    motors = [m.get("joint") for m in root.iter("motor")]
+    fd, tmp = tempfile.mkstemp(suffix=".xml")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        model, constraints = pin.buildModelAndLegacyConstraintsFromMJCF(tmp)
+    finally:
+        os.unlink(tmp)
+    constraints = list(constraints)
+    for c, connect in zip(constraints, root.iter("connect"), strict=False):
+        c.name = connect.get("name") or ""
+    if model.nq != model.nv or model.nv != len(joints):
+        raise MechanismError(f"{label}: rrr-pin handles hinge and slide joints only "
+                             f"(nq = {model.nq}, nv = {model.nv}, {len(joints)} joints)")
+    if not constraints:
+        raise MechanismError(f"{label}: no loop closure (<equality><connect>): a serial arm is "
+                             f"a URDF")
+    unknown = [m for m in motors if m not in joints]
+    if unknown or not motors:
+        raise MechanismError(f"{label}: motors must name joints; got {motors}, joints {joints}")
+    model.gravity = pin.Motion(np.array([0.0, 0.0, -gravity]), np.zeros(3))
+    home = np.zeros(model.nq)
+    for key in root.iter("key"):
+        if key.get("name") == "home" and key.get("qpos"):
+            home = np.array([float(v) for v in key.get("qpos").split()])
+    actuated = tuple(sorted(joints.index(m) for m in motors))
+    passive = tuple(i for i in range(model.nv) if i not in actuated)
+    probe = ClosedChain(model=model, data=model.createData(), constraints=constraints,
+                        name=name, source=label, mjcf=text, actuated=actuated, passive=passive,
+                        dof_names=tuple(joints), rows=np.arange(3 * len(constraints)),
+                        home=home, params=params)
+    J = probe.jacobian(home)
+    sv = np.linalg.svd(J, compute_uv=False)
+    rank = int(np.sum(sv > 1e-9 * sv[0]))
+    mobility = model.nv - rank
+    if len(actuated) != mobility:
+        raise MechanismError(
+            f"{label}: {len(actuated)} actuator(s) ({', '.join(motors)}) but the mechanism's "
+            f"mobility is {mobility} ({model.nv} coordinates, {rank} independent loop-closure "
+            f"equations): each degree of freedom needs exactly one actuator")
+    # Independent rows: the largest |pivot| first (QR with column pivoting of J^T).
+    import scipy.linalg
+
+    _, _, piv = scipy.linalg.qr(J.T, pivoting=True, mode="economic")
+    rows = np.sort(piv[:rank])
+    chain = ClosedChain(model=model, data=model.createData(), constraints=constraints,
+                        name=name, source=label, mjcf=text, actuated=actuated, passive=passive,
+                        dof_names=tuple(joints), rows=rows, home=home, params=params)
+    gap = float(np.max(np.abs(chain.residual(home))))
+    if not math.isfinite(gap) or gap > 1e-9:
+        chain.home = chain.close(home[list(actuated)], seed=home)
+    cond = chain.passive_jacobian_cond(chain.home)
+    if not cond <= COND_LIMIT:
+        chain._refuse_singular(chain.home, cond)
+    return chain

@@ -1,0 +1,269 @@
+r"""Closed-loop simulation of a parallel mechanism on its full constrained dynamics.
+
+The plant is the whole tree with its loop closures, integrated by Pinocchio's
+``constraintDynamics`` (not the reduced model the law uses): a sampled law reads the actuated
+``(q_a, qd_a)`` at ``t_k = k Ts``, its torque is held over ``[t_k, t_k + Ts]``, and the full
+state ``(q, qd)`` is integrated by ``substeps`` classical RK4 steps. After each step the state
+is projected back onto the constraint manifold (Newton on the passive coordinates to
+:data:`~rrr_pin.model.closed_chain.CLOSURE_TOL`, then ``qd = S qd_a``; the actuated parts are
+kept). A step across a type-II singularity (``det J_p`` changes sign, or ``cond(J_p)`` above
+the limit) stops the run with :class:`~rrr_pin.model.closed_chain.SingularConfiguration`
+naming the time. The drift each step leaves before its projection is recorded: ``info["drift_m"]``
+(largest loop gap [m]) and ``info["drift_velocity_m_s"]`` (largest ``|J qd|``), with the bound
+they are checked against, ``info["drift_bound_m"]`` (:data:`DRIFT_BOUND`): a run whose
+drift exceeds it stops with :class:`ConstraintDrift` (the step is too large for the motion).
+
+Engines: this module is the Python one. The compiled engine does not implement closed chains:
+``engine="compiled"`` or ``"codegen"`` is refused by name, ``"auto"`` runs Python and records
+it in ``info["engine"]``.
+
+Before the run, the reference is checked along its whole grid (:func:`check_chain_reference`):
+each sample must close the loop, away from a type-II singularity (``cond(J_p)`` at most
+:data:`~rrr_pin.model.closed_chain.COND_LIMIT`, and no sign change of ``det J_p`` between
+samples, which a sampled crossing would otherwise hide); a refusal names the time and the
+condition number.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..control.laws import ControlLaw, SampledLaw, check_law, check_step_output
+from ..control.references import check_reference, checked_sample
+from ..model.closed_chain import COND_LIMIT, LoopClosureError, SingularConfiguration
+from ..validation import check_multiple, check_positive, check_rate
+from .trajectory import Trajectory
+
+__all__ = ["simulate_closed_chain", "check_chain_reference", "ConstraintDrift", "DRIFT_BOUND",
+           "DEFAULT_DT"]
+
+#: Default RK4 step [s], that of :data:`rrr_pin.sim.simulation.DEFAULT_DT` (which dispatches a
+#: closed chain here, so cannot be imported by this module).
+DEFAULT_DT = 1e-3
+
+#: Largest loop gap [m] one RK4 step may leave before its projection; above it the run stops.
+DRIFT_BOUND = 1e-6
+
+
+class ConstraintDrift(RuntimeError):
+    """An RK4 step left a loop gap above :data:`DRIFT_BOUND` (time and gap in the message)."""
+
+
+def check_chain_reference(chain, t, R) -> dict:
+    """Refuse a reference that leaves the workspace or crosses a type-II singularity.
+
+    Parameters
+    ----------
+    chain : ClosedChain
+        The mechanism (its loop closure and ``J_p``).
+    t : ndarray, shape (N,)
+        Sample times [s].
+    R : ndarray, shape (N, chain.nq)
+        Actuated reference [rad] at ``t``.
+
+    Returns
+    -------
+    dict
+        ``{"max_cond_Jp": float, "at_s": float}``: the worst conditioning met.
+
+    Raises
+    ------
+    SingularConfiguration
+        ``cond(J_p) > COND_LIMIT`` at a sample, or ``det J_p`` changes sign between two
+        samples (naming the time and the largest condition number there).
+    LoopClosureError
+        A sample where the loop cannot close (out of the workspace), naming the time.
+    """
+    q = chain.home.copy()
+    pas = list(chain.passive)
+    worst, at, sign = 0.0, 0.0, 0.0
+    for tk, r in zip(t, R, strict=True):
+        try:
+            q = chain.close(r, seed=q)
+        except SingularConfiguration as exc:
+            raise SingularConfiguration(f"reference at t = {tk:.6g} s: {exc}", exc.cond) from None
+        except LoopClosureError as exc:
+            raise LoopClosureError(f"reference at t = {tk:.6g} s: {exc}") from None
+        Jp = chain.jacobian(q)[:, pas]
+        cond = float(np.linalg.cond(Jp))
+        det = float(np.linalg.det(Jp))
+        if cond > worst:
+            worst, at = cond, float(tk)
+        if sign and det * sign < 0.0:
+            raise SingularConfiguration(
+                f"reference crosses a type-II (parallel) singularity before t = {tk:.6g} s "
+                f"(det J_p changes sign; cond(J_p) = {cond:.3g} there, limit {COND_LIMIT:g})",
+                cond)
+        sign = math.copysign(1.0, det)
+    return {"max_cond_Jp": worst, "at_s": at}
+
+
+def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float | None = None,
+                          dt: float | None = None, method: str = "tustin", q0=None, qd0=None,
+                          engine: str = "auto") -> Trajectory:
+    """Simulate a sampled law on a parallel mechanism's full constrained dynamics.
+
+    Parameters
+    ----------
+    plant : ClosedChain
+        The true mechanism (may differ from the law's model).
+    law : ControlLaw or SampledLaw
+        A law on the actuated coordinates (e.g.
+        :func:`rrr_pin.control.closed_chain.closed_chain_fl`). A continuous law without
+        ``rate`` is evaluated at every RK4 stage; with ``rate``, sampled
+        (its ``sampled(rate, method)``).
+    reference : Reference
+        Actuated-joint reference with ``plant.nq`` joints.
+    duration : float
+        Simulated time [s], a whole number of control periods.
+    rate : float, optional
+        Control rate [Hz] of a sampled run (a SampledLaw has its own).
+    dt : float, optional
+        RK4 step [s]: of a continuous run (default 1e-3), or the plant sub-step of a sampled
+        one, dividing ``1/rate`` (default the largest such sub-step not above 1e-3 s).
+    method : str, default "tustin"
+        Discretization of a continuous law's state.
+    q0, qd0 : array-like, shape (plant.nq,), optional
+        Initial actuated state [rad, rad/s]; default ``r(0)``, ``rd(0)``.
+    engine : {"auto", "python"}, default "auto"
+        ``"compiled"`` and ``"codegen"`` are refused (not implemented for closed chains).
+
+    Returns
+    -------
+    Trajectory
+        Actuated ``q, qd, tau``; ``info`` holds the engine, the plant integration, the drift
+        and its bound, the reference's worst ``cond(J_p)``, and the plant's full final state
+        ``final_q``, ``final_qd`` (every coordinate, actuated and passive).
+    """
+    if engine in ("compiled", "codegen"):
+        raise ValueError(f"engine {engine!r} does not implement closed chains (plant "
+                         f"{plant.name!r}: constraintDynamics); use engine='python' or 'auto'")
+    if engine not in ("auto", "python"):
+        raise ValueError(f"engine must be one of auto, python for a closed chain, got "
+                         f"{engine!r}")
+    check_law(law, plant.nq)
+    check_reference(reference, plant)
+    duration = check_positive("duration", duration, unit="s")
+    continuous = isinstance(law, ControlLaw) and rate is None
+    if isinstance(law, SampledLaw):
+        if rate is not None and not math.isclose(rate, law.rate):
+            raise ValueError(f"law {law.name!r} is sampled at {law.rate:g} Hz, rate = "
+                             f"{rate!r} asks for another rate")
+        rate = law.rate
+    elif not continuous:
+        law = law.sampled(check_rate("rate", rate), method)
+    if continuous:
+        h = DEFAULT_DT if dt is None else check_positive("dt", dt, unit="s")
+        n_steps = check_multiple("duration", duration, h, low=1, unit="s")
+        substeps, rate, Ts = 1, None, h
+    else:
+        rate = check_rate("rate", rate)
+        Ts = 1.0 / rate
+        n_steps = check_multiple("duration", duration, Ts, low=1, unit="s")
+        if dt is None:
+            substeps = max(1, math.ceil(Ts / DEFAULT_DT - 1e-9))
+        else:
+            dt = check_positive("dt", dt, unit="s")
+            substeps = check_multiple("dt", Ts, dt, low=1, unit="s")
+        h = Ts / substeps
+    t = Ts * np.arange(n_steps + 1)
+    grid = 0.5 * h * np.arange(2 * n_steps + 1) if continuous else t
+    R, RD, RDD = checked_sample(reference, grid)
+    conditioning = check_chain_reference(plant, grid, R)
+    qa0 = R[0] if q0 is None else plant.check_state("q0", q0)
+    qda0 = RD[0] if qd0 is None else plant.check_state("qd0", qd0)
+    q = plant.close(qa0, seed=plant.home)
+    qd = plant.velocity(q, qda0)
+    act = list(plant.actuated)
+    n = plant.nq
+    Q, QD, TAU = (np.empty((n_steps + 1, n)) for _ in range(3))
+    Q[0], QD[0] = q[act], qd[act]
+    x = np.asarray(law.initial_state(), dtype=float)
+    acc, h2, h6 = plant.constrained_acceleration, 0.5 * h, h / 6.0
+    drift = drift_v = 0.0
+    pas = list(plant.passive)
+    sign = [float(np.linalg.det(plant.jacobian(q)[:, pas]))]
+
+    def project(k, q, qd):
+        nonlocal drift, drift_v
+        gap = float(np.max(np.abs(plant.residual(q))))
+        if not gap <= DRIFT_BOUND:
+            raise ConstraintDrift(
+                f"{plant.name}: one RK4 step of {h:g} s left a loop gap of {gap:.3g} m at "
+                f"t = {t[k]:.6g} s (bound {DRIFT_BOUND:g} m): take a smaller dt")
+        drift = max(drift, gap)
+        try:
+            q, qd_new = plant.project(q, qd)
+        except SingularConfiguration as exc:
+            raise SingularConfiguration(f"plant at t = {t[k + 1]:.6g} s: {exc}",
+                                        exc.cond) from None
+        # J at the projected q (the projection's own), applied to the unprojected qd.
+        J = plant.jacobian(q, kinematics=False)
+        drift_v = max(drift_v, float(np.max(np.abs(J @ qd))))
+        det = float(np.linalg.det(J[:, pas]))
+        if det * sign[0] < 0.0:
+            raise SingularConfiguration(
+                f"plant at t = {t[k + 1]:.6g} s: crossed a type-II (parallel) singularity in "
+                f"the last step (det J_p changed sign; cond(J_p) = "
+                f"{np.linalg.cond(J[:, pas]):.3g} after it): the actuated angles no longer "
+                f"determine the mechanism's branch", math.inf)
+        sign[0] = det
+        return q, qd_new
+
+    if continuous:
+        torque, deriv, stateful = law.torque, law.derivative, law.nx > 0
+
+        def rhs(i, tk, q, qd, x):
+            qa, qda = q[act], qd[act]
+            tau = torque(tk, qa, qda, R[i], RD[i], RDD[i], x)
+            xd = deriv(tk, qa, qda, R[i], RD[i], RDD[i], x) if stateful else x
+            return acc(q, qd, plant.actuation(tau)), xd, tau
+
+        for k in range(n_steps):
+            tk = t[k]
+            a1, x1, TAU[k] = rhs(2 * k, tk, q, qd, x)
+            v2 = qd + h2 * a1
+            a2, x2, _ = rhs(2 * k + 1, tk + h2, q + h2 * qd, v2, x + h2 * x1)
+            v3 = qd + h2 * a2
+            a3, x3, _ = rhs(2 * k + 1, tk + h2, q + h2 * v2, v3, x + h2 * x2)
+            v4 = qd + h * a3
+            a4, x4, _ = rhs(2 * k + 2, tk + h, q + h * v3, v4, x + h * x3)
+            q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
+            qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
+            if stateful:
+                x = x + h6 * (x1 + 2.0 * (x2 + x3) + x4)
+            q, qd = project(k, q, qd)
+            Q[k + 1], QD[k + 1] = q[act], qd[act]
+        TAU[n_steps] = rhs(2 * n_steps, t[-1], q, qd, x)[2]
+        R = R[::2]
+    else:
+        for k in range(n_steps):
+            out = law.step(t[k], q[act], qd[act], R[k], RD[k], RDD[k], x)
+            tau, x = check_step_output(law, out, t[k]) if not k else out
+            TAU[k] = tau
+            u = plant.actuation(tau)
+            for _ in range(substeps):
+                a1 = acc(q, qd, u)
+                v2 = qd + h2 * a1
+                a2 = acc(q + h2 * qd, v2, u)
+                v3 = qd + h2 * a2
+                a3 = acc(q + h2 * v2, v3, u)
+                v4 = qd + h * a3
+                a4 = acc(q + h * v3, v4, u)
+                q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
+                qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
+                q, qd = project(k, q, qd)
+            Q[k + 1], QD[k + 1] = q[act], qd[act]
+        TAU[n_steps] = TAU[n_steps - 1]
+    info = {"engine": "python", "engine_note": "the compiled engine does not implement closed "
+            "chains", "method": "RK4 on constraintDynamics, projection onto the loop closure "
+            "after each step, " + ("continuous-time law" if continuous
+                                   else "zero-order-hold sampled law"), "rate_hz": rate,
+            "substeps": substeps, "dt": h, "drift_m": drift, "drift_velocity_m_s": drift_v,
+            "drift_bound_m": DRIFT_BOUND, "reference_max_cond_Jp": conditioning["max_cond_Jp"],
+            "reference_max_cond_at_s": conditioning["at_s"],
+            "final_q": q.tolist(), "final_qd": qd.tolist()}
+    return Trajectory(t=t, q=Q, qd=QD, r=R, tau=TAU, controller=law.name, plant=plant.name,
+                      info=info, joint_names=plant.joint_names, joint_units=["rad"] * n)
