@@ -8,8 +8,8 @@ from numpy.testing import assert_allclose
 from rrr_pin.robust.mu import closed_loop_matrix, mussv, robstab
 from rrr_pin.validation import FieldError
 
-# The upper bound stops within a relative 2e-3 of the LMI optimum (mu._RTOL).
-UPPER_RTOL = 3e-3
+# The upper bound stops within a relative 5e-3 of the LMI optimum (mu._RTOL).
+UPPER_RTOL = 6e-3
 
 
 def _routh_loop():
