@@ -5,8 +5,10 @@ laws, their typed compiled forms and linear models), :mod:`~rrr_pin.control.cata
 registry of built-in laws by name, importable without numerical libraries),
 :mod:`~rrr_pin.control.references` (the ``Reference`` protocol and the built-in references),
 :mod:`~rrr_pin.control.paths` (task-space paths placed from the start),
-:mod:`~rrr_pin.control.specs` (a built-in reference named by kind and options) and
-:mod:`~rrr_pin.control.effects` (``PlantEffects``).
+:mod:`~rrr_pin.control.specs` (a built-in reference named by kind and options),
+:mod:`~rrr_pin.control.effects` (``PlantEffects``) and :mod:`~rrr_pin.control.analysis`
+(``loop_at_input``, its margins, and the real-parametric robust stability of the
+feedback-linearized loop at frozen configurations).
 
 Layer: above :mod:`rrr_pin.robust`. May import :mod:`rrr_pin.validation`,
 :mod:`rrr_pin.model` and :mod:`rrr_pin.robust`.

@@ -109,7 +109,10 @@ class LoopMargins:
     Attributes
     ----------
     gain : ndarray, shape (n,)
-        Gain margins [-] (``inf`` when the phase never crosses -180 deg).
+        Gain margins [-] of python-control's ``margin`` at the phase crossing of -180 deg
+        (``inf`` when there is none). Below 1 it is a lower margin: a double-integrator loop
+        has phase -180 deg at ``w -> 0``, so FL alone gives about 0 (any gain in ``(0, inf)``
+        keeps it stable).
     phase : ndarray, shape (n,)
         Phase margins [deg].
     crossover : ndarray, shape (n,)

@@ -12,7 +12,8 @@ and the loop stays stable for every ``Delta`` with ``sup_w sigma_max(Delta) < 1/
 * ``("complex", n)``: a full complex ``n x n`` block (MATLAB's ``[n n]``).
 
 The upper bound is the D,G-scaling bound of Fan, Tits and Doyle [1]_, an LMI solved with
-cvxpy and Clarabel:
+Clarabel (assembled here directly: cvxpy's canonicalization of the complex LMI cost seconds
+per frequency):
 
 .. math:: \mu_\Delta(M) \le \beta \;\text{ if }\; \exists D \succ 0, G = G^H :
           M^H D M + j (G M - M^H G) - \beta^2 D \prec 0
