@@ -15,7 +15,10 @@ asserted:
    ``pin`` directly (:func:`handwritten_fl_rollout`, the yardstick): 10 s, 1 kHz, ZOH FL;
 4. a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes) against its bound
    ``2 N x floor / 2 cores``, and the throughput with 1 worker;
-5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes.
+5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
+6. the mu upper bound (``rrr_pin.robust.mu.mussv``) on the frozen FL loop of the RRR with its
+   inertial parameters real-uncertain (``rrr_pin.control.analysis.parametric_loop``), per
+   frequency, against issue 21's goal of 0.5 s.
 
 Usage::
 
@@ -347,6 +350,7 @@ def main(argv=None):
                      "campaign_samples": args.campaign_samples, "campaign_jobs": 2,
                      "mc_samples": args.mc_samples, "startup_repeat": args.startup_repeat},
     }
+    result["mu"] = mu_upper_s(3 if args.quick else 10)
     if args.json:
         print(json.dumps(result))
         return
@@ -404,6 +408,32 @@ def report(res, args):
     for key, what in (("cli_help_s", "rrr-pin --help"), ("import_s", "import rrr_pin")):
         v, goal = res[key], GOALS[key]
         print(f"  {what:16}{v:8.3f} s   goal < {goal:g} s: {'met' if v < goal else 'NOT MET'}")
+
+    m = res["mu"]
+    print(f"\n6. mu upper bound (D,G LMI, Clarabel) on the frozen FL loop, {m['parameters']} real "
+          f"parameters, M of size {m['size']}: {m['s_per_frequency']:.3f} s per frequency "
+          f"(mean of {m['frequencies']}; with the lower bound {m['both_s_per_frequency']:.3f} s)   "
+          f"goal < 0.5 s: {'met' if m['s_per_frequency'] < 0.5 else 'NOT MET'}")
+
+
+def mu_upper_s(count: int) -> dict:
+    """Time ``mussv`` per frequency on the frozen FL loop of the RRR: both bounds, and the
+    upper bound alone (``lower=False``: its bisection then starts from 0, the worst case).
+    """
+    from rrr_pin.control.analysis import parametric_loop
+    from rrr_pin.control.laws import fl_controller
+    from rrr_pin.robust.mu import mussv
+
+    loop = parametric_loop(fl_controller(rrr_pin.load_robot("rrr")), [0.3, 0.6, -0.9])
+    w = np.logspace(0, 4, count)
+    t0 = time.perf_counter()
+    mussv(loop.M, loop.blocks, w, lower=False)
+    t1 = time.perf_counter()
+    mussv(loop.M, loop.blocks, w)
+    t2 = time.perf_counter()
+    return {"s_per_frequency": (t1 - t0) / count, "both_s_per_frequency": (t2 - t1) / count,
+            "frequencies": count, "parameters": len(loop.names),
+            "size": int(loop.M.ninputs)}
 
 
 if __name__ == "__main__":

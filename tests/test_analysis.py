@@ -149,3 +149,17 @@ def test_loop_at_input_refuses_bad_inputs(rrr):
     with pytest.raises(ValueError, match="tol"):
         parametric_loop(law, Q, tol=-0.1)
     assert isinstance(loop_at_input(law, rrr, Q), control.StateSpace)
+
+
+@pytest.mark.parametrize("name", ["fl", pytest.param("hinf", marks=pytest.mark.slow)])
+def test_delay_margin_equals_the_stress_prediction_without_gravity(name):
+    # campaign.stress predicts the delay boundary from the law's own SISO loop
+    # (linear_model().loops(): (2 lam s + lam^2 (1 + K)) / s^2); with g = 0 and the model
+    # exact, the MIMO loop at the torque input is that loop times I.
+    from rrr_pin.campaign.stress import continuous_boundary
+    from rrr_pin.control.catalog import make_law
+
+    robot = load_robot("rrr", gravity=0.0)
+    law = make_law(name, robot)
+    m = loop_margins(loop_at_input(law, robot, Q))
+    assert_allclose(m.delay.min(), continuous_boundary(law, "delay"), rtol=1e-5)

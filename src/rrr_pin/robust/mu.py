@@ -563,7 +563,8 @@ def _lower(M, blocks, rng, starts: int = 4, warm=None) -> tuple[float, np.ndarra
 
 # ---------------------------------------------------------------- public API
 
-def mussv(M, blocks, omega=None, *, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def mussv(M, blocks, omega=None, *, seed: int = 0,
+          lower: bool = True) -> tuple[np.ndarray, np.ndarray]:
     r"""Upper and lower bounds of the structured singular value of ``M`` at each frequency.
 
     Parameters
@@ -578,6 +579,9 @@ def mussv(M, blocks, omega=None, *, seed: int = 0) -> tuple[np.ndarray, np.ndarr
         Frequencies [rad/s], ``>= 0``; required when ``M`` is a system.
     seed : int
         Seed of the lower bound's random starts (``numpy.random.default_rng``).
+    lower : bool
+        False skips the lower bound's search (``lower`` is then all 0, and the bisection of
+        the upper bound starts from 0).
 
     Returns
     -------
@@ -599,11 +603,13 @@ def mussv(M, blocks, omega=None, *, seed: int = 0) -> tuple[np.ndarray, np.ndarr
     blocks = _check_blocks(blocks)
     H, _ = _response(M, omega, _size(blocks))
     rng = np.random.default_rng(check_count("seed", seed))
+    search = lower
     upper, lower = np.zeros(len(H)), np.zeros(len(H))
     warm = None
     for k, Mk in enumerate(H):
-        lower[k], x = _lower(Mk, blocks, rng, warm=warm)
-        warm = x if x is not None else warm
+        if search:
+            lower[k], x = _lower(Mk, blocks, rng, warm=warm)
+            warm = x if x is not None else warm
         upper[k] = _upper(Mk, blocks, lower[k])
     return upper, lower
 
