@@ -776,6 +776,9 @@ def _add_margins(sub) -> None:
     _add_robot_arguments(p)
     p.add_argument("--controllers", default="fl,hinf,pd", metavar="NAMES",
                    help="comma-separated built-in controllers (fl,hinf,pd)")
+    p.add_argument("--out", metavar="DIR", default=None,
+                   help="write margins.png (singular values, Bode phase, Nyquist) into DIR")
+    _add_overwrite(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_margins)
 
@@ -785,13 +788,14 @@ def _frozen(args):
 
     _not_a_folder(robot=args.robot)
     robot = load_robot(args.robot, lock=_parse_lock(args.lock))
+    from .validation import check_vector
+
     home = _floats(args.home, "--home")
-    q = robot.neutral() if home is None and hasattr(robot, "neutral") else home
-    if q is None:
+    if home is None:
         import numpy as np
 
-        q = np.zeros(robot.nq)
-    return robot, q
+        return robot, np.clip(robot.neutral(), robot.lower, robot.upper)
+    return robot, check_vector("--home", home, robot.nq)
 
 
 def _cmd_margins(args) -> int:
@@ -799,17 +803,25 @@ def _cmd_margins(args) -> int:
     from .control.analysis import loop_at_input, loop_margins
     from .report.jsondata import dumps
 
+    if args.out is not None:
+        _claim_out(args, "margins")
     robot, q = _frozen(args)
     out = {"robot": robot.name, "q_rad": [float(v) for v in q], "laws": {}}
+    loops = {}
     with _as_options():
         laws = make_laws(args.controllers, robot)
         for law in laws:
-            m = loop_margins(loop_at_input(law, robot, q))
+            loops[law.name] = loop_at_input(law, robot, q)
+            m = loop_margins(loops[law.name])
             out["laws"][law.name] = {
                 "gain_margin": m.gain.tolist(), "phase_margin_deg": m.phase.tolist(),
                 "crossover_rad_s": m.crossover.tolist(), "delay_margin_s": m.delay.tolist(),
                 "disk_margin": m.disk, "disk_gain_margin": m.disk_gain,
                 "disk_phase_margin_deg": m.disk_phase}
+    if args.out is not None:
+        from .report.margins import save_margins_figure
+
+        out["figure"] = str(save_margins_figure(loops, args.out))
     if args.json:
         print(dumps(out))
         return 0
@@ -822,6 +834,8 @@ def _cmd_margins(args) -> int:
               f"{_join(m['gain_margin'], '.3g')}; disk margin {m['disk_margin']:.3f} "
               f"(gain x{m['disk_gain_margin']:.3g}, phase {m['disk_phase_margin_deg']:.1f} "
               f"deg, all joints at once)")
+    if "figure" in out:
+        print(f"wrote {out['figure']}")
     return 0
 
 
@@ -857,7 +871,10 @@ def _cmd_robstab(args) -> int:
     with _as_options():
         samples = check_count("samples", args.samples)
         for law in make_laws(args.controllers, robot):
-            loop, r = parametric_margin(law, q, args.tol)
+            try:
+                loop, r = parametric_margin(law, q, args.tol)
+            except TypeError as exc:  # pd: no feedback-linearizing loop
+                raise ValueError(f"--controllers {law.name}: {exc}") from None
             rec = {"margin_lower": r.margin_lower, "margin_upper": r.margin_upper,
                    "critical_frequency_rad_s": r.critical_frequency,
                    "parameters": loop.names, "dropped": loop.dropped}

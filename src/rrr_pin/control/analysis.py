@@ -24,7 +24,7 @@ from ..robust.mu import robstab
 from ..validation import check_positive, check_vector
 from .laws import ControlLaw, FLLinearModel, check_law
 
-__all__ = ["loop_at_input", "LoopMargins", "loop_margins", "ParametricLoop",
+__all__ = ["loop_at_input", "loop_channel", "LoopMargins", "loop_margins", "ParametricLoop",
            "parametric_loop", "parametric_margin", "sampled_margin"]
 
 # Relative central-difference step of the law's linearization (the built-in laws are affine
@@ -136,8 +136,16 @@ class LoopMargins:
     disk_phase: float
 
 
-def _channel(L: control.StateSpace, i: int) -> control.StateSpace:
-    """SISO loop of channel ``i`` with the other channels closed (``D = 0``)."""
+def loop_channel(L: control.StateSpace, i: int) -> control.StateSpace:
+    """Return the SISO loop of channel ``i`` with the other channels closed (``D = 0``).
+
+    Parameters
+    ----------
+    L : control.StateSpace
+        Square loop with ``D = 0`` (:func:`loop_at_input`).
+    i : int
+        The channel (joint), ``0 <= i < L.ninputs``.
+    """
     o = [j for j in range(L.ninputs) if j != i]
     A = L.A - L.B[:, o] @ L.C[o, :]
     return control.ss(A, L.B[:, [i]], L.C[[i], :], 0)
@@ -161,7 +169,7 @@ def loop_margins(L, omega=None) -> LoopMargins:
     w = np.logspace(-2, 5, 2000) if omega is None else np.asarray(omega, dtype=float)
     gm, pm, wc = [], [], []
     for i in range(L.ninputs):
-        g, p, _, w_c = control.margin(_channel(L, i))
+        g, p, _, w_c = control.margin(loop_channel(L, i))
         gm.append(g)
         pm.append(p)
         wc.append(w_c)
