@@ -56,7 +56,7 @@ def test_routh_hurwitz_margin_real_and_complex_differ():
     # w = sqrt(1.1) (s^3 + 1.1 s^2 + 1.1 s + 1.21 = (s + 1.1)(s^2 + 1.1)). A complex delta
     # destabilizes earlier, at min_w |p0(jw)| (about 0.14, near the resonance w = 1).
     M = _routh_loop()
-    w = np.concatenate([[0.0], np.logspace(-1, 1, 12)])
+    w = np.array([0.0, 0.3, 1.0, 3.0, 10.0])
     real = robstab(M, [("real", 1)], w)
     assert_allclose(real.margin_upper, 0.21, rtol=1e-6)
     assert_allclose(real.critical_frequency, np.sqrt(1.1), rtol=1e-6)
