@@ -281,7 +281,8 @@ def _add_design(sub) -> None:
     p.add_argument("--order", type=int, default=2, metavar="N",
                    help="states of the reduced controller, eq. (18) (2, the paper's)")
     p.add_argument("--out", metavar="DIR", default=None,
-                   help="write fig2.png, fig3.png, fig4a.png, fig4b.png into DIR")
+                   help="write fig2.png, fig3.png, fig4a.png, fig4b.png and margins.png (the "
+                        "loop G K: singular values, Bode phase, Nyquist) into DIR")
     _add_overwrite(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_design)
@@ -304,6 +305,10 @@ def _cmd_design(args) -> int:
         from .report.plotting import save_design_figures
 
         figures = [str(f) for f in save_design_figures(d, args.out)]
+        from .report.margins import save_margins_figure
+
+        # the design's own loop, G K (eq. 11 plant, eq. 18 controller): margins.png
+        figures.append(str(save_margins_figure({"G K": _control_ss(d.G * d.K)}, args.out)))
     if args.json:
         print(dumps({**design_summary(d), **({"figures": figures} if figures else {})}))
         return 0
@@ -837,6 +842,12 @@ def _cmd_margins(args) -> int:
     if "figure" in out:
         print(f"wrote {out['figure']}")
     return 0
+
+
+def _control_ss(sys):
+    import control
+
+    return control.ss(sys)
 
 
 def _join(values, fmt: str) -> str:

@@ -50,7 +50,7 @@ def margins_figure(loops: dict, omega=None) -> Figure:
                        label=name if i == 0 else None)
     ax_sv.axhline(1.0, color="0.5", lw=0.8)
     ax_sv.set(xlabel="frequency [rad/s]", ylabel="singular values of L(jw) [-]",
-              title="loop at the torque input")
+              title="singular values of the loop")
     ax_ph.axhline(-180.0, color="0.5", lw=0.8)
     ax_ph.set(xlabel="frequency [rad/s]", ylabel="phase of each joint's loop [deg]",
               title="Bode phase (other joints closed)")
