@@ -558,6 +558,9 @@ def _cmd_reproduce(args) -> int:
                          baseline=baseline)
     check_study_size(config, len(laws), robot.nq)  # before the design figures are written
     figures = save_design_figures(d, out)
+    from .report.margins import save_margins_figure
+
+    figures.append(save_margins_figure({"G K": _control_ss(d.G * d.K)}, out))
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{robot.name}: simulating",
                disable=args.no_progress)
     certificate = None if args.no_certify else CertificateSpec.from_design(
