@@ -350,7 +350,7 @@ def main(argv=None):
                      "campaign_samples": args.campaign_samples, "campaign_jobs": 2,
                      "mc_samples": args.mc_samples, "startup_repeat": args.startup_repeat},
     }
-    result["mu"] = mu_upper_s(3 if args.quick else 10)
+    result["mu"] = mu_upper_s(1 if args.quick else 10)
     if args.json:
         print(json.dumps(result))
         return
