@@ -22,7 +22,11 @@ asserted:
 4b. a closed chain (issue 22): a 10 s, 1 kHz FL run of the 5-bar (Python engine, the only one
    that implements it) against its ``pin.constraintDynamics`` calls alone;
 5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
-6. ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant (:func:`loopsyn_3x3_s`).
+6. ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant (:func:`loopsyn_3x3_s`);
+7. the mu upper bound (``rrr_pin.robust.mu.mussv``) on the frozen FL loop of the RRR with its
+   inertial parameters real-uncertain (``rrr_pin.control.analysis.parametric_loop``), per
+   frequency, against issue 21's goal of 0.5 s;
+8. identification of the UR5 from 10 s of 1 kHz data, the consistency SDP included.
 
 Usage::
 
@@ -457,6 +461,7 @@ def main(argv=None):
                      "mc_samples": args.mc_samples, "startup_repeat": args.startup_repeat},
     }
     result["identification"] = identification_bench(5.0 if args.quick else 10.0)
+    result["mu"] = mu_upper_s(1 if args.quick else 10)
     if args.json:
         print(json.dumps(result))
         return
@@ -548,6 +553,12 @@ def report(res, args):
     print(f"\n6. loopsyn(G, 10/s), G coupled 3 x 3 (6 states): {v:.3f} s   goal < {goal:g} s: "
           f"{'met' if v < goal else 'NOT MET'}")
 
+    m = res["mu"]
+    print(f"\n7. mu upper bound (D,G LMI, Clarabel) on the frozen FL loop, {m['parameters']} real "
+          f"parameters, M of size {m['size']}: {m['s_per_frequency']:.3f} s per frequency "
+          f"(mean of {m['frequencies']}; with the lower bound {m['both_s_per_frequency']:.3f} s)   "
+          f"goal < 0.5 s: {'met' if m['s_per_frequency'] < 0.5 else 'NOT MET'}")
+
 
 def identification_bench(duration: float) -> dict:
     """Issue 18: identify UR5 from ``duration`` s of 1 kHz data (CSV read, derivatives by
@@ -590,11 +601,31 @@ def identification_bench(duration: float) -> dict:
 
 def report_identification(r: dict) -> None:
     """Print the identification figure (issue 18)."""
-    print(f"\n6. identification, {r['robot']}: {r['data_s']:g} s of {r['rate_hz']:g} Hz data "
+    print(f"\n8. identification, {r['robot']}: {r['data_s']:g} s of {r['rate_hz']:g} Hz data "
           f"({r['samples']} samples, {r['base_count']} base parameters), CSV to URDF with the "
           f"consistency SDP: {r['identify_s']:.2f} s   goal < {r['goal_s']:g} s: "
           f"{'met' if r['identify_s'] < r['goal_s'] else 'NOT MET'} (cvxpy import "
           f"{r['cvxpy_import_s']:.2f} s apart)")
+
+
+def mu_upper_s(count: int) -> dict:
+    """Time ``mussv`` per frequency on the frozen FL loop of the RRR: both bounds, and the
+    upper bound alone (``lower=False``: its bisection then starts from 0, the worst case).
+    """
+    from rrr_pin.control.analysis import parametric_loop
+    from rrr_pin.control.laws import fl_controller
+    from rrr_pin.robust.mu import mussv
+
+    loop = parametric_loop(fl_controller(rrr_pin.load_robot("rrr")), [0.3, 0.6, -0.9])
+    w = np.logspace(0, 4, count)
+    t0 = time.perf_counter()
+    mussv(loop.M, loop.blocks, w, lower=False)
+    t1 = time.perf_counter()
+    mussv(loop.M, loop.blocks, w)
+    t2 = time.perf_counter()
+    return {"s_per_frequency": (t1 - t0) / count, "both_s_per_frequency": (t2 - t1) / count,
+            "frequencies": count, "parameters": len(loop.names),
+            "size": int(loop.M.ninputs)}
 
 
 if __name__ == "__main__":

@@ -187,7 +187,7 @@ def test_reproduce_prints_the_report_lines(reproduced, capsys, tmp_path):
     assert printed[2].startswith("uncertain (2 plants): RMS error fl / hinf = ")
     assert printed[3].startswith(f"certified (frozen nu-gap < b = {summary['certificate_b']:.4g}"
                                  f"): {summary['samples_certified']} of 2 plants")
-    assert printed[-1] == (f"wrote {out}/results.json, results.md, plants/, 7 figures and "
+    assert printed[-1] == (f"wrote {out}/results.json, results.md, plants/, 8 figures and "
                            f"report.html (open it in a browser)")
 
 

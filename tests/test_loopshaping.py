@@ -337,7 +337,7 @@ def test_cli_design_json(capsys, tmp_path, strict_json):
     assert_allclose(eq18["b"], 1 / out["gamma"], rtol=1e-9)            # b(Gs, Ks) = 1/gamma
     assert_allclose(eq18["b_reduced"], 1 / out["gamma_reduced"], rtol=1e-9)
     assert out["reductions"]["ncf_balanced_truncation"]["guaranteed"]
-    for name in ("fig2.png", "fig3.png", "fig4a.png", "fig4b.png"):
+    for name in ("fig2.png", "fig3.png", "fig4a.png", "fig4b.png", "margins.png"):
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
 
 

@@ -69,6 +69,8 @@ PARSE_ONLY = {
 #: Python blocks (named by a line they hold) that are compiled, not run, and why.
 COMPILE_ONLY = {
     "class ComputedTorquePD": "the full study with a Python-engine law on 10 plants (~15 s)",
+    "parametric_margin(law, q": "robstab on the frozen 10 x 10 loop (~1 min); the slow test "
+                                "of tests/test_analysis.py checks its margins",
 }
 
 

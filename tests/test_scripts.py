@@ -100,6 +100,7 @@ def test_bench_runs_and_reports_its_keys(monkeypatch, capsys):
     assert set(data["robot_call_us"]) == set(data["bare_call_us"]) == {"M", "V", "G"}
     # The yardstick computes the same trajectory as the Python engine (same operations).
     assert data["handwritten_max_diff_rad"] < 1e-12
+    assert data["mu"]["size"] == 10 and data["mu"]["frequencies"] == 1  # the frozen FL loop
 
 
 def test_bench_table(monkeypatch, capsys):

@@ -26,7 +26,7 @@ def _build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", default=0, **verbose)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_urdf, _add_mjcf, _add_check_dynamics, _add_design, _add_reproduce,
-                _add_montecarlo, _add_stress, _add_identify):
+                _add_montecarlo, _add_stress, _add_identify, _add_margins, _add_robstab):
         add(sub)
     for command in sub.choices.values():  # also after the command: rrr-pin reproduce -v
         command.add_argument("-v", "--verbose", default=argparse.SUPPRESS, **verbose)
@@ -314,7 +314,8 @@ def _add_design(sub) -> None:
     p.add_argument("--order", type=int, default=2, metavar="N",
                    help="states of the reduced controller, eq. (18) (2, the paper's)")
     p.add_argument("--out", metavar="DIR", default=None,
-                   help="write fig2.png, fig3.png, fig4a.png, fig4b.png into DIR")
+                   help="write fig2.png, fig3.png, fig4a.png, fig4b.png and margins.png (the "
+                        "loop G K: singular values, Bode phase, Nyquist) into DIR")
     _add_overwrite(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_design)
@@ -337,6 +338,10 @@ def _cmd_design(args) -> int:
         from .report.plotting import save_design_figures
 
         figures = [str(f) for f in save_design_figures(d, args.out)]
+        from .report.margins import save_margins_figure
+
+        # the design's own loop, G K (eq. 11 plant, eq. 18 controller): margins.png
+        figures.append(str(save_margins_figure({"G K": _control_ss(d.G * d.K)}, args.out)))
     if args.json:
         print(dumps({**design_summary(d), **({"figures": figures} if figures else {})}))
         return 0
@@ -650,6 +655,9 @@ def _cmd_reproduce(args) -> int:
                          baseline=baseline, tolerances=tolerances)
     check_study_size(config, len(laws), robot.nq)  # before the design figures are written
     figures = save_design_figures(d, out)
+    from .report.margins import save_margins_figure
+
+    figures.append(save_margins_figure({"G K": _control_ss(d.G * d.K)}, out))
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{robot.name}: simulating",
                disable=args.no_progress)
     certificate = None if args.no_certify else CertificateSpec.from_design(
@@ -1075,3 +1083,140 @@ def _cmd_identify(args) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+# --- margins and robstab (linear analysis at a frozen configuration) --------------------------
+
+def _add_margins(sub) -> None:
+    p = sub.add_parser(
+        "margins", help="gain, phase, delay and disk margins of each law's loop at the torque "
+                        "input, linearized at a frozen configuration")
+    _add_robot_arguments(p)
+    p.add_argument("--controllers", default="fl,hinf,pd", metavar="NAMES",
+                   help="comma-separated built-in controllers (fl,hinf,pd)")
+    p.add_argument("--out", metavar="DIR", default=None,
+                   help="write margins.png (singular values, Bode phase, Nyquist) into DIR")
+    _add_overwrite(p)
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_margins)
+
+
+def _frozen(args):
+    from .model.dynamics import load_robot
+
+    _not_a_folder(robot=args.robot)
+    robot = load_robot(args.robot, lock=_parse_lock(args.lock))
+    from .validation import check_vector
+
+    home = _floats(args.home, "--home")
+    if home is None:
+        import numpy as np
+
+        return robot, np.clip(robot.neutral(), robot.lower, robot.upper)
+    return robot, check_vector("--home", home, robot.nq)
+
+
+def _cmd_margins(args) -> int:
+    from .campaign.runner import make_laws
+    from .control.analysis import loop_at_input, loop_margins
+    from .report.jsondata import dumps
+
+    if args.out is not None:
+        _claim_out(args, "margins")
+    robot, q = _frozen(args)
+    out = {"robot": robot.name, "q_rad": [float(v) for v in q], "laws": {}}
+    loops = {}
+    with _as_options():
+        laws = make_laws(args.controllers, robot)
+        for law in laws:
+            loops[law.name] = loop_at_input(law, robot, q)
+            m = loop_margins(loops[law.name])
+            out["laws"][law.name] = {
+                "gain_margin": m.gain.tolist(), "phase_margin_deg": m.phase.tolist(),
+                "crossover_rad_s": m.crossover.tolist(), "delay_margin_s": m.delay.tolist(),
+                "disk_margin": m.disk, "disk_gain_margin": m.disk_gain,
+                "disk_phase_margin_deg": m.disk_phase}
+    if args.out is not None:
+        from .report.margins import save_margins_figure
+
+        out["figure"] = str(save_margins_figure(loops, args.out))
+    if args.json:
+        print(dumps(out))
+        return 0
+    print(f"{robot.name} at q = {[round(float(v), 4) for v in q]} rad, loop broken at the "
+          f"torque input (loop at a time, per joint):")
+    for name, m in out["laws"].items():
+        print(f"  {name}: phase margin {_join(m['phase_margin_deg'], '.1f')} deg at "
+              f"{_join(m['crossover_rad_s'], '.1f')} rad/s; delay margin "
+              f"{_join([1e3 * d for d in m['delay_margin_s']], '.2f')} ms; gain margin "
+              f"{_join(m['gain_margin'], '.3g')}; disk margin {m['disk_margin']:.3f} "
+              f"(gain x{m['disk_gain_margin']:.3g}, phase {m['disk_phase_margin_deg']:.1f} "
+              f"deg, all joints at once)")
+    if "figure" in out:
+        print(f"wrote {out['figure']}")
+    return 0
+
+
+def _control_ss(sys):
+    import control
+
+    return control.ss(sys)
+
+
+def _join(values, fmt: str) -> str:
+    return "/".join(format(v, fmt) for v in values)
+
+
+def _add_robstab(sub) -> None:
+    p = sub.add_parser(
+        "robstab", help="real-parametric robust stability (mu) of the feedback-linearized "
+                        "loop at a frozen configuration, inertial parameters uncertain")
+    _add_robot_arguments(p)
+    p.add_argument("--controllers", default="fl,hinf", metavar="NAMES",
+                   help="comma-separated feedback-linearizing controllers (fl,hinf)")
+    p.add_argument("--tol", type=float, default=0.2,
+                   help="relative tolerance of the masses and principal second moments that "
+                        "the margin is counted in (0.2, the paper's 20 %%)")
+    p.add_argument("--samples", type=int, default=0,
+                   help="also scale this many vertices of the parameter box on perturbed "
+                        "Pinocchio models until the loop is unstable (0: no check)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_robstab)
+
+
+def _cmd_robstab(args) -> int:
+    from .campaign.runner import make_laws
+    from .control.analysis import parametric_margin, sampled_margin
+    from .report.jsondata import dumps
+    from .validation import check_count
+
+    robot, q = _frozen(args)
+    out = {"robot": robot.name, "q_rad": [float(v) for v in q], "tol": args.tol, "laws": {}}
+    with _as_options():
+        samples = check_count("samples", args.samples)
+        for law in make_laws(args.controllers, robot):
+            try:
+                loop, r = parametric_margin(law, q, args.tol)
+            except TypeError as exc:  # pd: no feedback-linearizing loop
+                raise ValueError(f"--controllers {law.name}: {exc}") from None
+            rec = {"margin_lower": r.margin_lower, "margin_upper": r.margin_upper,
+                   "critical_frequency_rad_s": r.critical_frequency,
+                   "parameters": loop.names, "dropped": loop.dropped}
+            if samples:
+                rec["sampled_margin"] = sampled_margin(law, loop, samples)[0]
+            out["laws"][law.name] = rec
+    if args.json:
+        print(dumps(out))
+        return 0
+    print(f"{robot.name} at q = {[round(float(v), 4) for v in q]} rad: inertial parameters "
+          f"uncertain, margin in units of +-{100 * args.tol:g} %")
+    for name, m in out["laws"].items():
+        line = (f"  {name}: stable for all errors up to {m['margin_lower']:.3f} x "
+                f"{100 * args.tol:g} %; a {m['margin_upper']:.3f} x error destabilizes it "
+                f"(at {m['critical_frequency_rad_s']:.3g} rad/s); {len(m['parameters'])} "
+                f"parameters")
+        if "sampled_margin" in m:
+            line += f"; sampled vertices: unstable from {m['sampled_margin']:.3f} x"
+        print(line)
+    return 0
+

@@ -5,7 +5,9 @@ Holds :mod:`~rrr_pin.report.results` (a study's ``results.json``, ``results.md``
 ``report.html``), :mod:`~rrr_pin.report.design` (the loop-shaping design as JSON and text),
 :mod:`~rrr_pin.report.stress` (a stress search's figure, JSON and table),
 :mod:`~rrr_pin.report.dynamics` (the check-dynamics table and verdict),
-:mod:`~rrr_pin.report.plotting` (matplotlib figures, Agg), :mod:`~rrr_pin.report.viewer`
+:mod:`~rrr_pin.report.plotting` (matplotlib figures, Agg), :mod:`~rrr_pin.report.margins`
+(singular values, Bode and Nyquist of the loops at the torque input),
+:mod:`~rrr_pin.report.viewer`
 (MeshCat scenes), :mod:`~rrr_pin.report.html` (the self-contained ``report.html`` page) and
 :mod:`~rrr_pin.report.jsondata` (strict JSON: ``null`` and a status for non-finite numbers)
 and :mod:`~rrr_pin.report.closed_chain` (a closed-chain study's claims and figures).

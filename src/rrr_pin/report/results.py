@@ -426,6 +426,9 @@ def study_captions(result: StudyResult, design: dict | None = None) -> dict:
                      "(green) above the RPB, up to the performance band."
                      + margin("robust_performance", "the controlled plant's open loop G K "
                                                     "minus the RPB (negative: not met)"),
+        "margins.png": "The design's loop G K per joint (eq. 11 plant, eq. 18 controller): "
+                       "singular values, Bode phase and Nyquist curve near -1 "
+                       "(rrr-pin margins gives each law's loop at the torque input).",
         "fig5_nominal.png": "Fig. 5: joint torques [N m] and tracking errors [rad] of every "
                             "controller on the nominal plant (exact model).",
         "fig6_uncertain.png": f"Fig. 6: joint torques [N m] and tracking errors [rad] of every "

@@ -1,0 +1,409 @@
+r"""Linear analysis of the loop a law closes on the arm at a frozen configuration.
+
+* :func:`loop_at_input` - the loop broken at the torque input, as a python-control system;
+* :func:`loop_margins` - its gain, phase, delay and disk margins, loop at a time;
+* :func:`parametric_loop` - the feedback-linearized loop with the inertial parameters as real
+  uncertainties, an LFT ``M(s)`` for :func:`rrr_pin.robust.mu.robstab`;
+* :func:`parametric_margin` - that robust stability margin, in units of the tolerances;
+* :func:`sampled_margin` - the same margin found by brute force on perturbed Pinocchio models
+  (vertices of the parameter box, scaled), the independent check.
+
+All linearizations are about the regulation equilibrium ``q = r = q0``, ``qd = 0``, with the
+law's state at zero; the plant's is Pinocchio's exact ``computeABADerivatives``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import control
+import numpy as np
+import pinocchio as pin
+
+from ..robust.mu import robstab
+from ..validation import check_positive, check_vector
+from .laws import ControlLaw, FLLinearModel, check_law
+
+__all__ = ["loop_at_input", "loop_channel", "LoopMargins", "loop_margins", "ParametricLoop",
+           "parametric_loop", "parametric_margin", "sampled_margin"]
+
+# Relative central-difference step of the law's linearization (the built-in laws are affine
+# in qd and x and their q dependence is smooth: the error is O(h^2)).
+_H = 1e-6
+
+
+def _jacobian(f, x0, h=_H):
+    cols = []
+    for i in range(x0.size):
+        e = np.zeros(x0.size)
+        e[i] = h * max(1.0, abs(x0[i]))
+        cols.append((f(x0 + e) - f(x0 - e)) / (2 * e[i]))
+    return np.array(cols).T if cols else np.zeros((f(x0).size, 0))
+
+
+def loop_at_input(law, robot, q) -> control.StateSpace:
+    r"""Return the linearized loop broken at the torque input, ``L = -K_tau P``.
+
+    The plant ``P`` is ``robot`` linearized at ``(q0, 0)`` with the torque that holds it
+    (Pinocchio's ``computeABADerivatives``); the law is linearized about regulation at
+    ``r = q0`` (central differences of ``law.torque`` and ``law.derivative``). Closing
+    ``L`` in negative unit feedback gives the implemented closed loop:
+
+    .. math:: u = \tau_{law} = -y, \quad \ddot q = \partial_q a\, q + \partial_{\dot q} a\,
+              \dot q + M(q_0)^{-1} u
+
+    Parameters
+    ----------
+    law : ControlLaw
+        A continuous law for ``robot.nq`` joints.
+    robot : rrr_pin.model.dynamics.Robot
+        The arm the law acts on (its own nominal model for the nominal loop).
+    q : array-like, shape (nq,)
+        Frozen configuration [rad].
+
+    Returns
+    -------
+    control.StateSpace
+        ``nq x nq``, input the torque [N m] injected at the actuators, output minus the law's
+        torque [N m]; states ``[dq, dqd, x]``.
+
+    Raises
+    ------
+    TypeError
+        ``law`` is not a continuous :class:`ControlLaw`.
+    ValueError
+        ``q`` not finite of shape (nq,), or the law for another number of joints.
+    """
+    n = robot.nq
+    check_law(law, n)
+    if not isinstance(law, ControlLaw):
+        raise TypeError(f"loop_at_input takes a continuous ControlLaw, got "
+                        f"{type(law).__name__}")
+    q0 = check_vector("q", q, n)
+    z = np.zeros(n)
+    nx = int(law.nx)
+    tau0 = robot.G(q0)
+    dq, dv, dtau = pin.computeABADerivatives(robot.model, robot.data, q0, z, tau0)
+    x0 = np.concatenate([q0, z, law.initial_state()])
+
+    def tau(s):
+        return law.torque(0.0, s[:n], s[n:2 * n], q0, z, z, s[2 * n:])
+
+    def xdot(s):
+        return law.derivative(0.0, s[:n], s[n:2 * n], q0, z, z, s[2 * n:])
+
+    T = _jacobian(tau, x0)
+    X = _jacobian(xdot, x0) if nx else np.zeros((0, 2 * n))
+    Z, eye = np.zeros((n, n)), np.eye(n)
+    A = np.block([[Z, eye, np.zeros((n, nx))],
+                  [np.asarray(dq), np.asarray(dv), np.zeros((n, nx))],
+                  [X]]) if nx else np.block([[Z, eye], [np.asarray(dq), np.asarray(dv)]])
+    B = np.vstack([Z, np.asarray(dtau), np.zeros((nx, n))])
+    return control.ss(A, B, -T, np.zeros((n, n)))
+
+
+@dataclass(frozen=True)
+class LoopMargins:
+    """Margins of a loop broken at the torque input, one entry per channel (loop at a time).
+
+    Attributes
+    ----------
+    gain : ndarray, shape (n,)
+        Gain margins [-] of python-control's ``margin`` at the phase crossing of -180 deg
+        (``inf`` when there is none). Below 1 it is a lower margin: a double-integrator loop
+        has phase -180 deg at ``w -> 0``, so FL alone gives about 0 (any gain in ``(0, inf)``
+        keeps it stable).
+    phase : ndarray, shape (n,)
+        Phase margins [deg].
+    crossover : ndarray, shape (n,)
+        Gain-crossover frequencies [rad/s].
+    delay : ndarray, shape (n,)
+        Delay margins [s]: ``phase / crossover`` (in radians).
+    disk : float
+        Multiloop disk margin ``alpha`` (balanced, ``skew = 0``) of the MIMO loop
+        (python-control's ``disk_margins``): stable for simultaneous gain and phase
+        changes in every channel inside the disk.
+    disk_gain, disk_phase : float
+        The gain [-] and phase [deg] margins that disk guarantees.
+    """
+
+    gain: np.ndarray
+    phase: np.ndarray
+    crossover: np.ndarray
+    delay: np.ndarray
+    disk: float
+    disk_gain: float
+    disk_phase: float
+
+
+def loop_channel(L: control.StateSpace, i: int) -> control.StateSpace:
+    """Return the SISO loop of channel ``i`` with the other channels closed (``D = 0``).
+
+    Parameters
+    ----------
+    L : control.StateSpace
+        Square loop with ``D = 0`` (:func:`loop_at_input`).
+    i : int
+        The channel (joint), ``0 <= i < L.ninputs``.
+    """
+    o = [j for j in range(L.ninputs) if j != i]
+    A = L.A - L.B[:, o] @ L.C[o, :]
+    return control.ss(A, L.B[:, [i]], L.C[[i], :], 0)
+
+
+def loop_margins(L, omega=None) -> LoopMargins:
+    """Gain, phase, delay and disk margins of a loop ``L`` (negative feedback, ``D = 0``).
+
+    Parameters
+    ----------
+    L : control.StateSpace
+        Square loop (:func:`loop_at_input`).
+    omega : array-like, optional
+        Frequencies [rad/s] of the disk margin; default 2000 points over 1e-2 to 1e5.
+
+    Returns
+    -------
+    LoopMargins
+    """
+    L = control.ss(L)
+    w = np.logspace(-2, 5, 2000) if omega is None else np.asarray(omega, dtype=float)
+    gm, pm, wc = [], [], []
+    for i in range(L.ninputs):
+        g, p, _, w_c = control.margin(loop_channel(L, i))
+        gm.append(g)
+        pm.append(p)
+        wc.append(w_c)
+    gm, pm, wc = (np.array(x, dtype=float) for x in (gm, pm, wc))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delay = np.where(wc > 0, np.deg2rad(pm) / wc, np.inf)
+    dm, dgm, dpm = control.disk_margins(L, w)
+    return LoopMargins(gm, pm, wc, delay, float(dm), float(dgm), float(dpm))
+
+
+# ---------------------------------------------------------------- parametric uncertainty
+
+@dataclass(frozen=True)
+class ParametricLoop:
+    r"""The frozen feedback-linearized loop with real inertial uncertainties, as an LFT.
+
+    With the true parameters ``p_i = p_i0 (1 + tol delta_i)``, the loop is
+    ``det(I - M(s) Delta) = 0`` with ``Delta = diag(delta_i I_{r_i})``.
+
+    Attributes
+    ----------
+    M : control.StateSpace
+        Stable ``m x m`` system (``m = sum r_i``).
+    blocks : list of (str, int)
+        ``[("real", r_i), ...]`` for :func:`rrr_pin.robust.mu.robstab`.
+    names : list of str
+        The parameter of each block: ``"<joint>.mass"`` or ``"<joint>.J1"`` .. ``J3`` (the
+        principal moments of inertia of the joint's body about its centre of mass, ascending).
+    dropped : list of str
+        Parameters with no effect on ``M(q)`` and ``dG/dq`` at ``q`` (left out).
+    tol : float
+        The relative tolerance that ``|delta_i| = 1`` stands for.
+    q : ndarray, shape (n,)
+        The configuration [rad].
+    """
+
+    M: control.StateSpace
+    blocks: list
+    names: list
+    dropped: list
+    tol: float
+    q: np.ndarray
+
+
+def _parameters(model: pin.Model):
+    """Names and functions ``set(model, f)`` scaling one inertial parameter by ``f``."""
+    out = []
+    for j in range(1, model.njoints):
+        link = model.names[j]
+        out.append((f"{link}.mass", j, None))
+        for k in range(3):
+            out.append((f"{link}.J{k + 1}", j, k))
+    return out
+
+
+def _scaled(model: pin.Model, factors: dict) -> pin.Model:
+    """Copy of ``model`` with ``{(joint, k): factor}`` applied (k None: the mass).
+
+    The mass is scaled with the centre of mass and the rotational inertia about it fixed;
+    ``k`` scales the ``k``-th principal moment of inertia about the centre of mass (the
+    paper's ``Jx, Jy, Jz``), axes fixed. ``M(q)`` and ``dG/dq`` are affine in each factor;
+    a factor may be 0 or negative (the algebraic extension the LFT also represents).
+    """
+    m = model.copy()
+    per_joint: dict = {}
+    for (j, k), f in factors.items():
+        per_joint.setdefault(j, [1.0, np.ones(3)])
+        if k is None:
+            per_joint[j][0] = f
+        else:
+            per_joint[j][1][k] = f
+    for j, (fm, fJ) in per_joint.items():
+        Y = model.inertias[j]
+        J, R = np.linalg.eigh(0.5 * (Y.inertia + Y.inertia.T))
+        Z = pin.Inertia(Y)  # set field by field: the constructor refuses a non-positive one
+        Z.mass, Z.inertia = Y.mass * fm, (R * (J * fJ)) @ R.T
+        m.inertias[j] = Z
+    return m
+
+
+def _M_Gq(model: pin.Model, q: np.ndarray):
+    data = model.createData()
+    M = pin.crba(model, data, q)
+    M = np.triu(M) + np.triu(M, 1).T
+    Gq = pin.computeGeneralizedGravityDerivatives(model, data, q)
+    return M, np.asarray(Gq)
+
+
+def _fl_parts(law):
+    lm = law.linear_model()
+    if not isinstance(lm, FLLinearModel):
+        raise TypeError(f"law {law.name!r} has no feedback-linearizing linear model "
+                        f"(linear_model() gave {type(lm).__name__}); the parametric loop is "
+                        f"that of rrr_pin.control.laws.TrackingController (fl, hinf)")
+    return lm
+
+
+def _closed_loop(lam, K, Mhat, Ghat_q, M, G_q) -> np.ndarray:
+    """State matrix of ``M qdd + G_q q = Mhat taubar + Ghat_q q`` with the FL law's ``taubar``."""
+    n = Mhat.shape[0]
+    AK, BK, CK, DK = K
+    nk = AK.shape[0]
+    # taubar = -lam^2 q - 2 lam qd + lam^2 (CK xK - DK q)
+    Tq, Tv, Tx = -lam * lam * (np.eye(n) + DK), -2 * lam * np.eye(n), lam * lam * CK
+    Minv = np.linalg.inv(M)
+    acc_q = Minv @ (Mhat @ Tq + Ghat_q - G_q)
+    Z = np.zeros((n, n))
+    return np.block([[Z, np.eye(n), np.zeros((n, nk))],
+                     [acc_q, Minv @ Mhat @ Tv, Minv @ Mhat @ Tx],
+                     [-BK, np.zeros((nk, n)), AK]])
+
+
+def parametric_loop(law, q, tol: float = 0.2) -> ParametricLoop:
+    r"""Build the LFT of the feedback-linearized loop at ``q`` with real inertial errors.
+
+    The law uses its nominal ``Mhat, Ghat``; the arm has ``M = Mhat + sum delta_i M_i`` and
+    ``G_q = Ghat_q + sum delta_i G_i`` (``M`` and ``dG/dq`` are affine in each link's mass and
+    principal moments of inertia, so ``M_i, G_i`` are exact central differences of Pinocchio's
+    ``crba`` and ``computeGeneralizedGravityDerivatives`` at ``+-tol``). At regulation
+    (``qd = 0``):
+
+    .. math:: \hat M \ddot q = \hat M \bar\tau - \sum_i \delta_i (M_i \ddot q + G_i q),
+              \quad [M_i\; G_i] = L_i R_i
+
+    (rank-revealing SVD), so ``z_i = R_i [qdd; q]``, ``w_i = delta_i z_i``.
+
+    Parameters
+    ----------
+    law : TrackingController
+        ``fl`` or ``hinf`` (its nominal model, ``lam`` and ``K``).
+    q : array-like, shape (n,)
+        Frozen configuration [rad].
+    tol : float
+        Relative tolerance that ``|delta| = 1`` stands for (paper: 0.2).
+
+    Returns
+    -------
+    ParametricLoop
+    """
+    lm = _fl_parts(law)
+    model = law.nominal.model
+    n = model.nv
+    q0 = check_vector("q", q, n)
+    tol = check_positive("tol", tol)
+    Mhat, Ghat = _M_Gq(model, q0)
+    Mhat_inv = np.linalg.inv(Mhat)
+    Ls, Rs, names, dropped, blocks = [], [], [], [], []
+    scale = max(np.abs(Mhat).max(), 1e-12)
+    for name, j, k in _parameters(model):
+        Mp, Gp = _M_Gq(_scaled(model, {(j, k): 1 + tol}), q0)
+        Mm, Gm = _M_Gq(_scaled(model, {(j, k): 1 - tol}), q0)
+        E = np.hstack([(Mp - Mm) / 2, (Gp - Gm) / 2])
+        U, s, Vh = np.linalg.svd(E)
+        r = int(np.sum(s > 1e-10 * scale))
+        if r == 0:
+            dropped.append(name)
+            continue
+        Ls.append(U[:, :r])
+        Rs.append(s[:r, None] * Vh[:r])
+        names.append(name)
+        blocks.append(("real", r))
+    L, R = np.hstack(Ls), np.vstack(Rs)
+    Ra, Rb = R[:, :n], R[:, n:]
+    lam, K = lm.lam, lm.K
+    A = _closed_loop(lam, K, Mhat, Ghat, Mhat, Ghat)
+    nk = K[0].shape[0]
+    Bw = np.vstack([np.zeros((n, L.shape[1])), -Mhat_inv @ L, np.zeros((nk, L.shape[1]))])
+    acc = A[n:2 * n]  # qdd as a function of the state, nominal
+    Cz = Ra @ acc + Rb @ np.hstack([np.eye(n), np.zeros((n, n + nk))])
+    Dz = Ra @ (-Mhat_inv @ L)
+    return ParametricLoop(control.ss(A, Bw, Cz, Dz), blocks, names, dropped, tol, q0)
+
+
+def parametric_margin(law, q, tol: float = 0.2, omega=None, seed: int = 0):
+    """Robust stability margin of :func:`parametric_loop`, in units of ``tol``.
+
+    A margin of 2.3 means the loop stays stable for every combination of parameter errors
+    up to ``2.3 tol`` (for ``tol = 0.2``: 46 %) at this configuration.
+
+    Returns
+    -------
+    (ParametricLoop, rrr_pin.robust.mu.RobstabResult)
+    """
+    loop = parametric_loop(law, q, tol)
+    return loop, robstab(loop.M, loop.blocks, omega, seed=seed)
+
+
+def sampled_margin(law, loop: ParametricLoop, samples: int = 200, seed: int = 0,
+                   hi: float = 20.0, rtol: float = 1e-4) -> tuple[float, np.ndarray]:
+    """Smallest scaling of sampled parameter directions that makes the frozen loop unstable.
+
+    Independent of the LFT: each direction (the vertices of the box if ``2^k <= samples``,
+    else random vertices) scales the link parameters of a copy of the Pinocchio model, and
+    the closed loop ``M qdd + G_q q = Mhat taubar + Ghat_q q`` is rebuilt from ``crba`` and
+    the gravity derivatives; the scaling is bisected to the first eigenvalue with real part
+    ``>= 0``.
+
+    Returns
+    -------
+    alpha : float
+        The smallest destabilizing scaling found [units of ``tol``] (``inf`` if none up to
+        ``hi``); the true margin is at most ``alpha``.
+    direction : ndarray, shape (k,)
+        Its direction (``+-1`` per parameter of ``loop.names``).
+    """
+    lm = _fl_parts(law)
+    model = law.nominal.model
+    Mhat, Ghat = _M_Gq(model, loop.q)
+    index = {name: (j, k) for name, j, k in _parameters(model)}
+    keys = [index[name] for name in loop.names]
+    k = len(keys)
+    rng = np.random.default_rng(seed)
+    if 2 ** k <= samples:
+        dirs = np.array(np.meshgrid(*[[-1.0, 1.0]] * k)).reshape(k, -1).T
+    else:
+        dirs = rng.choice((-1.0, 1.0), size=(samples, k))
+
+    def stable(d, a):
+        f = {key: 1.0 + loop.tol * a * di for key, di in zip(keys, d, strict=True)}
+        M, Gq = _M_Gq(_scaled(model, f), loop.q)
+        try:
+            A = _closed_loop(lm.lam, lm.K, Mhat, Ghat, M, Gq)
+        except np.linalg.LinAlgError:  # M singular: the loop is not well posed
+            return False
+        return bool(np.max(np.linalg.eigvals(A).real) < 0)
+
+    best, dbest = np.inf, None
+    for d in dirs:
+        top = min(best, hi)
+        if stable(d, top):
+            continue
+        lo, up = 0.0, top
+        while up - lo > rtol * up:
+            mid = 0.5 * (lo + up)
+            lo, up = (mid, up) if stable(d, mid) else (lo, mid)
+        best, dbest = up, d
+    return best, dbest
