@@ -31,6 +31,7 @@ _EXPORTS = {
     "ControlLaw": "control.laws",
     "default_reference": "control.references",
     "Design": "robust.loopshaping",
+    "DiscreteTrackingController": "control.laws",
     "design": "robust.loopshaping",
     "DHLink": "model.dh",
     "expand_diagonal": "robust.lti",
