@@ -570,10 +570,10 @@ def _as_statespace(K, n: int, discrete: bool = False):
     # Finite, proper: checked before any conversion (some hang on NaN).
     K = control.ss(check_lti(K, "K"))
     if not discrete and K.isdtime(strict=True):
-        raise ValueError(f"K is a discrete-time system (dt = {K.dt!r} s) and TrackingController "
-                         f"takes a continuous one (it discretizes it itself); a discrete K runs "
-                         f"as a sampled law at its own rate: hinf_fl_controller(nominal, K) or "
-                         f"DiscreteTrackingController")
+        raise ValueError(f"K is a discrete-time system (dt = {K.dt!r} s) and "
+                         f"TrackingController takes a continuous-time one (it discretizes it "
+                         f"itself); a discrete K runs as a sampled law at its own rate: "
+                         f"hinf_fl_controller(nominal, K) or DiscreteTrackingController")
     if discrete and (not K.isdtime(strict=True) or K.dt is True or not float(K.dt) > 0.0
                      or not math.isfinite(float(K.dt))):
         raise ValueError(f"K must be a discrete-time system with a sampling time dt > 0 [s] "
