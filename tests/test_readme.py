@@ -421,7 +421,7 @@ def test_gravity_and_pinocchio_against_the_closed_form():
 def test_layer_table_lists_every_module():
     rows = re.findall(r"^\| `rrr_pin\.(\w+)` \|([^|]*)\|", README, re.M)
     assert {layer for layer, _ in rows} == {"validation", "outputs", "model", "robust", "control",
-                                            "sim", "campaign", "report", "cli"}
+                                            "sim", "deploy", "campaign", "report", "cli"}
     for layer, modules in rows:
         listed = set(re.findall(r"`(\w+)`", modules))
         folder = ROOT / "src" / "rrr_pin" / layer

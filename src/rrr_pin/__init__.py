@@ -35,6 +35,8 @@ _EXPORTS = {
     "design": "robust.loopshaping",
     "DHLink": "model.dh",
     "expand_diagonal": "robust.lti",
+    "export": "deploy.writer",
+    "exported_law": "deploy.loaded",
     "fl_controller": "control.laws",
     "FLForm": "control.laws",
     "forward_kinematics": "model.dh",
