@@ -5,8 +5,7 @@ campaign -> report -> cli. A module may import its own layer and the layers belo
 above; no two modules import each other, directly or through others; no module takes a
 ``_private`` name from a module outside its own subpackage; the study and the Monte Carlo
 campaign are siblings (neither imports the other). ``rrr_pin/__init__.py`` is the package's
-face: it names every
-layer's public objects and is exempt.
+face: it names every layer's public objects and is exempt.
 
 Run ``python -m pytest tests/test_layers.py`` after moving code; the second half of this file
 shows the checker failing on a tree with an upward import, a cycle and a private import.

@@ -207,7 +207,8 @@ def _design_record(design) -> dict | None:
 
 
 def prepare_export(law, robot, rate: float | None = None, *, method: str = "tustin",
-                   prewarp: float | None = None, design=None) -> Export:
+                   prewarp: float | None = None, design=None,
+                   dynamics: str = "auto") -> Export:
     """Check and build an export of ``law`` on ``robot`` at ``rate``, without writing.
 
     Parameters as for :func:`export`.
@@ -243,8 +244,16 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         raise ExportError(f"law {law.name!r} was built on the model {form.nominal.name!r} "
                           f"(fingerprint {law_fp[:12]}...), not on robot {robot.name!r} "
                           f"({fp[:12]}...); build the law on the robot it is exported for")
+    if dynamics not in ("auto", "generated", "pinocchio"):
+        raise FieldError("dynamics", f"{{name}} must be 'auto', 'generated' or 'pinocchio', got "
+                                     f"{dynamics!r}")
     generated = generated_rrr_source()
-    use_generated = generated is not None and generated[0] == fp
+    available = generated is not None and generated[0] == fp
+    if dynamics == "generated" and not available:
+        raise FieldError("dynamics", f"{{name}} = 'generated': no generated dynamics for robot "
+                                     f"{robot.name!r} (fingerprint {fp[:12]}...); only the "
+                                     f"nominal RRR has them")
+    use_generated = available and dynamics != "pinocchio"
     dynamics = "generated" if use_generated else "pinocchio"
     import pinocchio as pin
 
@@ -300,7 +309,8 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
 
 
 def export(law, robot, rate: float | None = None, out="controller", *, method: str = "tustin",
-           prewarp: float | None = None, design=None, overwrite: bool = False) -> Export:
+           prewarp: float | None = None, design=None, dynamics: str = "auto",
+           overwrite: bool = False) -> Export:
     """Write ``law`` on ``robot`` at ``rate`` as a self-contained C folder ``out``.
 
     The folder holds ``controller.h``/``controller.c`` (C99: no allocation, no mutable global,
@@ -331,6 +341,9 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
     design : Design, optional
         The source design, whose ``gamma`` and margins ``controller.json`` records (the
         ``"hinf"`` name uses the paper's design and records it).
+    dynamics : {"auto", "generated", "pinocchio"}, default "auto"
+        The model's dynamics in the folder: the generated C of the nominal RRR when it is that
+        model (``"auto"``, or required by ``"generated"``), else Pinocchio C++.
     overwrite : bool, default False
         Replace a previous export in ``out``.
 
@@ -350,9 +363,10 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
     OutputError
         ``out`` not empty without ``overwrite``, not writable, or another tool's.
     """
-    prepared = prepare_export(law, robot, rate, method=method, prewarp=prewarp, design=design)
+    prepared = prepare_export(law, robot, rate, method=method, prewarp=prewarp, design=design,
+                              dynamics=dynamics)
     settings = {"law": prepared.law.name, "robot": robot.name, "rate": prepared.rate,
-                "method": method, "prewarp": prewarp}
+                "method": method, "prewarp": prewarp, "dynamics": prepared.dynamics}
     with OutputDir.claim(out, "export", overwrite=overwrite, settings=settings,
                          option="out") as run:
         prepared.write(run.path)
