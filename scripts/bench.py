@@ -15,7 +15,11 @@ asserted:
    ``pin`` directly (:func:`handwritten_fl_rollout`, the yardstick): 10 s, 1 kHz, ZOH FL;
 4. a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes) against its bound
    ``2 N x floor / 2 cores``, and the throughput with 1 worker;
-5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes.
+5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
+6. with ``--export`` (CMake builds, minutes): one ``ctrl_step`` of the exported H-inf + FL law
+   (:func:`rrr_pin.export`) for the RRR (generated dynamics) and UR5 (Pinocchio C++), against
+   the same Pinocchio calls alone (``ctrl_dyn_crba`` + ``ctrl_dyn_nle`` of a Pinocchio export of
+   the same arm: CRBA and NLE, M's triangle mirrored, nle copied out), in a C loop.
 
 Usage::
 
@@ -23,6 +27,7 @@ Usage::
     python scripts/bench.py --json           # one JSON object
     python scripts/bench.py --campaign-samples 1000   # the campaign of issue 13's table
     python scripts/bench.py --quick          # seconds, to check that it runs
+    python scripts/bench.py --export         # also section 6 (builds three exports)
 """
 
 import argparse
@@ -63,7 +68,81 @@ GOALS = {
     "robot_call": 2.0,  # Robot.M/V/G / bare pin call
     "cli_help_s": 0.3,
     "import_s": 0.6,
+    "export_rrr_us": 2.0,  # exported ctrl_step of the RRR, generated dynamics [us]
+    "export_ur5": 1.5,  # exported ctrl_step of UR5 / its Pinocchio calls alone
 }
+
+#: Section 6: a C loop timing ctrl_step and the dynamics calls alone of an exported folder.
+EXPORT_BENCH_C = r"""
+#include <stdio.h>
+#include <stdlib.h>
+#include <time.h>
+#include "controller.h"
+#include "dynamics.h"
+#define NS 64
+static double now(void) { struct timespec t; clock_gettime(CLOCK_MONOTONIC, &t);
+                          return t.tv_sec + 1e-9 * t.tv_nsec; }
+int main(int argc, char **argv)
+{
+    long calls = atol(argv[1]), k; int i, j, mode = atoi(argv[2]);
+    static double q[NS][CTRL_NQ], qd[NS][CTRL_NQ], r[NS][CTRL_NQ], tau[CTRL_NQ];
+    static double M[CTRL_NQ * CTRL_NQ], h[CTRL_NQ];
+    double sink = 0.0, t0, best = 1e9; unsigned s = 12345u; ctrl_state st; int rep;
+    for (i = 0; i < NS; ++i) for (j = 0; j < CTRL_NQ; ++j) {
+        s = 1664525u * s + 1013904223u; q[i][j] = (s / 4294967296.0 - 0.5) * 3.0;
+        s = 1664525u * s + 1013904223u; qd[i][j] = (s / 4294967296.0 - 0.5) * 2.0;
+        r[i][j] = q[i][j] + 0.01; }
+    ctrl_reset(&st);
+    for (rep = 0; rep < 5; ++rep) {
+        t0 = now();
+        for (k = 0; k < calls; ++k) {
+            i = (int)(k % NS);
+            if (mode == 0) { ctrl_step(&st, q[i], qd[i], r[i], qd[i], qd[i], tau); sink += tau[0]; }
+            else { ctrl_dyn_crba(q[i], M); ctrl_dyn_nle(q[i], qd[i], h); sink += M[0] + h[0]; }
+        }
+        t0 = (now() - t0) / calls; if (t0 < best) best = t0;
+    }
+    printf("%.6f %g\n", 1e6 * best, sink);
+    return 0;
+}
+"""
+
+
+def export_step_us(calls: int, out: Path) -> dict:
+    """Section 6: one exported ctrl_step [us] against the same Pinocchio calls alone.
+
+    Builds (CMake, Release) the H-inf + FL export of the RRR with generated dynamics, of the
+    RRR with Pinocchio dynamics and of UR5, links :data:`EXPORT_BENCH_C` to each shared
+    library, and takes the fastest of 5 rounds of ``calls`` calls cycling over 64 states.
+    """
+    from rrr_pin.deploy.loaded import build
+
+    def timed(folder: Path, mode: int) -> float:
+        lib = build(folder).parent
+        exe = folder / "bench_ctrl"
+        (folder / "bench_ctrl.c").write_text(EXPORT_BENCH_C)
+        subprocess.run(["cc", "-O2", "-std=c99", "-D_POSIX_C_SOURCE=199309L", f"-I{folder}",
+                        str(folder / "bench_ctrl.c"), f"-L{lib}", "-lrrr_pin_ctrl_shared",
+                        f"-Wl,-rpath,{lib}", "-o", str(exe)], check=True)
+        done = subprocess.run([str(exe), str(calls), str(mode)], check=True,
+                              capture_output=True, text=True)
+        return float(done.stdout.split()[0])
+
+    rows = {}
+    for arm, dynamics in (("rrr", "generated"), ("rrr", "pinocchio"), ("ur5", "pinocchio")):
+        robot = rrr_pin.load_robot(arm)
+        folder = out / f"{arm}_{dynamics}"
+        rrr_pin.export("hinf", robot, 1000.0, folder, dynamics=dynamics, overwrite=True)
+        rows[f"{arm}_{dynamics}"] = {"ctrl_step_us": timed(folder, 0)}
+        if dynamics == "pinocchio":
+            rows[f"{arm}_{dynamics}"]["pinocchio_calls_us"] = timed(folder, 1)
+    return {"rrr_ctrl_step_us": rows["rrr_generated"]["ctrl_step_us"],
+            "rrr_pinocchio_calls_us": rows["rrr_pinocchio"]["pinocchio_calls_us"],
+            "ur5_ctrl_step_us": rows["ur5_pinocchio"]["ctrl_step_us"],
+            "ur5_pinocchio_calls_us": rows["ur5_pinocchio"]["pinocchio_calls_us"],
+            "ur5_ratio": (rows["ur5_pinocchio"]["ctrl_step_us"]
+                          / rows["ur5_pinocchio"]["pinocchio_calls_us"]),
+            "rows": rows, "calls": calls}
 
 # The paper's H-infinity controller, eq. (18) (as rrr_pin.design().K_reduced reproduces it).
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
@@ -187,6 +266,10 @@ def main(argv=None):
                         help="runs of each start-up timing (5)")
     parser.add_argument("--quick", action="store_true",
                         help="tiny settings (0.05 s rollouts, 2 plants), to check that it runs")
+    parser.add_argument("--export", metavar="DIR", nargs="?", const="bench_export",
+                        default=None,
+                        help="also section 6, the exported ctrl_step (three CMake builds in DIR, "
+                             "bench_export/, minutes)")
     args = parser.parse_args(argv)
     if args.quick:
         args.duration, args.repeat, args.calls = 0.05, 1, 20
@@ -347,6 +430,8 @@ def main(argv=None):
                      "campaign_samples": args.campaign_samples, "campaign_jobs": 2,
                      "mc_samples": args.mc_samples, "startup_repeat": args.startup_repeat},
     }
+    if args.export is not None:
+        result["export"] = export_step_us(200 if args.quick else 200000, Path(args.export))
     if args.json:
         print(json.dumps(result))
         return
@@ -404,6 +489,17 @@ def report(res, args):
     for key, what in (("cli_help_s", "rrr-pin --help"), ("import_s", "import rrr_pin")):
         v, goal = res[key], GOALS[key]
         print(f"  {what:16}{v:8.3f} s   goal < {goal:g} s: {'met' if v < goal else 'NOT MET'}")
+    if "export" in res:
+        e = res["export"]
+        print(f"\n6. exported H-inf + FL, one ctrl_step in a C loop [us] (fastest of 5 x "
+              f"{e['calls']})")
+        g = GOALS["export_rrr_us"]
+        print(f"  RRR, generated dynamics: {e['rrr_ctrl_step_us']:8.3f} us (its Pinocchio calls "
+              f"alone: {e['rrr_pinocchio_calls_us']:.3f} us)   goal < {g:g} us: "
+              f"{'met' if e['rrr_ctrl_step_us'] < g else 'NOT MET'}")
+        print(f"  UR5, Pinocchio C++:      {e['ur5_ctrl_step_us']:8.3f} us, its Pinocchio calls "
+              f"alone {e['ur5_pinocchio_calls_us']:.3f} us; ratio {e['ur5_ratio']:.2f}   "
+              f"{verdict(e['ur5_ratio'], GOALS['export_ur5'])}")
 
 
 if __name__ == "__main__":

@@ -66,6 +66,7 @@ PARSE_ONLY = {
 #: Python blocks (named by a line they hold) that are compiled, not run, and why.
 COMPILE_ONLY = {
     "class ComputedTorquePD": "the full study with a Python-engine law on 10 plants (~15 s)",
+    'build("controller_c")': "a CMake build (tests/test_export.py compiles an export)",
 }
 
 

@@ -50,7 +50,8 @@ def build(folder, build_dir=None, *, timeout: float = 1800.0) -> Path:
     Returns
     -------
     Path
-        The shared library ``rrr_pin_ctrl_shared`` (:func:`library_name`).
+        The shared library ``rrr_pin_ctrl_shared`` (:func:`library_name`); the commands and
+        their output are in ``build_dir/build.log``.
 
     Raises
     ------
@@ -71,11 +72,14 @@ def build(folder, build_dir=None, *, timeout: float = 1800.0) -> Path:
     configure = [cmake, "-S", str(folder), "-B", str(build_dir), "-DCMAKE_BUILD_TYPE=Release"]
     if prefix:
         configure.append(f"-DCMAKE_PREFIX_PATH={prefix.replace(':', ';')}")
+    log = []
     for cmd in (configure, [cmake, "--build", str(build_dir)]):
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=False)
+        log += [f"$ {' '.join(cmd)}", done.stdout, done.stderr]
         if done.returncode:
             raise RuntimeError(f"{' '.join(cmd)} failed ({done.returncode}):\n"
                                f"{done.stdout[-4000:]}{done.stderr[-4000:]}")
+    (build_dir / "build.log").write_text("\n".join(log))
     return build_dir / library_name()
 
 
