@@ -34,6 +34,7 @@ from rrr_pin.cli import main
 from rrr_pin.deploy.loaded import build
 from rrr_pin.deploy.writer import ExportError, prepare_export
 from rrr_pin.model.dynamics import robot_from_xml
+from rrr_pin.model.robots import nominal_params
 from rrr_pin.outputs import OutputNotEmpty
 from rrr_pin.robust.loopshaping import fl_plant, lag_weight
 from rrr_pin.validation import FieldError
@@ -60,7 +61,9 @@ def _compile_shared(folder: Path) -> Path:
 
 def _uncertain(robot, seed: int):
     """One uncertain plant of ``robot`` (20 % inertias, 5 % lengths), as a Robot."""
-    return robot_from_xml(sample_plants(robot.urdf, 1, seed)[0].urdf, name="uncertain")
+    params = nominal_params(robot)  # the RRR's DH set (fast); other arms: their URDF
+    source = params if params is not None else robot.urdf
+    return robot_from_xml(sample_plants(source, 1, seed)[0].urdf, name="uncertain")
 
 
 def _reference(robot):
@@ -128,7 +131,7 @@ def test_ros_shaped_class_against_its_mock(hinf_rrr, tmp_path):
     (tmp_path / "test_ros.cpp").write_text(ROS_TEST)
     exe = tmp_path / "test_ros"
     objs = [str(folder / (f + ".o")) for f in ("controller.c", "dynamics.c", "codegen_rrr.c")]
-    subprocess.run([CXX, "-std=c++17", *WARN, f"-I{folder}", str(tmp_path / "test_ros.cpp"),
+    subprocess.run([CXX, "-std=c++17", *WARN, "-O0", f"-I{folder}", str(tmp_path / "test_ros.cpp"),
                     *objs, "-o", str(exe), "-lm"], check=True, capture_output=True, text=True)
     q = np.array([0.1, -0.4, 0.7])
     qd = np.array([0.2, 0.0, -0.3])
@@ -319,3 +322,37 @@ def test_cmake_build_every_law(robot_name, law, tmp_path):
     main_exe = tmp_path / law / "build" / "ctrl_main"
     assert "holding q0" in subprocess.run([str(main_exe)], check=True, capture_output=True,
                                           text=True).stdout
+
+
+def test_discrete_k_exported_as_given(rrr, hinf_quick):
+    import control
+
+    Kd = control.c2d(hinf_quick.K[0, 0], 1.0 / 500.0, "zoh")
+    law = hinf_fl_controller(rrr, Kd)
+    ex = prepare_export(law, rrr, None)
+    assert ex.rate == 500.0 and ex.record["law"]["K_source"] == "discrete K as given"
+    assert ex.record["law"]["method"] is None
+    # the SISO K copied on the diagonal, as given (scipy's block_diag as the reference)
+    import scipy.linalg
+
+    assert_allclose(ex.form.A, scipy.linalg.block_diag(*[np.asarray(Kd.A)] * 3), rtol=0, atol=0)
+    with pytest.raises(FieldError, match="law 'hinf' is sampled at 500 Hz; rate = 1000.0"):
+        prepare_export(law, rrr, 1000.0)
+
+
+def test_exported_law_needs_a_built_library(rrr, tmp_path):
+    export_law("pd", rrr, RATE, tmp_path / "pd")
+    with pytest.raises(FileNotFoundError, match="build the folder first.*cmake -S"):
+        exported_law(tmp_path / "pd")
+    with pytest.raises(FileNotFoundError, match="holds no controller.json"):
+        exported_law(tmp_path)
+
+
+def test_ctrl_step_refuses_a_nan_input(hinf_rrr):
+    ex, folder, lib = hinf_rrr
+    c_law = exported_law(folder, lib)
+    x = np.arange(c_law.nx, dtype=float)
+    q = np.array([0.1, np.nan, 0.2])
+    tau, x_next = c_law.step(0.0, q, np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), x)
+    assert np.all(np.isnan(tau))  # CTRL_EINPUT: nothing computed
+    assert_allclose(x_next, x, rtol=0, atol=0)  # the state is left untouched
