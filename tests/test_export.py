@@ -291,6 +291,9 @@ def test_cli_export_and_refusals(tmp_path, capsys):
     assert "pass --overwrite" in capsys.readouterr().err
     assert main(["export", "--law", "fl", "--rate", "500", "--out", str(out),
                  "--overwrite"]) == 0
+    (tmp_path / "file").write_text("x")
+    assert main(["export", "--law", "pd", "--rate", "500", "--out", str(tmp_path / "file")]) == 2
+    assert "exists and is not a folder" in capsys.readouterr().err
     urdf = tmp_path / "planar.urdf"
     text = (Path(__file__).resolve().parents[1] / "urdf" / "rrr.urdf").read_text()
     urdf.write_text(text.replace('type="revolute"', 'type="planar"', 1))
