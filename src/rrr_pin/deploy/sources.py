@@ -395,6 +395,8 @@ def cmakelists(*, pinocchio: bool, version: str) -> str:
 # The model's dynamics call the Pinocchio C++ library of the `pin` wheel (libpinocchio, a cmeel
 # package): its CMake package lives under <site-packages>/cmeel.prefix. Give it with
 # -DCMAKE_PREFIX_PATH="$(python -m cmeel cmake)", or let the Python on PATH tell it here.
+# FindBoost of an older CMake (3.25 here) predates Boost 1.90 and would warn per component.
+set(Boost_NO_WARN_NEW_VERSIONS ON)
 find_package(pinocchio {version} EXACT CONFIG QUIET)
 if(NOT pinocchio_FOUND)
   find_package(Python3 COMPONENTS Interpreter)
@@ -404,7 +406,6 @@ if(NOT pinocchio_FOUND)
     string(REPLACE ":" ";" CMEEL_PREFIX "${{CMEEL_PREFIX}}")
     list(PREPEND CMAKE_PREFIX_PATH ${{CMEEL_PREFIX}})
   endif()
-  set(Boost_NO_WARN_NEW_VERSIONS ON)
   find_package(pinocchio {version} EXACT CONFIG REQUIRED)
 endif()
 set(CMAKE_CXX_STANDARD 17)
