@@ -26,7 +26,11 @@ asserted:
 7. the mu upper bound (``rrr_pin.robust.mu.mussv``) on the frozen FL loop of the RRR with its
    inertial parameters real-uncertain (``rrr_pin.control.analysis.parametric_loop``), per
    frequency, against issue 21's goal of 0.5 s;
-8. identification of the UR5 from 10 s of 1 kHz data, the consistency SDP included.
+8. identification of the UR5 from 10 s of 1 kHz data, the consistency SDP included;
+9. with ``--export`` (CMake builds, minutes): one ``ctrl_step`` of the exported H-inf + FL law
+   (:func:`rrr_pin.export`) for the RRR (generated dynamics) and UR5 (Pinocchio C++), against
+   the same Pinocchio calls alone (``ctrl_dyn_crba`` + ``ctrl_dyn_nle`` of a Pinocchio export of
+   the same arm: CRBA and NLE, M's triangle mirrored, nle copied out), in a C loop.
 
 Usage::
 
@@ -34,6 +38,7 @@ Usage::
     python scripts/bench.py --json           # one JSON object
     python scripts/bench.py --campaign-samples 1000   # the campaign of issue 13's table
     python scripts/bench.py --quick          # seconds, to check that it runs
+    python scripts/bench.py --export         # also section 6 (builds three exports)
 """
 
 import argparse
@@ -84,7 +89,105 @@ GOALS = {
     "cli_help_s": 0.3,
     "import_s": 0.6,
     "loopsyn_3x3_s": 5.0,  # issue 21
+    "export_rrr_us": 2.0,  # exported ctrl_step of the RRR, generated dynamics [us]
+    "export_ur5": 1.5,  # exported ctrl_step of UR5 / its Pinocchio calls alone
 }
+
+#: Section 6: a C loop timing ctrl_step and the dynamics calls alone of an exported folder.
+EXPORT_BENCH_C = r"""
+#include <stdio.h>
+#include <stdlib.h>
+#include <time.h>
+#include "controller.h"
+#include "dynamics.h"
+#define NS 64
+static double now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+/* argv[1] calls per round; prints the fastest round of ctrl_step and of the dynamics calls
+ * alone [us per call], the rounds interleaved so that a shared machine's load falls on both */
+int main(int argc, char **argv)
+{
+    long calls = argc > 1 ? atol(argv[1]) : 100000, k;
+    static double q[NS][CTRL_NQ], qd[NS][CTRL_NQ], r[NS][CTRL_NQ], tau[CTRL_NQ];
+    static double M[CTRL_NQ * CTRL_NQ], h[CTRL_NQ];
+    double sink = 0.0, t0, best[2] = {1e9, 1e9};
+    unsigned s = 12345u;
+    ctrl_state st;
+    int i, j, rep, mode;
+    for (i = 0; i < NS; ++i) {
+        for (j = 0; j < CTRL_NQ; ++j) {
+            s = 1664525u * s + 1013904223u;
+            q[i][j] = (s / 4294967296.0 - 0.5) * 3.0;
+            s = 1664525u * s + 1013904223u;
+            qd[i][j] = (s / 4294967296.0 - 0.5) * 2.0;
+            r[i][j] = q[i][j] + 0.01;
+        }
+    }
+    ctrl_reset(&st);
+    for (rep = 0; rep < 10; ++rep) {
+        for (mode = 0; mode < 2; ++mode) {
+            t0 = now();
+            for (k = 0; k < calls; ++k) {
+                i = (int)(k % NS);
+                if (mode == 0) {
+                    ctrl_step(&st, q[i], qd[i], r[i], qd[i], qd[i], tau);
+                    sink += tau[0];
+                } else {
+                    ctrl_dyn_crba(q[i], M);
+                    ctrl_dyn_nle(q[i], qd[i], h);
+                    sink += M[0] + h[0];
+                }
+            }
+            t0 = (now() - t0) / calls;
+            if (t0 < best[mode]) best[mode] = t0;
+        }
+    }
+    printf("%.6f %.6f %g\n", 1e6 * best[0], 1e6 * best[1], sink);
+    return 0;
+}
+"""
+
+
+def export_step_us(calls: int, out: Path) -> dict:
+    """Section 6: one exported ctrl_step [us] against the same Pinocchio calls alone.
+
+    Builds (CMake, Release) the H-inf + FL export of the RRR with generated dynamics, of the
+    RRR with Pinocchio dynamics and of UR5, links :data:`EXPORT_BENCH_C` to each shared
+    library, and takes the fastest of 10 interleaved rounds of ``calls`` calls of each, cycling
+    over 64 states. A folder already built with its bench program (a previous run) is reused.
+    """
+    from rrr_pin.deploy.loaded import build
+
+    def timed(folder: Path) -> tuple:
+        lib = build(folder).parent
+        exe = folder / "bench_ctrl"
+        (folder / "bench_ctrl.c").write_text(EXPORT_BENCH_C)
+        subprocess.run(["cc", "-O2", "-std=c99", "-D_POSIX_C_SOURCE=199309L", f"-I{folder}",
+                        str(folder / "bench_ctrl.c"), f"-L{lib}", "-lrrr_pin_ctrl_shared",
+                        f"-Wl,-rpath,{lib}", "-o", str(exe)], check=True)
+        done = subprocess.run([str(exe), str(calls)], check=True, capture_output=True,
+                              text=True)
+        return tuple(float(v) for v in done.stdout.split()[:2])
+
+    rows = {}
+    for arm, dynamics in (("rrr", "generated"), ("rrr", "pinocchio"), ("ur5", "pinocchio")):
+        robot = rrr_pin.load_robot(arm)
+        folder = out / f"{arm}_{dynamics}"
+        if not (folder / "build" / "bench_ctrl").exists():  # a previous run's build is reused
+            rrr_pin.export("hinf", robot, 1000.0, folder, dynamics=dynamics, overwrite=True)
+        step_us, calls_us = timed(folder)
+        rows[f"{arm}_{dynamics}"] = {"ctrl_step_us": step_us, "dynamics_calls_us": calls_us}
+    return {"rrr_ctrl_step_us": rows["rrr_generated"]["ctrl_step_us"],
+            "rrr_pinocchio_calls_us": rows["rrr_pinocchio"]["dynamics_calls_us"],
+            "ur5_ctrl_step_us": rows["ur5_pinocchio"]["ctrl_step_us"],
+            "ur5_pinocchio_calls_us": rows["ur5_pinocchio"]["dynamics_calls_us"],
+            "ur5_ratio": (rows["ur5_pinocchio"]["ctrl_step_us"]
+                          / rows["ur5_pinocchio"]["dynamics_calls_us"]),
+            "rows": rows, "calls": calls, "load_avg_1min": os.getloadavg()[0]}
 
 # The paper's H-infinity controller, eq. (18) (as rrr_pin.design().K_reduced reproduces it).
 K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
@@ -285,6 +388,10 @@ def main(argv=None):
                         help="runs of each start-up timing (5)")
     parser.add_argument("--quick", action="store_true",
                         help="tiny settings (0.05 s rollouts, 2 plants), to check that it runs")
+    parser.add_argument("--export", metavar="DIR", nargs="?", const="bench_export",
+                        default=None,
+                        help="also section 6, the exported ctrl_step (three CMake builds in DIR, "
+                             "bench_export/, minutes)")
     args = parser.parse_args(argv)
     if args.quick:
         args.duration, args.repeat, args.calls = 0.05, 1, 20
@@ -462,6 +569,8 @@ def main(argv=None):
     }
     result["identification"] = identification_bench(5.0 if args.quick else 10.0)
     result["mu"] = mu_upper_s(1 if args.quick else 10)
+    if args.export is not None:
+        result["export"] = export_step_us(200 if args.quick else 200000, Path(args.export))
     if args.json:
         print(json.dumps(result))
         return
@@ -558,6 +667,18 @@ def report(res, args):
           f"parameters, M of size {m['size']}: {m['s_per_frequency']:.3f} s per frequency "
           f"(mean of {m['frequencies']}; with the lower bound {m['both_s_per_frequency']:.3f} s)   "
           f"goal < 0.5 s: {'met' if m['s_per_frequency'] < 0.5 else 'NOT MET'}")
+
+    if "export" in res:
+        e = res["export"]
+        print(f"\n9. exported H-inf + FL, one ctrl_step in a C loop [us] (fastest of 10 x "
+              f"{e['calls']}, interleaved; load average {e['load_avg_1min']:.1f})")
+        g = GOALS["export_rrr_us"]
+        print(f"  RRR, generated dynamics: {e['rrr_ctrl_step_us']:8.3f} us (its Pinocchio calls "
+              f"alone: {e['rrr_pinocchio_calls_us']:.3f} us)   goal < {g:g} us: "
+              f"{'met' if e['rrr_ctrl_step_us'] < g else 'NOT MET'}")
+        print(f"  UR5, Pinocchio C++:      {e['ur5_ctrl_step_us']:8.3f} us, its Pinocchio calls "
+              f"alone {e['ur5_pinocchio_calls_us']:.3f} us; ratio {e['ur5_ratio']:.2f}   "
+              f"{verdict(e['ur5_ratio'], GOALS['export_ur5'])}")
 
 
 def identification_bench(duration: float) -> dict:

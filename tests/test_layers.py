@@ -1,11 +1,11 @@
 """The layer contract of the package, checked on its source by AST (imports inside functions too).
 
-Layers, lowest first: validation -> outputs -> model -> robust -> control -> sim -> campaign ->
-report -> cli. A module may import its own layer and the layers below it, never one above; no
-two modules import each other, directly or through others; no module takes a ``_private`` name
-from a module outside its own subpackage; the study and the Monte Carlo campaign are siblings
-(neither imports the other). ``rrr_pin/__init__.py`` is the package's face: it names every
-layer's public objects and is exempt.
+Layers, lowest first: validation -> outputs -> model -> robust -> control -> sim -> deploy ->
+campaign -> report -> cli. A module may import its own layer and the layers below it, never one
+above; no two modules import each other, directly or through others; no module takes a
+``_private`` name from a module outside its own subpackage; the study and the Monte Carlo
+campaign are siblings (neither imports the other). ``rrr_pin/__init__.py`` is the package's
+face: it names every layer's public objects and is exempt.
 
 Run ``python -m pytest tests/test_layers.py`` after moving code; the second half of this file
 shows the checker failing on a tree with an upward import, a cycle and a private import.
@@ -21,7 +21,8 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "rrr_pin"
 
-LAYERS = ("validation", "outputs", "model", "robust", "control", "sim", "campaign", "report", "cli")
+LAYERS = ("validation", "outputs", "model", "robust", "control", "sim", "deploy", "campaign",
+          "report", "cli")
 
 #: Pairs of modules that must not import each other (either way).
 INDEPENDENT = (("rrr_pin.campaign.study", "rrr_pin.campaign.montecarlo"),)

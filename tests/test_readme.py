@@ -71,6 +71,7 @@ COMPILE_ONLY = {
     "class ComputedTorquePD": "the full study with a Python-engine law on 10 plants (~15 s)",
     "parametric_margin(law, q": "robstab on the frozen 10 x 10 loop (~1 min); the slow test "
                                 "of tests/test_analysis.py checks its margins",
+    'build("controller_c")': "a CMake build (tests/test_export.py compiles an export)",
 }
 
 
@@ -426,7 +427,7 @@ def test_gravity_and_pinocchio_against_the_closed_form():
 def test_layer_table_lists_every_module():
     rows = re.findall(r"^\| `rrr_pin\.(\w+)` \|([^|]*)\|", README, re.M)
     assert {layer for layer, _ in rows} == {"validation", "outputs", "model", "robust", "control",
-                                            "sim", "campaign", "report", "cli"}
+                                            "sim", "deploy", "campaign", "report", "cli"}
     for layer, modules in rows:
         listed = set(re.findall(r"`(\w+)`", modules))
         folder = ROOT / "src" / "rrr_pin" / layer

@@ -26,7 +26,8 @@ def _build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", default=0, **verbose)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_urdf, _add_mjcf, _add_check_dynamics, _add_design, _add_reproduce,
-                _add_montecarlo, _add_stress, _add_identify, _add_margins, _add_robstab):
+                _add_montecarlo, _add_stress, _add_identify, _add_margins, _add_robstab,
+                _add_export):
         add(sub)
     for command in sub.choices.values():  # also after the command: rrr-pin reproduce -v
         command.add_argument("-v", "--verbose", default=argparse.SUPPRESS, **verbose)
@@ -1078,6 +1079,73 @@ def _cmd_identify(args) -> int:
                                        else f"nearest consistent arm at RMS torque change "
                                             f"{c['distance_rms_Nm']:.3g} N m"))
     print("wrote " + ", ".join(str(p) for p in written))
+
+
+# --- export (the law as C code) ---------------------------------------------------------------
+
+def _add_export(sub) -> None:
+    from .control.catalog import BUILTIN_LAWS
+
+    p = sub.add_parser(
+        "export", help="write a built-in controller as C code for a real-time loop",
+        description="Writes --law on --robot, sampled at --rate, into --out: controller.h/.c "
+                    "(C99, ctrl_reset/ctrl_step), the model's dynamics (generated C for the "
+                    "nominal RRR, Pinocchio C++ otherwise), CMakeLists.txt, main.c, "
+                    "ros2_controller.hpp and controller.json. Build with cmake -S DIR -B "
+                    "DIR/build && cmake --build DIR/build.")
+    p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
+                   help="arm: 'rrr' (default), an example-robot-data name (ur5, ...) or a URDF "
+                        "path")
+    p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
+                   help="lock a joint at a position [rad or m] (repeatable)")
+    p.add_argument("--law", default="hinf", metavar="NAME",
+                   help="built-in controller: " + "; ".join(
+                       f"{k} = {v}" for k, v in BUILTIN_LAWS.items()) + " (default: hinf)")
+    p.add_argument("--rate", type=float, default=None, metavar="HZ",
+                   help="sampling rate of the exported code [Hz] (required: the built-in "
+                        "laws are continuous-time)")
+    p.add_argument("--method", default="tustin",
+                   help="discretization of the H-infinity K (tustin; any method of "
+                        "control.sample_system)")
+    p.add_argument("--prewarp", type=float, default=None, metavar="RAD_S",
+                   help="Tustin prewarp frequency [rad/s], below pi * rate")
+    p.add_argument("--full-order", action="store_true",
+                   help="hinf: the full-order K instead of the reduced eq. (18)")
+    p.add_argument("--out", default="controller", metavar="DIR",
+                   help="output folder (controller/)")
+    _add_overwrite(p)
+    p.set_defaults(func=_cmd_export)
+
+
+def _cmd_export(args) -> int:
+    from .control.catalog import LAWS, make_law
+    from .deploy.writer import prepare_export
+    from .model.dynamics import load_robot
+
+    out = _check_out_early(args, "export")  # a file, no permission, another tool's run
+    if args.law not in LAWS:
+        raise ValueError(f"--law {args.law!r} is not a built-in controller ({', '.join(LAWS)})")
+    _not_a_folder(robot=args.robot)
+    robot = load_robot(args.robot, lock=_parse_lock(args.lock))
+    d, law = None, args.law
+    if args.law == "hinf":
+        from .robust.loopshaping import design
+
+        d = design(lam=45.0, n=robot.nq)
+        law = make_law("hinf", robot, K=d.K_full if args.full_order else d.K_reduced)
+    else:
+        law = make_law(args.law, robot)
+    with _as_options():
+        prepared = prepare_export(law, robot, args.rate, method=args.method,
+                                  prewarp=args.prewarp, design=d)
+    if out is None:  # --overwrite: the previous export is removed now that the options hold
+        out = _claim_out(args, "export")
+    prepared.write(out)
+    print(f"{robot.name}: {prepared.law.name} ({prepared.form.kind}, {prepared.law.nx} states) "
+          f"at {prepared.rate:g} Hz, {prepared.dynamics} dynamics")
+    print(f"wrote {out}/: {', '.join(prepared.files)}")
+    print(f"build: cmake -S {out} -B {out}/build && cmake --build {out}/build && "
+          f"{out}/build/ctrl_main")
     return 0
 
 

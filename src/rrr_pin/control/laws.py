@@ -18,7 +18,8 @@ overrides a method never runs the built-in's compiled code in its place.
 Built in (each uses the NOMINAL model only; the simulated plant may differ):
 
 * :func:`fl_controller`, feedback linearization alone (eq. 20), ``lam = 100`` rad/s;
-* :func:`hinf_fl_controller`, H-infinity + feedback linearization (eq. 8-10, 18-19);
+* :func:`hinf_fl_controller`, H-infinity + feedback linearization (eq. 8-10, 18-19); with a
+  discrete-time ``K`` it is a :class:`DiscreteTrackingController`, sampled at ``1 / K.dt`` Hz;
 * :func:`hinf_aw_controller`, the same law told the actuator limits, its ``K`` conditioned on
   the torque actually applied (Hanus's self-conditioned form, :class:`AntiWindupTracking`);
 * :func:`pd_controller`, the industrial baseline: PD plus gravity compensation,
@@ -90,6 +91,7 @@ __all__ = [
     "PDLinearModel",
     "TrackingController",
     "AntiWindupTracking",
+    "DiscreteTrackingController",
     "PDGravity",
     "fl_controller",
     "hinf_fl_controller",
@@ -617,26 +619,41 @@ class _StaticSampled(SampledLaw):
         return {**self.law.describe(), "time": "sampled", "rate_hz": self.rate}
 
 
-def _as_statespace(K, n: int):
-    """Continuous LTI ``K`` as an ``n x n`` StateSpace (a SISO ``K`` is copied on the diagonal)."""
+def _as_statespace(K, n: int, discrete: bool = False):
+    """LTI ``K`` as an ``n x n`` StateSpace (a SISO ``K`` is copied on the diagonal).
+
+    ``discrete=False``: ``K`` must be continuous (a discrete one is refused, naming the law that
+    takes it); ``discrete=True``: ``K`` must be discrete with a sampling time ``dt > 0`` [s].
+    """
     import control
     import scipy.linalg
 
     from ..robust.lti import check_lti
 
-    # Finite, proper, continuous: checked before any conversion (some hang on NaN).
+    # Finite, proper: checked before any conversion (some hang on NaN).
     K = control.ss(check_lti(K, "K"))
-    if K.isdtime(strict=True):
-        raise ValueError("K must be a continuous-time system (dt = 0); it is discretized here")
+    if not discrete and K.isdtime(strict=True):
+        raise ValueError(f"K is a discrete-time system (dt = {K.dt!r} s) and "
+                         f"TrackingController takes a continuous-time one (it discretizes it "
+                         f"itself); a discrete K runs as a sampled law at its own rate: "
+                         f"hinf_fl_controller(nominal, K) or DiscreteTrackingController")
+    if discrete and (not K.isdtime(strict=True) or K.dt is True or not float(K.dt) > 0.0
+                     or not math.isfinite(float(K.dt))):
+        raise ValueError(f"K must be a discrete-time system with a sampling time dt > 0 [s] "
+                         f"(its rate is 1/dt), got dt = {K.dt!r}")
     if (K.ninputs, K.noutputs) == (1, 1) and n > 1:
         A = scipy.linalg.block_diag(*[K.A] * n)
         B = scipy.linalg.block_diag(*[K.B] * n)
         C = scipy.linalg.block_diag(*[K.C] * n)
         D = scipy.linalg.block_diag(*[K.D] * n)
-        K = control.ss(A, B, C, D)
+        K = control.ss(A, B, C, D, K.dt)
     if (K.ninputs, K.noutputs) != (n, n):
         raise ValueError(f"K must be SISO or {n} x {n}, got {K.noutputs} x {K.ninputs}")
-    if K.nstates and np.any(np.linalg.eigvals(K.A).real > 1e-9):
+    if discrete:
+        if K.nstates and np.any(np.abs(np.linalg.eigvals(K.A)) > 1.0 + 1e-9):
+            raise ValueError("K has unstable poles (|z| > 1); the tracking law expects a stable "
+                             "controller")
+    elif K.nstates and np.any(np.linalg.eigvals(K.A).real > 1e-9):
         raise ValueError("K has unstable poles; the tracking law expects a stable controller")
     return K
 
@@ -798,7 +815,7 @@ def _rebuild_tracking(cls, state):
     import control
 
     K = state.pop("K")
-    return cls(**state, K=control.ss(*K) if K is not None else None)
+    return cls(**state, K=control.ss(*K) if K is not None else None)  # (A, B, C, D[, dt])
 
 
 class _SampledTracking(SampledLaw):
@@ -1016,6 +1033,93 @@ class _SampledAntiWindup(SampledLaw):
                 "discretization": self.method}
 
 
+class DiscreteTrackingController(SampledLaw):
+    r"""The tracking law of :class:`TrackingController` with a DISCRETE-time ``K``, sampled.
+
+    .. math:: \bar\tau_k = \ddot r_k + 2\lambda(\dot r_k - \dot q_k)
+              + \lambda^2 (e_k + y_k), \quad y_k = C x_k + D e_k, \quad
+              x_{k+1} = A x_k + B e_k
+
+    and ``tau_k = Mhat(q_k) taubar_k + Vhat(q_k, qd_k) + Ghat(q_k)``, held (zero-order hold)
+    for one period. It runs at ``rate = 1 / K.dt`` [Hz], the rate ``K`` was designed for; a
+    simulation at another rate is refused by name (:func:`rrr_pin.sim.simulation.simulate`).
+    The discrete :func:`rrr_pin.robust.ncf.ncfsyn` result plugs straight in.
+
+    Parameters
+    ----------
+    nominal : Robot
+        The model the controller uses.
+    lam : float
+        Bandwidth ``lambda`` [rad/s], eq. (10).
+    K : control LTI
+        Discrete-time ``n x n`` (or SISO, copied on the diagonal) stable controller on
+        ``e = r - q`` (negative feedback) with sampling time ``K.dt > 0`` [s].
+    name, label : str
+        Key and display name.
+    """
+
+    nominal: object
+    lam: float
+    K: object
+    name: str = "hinf"
+    label: str = ""
+    _mats: tuple = field(init=False, repr=False, compare=False)
+    _fl: object = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        fl = TrackingController(self.nominal, self.lam, None, name=self.name)
+        K = _as_statespace(self.K, self.nominal.nq, discrete=True)
+        object.__setattr__(self, "lam", fl.lam)
+        object.__setattr__(self, "K", K)
+        object.__setattr__(self, "_fl", fl)
+        object.__setattr__(self, "_mats",
+                           tuple(np.asarray(x, dtype=float) for x in (K.A, K.B, K.C, K.D)))
+        check_law(self)
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return self.nominal.nq
+
+    @property
+    def nx(self) -> int:
+        """Number of controller states."""
+        return self._mats[0].shape[0]
+
+    @property
+    def rate(self) -> float:
+        """Sampling rate ``1 / K.dt`` [Hz]."""
+        return 1.0 / float(self.K.dt)
+
+    def discrete_matrices(self):
+        """Return ``(A, B, C, D)`` of the discrete ``K`` as arrays."""
+        return self._mats
+
+    def step(self, t, q, qd, r, rd, rdd, x):
+        """Output with the old state, then the state update."""
+        A, B, C, D = self._mats
+        e = r - q
+        tau = self._fl._tau(q, qd, r, rd, rdd, C @ x + D @ e)
+        return tau, A @ x + B @ e
+
+    def compiled_form(self) -> FLForm | None:
+        """Return the :class:`FLForm` with the discrete matrices, for this exact class only."""
+        if type(self) is not DiscreteTrackingController:
+            return None
+        return FLForm(self.nominal, self.lam, *self._mats)
+
+    def __reduce__(self):
+        # control.StateSpace does not pickle: travel as matrices and dt.
+        state = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        state["K"] = (*self._mats, float(self.K.dt))
+        return (_rebuild_tracking, (type(self), state))
+
+    def describe(self) -> dict:
+        """Name, class, rate, bandwidth and ``K``'s order."""
+        return {**super().describe(), "lam_rad_s": self.lam, "K_states": self.nx,
+                "K_dt_s": float(self.K.dt), "nominal": self.nominal.name}
+
+
 @dataclass(frozen=True, eq=False)
 class PDGravity(ControlLaw):
     r"""PD control with gravity compensation, the industrial baseline.
@@ -1094,7 +1198,7 @@ def fl_controller(nominal, lam: float = 100.0, *, name: str = "fl") -> TrackingC
 
 
 def hinf_fl_controller(nominal, K, lam: float = 45.0, *,
-                       name: str = "hinf") -> TrackingController:
+                       name: str = "hinf") -> TrackingController | DiscreteTrackingController:
     """H-infinity + feedback linearization, eq. (8)-(10), (18)-(19) (default ``lam = 45`` rad/s).
 
     Parameters
@@ -1103,10 +1207,18 @@ def hinf_fl_controller(nominal, K, lam: float = 45.0, *,
         The controller's model.
     K : control LTI
         The loop-shaping controller (negative feedback on ``e = r - q``), SISO (copied on the
-        diagonal) or ``n x n``; e.g. ``design().K_reduced``, the paper's eq. (18).
+        diagonal) or ``n x n``; e.g. ``design().K_reduced``, the paper's eq. (18). Continuous
+        time gives a :class:`TrackingController`; discrete time (``K.dt > 0`` [s], e.g. the
+        discrete ``ncfsyn(...).K``) gives a :class:`DiscreteTrackingController`, a sampled law
+        at ``1 / K.dt`` Hz.
     lam : float, default 45
         FL bandwidth the design assumed [rad/s].
     """
+    import control
+
+    if isinstance(K, control.LTI) and K.isdtime(strict=True):
+        return DiscreteTrackingController(nominal=nominal, lam=lam, K=K, name=name,
+                                          label="H-infinity + FL")
     return TrackingController(nominal=nominal, lam=lam, K=K, name=name,
                               label="H-infinity + FL")
 

@@ -1,0 +1,373 @@
+r"""Export a built-in law as a self-contained C folder: :func:`export`, :func:`prepare_export`.
+
+What is exported is the law's **compiled form** (:class:`~rrr_pin.control.laws.FLForm`,
+:class:`~rrr_pin.control.laws.PDForm`) sampled at the rate: the declaration the compiled
+engine already trusts to reproduce the Python law exactly. A continuous ``K`` is discretized
+here (``method``, Tustin by default, optionally prewarped); a discrete ``K``
+(:class:`~rrr_pin.control.laws.DiscreteTrackingController`) is exported as given. The Python
+twin of the exported code, the :class:`~rrr_pin.control.laws.SampledLaw` it reproduces, is
+:attr:`Export.law`.
+
+The folder (:data:`FILES`): ``controller.h``, ``controller.c`` (the law, C99), ``dynamics.h``
+and ``dynamics.c`` + ``codegen_rrr.c`` (the nominal RRR's generated dynamics) or
+``dynamics.cpp`` (Pinocchio C++ on the embedded model), ``CMakeLists.txt``, ``main.c``,
+``ros2_controller.hpp`` + ``ros2_mock.hpp`` and ``controller.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..control.catalog import LAWS, make_law
+from ..control.laws import (
+    DiscreteTrackingController,
+    FLForm,
+    PDForm,
+    SampledLaw,
+    TrackingController,
+    check_law,
+)
+from ..outputs import OutputDir, writing
+from ..sim.codegen import fingerprint
+from ..validation import FieldError, check_positive, check_rate
+from . import sources
+
+__all__ = ["Export", "ExportError", "export", "prepare_export", "FILES", "FORMAT",
+           "EXPRESSIBLE_JOINTS", "generated_rrr_source"]
+
+#: ``controller.json``'s format name; its version is ``VERSION``.
+FORMAT = "rrr-pin-controller"
+VERSION = 1
+
+#: Every file an export may write (the dynamics files depend on the model).
+FILES = ("controller.h", "controller.c", "dynamics.h", "dynamics.c", "codegen_rrr.c",
+         "dynamics.cpp", "CMakeLists.txt", "main.c", "ros2_controller.hpp", "ros2_mock.hpp",
+         "controller.json")
+
+#: Pinocchio joint types the C API (one ``q`` and one ``qd`` per joint) expresses.
+EXPRESSIBLE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ",
+                      "JointModelRevoluteUnaligned", "JointModelPX", "JointModelPY",
+                      "JointModelPZ", "JointModelPrismaticUnaligned")
+
+#: What a law must declare to be exported (the refusal's text).
+EXPORTABLE = ("an exportable law must declare, by compiled_form(), an FLForm (lam and the "
+              "discrete A, B, C, D of its K) or a PDForm (Kp, Kd) that reproduces it exactly, "
+              "for its own class: the built-in laws do (fl_controller, hinf_fl_controller, "
+              "pd_controller, and their sampled versions); a subclass or a law of your own "
+              "does not")
+
+
+class ExportError(ValueError):
+    """A law, model or rate that cannot be exported (the message says why and what would do)."""
+
+
+@dataclass(frozen=True)
+class Export:
+    """The files of one export, ready to write, and the law they reproduce.
+
+    Attributes
+    ----------
+    law : SampledLaw
+        The Python twin of the exported code: ``ctrl_step`` computes its :meth:`step`.
+    form : FLForm or PDForm
+        The compiled form transcribed (matrices discrete at :attr:`rate`).
+    rate : float
+        Sampling rate [Hz].
+    dynamics : {"generated", "pinocchio"}
+        Which dynamics the folder carries.
+    files : dict
+        File name -> text, in :data:`FILES` order.
+    record : dict
+        The content of ``controller.json``.
+    """
+
+    law: object
+    form: object
+    rate: float
+    dynamics: str
+    files: dict = field(repr=False)
+    record: dict = field(repr=False)
+
+    def write(self, folder) -> list[Path]:
+        """Write the files into ``folder`` (which must exist); return their paths."""
+        out = []
+        for name, text in self.files.items():
+            path = Path(folder) / name
+            with writing(path):
+                path.write_bytes(text.encode("ascii"))
+            out.append(path)
+        return out
+
+
+def generated_rrr_source() -> tuple[str, str] | None:
+    """Return ``(fingerprint, text)`` of the generated RRR dynamics, or None if not installed.
+
+    The file is ``rrr_pin/_ext/codegen_rrr.c`` (:mod:`rrr_pin.sim.codegen`); its header records
+    the fingerprint of the model it was generated for.
+    """
+    path = Path(__file__).resolve().parents[1] / "_ext" / "codegen_rrr.c"
+    if not path.is_file():
+        return None
+    text = path.read_text(encoding="ascii")
+    for line in text.splitlines()[:12]:
+        if line.startswith(" * fingerprint: "):
+            return line.split(": ", 1)[1].strip(), text
+    return None
+
+
+def _check_model(robot) -> None:
+    """Refuse a model the C API cannot express (one q and one qd per 1-DOF joint, ASCII names)."""
+    model = robot.model
+    if model.nq != model.nv:
+        raise ExportError(f"robot {robot.name!r}: nq = {model.nq} != nv = {model.nv}; the "
+                          f"exported API has one q and one qd per joint")
+    for i in range(1, model.njoints):
+        kind = model.joints[i].shortname()
+        if kind not in EXPRESSIBLE_JOINTS:
+            raise ExportError(f"robot {robot.name!r}: joint {model.names[i]!r} is a {kind}; the "
+                              f"exported API expresses 1-DOF revolute and prismatic joints only "
+                              f"({', '.join(EXPRESSIBLE_JOINTS)})")
+    for name in robot.joint_names:
+        if not name.isascii() or not name.isprintable():
+            raise ExportError(f"robot {robot.name!r}: joint name {name!r} is not printable "
+                              f"ASCII; the C header cannot carry it")
+
+
+def _discretize(law: TrackingController, rate: float, method: str, prewarp):
+    """``law``'s K discretized at ``rate``: the DiscreteTrackingController twin."""
+    import control
+
+    Ts = 1.0 / rate
+    kwargs = {}
+    if prewarp is not None:
+        prewarp = check_positive("prewarp", prewarp, unit="rad/s")
+        if method not in ("tustin", "bilinear"):
+            raise FieldError("prewarp", f"{{name}} applies to the Tustin method only, got "
+                                        f"method = {method!r}")
+        nyquist = math.pi * rate
+        if prewarp >= nyquist:
+            raise FieldError("prewarp", f"{{name}} = {prewarp:g} rad/s is at or above the "
+                                        f"Nyquist frequency pi * rate = {nyquist:.6g} rad/s "
+                                        f"of rate = {rate:g} Hz; Tustin cannot prewarp there")
+        kwargs["prewarp_frequency"] = prewarp
+    try:
+        Kd = control.sample_system(law.K, Ts, method=method, **kwargs)
+    except ValueError as exc:
+        raise FieldError("method", f"{{name}} = {method!r}: {exc}") from exc
+    A = np.asarray(Kd.A, dtype=float)
+    if A.size:
+        rho = float(np.max(np.abs(np.linalg.eigvals(A))))
+        if not rho <= 1.0 + 1e-9:
+            raise FieldError("rate", f"K of law {law.name!r} discretized by {method!r} at "
+                                     f"{{name}} = {rate:g} Hz is unstable (pole |z| = "
+                                     f"{rho:.6g} > 1); raise the rate or use method='tustin', "
+                                     f"which keeps a stable K stable")
+    return DiscreteTrackingController(law.nominal, law.lam, Kd, name=law.name, label=law.label)
+
+
+def _twin(law, rate, method: str, prewarp):
+    """Return the sampled law the exported code reproduces, and its rate [Hz]."""
+    if isinstance(law, SampledLaw):
+        if rate is not None and not math.isclose(check_rate("rate", rate), law.rate):
+            raise FieldError("rate", f"law {law.name!r} is sampled at {law.rate:g} Hz; "
+                                     f"{{name}} = {rate!r} asks for another rate")
+        if prewarp is not None:
+            raise FieldError("prewarp", f"law {law.name!r} is already discrete: {{name}} "
+                                        f"does not apply")
+        return law, check_rate("rate", law.rate)
+    if rate is None:
+        raise FieldError("rate", f"law {law.name!r} is continuous-time; the exported code runs "
+                                 f"at a fixed rate: give {{name}} [Hz] (e.g. 1000), at which "
+                                 f"its K is discretized by {method!r}")
+    rate = check_rate("rate", rate)
+    if type(law) is TrackingController and law.nx:
+        return _discretize(law, rate, method, prewarp), rate
+    if prewarp is not None:
+        raise FieldError("prewarp", f"law {law.name!r} has no K to discretize: {{name}} does "
+                                    f"not apply")
+    return law.sampled(rate, method), rate
+
+
+def _design_record(design) -> dict | None:
+    if design is None:
+        return None
+    return {"gamma": float(design.ncf.gamma), "gamma_min": float(design.ncf.gamma_min),
+            "emax": float(design.ncf.emax), "gamma_reduced": float(design.gamma_reduced),
+            "b_reduced": 1.0 / float(design.gamma_reduced), "lam": float(design.lam),
+            "reduction": design.reduction.as_dict(),
+            "robust_stability": {"ok": bool(design.robust_stability.ok),
+                                 "margin_db": float(design.robust_stability.margin_db)},
+            "robust_performance": {"ok": bool(design.robust_performance.ok),
+                                   "margin_db": float(design.robust_performance.margin_db)}}
+
+
+def prepare_export(law, robot, rate: float | None = None, *, method: str = "tustin",
+                   prewarp: float | None = None, design=None,
+                   dynamics: str = "auto") -> Export:
+    """Check and build an export of ``law`` on ``robot`` at ``rate``, without writing.
+
+    Parameters as for :func:`export`.
+
+    Returns
+    -------
+    Export
+    """
+    from ..model.dynamics import Robot
+
+    if not isinstance(robot, Robot):
+        raise TypeError(f"robot must be an rrr_pin.Robot (rrr_pin.load_robot), got "
+                        f"{type(robot).__name__}")
+    _check_model(robot)
+    if isinstance(law, str):
+        if law not in LAWS:
+            raise FieldError("law", f"{{name}} = {law!r} is not a built-in law "
+                                    f"({', '.join(LAWS)})")
+        if law == "hinf" and design is None:
+            from ..robust.loopshaping import design as make_design
+
+            design = make_design(lam=45.0, n=robot.nq)
+        law = make_law(law, robot, **({"K": design.K_reduced} if law == "hinf" else {}))
+    check_law(law, robot.nq)
+    fp = fingerprint(robot.model)
+    twin, rate = _twin(law, rate, method, prewarp)
+    form = twin.compiled_form()
+    if type(form) not in (FLForm, PDForm):
+        raise ExportError(f"law {law.name!r} ({type(law).__name__}) cannot be exported: "
+                          f"{EXPORTABLE}")
+    law_fp = fingerprint(form.nominal.model)
+    if law_fp != fp:
+        raise ExportError(f"law {law.name!r} was built on the model {form.nominal.name!r} "
+                          f"(fingerprint {law_fp[:12]}...), not on robot {robot.name!r} "
+                          f"({fp[:12]}...); build the law on the robot it is exported for")
+    if dynamics not in ("auto", "generated", "pinocchio"):
+        raise FieldError("dynamics", f"{{name}} must be 'auto', 'generated' or 'pinocchio', got "
+                                     f"{dynamics!r}")
+    generated = generated_rrr_source()
+    available = generated is not None and generated[0] == fp
+    if dynamics == "generated" and not available:
+        raise FieldError("dynamics", f"{{name}} = 'generated': no generated dynamics for robot "
+                                     f"{robot.name!r} (fingerprint {fp[:12]}...); only the "
+                                     f"nominal RRR has them")
+    use_generated = available and dynamics != "pinocchio"
+    dynamics = "generated" if use_generated else "pinocchio"
+    import pinocchio as pin
+
+    from .. import __version__
+
+    n, nx = robot.nq, twin.nx
+    where = ("generated plain C of the nominal RRR (codegen_rrr.c)" if use_generated
+             else "Pinocchio C++ on the embedded model (dynamics.cpp)")
+    files = {
+        "controller.h": sources.controller_h(n=n, nx=nx, rate=rate, law=twin.name,
+                                             kind=form.kind, joints=robot.joint_names,
+                                             fingerprint=fp, dynamics=where),
+        "controller.c": sources.controller_c(form, law=twin.name, rate=rate),
+        "dynamics.h": sources.dynamics_h(where),
+    }
+    if use_generated:
+        files["dynamics.c"] = sources.dynamics_codegen_c()
+        files["codegen_rrr.c"] = generated[1]
+    else:
+        files["dynamics.cpp"] = sources.dynamics_pinocchio_cpp(robot.model.saveToString(),
+                                                              robot.name)
+    q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
+    files["CMakeLists.txt"] = sources.cmakelists(pinocchio=not use_generated,
+                                                 version=pin.__version__)
+    files["main.c"] = sources.main_c(q0=q0)
+    files["ros2_controller.hpp"] = sources.ros2_controller_hpp()
+    files["ros2_mock.hpp"] = sources.ros2_mock_hpp()
+    if form.kind == "pd":
+        law_record = {"kind": "pd", "Kp": form.Kp.tolist(), "Kd": form.Kd.tolist()}
+    else:
+        A, B, C, D = form.A, form.B, form.C, form.D
+        if isinstance(law, DiscreteTrackingController):
+            source = "discrete K as given"
+        elif nx:
+            source = "continuous K discretized here"
+        else:
+            source = "no K (feedback linearization alone)"
+        law_record = {"kind": "fl", "lam": form.lam, "A": A.tolist(), "B": B.tolist(),
+                      "C": C.tolist(), "D": D.tolist(), "Ts": 1.0 / rate,
+                      "method": None if isinstance(law, DiscreteTrackingController) or not nx
+                      else method, "prewarp_rad_s": prewarp, "K_source": source}
+    record = {
+        "format": FORMAT, "version": VERSION, "rrr_pin_version": __version__,
+        "pinocchio_version": pin.__version__,
+        "law": {"name": twin.name, "label": twin.label or twin.name,
+                "class": f"{type(law).__module__}.{type(law).__qualname__}", **law_record},
+        "rate_hz": rate, "nq": n, "nx": nx, "joints": list(robot.joint_names),
+        "model": {"name": robot.name, "fingerprint": fp, "dynamics": dynamics},
+        "design": _design_record(design),
+    }
+    files["controller.json"] = json.dumps(record, indent=2, sort_keys=True) + "\n"
+    return Export(twin, form, rate, dynamics, files, record)
+
+
+def export(law, robot, rate: float | None = None, out="controller", *, method: str = "tustin",
+           prewarp: float | None = None, design=None, dynamics: str = "auto",
+           overwrite: bool = False) -> Export:
+    """Write ``law`` on ``robot`` at ``rate`` as a self-contained C folder ``out``.
+
+    The folder holds ``controller.h``/``controller.c`` (C99: no allocation, no mutable global,
+    re-entrant) with ``ctrl_reset``/``ctrl_step``, the nominal model's dynamics (the generated
+    C of the nominal RRR, or a C++ file calling Pinocchio on the embedded model), a
+    ``CMakeLists.txt`` (static library ``rrr_pin_ctrl``), an example ``main.c``,
+    ``ros2_controller.hpp`` (with ``ros2_mock.hpp``) and ``controller.json``. The same
+    arguments give byte-identical files.
+
+    Parameters
+    ----------
+    law : ControlLaw, SampledLaw or str
+        A built-in law (:func:`~rrr_pin.control.laws.fl_controller`,
+        :func:`~rrr_pin.control.laws.hinf_fl_controller`,
+        :func:`~rrr_pin.control.laws.pd_controller`, or their sampled versions) built on
+        ``robot``, or its name (``"fl"``, ``"hinf"``: the paper's reduced design, ``"pd"``).
+    robot : Robot
+        The law's nominal model (its fingerprint must equal the law's).
+    rate : float, optional
+        Sampling rate [Hz]; required for a continuous law, equal to a sampled law's own.
+    out : path-like, default "controller"
+        Output folder; claimed as :mod:`rrr_pin.outputs` says (refused if not empty, unless
+        ``overwrite``).
+    method : str, default "tustin"
+        Discretization of a continuous ``K`` (:func:`control.sample_system`).
+    prewarp : float, optional
+        Tustin prewarp frequency [rad/s], below the Nyquist frequency ``pi * rate``.
+    design : Design, optional
+        The source design, whose ``gamma`` and margins ``controller.json`` records (the
+        ``"hinf"`` name uses the paper's design and records it).
+    dynamics : {"auto", "generated", "pinocchio"}, default "auto"
+        The model's dynamics in the folder: the generated C of the nominal RRR when it is that
+        model (``"auto"``, or required by ``"generated"``), else Pinocchio C++.
+    overwrite : bool, default False
+        Replace a previous export in ``out``.
+
+    Returns
+    -------
+    Export
+        The files written and :attr:`Export.law`, the Python law the code reproduces.
+
+    Raises
+    ------
+    ExportError
+        A law that declares no compiled form (with what an exportable law must declare), a
+        law built on another model, joints the C API cannot express.
+    FieldError
+        A continuous law without ``rate``, a ``rate`` other than a sampled law's, a prewarp
+        at or above Nyquist, a ``K`` unstable once discretized.
+    OutputError
+        ``out`` not empty without ``overwrite``, not writable, or another tool's.
+    """
+    prepared = prepare_export(law, robot, rate, method=method, prewarp=prewarp, design=design,
+                              dynamics=dynamics)
+    settings = {"law": prepared.law.name, "robot": robot.name, "rate": prepared.rate,
+                "method": method, "prewarp": prewarp, "dynamics": prepared.dynamics}
+    with OutputDir.claim(out, "export", overwrite=overwrite, settings=settings,
+                         option="out") as run:
+        prepared.write(run.path)
+    return prepared
