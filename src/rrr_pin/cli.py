@@ -1149,9 +1149,6 @@ def _cmd_export(args) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
-
 
 # --- margins and robstab (linear analysis at a frozen configuration) --------------------------
 
@@ -1288,3 +1285,6 @@ def _cmd_robstab(args) -> int:
         print(line)
     return 0
 
+
+if __name__ == "__main__":
+    sys.exit(main())
