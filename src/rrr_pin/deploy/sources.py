@@ -39,6 +39,61 @@ def _num(v: float) -> str:
     return text if any(c in text for c in ".en") else text + ".0"
 
 
+def _vector(name: str, v: np.ndarray) -> str:
+    """Return a constant C vector ``name[CTRL_NQ]`` (exact decimal of every entry)."""
+    return (f"static const double {name}[CTRL_NQ] = {{" + ", ".join(_num(x) for x in v)
+            + "};\n")
+
+
+#: Gaussian elimination with partial pivoting on a copy of M (as LAPACK's getrf/getrs, the
+#: solver numpy.linalg.solve calls in the Python law), b overwritten by M^-1 b.
+_SOLVE = """
+static void solve_lu(const double M[CTRL_NQ * CTRL_NQ], double b[CTRL_NQ])
+{
+    double a[CTRL_NQ * CTRL_NQ];
+    int i, j, k;
+    for (i = 0; i < CTRL_NQ * CTRL_NQ; ++i) {
+        a[i] = M[i];
+    }
+    for (k = 0; k < CTRL_NQ; ++k) {
+        int p = k;
+        double big = fabs(a[k * CTRL_NQ + k]);
+        for (i = k + 1; i < CTRL_NQ; ++i) {
+            if (fabs(a[i * CTRL_NQ + k]) > big) {
+                big = fabs(a[i * CTRL_NQ + k]);
+                p = i;
+            }
+        }
+        if (p != k) {
+            double t;
+            for (j = 0; j < CTRL_NQ; ++j) {
+                t = a[k * CTRL_NQ + j];
+                a[k * CTRL_NQ + j] = a[p * CTRL_NQ + j];
+                a[p * CTRL_NQ + j] = t;
+            }
+            t = b[k];
+            b[k] = b[p];
+            b[p] = t;
+        }
+        for (i = k + 1; i < CTRL_NQ; ++i) {
+            double f = a[i * CTRL_NQ + k] / a[k * CTRL_NQ + k];
+            for (j = k + 1; j < CTRL_NQ; ++j) {
+                a[i * CTRL_NQ + j] -= f * a[k * CTRL_NQ + j];
+            }
+            b[i] -= f * b[k];
+        }
+    }
+    for (i = CTRL_NQ - 1; i >= 0; --i) {
+        double acc = b[i];
+        for (j = i + 1; j < CTRL_NQ; ++j) {
+            acc -= a[i * CTRL_NQ + j] * b[j];
+        }
+        b[i] = acc / a[i * CTRL_NQ + i];
+    }
+}
+"""
+
+
 def _matrix(name: str, M: np.ndarray) -> str:
     """Return ``static const double name[r][c] = {...};`` (empty for an empty matrix)."""
     if M.size == 0:
@@ -109,7 +164,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
 
 
 def controller_c(form, *, law: str, rate: float) -> str:
-    """``controller.c``: the law of ``form`` (FLForm or PDForm, matrices discrete at ``rate``)."""
+    """``controller.c``: the law of ``form`` (FLForm, FLAWForm, PDForm; discrete at ``rate``)."""
     head = _BANNER.format(what=f"Law {law!r}: C99, no allocation, no globals (constant tables "
                           f"only), re-entrant.") + '''#include <math.h>
 
@@ -202,12 +257,56 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         decl = f"    double e[CTRL_NQ], y[CTRL_NQ], taubar[CTRL_NQ], M[CTRL_NQ * CTRL_NQ], " \
                f"h[CTRL_NQ], xn[{m}];\n"
         what = "H-infinity + FL, eq. (8)-(10): y = C x + D e, x+ = A x + B e (K discrete)"
+        if form.kind == "fl_aw":
+            tables += _matrix("KL", form.L) + _vector("TAU_MAX", form.limit) + _SOLVE
+            decl += "    double tau_u[CTRL_NQ], dy[CTRL_NQ];\n    int clipped = 0;\n"
+            update = f'''    for (i = 0; i < {m}; ++i) {{
+        double ax = 0.0, be = 0.0;
+        for (j = 0; j < {m}; ++j) {{
+            ax += KA[i][j] * s->x[j];
+        }}
+        for (j = 0; j < CTRL_NQ; ++j) {{
+            be += KB[i][j] * e[j];
+        }}
+        xn[i] = ax + be;
+    }}
+    if (clipped) {{
+        /* Hanus: y_hat - y = Mhat^-1 (tau_s - tau) / lam^2, x+ += L (y_hat - y), L = B D^-1 */
+        for (i = 0; i < CTRL_NQ; ++i) {{
+            dy[i] = tau[i] - tau_u[i];
+        }}
+        solve_lu(M, dy);
+        for (i = 0; i < {m}; ++i) {{
+            double ld = 0.0;
+            for (j = 0; j < CTRL_NQ; ++j) {{
+                ld += KL[i][j] * (dy[j] / (LAM * LAM));
+            }}
+            xn[i] += ld;
+        }}
+    }}
+    for (i = 0; i < {m}; ++i) {{
+        s->x[i] = xn[i];
+    }}
+'''
+            what = ("H-infinity + FL with Hanus anti-windup: tau clipped to +-TAU_MAX, "
+                    "y = C x + D e, x+ = A x + B e + L (y_hat - y) (K discrete)")
     else:
         tables, update = "", ""
         y = "        y[i] = 0.0;\n"
         decl = ("    double e[CTRL_NQ], y[CTRL_NQ], taubar[CTRL_NQ], M[CTRL_NQ * CTRL_NQ], "
                 "h[CTRL_NQ];\n")
         what = "feedback linearization alone, eq. (20): y = 0"
+    clip = '''    for (i = 0; i < CTRL_NQ; ++i) {
+        tau_u[i] = tau[i];
+        if (tau[i] > TAU_MAX[i]) {
+            tau[i] = TAU_MAX[i];
+            clipped = 1;
+        } else if (tau[i] < -TAU_MAX[i]) {
+            tau[i] = -TAU_MAX[i];
+            clipped = 1;
+        }
+    }
+''' if form.kind == "fl_aw" else ""
     return head + tables + f'''
 /* {what};
  * taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), tau = Mhat(q) taubar + hhat(q, qd). */
@@ -236,7 +335,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
     if (!all_finite(tau)) {{
         return CTRL_EOUTPUT;
     }}
-{update}    return CTRL_OK;
+{clip}{update}    return CTRL_OK;
 }}
 '''
 

@@ -25,7 +25,9 @@ import numpy as np
 
 from ..control.catalog import LAWS, make_law
 from ..control.laws import (
+    AntiWindupTracking,
     DiscreteTrackingController,
+    FLAWForm,
     FLForm,
     PDForm,
     SampledLaw,
@@ -56,10 +58,11 @@ EXPRESSIBLE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ",
 
 #: What a law must declare to be exported (the refusal's text).
 EXPORTABLE = ("an exportable law must declare, by compiled_form(), an FLForm (lam and the "
-              "discrete A, B, C, D of its K) or a PDForm (Kp, Kd) that reproduces it exactly, "
-              "for its own class: the built-in laws do (fl_controller, hinf_fl_controller, "
-              "pd_controller, and their sampled versions); a subclass or a law of your own "
-              "does not")
+              "discrete A, B, C, D of its K), an FLAWForm (the same with the anti-windup gain "
+              "L and the torque limits) or a PDForm (Kp, Kd) that reproduces it exactly, "
+              "for its own class: the built-in laws fl, hinf, hinf_aw and pd do "
+              "(fl_controller, hinf_fl_controller, hinf_aw_controller, pd_controller, and "
+              "their sampled versions); hinf2dof, a subclass or a law of your own does not")
 
 
 class ExportError(ValueError):
@@ -161,12 +164,7 @@ def _discretize(law: TrackingController, rate: float, method: str, prewarp):
         raise FieldError("method", f"{{name}} = {method!r}: {exc}") from exc
     A = np.asarray(Kd.A, dtype=float)
     if A.size:
-        rho = float(np.max(np.abs(np.linalg.eigvals(A))))
-        if not rho <= 1.0 + 1e-9:
-            raise FieldError("rate", f"K of law {law.name!r} discretized by {method!r} at "
-                                     f"{{name}} = {rate:g} Hz is unstable (pole |z| = "
-                                     f"{rho:.6g} > 1); raise the rate or use method='tustin', "
-                                     f"which keeps a stable K stable")
+        _check_stable_after(law, A, rate, method)
     return DiscreteTrackingController(law.nominal, law.lam, Kd, name=law.name, label=law.label)
 
 
@@ -189,8 +187,24 @@ def _twin(law, rate, method: str, prewarp):
         return _discretize(law, rate, method, prewarp), rate
     if prewarp is not None:
         raise FieldError("prewarp", f"law {law.name!r} has no K to discretize: {{name}} does "
-                                    f"not apply")
-    return law.sampled(rate, method), rate
+                                    f"not apply" if not law.nx else
+                                    f"law {law.name!r} ({type(law).__name__}) is discretized "
+                                    f"by its own sampled(); {{name}} applies to "
+                                    f"TrackingController (hinf) only")
+    twin = law.sampled(rate, method)
+    if isinstance(law, AntiWindupTracking) and twin.nx:
+        _check_stable_after(law, twin.compiled_form().A, rate, method)
+    return twin, rate
+
+
+def _check_stable_after(law, A, rate: float, method: str) -> None:
+    """Refuse a K that ``method`` at ``rate`` made unstable (``A`` its discrete matrix)."""
+    rho = float(np.max(np.abs(np.linalg.eigvals(A))))
+    if not rho <= 1.0 + 1e-9:
+        raise FieldError("rate", f"K of law {law.name!r} discretized by {method!r} at "
+                                 f"{{name}} = {rate:g} Hz is unstable (pole |z| = "
+                                 f"{rho:.6g} > 1); raise the rate or use method='tustin', "
+                                 f"which keeps a stable K stable")
 
 
 def _design_record(design) -> dict | None:
@@ -227,16 +241,17 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         if law not in LAWS:
             raise FieldError("law", f"{{name}} = {law!r} is not a built-in law "
                                     f"({', '.join(LAWS)})")
-        if law == "hinf" and design is None:
+        if law in ("hinf", "hinf_aw") and design is None:
             from ..robust.loopshaping import design as make_design
 
             design = make_design(lam=45.0, n=robot.nq)
-        law = make_law(law, robot, **({"K": design.K_reduced} if law == "hinf" else {}))
+        law = make_law(law, robot, **({"K": design.K_reduced} if law in ("hinf", "hinf_aw")
+                                      else {}))
     check_law(law, robot.nq)
     fp = fingerprint(robot.model)
     twin, rate = _twin(law, rate, method, prewarp)
     form = twin.compiled_form()
-    if type(form) not in (FLForm, PDForm):
+    if type(form) not in (FLForm, FLAWForm, PDForm):
         raise ExportError(f"law {law.name!r} ({type(law).__name__}) cannot be exported: "
                           f"{EXPORTABLE}")
     law_fp = fingerprint(form.nominal.model)
@@ -295,6 +310,10 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                       "C": C.tolist(), "D": D.tolist(), "Ts": 1.0 / rate,
                       "method": None if isinstance(law, DiscreteTrackingController) or not nx
                       else method, "prewarp_rad_s": prewarp, "K_source": source}
+        if form.kind == "fl_aw":  # Hanus: x+ = A x + B e + L (y_hat - y), tau clipped
+            law_record.update(kind="fl_aw", L=form.L.tolist(),
+                              torque_limit_Nm=form.limit.tolist(),
+                              anti_windup="Hanus self-conditioned K, L = B D^-1")
     record = {
         "format": FORMAT, "version": VERSION, "rrr_pin_version": __version__,
         "pinocchio_version": pin.__version__,
