@@ -1033,6 +1033,7 @@ class _SampledAntiWindup(SampledLaw):
                 "discretization": self.method}
 
 
+@dataclass(frozen=True, eq=False)
 class DiscreteTrackingController(SampledLaw):
     r"""The tracking law of :class:`TrackingController` with a DISCRETE-time ``K``, sampled.
 
