@@ -4,33 +4,35 @@
 Everything is measured in one run on this machine (named in the output) and printed, never
 asserted:
 
-1. per call from Python: ``Robot.M/V/G`` (checked and ``check=False``) against the bare ``pin``
-   calls they make, and the paper's closed form (``rrr_pin.model.closed_form``);
-2. the compiled engine: a 10 s rollout of the nominal RRR for every built-in law (FL, H-inf + FL,
-   PD + gravity), sampled at 1 kHz (zero-order hold, RK4 plant) and continuous (RK4, law at
-   every stage, dt = 1 ms), with every reference kind (sine, quintic, spline, task-space line),
-   against the C++ floor (``rrr_pin.sim.compiled.floor_ms``: the same Pinocchio calls in a bare C++
-   loop);
-3. the Python engine (``simulate(..., engine="python")``) against a hand-written loop that calls
-   ``pin`` directly (:func:`handwritten_fl_rollout`, the yardstick): 10 s, 1 kHz, ZOH FL;
-2b/2c. engine ``"codegen"`` (parameter-input generated dynamics, :mod:`rrr_pin.sim.batched`)
-   on the nominal RRR, and per-plant rollouts of uncertain RRR, UR5 and Panda plants on the
-   compiled engine, the generated dynamics and 16 plants per batched call, with their floors;
-4. a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes; batched under
-   ``engine="auto"``) against its bounds ``2 N x floor / 2 cores`` (generic and batched
-   floors), and the throughput with 1 worker;
-4b. a closed chain (issue 22): a 10 s, 1 kHz FL run of the 5-bar (Python engine, the only one
-   that implements it) against its ``pin.constraintDynamics`` calls alone;
-5. start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
-6. ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant (:func:`loopsyn_3x3_s`);
-7. the mu upper bound (``rrr_pin.robust.mu.mussv``) on the frozen FL loop of the RRR with its
-   inertial parameters real-uncertain (``rrr_pin.control.analysis.parametric_loop``), per
-   frequency, against issue 21's goal of 0.5 s;
-8. identification of the UR5 from 10 s of 1 kHz data, the consistency SDP included;
-9. with ``--export`` (CMake builds, minutes): one ``ctrl_step`` of the exported H-inf + FL law
-   (:func:`rrr_pin.export`) for the RRR (generated dynamics) and UR5 (Pinocchio C++), against
-   the same Pinocchio calls alone (``ctrl_dyn_crba`` + ``ctrl_dyn_nle`` of a Pinocchio export of
-   the same arm: CRBA and NLE, M's triangle mirrored, nle copied out), in a C loop.
+- section 1: per call from Python: ``Robot.M/V/G`` (checked and ``check=False``) against the bare
+  ``pin`` calls they make, and the paper's closed form (``rrr_pin.model.closed_form``);
+- section 2: the compiled engine: a 10 s rollout of the nominal RRR for every built-in law (FL,
+  H-inf + FL, PD + gravity), sampled at 1 kHz (zero-order hold, RK4 plant) and continuous (RK4, law
+  at every stage, dt = 1 ms), with every reference kind (sine, quintic, spline, task-space line),
+  against the C++ floor (``rrr_pin.sim.compiled.floor_ms``: the same Pinocchio calls in a bare C++
+  loop);
+- section 2b/2c: engine ``"codegen"`` (parameter-input generated dynamics,
+  :mod:`rrr_pin.sim.batched`) on the nominal RRR, and per-plant rollouts of uncertain RRR, UR5 and
+  Panda plants on the compiled engine, the generated dynamics and 16 plants per batched call, with
+  their floors;
+- section 3: the Python engine (``simulate(..., engine="python")``) against a hand-written loop that
+  calls ``pin`` directly (:func:`handwritten_fl_rollout`, the yardstick): 10 s, 1 kHz, ZOH FL;
+- section 4: a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes; batched under
+  ``engine="auto"``) against its bounds ``2 N x floor / 2 cores`` (generic and batched floors), and
+  the throughput with 1 worker;
+- section 4b: a closed chain (issue 22): a 10 s, 1 kHz FL run of the 5-bar (Python engine, the only
+  one that implements it) against its ``pin.constraintDynamics`` calls alone;
+- section 5: start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
+- section 6: ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant
+  (:func:`loopsyn_3x3_s`);
+- section 7: the mu upper bound (``rrr_pin.robust.mu.mussv``) on the frozen FL loop of the RRR with
+  its inertial parameters real-uncertain (``rrr_pin.control.analysis.parametric_loop``), per
+  frequency, against issue 21's goal of 0.5 s;
+- section 8: identification of the UR5 from 10 s of 1 kHz data, the consistency SDP included;
+- section 9: with ``--export`` (CMake builds, minutes): one ``ctrl_step`` of the exported H-inf + FL
+  law (:func:`rrr_pin.export`) for the RRR (generated dynamics) and UR5 (Pinocchio C++), against the
+  same Pinocchio calls alone (``ctrl_dyn_crba`` + ``ctrl_dyn_nle`` of a Pinocchio export of the same
+  arm: CRBA and NLE, M's triangle mirrored, nle copied out), in a C loop.
 
 Usage::
 
@@ -38,7 +40,7 @@ Usage::
     python scripts/bench.py --json           # one JSON object
     python scripts/bench.py --campaign-samples 1000   # the campaign of issue 13's table
     python scripts/bench.py --quick          # seconds, to check that it runs
-    python scripts/bench.py --export         # also section 6 (builds three exports)
+    python scripts/bench.py --export         # also section 9 (builds three exports)
 """
 
 import argparse
