@@ -16,7 +16,7 @@ previous sample), as a controller reading only its motor encoders would.
 from __future__ import annotations
 
 from ..validation import check_rate
-from .laws import DEFAULT_RATE, FLLinearModel, SampledLaw, TrackingController
+from .laws import DEFAULT_RATE, FLLinearModel, SampledLaw, TrackingController, _SampledTracking
 
 __all__ = ["ReducedTracking", "closed_chain_fl", "closed_chain_hinf_fl"]
 
@@ -38,32 +38,13 @@ class ReducedTracking(TrackingController):
     def sampled(self, rate: float = DEFAULT_RATE, method: str = "tustin") -> SampledLaw:
         """Digital version: ``K`` discretized by ``method``, torque held between samples."""
         rate = check_rate("rate", rate)
-        return SampledReducedTracking(self, rate, method, self.discretize(rate, method))
+        # the built-in's sampled law calls this class's _tau; its compiled_form() is None for a
+        # subclass, so the compiled engine refuses it by name
+        return _SampledTracking(self, rate, method, self.discretize(rate, method))
 
     def linear_model(self) -> FLLinearModel:
         """Return the loop of eq. (10) with ``K``, the same as the serial arm's (exact model)."""
         return FLLinearModel(self.n, self.lam, self._mats, self.discretize)
-
-
-class SampledReducedTracking(SampledLaw):
-    """Sampled :class:`ReducedTracking`: ``y = Cd x + Dd e``, ``x+ = Ad x + Bd e``."""
-
-    def __init__(self, law: ReducedTracking, rate: float, method: str, mats):
-        self.law, self.rate, self.method, self.mats = law, rate, method, mats
-        self.name, self.label, self.n, self.nx = law.name, law.label, law.n, law.nx
-
-    def step(self, t, q, qd, r, rd, rdd, x):
-        """Output with the old state, then the state update."""
-        if not self.nx:
-            return self.law._tau(q, qd, r, rd, rdd, 0.0), x
-        Ad, Bd, Cd, Dd = self.mats
-        e = r - q
-        return self.law._tau(q, qd, r, rd, rdd, Cd @ x + Dd @ e), Ad @ x + Bd @ e
-
-    def describe(self) -> dict:
-        """Describe the continuous law, sampled."""
-        return {**self.law.describe(), "time": "sampled", "rate_hz": self.rate,
-                "discretization": self.method}
 
 
 def closed_chain_fl(chain, lam: float = 100.0, *, name: str = "fl") -> ReducedTracking:
