@@ -240,7 +240,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         }}
         y[i] = cx + de;
 '''
-        update = f'''    for (i = 0; i < {m}; ++i) {{
+        advance = f'''    for (i = 0; i < {m}; ++i) {{
         double ax = 0.0, be = 0.0;
         for (j = 0; j < {m}; ++j) {{
             ax += KA[i][j] * s->x[j];
@@ -250,27 +250,19 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         }}
         xn[i] = ax + be;
     }}
-    for (i = 0; i < {m}; ++i) {{
+'''
+        commit = f'''    for (i = 0; i < {m}; ++i) {{
         s->x[i] = xn[i];
     }}
 '''
+        update = advance + commit
         decl = f"    double e[CTRL_NQ], y[CTRL_NQ], taubar[CTRL_NQ], M[CTRL_NQ * CTRL_NQ], " \
                f"h[CTRL_NQ], xn[{m}];\n"
         what = "H-infinity + FL, eq. (8)-(10): y = C x + D e, x+ = A x + B e (K discrete)"
         if form.kind == "fl_aw":
             tables += _matrix("KL", form.L) + _vector("TAU_MAX", form.limit) + _SOLVE
             decl += "    double tau_u[CTRL_NQ], dy[CTRL_NQ];\n    int clipped = 0;\n"
-            update = f'''    for (i = 0; i < {m}; ++i) {{
-        double ax = 0.0, be = 0.0;
-        for (j = 0; j < {m}; ++j) {{
-            ax += KA[i][j] * s->x[j];
-        }}
-        for (j = 0; j < CTRL_NQ; ++j) {{
-            be += KB[i][j] * e[j];
-        }}
-        xn[i] = ax + be;
-    }}
-    if (clipped) {{
+            update = advance + f'''    if (clipped) {{
         /* Hanus: y_hat - y = Mhat^-1 (tau_s - tau) / lam^2, x+ += L (y_hat - y), L = B D^-1 */
         for (i = 0; i < CTRL_NQ; ++i) {{
             dy[i] = tau[i] - tau_u[i];
@@ -284,10 +276,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
             xn[i] += ld;
         }}
     }}
-    for (i = 0; i < {m}; ++i) {{
-        s->x[i] = xn[i];
-    }}
-'''
+''' + commit
             what = ("H-infinity + FL with Hanus anti-windup: tau clipped to +-TAU_MAX, "
                     "y = C x + D e, x+ = A x + B e + L (y_hat - y) (K discrete)")
     else:
