@@ -41,8 +41,9 @@ def _pair(P1, P2):
     dt = common_timebase(("P1", P1), ("P2", P2))
     if _is_discrete(dt):
         P1, P2 = to_continuous(P1), to_continuous(P2)
-    _check_hidden_modes(P1, _is_discrete(dt), what="plant P1")
-    _check_hidden_modes(P2, _is_discrete(dt), what="plant P2")
+    domain = "bilinear" if _is_discrete(dt) else "s"
+    _check_hidden_modes(P1, domain, what="plant P1")
+    _check_hidden_modes(P2, domain, what="plant P2")
     return P1, P2
 
 

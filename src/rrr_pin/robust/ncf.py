@@ -192,26 +192,28 @@ class NCFSynResult:
         return iter((self.K, self.CL, self.gamma, self))
 
 
-def _check_hidden_modes(Gs: control.StateSpace, discrete: bool = False,
+def _check_hidden_modes(Gs: control.StateSpace, domain: str = "s",
                         what: str = "shaped plant") -> None:
     """Raise :class:`HiddenModeError` for an unstabilizable or undetectable realization.
 
-    ``Gs`` is continuous (the bilinear image when ``discrete``: the mode is then reported
-    at ``z = (1 + s) / (1 - s)``).
+    ``domain``: ``"s"``, ``Gs`` continuous (modes with ``Re(s) >= 0``); ``"bilinear"``, ``Gs``
+    the continuous bilinear image of a discrete plant (the mode is reported at
+    ``z = (1 + s) / (1 - s)``); ``"z"``, ``Gs`` discrete itself (modes with ``|z| >= 1``).
     """
     A, B, C = (np.asarray(M, dtype=float) for M in (Gs.A, Gs.B, Gs.C))
     n = A.shape[0]
     scale = max(1.0, np.linalg.norm(A, 1))
     for ev in np.linalg.eigvals(A):
-        if ev.real < -1e-9 * scale:
+        if (abs(ev) < 1.0 - 1e-9) if domain == "z" else (ev.real < -1e-9 * scale):
             continue
         M = A - ev * np.eye(n)
         for kind, pbh in (("uncontrollable", np.hstack([M, B])),
                           ("unobservable", np.vstack([M, C]))):
             sv = np.linalg.svd(pbh, compute_uv=False)
             if sv[-1] <= 1e-9 * max(scale, sv[0]):
-                where = (f"z = {(1 + ev) / (1 - ev):.6g} with |z| >= 1" if discrete
-                         else f"s = {ev:.6g} with Re(s) >= 0")
+                where = {"s": f"s = {ev:.6g} with Re(s) >= 0",
+                         "bilinear": f"z = {(1 + ev) / (1 - ev):.6g} with |z| >= 1",
+                         "z": f"z = {ev:.6g} with |z| >= 1"}[domain]
                 raise HiddenModeError(
                     f"the {what} has an {kind} mode at {where}: no controller stabilizes "
                     "it (check W1, W2 for pole-zero cancellations with G, or pass a "
@@ -326,7 +328,7 @@ def ncfsyn(G, W1=None, W2=None, factor: float = 1.0) -> NCFSynResult:
     except ValueError as exc:
         raise SynthesisError(f"shaped plant: {exc}; with factor > 1 the synthesis is done in "
                              "discrete time, without this map") from exc
-    _check_hidden_modes(Gc, discrete)
+    _check_hidden_modes(Gc, "bilinear" if discrete else "s")
     Ks_c, gamma_min = _ncfsyn_ct(Gc, factor)
     gamma = ncf_gamma(Gc, Ks_c)
     if not np.isfinite(gamma):
@@ -379,25 +381,6 @@ def _sym_power(M: np.ndarray, e: float) -> np.ndarray:
     return (V * d**e) @ V.T
 
 
-def _check_hidden_modes_dt(Gs: control.StateSpace) -> None:
-    """:func:`_check_hidden_modes` for a discrete ``Gs`` itself: modes with ``|z| >= 1``."""
-    A, B, C = (np.asarray(M, dtype=float) for M in (Gs.A, Gs.B, Gs.C))
-    n = A.shape[0]
-    scale = max(1.0, np.linalg.norm(A, 1))
-    for ev in np.linalg.eigvals(A):
-        if abs(ev) < 1.0 - 1e-9:
-            continue
-        M = A - ev * np.eye(n)
-        for kind, pbh in (("uncontrollable", np.hstack([M, B])),
-                          ("unobservable", np.vstack([M, C]))):
-            sv = np.linalg.svd(pbh, compute_uv=False)
-            if sv[-1] <= 1e-9 * max(scale, sv[0]):
-                raise HiddenModeError(
-                    f"the shaped plant has an {kind} mode at z = {ev:.6g} with |z| >= 1: no "
-                    "controller stabilizes it (check W1, W2 for pole-zero cancellations with "
-                    "G, or pass a minimal realization)")
-
-
 def _ncfsyn_dt(Gs: control.StateSpace, factor: float):
     r"""Discrete central controller (negative feedback), gamma_min and gamma; factor > 1.
 
@@ -418,7 +401,7 @@ def _ncfsyn_dt(Gs: control.StateSpace, factor: float):
     n, (p, m) = A.shape[0], D.shape
     if n == 0:
         raise SynthesisError("the shaped plant is a static gain; nothing to synthesize")
-    _check_hidden_modes_dt(Gs)
+    _check_hidden_modes(Gs, "z")
     R1, R2 = np.eye(p) + D @ D.T, np.eye(m) + D.T @ D
     R1h, R2h = _sym_power(R1, -0.5), _sym_power(R2, -0.5)
     Ar = A - B @ np.linalg.solve(R2, D.T @ C)
@@ -524,7 +507,7 @@ def graph_symbols(P) -> tuple[control.StateSpace, control.StateSpace]:
     if _is_discrete(P.dt):
         raise ValueError("graph_symbols takes a continuous-time plant; map a discrete one "
                          "with rrr_pin.robust.lti.to_continuous first")
-    _check_hidden_modes(P, False, what="plant")
+    _check_hidden_modes(P, what="plant")
     return _graph_symbols_ct(P)
 
 
