@@ -517,15 +517,7 @@ namespace rrr_pin
         throw std::invalid_argument("parameter vectors must have the structure's np entries");
       if (lower.rows() != B || upper.rows() != B || lower.cols() != n || upper.cols() != n)
         throw std::invalid_argument("limits must be (B, nq)");
-      if (in.x0.size() != nx)
-        throw std::invalid_argument("x0 must have the law's nx entries");
-      if (in.substeps < 1 || in.n_steps < 1 || !(in.h > 0.0))
-        throw std::invalid_argument("substeps >= 1, n_steps >= 1 and h > 0 are required");
-      const std::int64_t rows = in.sampled ? in.n_steps + 1 : 2 * in.n_steps + 1;
-      if (
-        in.R.rows() != rows || in.RD.rows() != rows || in.RDD.rows() != rows || in.R.cols() != n
-        || in.RD.cols() != n || in.RDD.cols() != n)
-        throw std::invalid_argument("reference arrays have the wrong shape");
+      check_inputs(in, n, nx);
       if (in.q0.size() != n || in.qd0.size() != n)
         throw std::invalid_argument("state vectors must have nq entries");
     }

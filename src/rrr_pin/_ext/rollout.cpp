@@ -14,6 +14,19 @@
 
 namespace rrr_pin
 {
+  void check_inputs(const RolloutInputs & in, Eigen::Index n, Eigen::Index nx)
+  {
+    if (in.x0.size() != nx)
+      throw std::invalid_argument("x0 must have the law's nx entries");
+    if (in.substeps < 1 || in.n_steps < 1 || !(in.h > 0.0))
+      throw std::invalid_argument("substeps >= 1, n_steps >= 1 and h > 0 are required");
+    const std::int64_t rows = in.sampled ? in.n_steps + 1 : 2 * in.n_steps + 1;
+    if (
+      in.R.rows() != rows || in.RD.rows() != rows || in.RDD.rows() != rows || in.R.cols() != n
+      || in.RD.cols() != n || in.RDD.cols() != n)
+      throw std::invalid_argument("reference arrays have the wrong shape");
+  }
+
   namespace
   {
     struct Divergence
@@ -54,15 +67,7 @@ namespace rrr_pin
       const Eigen::Index n = plant.model.nq;
       if (nominal.model.nq != n)
         throw std::invalid_argument("plant and nominal models differ in nq");
-      if (in.x0.size() != nx)
-        throw std::invalid_argument("x0 must have the law's nx entries");
-      if (in.substeps < 1 || in.n_steps < 1 || !(in.h > 0.0))
-        throw std::invalid_argument("substeps >= 1, n_steps >= 1 and h > 0 are required");
-      const std::int64_t rows = in.sampled ? in.n_steps + 1 : 2 * in.n_steps + 1;
-      if (
-        in.R.rows() != rows || in.RD.rows() != rows || in.RDD.rows() != rows || in.R.cols() != n
-        || in.RD.cols() != n || in.RDD.cols() != n)
-        throw std::invalid_argument("reference arrays have the wrong shape");
+      check_inputs(in, n, nx);
       if (
         in.q0.size() != n || in.qd0.size() != n || in.lower.size() != n || in.upper.size() != n)
         throw std::invalid_argument("state and limit vectors must have nq entries");

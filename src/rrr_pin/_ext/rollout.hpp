@@ -33,6 +33,10 @@ namespace rrr_pin
     std::int64_t n_steps = 0;   // N control periods (sampled) or RK4 steps (continuous)
   };
 
+  /// Throw std::invalid_argument unless `in` fits n joints and a law of nx states: the law
+  /// state, the step counts and the reference arrays (every engine's rollout checks these).
+  void check_inputs(const RolloutInputs & in, Eigen::Index n, Eigen::Index nx);
+
   /// Divergence reasons, mirrored in rrr_pin.sim.trajectory.REASONS (same order of tests as
   /// rrr_pin.sim.trajectory.diverged_joint: non-finite, then speed, then limits). kLawTorque:
   /// the law's torque (before any saturation) is NaN or inf; bad_step is then the step whose law
