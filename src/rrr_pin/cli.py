@@ -1149,7 +1149,6 @@ def _cmd_export(args) -> int:
     return 0
 
 
-
 # --- margins and robstab (linear analysis at a frozen configuration) --------------------------
 
 def _add_margins(sub) -> None:
