@@ -211,9 +211,11 @@ def _check_hidden_modes(Gs: control.StateSpace, domain: str = "s",
                           ("unobservable", np.vstack([M, C]))):
             sv = np.linalg.svd(pbh, compute_uv=False)
             if sv[-1] <= 1e-9 * max(scale, sv[0]):
-                where = {"s": f"s = {ev:.6g} with Re(s) >= 0",
-                         "bilinear": f"z = {(1 + ev) / (1 - ev):.6g} with |z| >= 1",
-                         "z": f"z = {ev:.6g} with |z| >= 1"}[domain]
+                if domain == "s":
+                    where = f"s = {ev:.6g} with Re(s) >= 0"
+                else:  # only this domain's z: s = 1 has no bilinear image
+                    z = (1 + ev) / (1 - ev) if domain == "bilinear" else ev
+                    where = f"z = {z:.6g} with |z| >= 1"
                 raise HiddenModeError(
                     f"the {what} has an {kind} mode at {where}: no controller stabilizes "
                     "it (check W1, W2 for pole-zero cancellations with G, or pass a "
