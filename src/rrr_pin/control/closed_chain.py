@@ -26,11 +26,11 @@ hinf2dof :class:`ReducedTwoDOF`   ``M_r taubar + V_r + G_r`` with the 2-DOF ``ta
 ======== ======================= ===================================================
 
 :data:`CHAIN_LAWS` maps every name of :data:`rrr_pin.control.catalog.LAWS` to its factory
-here, and :func:`rrr_pin.control.catalog.make_law` hands a closed chain to it; a built-in
-added to the registry without an entry here is refused on a closed chain by name
-(:func:`make_chain_law`). The passive coordinates are solved by the law from the measured
-actuated angles (Newton seeded from the previous sample), as a controller reading only its
-motor encoders would. No compiled form: the Python engine runs them.
+here (a test checks that the two sets are equal), and
+:func:`rrr_pin.control.catalog.make_law` hands a closed chain to :func:`make_chain_law`,
+which refuses any other name by name. The passive coordinates are solved by the law from the
+measured actuated angles (Newton seeded from the previous sample), as a controller reading
+only its motor encoders would. No compiled form: the Python engine runs them.
 """
 
 from __future__ import annotations
@@ -226,7 +226,7 @@ def closed_chain_pd(chain, wn: float = PD_BANDWIDTH, zeta: float = 1.0, *,
 
 
 def closed_chain_hinf_2dof(chain, lam: float = 45.0, *, name: str = "hinf2dof") -> ReducedTwoDOF:
-    """The 2-DOF H-infinity + FL of :func:`rrr_pin.control.laws.hinf_2dof_controller`, reduced."""
+    """Build :func:`rrr_pin.control.laws.hinf_2dof_controller`'s law on the reduced model."""
     law = hinf_2dof_controller(chain, lam, name=name)
     return ReducedTwoDOF(nominal=chain, lam=law.lam, K=law.K, name=name, label=law.label)
 
@@ -267,7 +267,8 @@ def _hinf2dof(chain, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
 
 
 #: The closed-chain factory of each built-in law, by the registry's name
-#: (:data:`rrr_pin.control.catalog.LAWS`); same options as :class:`~rrr_pin.control.catalog.BuiltinLaw`.
+#: (:data:`rrr_pin.control.catalog.LAWS`); options as
+#: :class:`~rrr_pin.control.catalog.BuiltinLaw`.
 CHAIN_LAWS = {"fl": _fl, "hinf": _hinf, "hinf_aw": _hinf_aw, "pd": _pd, "hinf2dof": _hinf2dof}
 
 
@@ -280,17 +281,11 @@ def make_chain_law(name: str, chain, **options) -> ControlLaw:
     Raises
     ------
     ValueError
-        A name of the registry with no closed-chain form (named, with the reason), or an
-        unknown name.
+        A name without a closed-chain form (the message lists those with one).
     """
-    from .catalog import LAWS
-
+    # (no import of the registry here: catalog.make_law imports this module)
     factory = CHAIN_LAWS.get(name) if isinstance(name, str) else None
     if factory is None:
-        if name in LAWS:
-            raise ValueError(f"controller {name!r} has no closed-chain form (it reads a serial "
-                             f"arm's Pinocchio tree); closed chains run "
-                             f"{', '.join(CHAIN_LAWS)}")
         raise ValueError(f"unknown controller {name!r}; built-in controllers on a closed "
                          f"chain: {', '.join(CHAIN_LAWS)}")
     return factory(chain, **options)
