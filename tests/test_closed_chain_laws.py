@@ -268,3 +268,15 @@ def test_reproduce_chain_refuses_options_it_does_not_implement(argv, match, tmp_
                      str(tmp_path / "x")]) == 2
     assert match in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("options, match", [
+    ({"controllers": "fl,hinf"}, "tuple of built-in law names"),
+    ({"controllers": ("fl", "nope")}, "'nope' not a built-in law with a closed-chain form"),
+    ({"controllers": ("hinf_aw",)}, "hinf_aw on a closed chain needs torque_limit"),
+    ({"certificate_points": 0}, "certificate_points"),
+    ({"lam_fl": -1.0}, "lam_fl"),
+], ids=["string", "unknown", "hinf_aw", "points", "lam"])
+def test_chain_study_config_refuses_bad_laws(options, match):
+    with pytest.raises(ValueError, match=match):
+        ChainStudyConfig(**options)

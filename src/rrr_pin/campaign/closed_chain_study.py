@@ -38,6 +38,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..control.catalog import make_law
+from ..control.closed_chain import CHAIN_LAWS
 from ..control.laws import check_law
 from ..control.references import SplineReference
 from ..model.closed_chain import load_closed_chain
@@ -139,6 +140,14 @@ class ChainStudyConfig:
             raise ValueError(f"controllers must be a tuple of built-in law names, got "
                              f"{names!r}")
         object.__setattr__(self, "controllers", tuple(names))
+        unknown = [x for x in names if x not in CHAIN_LAWS]
+        if unknown:
+            raise ValueError(f"controllers: {', '.join(map(repr, unknown))} not a built-in "
+                             f"law with a closed-chain form ({', '.join(CHAIN_LAWS)}); your own "
+                             f"laws go to run_chain_study(config, laws=[...])")
+        if "hinf_aw" in names and self.torque_limit is None:
+            raise ValueError("controllers: hinf_aw on a closed chain needs torque_limit [N m] "
+                             "(an MJCF motor carries no effort limit)")
         if self.torque_limit is not None:
             object.__setattr__(self, "torque_limit",
                                tuple(float(x) for x in np.atleast_1d(self.torque_limit)))

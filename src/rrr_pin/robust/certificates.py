@@ -14,6 +14,12 @@ shaped plant with the design's margin ``b(Gs, Ks)``: by Vinnicombe's theorem, ``
 implies that ``Ks`` stabilizes the frozen plant, with margin at least
 ``sin(arcsin b - arcsin nugap)``.
 
+A parallel mechanism (:class:`rrr_pin.model.closed_chain.ClosedChain`) offers the same
+``M, V, G`` in its actuated coordinates (the reduced model, eq. (1) in ``q_a``), so the same
+linearization applies to it; :func:`chain_certificate` walks both mechanisms along the
+reference first, so that each frozen configuration closes on the reference's assembly mode
+(:meth:`CertificateSpec.certify` calls it for a closed chain).
+
 What a frozen-configuration certificate proves, and what it does not
 --------------------------------------------------------------------
 It proves that, at every configuration checked, the linear time-invariant model obtained by
@@ -207,8 +213,10 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
 
     Parameters
     ----------
-    nominal, plant : rrr_pin.model.dynamics.Robot
-        The controller's model and the uncertain (true) arm.
+    nominal, plant : rrr_pin.model.dynamics.Robot or ClosedChain
+        The controller's model and the uncertain (true) arm. A closed chain solves its
+        passive coordinates from the last solution, in the order of ``q``: use
+        :func:`chain_certificate`, which seeds them along the reference.
     q, qd : array-like, shape (N, nq)
         Frozen configurations [rad] and velocities [rad/s] along the reference.
     lam : float
