@@ -280,3 +280,12 @@ def test_reproduce_chain_refuses_options_it_does_not_implement(argv, match, tmp_
 def test_chain_study_config_refuses_bad_laws(options, match):
     with pytest.raises(ValueError, match=match):
         ChainStudyConfig(**options)
+
+
+def test_full_order_runs_the_full_k(paper):
+    from rrr_pin.campaign.closed_chain_study import _builtin_laws
+
+    laws = _builtin_laws(ChainStudyConfig(controllers=("hinf",), full_order=True), paper)
+    # the full-order K of the design, copied per joint (a SISO K on the diagonal)
+    assert laws[0].nx == 2 * control.ss(paper.K_full).nstates
+    assert laws[0].nx > 2 * control.ss(paper.K_reduced).nstates
