@@ -730,25 +730,61 @@ def _torque_limit_from_args(text: str, robot, reference, settings):
     return check_torque_limit(robot, values, reference, name=name), info
 
 
+def _chain_controllers(text: str) -> tuple:
+    """Return the built-in names of a closed-chain study's ``--controllers``, checked."""
+    from .control.catalog import BUILTIN_LAWS
+    from .control.closed_chain import CHAIN_LAWS
+
+    names = tuple(s.strip() for s in text.split(","))
+    if not names or any(not s for s in names):
+        raise ValueError(f"--controllers: expected comma-separated names from "
+                         f"{', '.join(CHAIN_LAWS)}, got {text!r}")
+    dup = sorted({x for x in names if names.count(x) > 1})
+    if dup:
+        raise ValueError(f"--controllers: repeated {', '.join(dup)}")
+    for name in names:
+        if name == "hinf_aw":
+            raise ValueError("--controllers hinf_aw: on a closed chain the law must be told "
+                             "the torque limits (an MJCF motor has none), and --torque-limit "
+                             "is not implemented on closed chains; from Python: "
+                             "ChainStudyConfig(controllers=(..., 'hinf_aw'), "
+                             "torque_limit=...)")
+        if name not in CHAIN_LAWS:
+            known = ", ".join(f"{k} ({BUILTIN_LAWS[k]})" for k in CHAIN_LAWS if k in
+                              BUILTIN_LAWS and k != "hinf_aw")
+            raise ValueError(f"--controllers {name!r}: not a built-in controller with a "
+                             f"closed-chain form; closed chains run {known}")
+    return names
+
+
 def _reproduce_chain(args, out) -> int:
     """``reproduce --robot fivebar|delta``: the study on a parallel mechanism."""
     from .campaign.closed_chain_study import ChainStudyConfig, run_chain_study
     from .report.closed_chain import write_chain_study
 
+    reference_options = (("--amp", args.amp != 0.5), ("--freq", args.freq != 0.5),
+                         ("--to", args.to), ("--move-time", args.move_time),
+                         ("--frame", args.frame), ("--end", args.end),
+                         ("--radius", args.radius), ("--normal", args.normal != "0,0,1"))
     unsupported = [opt for opt, given in (
         ("--lock", args.lock), ("--csv", getattr(args, "csv", None)),
         ("--engine compiled/codegen", args.engine in ("compiled", "codegen")),
         ("--delay", args.delay), ("--actuator-bandwidth", args.actuator_bandwidth),
         ("--q0", args.q0), ("--qd0", args.qd0), ("--home", args.home),
-        ("--full-order", args.full_order), ("--save-trajectories", args.save_trajectories),
-        ("--controllers other than fl,hinf", args.controllers != "fl,hinf"),
-        ("--reference other than sine", args.reference != "sine")) if given]
+        ("--save-trajectories", args.save_trajectories),
+        ("--baseline", args.baseline), ("--torque-limit", args.torque_limit),
+        ("--uncertainty", args.uncertainty), ("--confidence", args.confidence != 0.95),
+        ("--dt", args.dt),
+        ("--reference other than sine", args.reference != "sine"),
+        *reference_options) if given]
     if unsupported:
         raise ValueError(f"--robot {args.robot} (a closed chain) does not implement "
-                         f"{', '.join(unsupported)}; its study runs fl and hinf on the "
+                         f"{', '.join(unsupported)}; its study runs --controllers on the "
                          f"mechanism's own reference, Python engine")
     config = ChainStudyConfig(mechanism=args.robot, samples=args.samples, seed=args.seed,
-                              duration=args.duration, rate=args.rate)
+                              duration=args.duration, rate=args.rate,
+                              controllers=_chain_controllers(args.controllers),
+                              full_order=args.full_order, certify=not args.no_certify)
     if out is None:
         out = _claim_out(args, "reproduce")
     result = run_chain_study(config, progress=None if args.no_progress else
@@ -761,6 +797,20 @@ def _reproduce_chain(args, out) -> int:
         verdict = "undetermined" if c["holds"] is None else ("holds" if c["holds"] else
                                                               "does not hold")
         print(f"{c['claim']}: {c['value']:.4g} -> {verdict}")
+    if result.claims_note:
+        print(result.claims_note)
+    summary = result.summary()
+    for name, s in summary["laws"].items():
+        line = f"{name}: nominal RMS error {s['nominal_rms_error_rad']:.3g} rad"
+        if config.samples:
+            line += (f", uncertain mean RMS error {s['mean_rms_error_rad']:.3g} rad, mean RMS "
+                     f"torque {s['mean_rms_tau_Nm']:.4g} N m"
+                     + (f", {s['failed']} run(s) failed" if s["failed"] else ""))
+        print(line)
+    cert = summary.get("certificates")
+    if cert:
+        print(f"certified (frozen nu-gap < b = {cert['b']:.4g}): {cert['certified']}/"
+              f"{cert['checked']} uncertain plants, largest nu-gap {cert['nugap_max']:.4g}")
     print(f"wrote {', '.join(p.name for p in paths)} into {out} (engine: python; the "
           f"compiled engine does not implement closed chains)")
     return 0

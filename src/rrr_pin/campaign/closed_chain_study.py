@@ -1,8 +1,10 @@
 r"""The paper's section-5 study on a parallel mechanism (the 5-bar or the Delta).
 
-FL alone (``lam = 100`` rad/s, eq. (20)) against H-infinity + FL (``lam = 45`` rad/s with the
-paper's reduced loop-shaping controller, eq. (18)), both on the reduced model of the nominal
-mechanism (:mod:`rrr_pin.control.closed_chain`), each run on the nominal plant and on
+Every law of ``controllers`` (default: FL alone, ``lam = 100`` rad/s, eq. (20), against
+H-infinity + FL, ``lam = 45`` rad/s with the paper's reduced loop-shaping controller, eq. (18);
+any built-in of :data:`rrr_pin.control.catalog.LAWS`, and the user's own laws), each on the
+reduced model of the nominal mechanism (:mod:`rrr_pin.control.closed_chain`), each run on the
+nominal plant and on
 ``samples`` seeded uncertain plants (:func:`rrr_pin.model.mechanisms.perturb_mechanism`: 20 %
 masses, 5 % lengths, as the paper's sec. 5), every plant integrated on Pinocchio's constraint
 dynamics (:mod:`rrr_pin.sim.closed_chain`).
@@ -19,7 +21,13 @@ References (actuated coordinates):
 
 The claims checked are the paper's conclusions (sec. 5-6): equivalent on the nominal model,
 better (the paper: about ten times) on uncertain models, with basically the same control
-effort (:func:`claims`).
+effort (:func:`claims`). They compare ``fl`` with ``hinf``: without both among the laws there
+is no verdict (``claims`` is empty and ``claims_note`` says why), never a substitute pair.
+
+Each uncertain plant is also certified (``certify``, default on): the frozen-configuration
+nu-gap of the feedback-linearized uncertain mechanism against ``b(Gs, Ks)`` of the
+H-infinity design, at ``certificate_points`` configurations of the reference
+(:func:`rrr_pin.robust.certificates.chain_certificate`).
 """
 
 from __future__ import annotations
@@ -29,7 +37,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..control.closed_chain import closed_chain_fl, closed_chain_hinf_fl
+from ..control.catalog import make_law
+from ..control.closed_chain import CHAIN_LAWS
+from ..control.laws import check_law
 from ..control.references import SplineReference
 from ..model.closed_chain import load_closed_chain
 from ..model.mechanisms import (
@@ -40,6 +50,7 @@ from ..model.mechanisms import (
     fivebar_ik,
     perturb_mechanism,
 )
+from ..robust.certificates import CertificateSpec
 from ..robust.loopshaping import design
 from ..sim.closed_chain import simulate_closed_chain
 from ..validation import check_count, check_positive
@@ -77,7 +88,20 @@ class ChainStudyConfig:
     inertia, length : float
         Relative tolerances of masses and lengths.
     lam_fl, lam_hinf : float
-        FL bandwidths [rad/s] of the two laws (the paper's 100 and 45).
+        FL bandwidths [rad/s] of ``fl`` and of the H-infinity laws (the paper's 100 and 45).
+    controllers : tuple of str
+        Built-in laws by name (:data:`rrr_pin.control.catalog.LAWS`), in order; default the
+        paper's ``("fl", "hinf")``.
+    full_order : bool
+        ``hinf`` (and ``hinf_aw``) with the full-order ``K`` of the design instead of the
+        reduced eq. (18); the certificate then uses the full ``Ks``.
+    torque_limit : tuple of float or None
+        Actuator limits [N m] per actuated joint that ``hinf_aw`` is told (required for it);
+        the plant itself is not limited.
+    certify : bool
+        Certify each uncertain plant (module docstring).
+    certificate_points : int
+        Frozen configurations per plant (>= 1), evenly spaced over the run.
     """
 
     mechanism: str = "fivebar"
@@ -89,6 +113,11 @@ class ChainStudyConfig:
     length: float = 0.05
     lam_fl: float = 100.0
     lam_hinf: float = 45.0
+    controllers: tuple = ("fl", "hinf")
+    full_order: bool = False
+    torque_limit: tuple | None = None
+    certify: bool = True
+    certificate_points: int = 8
 
     def __post_init__(self) -> None:
         if self.mechanism not in MECHANISMS:
@@ -103,6 +132,26 @@ class ChainStudyConfig:
             value = check_positive(name, getattr(self, name), allow_zero=True)
             if value >= 1.0:
                 raise ValueError(f"{name} must be a relative tolerance in [0, 1), got {value}")
+        for name in ("lam_fl", "lam_hinf"):
+            check_positive(name, getattr(self, name), unit="rad/s")
+        names = self.controllers
+        if isinstance(names, str) or not isinstance(names, (tuple, list)) or not all(
+                isinstance(x, str) and x for x in names):
+            raise ValueError(f"controllers must be a tuple of built-in law names, got "
+                             f"{names!r}")
+        object.__setattr__(self, "controllers", tuple(names))
+        unknown = [x for x in names if x not in CHAIN_LAWS]
+        if unknown:
+            raise ValueError(f"controllers: {', '.join(map(repr, unknown))} not a built-in "
+                             f"law with a closed-chain form ({', '.join(CHAIN_LAWS)}); your own "
+                             f"laws go to run_chain_study(config, laws=[...])")
+        if "hinf_aw" in names and self.torque_limit is None:
+            raise ValueError("controllers: hinf_aw on a closed chain needs torque_limit [N m] "
+                             "(an MJCF motor carries no effort limit)")
+        if self.torque_limit is not None:
+            object.__setattr__(self, "torque_limit",
+                               tuple(float(x) for x in np.atleast_1d(self.torque_limit)))
+        check_count("certificate_points", self.certificate_points, 1)
 
 
 def _quintic(s: np.ndarray) -> np.ndarray:
@@ -198,16 +247,25 @@ class ChainStudyResult:
     ----------
     config : ChainStudyConfig
     names, labels : list of str
-        The laws' keys and display names.
+        The laws' keys and display names, in order (the built-ins of ``config.controllers``,
+        then the user's laws).
     metrics : list of dict
         Per plant (nominal first): ``{"plant", "factors", law name: metrics}``, metrics with
-        ``rms_error_rad``, ``max_error_rad``, ``rms_tau_Nm``, ``drift_m``, ``status``.
+        ``rms_error_rad``, ``max_error_rad``, ``rms_tau_Nm``, ``drift_m``, ``status``; an
+        uncertain plant also has ``"certificate"`` (``certified``, ``nugap_max``, ``b``) when
+        ``config.certify``.
     trajectories : list of dict
         Per plant, law name -> Trajectory (None where the run failed).
     reference : str
         What the reference is.
     claims : list of dict
-        :func:`claims`.
+        :func:`claims` (empty without both ``fl`` and ``hinf``).
+    claims_note : str
+        Why there are no claims, or "".
+    laws : list of dict
+        Each law's ``describe()`` (what ran).
+    certificate : dict or None
+        The certificate's design (:meth:`CertificateSpec.to_dict`), None without ``certify``.
     """
 
     config: ChainStudyConfig
@@ -217,35 +275,101 @@ class ChainStudyResult:
     trajectories: list = field(repr=False)
     reference: str = ""
     claims: list = field(default_factory=list)
+    claims_note: str = ""
+    laws: list = field(default_factory=list)
+    certificate: dict | None = None
+
+    def summary(self) -> dict:
+        """Per law and certificates: ``{"laws": {name: {...}}, "certificates": {...}}``.
+
+        Per law: ``nominal_rms_error_rad``, and over the uncertain plants (NaN if a run
+        failed, never dropped) ``mean_rms_error_rad``, ``mean_rms_tau_Nm`` and ``failed``
+        (how many runs failed). Certificates (when computed): ``certified`` and ``checked``
+        counts, ``nugap_max`` (largest over the plants) and ``b``.
+        """
+        unc = self.metrics[1:]
+        laws = {}
+        for name in self.names:
+            m = [row[name] for row in unc]
+            laws[name] = {"nominal_rms_error_rad": self.metrics[0][name]["rms_error_rad"],
+                          "mean_rms_error_rad": float(np.mean([x["rms_error_rad"] for x in m]))
+                          if m else math.nan,
+                          "mean_rms_tau_Nm": float(np.mean([x["rms_tau_Nm"] for x in m]))
+                          if m else math.nan,
+                          "failed": sum(1 for x in m if x["status"] != "ok")}
+        out = {"laws": laws}
+        certs = [row["certificate"] for row in unc if "certificate" in row]
+        if certs:
+            out["certificates"] = {"certified": sum(1 for c in certs if c["certified"]),
+                                   "checked": len(certs),
+                                   "nugap_max": max(c["nugap_max"] for c in certs),
+                                   "b": certs[0]["b"]}
+        return out
 
     def to_dict(self) -> dict:
         """JSON-ready record (trajectories left out)."""
         return {"config": asdict(self.config), "laws": dict(zip(self.names, self.labels,
                                                                   strict=True)),
-                "reference": self.reference, "plants": self.metrics, "claims": self.claims}
+                "law_descriptions": self.laws, "reference": self.reference,
+                "plants": self.metrics, "claims": self.claims, "claims_note": self.claims_note,
+                "certificate": self.certificate, "summary": self.summary()}
 
 
-def run_chain_study(config: ChainStudyConfig = ChainStudyConfig(), progress=None
-                    ) -> ChainStudyResult:
-    """Run FL and H-infinity + FL on the nominal and uncertain mechanisms.
+def _failed(exc) -> dict:
+    return {"rms_error_rad": math.nan, "max_error_rad": math.nan, "rms_tau_Nm": math.nan,
+            "drift_m": math.nan, "status": f"failed: {exc}"}
+
+
+def _builtin_laws(config: ChainStudyConfig, d) -> list:
+    """Build the laws of ``config.controllers``, each on its own nominal mechanism."""
+    K = None if d is None else d.K_full if config.full_order else d.K_reduced
+    # Each law gets its own nominal model: its loop-closure seed follows its own runs.
+    return [make_law(name, load_closed_chain(config.mechanism), K=K, lam_fl=config.lam_fl,
+                     lam_hinf=config.lam_hinf, torque_limit=config.torque_limit)
+            for name in config.controllers]
+
+
+def run_chain_study(config: ChainStudyConfig = ChainStudyConfig(), progress=None,
+                    laws=()) -> ChainStudyResult:
+    """Run every law on the nominal and uncertain mechanisms, and certify the uncertain ones.
 
     Parameters
     ----------
     config : ChainStudyConfig
     progress : callable, optional
         ``progress(done, total)`` after each plant.
+    laws : sequence of ControlLaw or SampledLaw, optional
+        The user's own laws, run after the built-ins of ``config.controllers`` (which may be
+        empty), each on the actuated coordinates of the mechanism (``n == nq``); a law with a
+        ``nominal`` closed chain has its loop-closure seed reset before each run.
 
     Returns
     -------
     ChainStudyResult
+
+    Raises
+    ------
+    ValueError
+        An unknown built-in name, one without a closed-chain form, ``hinf_aw`` without
+        ``torque_limit``, no law at all, repeated names, or a law for another ``nq``.
     """
     nominal = load_closed_chain(config.mechanism)
-    d = design(lam=config.lam_hinf, n=nominal.nq)
-    # Each law gets its own nominal model: its loop-closure seed follows its own runs.
-    laws = [closed_chain_fl(load_closed_chain(config.mechanism), config.lam_fl),
-            closed_chain_hinf_fl(load_closed_chain(config.mechanism), d.K_reduced,
-                                 config.lam_hinf)]
+    # the loop-shaping design, for the H-infinity laws' K and the certificate only
+    needs_design = config.certify or {"hinf", "hinf_aw"} & set(config.controllers)
+    d = design(lam=config.lam_hinf, n=nominal.nq) if needs_design else None
+    laws = _builtin_laws(config, d) + list(laws)
+    if not laws:
+        raise ValueError("no control law: give config.controllers or laws")
+    for law in laws:
+        check_law(law, nominal.nq)
+    names = [law.name for law in laws]
+    dup = sorted({x for x in names if names.count(x) > 1})
+    if dup:
+        raise ValueError(f"control law names must be unique, repeated: {', '.join(dup)}")
     reference = chain_reference(nominal, config.duration)
+    spec = CertificateSpec.from_design(d, points=config.certificate_points,
+                                       reduced=not config.full_order) if config.certify \
+        else None
     rng = np.random.default_rng(config.seed)
     plants = [(nominal, {})]
     for _ in range(config.samples):
@@ -256,34 +380,47 @@ def run_chain_study(config: ChainStudyConfig = ChainStudyConfig(), progress=None
         row = {"plant": "nominal" if i == 0 else f"sample{i - 1:03d}", "factors": factors}
         runs = {}
         for law in laws:
-            law.nominal.close(reference(0.0)[0], seed=law.nominal.home)  # reset its seed
+            own = getattr(law, "nominal", None)
+            if hasattr(own, "constraints") and hasattr(own, "close"):
+                own.close(reference(0.0)[0], seed=own.home)  # reset its seed
             try:
                 traj = simulate_closed_chain(plant, law, reference, config.duration,
                                              rate=config.rate)
             except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
-                row[law.name] = {"rms_error_rad": math.nan, "max_error_rad": math.nan,
-                                 "rms_tau_Nm": math.nan, "drift_m": math.nan,
-                                 "status": f"failed: {exc}"}
+                row[law.name] = _failed(exc)
                 runs[law.name] = None
                 continue
             row[law.name] = _metrics(traj)
             runs[law.name] = traj
+        if spec is not None and i > 0:
+            # its own nominal copy: the certificate walks the loop closure along the reference
+            row["certificate"] = spec.certify(load_closed_chain(config.mechanism), plant,
+                                              reference, config.duration)
         metrics.append(row)
         trajectories.append(runs)
         if progress is not None:
             progress(i + 1, len(plants))
-    result = ChainStudyResult(config=config, names=[law.name for law in laws],
-                              labels=[law.label for law in laws], metrics=metrics,
-                              trajectories=trajectories,
-                              reference=reference.source)
-    result.claims = claims(result)
+    result = ChainStudyResult(config=config, names=names,
+                              labels=[law.label or law.name for law in laws], metrics=metrics,
+                              trajectories=trajectories, reference=reference.source,
+                              laws=[law.describe() for law in laws],
+                              certificate=None if spec is None else spec.to_dict())
+    if "fl" in names and "hinf" in names:
+        result.claims = claims(result)
+    else:
+        missing = [k for k in ("fl", "hinf") if k not in names]
+        result.claims_note = (f"no verdict on the paper's claims: they compare fl with hinf, "
+                              f"and {' and '.join(missing)} {'is' if len(missing) == 1 else 'are'}"
+                              f" not among the laws ({', '.join(names)})")
     return result
 
 
 def claims(result: ChainStudyResult) -> list[dict]:
     """Measure the paper's three conclusions: each ``{"claim", "value", "holds"}``.
 
-    ``holds`` is None (undetermined) when a run needed for it failed: no verdict from NaN.
+    They compare the laws named ``fl`` and ``hinf`` (both must be in ``result.names``; the
+    others are not part of the claims). ``holds`` is None (undetermined) when a run needed for
+    it failed: no verdict from NaN.
 
     * nominal: the larger RMS error of the two laws on the nominal plant; holds if below
       :data:`NOMINAL_FLOOR` ("equivalent": both track the exact model to within it);
@@ -291,15 +428,24 @@ def claims(result: ChainStudyResult) -> list[dict]:
       paper measured about 10);
     * effort: mean over the uncertain plants of ``rms_tau_hinf / rms_tau_fl``; holds if in
       [0.9, 1.1] ("basically the same energy").
+
+    Raises
+    ------
+    ValueError
+        ``fl`` or ``hinf`` is not among the laws.
     """
-    fl, hinf = result.names
+    fl, hinf = "fl", "hinf"
+    if fl not in result.names or hinf not in result.names:
+        raise ValueError(f"the paper's claims compare fl with hinf; the laws are "
+                         f"{', '.join(result.names)}")
     nom = result.metrics[0]
     unc = result.metrics[1:]
 
     def verdict(value, low, high):
         return None if not math.isfinite(value) else bool(low <= value <= high)
 
-    worst = max(nom[fl]["rms_error_rad"], nom[hinf]["rms_error_rad"])
+    # np.max, not max(): a NaN (a failed run) stays NaN whichever law it is
+    worst = float(np.max([nom[fl]["rms_error_rad"], nom[hinf]["rms_error_rad"]]))
     out = [{"claim": f"nominal model: H-inf + FL and FL alone are equivalent (both RMS "
                      f"errors below {NOMINAL_FLOOR:g} rad)", "value": worst,
             "holds": verdict(worst, 0.0, NOMINAL_FLOOR)}]

@@ -102,6 +102,9 @@ BUILTIN_LAWS = {name: law.description for name, law in LAWS.items()}
 def make_law(name: str, nominal, **options):
     """Build the built-in law ``name`` on ``nominal``.
 
+    A closed chain (:class:`rrr_pin.model.closed_chain.ClosedChain`) gets the law on its
+    reduced model, :func:`rrr_pin.control.closed_chain.make_chain_law`.
+
     Options: ``K``, ``lam_fl``, ``lam_hinf``, ``torque_limit`` (:class:`BuiltinLaw`).
 
     Raises
@@ -109,6 +112,11 @@ def make_law(name: str, nominal, **options):
     ValueError
         An unknown name (the message lists the built-in ones with what each is).
     """
+    if hasattr(nominal, "constraints") and hasattr(nominal, "reduced"):
+        # a parallel mechanism (rrr_pin.model.closed_chain): the law on its reduced model
+        from .closed_chain import make_chain_law
+
+        return make_chain_law(name, nominal, **options)
     law = LAWS.get(name) if isinstance(name, str) else None
     if law is None:
         raise ValueError(f"unknown controller {name!r}; built-in controllers: "

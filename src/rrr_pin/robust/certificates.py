@@ -14,6 +14,12 @@ shaped plant with the design's margin ``b(Gs, Ks)``: by Vinnicombe's theorem, ``
 implies that ``Ks`` stabilizes the frozen plant, with margin at least
 ``sin(arcsin b - arcsin nugap)``.
 
+A parallel mechanism (:class:`rrr_pin.model.closed_chain.ClosedChain`) offers the same
+``M, V, G`` in its actuated coordinates (the reduced model, eq. (1) in ``q_a``), so the same
+linearization applies to it; :func:`chain_certificate` walks both mechanisms along the
+reference first, so that each frozen configuration closes on the reference's assembly mode
+(:meth:`CertificateSpec.certify` calls it for a closed chain).
+
 What a frozen-configuration certificate proves, and what it does not
 --------------------------------------------------------------------
 It proves that, at every configuration checked, the linear time-invariant model obtained by
@@ -50,7 +56,8 @@ from .lti import DimensionMismatchError, check_lti, expand_diagonal
 from .ncf import _graph_symbols_ct, _series, ncfmargin
 from .reduction import _arcsin_bound
 
-__all__ = ["FrozenCertificate", "CertificateSpec", "frozen_linearization", "frozen_certificate"]
+__all__ = ["FrozenCertificate", "CertificateSpec", "frozen_linearization", "frozen_certificate",
+           "chain_certificate", "CHAIN_WALK_STEP"]
 
 _H = 1e-6  # relative central-difference step of frozen_linearization
 
@@ -206,8 +213,10 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
 
     Parameters
     ----------
-    nominal, plant : rrr_pin.model.dynamics.Robot
-        The controller's model and the uncertain (true) arm.
+    nominal, plant : rrr_pin.model.dynamics.Robot or ClosedChain
+        The controller's model and the uncertain (true) arm. A closed chain solves its
+        passive coordinates from the last solution, in the order of ``q``: use
+        :func:`chain_certificate`, which seeds them along the reference.
     q, qd : array-like, shape (N, nq)
         Frozen configurations [rad] and velocities [rad/s] along the reference.
     lam : float
@@ -247,6 +256,71 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
         bf[k] = ncfmargin(Gsk, Ks)[0]
     lower = np.array([_arcsin_bound(b, d) for d in nus])
     return FrozenCertificate(nugap=nus, b=float(b), b_lower=lower, b_frozen=bf,
+                             certified=bool(nus.max() < b))
+
+
+def _is_closed_chain(robot) -> bool:
+    return hasattr(robot, "constraints") and hasattr(robot, "close")
+
+
+#: Time step [s] of the walk along the reference that seeds a closed chain's loop closure
+#: (:func:`chain_certificate`): the study's references are sampled by inverse kinematics every
+#: 5 ms too.
+CHAIN_WALK_STEP = 0.005
+
+
+def chain_certificate(nominal, plant, reference, t, *, lam: float, W1, W2,
+                      Ks) -> FrozenCertificate:
+    r""":func:`frozen_certificate` of a closed chain at the reference's times ``t``.
+
+    A :class:`rrr_pin.model.closed_chain.ClosedChain`'s ``M, V, G`` (the reduced model in
+    the actuated coordinates, eq. (1) in ``q_a``) solve the passive coordinates by Newton from
+    the last solution. So that both mechanisms stay on the assembly mode of the reference at
+    every frozen configuration, each is walked along the reference from its ``home`` every
+    :data:`CHAIN_WALK_STEP` [s] (at most) before each configuration is linearized; the
+    certificate is then exactly :func:`frozen_certificate`'s at the configurations
+    ``reference.sample(t)``, the uncertain plant being ``plant`` (e.g. a
+    :func:`rrr_pin.model.mechanisms.perturb_mechanism` draw).
+
+    Parameters
+    ----------
+    nominal, plant : ClosedChain
+        The controller's model and the uncertain mechanism (same ``nq``).
+    reference : Reference
+        Actuated reference, ``reference.sample(t) -> (R, RD, RDD)`` [rad, rad/s, rad/s^2].
+    t : array-like, shape (N,)
+        Increasing times [s] of the frozen configurations, from ``t[0] >= 0``.
+    lam, W1, W2, Ks
+        As :func:`frozen_certificate`.
+
+    Returns
+    -------
+    FrozenCertificate
+    """
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.size == 0 or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0) \
+            or t[0] < 0:
+        raise ValueError(f"t must be a non-empty increasing array of finite times >= 0 [s], "
+                         f"got {t!r}")
+    _check_pair(nominal, plant)
+    R, RD, RDD = reference.sample(t)
+    parts, last = [], 0.0
+    for chain in (nominal, plant):
+        chain.close(reference.sample(np.array([0.0]))[0][0], seed=chain.home)
+    for k, tk in enumerate(t):
+        walk = np.linspace(last, tk, max(2, int(np.ceil((tk - last) / CHAIN_WALK_STEP)) + 1))
+        W = reference.sample(walk)[0]
+        for chain in (nominal, plant):
+            for qa in W:
+                chain.close(qa)
+        last = tk
+        parts.append(frozen_certificate(nominal, plant, R[k:k + 1], RD[k:k + 1],
+                                        qdd=RDD[k:k + 1], lam=lam, W1=W1, W2=W2, Ks=Ks))
+    nus = np.concatenate([p.nugap for p in parts])
+    b = parts[0].b
+    return FrozenCertificate(nugap=nus, b=b,
+                             b_lower=np.concatenate([p.b_lower for p in parts]),
+                             b_frozen=np.concatenate([p.b_frozen for p in parts]),
                              certified=bool(nus.max() < b))
 
 
@@ -299,9 +373,12 @@ class CertificateSpec:
         """
         t = np.linspace(0.0, float(duration), self.points)
         R, RD, RDD = reference.sample(t)
-        cert = frozen_certificate(nominal, plant, R, RD, qdd=RDD, lam=self.lam,
-                                  W1=control.ss(*self.W1), W2=control.ss(*self.W2),
-                                  Ks=control.ss(*self.Ks))
+        weights = dict(lam=self.lam, W1=control.ss(*self.W1), W2=control.ss(*self.W2),
+                       Ks=control.ss(*self.Ks))
+        if _is_closed_chain(nominal):
+            cert = chain_certificate(nominal, plant, reference, t, **weights)
+        else:
+            cert = frozen_certificate(nominal, plant, R, RD, qdd=RDD, **weights)
         return {"certified": cert.certified, "nugap_max": float(cert.nugap_max), "b": cert.b}
 
     def margin(self, nq: int) -> float:
