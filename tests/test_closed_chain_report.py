@@ -180,7 +180,7 @@ def _fake_result(name, names, samples=1, duration=0.5, seed=0):
 
 
 def test_report_is_self_contained_and_covers_every_law(tmp_path):
-    result = _fake_result("fivebar", ["fl", "hinf", "pd"])
+    result = _fake_result("fivebar", ["fl", "hinf", "pd"], duration=0.3)
     paths = write_chain_study(result, tmp_path)
     assert paths[-1] == tmp_path / "report.html"
     text = paths[-1].read_text(encoding="utf-8")
@@ -197,6 +197,7 @@ def test_report_is_self_contained_and_covers_every_law(tmp_path):
     for label in ("law fl", "law hinf", "law pd"):
         assert f"<b>{label}: nominal and uncertain plants</b>" in text
     assert text.count("uncertain plant 0</span>") == 3
+    assert text.count("tip circle (reference)</span>") == 3  # the reference's path, drawn
     # the claims, every law's columns, the settings with the drift and the reference
     assert "RMS error pd [rad]" in text and "a claim" in text
     assert "max_drift_m" in text and "drift_bound_m" in text
@@ -269,3 +270,13 @@ def test_report_renders_in_headless_chromium(name, tmp_path):
     # the mechanism is drawn: hiding it changes a visible share of the canvas
     assert (np.abs(a - b).max(axis=2) > 0.15).mean() > 0.002
     assert [e for e in logs if e["level"] == "SEVERE"] == []
+
+
+def test_scene_path_is_checked():
+    chain = load_closed_chain("fivebar")
+    track = Track("nominal", [0.0], [chain.neutral()])
+    with pytest.raises(ValueError, match=r"expected path of shape \(K, 3\) with K >= 2, got "
+                                         r"\(4, 2\)"):
+        Scene("fivebar", chain, [track], path=np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="path must be finite"):
+        Scene("fivebar", chain, [track], path=[[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]])

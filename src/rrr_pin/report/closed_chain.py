@@ -24,8 +24,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..campaign.closed_chain_study import adept_point, circle_point
 from ..model.closed_chain import load_closed_chain
-from ..model.mechanisms import DeltaParams, delta_fk, mechanism_params
+from ..model.mechanisms import DeltaParams, FiveBarParams, delta_fk, mechanism_params
 from .html import write_report_html
 from .jsondata import dumps
 from .viewer import Scene, Track
@@ -180,10 +181,13 @@ def chain_scenes(result, params=None) -> list[Scene]:
     -------
     list of rrr_pin.report.viewer.Scene
         The tracks' ``q`` are the recorded actuated angles [rad]; the viewer closes the loop.
+        Each scene draws the reference's task-space path (the 5-bar's tip circle, the
+        Delta's adept cycle) as a grey line.
     """
     params = mechanism_params(result.config.mechanism) if params is None else params
     plants = [load_closed_chain(params if i == 0 else plant_params(params, m["factors"]))
               for i, m in enumerate(result.metrics)]
+    path, path_label = _task_path(params, result.config.duration)
     scenes = []
     for name, label in zip(result.names, result.labels, strict=True):
         tracks = []
@@ -196,8 +200,20 @@ def chain_scenes(result, params=None) -> list[Scene]:
                                 robot=plant))
         if tracks:
             scenes.append(Scene(f"{label}: nominal and uncertain plants", plants[0],
-                                tracks))
+                                tracks, path=path, path_label=path_label))
     return scenes
+
+
+def _task_path(params, duration: float) -> tuple[np.ndarray | None, str]:
+    """Return the reference's task-space path [m], shape (K, 3), and its legend label."""
+    t = np.linspace(0.0, duration, 401)
+    if isinstance(params, DeltaParams):
+        return adept_point(params, t, duration), "adept cycle (platform reference)"
+    if isinstance(params, FiveBarParams):
+        xz = circle_point(params, t, duration)
+        return (np.column_stack([xz[:, 0], np.zeros(len(t)), xz[:, 1]]),
+                "tip circle (reference)")
+    return None, "reference path"
 
 
 def chain_settings(result, params=None) -> dict:

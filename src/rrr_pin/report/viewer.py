@@ -175,12 +175,19 @@ class Scene:
         Extra folders where ``package://NAME/...`` mesh files are looked for (as
         ``DIR/NAME/...``), besides ``ROS_PACKAGE_PATH``, the URDF's own folders and
         example-robot-data.
+    path : array-like, shape (K, 3), optional
+        A polyline fixed in the world frame [m], drawn as a thin grey line: e.g. the
+        reference path of a tool or of a Delta's platform. K >= 2, finite.
+    path_label : str, default "reference path"
+        Its name in the legend.
     """
 
     title: str
     robot: Robot | ClosedChain = field(repr=False)
     tracks: tuple[Track, ...]
     package_dirs: tuple[Path, ...] = ()
+    path: np.ndarray | None = field(default=None, repr=False)
+    path_label: str = "reference path"
 
     def __post_init__(self) -> None:
         tracks = tuple(self.tracks)
@@ -198,6 +205,15 @@ class Scene:
         object.__setattr__(self, "tracks", tracks)
         object.__setattr__(self, "package_dirs",
                            tuple(Path(p) for p in self.package_dirs))
+        if self.path is not None:
+            path = np.array(self.path, dtype=float)
+            if path.ndim != 2 or path.shape[1] != 3 or path.shape[0] < 2:
+                raise ValueError(f"Scene {self.title!r}: expected path of shape (K, 3) with "
+                                 f"K >= 2, got {path.shape}")
+            if not np.isfinite(path).all():
+                raise ValueError(f"Scene {self.title!r}: path must be finite")
+            path.setflags(write=False)
+            object.__setattr__(self, "path", path)
 
 
 # --------------------------------------------------------------------------------------------
@@ -694,6 +710,9 @@ def _record(scene: Scene, fps: float, geometry: str, play: bool,
     # top face just below z = 0, or below the lowest frame (a Delta hangs under its base)
     floor[2, 3] = min(0.0, float(points[:, 2].min())) - 0.5e-3 * side - 1e-4 * side
     vis["floor"].set_transform(floor)
+    if scene.path is not None:
+        vis["path"].set_object(mg.Line(mg.PointsGeometry(scene.path.T.astype(np.float32)),
+                                       mg.LineBasicMaterial(color=0x555555, linewidth=2)))
     _load_arms(vis, arms, names, ghosts)
     static = list(window.commands)
     window.commands.clear()
@@ -808,6 +827,10 @@ def _legend(scene: Scene, facts: dict) -> str:
             f"{facts['duration']:.3g} s; {shapes}")
     if facts["missing_meshes"]:
         note += f"; meshes not found, drawn as simple shapes: {len(facts['missing_meshes'])}"
+    if scene.path is not None:
+        items.append(f'<span style="white-space:nowrap"><span style="display:inline-block;'
+                     f'width:1.4em;height:0;border-top:2px solid #555;vertical-align:middle">'
+                     f"</span> {html.escape(scene.path_label)}</span>")
     return " &nbsp; ".join(items) + f'<br><small>{html.escape(note)}. Open Controls &gt; ' \
         f"Animations: play, pause, reset, time slider; drag to orbit, scroll to zoom.</small>"
 
