@@ -25,9 +25,23 @@ from rrr_pin.campaign.closed_chain_study import (
     chain_reference,
 )
 from rrr_pin.model.closed_chain import LoopClosureError, load_closed_chain
-from rrr_pin.model.mechanisms import mechanism_params, perturb_mechanism
+from rrr_pin.model.mechanisms import (
+    delta_elbows,
+    delta_fk,
+    fivebar_elbows,
+    fivebar_fk,
+    mechanism_params,
+    perturb_mechanism,
+)
 from rrr_pin.report.closed_chain import chain_scenes, plant_params, write_chain_study
-from rrr_pin.report.viewer import Scene, Track, full_configurations, scene_document
+from rrr_pin.report.viewer import (
+    CAMERA_FOV,
+    Scene,
+    Track,
+    camera_view,
+    full_configurations,
+    scene_document,
+)
 from rrr_pin.sim.trajectory import Trajectory
 
 FPS = 10.0
@@ -222,16 +236,54 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
 
 
+def _project(points, eye, target, width, height):
+    """Pixel (column, row) of world points [m] through three.js's pinhole camera."""
+    f = (target - eye) / np.linalg.norm(target - eye)
+    r = np.cross(f, [0.0, 0.0, 1.0])
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    d = np.asarray(points) - eye
+    x, y, z = d @ r, d @ u, d @ f
+    tan = np.tan(np.radians(CAMERA_FOV / 2))
+    ndc_x, ndc_y = x / (z * tan * width / height), y / (z * tan)
+    return np.column_stack([(ndc_x + 1) / 2 * width, (1 - ndc_y) / 2 * height])
+
+
+def _draw_at(driver, seconds):
+    driver.execute_script(
+        "viewer.animator.pause(); viewer.animator.seek(arguments[0]); viewer.set_dirty();"
+        "window.__drawn = false; requestAnimationFrame(() => requestAnimationFrame(() => "
+        "{ window.__drawn = true; }));", seconds)
+    end = time.monotonic() + 60
+    while not driver.execute_script("return window.__drawn === true;"):
+        assert time.monotonic() < end, "no frame drawn"
+        time.sleep(0.1)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["fivebar", "delta"])
 def test_report_renders_in_headless_chromium(name, tmp_path):
+    """The nominal mechanism is drawn where its closed-form kinematics puts it."""
     if CHROMIUM is None or CHROMEDRIVER is None:
         pytest.skip("Chromium is missing: apt-get install chromium chromium-driver")
     webdriver = pytest.importorskip("selenium.webdriver")
     from selenium.webdriver.chrome.service import Service
 
-    result = _fake_result(name, ["fl", "hinf"], duration=1.0)
+    result = _fake_result(name, ["fl", "hinf"], samples=0, duration=1.0)
     path = write_chain_study(result, tmp_path)[-1]
+    scene = chain_scenes(result)[0]
+    eye, target = camera_view(scene)
+    seconds = 0.5
+    traj = result.trajectories[0]["fl"]
+    qa = np.array([np.interp(seconds, traj.t, traj.q[:, j]) for j in range(traj.q.shape[1])])
+    params = mechanism_params(name)
+    if name == "fivebar":  # midpoints of the two distal links, from the closed form
+        tip = fivebar_fk(params, qa)
+        points = [np.array([(e[0] + tip[0]) / 2, 0.0, (e[1] + tip[1]) / 2])
+                  for e in fivebar_elbows(params, qa)]
+    else:  # the platform's centre and the forearms' midpoints
+        p = delta_fk(params, qa)
+        points = [p] + [(e + p) / 2 for e in delta_elbows(params, qa)]
     options = webdriver.ChromeOptions()
     options.binary_location = CHROMIUM
     for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
@@ -251,14 +303,15 @@ def test_report_renders_in_headless_chromium(name, tmp_path):
             assert time.monotonic() < end, "the scene never became ready"
             time.sleep(0.2)
         driver.execute_script("viewer.gui.close();")
-        driver.switch_to.default_content()
-        with_arm = frame.screenshot_as_png
-        driver.switch_to.frame(frame)
-        driver.execute_script("viewer.set_property(['meshcat', 'arms', 'nominal_plant'], "
-                              "'visible', false); viewer.set_dirty();")
-        time.sleep(0.5)
-        driver.switch_to.default_content()
-        without_arm = frame.screenshot_as_png
+        width, height = driver.execute_script("return [window.innerWidth, window.innerHeight];")
+        shots = []
+        for visible in ("true", "false"):
+            driver.execute_script(f"viewer.set_property(['meshcat', 'arms', 'nominal_plant'], "
+                                  f"'visible', {visible});")
+            _draw_at(driver, seconds)
+            driver.switch_to.default_content()
+            shots.append(frame.screenshot_as_png)
+            driver.switch_to.frame(frame)
         logs = driver.get_log("browser")
     finally:
         driver.quit()
@@ -266,11 +319,18 @@ def test_report_renders_in_headless_chromium(name, tmp_path):
 
     import matplotlib.pyplot as plt
 
-    a, b = (plt.imread(io.BytesIO(p), format="png")[..., :3] for p in (with_arm, without_arm))
-    # the mechanism is drawn: hiding it changes a visible share of the canvas
-    assert (np.abs(a - b).max(axis=2) > 0.15).mean() > 0.002
+    a, b = ((plt.imread(io.BytesIO(png), format="png")[..., :3] * 255).astype(int)
+            for png in shots)
+    diff = np.abs(a - b).max(axis=2)
+    border = 1  # the iframe's CSS border
+    for col, row in _project(points, eye, target, width, height):
+        c, r = int(round(col)) + border, int(round(row)) + border
+        window = diff[r - 3:r + 4, c - 3:c + 4]
+        assert window.size and window.max() > 40, (
+            f"t = {seconds} s: nothing drawn at pixel ({c}, {r}) where the closed-form "
+            f"kinematics puts the {name} (largest change {window.max() if window.size else None})")
+    assert diff[5:40, 5:40].max() < 10  # far from it, nothing changes
     assert [e for e in logs if e["level"] == "SEVERE"] == []
-
 
 def test_scene_path_is_checked():
     chain = load_closed_chain("fivebar")
