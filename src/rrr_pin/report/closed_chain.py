@@ -39,7 +39,8 @@ CHAIN_UNITS = {"duration": "s", "rate": "Hz", "lam_fl": "rad/s", "lam_hinf": "ra
                "inertia": "-", "length": "-", "samples": "-", "seed": "-", "d": "m", "l1": "m",
                "l2": "m", "m1": "kg", "m2": "kg", "radius": "m", "home_x": "m", "home_z": "m",
                "R": "m", "r": "m", "L": "m", "l": "m", "m_upper": "kg", "m_fore": "kg",
-               "m_platform": "kg", "dt": "s", "substeps": "-"}
+               "m_platform": "kg", "dt": "s", "substeps": "-", "reference_max_cond_Jp": "-",
+               "runs": "-"}
 
 
 def claims_table(result) -> str:
