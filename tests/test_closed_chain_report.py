@@ -340,3 +340,14 @@ def test_scene_path_is_checked():
         Scene("fivebar", chain, [track], path=np.zeros((4, 2)))
     with pytest.raises(ValueError, match="path must be finite"):
         Scene("fivebar", chain, [track], path=[[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]])
+
+
+def test_claims_table_shows_a_failed_runs_nan_drift():
+    from rrr_pin.report.closed_chain import claims_table
+
+    result = _fake_result("fivebar", ["fl", "hinf"], samples=0)
+    result.metrics[0]["hinf"].update(drift_m=float("nan"), status="failed: test")
+    row = [line for line in claims_table(result).splitlines() if line.startswith("| nominal")]
+    # max(1e-13, nan) would be 1e-13: the failed run's NaN must not be hidden
+    assert row[0].endswith("| nan |")
+    assert "- nominal hinf: failed: test" in claims_table(result)
