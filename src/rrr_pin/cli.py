@@ -761,8 +761,8 @@ def _reproduce_chain(args, out) -> int:
         verdict = "undetermined" if c["holds"] is None else ("holds" if c["holds"] else
                                                               "does not hold")
         print(f"{c['claim']}: {c['value']:.4g} -> {verdict}")
-    print(f"wrote {', '.join(p.name for p in paths)} into {out} (open report.html in a "
-          f"browser; engine: python; the compiled engine does not implement closed chains)")
+    print(f"wrote {', '.join(p.name for p in paths)} into {out} (engine: python; the "
+          f"compiled engine does not implement closed chains)")
     return 0
 
 

@@ -222,7 +222,8 @@ def chain_settings(result, params=None) -> dict:
 
     ``drift`` gives, per law, the largest loop-closure gap [m] the plant left before a
     projection over every run (None where no run succeeded) and the bound it was checked
-    against (``Trajectory.info["drift_bound_m"]``).
+    against (``Trajectory.info["drift_bound_m"]``); ``certificate``, the certificate's design
+    when the study has one (``result.certificate``).
     """
     params = mechanism_params(result.config.mechanism) if params is None else params
     drift = {}
@@ -237,10 +238,14 @@ def chain_settings(result, params=None) -> dict:
         if runs and not info:
             info = {k: v for k, v in runs[0].info.items()
                     if isinstance(v, str | int | float) and not k.startswith("drift")}
-    return {"mechanism": result.config.mechanism, "reference": result.reference,
-            "laws": dict(zip(result.names, result.labels, strict=True)),
-            "study": asdict(result.config), "parameters": asdict(params),
-            "plant integration": info, "drift": drift}
+    out = {"mechanism": result.config.mechanism, "reference": result.reference,
+           "laws": dict(zip(result.names, result.labels, strict=True)),
+           "study": asdict(result.config), "parameters": asdict(params),
+           "plant integration": info, "drift": drift}
+    certificate = getattr(result, "certificate", None)  # a study that certified its plants
+    if certificate:
+        out["certificate"] = certificate
+    return out
 
 
 def chain_captions(result) -> dict:
