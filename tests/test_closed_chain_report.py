@@ -351,3 +351,15 @@ def test_claims_table_shows_a_failed_runs_nan_drift():
     # max(1e-13, nan) would be 1e-13: the failed run's NaN must not be hidden
     assert row[0].endswith("| nan |")
     assert "- nominal hinf: failed: test" in claims_table(result)
+
+
+def test_a_track_through_a_singularity_is_refused_with_its_time():
+    chain = load_closed_chain("fivebar")
+    a = np.arccos(0.34 / 0.46)  # symmetric elbows 2 l2 = 0.46 m apart: distal links aligned
+    qa = np.array([chain.neutral(), [np.pi - a, a]])
+    scene = Scene("fivebar", chain, [Track("nominal", [0.0, 0.1], qa)])
+    # Newton either reaches the stretched pose (cond(J_p) above the limit) or stalls at it
+    with pytest.raises(ValueError, match=r"track 'nominal': cannot draw the closed chain "
+                                         r"'fivebar' at t = 0.1 s: fivebar: (type-II|the loop "
+                                         r"does not close)"):
+        scene_document(scene, fps=FPS)
