@@ -10,7 +10,8 @@ Holds :mod:`~rrr_pin.report.results` (a study's ``results.json``, ``results.md``
 :mod:`~rrr_pin.report.viewer`
 (MeshCat scenes), :mod:`~rrr_pin.report.html` (the self-contained ``report.html`` page) and
 :mod:`~rrr_pin.report.jsondata` (strict JSON: ``null`` and a status for non-finite numbers)
-and :mod:`~rrr_pin.report.closed_chain` (a closed-chain study's claims and figures).
+and :mod:`~rrr_pin.report.closed_chain` (a closed-chain study's claims, figures and
+``report.html``, the mechanism animated).
 
 Layer: above :mod:`rrr_pin.campaign`. May import every layer below it, never
 :mod:`rrr_pin.cli`.

@@ -1,23 +1,45 @@
-"""A closed-chain study's outputs: ``results.json``, ``results.md`` (the claims) and figures.
+"""A closed-chain study's outputs: ``results.json``, ``results.md``, figures, ``report.html``.
 
 Figures (matplotlib, Agg, nothing registered with pyplot): ``fig5_nominal.png`` (tracking
 errors [rad] of each actuated joint over time [s], one column per law, on the nominal
 mechanism), ``fig6_uncertain.png`` (the same on every uncertain plant, the nominal in black)
 and, for the Delta, ``adept_cycle.png`` (the platform path in the x-z plane [mm], reference
 and the nominal runs).
+
+``report.html`` (:func:`write_chain_report`) is the serial study's page
+(:mod:`rrr_pin.report.html`) for a parallel mechanism: the claims and per-plant table, the
+figures, the settings (study, mechanism parameters, reference, laws, loop drift) and one 3D
+scene per law (:func:`chain_scenes`): the nominal mechanism opaque, each uncertain plant, with
+its own perturbed lengths, as a translucent ghost. Every joint moves: the passive ones are
+solved from the recorded actuated angles at each frame by the loop closure
+(:func:`rrr_pin.report.viewer.full_configurations`).
 """
 
 from __future__ import annotations
 
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..model.mechanisms import DeltaParams, delta_fk
+from ..campaign.closed_chain_study import adept_point, circle_point
+from ..model.closed_chain import load_closed_chain
+from ..model.mechanisms import DeltaParams, FiveBarParams, delta_fk, mechanism_params
+from .html import write_report_html
 from .jsondata import dumps
+from .viewer import Scene, Track
 
-__all__ = ["write_chain_study", "claims_table"]
+__all__ = ["write_chain_study", "write_chain_report", "chain_scenes", "chain_settings",
+           "chain_captions", "plant_params", "claims_table", "CHAIN_UNITS"]
+
+#: Units of the keys of :func:`chain_settings` that carry no unit suffix ("-": dimensionless).
+CHAIN_UNITS = {"duration": "s", "rate": "Hz", "lam_fl": "rad/s", "lam_hinf": "rad/s",
+               "inertia": "-", "length": "-", "samples": "-", "seed": "-", "d": "m", "l1": "m",
+               "l2": "m", "m1": "kg", "m2": "kg", "radius": "m", "home_x": "m", "home_z": "m",
+               "R": "m", "r": "m", "L": "m", "l": "m", "m_upper": "kg", "m_fore": "kg",
+               "m_platform": "kg", "dt": "s", "substeps": "-", "reference_max_cond_Jp": "-",
+               "runs": "-"}
 
 
 def claims_table(result) -> str:
@@ -105,17 +127,22 @@ def _adept(fig: Figure, result, params: DeltaParams) -> None:
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
 
 
-def write_chain_study(result, out: str | Path, params=None) -> list[Path]:
-    """Write ``results.json``, ``results.md`` and the figures into ``out``; return the paths.
+def write_chain_study(result, out: str | Path, params=None, *, report: bool = True
+                      ) -> list[Path]:
+    """Write ``results.json``, ``results.md``, the figures and ``report.html``; return the paths.
 
     Parameters
     ----------
     result : rrr_pin.campaign.closed_chain_study.ChainStudyResult
     out : str or Path
         Folder (created).
-    params : DeltaParams, optional
-        The nominal Delta's parameters, for ``adept_cycle.png``.
+    params : FiveBarParams or DeltaParams, optional
+        The nominal mechanism's parameters (``adept_cycle.png`` for the Delta, the report's
+        scenes); default the built-in set of ``result.config.mechanism``.
+    report : bool, default True
+        Also write ``report.html`` (:func:`write_chain_report`), last in the list.
     """
+    params = mechanism_params(result.config.mechanism) if params is None else params
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = [out / "results.json", out / "results.md"]
@@ -134,4 +161,137 @@ def write_chain_study(result, out: str | Path, params=None) -> list[Path]:
         draw(fig)
         fig.savefig(out / name, dpi=120)
         paths.append(out / name)
+    if report:
+        paths.append(write_chain_report(result, out, paths[2:], params=params))
     return paths
+
+
+def plant_params(nominal, factors: dict):
+    """Parameters of an uncertain plant: the nominal set with each field scaled by its factor.
+
+    The same product :func:`rrr_pin.model.mechanisms.perturb_mechanism` forms, so the plant
+    is rebuilt exactly from its recorded ``factors`` (field name -> factor).
+    """
+    return replace(nominal, **{n: getattr(nominal, n) * f for n, f in factors.items()})
+
+
+def chain_scenes(result, params=None) -> list[Scene]:
+    """One 3D scene per law of a closed-chain study: nominal plant opaque, uncertain ghosts.
+
+    Each uncertain plant is loaded once from its parameters (:func:`plant_params` of the
+    ``factors`` recorded in ``result.metrics``) and shared by the scenes of every law; a run
+    that failed (no trajectory) is left out, and a law with no run at all has no scene.
+
+    Parameters
+    ----------
+    result : rrr_pin.campaign.closed_chain_study.ChainStudyResult
+    params : FiveBarParams or DeltaParams, optional
+        The nominal parameters; default the built-in set of ``result.config.mechanism``.
+
+    Returns
+    -------
+    list of rrr_pin.report.viewer.Scene
+        The tracks' ``q`` are the recorded actuated angles [rad]; the viewer closes the loop.
+        Each scene draws the reference's task-space path (the 5-bar's tip circle, the
+        Delta's adept cycle) as a grey line.
+    """
+    params = mechanism_params(result.config.mechanism) if params is None else params
+    plants = [load_closed_chain(params if i == 0 else plant_params(params, m["factors"]))
+              for i, m in enumerate(result.metrics)]
+    path, path_label = _task_path(params, result.config.duration)
+    scenes = []
+    for name, label in zip(result.names, result.labels, strict=True):
+        tracks = []
+        for i, (runs, plant) in enumerate(zip(result.trajectories, plants, strict=True)):
+            traj = runs.get(name)
+            if traj is None:
+                continue
+            tracks.append(Track("nominal plant", traj.t, traj.q, robot=plant) if i == 0 else
+                          Track(f"uncertain plant {i - 1}", traj.t, traj.q, opacity=0.35,
+                                robot=plant))
+        if tracks:
+            scenes.append(Scene(f"{label}: nominal and uncertain plants", plants[0],
+                                tracks, path=path, path_label=path_label))
+    return scenes
+
+
+def _task_path(params, duration: float) -> tuple[np.ndarray | None, str]:
+    """Return the reference's task-space path [m], shape (K, 3), and its legend label."""
+    t = np.linspace(0.0, duration, 401)
+    if isinstance(params, DeltaParams):
+        return adept_point(params, t, duration), "adept cycle (platform reference)"
+    if isinstance(params, FiveBarParams):
+        xz = circle_point(params, t, duration)
+        return (np.column_stack([xz[:, 0], np.zeros(len(t)), xz[:, 1]]),
+                "tip circle (reference)")
+    return None, "reference path"
+
+
+def chain_settings(result, params=None) -> dict:
+    """Return the report's settings: study, mechanism, reference, laws and the loop drift.
+
+    ``drift`` gives, per law, the largest loop-closure gap [m] the plant left before a
+    projection over every run (None where no run succeeded) and the bound it was checked
+    against (``Trajectory.info["drift_bound_m"]``); ``certificate``, the certificate's design
+    when the study has one (``result.certificate``).
+    """
+    params = mechanism_params(result.config.mechanism) if params is None else params
+    drift = {}
+    info = {}
+    for name in result.names:
+        runs = [runs[name] for runs in result.trajectories if runs.get(name) is not None]
+        values = [float(traj.info["drift_m"]) for traj in runs]
+        drift[name] = {"max_drift_m": max(values) if values else None,
+                       "drift_bound_m": (float(runs[0].info["drift_bound_m"]) if runs
+                                         else None),
+                       "runs": len(runs)}
+        if runs and not info:
+            info = {k: v for k, v in runs[0].info.items()
+                    if isinstance(v, str | int | float) and not k.startswith("drift")}
+    out = {"mechanism": result.config.mechanism, "reference": result.reference,
+           "laws": dict(zip(result.names, result.labels, strict=True)),
+           "study": asdict(result.config), "parameters": asdict(params),
+           "plant integration": info, "drift": drift}
+    certificate = getattr(result, "certificate", None)  # a study that certified its plants
+    if certificate:
+        out["certificate"] = certificate
+    return out
+
+
+def chain_captions(result) -> dict:
+    """Caption of each figure of a closed-chain study, by file name."""
+    n = len(result.metrics) - 1
+    return {"fig5_nominal.png": "Tracking errors r - q_a [rad] of the actuated joints of "
+                                "every law on the nominal mechanism (the exact model).",
+            "fig6_uncertain.png": f"Tracking errors [rad] of every law on {n} uncertain plants "
+                                  f"(thin lines); the nominal plant's run in black.",
+            "adept_cycle.png": "The platform's path in the x-z plane [mm]: the adept cycle "
+                               "(reference) and each law on the nominal mechanism."}
+
+
+def write_chain_report(result, out: str | Path, figures=(), params=None) -> Path:
+    """Write ``out/report.html`` for a closed-chain study (module docstring).
+
+    Parameters
+    ----------
+    result : rrr_pin.campaign.closed_chain_study.ChainStudyResult
+    out : path-like
+        The study's folder.
+    figures : sequence of path-like
+        Image files to inline (captions from :func:`chain_captions`).
+    params : FiveBarParams or DeltaParams, optional
+        The nominal parameters; default the built-in set of ``result.config.mechanism``.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    captions = chain_captions(result)
+    return write_report_html(
+        Path(out) / "report.html",
+        title=f"rrr-pin study on the {result.config.mechanism}: {' vs '.join(result.labels)}",
+        tables=[("Claims and per-plant numbers", claims_table(result))],
+        figures=[(f, captions.get(Path(f).name, Path(f).name)) for f in figures],
+        design=chain_settings(result, params), scenes=chain_scenes(result, params),
+        units=CHAIN_UNITS, design_title="Settings")

@@ -5,9 +5,10 @@ joint trajectories, an opacity): typically the nominal arm (opaque) and the unce
 (translucent ghosts) under one controller. :func:`scene_html` turns it into HTML that opens
 from disk with no server and no network:
 
-* the geometry comes from the robot's URDF through Pinocchio (``buildGeomFromUrdfString``)
-  and is loaded into the scene by Pinocchio's own ``MeshcatVisualizer``: primitives, and STL,
-  OBJ and DAE meshes;
+* the geometry comes from the robot's URDF through Pinocchio (``buildGeomFromUrdfString``),
+  or for a closed chain (:class:`rrr_pin.model.closed_chain.ClosedChain`) from its MJCF
+  (``buildGeomFromMJCF``), and is loaded into the scene by Pinocchio's own
+  ``MeshcatVisualizer``: primitives, and STL, OBJ and DAE meshes;
 * the scene is recorded in memory: a ``meshcat.Visualizer`` is given a recording window
   instead of its ZeroMQ server (creating a plain ``meshcat.Visualizer()`` starts a server
   subprocess and prints its URL; this module never does);
@@ -21,6 +22,11 @@ placements ``oMi`` from Pinocchio's forward kinematics at the frame times, and t
 hangs below it at its fixed placement. Frames are resampled from each track by linear
 interpolation of ``q`` and decimated to keep the page within a byte budget.
 
+A closed chain's track gives only its actuated angles (what a closed-chain trajectory
+records): at each frame the passive joints are solved from them by Newton on the loop closure
+(:meth:`~rrr_pin.model.closed_chain.ClosedChain.close`), seeded from the previous frame, so
+every keyframe pose closes the loop (:func:`full_configurations`).
+
 Conventions: SI units (s, rad, m); the world frame is the robot's root frame, ``z`` up.
 """
 
@@ -31,6 +37,7 @@ import html
 import math
 import os
 import re
+import tempfile
 import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -39,11 +46,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from ..model.closed_chain import ClosedChain, LoopClosureError, SingularConfiguration
 from ..model.dynamics import Robot
 
 __all__ = ["Track", "Scene", "scene_html", "scene_document", "write_scene_html",
-           "camera_view", "ViewerSizeError", "MissingMeshWarning", "MAX_SCENE_BYTES",
-           "CAMERA_FOV"]
+           "camera_view", "full_configurations", "ViewerSizeError", "MissingMeshWarning",
+           "MAX_SCENE_BYTES", "CAMERA_FOV"]
 
 #: Default byte budget of one scene's HTML document [bytes].
 MAX_SCENE_BYTES = 10_000_000
@@ -55,7 +63,7 @@ CAMERA_FOV = 75.0
 _CAMERA_DIRECTION = np.array([1.0, -1.4, 0.8]) / np.linalg.norm([1.0, -1.4, 0.8])
 
 #: Colours (RGB in [0, 1]) given in turn to tracks without a colour of their own and drawn
-#: translucent (opaque tracks without a colour keep the URDF's colours).
+#: translucent (opaque tracks without a colour keep the URDF's or MJCF's colours).
 _GHOST_COLORS = ((0.12, 0.47, 0.71), (0.17, 0.63, 0.17), (0.58, 0.40, 0.74),
                  (0.84, 0.15, 0.16), (0.09, 0.75, 0.81), (0.74, 0.74, 0.13),
                  (0.55, 0.34, 0.29), (0.89, 0.47, 0.76), (0.5, 0.5, 0.5), (1.0, 0.5, 0.05))
@@ -87,13 +95,14 @@ class Track:
     t : array-like, shape (N,)
         Times [s], strictly increasing, N >= 1.
     q : array-like, shape (N, nq)
-        Joint positions [rad or m] at ``t``, finite.
+        Joint positions [rad or m] at ``t``, finite; for a closed chain its ``nq`` actuated
+        coordinates only (the passive ones are solved at each frame).
     opacity : float, default 1
         In ``(0, 1]``; below 1 the arm is drawn as a translucent ghost.
     color : tuple of 3 floats in [0, 1], optional
-        RGB colour of every shape of the arm. Default: the URDF's own colours for an opaque
+        RGB colour of every shape of the arm. Default: the URDF's (MJCF's) colours for an opaque
         track, a colour from a fixed palette for a translucent one.
-    robot : Robot, optional
+    robot : Robot or ClosedChain, optional
         Model to draw this track with (e.g. an uncertain plant with its own kinematics);
         default the scene's robot. Must have the scene robot's ``nq``.
 
@@ -110,7 +119,7 @@ class Track:
     q: np.ndarray
     opacity: float = 1.0
     color: tuple[float, float, float] | None = None
-    robot: Robot | None = field(default=None, repr=False)
+    robot: Robot | ClosedChain | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.label, str) or not self.label.strip():
@@ -158,7 +167,7 @@ class Scene:
     ----------
     title : str
         Title of the scene (e.g. the controller's name).
-    robot : Robot
+    robot : Robot or ClosedChain
         Model drawn for every track without a robot of its own (:func:`rrr_pin.load_robot`).
     tracks : sequence of Track
         At least one; every ``q`` has ``robot.nq`` columns.
@@ -166,12 +175,19 @@ class Scene:
         Extra folders where ``package://NAME/...`` mesh files are looked for (as
         ``DIR/NAME/...``), besides ``ROS_PACKAGE_PATH``, the URDF's own folders and
         example-robot-data.
+    path : array-like, shape (K, 3), optional
+        A polyline fixed in the world frame [m], drawn as a thin grey line: e.g. the
+        reference path of a tool or of a Delta's platform. K >= 2, finite.
+    path_label : str, default "reference path"
+        Its name in the legend.
     """
 
     title: str
-    robot: Robot = field(repr=False)
+    robot: Robot | ClosedChain = field(repr=False)
     tracks: tuple[Track, ...]
     package_dirs: tuple[Path, ...] = ()
+    path: np.ndarray | None = field(default=None, repr=False)
+    path_label: str = "reference path"
 
     def __post_init__(self) -> None:
         tracks = tuple(self.tracks)
@@ -189,6 +205,15 @@ class Scene:
         object.__setattr__(self, "tracks", tracks)
         object.__setattr__(self, "package_dirs",
                            tuple(Path(p) for p in self.package_dirs))
+        if self.path is not None:
+            path = np.array(self.path, dtype=float)
+            if path.ndim != 2 or path.shape[1] != 3 or path.shape[0] < 2:
+                raise ValueError(f"Scene {self.title!r}: expected path of shape (K, 3) with "
+                                 f"K >= 2, got {path.shape}")
+            if not np.isfinite(path).all():
+                raise ValueError(f"Scene {self.title!r}: path must be finite")
+            path.setflags(write=False)
+            object.__setattr__(self, "path", path)
 
 
 # --------------------------------------------------------------------------------------------
@@ -293,9 +318,33 @@ def _geometry_urdf(robot: Robot, package_dirs) -> tuple[str, list[str]]:
     return ET.tostring(root, encoding="unicode"), sorted(set(missing))
 
 
-def _geometry_models(robot: Robot, package_dirs) -> tuple[pin.GeometryModel, pin.GeometryModel,
-                                                          list[str]]:
+def _mjcf_geometry(chain: ClosedChain) -> tuple[pin.GeometryModel, pin.GeometryModel,
+                                                list[str]]:
+    """Visual and collision geometry of a closed chain, from its MJCF through Pinocchio.
+
+    Read from the MJCF file itself when the chain came from one (its mesh paths stay
+    relative to it), else from the chain's MJCF text in a temporary file.
+    """
+    source = Path(chain.source)
+    if source.is_file():
+        return tuple(pin.buildGeomFromMJCF(chain.model, str(source), kind)
+                     for kind in (pin.GeometryType.VISUAL, pin.GeometryType.COLLISION)) + ([],)
+    fd, tmp = tempfile.mkstemp(suffix=".xml")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(chain.mjcf)
+        visual = pin.buildGeomFromMJCF(chain.model, tmp, pin.GeometryType.VISUAL)
+        collision = pin.buildGeomFromMJCF(chain.model, tmp, pin.GeometryType.COLLISION)
+    finally:
+        os.unlink(tmp)
+    return visual, collision, []
+
+
+def _geometry_models(robot, package_dirs) -> tuple[pin.GeometryModel, pin.GeometryModel,
+                                                   list[str]]:
     """Visual and collision geometry of ``robot`` (missing meshes warned about, replaced)."""
+    if isinstance(robot, ClosedChain):
+        return _mjcf_geometry(robot)
     text, missing = _geometry_urdf(robot, package_dirs)
     if missing:
         warnings.warn(MissingMeshWarning(f"robot {robot.name!r}: mesh files not found, drawn as "
@@ -377,14 +426,71 @@ def _scaled(placement: pin.SE3, scale) -> np.ndarray:
     return T
 
 
+def full_configurations(robot, q, seed=None, *, times=None, label: str = "") -> np.ndarray:
+    """Return the configurations of ``robot.model`` drawn for the samples ``q`` of a track.
+
+    For a :class:`~rrr_pin.model.dynamics.Robot`, ``q`` itself. For a
+    :class:`~rrr_pin.model.closed_chain.ClosedChain`, each row of actuated angles is completed
+    with the passive coordinates by :meth:`~rrr_pin.model.closed_chain.ClosedChain.close`
+    (Newton on the loop closure to ``CLOSURE_TOL``), seeded from the previous row's solution
+    (the first from ``seed``, default the chain's ``home``).
+
+    Parameters
+    ----------
+    robot : Robot or ClosedChain
+    q : array-like, shape (N, robot.nq)
+        Joint positions [rad or m]; a closed chain's actuated coordinates.
+    seed : array-like, shape (robot.model.nq,), optional
+        Closed-chain only: the configuration Newton starts from at the first row.
+    times : array-like, shape (N,), optional
+        Times of the rows [s], named in a failure's message (else the row number).
+    label : str, optional
+        Name of the track, for the failure's message.
+
+    Returns
+    -------
+    ndarray, shape (N, robot.model.nq)
+
+    Raises
+    ------
+    rrr_pin.model.closed_chain.LoopClosureError, SingularConfiguration (ValueErrors)
+        A row where the loop does not close, or closes at a type-II singularity; the
+        message names the track, the robot and the time (or row).
+    """
+    q = np.asarray(q, dtype=float)
+    if not isinstance(robot, ClosedChain):
+        return q
+    out = np.empty((q.shape[0], robot.model.nq))
+    last = np.asarray(robot.home if seed is None else seed, dtype=float)
+    for k, qa in enumerate(q):
+        try:
+            last = robot.close(qa, seed=last)
+        except (LoopClosureError, SingularConfiguration) as exc:
+            where = f"row {k}" if times is None else f"t = {float(times[k]):.6g} s"
+            message = (f"{f'track {label!r}: ' if label else ''}cannot draw the closed chain "
+                       f"{robot.name!r} at {where}: {exc}")
+            if isinstance(exc, SingularConfiguration):
+                raise SingularConfiguration(message, exc.cond) from None
+            raise LoopClosureError(message) from None
+        out[k] = last
+    return out
+
+
+def _track_configurations(track: Track, robot, q: np.ndarray, times: np.ndarray
+                          ) -> np.ndarray:
+    return full_configurations(robot, q, times=times, label=track.label)
+
+
 class _Arm:
     """One track's model, geometry and joint placements at the frame times."""
 
-    def __init__(self, track: Track, robot: Robot, geometry: pin.GeometryModel,
+    def __init__(self, track: Track, robot, geometry: pin.GeometryModel,
                  times: np.ndarray) -> None:
         self.track, self.robot, self.geometry = track, robot, geometry
         self.joints = sorted({g.parentJoint for g in geometry.geometryObjects})
         self.frames, q = _resample(track, times)
+        q = _track_configurations(track, robot, q, times[self.frames])
+        self.q = q  # what is drawn: shape (frames, robot.model.nq)
         model, data = robot.model, robot.model.createData()
         self.placements = np.empty((len(self.frames), len(self.joints), 4, 4))
         for k, qk in enumerate(q):
@@ -476,15 +582,24 @@ def camera_view(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     eye : ndarray, shape (3,)
     target : ndarray, shape (3,)
     """
+    return _camera(_scene_points(scene))
+
+
+def _scene_points(scene: Scene) -> np.ndarray:
+    """Every frame origin of every track at up to 200 instants (a closed chain's: 60) [m]."""
     points = []
     for track in scene.tracks:
         robot = track.robot or scene.robot
         data = robot.model.createData()
-        stride = max(1, len(track.t) // 200)
-        for qk in track.q[::stride]:
+        stride = max(1, len(track.t) // (60 if isinstance(robot, ClosedChain) else 200))
+        q = _track_configurations(track, robot, track.q[::stride], track.t[::stride])
+        for qk in q:
             pin.framesForwardKinematics(robot.model, data, qk)
             points += [np.array(f.translation) for f in data.oMf]
-    points = np.array(points)
+    return np.array(points)
+
+
+def _camera(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     low, high = points.min(axis=0), points.max(axis=0)
     target = (low + high) / 2.0
     radius = max(float(np.linalg.norm(points - target, axis=1).max()), 0.2)
@@ -575,7 +690,8 @@ def _record(scene: Scene, fps: float, geometry: str, play: bool,
     for track in scene.tracks:
         ghosts.append(_GHOST_COLORS[k % len(_GHOST_COLORS)])
         k += track.opacity < 1.0 and track.color is None
-    eye, target = camera_view(scene)
+    points = _scene_points(scene)
+    eye, target = _camera(points)
     rel = [float(v) for v in eye - target]
     vis["/Cameras/default/rotated/<object>"].set_property(
         "position", [rel[0], rel[2], -rel[1]])  # three.js is y-up: (x, z, -y)
@@ -591,8 +707,12 @@ def _record(scene: Scene, fps: float, geometry: str, play: bool,
                             mg.MeshLambertMaterial(color=0xd0d4dc, opacity=0.35,
                                                    transparent=True))
     floor = np.eye(4)
-    floor[2, 3] = -0.5e-3 * side - 1e-4 * side  # top face just below z = 0
+    # top face just below z = 0, or below the lowest frame (a Delta hangs under its base)
+    floor[2, 3] = min(0.0, float(points[:, 2].min())) - 0.5e-3 * side - 1e-4 * side
     vis["floor"].set_transform(floor)
+    if scene.path is not None:
+        vis["path"].set_object(mg.Line(mg.PointsGeometry(scene.path.T.astype(np.float32)),
+                                       mg.LineBasicMaterial(color=0x555555, linewidth=2)))
     _load_arms(vis, arms, names, ghosts)
     static = list(window.commands)
     window.commands.clear()
@@ -697,15 +817,20 @@ def _legend(scene: Scene, facts: dict) -> str:
                      f"width:0.9em;height:0.9em;background:{swatch};opacity:"
                      f'{max(track.opacity, 0.35)};border:1px solid #555"></span> '
                      f"{html.escape(track.label)}</span>")
-    shapes = {"auto": "the URDF's visual shapes (ghosts: collision shapes if lighter)",
-              "visual": "the URDF's visual shapes",
-              "collision": "the URDF's collision shapes"}[facts["geometry"]]
+    source = "MJCF" if isinstance(scene.robot, ClosedChain) else "URDF"
+    shapes = {"auto": f"the {source}'s visual shapes (ghosts: collision shapes if lighter)",
+              "visual": f"the {source}'s visual shapes",
+              "collision": f"the {source}'s collision shapes"}[facts["geometry"]]
     if facts.get("fallback"):
         shapes += " (the visual meshes exceed the size budget)"
     note = (f"{facts['frames']} frames at {facts['fps']:.3g} frames/s over "
             f"{facts['duration']:.3g} s; {shapes}")
     if facts["missing_meshes"]:
         note += f"; meshes not found, drawn as simple shapes: {len(facts['missing_meshes'])}"
+    if scene.path is not None:
+        items.append(f'<span style="white-space:nowrap"><span style="display:inline-block;'
+                     f'width:1.4em;height:0;border-top:2px solid #555;vertical-align:middle">'
+                     f"</span> {html.escape(scene.path_label)}</span>")
     return " &nbsp; ".join(items) + f'<br><small>{html.escape(note)}. Open Controls &gt; ' \
         f"Animations: play, pause, reset, time slider; drag to orbit, scroll to zoom.</small>"
 
