@@ -105,6 +105,29 @@ def test_nominal_row_is_the_studys_nominal_run(serial):
         assert serial.nominal[f"{law}_drift"] == nominal[law]["drift_m"]
 
 
+def test_a_failed_run_is_recorded_and_the_campaign_goes_on(fivebar, serial, monkeypatch):
+    import rrr_pin.campaign.closed_chain_campaign as ccc
+
+    chain, laws = fivebar
+    real = ccc.simulate_closed_chain
+
+    def hinf_drifts_on_sample_1(plant, law, *args, **kwargs):
+        if law.name == "hinf" and plant.params.d != chain.params.d and plant.params.d == \
+                sample_mechanism(chain.params, SETTINGS.seed, 1)[0].d:
+            raise ccc.ConstraintDrift("loop gap 1e-3 m at t = 0.01 s (bound 1e-06 m)")
+        return real(plant, law, *args, **kwargs)
+
+    monkeypatch.setattr(ccc, "simulate_closed_chain", hinf_drifts_on_sample_1)
+    campaign = run_chain_campaign(chain, laws, SETTINGS, jobs=1)
+    ok, bad = campaign.rows
+    assert ok == serial.rows[0] and campaign.nominal == serial.nominal
+    assert bad["status"] == "failed: hinf: ConstraintDrift: loop gap 1e-3 m at t = 0.01 s " \
+                            "(bound 1e-06 m)"
+    assert bad["hinf_status"].startswith("failed: ConstraintDrift") and "hinf_rms_error" not in bad
+    assert bad["fl_rms_error"] == serial.rows[1]["fl_rms_error"]  # the other law's run stays
+    assert "error_ratio_hinf" not in bad
+
+
 def test_a_user_uncertainty_set_is_an_input():
     @dataclass(frozen=True)
     class MassesOnly(MechanismUncertainty):
