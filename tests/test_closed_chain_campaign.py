@@ -23,11 +23,13 @@ from rrr_pin.campaign.closed_chain_campaign import (
     run_chain_campaign,
 )
 from rrr_pin.campaign.closed_chain_study import ChainStudyConfig, chain_reference, run_chain_study
-from rrr_pin.campaign.montecarlo import CampaignSettings
-from rrr_pin.campaign.runner import RunSettings
+from rrr_pin.campaign.montecarlo import CampaignSettings, run_campaign
+from rrr_pin.campaign.runner import RunSettings, make_laws
 from rrr_pin.campaign.store import StoreError
+from rrr_pin.campaign.study import StudyConfig
 from rrr_pin.control.effects import PlantEffects
 from rrr_pin.model.closed_chain import load_closed_chain
+from rrr_pin.model.dynamics import load_robot
 from rrr_pin.model.mechanisms import FiveBarParams, perturb_mechanism
 from rrr_pin.model.uncertainty import (
     MechanismTolerances,
@@ -237,11 +239,13 @@ def test_dask_cluster_gives_the_same_rows(fivebar, serial):
     (["--reference", "circle"], "does not implement --reference other than sine"),
     (["--radius", "0.1"], "does not implement --radius"),
     (["--lock", "qa1=0"], "does not implement --lock"),
+    (["--q0", "0,0"], "does not implement --q0"),
+    (["--uncertainty", "identification.json"], "does not implement --uncertainty"),
     (["--controllers", "fl,pd"], "'pd': not implemented on closed chains"),
     (["--baseline", "pd"], "--baseline 'pd' is not among --controllers"),
     (["--duration", "0.0505"], "duration"),
-], ids=["certify", "delay", "compiled", "reference", "radius", "lock", "pd", "baseline",
-        "off-grid"])
+], ids=["certify", "delay", "compiled", "reference", "radius", "lock", "q0", "uncertainty",
+        "pd", "baseline", "off-grid"])
 def test_cli_refuses_what_closed_chains_do_not_implement(tmp_path, capsys, extra, message):
     assert cli.main(_mc(tmp_path / "x", *extra)) == 2
     err = capsys.readouterr().err
@@ -271,6 +275,15 @@ def test_api_refuses_settings_that_do_not_apply(fivebar, tmp_path):
         run_chain_campaign(load_closed_chain(mine), laws, SETTINGS)
     with pytest.raises(ValueError, match="baseline 'pd' is not among"):
         run_chain_campaign(chain, laws, replace(SETTINGS, baseline="pd"))
+    # The serial campaign sends a closed chain, and a mechanism's uncertainty, to this one.
+    with pytest.raises(TypeError, match="closed chain: run its campaign with"):
+        run_campaign(chain, laws, SETTINGS)
+    rrr = load_robot("rrr")
+    with pytest.raises(TypeError, match="perturbs a parallel mechanism; rrr is a serial arm"):
+        run_campaign(rrr, make_laws("fl,hinf", rrr), SETTINGS)
+    with pytest.raises(TypeError, match="tolerances must be a Tolerances or "
+                                        "IdentifiedUncertainty, got MechanismTolerances"):
+        StudyConfig(tolerances=MechanismTolerances())
 
 
 @pytest.mark.slow

@@ -32,10 +32,11 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from ..control.references import Reference, default_reference
+from ..model.closed_chain import ClosedChain
 from ..model.dh import ArmParams
 from ..model.dynamics import Robot, robot_from_xml
 from ..model.robots import nominal_params
-from ..model.uncertainty import sample_plant
+from ..model.uncertainty import MechanismUncertainty, sample_plant
 from ..sim.batched import BATCH_MAX
 from ..sim.simulation import reuse_preparation
 from ..sim.trajectory import SimulationDiverged
@@ -69,13 +70,18 @@ class CampaignSettings(Settings):
     ----------
     samples : int
         Number of plants, >= 1.
-    seed, tolerances, baseline
+    seed, baseline
         As in :class:`~rrr_pin.campaign.settings.Settings`.
+    tolerances : Tolerances, IdentifiedUncertainty or MechanismUncertainty
+        As in :class:`~rrr_pin.campaign.settings.Settings`; a
+        :class:`~rrr_pin.model.uncertainty.MechanismUncertainty` for a closed chain
+        (:func:`rrr_pin.campaign.closed_chain_campaign.run_chain_campaign`) only.
     run : RunSettings
         How each run is simulated (default: 10 s, 1 kHz sampled laws).
     """
 
     MIN_SAMPLES: ClassVar[int] = 1
+    UNCERTAINTIES: ClassVar[tuple] = (*Settings.UNCERTAINTIES, MechanismUncertainty)
 
     run: RunSettings = field(default_factory=lambda: RunSettings(duration=10.0, rate=1000.0))
 
@@ -322,6 +328,13 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
     SchedulerUnreachable
         The Dask scheduler cannot be reached.
     """
+    if isinstance(robot, ClosedChain):
+        raise TypeError(f"{robot.name} is a closed chain: run its campaign with "
+                        f"rrr_pin.campaign.closed_chain_campaign.run_chain_campaign")
+    if isinstance(settings.tolerances, MechanismUncertainty):
+        raise TypeError(f"tolerances {type(settings.tolerances).__name__} perturbs a parallel "
+                        f"mechanism; {robot.name} is a serial arm: use Tolerances, or "
+                        f"run_chain_campaign for a closed chain")
     laws = check_laws(laws, robot.nq, settings.baseline)
     batch = check_count("batch", batch, 1, BATCH_MAX)
     reference = default_reference(robot) if reference is None else reference

@@ -40,8 +40,9 @@ class Settings:
         :class:`~rrr_pin.campaign.runner.RunSettings`: 4 s, continuous-time laws).
     tolerances : Tolerances, IdentifiedUncertainty or MechanismUncertainty
         20 % inertia, 5 % lengths by default; or the distribution identified from data
-        (``rrr-pin identify``'s ``identification.json``); for a parallel mechanism, a
-        :class:`~rrr_pin.model.uncertainty.MechanismUncertainty` (e.g. ``MechanismTolerances()``).
+        (``rrr-pin identify``'s ``identification.json``); for a campaign on a parallel
+        mechanism, a :class:`~rrr_pin.model.uncertainty.MechanismUncertainty` (e.g.
+        ``MechanismTolerances()``, :attr:`UNCERTAINTIES`).
     baseline : str, default "fl"
         Name of the law the others are compared with.
 
@@ -56,6 +57,9 @@ class Settings:
     #: Smallest accepted ``samples``.
     MIN_SAMPLES: ClassVar[int] = 0
 
+    #: Accepted types of ``tolerances`` (a campaign adds the mechanisms' uncertainty sets).
+    UNCERTAINTIES: ClassVar[tuple] = (Tolerances, IdentifiedUncertainty)
+
     samples: int
     seed: int = 0
     run: RunSettings = field(default_factory=RunSettings)
@@ -66,9 +70,7 @@ class Settings:
         object.__setattr__(self, "samples", check_count("samples", self.samples,
                                                         self.MIN_SAMPLES))
         object.__setattr__(self, "seed", check_count("seed", self.seed))
-        for key, kind in (("run", RunSettings), ("tolerances", (Tolerances,
-                                                                IdentifiedUncertainty,
-                                                                MechanismUncertainty)),
+        for key, kind in (("run", RunSettings), ("tolerances", self.UNCERTAINTIES),
                           ("baseline", str)):
             value = getattr(self, key)
             if not isinstance(value, kind):
