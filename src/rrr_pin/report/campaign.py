@@ -158,13 +158,31 @@ def write_campaign_report(campaign: Campaign, summary: dict, out: str | Path,
                      f"{m['p95']:.4g} | {m['worst']:.4g} | {m['count']} |")
     figures = [(out / name, caption) for name, caption in _captions(campaign).items()
                if (out / name).exists()]
+    tables = [(f"{summary['samples']} plants, baseline {summary['baseline']}",
+               "\n".join(lines))]
+    if campaign.nominal is not None:  # a closed chain's campaign runs the nominal plant too
+        tables.append(("Nominal plant", _nominal_table(campaign)))
     path = write_report_html(
         out / "report.html", title=f"rrr-pin Monte Carlo campaign on {campaign.robot}",
-        tables=[(f"{summary['samples']} plants, baseline {summary['baseline']}",
-                 "\n".join(lines))],
+        tables=tables,
         figures=figures, design=campaign.settings, units=SETTINGS_UNITS,
         design_title="Settings")
     return store.wrote("report.html") if store is not None else path
+
+
+def _nominal_table(campaign: Campaign) -> str:
+    """Markdown table of the nominal plant's row: per law, its figures (``-`` if it failed)."""
+    row = campaign.nominal
+    keys = (("rms_error", "RMS error [rad]"), ("max_error", "max error [rad]"),
+            ("rms_torque", "RMS torque [N m]"), ("drift", "loop drift [m]"))
+    lines = ["| controller | " + " | ".join(label for _, label in keys) + " | status |",
+             "|---" * (len(keys) + 2) + "|"]
+    for d in campaign.laws:
+        cells = [f"{row[k]:.4g}" if k in row else "-"
+                 for k in (f"{d['name']}_{key}" for key, _ in keys)]
+        lines.append(f"| {d['label']} | " + " | ".join(cells) +
+                     f" | {row.get(d['name'] + '_status', row['status'])} |")
+    return "\n".join(lines)
 
 
 def summary_lines(campaign: Campaign, summary: dict) -> list[str]:
