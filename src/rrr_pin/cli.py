@@ -824,7 +824,11 @@ def _add_montecarlo(sub) -> None:
         description="Draws N seeded uncertain plants (20 % inertia, 5 % lengths), simulates "
                     "every --controllers law on each (sampled controllers, 1 kHz by default) "
                     "and writes campaign.csv, samples.jsonl, summary.json and montecarlo.png "
-                    "into --out. Results are identical whatever --jobs.")
+                    "into --out. Results are identical whatever --jobs. With --robot fivebar "
+                    "or delta (parallel mechanisms): fl and/or hinf on the nominal and N "
+                    "perturbed mechanisms (masses 20 %%, lengths 5 %%), on the constraint "
+                    "dynamics, along the mechanism's own reference (its period --duration), "
+                    "with each run's loop drift and status.")
     _add_robot_arguments(p)
     _add_law_arguments(p, 10.0, 1000.0)
     p.add_argument("--samples", type=int, required=True, help="number of uncertain plants")
@@ -866,6 +870,8 @@ def _cmd_montecarlo(args) -> int:
     check_writable(args.out)
     args.write_hint = (f"; the samples finished so far are kept in {args.out}/parts.jsonl: "
                        "free space, then rerun with --resume")
+    if args.robot in ("fivebar", "delta") or args.robot.lower().endswith(".xml"):
+        return _montecarlo_chain(args)
     lock = _parse_lock(args.lock)
     _not_a_folder(robot=args.robot, csv=args.csv)
     robot = load_robot(args.robot, lock=lock)
@@ -912,6 +918,91 @@ def _cmd_montecarlo(args) -> int:
     print("\n".join(summary_lines(campaign, s)))
     if _rejections_line(campaign.rows):
         print(_rejections_line(campaign.rows))
+    print("wrote " + ", ".join(s["written"]))
+    return 0
+
+
+def _montecarlo_chain(args) -> int:
+    """``montecarlo --robot fivebar|delta``: the campaign on a parallel mechanism."""
+    import time
+
+    from tqdm import tqdm
+
+    from .campaign.closed_chain_campaign import chain_laws, open_chain_store, run_chain_campaign
+    from .campaign.executors import CampaignInterrupted, WorkersLost, exit_status
+    from .campaign.montecarlo import CampaignSettings
+    from .model.closed_chain import load_closed_chain
+    from .model.uncertainty import MechanismTolerances
+    from .report.campaign import summary_lines, write_campaign, write_campaign_report
+
+    if args.robot.lower().endswith(".xml"):
+        raise ValueError(f"--robot {args.robot}: an MJCF closed chain; the closed-chain "
+                         f"campaign runs the built-in fivebar and delta only (it perturbs their "
+                         f"parameter sets; from Python, run_chain_campaign takes "
+                         f"load_closed_chain(FiveBarParams(...)))")
+    defaults = {"amp": 0.5, "freq": 0.5, "normal": "0,0,1"}
+    unsupported = [opt for opt, given in (
+        ("--lock", args.lock), ("--home", args.home),
+        ("--engine compiled/codegen", args.engine in ("compiled", "codegen")),
+        ("--delay", args.delay), ("--actuator-bandwidth", args.actuator_bandwidth),
+        ("--q0", args.q0), ("--qd0", args.qd0), ("--uncertainty", args.uncertainty),
+        ("--certify", args.certify),
+        ("--reference other than sine", args.reference != "sine"),
+        *((_option(k), getattr(args, k) != defaults.get(k))
+          for k in ("amp", "freq", "to", "move_time", "csv", "frame", "end", "radius",
+                    "normal"))) if given]
+    if unsupported:
+        raise ValueError(f"--robot {args.robot} (a closed chain) does not implement "
+                         f"{', '.join(unsupported)}; its campaign runs fl and/or hinf on the "
+                         f"mechanism's own reference (that of `rrr-pin reproduce --robot "
+                         f"{args.robot}`), Python engine on the constraint dynamics")
+    chain = load_closed_chain(args.robot)
+    run = _settings_from_args(args, chain.nq)
+    with _as_options():
+        laws = chain_laws(args.controllers, chain)
+    baseline = args.baseline or laws[0].name
+    if baseline not in [law.name for law in laws]:
+        raise ValueError(f"--baseline {baseline!r} is not among --controllers "
+                         f"({args.controllers})")
+    settings = CampaignSettings(samples=args.samples, seed=args.seed, run=run,
+                                baseline=baseline, tolerances=MechanismTolerances())
+    from .campaign.closed_chain_study import chain_reference
+
+    reference = chain_reference(chain, run.duration)
+    store = open_chain_store(args.out, chain, laws, settings, reference, resume=args.resume,
+                             overwrite=args.overwrite)
+    with store:
+        done = len(store.done())
+        if done:
+            print(f"resuming: {done} of {args.samples + 1} plants (with the nominal) already "
+                  f"done in {args.out}")
+        bar = tqdm(total=args.samples + 1, initial=done, unit="plant",
+                   desc=f"{chain.name}: Monte Carlo (nominal + {args.samples})",
+                   disable=args.no_progress)
+        start = time.perf_counter()
+        try:
+            campaign = run_chain_campaign(chain, laws, settings, reference=reference,
+                                          jobs=args.jobs, scheduler=args.scheduler,
+                                          progress=lambda d, total: bar.update(d - bar.n),
+                                          store=store)
+        except CampaignInterrupted as exc:
+            bar.close()
+            print(f"rrr-pin montecarlo: {exc}", file=sys.stderr)
+            return 3 if isinstance(exc, WorkersLost) else exit_status(exc)
+        bar.close()
+        elapsed = time.perf_counter() - start
+        s = write_campaign(campaign, args.out, store=store)
+        s["written"].append(str(write_campaign_report(campaign, s, args.out, store)))
+    nl, ran = len(laws), s["samples"] + 1 - done
+    print(f"{chain.name}: {ran} plants x {nl} controllers x {run.duration:g} s in "
+          f"{elapsed:.1f} s (Python engine on the constraint dynamics; the compiled engine "
+          f"does not implement closed chains)")
+    nominal = campaign.nominal
+    print("nominal plant: " + ", ".join(
+        f"{law.name} RMS error {nominal[law.name + '_rms_error']:.4g} rad"
+        if law.name + "_rms_error" in nominal else f"{law.name} {nominal[law.name + '_status']}"
+        for law in laws))
+    print("\n".join(summary_lines(campaign, s)))
     print("wrote " + ", ".join(s["written"]))
     return 0
 

@@ -6,7 +6,8 @@ campaign), :mod:`~rrr_pin.campaign.runner` (``RunSettings``, ``run_laws``: any l
 (campaigns of seeded plants), :mod:`~rrr_pin.campaign.stress` (breaking points of plant
 effects), :mod:`~rrr_pin.campaign.store` (append-only storage, resume),
 :mod:`~rrr_pin.campaign.executors` (local processes or Dask) and
-:mod:`~rrr_pin.campaign.closed_chain_study` (the section-5 study on a 5-bar or a Delta). The
+:mod:`~rrr_pin.campaign.closed_chain_study` (the section-5 study on a 5-bar or a Delta),
+:mod:`~rrr_pin.campaign.closed_chain_campaign` (Monte Carlo campaigns on them). The
 study and the campaign are siblings on the runner: neither imports the other.
 
 Layer: above :mod:`rrr_pin.sim`. May import every layer below it, never :mod:`rrr_pin.report`.

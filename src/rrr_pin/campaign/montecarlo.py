@@ -6,6 +6,10 @@ generated, simulated under every law (:func:`rrr_pin.campaign.runner.run_laws`) 
 figures inside the worker, so only a row of numbers travels back. Rows are put in sample order,
 so the results are identical whatever the number of workers or where they run.
 
+Parallel mechanisms (:mod:`rrr_pin.campaign.closed_chain_campaign`) run through the same
+machinery: their job is another kind of :class:`CampaignJob`-like object with a ``rows(indices)``
+method, given to :func:`run_samples`, and their rows are tabulated by the same functions.
+
 Workers: ``jobs`` local processes (:class:`concurrent.futures.ProcessPoolExecutor`) or a Dask
 distributed cluster (``scheduler="tcp://host:8786"``, through ``Client.get_executor()``, which
 is a ``concurrent.futures.Executor`` too): one code path, two executors.
@@ -28,10 +32,11 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from ..control.references import Reference, default_reference
+from ..model.closed_chain import ClosedChain
 from ..model.dh import ArmParams
 from ..model.dynamics import Robot, robot_from_xml
 from ..model.robots import nominal_params
-from ..model.uncertainty import sample_plant
+from ..model.uncertainty import MechanismUncertainty, sample_plant
 from ..sim.batched import BATCH_MAX
 from ..sim.simulation import reuse_preparation
 from ..sim.trajectory import SimulationDiverged
@@ -45,8 +50,8 @@ if TYPE_CHECKING:
     from ..robust.certificates import CertificateSpec
 
 __all__ = ["Campaign", "CampaignSettings", "CampaignJob", "CampaignChunk", "run_campaign",
-           "run_chunk", "sample_row", "campaign_summary", "campaign_columns", "open_store",
-           "store_settings", "OUTPUTS"]
+           "run_chunk", "run_samples", "sample_row", "campaign_summary", "campaign_columns",
+           "open_store", "store_settings", "OUTPUTS"]
 
 logger = logging.getLogger(__name__)
 
@@ -65,13 +70,18 @@ class CampaignSettings(Settings):
     ----------
     samples : int
         Number of plants, >= 1.
-    seed, tolerances, baseline
+    seed, baseline
         As in :class:`~rrr_pin.campaign.settings.Settings`.
+    tolerances : Tolerances, IdentifiedUncertainty or MechanismUncertainty
+        As in :class:`~rrr_pin.campaign.settings.Settings`; a
+        :class:`~rrr_pin.model.uncertainty.MechanismUncertainty` for a closed chain
+        (:func:`rrr_pin.campaign.closed_chain_campaign.run_chain_campaign`) only.
     run : RunSettings
         How each run is simulated (default: 10 s, 1 kHz sampled laws).
     """
 
     MIN_SAMPLES: ClassVar[int] = 1
+    UNCERTAINTIES: ClassVar[tuple] = (*Settings.UNCERTAINTIES, MechanismUncertainty)
 
     run: RunSettings = field(default_factory=lambda: RunSettings(duration=10.0, rate=1000.0))
 
@@ -114,10 +124,30 @@ class CampaignJob:
     nominal: Robot | None = None
     batch: int = 16
 
+    def rows(self, indices) -> list[dict]:
+        """Simulate samples ``indices``, in order, and return their rows (:func:`run_chunk`).
+
+        The plants run together, ``batch`` per batched rollout where the engine allows
+        (:func:`rrr_pin.campaign.runner.run_laws_batch`); each row is made from its own
+        plant's values only, so rows do not depend on the chunk or the batch.
+        """
+        # One reference and one set of laws for every sample: sample the reference and
+        # discretize the laws once per chunk (bit-identical to doing it per run).
+        with reuse_preparation():
+            made = [_sample(self, k) for k in indices]
+            runs = run_laws_batch([plant for _, plant in made], self.laws, self.reference,
+                                  self.settings.run, batch=self.batch)
+            return [_row(self, k, sample, plant, r)
+                    for k, (sample, plant), r in zip(indices, made, runs, strict=True)]
+
 
 @dataclass(frozen=True)
 class CampaignChunk:
-    """Samples ``indices`` of campaign ``job``: one task of a worker (:func:`run_chunk`)."""
+    """Samples ``indices`` of campaign ``job``: one task of a worker (:func:`run_chunk`).
+
+    ``job`` is a :class:`CampaignJob` or any picklable object with ``rows(indices) -> list
+    of dict`` (e.g. :class:`rrr_pin.campaign.closed_chain_campaign.ChainCampaignJob`).
+    """
 
     job: CampaignJob
     indices: tuple
@@ -142,6 +172,12 @@ class Campaign:
         left out and ``undefined`` says which and why.
     settings : dict
         :meth:`CampaignSettings.to_dict` plus the reference.
+    nominal : dict or None
+        The nominal plant's row (same keys, ``index`` -1), where the campaign runs it (closed
+        chains); None otherwise.
+    per_law : tuple of str
+        Further per-law keys of the rows, ``<law>_<key>`` (closed chains: ``drift`` [m],
+        the largest loop gap of the run, and ``status``); written to ``campaign.csv``.
     """
 
     robot: str
@@ -149,6 +185,8 @@ class Campaign:
     laws: list
     rows: list
     settings: dict = field(default_factory=dict)
+    nominal: dict | None = None
+    per_law: tuple = ()
 
     @property
     def names(self) -> list[str]:
@@ -227,21 +265,8 @@ def _row(job: CampaignJob, k: int, sample, plant, runs: dict) -> dict:
 
 
 def run_chunk(task: CampaignChunk) -> list[dict]:
-    """Simulate the samples of one chunk, in order (runs in a worker).
-
-    The chunk's plants run together, ``job.batch`` per batched rollout where the engine
-    allows (:func:`rrr_pin.campaign.runner.run_laws_batch`); each row is made from its own
-    plant's values only, so rows do not depend on the chunk or the batch.
-    """
-    # One reference and one set of laws for every sample: sample the reference and discretize
-    # the laws once per chunk (bit-identical to doing it per run).
-    job = task.job
-    with reuse_preparation():
-        made = [_sample(job, k) for k in task.indices]
-        runs = run_laws_batch([plant for _, plant in made], job.laws, job.reference,
-                              job.settings.run, batch=job.batch)
-        return [_row(job, k, sample, plant, r)
-                for k, (sample, plant), r in zip(task.indices, made, runs, strict=True)]
+    """Simulate the samples of one chunk, in order (runs in a worker): ``job.rows(indices)``."""
+    return task.job.rows(task.indices)
 
 
 def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Reference | None = None,
@@ -303,6 +328,13 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
     SchedulerUnreachable
         The Dask scheduler cannot be reached.
     """
+    if isinstance(robot, ClosedChain):
+        raise TypeError(f"{robot.name} is a closed chain: run its campaign with "
+                        f"rrr_pin.campaign.closed_chain_campaign.run_chain_campaign")
+    if isinstance(settings.tolerances, MechanismUncertainty):
+        raise TypeError(f"tolerances {type(settings.tolerances).__name__} perturbs a parallel "
+                        f"mechanism; {robot.name} is a serial arm: use Tolerances, or "
+                        f"run_chain_campaign for a closed chain")
     laws = check_laws(laws, robot.nq, settings.baseline)
     batch = check_count("batch", batch, 1, BATCH_MAX)
     reference = default_reference(robot) if reference is None else reference
@@ -316,22 +348,62 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
                       certificate=certificate,
                       nominal=robot if certificate is not None else None, batch=batch)
     samples = int(settings.samples)
+    rows = run_samples(job, range(samples), total=samples, name=robot.name, jobs=jobs,
+                       scheduler=scheduler, executor=executor, chunk=chunk, store=store,
+                       progress=progress, max_chunk=32)
+    return Campaign(robot=robot.name, joint_names=list(robot.joint_names),
+                    laws=[law.describe() for law in laws], rows=rows,
+                    settings={**settings.to_dict(), "reference": reference.to_dict()})
+
+
+def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
+                scheduler: str | None = None, executor: Executor | None = None,
+                chunk: int | None = None, store: CampaignStore | None = None, progress=None,
+                max_chunk: int = 32) -> list[dict]:
+    """Run the samples ``indices`` of ``job`` in chunks on the executor; return every row.
+
+    The machinery every campaign shares: chunks of samples (:class:`CampaignChunk`) go to
+    :func:`rrr_pin.campaign.executors.run_tasks` (this process, local processes or Dask), each
+    finished chunk is appended to ``store`` (the samples it holds already are skipped), and
+    Ctrl-C or SIGTERM stops with :class:`CampaignInterrupted`.
+
+    Parameters
+    ----------
+    job : CampaignJob or object with ``rows(indices) -> list of dict``
+        Picklable; the rows carry an integer ``"index"``.
+    indices : iterable of int
+        The samples of the campaign, in order.
+    total : int
+        How many they are (for messages and ``progress``).
+    name : str
+        The robot's name (for the log).
+    jobs, scheduler, executor, chunk, store, progress
+        As in :func:`run_campaign`.
+    max_chunk : int, default 32
+        Largest default chunk (a chunk's cost should stay well below a second).
+
+    Returns
+    -------
+    list of dict
+        The rows, sorted by index: the store's (also those of earlier runs) with a store.
+    """
     jobs = check_jobs(jobs)
     workers = jobs if executor is None and scheduler is None else 4
-    # About 8 tasks per worker, at most 32 samples (two batches of 16; ~0.5 s for the RRR at
-    # 10 s, 1 kHz on the batched engine): a task costs ~3 ms of set-up, while the last task of
-    # one worker leaves the other idle.
-    size = chunk or max(1, min(32, math.ceil(min(samples, 10**6) / (8 * workers))))
+    # About 8 tasks per worker, at most max_chunk samples (32 for the RRR: two batches of 16,
+    # ~0.5 s at 10 s, 1 kHz on the batched engine): a task costs ~3 ms of set-up, while the
+    # last task of one worker leaves the other idle.
+    size = chunk or max(1, min(max_chunk, math.ceil(min(total, 10**6) / (8 * workers))))
     done = store.done() if store is not None else set()
-    todo = (k for k in range(samples) if k not in done)
+    todo = (k for k in indices if k not in done)
     tasks = (CampaignChunk(job, block)
              for block in iter(lambda: tuple(itertools.islice(todo, size)), ()))
     rows: list[dict] = []
     finished = len(done)
+    samples = total
     where = f" and saved in {str(store.out)!r}; rerun with --resume" if store is not None else ""
     logger.info("campaign on %s: %d laws (%s), %d samples (seed %d), %d already done, "
-                "chunks of %d", robot.name, len(laws), ", ".join(law.name for law in laws),
-                samples, settings.seed, len(done), size)
+                "chunks of %d", name, len(job.laws), ", ".join(law.name for law in job.laws),
+                samples, job.settings.seed, len(done), size)
     try:
         with interrupt_on_signals():
             for _, chunk_rows in run_tasks(run_chunk, tasks, jobs=jobs, scheduler=scheduler,
@@ -351,10 +423,8 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
         raise type(exc)(f"{exc}; {finished} of {samples} samples done{where}",
                         done=finished) from None
     rows = store.rows() if store is not None else sorted(rows, key=lambda r: r["index"])
-    logger.info("campaign on %s done: %d samples", robot.name, len(rows))
-    return Campaign(robot=robot.name, joint_names=list(robot.joint_names),
-                    laws=[law.describe() for law in laws], rows=rows,
-                    settings={**settings.to_dict(), "reference": reference.to_dict()})
+    logger.info("campaign on %s done: %d samples", name, len(rows))
+    return rows
 
 
 def _metrics(names, baseline):
@@ -371,10 +441,14 @@ def _metrics(names, baseline):
 
 
 def campaign_columns(names, baseline, joint_names, certified: bool = False,
-                     undefined: bool = False) -> list[str]:
-    """Columns of ``campaign.csv``, in order (``undefined``: the reasons of undefined ratios)."""
+                     undefined: bool = False, per_law=()) -> list[str]:
+    """Columns of ``campaign.csv``, in order (``undefined``: the reasons of undefined ratios).
+
+    ``per_law``: further keys ``<law>_<key>`` (:attr:`Campaign.per_law`), after the metrics.
+    """
     columns = ["index", "seed", "status"] + (["certified", "nugap_max"] if certified else [])
     columns += list(_metrics(names, baseline))
+    columns += [f"{name}_{key}" for key in per_law for name in names]
     for name in names:
         columns += [f"{name}_rms_error_{j}" for j in joint_names]
     return columns + (["undefined"] if undefined else [])
@@ -388,7 +462,8 @@ def campaign_summary(campaign: Campaign) -> dict:
     dict
         ``samples``, ``samples_ok`` (every law ran), ``samples_diverged``, ``diverged`` (their
         indices), ``baseline``, ``fraction_better`` (per law other than the baseline: share of
-        the samples where both ran in which the law's RMS error is smaller) and, per metric,
+        the samples where both ran in which the law's RMS error is smaller) and, per metric
+        (and per law ``<law>_drift`` [m] of a closed chain, worst the largest),
         ``{median, p95, worst, count}`` ("worst" is the maximum, except for the error ratios,
         where it is the minimum: the least benefit over the baseline); ``undefined``
         (when some ratio is undefined, e.g. 0/0): per ratio, the number of samples where it
@@ -404,7 +479,10 @@ def campaign_summary(campaign: Campaign) -> dict:
         both = [r for r in rows if key in r]
         if name != base and both:
             out["fraction_better"][name] = float(np.mean([r[key] > 1.0 for r in both]))
-    for metric, worst in _metrics(campaign.names, base).items():
+    metrics = _metrics(campaign.names, base)
+    if "drift" in campaign.per_law:
+        metrics.update({f"{name}_drift": "max" for name in campaign.names})
+    for metric, worst in metrics.items():
         v = np.array([r[metric] for r in rows if metric in r])
         if v.size:
             out[metric] = {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)),

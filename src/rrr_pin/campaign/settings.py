@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 from ..model.identification import IdentifiedUncertainty
-from ..model.uncertainty import Tolerances
+from ..model.uncertainty import MechanismUncertainty, Tolerances
 from ..validation import check_count
 from .runner import RunSettings
 
@@ -38,9 +38,11 @@ class Settings:
     run : RunSettings
         Duration, step, rate, engine, initial state and plant effects of every run (default
         :class:`~rrr_pin.campaign.runner.RunSettings`: 4 s, continuous-time laws).
-    tolerances : Tolerances or IdentifiedUncertainty
+    tolerances : Tolerances, IdentifiedUncertainty or MechanismUncertainty
         20 % inertia, 5 % lengths by default; or the distribution identified from data
-        (``rrr-pin identify``'s ``identification.json``).
+        (``rrr-pin identify``'s ``identification.json``); for a campaign on a parallel
+        mechanism, a :class:`~rrr_pin.model.uncertainty.MechanismUncertainty` (e.g.
+        ``MechanismTolerances()``, :attr:`UNCERTAINTIES`).
     baseline : str, default "fl"
         Name of the law the others are compared with.
 
@@ -55,6 +57,9 @@ class Settings:
     #: Smallest accepted ``samples``.
     MIN_SAMPLES: ClassVar[int] = 0
 
+    #: Accepted types of ``tolerances`` (a campaign adds the mechanisms' uncertainty sets).
+    UNCERTAINTIES: ClassVar[tuple] = (Tolerances, IdentifiedUncertainty)
+
     samples: int
     seed: int = 0
     run: RunSettings = field(default_factory=RunSettings)
@@ -65,8 +70,7 @@ class Settings:
         object.__setattr__(self, "samples", check_count("samples", self.samples,
                                                         self.MIN_SAMPLES))
         object.__setattr__(self, "seed", check_count("seed", self.seed))
-        for key, kind in (("run", RunSettings), ("tolerances", (Tolerances,
-                                                                IdentifiedUncertainty)),
+        for key, kind in (("run", RunSettings), ("tolerances", self.UNCERTAINTIES),
                           ("baseline", str)):
             value = getattr(self, key)
             if not isinstance(value, kind):
@@ -77,9 +81,12 @@ class Settings:
     def to_dict(self) -> dict:
         """JSON-ready settings (units in the key names), as recorded in the outputs."""
         tol = self.tolerances
-        drawn = ({"tolerance_inertia": tol.inertia, "tolerance_length": tol.length}
-                 if isinstance(tol, Tolerances) else
-                 {"uncertainty": "identified", **{k: v for k, v in tol.to_dict().items()
-                                                  if k != "kind"}})
+        if isinstance(tol, Tolerances):
+            drawn = {"tolerance_inertia": tol.inertia, "tolerance_length": tol.length}
+        elif isinstance(tol, MechanismUncertainty):
+            drawn = {"uncertainty": type(tol).__name__, **tol.to_dict()}
+        else:
+            drawn = {"uncertainty": "identified", **{k: v for k, v in tol.to_dict().items()
+                                                     if k != "kind"}}
         return {**self.run.to_dict(), "samples": self.samples, "seed": self.seed, **drawn,
                 "baseline": self.baseline}

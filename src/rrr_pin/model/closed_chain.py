@@ -157,6 +157,15 @@ class ClosedChain:
         self._prox = pin.ProximalSettings(1e-14, PROXIMAL_MU, 200)
         self._q = self.home.copy()
 
+    def __reduce__(self):
+        """Pickle as the MJCF text and gravity it is built from (for worker processes).
+
+        Pinocchio's ``RigidConstraintModel`` does not pickle; the copy is rebuilt by the same
+        loader from the same text, so it computes the same numbers. The Newton seed of
+        :meth:`close` is not carried: the copy starts from ``home``.
+        """
+        return (_from_mjcf, (self.mjcf, self.name, self.source, self.params, self.gravity))
+
     # --- the Robot face in actuated coordinates ----------------------------------------------
     @property
     def nq(self) -> int:
@@ -502,6 +511,11 @@ def load_closed_chain(source, *, gravity: float = 9.8) -> ClosedChain:
         not the mobility (``nv - rank J``), or ``J_p`` singular at ``home``.
     """
     text, name, label, params = _mjcf_of(source)
+    return _from_mjcf(text, name, label, params, gravity)
+
+
+def _from_mjcf(text: str, name: str, label: str, params, gravity: float) -> ClosedChain:
+    """Build a ClosedChain from MJCF text (:func:`load_closed_chain`, and unpickling)."""
     root = ET.fromstring(text)
     joints = [j.get("name") for j in root.find("worldbody").iter("joint")]
     motors = [m.get("joint") for m in root.iter("motor")]

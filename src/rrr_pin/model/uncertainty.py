@@ -31,6 +31,13 @@ physically consistent or rejected and redrawn (counted in its ``parameters["iden
 
 Seeding: sample ``k`` of a study with seed ``s`` uses ``numpy.random.default_rng([s, k])``
 (PCG64, identical on every platform), so a single plant can be regenerated alone.
+
+Parallel mechanisms (the 5-bar and the Delta of :mod:`rrr_pin.model.mechanisms`) are not URDF:
+their uncertain plants are parameter sets, drawn by a :class:`MechanismUncertainty` (a small
+base class a user may subclass: ``draw(params, rng) -> (params, factors)`` and ``to_dict()``).
+The built-in is :class:`MechanismTolerances`, :func:`~rrr_pin.model.mechanisms.perturb_mechanism`
+with the paper's 20 % on masses and 5 % on lengths (the rods' moments follow), every draw
+closable. :func:`sample_mechanism` draws sample ``k`` with the same seed rule.
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ from ..outputs import writing
 from ..validation import check_count, check_real, check_vector
 from .dh import ArmParams, check_inertial
 from .identification import IdentifiedUncertainty
+from .mechanisms import DeltaParams, FiveBarParams, perturb_mechanism
 from .urdf import urdf_from_params
 
 __all__ = [
@@ -56,6 +64,9 @@ __all__ = [
     "perturb_inertia",
     "sample_plant",
     "sample_plants",
+    "MechanismUncertainty",
+    "MechanismTolerances",
+    "sample_mechanism",
 ]
 
 
@@ -319,3 +330,108 @@ def sample_plant(nominal, seed: int, index: int, tol: Tolerances = Tolerances(),
         parameters = {"factors": factors}
     return PlantSample(index=int(index), seed=[int(seed), int(index)], urdf=urdf,
                        parameters=parameters)
+
+
+class MechanismUncertainty:
+    """How an uncertain parallel mechanism is drawn: subclass it to write your own.
+
+    A subclass is a frozen dataclass (it crosses process boundaries and is recorded whole in
+    a campaign's settings) with two methods:
+
+    * ``draw(params, rng) -> (params, factors)``: a perturbed, closable parameter set of the
+      same type as ``params`` (:class:`~rrr_pin.model.mechanisms.FiveBarParams` or
+      :class:`~rrr_pin.model.mechanisms.DeltaParams`) and a JSON-ready dict of what was drawn;
+      it must use only ``rng`` (a seeded :class:`numpy.random.Generator`) for randomness;
+    * ``to_dict() -> dict``: JSON-ready settings, recorded in the outputs (a resume must
+      match them).
+    """
+
+    def draw(self, params, rng: np.random.Generator):
+        """Return ``(perturbed params, factors)`` drawn with ``rng``."""
+        raise NotImplementedError(f"{type(self).__name__} must implement draw(params, rng)")
+
+    def to_dict(self) -> dict:
+        """JSON-ready settings of the uncertainty set."""
+        raise NotImplementedError(f"{type(self).__name__} must implement to_dict()")
+
+
+@dataclass(frozen=True)
+class MechanismTolerances(MechanismUncertainty):
+    """The built-in uncertainty of a mechanism: uniform factors on masses and lengths.
+
+    Every mass by a factor in ``[1 - inertia, 1 + inertia]`` and every length in
+    ``[1 - length, 1 + length]`` (:func:`rrr_pin.model.mechanisms.perturb_mechanism`; the
+    rods' moments of inertia follow from mass and length), redrawn until the loop closes.
+
+    Parameters
+    ----------
+    inertia : float, default 0.2
+        Relative tolerance on the masses, in ``[0, 1)``.
+    length : float, default 0.05
+        Relative tolerance on the lengths, in ``[0, 1)``.
+    """
+
+    inertia: float = 0.2
+    length: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name in ("inertia", "length"):
+            value = check_real(f"{name} tolerance", getattr(self, name))
+            if not 0.0 <= value < 1.0:
+                raise ValueError(f"{name} tolerance must be in [0, 1), got {value!r}")
+            object.__setattr__(self, name, value)
+
+    def draw(self, params, rng: np.random.Generator):
+        """Return ``perturb_mechanism(params, rng, inertia, length)``."""
+        return perturb_mechanism(params, rng, self.inertia, self.length)
+
+    def to_dict(self) -> dict:
+        """``{"uncertainty": "MechanismTolerances", "tolerance_inertia", "tolerance_length"}``."""
+        return {"uncertainty": "MechanismTolerances", "tolerance_inertia": self.inertia,
+                "tolerance_length": self.length}
+
+    def describe(self) -> str:
+        """One line for reports: ``20% on masses, 5% on lengths (rod moments follow)``."""
+        return (f"{self.inertia:.0%} on masses, {self.length:.0%} on lengths (rod moments "
+                f"follow)")
+
+
+def sample_mechanism(nominal, seed: int, index: int,
+                     tol: MechanismUncertainty = MechanismTolerances()):
+    """Uncertain mechanism number ``index`` of a campaign with ``seed``, drawn alone.
+
+    ``tol.draw(nominal, numpy.random.default_rng([seed, index]))``.
+
+    Parameters
+    ----------
+    nominal : FiveBarParams or DeltaParams
+        Nominal parameter set.
+    seed, index : int
+        Campaign seed and sample number, >= 0.
+    tol : MechanismUncertainty, default MechanismTolerances()
+
+    Returns
+    -------
+    params : FiveBarParams or DeltaParams
+        The plant's parameters.
+    factors : dict
+        What ``tol`` drew (for the built-in: field name -> factor).
+
+    Raises
+    ------
+    TypeError
+        ``nominal`` not a mechanism parameter set, ``tol`` not a MechanismUncertainty, or a
+        draw of another type than ``nominal``.
+    """
+    if not isinstance(nominal, (FiveBarParams, DeltaParams)):
+        raise TypeError(f"nominal must be a FiveBarParams or DeltaParams, got "
+                        f"{type(nominal).__name__}")
+    if not isinstance(tol, MechanismUncertainty):
+        raise TypeError(f"tol must be a MechanismUncertainty (e.g. MechanismTolerances()), got "
+                        f"{type(tol).__name__}")
+    rng = np.random.default_rng([check_count("seed", seed), check_count("index", index)])
+    params, factors = tol.draw(nominal, rng)
+    if type(params) is not type(nominal):
+        raise TypeError(f"{type(tol).__name__}.draw returned a {type(params).__name__}, "
+                        f"expected a {type(nominal).__name__}")
+    return params, factors

@@ -25,7 +25,8 @@ from .plotting import plot_campaign, plot_certificates, save_figure
 __all__ = ["write_campaign", "write_campaign_report", "summary_lines", "SETTINGS_UNITS"]
 
 #: Metrics of the summary tables, per law, in order (``report.html`` also shows the torque).
-_TABLE_METRICS = ("error_ratio_{}", "torque_ratio_{}", "{}_rms_error", "{}_max_error")
+_TABLE_METRICS = ("error_ratio_{}", "torque_ratio_{}", "{}_rms_error", "{}_max_error",
+                  "{}_drift")
 
 
 def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | None = None,
@@ -50,7 +51,8 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
     out.mkdir(parents=True, exist_ok=True)
     columns = campaign_columns(campaign.names, campaign.baseline, campaign.joint_names,
                                any("certified" in r for r in campaign.rows),
-                               any("undefined" in r for r in campaign.rows))
+                               any("undefined" in r for r in campaign.rows),
+                               per_law=campaign.per_law)
     table = io.StringIO(newline="")
     writer = csv.DictWriter(table, fieldnames=columns, extrasaction="ignore",
                             lineterminator="\n")
@@ -62,8 +64,11 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
                                  "status": row["status"], "parameters": row["parameters"]})
                      + "\n" for row in campaign.rows)
     summary = campaign_summary(campaign)
-    text = dumps({"robot": campaign.robot, "controllers": campaign.laws,
-                       "settings": campaign.settings, "summary": summary}, indent=1) + "\n"
+    record = {"robot": campaign.robot, "controllers": campaign.laws,
+              "settings": campaign.settings, "summary": summary}
+    if campaign.nominal is not None:  # a closed chain's campaign runs the nominal plant too
+        record["nominal"] = campaign.nominal
+    text = dumps(record, indent=1) + "\n"
     written = []
     for name, content in (("campaign.csv", table.getvalue()), ("samples.jsonl", params),
                           ("summary.json", text)):
@@ -105,6 +110,8 @@ SETTINGS_UNITS = {"samples": "-", "seed": "-", "tolerance_inertia": "-",
 def _metric_unit(metric: str) -> str:
     if metric.startswith(("error_ratio_", "torque_ratio_")):
         return "-"
+    if metric.endswith("_drift"):
+        return "m"
     return "N m" if metric.endswith("_rms_torque") else "rad"
 
 
@@ -151,13 +158,31 @@ def write_campaign_report(campaign: Campaign, summary: dict, out: str | Path,
                      f"{m['p95']:.4g} | {m['worst']:.4g} | {m['count']} |")
     figures = [(out / name, caption) for name, caption in _captions(campaign).items()
                if (out / name).exists()]
+    tables = [(f"{summary['samples']} plants, baseline {summary['baseline']}",
+               "\n".join(lines))]
+    if campaign.nominal is not None:  # a closed chain's campaign runs the nominal plant too
+        tables.append(("Nominal plant", _nominal_table(campaign)))
     path = write_report_html(
         out / "report.html", title=f"rrr-pin Monte Carlo campaign on {campaign.robot}",
-        tables=[(f"{summary['samples']} plants, baseline {summary['baseline']}",
-                 "\n".join(lines))],
+        tables=tables,
         figures=figures, design=campaign.settings, units=SETTINGS_UNITS,
         design_title="Settings")
     return store.wrote("report.html") if store is not None else path
+
+
+def _nominal_table(campaign: Campaign) -> str:
+    """Markdown table of the nominal plant's row: per law, its figures (``-`` if it failed)."""
+    row = campaign.nominal
+    keys = (("rms_error", "RMS error [rad]"), ("max_error", "max error [rad]"),
+            ("rms_torque", "RMS torque [N m]"), ("drift", "loop drift [m]"))
+    lines = ["| controller | " + " | ".join(label for _, label in keys) + " | status |",
+             "|---" * (len(keys) + 2) + "|"]
+    for d in campaign.laws:
+        cells = [f"{row[k]:.4g}" if k in row else "-"
+                 for k in (f"{d['name']}_{key}" for key, _ in keys)]
+        lines.append(f"| {d['label']} | " + " | ".join(cells) +
+                     f" | {row.get(d['name'] + '_status', row['status'])} |")
+    return "\n".join(lines)
 
 
 def summary_lines(campaign: Campaign, summary: dict) -> list[str]:
