@@ -107,6 +107,21 @@ def test_nominal_row_is_the_studys_nominal_run(serial):
         assert serial.nominal[f"{law}_drift"] == nominal[law]["drift_m"]
 
 
+def test_every_built_in_law_runs_and_pd_nominal_is_the_studys():
+    # chain_laws builds the laws with the study's factory (make_chain_law): PD's nominal row is
+    # the study's PD run, number for number.
+    chain = load_closed_chain("fivebar")
+    laws = chain_laws("fl,pd,hinf2dof", chain)
+    assert [law.name for law in laws] == ["fl", "pd", "hinf2dof"]
+    campaign = run_chain_campaign(chain, laws, replace(SETTINGS, samples=1), jobs=1)
+    study = run_chain_study(ChainStudyConfig(mechanism="fivebar", samples=0, duration=DURATION,
+                                             rate=1000.0, controllers=("fl", "pd", "hinf2dof"),
+                                             certify=False))
+    for law in ("pd", "hinf2dof"):
+        assert campaign.nominal[f"{law}_rms_error"] == study.metrics[0][law]["rms_error_rad"]
+        assert campaign.nominal[f"{law}_rms_torque"] == study.metrics[0][law]["rms_tau_Nm"]
+
+
 def test_a_failed_run_is_recorded_and_the_campaign_goes_on(fivebar, serial, monkeypatch):
     import rrr_pin.campaign.closed_chain_campaign as ccc
 
@@ -245,11 +260,11 @@ def test_dask_cluster_gives_the_same_rows(fivebar, serial):
     (["--lock", "qa1=0"], "does not implement --lock"),
     (["--q0", "0,0"], "does not implement --q0"),
     (["--uncertainty", "identification.json"], "does not implement --uncertainty"),
-    (["--controllers", "fl,pd"], "'pd': not implemented on closed chains"),
+    (["--controllers", "fl,nosuch"], "'nosuch': not implemented on closed chains"),
     (["--baseline", "pd"], "--baseline 'pd' is not among --controllers"),
     (["--duration", "0.0505"], "duration"),
 ], ids=["certify", "delay", "compiled", "reference", "radius", "lock", "q0", "uncertainty",
-        "pd", "baseline", "off-grid"])
+        "unknown", "baseline", "off-grid"])
 def test_cli_refuses_what_closed_chains_do_not_implement(tmp_path, capsys, extra, message):
     assert cli.main(_mc(tmp_path / "x", *extra)) == 2
     err = capsys.readouterr().err

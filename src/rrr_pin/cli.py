@@ -825,7 +825,7 @@ def _add_montecarlo(sub) -> None:
                     "every --controllers law on each (sampled controllers, 1 kHz by default) "
                     "and writes campaign.csv, samples.jsonl, summary.json and montecarlo.png "
                     "into --out. Results are identical whatever --jobs. With --robot fivebar "
-                    "or delta (parallel mechanisms): fl and/or hinf on the nominal and N "
+                    "or delta (parallel mechanisms): the --controllers on the nominal and N "
                     "perturbed mechanisms (masses 20 %%, lengths 5 %%), on the constraint "
                     "dynamics, along the mechanism's own reference (its period --duration), "
                     "with each run's loop drift and status.")
@@ -953,7 +953,7 @@ def _montecarlo_chain(args) -> int:
                     "normal"))) if given]
     if unsupported:
         raise ValueError(f"--robot {args.robot} (a closed chain) does not implement "
-                         f"{', '.join(unsupported)}; its campaign runs fl and/or hinf on the "
+                         f"{', '.join(unsupported)}; its campaign runs the built-in laws on the "
                          f"mechanism's own reference (that of `rrr-pin reproduce --robot "
                          f"{args.robot}`), Python engine on the constraint dynamics")
     chain = load_closed_chain(args.robot)

@@ -40,7 +40,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..control.closed_chain import closed_chain_fl, closed_chain_hinf_fl
+from ..control.closed_chain import CHAIN_LAWS, make_chain_law
 from ..control.references import Reference
 from ..model.closed_chain import LoopClosureError, SingularConfiguration, load_closed_chain
 from ..model.mechanisms import DeltaParams, FiveBarParams
@@ -54,7 +54,7 @@ from .runner import check_laws, error_ratios, run_metrics
 from .store import CampaignStore
 
 __all__ = ["ChainCampaignJob", "run_chain_campaign", "chain_sample_row", "chain_laws",
-           "check_chain_settings", "chain_store_settings", "open_chain_store", "CHAIN_LAWS",
+           "check_chain_settings", "chain_store_settings", "open_chain_store",
            "NOMINAL_INDEX", "FAILURES"]
 
 logger = logging.getLogger(__name__)
@@ -62,33 +62,32 @@ logger = logging.getLogger(__name__)
 #: Index of the nominal plant's row (the samples are 0, 1, ...).
 NOMINAL_INDEX = -1
 
-#: Built-in laws on closed chains, by name (:func:`chain_laws`).
-CHAIN_LAWS = {"fl": "FL alone (lam_fl, eq. (20))",
-              "hinf": "H-infinity + FL (lam_hinf, the paper's reduced loop-shaping K)"}
-
 #: What ends a run as "failed" (recorded in the row; the campaign goes on); anything else
 #: is a bug and propagates.
 FAILURES = (SingularConfiguration, LoopClosureError, ConstraintDrift, SimulationDiverged,
             np.linalg.LinAlgError)
 
 
-def chain_laws(names, chain, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0
-               ) -> list:
-    """Build the built-in laws of a closed chain by name, in the order given.
+def chain_laws(names, chain, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
+               torque_limit=None) -> list:
+    """Build built-in laws of a closed chain by name, in the order given.
 
     Each law gets its own nominal model (its loop-closure seed follows its own runs), as in
-    :func:`rrr_pin.campaign.closed_chain_study.run_chain_study`.
+    :func:`rrr_pin.campaign.closed_chain_study.run_chain_study`; each is
+    :func:`rrr_pin.control.closed_chain.make_chain_law` of its name.
 
     Parameters
     ----------
     names : str or sequence of str
-        Keys of :data:`CHAIN_LAWS`, e.g. ``"fl,hinf"``.
+        Keys of :data:`rrr_pin.control.closed_chain.CHAIN_LAWS`, e.g. ``"fl,hinf,pd"``.
     chain : ClosedChain
         The nominal mechanism (a built-in parameter set).
     K : control LTI, optional
-        Controller of ``"hinf"``; default ``design(lam=lam_hinf, n=chain.nq).K_reduced``.
+        Controller of the H-infinity laws; default ``design(lam=lam_hinf, n=chain.nq).K_reduced``.
     lam_fl, lam_hinf : float
-        FL bandwidths [rad/s] of ``"fl"`` and ``"hinf"``.
+        FL bandwidths [rad/s] of ``"fl"`` and of the H-infinity laws.
+    torque_limit : float or array-like, optional
+        The limits [N m] ``"hinf_aw"`` knows (it requires them).
 
     Raises
     ------
@@ -103,14 +102,11 @@ def chain_laws(names, chain, *, K=None, lam_fl: float = 100.0, lam_hinf: float =
         raise ValueError(f"controllers {', '.join(map(repr, unknown or names))}: not "
                          f"implemented on closed chains; expected comma-separated names from "
                          f"{', '.join(CHAIN_LAWS)}")
-    laws = []
-    for name in names:
-        model = load_closed_chain(chain.params, gravity=chain.gravity)
-        if name == "fl":
-            laws.append(closed_chain_fl(model, lam_fl))
-        else:
-            gain = design(lam=lam_hinf, n=chain.nq).K_reduced if K is None else K
-            laws.append(closed_chain_hinf_fl(model, gain, lam_hinf))
+    if K is None and any(n in ("hinf", "hinf_aw") for n in names):
+        K = design(lam=lam_hinf, n=chain.nq).K_reduced
+    laws = [make_chain_law(name, load_closed_chain(chain.params, gravity=chain.gravity), K=K,
+                           lam_fl=lam_fl, lam_hinf=lam_hinf, torque_limit=torque_limit)
+            for name in names]
     return check_laws(laws, chain.nq)
 
 
