@@ -826,7 +826,7 @@ def _add_montecarlo(sub) -> None:
                     "and writes campaign.csv, samples.jsonl, summary.json and montecarlo.png "
                     "into --out. Results are identical whatever --jobs. With --robot fivebar "
                     "or delta (parallel mechanisms): the --controllers on the nominal and N "
-                    "perturbed mechanisms (masses 20 %%, lengths 5 %%), on the constraint "
+                    "perturbed mechanisms (masses 20 %, lengths 5 %), on the constraint "
                     "dynamics, along the mechanism's own reference (its period --duration), "
                     "with each run's loop drift and status.")
     _add_robot_arguments(p)
