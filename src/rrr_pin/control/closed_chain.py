@@ -11,22 +11,63 @@ changes: :class:`ReducedTracking` overrides ``_tau`` and nothing else, so the ou
 controller ``K``, its discretization and the linear model are the built-in's. The passive
 coordinates are solved by the law from the measured actuated angles (Newton seeded from the
 previous sample), as a controller reading only its motor encoders would.
+
+Compiled form: :class:`ChainFLForm` (the law's ``lam`` and ``K``'s matrices, continuous for
+the law, discretized as the sampled law runs them), which the compiled closed-chain engine
+(:mod:`rrr_pin.sim.chain_compiled`) runs for the exact class :class:`ReducedTracking` only.
 """
 
 from __future__ import annotations
 
-from ..validation import check_rate
-from .laws import DEFAULT_RATE, FLLinearModel, SampledLaw, TrackingController, _SampledTracking
+from dataclasses import dataclass
+from typing import ClassVar
 
-__all__ = ["ReducedTracking", "closed_chain_fl", "closed_chain_hinf_fl"]
+from ..validation import check_rate
+from .laws import (
+    DEFAULT_RATE,
+    FLForm,
+    FLLinearModel,
+    SampledLaw,
+    TrackingController,
+    _SampledTracking,
+)
+
+__all__ = ["ReducedTracking", "ChainFLForm", "closed_chain_fl", "closed_chain_hinf_fl"]
+
+
+@dataclass(frozen=True, eq=False)
+class ChainFLForm(FLForm):
+    r"""Compiled form of :class:`ReducedTracking`: eq. (8) on a closed chain's reduced model.
+
+    .. math:: \bar\tau = \ddot r + 2\lambda(\dot r - \dot q_a) + \lambda^2 (e + y), \quad
+              \tau = M_r(q_a)\,\bar\tau + V_r(q_a, \dot q_a) + G_r(q_a)
+
+    with ``M_r``, ``V_r + G_r`` of :meth:`rrr_pin.model.closed_chain.ClosedChain.reduced`
+    (the passive coordinates by Newton on the loop closure, seeded from the previous sample),
+    ``y = C x + D e``, ``x+ = A x + B e`` (sampled law, matrices discrete at its rate). The
+    fields are :class:`~rrr_pin.control.laws.FLForm`'s; a type of its own, so the serial
+    compiled engine (which dispatches on the exact type) never runs it as a serial arm's FL.
+
+    Attributes
+    ----------
+    nominal : ClosedChain
+        The law's mechanism (``n = nominal.nq`` actuated joints).
+    lam : float
+        Bandwidth ``lambda`` [rad/s], > 0.
+    A, B, C, D : ndarray, shapes (m, m), (m, n), (n, m), (n, n)
+        The controller ``K`` on ``e = r - q_a`` [rad], negative feedback; ``m = 0`` for FL
+        alone.
+    """
+
+    kind: ClassVar[str] = "chain_fl"
 
 
 class ReducedTracking(TrackingController):
     """:class:`TrackingController` whose model is a closed chain's reduced dynamics.
 
     ``nominal`` is a :class:`rrr_pin.model.closed_chain.ClosedChain`; ``q, qd, r`` are
-    actuated coordinates, shape (nominal.nq,) [rad, rad/s]. No compiled form: the Python
-    engine runs it.
+    actuated coordinates, shape (nominal.nq,) [rad, rad/s]. Compiled form:
+    :class:`ChainFLForm` (for this exact class; a subclass gets None).
     """
 
     def _tau(self, q, qd, r, rd, rdd, y):
@@ -38,13 +79,28 @@ class ReducedTracking(TrackingController):
     def sampled(self, rate: float = DEFAULT_RATE, method: str = "tustin") -> SampledLaw:
         """Digital version: ``K`` discretized by ``method``, torque held between samples."""
         rate = check_rate("rate", rate)
-        # the built-in's sampled law calls this class's _tau; its compiled_form() is None for a
-        # subclass, so the compiled engine refuses it by name
-        return _SampledTracking(self, rate, method, self.discretize(rate, method))
+        # the built-in's sampled law, calling this class's _tau
+        return _SampledReduced(self, rate, method, self.discretize(rate, method))
+
+    def compiled_form(self) -> ChainFLForm | None:
+        """Return the :class:`ChainFLForm` with ``K``'s continuous matrices (this class only)."""
+        if type(self) is not ReducedTracking:
+            return None
+        return ChainFLForm(self.nominal, self.lam, *self._mats)
 
     def linear_model(self) -> FLLinearModel:
         """Return the loop of eq. (10) with ``K``, the same as the serial arm's (exact model)."""
         return FLLinearModel(self.n, self.lam, self._mats, self.discretize)
+
+
+class _SampledReduced(_SampledTracking):
+    """Sampled :class:`ReducedTracking` (the built-in's step), with its compiled form."""
+
+    def compiled_form(self):
+        """Return the :class:`ChainFLForm` with the discrete matrices (None for a subclass)."""
+        if type(self.law) is not ReducedTracking:
+            return None
+        return ChainFLForm(self.law.nominal, self.law.lam, *self.mats)
 
 
 def closed_chain_fl(chain, lam: float = 100.0, *, name: str = "fl") -> ReducedTracking:
