@@ -97,8 +97,13 @@ namespace rrr_pin
 
   void ChainWork::jacobian(const Vec & q)
   {
+    pinocchio::computeJointJacobians(cm.tree.model, data, CRef(q));
+    points();
+  }
+
+  void ChainWork::points()
+  {
     const Model & model = cm.tree.model;
-    pinocchio::computeJointJacobians(model, data, CRef(q));
     const Eigen::Index nc = cm.joint_a.size();
     Eigen::Vector3d pa, pb;
     for (Eigen::Index k = 0; k < nc; ++k)
@@ -186,11 +191,13 @@ namespace rrr_pin
     return lo > 0.0 ? s.maxCoeff() / lo : kInf;
   }
 
-  int ChainWork::close(Vec & q, double tol, int max_iter, double cond_limit, double & cond_out)
+  int ChainWork::close(Vec & q, double tol, int max_iter, double cond_limit, double & cond_out,
+                       bool fresh)
   {
     for (int it = 0; it < max_iter; ++it)
     {
-      jacobian(q);
+      if (it || !fresh)
+        jacobian(q);
       if (maxabs(phi) <= tol)
       {
         cond_out = cond();
@@ -223,12 +230,15 @@ namespace rrr_pin
   {
     // M qdd = u - nle + J^T f with J qdd + gamma = 0, f eliminated by the Schur complement
     // J M^-1 J^T (the solution constraintDynamics converges to; J has independent rows).
+    // One second-order kinematics pass serves gamma and (with the joint Jacobians built from
+    // its placements) J; then CRBA and the nonlinear effects.
     const Model & model = cm.tree.model;
+    gamma(q, qd);
+    pinocchio::computeJointJacobians(model, data);
+    points();
     M = pinocchio::crba(model, data, CRef(q));
     M.triangularView<Eigen::StrictlyLower>() = M.transpose();
     b = u - pinocchio::nonLinearEffects(model, data, CRef(q), CRef(qd));
-    jacobian(q);
-    gamma(q, qd);
     llt_M.compute(M);
     MiJt = llt_M.solve(J.transpose());
     qdd = llt_M.solve(b);
@@ -331,7 +341,7 @@ namespace rrr_pin
                 ChainResult & out)
     {
       const ChainModel & cm = w.cm;
-      w.residual(q);
+      w.jacobian(q);  // phi at q, and Newton's first J
       const double gap = maxabs(w.phi);
       if (!(gap <= in.drift_bound))
       {
@@ -341,7 +351,7 @@ namespace rrr_pin
       out.drift = out.drift > gap ? out.drift : gap;  // Python's max(drift, gap)
       Vec qc = q;
       double cond = 0.0;
-      const int st = w.close(qc, in.closure_tol, in.max_iter, in.cond_limit, cond);
+      const int st = w.close(qc, in.closure_tol, in.max_iter, in.cond_limit, cond, true);
       if (st)
       {
         out.value = cond;

@@ -63,6 +63,8 @@ namespace rrr_pin
 
     /// J (rows, nv) and phi (rows) at q: one computeJointJacobians.
     void jacobian(const Vec & q);
+    /// J and phi from the placements and joint Jacobians already in data.
+    void points();
     /// phi at q (forward kinematics of positions only).
     void residual(const Vec & q);
     /// gamma = Jdot qd (rows) at (q, qd): second-order kinematics with qdd = 0.
@@ -71,7 +73,9 @@ namespace rrr_pin
     double cond() const;
     /// Newton on the passive coordinates of q (actuated parts kept) to tol; J, phi at the
     /// solution. Returns kChainOk, or 1 (cond above the limit, cond_out set), 2 (no convergence).
-    int close(Vec & q, double tol, int max_iter, double cond_limit, double & cond_out);
+    /// fresh: J and phi are already those of q (the first iteration skips jacobian(q)).
+    int close(Vec & q, double tol, int max_iter, double cond_limit, double & cond_out,
+              bool fresh = false);
     /// S = [I; -J_p^-1 J_a] of the last jacobian() into S (nv, na).
     void S_of(Mat & S);
     /// Full constrained accelerations at (q, qd) with generalized force u: the exact KKT.
