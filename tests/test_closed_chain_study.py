@@ -83,7 +83,7 @@ def test_reproduce_fivebar_writes_claims_and_figures(tmp_path, capsys):
     assert data["claims"][0]["value"] == max(nominal["fl"]["rms_error_rad"],
                                              nominal["hinf"]["rms_error_rad"])
     assert (out / "fig5_nominal.png").is_file() and (out / "results.md").is_file()
-    assert "compiled engine does not implement closed chains" in capsys.readouterr().out
+    assert "(engine: compiled)" in capsys.readouterr().out  # auto: the compiled chain engine
 
 
 def test_reproduce_fivebar_refuses_what_it_does_not_implement(tmp_path, capsys):

@@ -761,8 +761,10 @@ def _reproduce_chain(args, out) -> int:
         verdict = "undetermined" if c["holds"] is None else ("holds" if c["holds"] else
                                                               "does not hold")
         print(f"{c['claim']}: {c['value']:.4g} -> {verdict}")
-    print(f"wrote {', '.join(p.name for p in paths)} into {out} (engine: python; the "
-          f"compiled engine does not implement closed chains)")
+    engines = sorted({tr.info["engine"] for runs in result.trajectories
+                      for tr in runs.values() if tr is not None})
+    print(f"wrote {', '.join(p.name for p in paths)} into {out} (engine: "
+          f"{', '.join(engines) or 'none'})")
     return 0
 
 

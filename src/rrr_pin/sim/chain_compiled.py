@@ -4,8 +4,8 @@ It runs what the Python engine of :mod:`rrr_pin.sim.closed_chain` runs for a sam
 operation for operation (C++ in ``src/rrr_pin/_ext/chain.hpp``, ``chain.cpp``):
 
 * the plant: the full constrained dynamics of the tree, ``M(q)`` by CRBA, the nonlinear
-  effects, the loop-closure Jacobian ``J`` (its independent rows, those
-  :attr:`~rrr_pin.model.closed_chain.ClosedChain.rows` picks) and ``gamma = Jdot qd``, with
+  effects, the loop-closure Jacobian ``J`` (its independent rows, those the ``rows`` of
+  :class:`~rrr_pin.model.closed_chain.ClosedChain` pick) and ``gamma = Jdot qd``, with
   the KKT system solved exactly,
 
   .. math::
