@@ -160,6 +160,11 @@ namespace rrr_pin
   {
     const Model & model = cm.tree.model;
     pinocchio::forwardKinematics(model, data, CRef(q), CRef(qd), CRef(zero));
+    gamma_points();
+  }
+
+  void ChainWork::gamma_points()
+  {
     const Eigen::Index nc = cm.joint_a.size();
     Eigen::Vector3d acc[2];
     for (Eigen::Index k = 0; k < nc; ++k)
@@ -230,15 +235,22 @@ namespace rrr_pin
   {
     // M qdd = u - nle + J^T f with J qdd + gamma = 0, f eliminated by the Schur complement
     // J M^-1 J^T (the solution constraintDynamics converges to; J has independent rows).
-    // One second-order kinematics pass serves gamma and (with the joint Jacobians built from
-    // its placements) J; then CRBA and the nonlinear effects.
+    // The forward pass of nonLinearEffects serves the kinematics too: its local placements
+    // give the world placements (hence the joint Jacobians and J), its velocities and its
+    // accelerations with gravity a_gf = a + oMi^-1 (-g) give the zero-qdd accelerations a
+    // (hence gamma); then CRBA.
     const Model & model = cm.tree.model;
-    gamma(q, qd);
+    b = u - pinocchio::nonLinearEffects(model, data, CRef(q), CRef(qd));
+    for (pinocchio::JointIndex i = 1; i < static_cast<pinocchio::JointIndex>(model.njoints); ++i)
+    {
+      data.oMi[i] = data.oMi[model.parents[i]] * data.liMi[i];
+      data.a[i] = data.a_gf[i] + data.oMi[i].actInv(model.gravity);
+    }
+    gamma_points();
     pinocchio::computeJointJacobians(model, data);
     points();
     M = pinocchio::crba(model, data, CRef(q));
     M.triangularView<Eigen::StrictlyLower>() = M.transpose();
-    b = u - pinocchio::nonLinearEffects(model, data, CRef(q), CRef(qd));
     llt_M.compute(M);
     MiJt = llt_M.solve(J.transpose());
     qdd = llt_M.solve(b);

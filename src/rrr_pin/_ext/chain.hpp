@@ -69,6 +69,8 @@ namespace rrr_pin
     void residual(const Vec & q);
     /// gamma = Jdot qd (rows) at (q, qd): second-order kinematics with qdd = 0.
     void gamma(const Vec & q, const Vec & qd);
+    /// gamma from the placements, velocities and zero-qdd accelerations already in data.
+    void gamma_points();
     /// cond(J_p) of the last jacobian() (2-norm; inf if singular).
     double cond() const;
     /// Newton on the passive coordinates of q (actuated parts kept) to tol; J, phi at the
