@@ -746,7 +746,8 @@ def _reproduce_chain(args, out) -> int:
     if unsupported:
         raise ValueError(f"--robot {args.robot} (a closed chain) does not implement "
                          f"{', '.join(unsupported)}; its study runs fl and hinf on the "
-                         f"mechanism's own reference, Python engine")
+                         f"mechanism's own reference, engine auto (the compiled chain "
+                         f"engine for them)")
     config = ChainStudyConfig(mechanism=args.robot, samples=args.samples, seed=args.seed,
                               duration=args.duration, rate=args.rate)
     if out is None:

@@ -33,8 +33,11 @@ Pinocchio's C++ library (the serial compiled engine calls its ABA), so the engin
 uses, for every joint type it has: the 5-bar's unaligned revolutes and the Delta's composite
 joints run without a generator for them (:mod:`rrr_pin.sim.dyngen` knows RX/RY/RZ only) and
 without hand-written RNEA/CRBA, and a perturbed plant's parameters arrive with its model at run
-time. It meets the speed goal (a 10 s, 1 kHz run of the 5-bar in well under 0.3 s; see
-``scripts/bench.py``, section 4b), so generated code was not needed. The loop-closure kinematics
+time. A 10 s, 1 kHz run of the 5-bar takes about half the time of the 40 000
+``constraintDynamics`` calls alone that the Python engine makes for it (0.49 to 0.67 times,
+measured side by side by ``scripts/bench.py``, section 4b: 0.31 s at a load average of 6 on 2
+cores, about 0.25 s at the 0.42 s those calls take on a quieter machine, under the issue's
+0.3 s), so generated code was not needed for the goal. The loop-closure kinematics
 (anchor points, their Jacobian and classical acceleration) are written in ``chain.cpp`` from
 Pinocchio's joint placements, velocities and accelerations; a test pins them on
 :meth:`~rrr_pin.model.closed_chain.ClosedChain.jacobian` and
