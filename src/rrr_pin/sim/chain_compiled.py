@@ -62,10 +62,10 @@ from ..model.closed_chain import CLOSURE_TOL, COND_LIMIT, LoopClosureError, Sing
 from .extension import EXTENSION, available, cached, require
 
 __all__ = ["chain_engine", "compile_chain", "run_chain_compiled", "check_reference_compiled",
-           "CHAIN_LAWS"]
+           "CHAIN_FORMS"]
 
 #: The compiled forms the closed-chain C++ loop implements, by exact type, and their C++ law.
-CHAIN_LAWS = {ChainFLForm: "ChainFLLaw"}
+CHAIN_FORMS = {ChainFLForm: "ChainFLLaw"}
 
 #: Newton iterations of a loop closure (the default of ClosedChain.close).
 _MAX_ITER = 30
@@ -119,10 +119,10 @@ def _why_not(plant, law, continuous: bool, effects) -> str | None:
         cls = type(getattr(law, "law", law)).__name__  # a sampled wrapper: its law's class
         return (f"law {law.name!r} ({cls}) declares no compiled form, so the "
                 f"compiled closed-chain engine cannot run it")
-    if type(form) not in CHAIN_LAWS:
+    if type(form) not in CHAIN_FORMS:
         return (f"compiled form {type(form).__qualname__} of law {law.name!r} is not "
                 f"implemented by the compiled closed-chain engine (known: "
-                f"{', '.join(c.__name__ for c in CHAIN_LAWS)})")
+                f"{', '.join(c.__name__ for c in CHAIN_FORMS)})")
     if not hasattr(form.nominal, "constraints"):
         return f"law {law.name!r}'s model {form.nominal.name!r} is not a closed chain"
     return None
