@@ -20,8 +20,9 @@ asserted:
 - section 4: a Monte Carlo campaign (N plants x 2 laws, 10 s, 2 worker processes; batched under
   ``engine="auto"``) against its bounds ``2 N x floor / 2 cores`` (generic and batched floors), and
   the throughput with 1 worker;
-- section 4b: a closed chain (issue 22): a 10 s, 1 kHz FL run of the 5-bar (Python engine, the only
-  one that implements it) against its ``pin.constraintDynamics`` calls alone;
+- section 4b: a closed chain (issue 22): a 10 s, 1 kHz FL run of the 5-bar on the Python and the
+  compiled engines, against the ``pin.constraintDynamics`` calls the Python engine makes, alone
+  (4 per RK4 step), and the compiled engine's exact-KKT calls alone in C++;
 - section 5: start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
 - section 6: ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant
   (:func:`loopsyn_3x3_s`);
@@ -267,15 +268,20 @@ def handwritten_fl_rollout(plant, nominal, lam, R, RD, RDD, Ts, n_steps):
 
 
 def closed_chain_ms(duration, rate, repeat):
-    """Issue 22: a closed-loop FL run of the 5-bar against its constraintDynamics calls alone.
+    """Issue 22: a closed-loop FL run of the 5-bar on both engines, against its KKT calls alone.
 
-    The run: ``simulate`` of the FL law on the reduced model, 1 sub-step per period (the
-    Python engine: the compiled one does not implement closed chains). The floor: the
-    ``4 x steps`` ``pin.constraintDynamics`` calls its RK4 plant makes, in a bare loop.
+    The run: ``simulate`` of the FL law on the reduced model, 1 sub-step per period, on the
+    Python engine and on the compiled one (:mod:`rrr_pin.sim.chain_compiled`). The floors: the
+    ``4 x steps`` ``pin.constraintDynamics`` calls the Python engine's RK4 plant makes, in a
+    bare Python loop, and as many exact-KKT accelerations of the compiled engine in a bare C++
+    loop. The Python engine runs twice (a warm-up and one timed run: 15 s each), the others
+    ``repeat`` times, interleaved.
     """
     from rrr_pin.control.closed_chain import closed_chain_fl
     from rrr_pin.control.references import SineReference
     from rrr_pin.model.closed_chain import load_closed_chain
+    from rrr_pin.sim.chain_compiled import compile_chain
+    from rrr_pin.sim.extension import EXTENSION
 
     plant, nominal = load_closed_chain("fivebar"), load_closed_chain("fivebar")
     ref = SineReference(home=plant.neutral(), amp=0.05, freq=0.5, phase=0.0)
@@ -283,15 +289,27 @@ def closed_chain_ms(duration, rate, repeat):
     q, qd = plant.home, plant.velocity(plant.home, np.array([0.1, -0.1]))
     u = plant.actuation(np.array([0.1, 0.1]))
     calls = 4 * int(round(duration * rate))
+    cm = compile_chain(plant)
 
     def calls_alone():
         for _ in range(calls):
             plant.constrained_acceleration(q, qd, u)
 
-    ms = side_by_side_ms({"run": lambda: simulate(plant, law, ref, duration, rate=rate),
-                          "calls": calls_alone}, repeat)
-    return {"closed_chain_rollout_ms": ms["run"], "constraint_dynamics_floor_ms": ms["calls"],
-            "closed_chain_goal_ms": 300.0 * duration / 10.0, "closed_chain_engine": "python"}
+    fast = side_by_side_ms(
+        {"compiled": lambda: simulate(plant, law, ref, duration, rate=rate, engine="compiled"),
+         "calls": calls_alone,
+         "floor_kkt": lambda: 1e3 * EXTENSION.chain_kkt_timing(cm, q, qd, u, calls)}, repeat)
+    slow = side_by_side_ms(
+        {"python": lambda: simulate(plant, law, ref, duration, rate=rate, engine="python")}, 1)
+    traj = {e: simulate(plant, law, ref, duration, rate=rate, engine=e)
+            for e in ("python", "compiled")} if duration <= 1.0 else None
+    return {"closed_chain_rollout_ms": slow["python"],
+            "closed_chain_compiled_ms": fast["compiled"],
+            "constraint_dynamics_floor_ms": fast["calls"],
+            "closed_chain_kkt_floor_ms": fast["floor_kkt"],
+            "closed_chain_goal_ms": 300.0 * duration / 10.0, "closed_chain_engine": "compiled",
+            "closed_chain_engines_max_diff_rad": (
+                float(np.abs(traj["python"].q - traj["compiled"].q).max()) if traj else None)}
 
 
 def references(robot, duration):
@@ -649,12 +667,16 @@ def report(res, args):
     print("  throughput: " + ", ".join(
         f"{r:.1f} rollouts/s with {j} job{'s' if j != '1' else ''}"
         for j, r in res["montecarlo_rollouts_per_s"].items()))
-    cc, cf = res["closed_chain_rollout_ms"], res["constraint_dynamics_floor_ms"]
-    print(f"\n4b. closed chain (issue 22): 5-bar FL, {args.duration:g} s at {args.rate:g} Hz, "
-          f"Python engine (no compiled engine for closed chains)")
-    print(f"  run {cc:8.1f} ms; its constraintDynamics calls alone {cf:8.1f} ms ({cc / cf:.1f} "
-          f"x); goal < {res['closed_chain_goal_ms']:g} ms: "
-          f"{'met' if cc < res['closed_chain_goal_ms'] else 'NOT MET'}")
+    cp, cf = res["closed_chain_rollout_ms"], res["constraint_dynamics_floor_ms"]
+    cc, ck = res["closed_chain_compiled_ms"], res["closed_chain_kkt_floor_ms"]
+    goal = res["closed_chain_goal_ms"]
+    print(f"\n4b. closed chain (issue 22): 5-bar FL, {args.duration:g} s at {args.rate:g} Hz "
+          f"({4 * round(args.duration * args.rate)} plant accelerations)")
+    print(f"  python engine   {cp:9.1f} ms ({cp / cf:5.1f} x its constraintDynamics calls "
+          f"alone, {cf:.1f} ms)")
+    print(f"  compiled engine {cc:9.1f} ms ({cc / cf:5.3f} x the constraintDynamics calls; "
+          f"{cp / cc:.0f} x faster than Python; its exact-KKT calls alone in C++ {ck:.1f} ms)")
+    print(f"  goal < {goal:g} ms on the fastest engine: {'met' if cc < goal else 'NOT MET'}")
     print(f"\n5. start-up, fresh processes (median of {args.startup_repeat}; bare `python -c "
           f"pass` takes {res['python_startup_s']:.3f} s)")
     for key, what in (("cli_help_s", "rrr-pin --help"), ("import_s", "import rrr_pin")):

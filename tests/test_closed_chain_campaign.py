@@ -254,7 +254,7 @@ def test_dask_cluster_gives_the_same_rows(fivebar, serial):
 @pytest.mark.parametrize(("extra", "message"), [
     (["--certify"], "does not implement --certify"),
     (["--delay", "0.001"], "does not implement --delay"),
-    (["--engine", "compiled"], "does not implement --engine compiled/codegen"),
+    (["--engine", "codegen"], "does not implement --engine codegen"),
     (["--reference", "circle"], "does not implement --reference other than sine"),
     (["--radius", "0.1"], "does not implement --radius"),
     (["--lock", "qa1=0"], "does not implement --lock"),

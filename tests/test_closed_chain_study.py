@@ -85,13 +85,20 @@ def test_reproduce_fivebar_writes_claims_and_figures(tmp_path, capsys):
     assert (out / "fig5_nominal.png").is_file() and (out / "results.md").is_file()
     printed = capsys.readouterr().out
     assert (out / "report.html").is_file() and "report.html into" in printed
-    assert "compiled engine does not implement closed chains" in printed
+    assert "(engine: compiled)" in printed  # auto: the compiled chain engine
 
 
 def test_reproduce_fivebar_refuses_what_it_does_not_implement(tmp_path, capsys):
-    assert cli.main(["reproduce", "--robot", "fivebar", "--engine", "compiled", "--out",
+    assert cli.main(["reproduce", "--robot", "fivebar", "--engine", "codegen", "--out",
                      str(tmp_path / "x")]) == 2
-    assert "does not implement --engine compiled/codegen" in capsys.readouterr().err
+    assert "does not implement --engine codegen" in capsys.readouterr().err
+    # PD has no compiled form: refused by name before any run (not recorded as a failed run)
+    assert cli.main(["reproduce", "--robot", "fivebar", "--engine", "compiled", "--controllers",
+                     "fl,pd", "--samples", "0", "--duration", "0.01", "--rate", "1000",
+                     "--no-certify", "--out", str(tmp_path / "y")]) == 2
+    err = capsys.readouterr().err
+    assert "engine 'compiled' cannot run" in err and "'pd'" in err and "Traceback" not in err
+    assert not (tmp_path / "y" / "results.json").exists()
 
 
 def test_reproduce_refuses_an_mjcf_path(tmp_path, capsys):

@@ -768,7 +768,7 @@ def _reproduce_chain(args, out) -> int:
                          ("--radius", args.radius), ("--normal", args.normal != "0,0,1"))
     unsupported = [opt for opt, given in (
         ("--lock", args.lock), ("--csv", getattr(args, "csv", None)),
-        ("--engine compiled/codegen", args.engine in ("compiled", "codegen")),
+        ("--engine codegen", args.engine == "codegen"),
         ("--delay", args.delay), ("--actuator-bandwidth", args.actuator_bandwidth),
         ("--q0", args.q0), ("--qd0", args.qd0), ("--home", args.home),
         ("--save-trajectories", args.save_trajectories),
@@ -780,11 +780,13 @@ def _reproduce_chain(args, out) -> int:
     if unsupported:
         raise ValueError(f"--robot {args.robot} (a closed chain) does not implement "
                          f"{', '.join(unsupported)}; its study runs --controllers on the "
-                         f"mechanism's own reference, Python engine")
+                         f"mechanism's own reference, engine auto (the compiled chain "
+                         f"engine for fl and hinf)")
     config = ChainStudyConfig(mechanism=args.robot, samples=args.samples, seed=args.seed,
                               duration=args.duration, rate=args.rate,
                               controllers=_chain_controllers(args.controllers),
-                              full_order=args.full_order, certify=not args.no_certify)
+                              full_order=args.full_order, certify=not args.no_certify,
+                              engine=args.engine)
     if out is None:
         out = _claim_out(args, "reproduce")
     result = run_chain_study(config, progress=None if args.no_progress else
@@ -811,8 +813,10 @@ def _reproduce_chain(args, out) -> int:
     if cert:
         print(f"certified (frozen nu-gap < b = {cert['b']:.4g}): {cert['certified']}/"
               f"{cert['checked']} uncertain plants, largest nu-gap {cert['nugap_max']:.4g}")
-    print(f"wrote {', '.join(p.name for p in paths)} into {out} (engine: python; the "
-          f"compiled engine does not implement closed chains)")
+    engines = sorted({tr.info["engine"] for runs in result.trajectories
+                      for tr in runs.values() if tr is not None})
+    print(f"wrote {', '.join(p.name for p in paths)} into {out} (engine: "
+          f"{', '.join(engines) or 'none'})")
     return 0
 
 
@@ -943,7 +947,7 @@ def _montecarlo_chain(args) -> int:
     defaults = {"amp": 0.5, "freq": 0.5, "normal": "0,0,1"}
     unsupported = [opt for opt, given in (
         ("--lock", args.lock), ("--home", args.home),
-        ("--engine compiled/codegen", args.engine in ("compiled", "codegen")),
+        ("--engine codegen", args.engine == "codegen"),
         ("--delay", args.delay), ("--actuator-bandwidth", args.actuator_bandwidth),
         ("--q0", args.q0), ("--qd0", args.qd0), ("--uncertainty", args.uncertainty),
         ("--certify", args.certify),
@@ -995,8 +999,8 @@ def _montecarlo_chain(args) -> int:
         s["written"].append(str(write_campaign_report(campaign, s, args.out, store)))
     nl, ran = len(laws), s["samples"] + 1 - done
     print(f"{chain.name}: {ran} plants x {nl} controllers x {run.duration:g} s in "
-          f"{elapsed:.1f} s (Python engine on the constraint dynamics; the compiled engine "
-          f"does not implement closed chains)")
+          f"{elapsed:.1f} s (engine {run.engine} on the constraint dynamics; auto: compiled "
+          f"for fl and hinf, Python for the other laws)")
     nominal = campaign.nominal
     print("nominal plant: " + ", ".join(
         f"{law.name} RMS error {nominal[law.name + '_rms_error']:.4g} rad"

@@ -17,6 +17,7 @@ using namespace rrr_pin;
 namespace rrr_pin
 {
   void bind_batch(nb::module_ & mod);  // batch_bind.cpp
+  void bind_chain(nb::module_ & mod);  // chain_bind.cpp
 }
 
 namespace
@@ -118,6 +119,7 @@ NB_MODULE(_rollout, mod)
   }, "Generated models: name -> (fingerprint, URDF sha256, gravity text).");
 
   bind_batch(mod);
+  bind_chain(mod);
 
   mod.def("pinocchio_version", []() { return std::string(PINOCCHIO_VERSION); });
   mod.def("eigen_version", []() {

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..control.catalog import make_law
 from ..control.closed_chain import CHAIN_LAWS
-from ..control.laws import check_law
+from ..control.laws import SampledLaw, check_law
 from ..control.references import SplineReference
 from ..model.closed_chain import load_closed_chain
 from ..model.mechanisms import (
@@ -52,6 +52,7 @@ from ..model.mechanisms import (
 )
 from ..robust.certificates import CertificateSpec
 from ..robust.loopshaping import design
+from ..sim.chain_compiled import chain_engine
 from ..sim.closed_chain import simulate_closed_chain
 from ..validation import check_count, check_positive
 
@@ -102,6 +103,9 @@ class ChainStudyConfig:
         Certify each uncertain plant (module docstring).
     certificate_points : int
         Frozen configurations per plant (>= 1), evenly spaced over the run.
+    engine : {"auto", "python", "compiled"}
+        Engine of every run (:func:`rrr_pin.sim.closed_chain.simulate_closed_chain`); ``auto``
+        runs ``fl`` and ``hinf`` compiled and the other laws in Python (each run records it).
     """
 
     mechanism: str = "fivebar"
@@ -118,6 +122,7 @@ class ChainStudyConfig:
     torque_limit: tuple | None = None
     certify: bool = True
     certificate_points: int = 8
+    engine: str = "auto"
 
     def __post_init__(self) -> None:
         if self.mechanism not in MECHANISMS:
@@ -152,6 +157,9 @@ class ChainStudyConfig:
             object.__setattr__(self, "torque_limit",
                                tuple(float(x) for x in np.atleast_1d(self.torque_limit)))
         check_count("certificate_points", self.certificate_points, 1)
+        if self.engine not in ("auto", "python", "compiled"):
+            raise ValueError(f"engine must be one of auto, python, compiled for a closed chain, "
+                             f"got {self.engine!r}")
 
 
 def _quintic(s: np.ndarray) -> np.ndarray:
@@ -366,6 +374,12 @@ def run_chain_study(config: ChainStudyConfig = ChainStudyConfig(), progress=None
     dup = sorted({x for x in names if names.count(x) > 1})
     if dup:
         raise ValueError(f"control law names must be unique, repeated: {', '.join(dup)}")
+    if config.engine == "compiled":
+        # refused here, by name, before any run: a run's ValueError is recorded as "failed"
+        for law in laws:
+            run = law if config.rate is None else (
+                law if isinstance(law, SampledLaw) else law.sampled(config.rate))
+            chain_engine(nominal, run, "compiled", continuous=config.rate is None)
     reference = chain_reference(nominal, config.duration)
     spec = CertificateSpec.from_design(d, points=config.certificate_points,
                                        reduced=not config.full_order) if config.certify \
@@ -385,7 +399,7 @@ def run_chain_study(config: ChainStudyConfig = ChainStudyConfig(), progress=None
                 own.close(reference(0.0)[0], seed=own.home)  # reset its seed
             try:
                 traj = simulate_closed_chain(plant, law, reference, config.duration,
-                                             rate=config.rate)
+                                             rate=config.rate, engine=config.engine)
             except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
                 row[law.name] = _failed(exc)
                 runs[law.name] = None

@@ -30,12 +30,18 @@ here (a test checks that the two sets are equal), and
 :func:`rrr_pin.control.catalog.make_law` hands a closed chain to :func:`make_chain_law`,
 which refuses any other name by name. The passive coordinates are solved by the law from the
 measured actuated angles (Newton seeded from the previous sample), as a controller reading
-only its motor encoders would. No compiled form: the Python engine runs them.
+only its motor encoders would.
+
+Compiled form: ``fl`` and ``hinf`` (the exact class :class:`ReducedTracking`) have
+:class:`ChainFLForm` (the law's ``lam`` and ``K``'s matrices, continuous for the law,
+discretized as the sampled law runs them), run by the compiled closed-chain engine
+(:mod:`rrr_pin.sim.chain_compiled`); the others have none (the Python engine runs them).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -45,6 +51,7 @@ from .laws import (
     PD_BANDWIDTH,
     AntiWindupTracking,
     ControlLaw,
+    FLForm,
     FLLinearModel,
     PDGravity,
     SampledLaw,
@@ -59,9 +66,36 @@ from .laws import (
     pd_controller,
 )
 
-__all__ = ["ReducedTracking", "ReducedAntiWindup", "ReducedPD", "ReducedTwoDOF",
+__all__ = ["ReducedTracking", "ChainFLForm", "ReducedAntiWindup", "ReducedPD", "ReducedTwoDOF",
            "closed_chain_fl", "closed_chain_hinf_fl", "closed_chain_hinf_aw", "closed_chain_pd",
            "closed_chain_hinf_2dof", "CHAIN_LAWS", "make_chain_law"]
+
+
+@dataclass(frozen=True, eq=False)
+class ChainFLForm(FLForm):
+    r"""Compiled form of :class:`ReducedTracking`: eq. (8) on a closed chain's reduced model.
+
+    .. math:: \bar\tau = \ddot r + 2\lambda(\dot r - \dot q_a) + \lambda^2 (e + y), \quad
+              \tau = M_r(q_a)\,\bar\tau + V_r(q_a, \dot q_a) + G_r(q_a)
+
+    with ``M_r``, ``V_r + G_r`` of :meth:`rrr_pin.model.closed_chain.ClosedChain.reduced`
+    (the passive coordinates by Newton on the loop closure, seeded from the previous sample),
+    ``y = C x + D e``, ``x+ = A x + B e`` (sampled law, matrices discrete at its rate). The
+    fields are :class:`~rrr_pin.control.laws.FLForm`'s; a type of its own, so the serial
+    compiled engine (which dispatches on the exact type) never runs it as a serial arm's FL.
+
+    Attributes
+    ----------
+    nominal : ClosedChain
+        The law's mechanism (``n = nominal.nq`` actuated joints).
+    lam : float
+        Bandwidth ``lambda`` [rad/s], > 0.
+    A, B, C, D : ndarray, shapes (m, m), (m, n), (n, m), (n, n)
+        The controller ``K`` on ``e = r - q_a`` [rad], negative feedback; ``m = 0`` for FL
+        alone.
+    """
+
+    kind: ClassVar[str] = "chain_fl"
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,8 +103,8 @@ class ReducedTracking(TrackingController):
     """:class:`TrackingController` whose model is a closed chain's reduced dynamics.
 
     ``nominal`` is a :class:`rrr_pin.model.closed_chain.ClosedChain`; ``q, qd, r`` are
-    actuated coordinates, shape (nominal.nq,) [rad, rad/s]. No compiled form: the Python
-    engine runs it.
+    actuated coordinates, shape (nominal.nq,) [rad, rad/s]. Compiled form:
+    :class:`ChainFLForm` (for this exact class; a subclass gets None).
     """
 
     def _tau(self, q, qd, r, rd, rdd, y):
@@ -82,13 +116,28 @@ class ReducedTracking(TrackingController):
     def sampled(self, rate: float = DEFAULT_RATE, method: str = "tustin") -> SampledLaw:
         """Digital version: ``K`` discretized by ``method``, torque held between samples."""
         rate = check_rate("rate", rate)
-        # the built-in's sampled law calls this class's _tau; its compiled_form() is None for a
-        # subclass, so the compiled engine refuses it by name
-        return _SampledTracking(self, rate, method, self.discretize(rate, method))
+        # the built-in's sampled law, calling this class's _tau
+        return _SampledReduced(self, rate, method, self.discretize(rate, method))
+
+    def compiled_form(self) -> ChainFLForm | None:
+        """Return the :class:`ChainFLForm` with ``K``'s continuous matrices (this class only)."""
+        if type(self) is not ReducedTracking:
+            return None
+        return ChainFLForm(self.nominal, self.lam, *self._mats)
 
     def linear_model(self) -> FLLinearModel:
         """Return the loop of eq. (10) with ``K``, the same as the serial arm's (exact model)."""
         return FLLinearModel(self.n, self.lam, self._mats, self.discretize)
+
+
+class _SampledReduced(_SampledTracking):
+    """Sampled :class:`ReducedTracking` (the built-in's step), with its compiled form."""
+
+    def compiled_form(self):
+        """Return the :class:`ChainFLForm` with the discrete matrices (None for a subclass)."""
+        if type(self.law) is not ReducedTracking:
+            return None
+        return ChainFLForm(self.law.nominal, self.law.lam, *self.mats)
 
 
 @dataclass(frozen=True, eq=False)

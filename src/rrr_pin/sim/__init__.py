@@ -7,7 +7,8 @@ engine), :mod:`~rrr_pin.sim.extension` (the C++ extension ``_rollout``),
 fixed-model generated C and its fingerprint), :mod:`~rrr_pin.sim.dyngen` (the generator of
 parameter-input dynamics per structure), :mod:`~rrr_pin.sim.batched` (engine ``"codegen"``:
 batched rollouts of many plants on them) and :mod:`~rrr_pin.sim.closed_chain` (parallel
-mechanisms on Pinocchio's constraint dynamics, Python engine).
+mechanisms on Pinocchio's constraint dynamics, Python engine) and
+:mod:`~rrr_pin.sim.chain_compiled` (the compiled closed-chain engine).
 
 Layer: above :mod:`rrr_pin.control`. May import :mod:`rrr_pin.validation`,
 :mod:`rrr_pin.model`, :mod:`rrr_pin.robust` and :mod:`rrr_pin.control`.

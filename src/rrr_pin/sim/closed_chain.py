@@ -13,9 +13,12 @@ naming the time. The drift each step leaves before its projection is recorded: `
 they are checked against, ``info["drift_bound_m"]`` (:data:`DRIFT_BOUND`): a run whose
 drift exceeds it stops with :class:`ConstraintDrift` (the step is too large for the motion).
 
-Engines: this module is the Python one. The compiled engine does not implement closed chains:
-``engine="compiled"`` or ``"codegen"`` is refused by name, ``"auto"`` runs Python and records
-it in ``info["engine"]``.
+Engines: this module is the Python one (the reference). The compiled engine of
+:mod:`rrr_pin.sim.chain_compiled` runs a sampled law with a
+:class:`~rrr_pin.control.closed_chain.ChainFLForm` on the ideal plant; ``engine="compiled"``
+refuses anything else by name, ``"auto"`` picks compiled when it can and Python otherwise, and
+records the engine and why in ``info["engine"]`` and ``info["engine_note"]``; ``"codegen"`` is
+refused.
 
 Before the run, the reference is checked along its whole grid (:func:`check_chain_reference`):
 each sample must close the loop, away from a type-II singularity (``cond(J_p)`` at most
@@ -34,6 +37,7 @@ from ..control.laws import ControlLaw, SampledLaw, check_law, check_step_output
 from ..control.references import check_reference, checked_sample
 from ..model.closed_chain import COND_LIMIT, LoopClosureError, SingularConfiguration
 from ..validation import check_multiple, check_positive, check_rate
+from .chain_compiled import chain_engine, check_reference_compiled, run_chain_compiled
 from .trajectory import Trajectory
 
 __all__ = ["simulate_closed_chain", "check_chain_reference", "ConstraintDrift", "DRIFT_BOUND",
@@ -127,8 +131,9 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
         Discretization of a continuous law's state.
     q0, qd0 : array-like, shape (plant.nq,), optional
         Initial actuated state [rad, rad/s]; default ``r(0)``, ``rd(0)``.
-    engine : {"auto", "python"}, default "auto"
-        ``"compiled"`` and ``"codegen"`` are refused (not implemented for closed chains).
+    engine : {"auto", "python", "compiled"}, default "auto"
+        ``"compiled"``: :mod:`rrr_pin.sim.chain_compiled` (a sampled law with a compiled form,
+        ideal plant; refused by name otherwise); ``"auto"``: compiled when it can, else Python.
 
     Returns
     -------
@@ -137,12 +142,8 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
         and its bound, the reference's worst ``cond(J_p)``, and the plant's full final state
         ``final_q``, ``final_qd`` (every coordinate, actuated and passive).
     """
-    if engine in ("compiled", "codegen"):
-        raise ValueError(f"engine {engine!r} does not implement closed chains (plant "
-                         f"{plant.name!r}: constraintDynamics); use engine='python' or 'auto'")
-    if engine not in ("auto", "python"):
-        raise ValueError(f"engine must be one of auto, python for a closed chain, got "
-                         f"{engine!r}")
+    if engine not in ("auto", "python", "compiled"):
+        chain_engine(plant, law, engine, continuous=False)  # the refusal, by name
     check_law(law, plant.nq)
     check_reference(reference, plant)
     duration = check_positive("duration", duration, unit="s")
@@ -168,10 +169,12 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
             dt = check_positive("dt", dt, unit="s")
             substeps = check_multiple("dt", Ts, dt, low=1, unit="s")
         h = Ts / substeps
+    engine, engine_note = chain_engine(plant, law, engine, continuous=continuous)
     t = Ts * np.arange(n_steps + 1)
     grid = 0.5 * h * np.arange(2 * n_steps + 1) if continuous else t
     R, RD, RDD = checked_sample(reference, grid)
-    conditioning = check_chain_reference(plant, grid, R)
+    conditioning = ((check_reference_compiled(plant, grid, R) if engine == "compiled" else None)
+                    or check_chain_reference(plant, grid, R))
     qa0 = R[0] if q0 is None else plant.check_state("q0", q0)
     qda0 = RD[0] if qd0 is None else plant.check_state("qd0", qd0)
     q = plant.close(qa0, seed=plant.home)
@@ -181,6 +184,9 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
     Q, QD, TAU = (np.empty((n_steps + 1, n)) for _ in range(3))
     Q[0], QD[0] = q[act], qd[act]
     x = np.asarray(law.initial_state(), dtype=float)
+    if engine == "compiled":
+        return _compiled(plant, law, t, R, RD, RDD, q, qd, x, h, substeps, rate, conditioning,
+                         engine_note)
     acc, h2, h6 = plant.constrained_acceleration, 0.5 * h, h / 6.0
     drift = drift_v = 0.0
     pas = list(plant.passive)
@@ -257,8 +263,8 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
                 q, qd = project(k, q, qd)
             Q[k + 1], QD[k + 1] = q[act], qd[act]
         TAU[n_steps] = TAU[n_steps - 1]
-    info = {"engine": "python", "engine_note": "the compiled engine does not implement closed "
-            "chains", "method": "RK4 on constraintDynamics, projection onto the loop closure "
+    info = {"engine": "python", "engine_note": engine_note,
+            "method": "RK4 on constraintDynamics, projection onto the loop closure "
             "after each step, " + ("continuous-time law" if continuous
                                    else "zero-order-hold sampled law"), "rate_hz": rate,
             "substeps": substeps, "dt": h, "drift_m": drift, "drift_velocity_m_s": drift_v,
@@ -267,3 +273,20 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
             "final_q": q.tolist(), "final_qd": qd.tolist()}
     return Trajectory(t=t, q=Q, qd=QD, r=R, tau=TAU, controller=law.name, plant=plant.name,
                       info=info, joint_names=plant.joint_names, joint_units=["rad"] * n)
+
+
+def _compiled(plant, law, t, R, RD, RDD, q, qd, x, h, substeps, rate, conditioning, note):
+    """Run the validated run on the compiled engine; the Python engine's info keys."""
+    out = run_chain_compiled(plant, law, t, R, RD, RDD, q, qd, x, h, substeps, DRIFT_BOUND,
+                             ConstraintDrift)
+    info = {"engine": "compiled", "engine_note": note, "method": "RK4 on the exact KKT "
+            "constrained dynamics (what constraintDynamics converges to), projection onto the "
+            "loop closure after each step, zero-order-hold sampled law", "rate_hz": rate,
+            "substeps": substeps, "dt": h, "drift_m": out["drift_m"],
+            "drift_velocity_m_s": out["drift_velocity_m_s"], "drift_bound_m": DRIFT_BOUND,
+            "reference_max_cond_Jp": conditioning["max_cond_Jp"],
+            "reference_max_cond_at_s": conditioning["at_s"],
+            "final_q": out["final_q"], "final_qd": out["final_qd"]}
+    return Trajectory(t=t, q=out["Q"], qd=out["QD"], r=R, tau=out["TAU"], controller=law.name,
+                      plant=plant.name, info=info, joint_names=plant.joint_names,
+                      joint_units=["rad"] * plant.nq)
