@@ -332,7 +332,9 @@ class Resolved:
 
     # --- the effects' steps, shared by the Python engines (serial arm and closed chain) ------
     def measure(self, k: int, q, qd) -> tuple[np.ndarray, np.ndarray]:
-        """What the law reads at control step ``k``: ``(Q(q + n_q), qd + n_qd)`` [rad, rad/s].
+        """Return what the law reads at control step ``k``: ``(Q(q + n_q), qd + n_qd)``.
+
+        [rad, rad/s].
 
         ``q, qd`` shape (n,): the measured (actuated) joints.
         """
@@ -352,7 +354,7 @@ class Resolved:
         return np.minimum(np.maximum(tau, -self.limit), self.limit)
 
     def applied(self, U, k: int, s: int, substeps: int) -> np.ndarray:
-        """Command [N m] reaching the actuator on sub-step ``s`` of control period ``k``.
+        """Return the command [N m] reaching the actuator on sub-step ``s`` of period ``k``.
 
         ``U`` shape (>= k + 1, n): the (saturated) commands so far. The delay line is
         ``delay_steps`` sub-steps long and holds ``U[0]`` before ``t = 0``.
@@ -361,7 +363,10 @@ class Resolved:
         return U[j // substeps] if j >= 0 else U[0]
 
     def start(self, q, qd, u0) -> tuple:
-        """Actuator and motor states ``(a, th, thd)`` at ``t = 0``, at rest on ``u0`` (None: off)."""
+        """Return the actuator and motor states ``(a, th, thd)`` at ``t = 0``, at rest on ``u0``.
+
+        Each is None when its effect is off.
+        """
         a = u0.copy() if self.wa else None
         th = thd = None
         if self.Kf is not None:
@@ -369,7 +374,7 @@ class Resolved:
         return a, th, thd
 
     def drive(self, q, qd, a, th, thd, u) -> tuple:
-        """Joint torque [N m] and the effects' state derivatives, with command ``u`` [N m].
+        """Return the joint torque [N m] and the effects' state derivatives, command ``u``.
 
         Returns ``(tau_joint, a', th'')``: the torque the drive train puts on the joints at
         ``(q, qd)`` (actuator output or spring-damper torque, minus friction), and the
@@ -388,7 +393,7 @@ class Resolved:
         return tj, ad, thdd
 
     def rk4(self, accel, q, qd, a, th, thd, u, h: float, act=None) -> tuple:
-        """One classical RK4 step ``h`` [s] of the plant with the effects' states, command ``u``.
+        """Take one classical RK4 step ``h`` [s] of the plant and the effects' states.
 
         Parameters
         ----------
