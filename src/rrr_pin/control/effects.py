@@ -334,9 +334,7 @@ class Resolved:
     def measure(self, k: int, q, qd) -> tuple[np.ndarray, np.ndarray]:
         """Return what the law reads at control step ``k``: ``(Q(q + n_q), qd + n_qd)``.
 
-        [rad, rad/s].
-
-        ``q, qd`` shape (n,): the measured (actuated) joints.
+        ``q, qd`` shape (n,) [rad, rad/s]: the measured (actuated) joints.
         """
         qm, qdm = q, qd
         if self.noise_q is not None:
