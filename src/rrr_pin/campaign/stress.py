@@ -533,8 +533,8 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
 
     Parameters
     ----------
-    plant : Robot
-        The simulated arm.
+    plant : Robot or ClosedChain
+        The simulated arm or mechanism.
     law : ControlLaw or SampledLaw
         Any law (sampled at ``settings.run.rate``).
     reference : Reference
