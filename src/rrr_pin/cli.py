@@ -1024,8 +1024,9 @@ def _add_stress(sub) -> None:
                     "design's digital loop, and what the robust-stability barrier of eq. "
                     "(12)-(13) guarantees. Writes stress_<effect>.png (and .json) into --out.")
     _add_robot_arguments(p)
-    p.add_argument("--controllers", default="fl,hinf,pd", metavar="NAMES",
-                   help="comma-separated built-in controllers (fl,hinf,pd)")
+    p.add_argument("--controllers", default=None, metavar="NAMES",
+                   help="comma-separated built-in controllers (fl,hinf,pd; on --robot "
+                        "fivebar|delta: fl,hinf, the reduced-model laws)")
     p.add_argument("--effect", required=True, metavar="NAME",
                    help="; ".join(f"{k}: {v.what} [{v.unit}]" for k, v in EFFECTS.items()))
     p.add_argument("--with", dest="fixed", action="append", default=[], metavar="EFFECT=SIZE",
@@ -1084,6 +1085,7 @@ def _cmd_stress(args) -> int:
     from .control.catalog import EFFECTS
     from .control.specs import ReferenceSpec
     from .model.dynamics import load_robot
+    from .model.mechanisms import MECHANISMS
     from .report.jsondata import dumps
     from .report.stress import stress_lines, write_stress
 
@@ -1102,13 +1104,19 @@ def _cmd_stress(args) -> int:
                                                   force=args.force),
                                   budget=args.budget)
     stem = args.effect + "".join(f"_with_{k}{v:g}" for k, v in fixed.items())
+    if args.robot.lower().endswith(".xml"):
+        raise ValueError(f"--robot {args.robot}: an MJCF closed chain; stress on a closed chain "
+                         f"runs the built-in fivebar and delta only (their laws and reference)")
+    if args.robot in MECHANISMS:
+        robot, laws, reference = _stress_chain(args)
     _claim_out(args, "stress", part=stem)  # one folder holds every effect's run
-    _not_a_folder(robot=args.robot)
-    robot = load_robot(args.robot, lock=_parse_lock(args.lock))
-    home = _floats(args.home, "--home")
-    reference = ReferenceSpec(home=None if home is None else tuple(home)).build(
-        robot, args.duration, label=_option)
-    laws = make_laws(args.controllers, robot)
+    if args.robot not in MECHANISMS:
+        _not_a_folder(robot=args.robot)
+        robot = load_robot(args.robot, lock=_parse_lock(args.lock))
+        home = _floats(args.home, "--home")
+        reference = ReferenceSpec(home=None if home is None else tuple(home)).build(
+            robot, args.duration, label=_option)
+        laws = make_laws(args.controllers or "fl,hinf,pd", robot)
     start = time.perf_counter()
     bar = tqdm(total=len(laws), unit="law", desc=f"{robot.name}: stress {args.effect}",
                disable=args.no_progress)
@@ -1124,6 +1132,33 @@ def _cmd_stress(args) -> int:
         return 0
     print("\n".join(stress_lines(result) + [f"wrote {fig}"]))
     return 0
+
+
+def _stress_chain(args) -> tuple:
+    """``stress --robot fivebar|delta``: the nominal mechanism, its laws, the study's reference.
+
+    The laws are the chain study's (:func:`rrr_pin.campaign.closed_chain_campaign.chain_laws`,
+    default FL alone at ``lam = 100`` rad/s and H-infinity + FL at ``lam = 45`` rad/s with the
+    reduced loop-shaping controller), each on its own nominal model; the reference is
+    ``chain_reference`` with period ``--duration``. What does not apply to a closed chain is
+    refused by name.
+    """
+    from .campaign.closed_chain_campaign import chain_laws
+    from .campaign.closed_chain_study import chain_reference
+    from .model.closed_chain import load_closed_chain
+
+    given = [flag for flag, on in (("--lock", args.lock), ("--home", args.home is not None),
+                                   ("--engine compiled", args.engine == "compiled")) if on]
+    if given:
+        raise ValueError(f"--robot {args.robot} (a closed chain) does not implement "
+                         f"{', '.join(given)}: stress runs the chain study's reference from "
+                         f"the mechanism's home on the Python engine (the compiled chain "
+                         f"engine has no plant effects)")
+    chain = load_closed_chain(args.robot)
+    with _as_options():
+        laws = chain_laws("fl,hinf" if args.controllers is None else args.controllers, chain)
+        reference = chain_reference(chain, args.duration)
+    return chain, laws, reference
 
 
 # --- identify (base inertial parameters from measured torques) --------------------------------

@@ -34,6 +34,14 @@ torque input saying on which side of it the law breaks (below for a loop that is
 conditionally stable, above for one that is, like the paper's H-infinity + FL, which winds up);
 the guaranteed one is a sufficient condition, the peak torque of the unsaturated run.
 
+**Parallel mechanisms** (a :class:`~rrr_pin.model.closed_chain.ClosedChain` plant, the 5-bar
+or the Delta): the effects act on the actuated joints (:mod:`rrr_pin.sim.closed_chain`) and the
+laws are the reduced-model ones (:mod:`rrr_pin.control.closed_chain`), whose loop in actuated
+coordinates is the serial one (:class:`~rrr_pin.control.laws.FLLinearModel`), so the same
+predictions apply. A run that leaves the mechanism's workspace, crosses a type-II singularity
+or drifts off its loop closure (the loop has gone unstable) counts as diverged; each run
+starts the law's loop-closure solver from the mechanism's home branch.
+
 **Combined effects** (``fixed``, CLI ``--with NAME=SIZE``): one effect is searched with others
 held at a size; the simulation, the digital prediction (delay and actuator together, exactly
 discretized), the continuous delay margin (with a fixed actuator) and the barrier's guarantee
@@ -57,9 +65,11 @@ import scipy.linalg
 
 from ..control.catalog import DEFAULT_BUDGET, EFFECTS
 from ..control.effects import PlantEffects
+from ..model.closed_chain import LoopClosureError, SingularConfiguration
 from ..robust.barriers import model_error_bound, robust_stability_barrier
 from ..robust.lti import static_gain
 from ..robust.robustness import check_robust_stability
+from ..sim.closed_chain import ConstraintDrift
 from ..sim.simulation import simulate
 from ..sim.trajectory import SimulationDiverged
 from ..validation import FieldError, check_count, check_positive
@@ -484,15 +494,34 @@ def _start(plant, reference, settings: StressSettings):
     return q0
 
 
+#: How a closed chain's run ends when its loop has gone unstable (besides SimulationDiverged).
+_CHAIN_FAILURES = (ConstraintDrift, SingularConfiguration, LoopClosureError)
+
+
+def _fresh(plant, law, reference) -> None:
+    """Start a closed-chain law's loop-closure solver on its home branch at ``r(0)``.
+
+    The reduced-model laws (:mod:`rrr_pin.control.closed_chain`) seed their Newton solve from
+    the previous sample: after a diverged run that seed is anywhere. No-op for a serial arm.
+    """
+    nominal = getattr(law, "nominal", None)
+    if hasattr(plant, "constraints") and hasattr(nominal, "constraints"):
+        r0 = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
+        nominal.close(r0, seed=nominal.home)
+
+
 def _rms(plant, law, reference, effect, size, settings: StressSettings, duration, fixed=None):
     """RMS tracking error [rad] of one run (from :func:`_start`), ``inf`` if it diverged."""
     kwargs = settings.run.simulate_kwargs()
     kwargs.pop("effects", None)  # the effect under test replaces any in the settings
     kwargs["q0"] = _start(plant, reference, settings)
+    failures = (SimulationDiverged, *_CHAIN_FAILURES) if hasattr(plant, "constraints") else (
+        SimulationDiverged,)
+    _fresh(plant, law, reference)
     try:
         traj = simulate(plant, law, reference, duration,
                         effects=effects_of(effect, size, fixed=fixed), **kwargs)
-    except SimulationDiverged:
+    except failures:
         return math.inf
     e = traj.error
     return float(np.sqrt(np.mean(e * e)))
@@ -504,8 +533,8 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
 
     Parameters
     ----------
-    plant : Robot
-        The simulated arm.
+    plant : Robot or ClosedChain
+        The simulated arm or mechanism.
     law : ControlLaw or SampledLaw
         Any law (sampled at ``settings.run.rate``).
     reference : Reference
@@ -676,6 +705,7 @@ def torque_prediction(plant, law, reference, settings: StressSettings | None = N
     fields = {}
     for name, size in check_fixed(fixed, "torque").items():
         fields.update(EFFECTS[name].fields(size, 0))
+    _fresh(plant, law, reference)
     traj = simulate(plant, law, reference, duration,
                     effects=PlantEffects(**fields) if fields else None, **kwargs)
     r, rd, rdd = reference.sample(traj.t)
@@ -701,8 +731,9 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
 
     Parameters
     ----------
-    plant : Robot
-        The nominal arm (the laws' model is the plant: the effect is the only mismatch).
+    plant : Robot or ClosedChain
+        The nominal arm or mechanism (the laws' model is the plant: the effect is the only
+        mismatch).
     laws : sequence of laws
     reference : Reference
     effect : str

@@ -330,6 +330,118 @@ class Resolved:
         """``(B, K, D)`` of flexible joints, or None for rigid ones."""
         return (self.Bm, self.Kf, self.Df) if self.Kf is not None else None
 
+    # --- the effects' steps, shared by the Python engines (serial arm and closed chain) ------
+    def measure(self, k: int, q, qd) -> tuple[np.ndarray, np.ndarray]:
+        """Return what the law reads at control step ``k``: ``(Q(q + n_q), qd + n_qd)``.
+
+        ``q, qd`` shape (n,) [rad, rad/s]: the measured (actuated) joints.
+        """
+        qm, qdm = q, qd
+        if self.noise_q is not None:
+            qm = qm + self.noise_q[k]
+        if self.quantum:
+            qm = self.quantum * np.rint(qm / self.quantum)
+        if self.noise_qd is not None:
+            qdm = qdm + self.noise_qd[k]
+        return qm, qdm
+
+    def saturate(self, tau) -> np.ndarray:
+        """``clip(tau, -tau_max, tau_max)`` [N m], shape (n,); ``tau`` itself without a limit."""
+        if self.limit is None:
+            return tau
+        return np.minimum(np.maximum(tau, -self.limit), self.limit)
+
+    def applied(self, U, k: int, s: int, substeps: int) -> np.ndarray:
+        """Return the command [N m] reaching the actuator on sub-step ``s`` of period ``k``.
+
+        ``U`` shape (>= k + 1, n): the (saturated) commands so far. The delay line is
+        ``delay_steps`` sub-steps long and holds ``U[0]`` before ``t = 0``.
+        """
+        j = k * substeps + s - self.delay_steps
+        return U[j // substeps] if j >= 0 else U[0]
+
+    def start(self, q, qd, u0) -> tuple:
+        """Return the actuator and motor states ``(a, th, thd)`` at ``t = 0``, at rest on ``u0``.
+
+        Each is None when its effect is off.
+        """
+        a = u0.copy() if self.wa else None
+        th = thd = None
+        if self.Kf is not None:
+            th, thd = q + u0 / self.Kf, qd.copy()
+        return a, th, thd
+
+    def drive(self, q, qd, a, th, thd, u) -> tuple:
+        """Return the joint torque [N m] and the effects' state derivatives, command ``u``.
+
+        Returns ``(tau_joint, a', th'')``: the torque the drive train puts on the joints at
+        ``(q, qd)`` (actuator output or spring-damper torque, minus friction), and the
+        derivatives of the actuator state and of the motor velocity (None when off).
+        """
+        tm = a if self.wa else u
+        thdd = None
+        if self.Kf is not None:
+            tj = self.Kf * (th - q) + self.Df * (thd - qd)
+            thdd = (tm - tj) / self.Bm
+        else:
+            tj = tm
+        if self.Fv is not None:
+            tj = tj - (self.Fv * qd + self.Fc * np.tanh(qd / self.veps))
+        ad = self.wa * (u - a) if self.wa else None
+        return tj, ad, thdd
+
+    def rk4(self, accel, q, qd, a, th, thd, u, h: float, act=None) -> tuple:
+        """Take one classical RK4 step ``h`` [s] of the plant and the effects' states.
+
+        Parameters
+        ----------
+        accel : callable
+            ``accel(q, qd, tau_joint) -> qdd``: the plant's forward dynamics (Pinocchio's ABA
+            for an arm, ``constraintDynamics`` for a closed chain, with ``tau_joint`` on the
+            actuated joints).
+        q, qd : ndarray
+            Plant state [rad, rad/s] (every coordinate of a closed chain).
+        a, th, thd : ndarray, shape (n,), or None
+            Actuator output, motor angle and velocity (:meth:`start`).
+        u : ndarray, shape (n,)
+            Command held over the step (:meth:`applied`).
+        act : sequence of int, optional
+            Indices of the actuated (driven, measured) coordinates in ``q``; None: all.
+
+        Returns
+        -------
+        tuple
+            ``(q, qd, a, th, thd)`` at the end of the step.
+        """
+        wa, h2, h6 = self.wa, 0.5 * h, h / 6.0
+
+        def f(q, qd, a, th, thd):
+            tj, ad, thdd = (self.drive(q, qd, a, th, thd, u) if act is None
+                            else self.drive(q[act], qd[act], a, th, thd, u))
+            return accel(q, qd, tj), ad, thdd
+
+        a1, b1, c1 = f(q, qd, a, th, thd)
+        v2 = qd + h2 * a1
+        a2s = a + h2 * b1 if wa else None
+        th2, w2 = (th + h2 * thd, thd + h2 * c1) if th is not None else (None, None)
+        a2, b2, c2 = f(q + h2 * qd, v2, a2s, th2, w2)
+        v3 = qd + h2 * a2
+        a3s = a + h2 * b2 if wa else None
+        th3, w3 = (th + h2 * w2, thd + h2 * c2) if th is not None else (None, None)
+        a3, b3, c3 = f(q + h2 * v2, v3, a3s, th3, w3)
+        v4 = qd + h * a3
+        a4s = a + h * b3 if wa else None
+        th4, w4 = (th + h * w3, thd + h * c3) if th is not None else (None, None)
+        a4, b4, c4 = f(q + h * v3, v4, a4s, th4, w4)
+        q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
+        qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
+        if wa:
+            a = a + h6 * (b1 + 2.0 * (b2 + b3) + b4)
+        if th is not None:
+            th = th + h6 * (thd + 2.0 * (w2 + w3) + w4)
+            thd = thd + h6 * (c1 + 2.0 * (c2 + c3) + c4)
+        return q, qd, a, th, thd
+
 
 def check_effects(effects) -> PlantEffects | None:
     """Return ``effects`` if it is None or a :class:`PlantEffects`; ``TypeError`` otherwise."""

@@ -25,6 +25,22 @@ each sample must close the loop, away from a type-II singularity (``cond(J_p)`` 
 :data:`~rrr_pin.model.closed_chain.COND_LIMIT`, and no sign change of ``det J_p`` between
 samples, which a sampled crossing would otherwise hide); a refusal names the time and the
 condition number.
+
+Plant effects (``effects``, :class:`~rrr_pin.control.effects.PlantEffects`) act on the actuated
+joints exactly as :func:`rrr_pin.sim.simulation.simulate` applies them to a serial arm's joints,
+by the same code (the :class:`~rrr_pin.control.effects.Resolved` steps: sensor, saturation,
+delay line on the sub-step grid, actuator lag, flexible transmission, friction): the law reads
+the measured actuated ``(q_a, qd_a)``, the drive train's joint torque enters
+``constraintDynamics`` on the actuated coordinates, and the actuator and motor states are
+integrated by the same RK4 steps as the full state (then projected; they are not). Friction and
+flexibility are those of the drives (the actuated joints); the passive joints stay ideal. A delay
+must be a whole number of plant sub-steps (refused otherwise, never rounded); effects need a
+sampled law; ``torque_limit="urdf"`` is refused (a closed chain's MJCF gives no effort limits).
+With effects, a run whose actuated ``q`` or ``qd`` becomes non-finite or ``|qd|`` exceeds
+:data:`~rrr_pin.sim.trajectory.VELOCITY_LIMIT` stops with
+:class:`~rrr_pin.sim.trajectory.SimulationDiverged`, as a serial arm's, and a non-finite
+command is refused at the step that returned it. The settings are recorded in
+``info["effects"]``.
 """
 
 from __future__ import annotations
@@ -33,12 +49,13 @@ import math
 
 import numpy as np
 
+from ..control.effects import check_effects
 from ..control.laws import ControlLaw, SampledLaw, check_law, check_step_output
 from ..control.references import check_reference, checked_sample
 from ..model.closed_chain import COND_LIMIT, LoopClosureError, SingularConfiguration
 from ..validation import check_multiple, check_positive, check_rate
 from .chain_compiled import chain_engine, check_reference_compiled, run_chain_compiled
-from .trajectory import Trajectory
+from .trajectory import Trajectory, diverged_joint, divergence, law_divergence
 
 __all__ = ["simulate_closed_chain", "check_chain_reference", "ConstraintDrift", "DRIFT_BOUND",
            "DEFAULT_DT"]
@@ -104,9 +121,35 @@ def check_chain_reference(chain, t, R) -> dict:
     return {"max_cond_Jp": worst, "at_s": at}
 
 
+def _resolve_effects(plant, law, effects, continuous: bool, substeps: int, h: float,
+                     n_steps: int):
+    """Return the run's :class:`~rrr_pin.control.effects.Resolved` effects, None, or refuse.
+
+    Raises
+    ------
+    ValueError
+        Effects with a continuous-time law, or ``torque_limit="urdf"`` (no effort limits in a
+        closed chain's description); :meth:`PlantEffects.resolve`'s refusals (a delay that is
+        not a whole number of sub-steps ``h``, per-joint sizes of the wrong length, an RK4
+        sub-step too large for the actuator or the transmission).
+    """
+    effects = check_effects(effects)
+    if effects is None or not effects.active:
+        return None
+    if continuous:
+        raise ValueError(
+            f"effects apply to sampled (digital) controllers only: law {law.name!r} is "
+            f"continuous-time; give rate= (e.g. rate=1000) to run it sampled with the effects")
+    if isinstance(effects.torque_limit, str):
+        raise ValueError(f"torque_limit = {effects.torque_limit!r}: the closed chain "
+                         f"{plant.name!r} has no URDF effort limits; give the limit [N m] per "
+                         f"actuated joint ({', '.join(plant.joint_names)})")
+    return effects.resolve(plant, substeps, h, n_steps)
+
+
 def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float | None = None,
                           dt: float | None = None, method: str = "tustin", q0=None, qd0=None,
-                          engine: str = "auto") -> Trajectory:
+                          engine: str = "auto", effects=None) -> Trajectory:
     """Simulate a sampled law on a parallel mechanism's full constrained dynamics.
 
     Parameters
@@ -133,7 +176,10 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
         Initial actuated state [rad, rad/s]; default ``r(0)``, ``rd(0)``.
     engine : {"auto", "python", "compiled"}, default "auto"
         ``"compiled"``: :mod:`rrr_pin.sim.chain_compiled` (a sampled law with a compiled form,
-        ideal plant; refused by name otherwise); ``"auto"``: compiled when it can, else Python.
+        ideal plant; refused by name otherwise, active plant effects included); ``"auto"``:
+        compiled when it can, else Python (``info["engine_note"]`` says why).
+    effects : PlantEffects, optional
+        Unmodeled dynamics of the drives, sampled runs only (module docstring). None: ideal.
 
     Returns
     -------
@@ -169,7 +215,8 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
             dt = check_positive("dt", dt, unit="s")
             substeps = check_multiple("dt", Ts, dt, low=1, unit="s")
         h = Ts / substeps
-    engine, engine_note = chain_engine(plant, law, engine, continuous=continuous)
+    fx = _resolve_effects(plant, law, effects, continuous, substeps, h, n_steps)
+    engine, engine_note = chain_engine(plant, law, engine, continuous=continuous, effects=fx)
     t = Ts * np.arange(n_steps + 1)
     grid = 0.5 * h * np.arange(2 * n_steps + 1) if continuous else t
     R, RD, RDD = checked_sample(reference, grid)
@@ -244,6 +291,36 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
             Q[k + 1], QD[k + 1] = q[act], qd[act]
         TAU[n_steps] = rhs(2 * n_steps, t[-1], q, qd, x)[2]
         R = R[::2]
+    elif fx is not None:
+        U = np.empty((n_steps, n))
+        low, up = plant.lower, plant.upper
+
+        def accel(q, qd, tj):
+            return acc(q, qd, plant.actuation(tj))
+
+        for k in range(n_steps):
+            qm, qdm = fx.measure(k, q[act], qd[act])
+            out = law.step(t[k], qm, qdm, R[k], RD[k], RDD[k], x)
+            if k:
+                tau, x = out
+                # Checked at every step: a saturation would clip an inf, a delay hold a NaN.
+                if not np.isfinite(tau).all():
+                    j = int(np.flatnonzero(~np.isfinite(tau))[0])
+                    raise law_divergence(plant, law.name, float(t[k]), j)
+            else:
+                tau, x = check_step_output(law, out, t[k])
+            TAU[k] = U[k] = fx.saturate(tau)
+            if not k:
+                a, th, thd = fx.start(q[act], qd[act], U[0])
+            for s in range(substeps):
+                q, qd, a, th, thd = fx.rk4(accel, q, qd, a, th, thd,
+                                           fx.applied(U, k, s, substeps), h, act)
+                q, qd = project(k, q, qd)
+            Q[k + 1], QD[k + 1] = q[act], qd[act]
+            bad = diverged_joint(Q[k + 1], QD[k + 1], low, up)
+            if bad is not None:
+                raise divergence(plant, float(t[k + 1]), Q[k + 1], QD[k + 1], *bad)
+        TAU[n_steps] = TAU[n_steps - 1]
     else:
         for k in range(n_steps):
             out = law.step(t[k], q[act], qd[act], R[k], RD[k], RDD[k], x)
@@ -271,6 +348,8 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
             "drift_bound_m": DRIFT_BOUND, "reference_max_cond_Jp": conditioning["max_cond_Jp"],
             "reference_max_cond_at_s": conditioning["at_s"],
             "final_q": q.tolist(), "final_qd": qd.tolist()}
+    if fx is not None:
+        info["effects"] = fx.info
     return Trajectory(t=t, q=Q, qd=QD, r=R, tau=TAU, controller=law.name, plant=plant.name,
                       info=info, joint_names=plant.joint_names, joint_units=["rad"] * n)
 

@@ -272,7 +272,7 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
     plant : Robot
         The true arm (may differ from the law's model). A
         :class:`~rrr_pin.model.closed_chain.ClosedChain` is run by
-        :func:`rrr_pin.sim.closed_chain.simulate_closed_chain` (no effects).
+        :func:`rrr_pin.sim.closed_chain.simulate_closed_chain` (effects on its actuated joints).
     law : ControlLaw or SampledLaw
         Any law (:mod:`rrr_pin.control.laws`): a built-in or your own.
     reference : Reference
@@ -340,11 +340,12 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
     if hasattr(plant, "constraints"):  # a parallel mechanism (rrr_pin.model.closed_chain)
         from .closed_chain import simulate_closed_chain
 
-        if effects is not None or limit_margin:
-            raise ValueError(f"plant {plant.name!r} is a closed chain: effects and "
-                             f"limit_margin are not implemented for it")
+        if limit_margin:
+            raise ValueError(f"plant {plant.name!r} is a closed chain: limit_margin is not "
+                             f"implemented for it (its actuated joints have no limits)")
         return simulate_closed_chain(plant, law, reference, duration, rate=rate, dt=dt,
-                                     method=method, q0=q0, qd0=qd0, engine=engine)
+                                     method=method, q0=q0, qd0=qd0, engine=engine,
+                                     effects=effects)
     run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
                    qd0=qd0, limit_margin=limit_margin, effects=effects, check=check,
                    force=force)
@@ -764,13 +765,16 @@ def _python_continuous(run: Run) -> Trajectory:
 
 
 def _python_effects(run: Run) -> Trajectory:
-    """Run a sampled law with plant effects, in the order of :mod:`rrr_pin.control.effects`."""
+    """Run a sampled law with plant effects, in the order of :mod:`rrr_pin.control.effects`.
+
+    The effects' steps are the :class:`~rrr_pin.control.effects.Resolved` methods, which the
+    closed-chain engine (:mod:`rrr_pin.sim.closed_chain`) runs too.
+    """
     plant, law, fx = run.plant, run.law, run.effects
     model, data = plant.model, plant.data
     aba, step, check = pin.aba, law.step, diverged_joint
     lower, upper = run.lower, run.upper
-    h, S, d = run.h, run.substeps, fx.delay_steps
-    h2, h6 = 0.5 * h, h / 6.0
+    h, S = run.h, run.substeps
     t = run.t
     R, RD, RDD = run.R, run.RD, run.RDD
     N = len(t) - 1
@@ -779,38 +783,15 @@ def _python_effects(run: Run) -> Trajectory:
     QD = np.empty_like(Q)
     TAU = np.empty_like(Q)
     U = np.empty((N, n))
-    wa, limit, quantum = fx.wa, fx.limit, fx.quantum
-    nq_, nqd_ = fx.noise_q, fx.noise_qd
-    if fx.friction is not None:
-        Fv, Fc, veps = fx.friction
-    if fx.flex is not None:
-        Bm, Kf, Df = fx.flex
 
-    def f(q, qd, a, th, thd, u):
-        """Link acceleration, actuator-state and motor accelerations."""
-        tm = a if wa else u
-        thdd = None
-        if fx.flex is not None:
-            tj = Kf * (th - q) + Df * (thd - qd)
-            thdd = (tm - tj) / Bm
-        else:
-            tj = tm
-        if fx.friction is not None:
-            tj = tj - (Fv * qd + Fc * np.tanh(qd / veps))
-        ad = wa * (u - a) if wa else None
-        return aba(model, data, q, qd, tj), ad, thdd
+    def accel(q, qd, tj):
+        return aba(model, data, q, qd, tj)
 
     q, qd, x = run.q0, run.qd0, run.x0
     a = th = thd = None
     Q[0], QD[0] = q, qd
     for k in range(N):
-        qm, qdm = q, qd
-        if nq_ is not None:
-            qm = qm + nq_[k]
-        if quantum:
-            qm = quantum * np.rint(qm / quantum)
-        if nqd_ is not None:
-            qdm = qdm + nqd_[k]
+        qm, qdm = fx.measure(k, q, qd)
         if k:
             tau, x = step(t[k], qm, qdm, R[k], RD[k], RDD[k], x)
             # Checked at every step: a saturation would clip an inf, a delay hold a NaN back.
@@ -818,38 +799,13 @@ def _python_effects(run: Run) -> Trajectory:
                 raise _law_failure(run, (tau,), k)
         else:  # the edge where the law meets the engine: check its first output
             tau, x = check_step_output(law, step(t[0], qm, qdm, R[0], RD[0], RDD[0], x), t[0])
-        if limit is not None:
-            tau = np.minimum(np.maximum(tau, -limit), limit)
+        tau = fx.saturate(tau)
         U[k] = tau
         TAU[k] = tau
         if k == 0:
-            if wa:
-                a = U[0].copy()
-            if fx.flex is not None:
-                th, thd = q + U[0] / Kf, qd.copy()
+            a, th, thd = fx.start(q, qd, U[0])
         for s in range(S):
-            j = k * S + s - d
-            u = U[j // S] if j >= 0 else U[0]
-            a1, b1, c1 = f(q, qd, a, th, thd, u)
-            v2 = qd + h2 * a1
-            a2s = a + h2 * b1 if wa else None
-            th2, w2 = (th + h2 * thd, thd + h2 * c1) if th is not None else (None, None)
-            a2, b2, c2 = f(q + h2 * qd, v2, a2s, th2, w2, u)
-            v3 = qd + h2 * a2
-            a3s = a + h2 * b2 if wa else None
-            th3, w3 = (th + h2 * w2, thd + h2 * c2) if th is not None else (None, None)
-            a3, b3, c3 = f(q + h2 * v2, v3, a3s, th3, w3, u)
-            v4 = qd + h * a3
-            a4s = a + h * b3 if wa else None
-            th4, w4 = (th + h * w3, thd + h * c3) if th is not None else (None, None)
-            a4, b4, c4 = f(q + h * v3, v4, a4s, th4, w4, u)
-            q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
-            qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
-            if wa:
-                a = a + h6 * (b1 + 2.0 * (b2 + b3) + b4)
-            if th is not None:
-                th = th + h6 * (thd + 2.0 * (w2 + w3) + w4)
-                thd = thd + h6 * (c1 + 2.0 * (c2 + c3) + c4)
+            q, qd, a, th, thd = fx.rk4(accel, q, qd, a, th, thd, fx.applied(U, k, s, S), h)
         Q[k + 1], QD[k + 1] = q, qd
         bad = check(q, qd, lower, upper)
         if bad is not None:
