@@ -120,3 +120,15 @@ def test_chain_parametric_lft_closes_to_the_perturbed_chain(fivebar):
     # both sides difference dG_r/dq_a (steps 1e-5 and 1e-4): 1e-5 relative
     assert_allclose(got, expect, rtol=1e-5)
     assert len(loop.names) + len(loop.dropped) == 4 * (model.njoints - 1)
+
+
+@pytest.mark.slow
+def test_chain_parametric_margin_brackets_the_sampled_vertices(fivebar):
+    from rrr_pin.control.analysis import parametric_margin, sampled_margin
+
+    law = closed_chain_fl(fivebar, LAM)
+    q0 = _q0(fivebar)
+    loop, r = parametric_margin(law, q0, omega=np.concatenate([[0], np.logspace(0, 4, 10)]))
+    # scaled perturbed chains (crba through S, no LFT), bisected to 1e-4
+    alpha, _ = sampled_margin(law, loop, samples=16)
+    assert r.margin_lower <= alpha * (1 + 1e-4)
