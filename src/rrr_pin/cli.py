@@ -291,6 +291,9 @@ def _cmd_check_dynamics(args) -> int:
     check_count("--samples", args.samples, 1, high=MAX_CHECK_SAMPLES)
     check_count("--seed", args.seed)
     _not_a_folder(urdf=args.urdf, params=args.params)
+    _refuse_closed_chain(args.urdf, "check-dynamics",
+                         "it compares a serial arm with the RRR's closed form eq. (2)-(7)",
+                         option="--urdf")
     params = ArmParams.load(args.params) if args.params else paper_params()
     robot = load_robot(args.urdf if args.urdf else params, gravity=params.g)
     result = compare_with_pinocchio(robot, params, samples=args.samples, seed=args.seed)
@@ -374,6 +377,15 @@ def _not_a_folder(**options) -> None:
     for field, path in options.items():
         if path is not None and Path(path).is_dir():
             raise ValueError(f"{_option(field)} {path}: is a directory, expected a file")
+
+
+def _refuse_closed_chain(source, command: str, reason: str, option: str = "--robot") -> None:
+    """Refuse a parallel mechanism (``fivebar``, ``delta``, an MJCF ``.xml``) by name."""
+    from .model.closed_chain import is_closed_chain_source
+
+    if source is not None and is_closed_chain_source(source):
+        raise ValueError(f"{option} {source}: a closed chain (parallel mechanism); {command} "
+                         f"does not implement closed chains: {reason}")
 
 
 def _floats(text: str | None, name: str):
@@ -1210,6 +1222,10 @@ def _cmd_identify(args) -> int:
     from .outputs import writing
 
     _not_a_folder(robot=args.robot, data=args.data)
+    _refuse_closed_chain(args.robot, "identify",
+                         "its base-parameter regressor is that of a serial tree with a torque "
+                         "at every joint, while a mechanism is driven at its actuated joints "
+                         "only (its passive joints' torques are the loop forces)")
     if args.design_excitation:
         from .model.excitation import design_excitation
 
@@ -1306,6 +1322,10 @@ def _cmd_export(args) -> int:
     if args.law not in LAWS:
         raise ValueError(f"--law {args.law!r} is not a built-in controller ({', '.join(LAWS)})")
     _not_a_folder(robot=args.robot)
+    _refuse_closed_chain(args.robot, "export",
+                         "the exported C code holds a serial arm's dynamics (crba/rnea on a "
+                         "tree) and no loop closure, and the closed-chain laws have no sampled "
+                         "form")
     robot = load_robot(args.robot, lock=_parse_lock(args.lock))
     d, law = None, args.law
     if args.law == "hinf":

@@ -9,17 +9,22 @@ r"""Linear analysis of the loop a law closes on the arm at a frozen configuratio
   (vertices of the parameter box, scaled), the independent check.
 
 All linearizations are about the regulation equilibrium ``q = r = q0``, ``qd = 0``, with the
-law's state at zero; the plant's is Pinocchio's exact ``computeABADerivatives``.
+law's state at zero; the plant's is Pinocchio's exact ``computeABADerivatives``. On a parallel
+mechanism (:class:`rrr_pin.model.closed_chain.ClosedChain`) the plant is the mechanism in its
+actuated coordinates, ``qdd_a = M_r^-1 (tau - V_r - G_r)``: its ``q`` and ``qd`` derivatives are
+central differences of :meth:`~rrr_pin.model.closed_chain.ClosedChain.forward_dynamics` (each
+loop closed by Newton to 1e-12 m), its input matrix is ``M_r^-1`` exactly.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import control
 import numpy as np
 import pinocchio as pin
 
+from ..model.closed_chain import ClosedChain
 from ..robust.mu import robstab
 from ..validation import check_positive, check_vector
 from .laws import ControlLaw, FLLinearModel, check_law
@@ -30,6 +35,9 @@ __all__ = ["loop_at_input", "loop_channel", "LoopMargins", "loop_margins", "Para
 # Relative central-difference step of the law's linearization (the built-in laws are affine
 # in qd and x and their q dependence is smooth: the error is O(h^2)).
 _H = 1e-6
+# Relative step of a closed chain's plant linearization: each call closes the loop by Newton to
+# CLOSURE_TOL = 1e-12 m, so a smaller step would amplify that closure error (1e-12 / h).
+_H_CHAIN = 1e-5
 
 
 def _jacobian(f, x0, h=_H):
@@ -45,9 +53,10 @@ def loop_at_input(law, robot, q) -> control.StateSpace:
     r"""Return the linearized loop broken at the torque input, ``L = -K_tau P``.
 
     The plant ``P`` is ``robot`` linearized at ``(q0, 0)`` with the torque that holds it
-    (Pinocchio's ``computeABADerivatives``); the law is linearized about regulation at
-    ``r = q0`` (central differences of ``law.torque`` and ``law.derivative``). Closing
-    ``L`` in negative unit feedback gives the implemented closed loop:
+    (Pinocchio's ``computeABADerivatives``; on a closed chain, central differences of its
+    reduced forward dynamics in the actuated coordinates, input matrix ``M_r(q0)^-1``); the law
+    is linearized about regulation at ``r = q0`` (central differences of ``law.torque`` and
+    ``law.derivative``). Closing ``L`` in negative unit feedback gives the implemented closed loop:
 
     .. math:: u = \tau_{law} = -y, \quad \ddot q = \partial_q a\, q + \partial_{\dot q} a\,
               \dot q + M(q_0)^{-1} u
@@ -56,10 +65,10 @@ def loop_at_input(law, robot, q) -> control.StateSpace:
     ----------
     law : ControlLaw
         A continuous law for ``robot.nq`` joints.
-    robot : rrr_pin.model.dynamics.Robot
+    robot : rrr_pin.model.dynamics.Robot or rrr_pin.model.closed_chain.ClosedChain
         The arm the law acts on (its own nominal model for the nominal loop).
     q : array-like, shape (nq,)
-        Frozen configuration [rad].
+        Frozen configuration [rad] (actuated coordinates on a closed chain).
 
     Returns
     -------
@@ -72,7 +81,8 @@ def loop_at_input(law, robot, q) -> control.StateSpace:
     TypeError
         ``law`` is not a continuous :class:`ControlLaw`.
     ValueError
-        ``q`` not finite of shape (nq,), or the law for another number of joints.
+        ``q`` not finite of shape (nq,), or the law for another number of joints; on a closed
+        chain, a ``q`` where the loop does not close or that is type-II singular.
     """
     n = robot.nq
     check_law(law, n)
@@ -83,7 +93,10 @@ def loop_at_input(law, robot, q) -> control.StateSpace:
     z = np.zeros(n)
     nx = int(law.nx)
     tau0 = robot.G(q0)
-    dq, dv, dtau = pin.computeABADerivatives(robot.model, robot.data, q0, z, tau0)
+    if isinstance(robot, ClosedChain):
+        dq, dv, dtau = _chain_plant(robot, q0, tau0)
+    else:
+        dq, dv, dtau = pin.computeABADerivatives(robot.model, robot.data, q0, z, tau0)
     x0 = np.concatenate([q0, z, law.initial_state()])
 
     def tau(s):
@@ -100,6 +113,15 @@ def loop_at_input(law, robot, q) -> control.StateSpace:
                   [X]]) if nx else np.block([[Z, eye], [np.asarray(dq), np.asarray(dv)]])
     B = np.vstack([Z, np.asarray(dtau), np.zeros((nx, n))])
     return control.ss(A, B, -T, np.zeros((n, n)))
+
+
+def _chain_plant(chain: ClosedChain, q0: np.ndarray, tau0: np.ndarray, h: float = _H_CHAIN):
+    """``(d qdd_a/d q_a, d qdd_a/d qd_a, d qdd_a/d tau)`` of a closed chain at ``(q0, 0, tau0)``."""
+    z = np.zeros(chain.nq)
+    dq = _jacobian(lambda qa: chain.forward_dynamics(qa, z, tau0, check=False), q0, h)
+    dv = _jacobian(lambda v: chain.forward_dynamics(q0, v, tau0, check=False), z, h)
+    chain.close(q0)  # leave the Newton seed at q0
+    return dq, dv, np.linalg.inv(chain.M(q0, check=False))
 
 
 @dataclass(frozen=True)
@@ -258,6 +280,23 @@ def _M_Gq(model: pin.Model, q: np.ndarray):
     return M, np.asarray(Gq)
 
 
+def _mats(nominal, model: pin.Model, q: np.ndarray):
+    """``M(q)`` and ``dG/dq`` of ``model``; on a closed chain, ``M_r`` and ``dG_r/dq_a``.
+
+    ``nominal`` is the law's model (a Robot or a ClosedChain); ``model`` its Pinocchio tree or a
+    scaled copy. On a chain ``S`` does not depend on the inertias, so ``M_r = S^T M S`` and
+    ``G_r = S^T g`` stay affine in each factor; ``dG_r/dq_a`` is a central difference.
+    """
+    if not isinstance(nominal, ClosedChain):
+        return _M_Gq(model, q)
+    chain = nominal if model is nominal.model else replace(nominal, model=model,
+                                                             data=model.createData())
+    chain.close(q, seed=nominal.close(q))
+    Gq = _jacobian(lambda qa: chain.G(qa, check=False), q, _H_CHAIN)
+    chain.close(q)
+    return chain.M(q, check=False), Gq
+
+
 def _fl_parts(law):
     lm = law.linear_model()
     if not isinstance(lm, FLLinearModel):
@@ -296,6 +335,11 @@ def parametric_loop(law, q, tol: float = 0.2) -> ParametricLoop:
 
     (rank-revealing SVD), so ``z_i = R_i [qdd; q]``, ``w_i = delta_i z_i``.
 
+    On a closed chain (``law.nominal`` a :class:`~rrr_pin.model.closed_chain.ClosedChain`) the
+    parameters are those of every body of its tree, and ``M, G`` are the reduced ``M_r`` and
+    ``G_r`` in the actuated coordinates (``S`` does not depend on the inertias, so they stay
+    affine in each factor; ``dG_r/dq_a`` is a central difference).
+
     Parameters
     ----------
     law : TrackingController
@@ -310,20 +354,24 @@ def parametric_loop(law, q, tol: float = 0.2) -> ParametricLoop:
     ParametricLoop
     """
     lm = _fl_parts(law)
-    model = law.nominal.model
-    n = model.nv
+    nominal = law.nominal
+    model = nominal.model
+    n = nominal.nq
     q0 = check_vector("q", q, n)
     tol = check_positive("tol", tol)
-    Mhat, Ghat = _M_Gq(model, q0)
+    Mhat, Ghat = _mats(nominal, model, q0)
     Mhat_inv = np.linalg.inv(Mhat)
     Ls, Rs, names, dropped, blocks = [], [], [], [], []
     scale = max(np.abs(Mhat).max(), 1e-12)
+    # a chain's dG_r/dq_a is a central difference (error ~1e-9 relative): a rank cut above it
+    cut = 1e-10 * scale if not isinstance(nominal, ClosedChain) else \
+        1e-7 * max(scale, np.abs(Ghat).max())
     for name, j, k in _parameters(model):
-        Mp, Gp = _M_Gq(_scaled(model, {(j, k): 1 + tol}), q0)
-        Mm, Gm = _M_Gq(_scaled(model, {(j, k): 1 - tol}), q0)
+        Mp, Gp = _mats(nominal, _scaled(model, {(j, k): 1 + tol}), q0)
+        Mm, Gm = _mats(nominal, _scaled(model, {(j, k): 1 - tol}), q0)
         E = np.hstack([(Mp - Mm) / 2, (Gp - Gm) / 2])
         U, s, Vh = np.linalg.svd(E)
-        r = int(np.sum(s > 1e-10 * scale))
+        r = int(np.sum(s > cut))
         if r == 0:
             dropped.append(name)
             continue
@@ -377,7 +425,7 @@ def sampled_margin(law, loop: ParametricLoop, samples: int = 200, seed: int = 0,
     """
     lm = _fl_parts(law)
     model = law.nominal.model
-    Mhat, Ghat = _M_Gq(model, loop.q)
+    Mhat, Ghat = _mats(law.nominal, model, loop.q)
     index = {name: (j, k) for name, j, k in _parameters(model)}
     keys = [index[name] for name in loop.names]
     k = len(keys)
@@ -389,8 +437,8 @@ def sampled_margin(law, loop: ParametricLoop, samples: int = 200, seed: int = 0,
 
     def stable(d, a):
         f = {key: 1.0 + loop.tol * a * di for key, di in zip(keys, d, strict=True)}
-        M, Gq = _M_Gq(_scaled(model, f), loop.q)
         try:
+            M, Gq = _mats(law.nominal, _scaled(model, f), loop.q)
             A = _closed_loop(lm.lam, lm.K, Mhat, Ghat, M, Gq)
         except np.linalg.LinAlgError:  # M singular: the loop is not well posed
             return False
