@@ -18,11 +18,12 @@ install: $(BIN)/python
 reproduce: install
 	$(BIN)/rrr-pin reproduce --out $(OUT) --overwrite
 
+# two worker processes (pytest-xdist): the suite is CPU-bound and the machine has 2 cores
 test: install
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2
 
 test-slow: install
-	$(BIN)/python -m pytest -m slow
+	$(BIN)/python -m pytest -n 2 -m slow
 
 # API reference, README and notes, and the gallery of scripts/ (runs the two examples):
 # docs/_build/html/index.html. Warnings are errors, as in CI.

@@ -248,7 +248,7 @@ def test_other_shell_commands_name_what_exists():
             assert f"{marker}:" in markers, text
     # what the quick start says the two make targets run
     assert re.search(r"^reproduce:.*\n\t\$\(BIN\)/rrr-pin reproduce", makefile, re.M)
-    assert re.search(r"^test:.*\n\t\$\(BIN\)/python -m pytest$", makefile, re.M)
+    assert re.search(r"^test:.*\n\t\$\(BIN\)/python -m pytest -n 2$", makefile, re.M)
 
 
 # --- Python blocks ---------------------------------------------------------------------------
