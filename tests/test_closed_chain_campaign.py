@@ -37,7 +37,7 @@ from rrr_pin.model.uncertainty import (
     Tolerances,
     sample_mechanism,
 )
-from rrr_pin.sim.closed_chain import simulate_closed_chain
+from rrr_pin.sim.closed_chain import ConstraintDrift, simulate_closed_chain
 
 DURATION = 0.05
 RUN = RunSettings(duration=DURATION, rate=1000.0)
@@ -131,7 +131,7 @@ def test_a_failed_run_is_recorded_and_the_campaign_goes_on(fivebar, serial, monk
     def hinf_drifts_on_sample_1(plant, law, *args, **kwargs):
         if law.name == "hinf" and plant.params.d != chain.params.d and plant.params.d == \
                 sample_mechanism(chain.params, SETTINGS.seed, 1)[0].d:
-            raise ccc.ConstraintDrift("loop gap 1e-3 m at t = 0.01 s (bound 1e-06 m)")
+            raise ConstraintDrift("loop gap 1e-3 m at t = 0.01 s (bound 1e-06 m)")
         return real(plant, law, *args, **kwargs)
 
     monkeypatch.setattr(ccc, "simulate_closed_chain", hinf_drifts_on_sample_1)

@@ -259,12 +259,10 @@ def test_study_takes_a_user_law(fivebar):
     (["--controllers", "fl,bogus"], "'bogus': not a built-in controller with a closed-chain"),
     (["--controllers", "fl,fl"], "repeated fl"),
     (["--baseline", "fl"], "does not implement --baseline"),
-    (["--torque-limit", "auto"], "does not implement --torque-limit"),
     (["--amp", "0.3"], "does not implement --amp"),
     (["--dt", "1e-4"], "does not implement --dt"),
     (["--uncertainty", "x.json"], "does not implement --uncertainty"),
-], ids=["hinf_aw", "unknown", "repeated", "baseline", "torque-limit", "amp", "dt",
-        "uncertainty"])
+], ids=["hinf_aw", "unknown", "repeated", "baseline", "amp", "dt", "uncertainty"])
 def test_reproduce_chain_refuses_options_it_does_not_implement(argv, match, tmp_path, capsys):
     assert cli.main(["reproduce", "--robot", "fivebar", *argv, "--out",
                      str(tmp_path / "x")]) == 2

@@ -742,8 +742,12 @@ def _torque_limit_from_args(text: str, robot, reference, settings):
     return check_torque_limit(robot, values, reference, name=name), info
 
 
-def _chain_controllers(text: str) -> tuple:
-    """Return the built-in names of a closed-chain study's ``--controllers``, checked."""
+def _chain_controllers(text: str, limited: bool = False) -> tuple:
+    """Return the built-in names of a closed-chain study's ``--controllers``, checked.
+
+    ``limited`` (``--torque-limit`` given): ``hinf_aw`` is allowed, and added if absent (as the
+    serial reproduce does).
+    """
     from .control.catalog import BUILTIN_LAWS
     from .control.closed_chain import CHAIN_LAWS
 
@@ -755,18 +759,58 @@ def _chain_controllers(text: str) -> tuple:
     if dup:
         raise ValueError(f"--controllers: repeated {', '.join(dup)}")
     for name in names:
-        if name == "hinf_aw":
+        if name == "hinf_aw" and not limited:
             raise ValueError("--controllers hinf_aw: on a closed chain the law must be told "
-                             "the torque limits (an MJCF motor has none), and --torque-limit "
-                             "is not implemented on closed chains; from Python: "
-                             "ChainStudyConfig(controllers=(..., 'hinf_aw'), "
-                             "torque_limit=...)")
+                             "the torque limits (an MJCF motor has none): give "
+                             "--torque-limit P% or T1,T2,... [N m]")
         if name not in CHAIN_LAWS:
             known = ", ".join(f"{k} ({BUILTIN_LAWS[k]})" for k in CHAIN_LAWS if k in
                               BUILTIN_LAWS and k != "hinf_aw")
             raise ValueError(f"--controllers {name!r}: not a built-in controller with a "
                              f"closed-chain form; closed chains run {known}")
-    return names
+    return names + (("hinf_aw",) if limited and "hinf_aw" not in names else ())
+
+
+def _chain_torque_limit(text: str, chain, reference, rate, duration) -> tuple:
+    """``--torque-limit`` on a closed chain: ``P%`` of the reference's peak or numbers [N m].
+
+    ``auto`` (a URDF's effort limits) is refused by name: an MJCF motor carries none. The peak
+    is the reduced model's inverse dynamics along the reference over the control instants
+    (:func:`rrr_pin.control.effects.peak_torque`). Returns the limits and how they were chosen.
+    """
+    import numpy as np
+
+    from .control.effects import check_torque_limit, peak_torque
+    from .validation import FieldError
+
+    name = "--torque-limit"
+    if rate is None:
+        raise ValueError(f"{name} acts on sampled controllers (the plant clips the torque each "
+                         f"control period): give --rate HZ too, e.g. --rate 1000")
+    text = text.strip()
+    if text == "auto":
+        raise FieldError(name, f"{{name}} auto reads a URDF's effort limits, and the MJCF "
+                               f"motors of {chain.name!r} have none: give P% (percent of the "
+                               f"reference's peak torque) or one number per actuated joint "
+                               f"[N m]")
+    if text.endswith("%"):
+        try:
+            percent = float(text[:-1])
+        except ValueError:
+            raise FieldError(name, f"{{name}} {text!r}: expected P% (a number P > 0, percent "
+                                   f"of the peak torque) or one number per joint [N m]") from None
+        if not (np.isfinite(percent) and percent > 0):
+            raise FieldError(name, f"{{name}} {text!r}: the percent must be finite and > 0")
+        n_steps = round(duration * rate)
+        peak = peak_torque(chain, reference, np.arange(n_steps + 1) / rate)
+        limit = check_torque_limit(chain, percent / 100.0 * peak, reference, name=name)
+        return limit, {"spec": text, "percent": percent, "peak_torque_Nm": peak.tolist(),
+                       "limit_Nm": limit.tolist(),
+                       "rule": f"{percent:g} % of the peak |M_r(r) rdd + V_r(r, rd) + G_r(r)| "
+                               f"per actuated joint of the reference on the nominal mechanism, "
+                               f"over the control instants"}
+    limit = check_torque_limit(chain, _floats(text, name), reference, name=name)
+    return limit, {"spec": text, "rule": "given", "limit_Nm": limit.tolist()}
 
 
 def _reproduce_chain(args, out) -> int:
@@ -784,7 +828,7 @@ def _reproduce_chain(args, out) -> int:
         ("--delay", args.delay), ("--actuator-bandwidth", args.actuator_bandwidth),
         ("--q0", args.q0), ("--qd0", args.qd0), ("--home", args.home),
         ("--save-trajectories", args.save_trajectories),
-        ("--baseline", args.baseline), ("--torque-limit", args.torque_limit),
+        ("--baseline", args.baseline),
         ("--uncertainty", args.uncertainty), ("--confidence", args.confidence != 0.95),
         ("--dt", args.dt),
         ("--reference other than sine", args.reference != "sine"),
@@ -794,16 +838,28 @@ def _reproduce_chain(args, out) -> int:
                          f"{', '.join(unsupported)}; its study runs --controllers on the "
                          f"mechanism's own reference, engine auto (the compiled chain "
                          f"engine for fl and hinf)")
+    limit, limit_info = None, {}
+    if args.torque_limit is not None:
+        from .campaign.closed_chain_study import chain_reference
+        from .model.closed_chain import load_closed_chain
+
+        chain = load_closed_chain(args.robot)
+        limit, limit_info = _chain_torque_limit(args.torque_limit, chain,
+                                                chain_reference(chain, args.duration),
+                                                args.rate, args.duration)
     config = ChainStudyConfig(mechanism=args.robot, samples=args.samples, seed=args.seed,
                               duration=args.duration, rate=args.rate,
-                              controllers=_chain_controllers(args.controllers),
+                              controllers=_chain_controllers(args.controllers,
+                                                             limited=limit is not None),
                               full_order=args.full_order, certify=not args.no_certify,
-                              engine=args.engine)
+                              engine=args.engine,
+                              torque_limit=None if limit is None else tuple(limit))
     if out is None:
         out = _claim_out(args, "reproduce")
     result = run_chain_study(config, progress=None if args.no_progress else
                              lambda done, total: print(f"{args.robot}: plant {done}/{total}",
                                                        file=sys.stderr))
+    result.torque_limit = limit_info
     from .model.mechanisms import mechanism_params
 
     paths = write_chain_study(result, out, params=mechanism_params(args.robot))
@@ -820,7 +876,17 @@ def _reproduce_chain(args, out) -> int:
             line += (f", uncertain mean RMS error {s['mean_rms_error_rad']:.3g} rad, mean RMS "
                      f"torque {s['mean_rms_tau_Nm']:.4g} N m"
                      + (f", {s['failed']} run(s) failed" if s["failed"] else ""))
+        if limit is not None:
+            line += (f"; saturated fraction nominal {s['nominal_saturated_fraction']:.3g}"
+                     + (f", uncertain mean {s['mean_saturated_fraction']:.3g}"
+                        if config.samples else ""))
+        status = result.metrics[0][name]["status"]
+        if status != "ok":
+            line += f"; nominal run {status}"
         print(line)
+    if limit is not None:
+        print(f"torque limit {limit_info['spec']} ({limit_info['rule']}): "
+              f"{', '.join(f'{v:.4g}' for v in limit)} N m")
     cert = summary.get("certificates")
     if cert:
         print(f"certified (frozen nu-gap < b = {cert['b']:.4g}): {cert['certified']}/"

@@ -39,9 +39,10 @@ import numpy as np
 
 from ..control.catalog import make_law
 from ..control.closed_chain import CHAIN_LAWS
+from ..control.effects import PlantEffects
 from ..control.laws import SampledLaw, check_law
 from ..control.references import SplineReference
-from ..model.closed_chain import load_closed_chain
+from ..model.closed_chain import LoopClosureError, SingularConfiguration, load_closed_chain
 from ..model.mechanisms import (
     MECHANISMS,
     DeltaParams,
@@ -53,12 +54,13 @@ from ..model.mechanisms import (
 from ..robust.certificates import CertificateSpec
 from ..robust.loopshaping import design
 from ..sim.chain_compiled import chain_engine
-from ..sim.closed_chain import simulate_closed_chain
+from ..sim.closed_chain import ConstraintDrift, simulate_closed_chain
+from ..sim.trajectory import SimulationDiverged
 from ..validation import check_count, check_positive
 
 __all__ = ["ChainStudyConfig", "ChainStudyResult", "run_chain_study", "chain_reference",
            "adept_reference", "adept_point", "circle_reference", "circle_point", "claims",
-           "ADEPT_MM", "NOMINAL_FLOOR", "CIRCLE_RADIUS"]
+           "ADEPT_MM", "NOMINAL_FLOOR", "CIRCLE_RADIUS", "FAILURES"]
 
 #: RMS tracking error [rad] below which two laws on the exact model count as equivalent
 #: (both sit at the 1 kHz sampling floor, ~1e-6 rad, on motions of about 0.1 rad).
@@ -69,6 +71,12 @@ CIRCLE_RADIUS = 0.05
 
 #: The adept cycle's legs [mm]: up, across, down.
 ADEPT_MM = (25.0, 305.0, 25.0)
+
+#: What ends a run as "failed" (recorded in its row; the study goes on): a type-II singularity
+#: met, a loop that would not close, a drift above its bound, a divergence, a singular matrix.
+#: Anything else (a refusal of the settings, a bug) propagates.
+FAILURES = (SingularConfiguration, LoopClosureError, ConstraintDrift, SimulationDiverged,
+            np.linalg.LinAlgError)
 
 
 @dataclass(frozen=True)
@@ -97,8 +105,10 @@ class ChainStudyConfig:
         ``hinf`` (and ``hinf_aw``) with the full-order ``K`` of the design instead of the
         reduced eq. (18); the certificate then uses the full ``Ks``.
     torque_limit : tuple of float or None
-        Actuator limits [N m] per actuated joint that ``hinf_aw`` is told (required for it);
-        the plant itself is not limited.
+        Actuator limits [N m] per actuated joint (a scalar is every joint's): every plant
+        saturates there (``PlantEffects(torque_limit=...)``, run by the Python engine, which
+        records ``info["saturation"]``), and ``hinf_aw`` is told them (required for it). None:
+        ideal actuators.
     certify : bool
         Certify each uncertain plant (module docstring).
     certificate_points : int
@@ -154,8 +164,11 @@ class ChainStudyConfig:
             raise ValueError("controllers: hinf_aw on a closed chain needs torque_limit [N m] "
                              "(an MJCF motor carries no effort limit)")
         if self.torque_limit is not None:
-            object.__setattr__(self, "torque_limit",
-                               tuple(float(x) for x in np.atleast_1d(self.torque_limit)))
+            limit = tuple(float(x) for x in np.atleast_1d(self.torque_limit))
+            if not limit or not all(math.isfinite(x) and x > 0.0 for x in limit):
+                raise ValueError(f"torque_limit must be finite limits > 0 [N m], got "
+                                 f"{self.torque_limit!r}")
+            object.__setattr__(self, "torque_limit", limit)
         check_count("certificate_points", self.certificate_points, 1)
         if self.engine not in ("auto", "python", "compiled"):
             raise ValueError(f"engine must be one of auto, python, compiled for a closed chain, "
@@ -244,7 +257,9 @@ def _metrics(traj) -> dict:
     return {"rms_error_rad": float(np.sqrt(np.mean(e * e))),
             "max_error_rad": float(np.max(np.abs(e))),
             "rms_tau_Nm": float(np.sqrt(np.mean(traj.tau * traj.tau))),
-            "drift_m": float(traj.info["drift_m"]), "status": "ok"}
+            "drift_m": float(traj.info["drift_m"]), "status": "ok",
+            **({"saturated_fraction": traj.info["saturation"]["fraction"]}
+               if "saturation" in traj.info else {})}
 
 
 @dataclass
@@ -286,6 +301,7 @@ class ChainStudyResult:
     claims_note: str = ""
     laws: list = field(default_factory=list)
     certificate: dict | None = None
+    torque_limit: dict = field(default_factory=dict)
 
     def summary(self) -> dict:
         """Per law and certificates: ``{"laws": {name: {...}}, "certificates": {...}}``.
@@ -305,6 +321,11 @@ class ChainStudyResult:
                           "mean_rms_tau_Nm": float(np.mean([x["rms_tau_Nm"] for x in m]))
                           if m else math.nan,
                           "failed": sum(1 for x in m if x["status"] != "ok")}
+            if self.config.torque_limit is not None:  # NaN where a run failed
+                laws[name]["nominal_saturated_fraction"] = self.metrics[0][name].get(
+                    "saturated_fraction", math.nan)
+                laws[name]["mean_saturated_fraction"] = float(np.mean(
+                    [x.get("saturated_fraction", math.nan) for x in m])) if m else math.nan
         out = {"laws": laws}
         certs = [row["certificate"] for row in unc if "certificate" in row]
         if certs:
@@ -320,7 +341,8 @@ class ChainStudyResult:
                                                                   strict=True)),
                 "law_descriptions": self.laws, "reference": self.reference,
                 "plants": self.metrics, "claims": self.claims, "claims_note": self.claims_note,
-                "certificate": self.certificate, "summary": self.summary()}
+                "certificate": self.certificate, "torque_limit": self.torque_limit,
+                "summary": self.summary()}
 
 
 def _failed(exc) -> dict:
@@ -374,12 +396,24 @@ def run_chain_study(config: ChainStudyConfig = ChainStudyConfig(), progress=None
     dup = sorted({x for x in names if names.count(x) > 1})
     if dup:
         raise ValueError(f"control law names must be unique, repeated: {', '.join(dup)}")
+    effects = None
+    if config.torque_limit is not None:
+        if len(config.torque_limit) not in (1, nominal.nq):
+            raise ValueError(f"torque_limit: expected one value or {nominal.nq} (one per "
+                             f"actuated joint of {nominal.name!r}), got "
+                             f"{list(config.torque_limit)}")
+        limit = config.torque_limit
+        effects = PlantEffects(torque_limit=limit[0] if len(limit) == 1 else np.array(limit))
+    if effects is not None and config.rate is None:
+        raise ValueError("torque_limit acts on sampled laws (the plant clips the torque held "
+                         "over each control period): give rate too")
     if config.engine == "compiled":
         # refused here, by name, before any run: a run's ValueError is recorded as "failed"
         for law in laws:
             run = law if config.rate is None else (
                 law if isinstance(law, SampledLaw) else law.sampled(config.rate))
-            chain_engine(nominal, run, "compiled", continuous=config.rate is None)
+            chain_engine(nominal, run, "compiled", continuous=config.rate is None,
+                         effects=effects)
     reference = chain_reference(nominal, config.duration)
     spec = CertificateSpec.from_design(d, points=config.certificate_points,
                                        reduced=not config.full_order) if config.certify \
@@ -399,8 +433,9 @@ def run_chain_study(config: ChainStudyConfig = ChainStudyConfig(), progress=None
                 own.close(reference(0.0)[0], seed=own.home)  # reset its seed
             try:
                 traj = simulate_closed_chain(plant, law, reference, config.duration,
-                                             rate=config.rate, engine=config.engine)
-            except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+                                             rate=config.rate, engine=config.engine,
+                                             effects=effects)
+            except FAILURES as exc:
                 row[law.name] = _failed(exc)
                 runs[law.name] = None
                 continue

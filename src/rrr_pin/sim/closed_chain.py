@@ -55,7 +55,7 @@ from ..control.references import check_reference, checked_sample
 from ..model.closed_chain import COND_LIMIT, LoopClosureError, SingularConfiguration
 from ..validation import check_multiple, check_positive, check_rate
 from .chain_compiled import chain_engine, check_reference_compiled, run_chain_compiled
-from .trajectory import Trajectory, diverged_joint, divergence, law_divergence
+from .trajectory import Trajectory, diverged_joint, divergence, law_divergence, saturation
 
 __all__ = ["simulate_closed_chain", "check_chain_reference", "ConstraintDrift", "DRIFT_BOUND",
            "DEFAULT_DT"]
@@ -350,6 +350,8 @@ def simulate_closed_chain(plant, law, reference, duration: float, *, rate: float
             "final_q": q.tolist(), "final_qd": qd.tolist()}
     if fx is not None:
         info["effects"] = fx.info
+        if fx.limit is not None:  # as the serial engine records it (Trajectory.info)
+            info["saturation"] = saturation(TAU[:-1], fx.limit, float(t[1] - t[0]))
     return Trajectory(t=t, q=Q, qd=QD, r=R, tau=TAU, controller=law.name, plant=plant.name,
                       info=info, joint_names=plant.joint_names, joint_units=["rad"] * n)
 
