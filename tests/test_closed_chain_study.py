@@ -13,6 +13,7 @@ from rrr_pin.campaign.closed_chain_study import (
     ChainStudyConfig,
     adept_point,
     adept_reference,
+    chain_reference,
     run_chain_study,
 )
 from rrr_pin.model.mechanisms import (
@@ -105,3 +106,25 @@ def test_reproduce_refuses_an_mjcf_path(tmp_path, capsys):
     assert cli.main(["reproduce", "--robot", str(tmp_path / "mine.xml"), "--out",
                      str(tmp_path / "x")]) == 2
     assert "runs the built-in fivebar and delta only" in capsys.readouterr().err
+
+
+def test_a_users_own_mechanism_is_an_input(tmp_path):
+    # Your own 5-bar (longer, heavier distal links): the study runs it, its nominal row is the
+    # same simulation written out by hand, and the report is written for it.
+    from rrr_pin.control.closed_chain import closed_chain_fl
+    from rrr_pin.model.closed_chain import load_closed_chain
+    from rrr_pin.report.closed_chain import write_chain_study
+    from rrr_pin.sim.closed_chain import simulate_closed_chain
+
+    mine = FiveBarParams(l2=0.25, m2=0.4, name="mybar")
+    result = run_chain_study(ChainStudyConfig(mechanism=mine, samples=1, duration=0.05,
+                                              controllers=("fl",), certify=False))
+    assert result.trajectories[0]["fl"].plant == "mybar"
+    plant = load_closed_chain(mine)
+    by_hand = simulate_closed_chain(plant, closed_chain_fl(load_closed_chain(mine)),
+                                    chain_reference(plant, 0.05), 0.05, rate=1000.0)
+    assert result.metrics[0]["fl"]["rms_error_rad"] == float(
+        np.sqrt(np.mean((by_hand.q - by_hand.r) ** 2)))
+    paths = write_chain_study(result, tmp_path)
+    assert "# mybar" in (tmp_path / "results.md").read_text()
+    assert (tmp_path / "report.html") in paths

@@ -85,7 +85,9 @@ class ChainStudyConfig:
 
     Parameters
     ----------
-    mechanism : {"fivebar", "delta"}
+    mechanism : {"fivebar", "delta"} or FiveBarParams or DeltaParams
+        A built-in mechanism by name, or your own parameter set (its dimensions and masses;
+        the uncertain plants perturb it, and the reference is its own circle or adept cycle).
     samples : int
         Uncertain plants (the paper: 10).
     seed : int
@@ -135,9 +137,10 @@ class ChainStudyConfig:
     engine: str = "auto"
 
     def __post_init__(self) -> None:
-        if self.mechanism not in MECHANISMS:
-            raise ValueError(f"mechanism must be one of {', '.join(MECHANISMS)}, got "
-                             f"{self.mechanism!r}")
+        if not isinstance(self.mechanism, (FiveBarParams, DeltaParams)) and (
+                self.mechanism not in MECHANISMS):
+            raise ValueError(f"mechanism must be one of {', '.join(MECHANISMS)} or a "
+                             f"FiveBarParams / DeltaParams, got {self.mechanism!r}")
         check_count("samples", self.samples)
         check_count("seed", self.seed)
         check_positive("duration", self.duration, unit="s")

@@ -170,8 +170,14 @@ MECHANISMS = {"fivebar": FiveBarParams, "delta": DeltaParams}
 _PHI = tuple(2.0 * math.pi * i / 3.0 for i in range(3))
 
 
-def mechanism_params(name: str):
-    """Return the default parameter set of a built-in mechanism (``"fivebar"`` or ``"delta"``)."""
+def mechanism_params(name):
+    """Return the parameter set of a mechanism.
+
+    A built-in's defaults by name (``"fivebar"`` or ``"delta"``), or ``name`` itself when it
+    already is a :class:`FiveBarParams` or :class:`DeltaParams` (your own dimensions and masses).
+    """
+    if isinstance(name, (FiveBarParams, DeltaParams)):
+        return name
     if name not in MECHANISMS:
         raise ValueError(f"unknown mechanism {name!r}: one of {', '.join(MECHANISMS)}")
     return MECHANISMS[name]()

@@ -45,7 +45,8 @@ CHAIN_UNITS = {"duration": "s", "rate": "Hz", "lam_fl": "rad/s", "lam_hinf": "ra
 def claims_table(result) -> str:
     """Return the study's claims, certificates and per-plant numbers as Markdown."""
     names = result.names
-    lines = [f"# {result.config.mechanism}: {', '.join(result.labels)}", "",
+    lines = [f"# {mechanism_params(result.config.mechanism).name}: "
+             f"{', '.join(result.labels)}", "",
              f"Reference: {result.reference}; {result.config.samples} uncertain plants "
              f"(seed {result.config.seed}, masses +-{result.config.inertia:.0%}, lengths "
              f"+-{result.config.length:.0%}); plant: Pinocchio constraintDynamics.", ""]
@@ -248,7 +249,8 @@ def chain_settings(result, params=None) -> dict:
         if runs and not info:
             info = {k: v for k, v in runs[0].info.items()
                     if isinstance(v, str | int | float) and not k.startswith("drift")}
-    out = {"mechanism": result.config.mechanism, "reference": result.reference,
+    out = {"mechanism": mechanism_params(result.config.mechanism).name,
+           "reference": result.reference,
            "laws": dict(zip(result.names, result.labels, strict=True)),
            "study": asdict(result.config), "parameters": asdict(params),
            "plant integration": info, "drift": drift}
@@ -290,7 +292,8 @@ def write_chain_report(result, out: str | Path, figures=(), params=None) -> Path
     captions = chain_captions(result)
     return write_report_html(
         Path(out) / "report.html",
-        title=f"rrr-pin study on the {result.config.mechanism}: {' vs '.join(result.labels)}",
+        title=f"rrr-pin study on the {mechanism_params(result.config.mechanism).name}: "
+              f"{' vs '.join(result.labels)}",
         tables=[("Claims and per-plant numbers", claims_table(result))],
         figures=[(f, captions.get(Path(f).name, Path(f).name)) for f in figures],
         design=chain_settings(result, params), scenes=chain_scenes(result, params),
