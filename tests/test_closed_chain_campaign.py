@@ -253,7 +253,7 @@ def test_dask_cluster_gives_the_same_rows(fivebar, serial):
 
 @pytest.mark.parametrize(("extra", "message"), [
     (["--certify"], "does not implement --certify"),
-    (["--delay", "0.001"], "does not implement --delay"),
+    (["--delay", "0.001", "--engine", "compiled"], "with --engine compiled"),
     (["--engine", "codegen"], "does not implement --engine codegen"),
     (["--reference", "circle"], "does not implement --reference other than sine"),
     (["--radius", "0.1"], "does not implement --radius"),
@@ -279,12 +279,30 @@ def test_cli_refuses_an_mjcf_path(tmp_path, capsys):
     assert "runs the built-in fivebar and delta only" in capsys.readouterr().err
 
 
+def test_plant_effects_reach_every_run(fivebar):
+    # A 1 ms delay: the nominal row is the lone simulate_closed_chain run with that delay (not
+    # the ideal one, which differs).
+    chain, laws = fivebar
+    delayed = replace(RUN, effects=PlantEffects(delay=1e-3))
+    campaign = run_chain_campaign(chain, laws, replace(SETTINGS, samples=1, run=delayed),
+                                  jobs=1)
+    law = chain_laws("fl", chain)[0]
+    ref = chain_reference(chain, DURATION)
+    by_hand = simulate_closed_chain(chain, law, ref, DURATION, rate=1000.0,
+                                    effects=PlantEffects(delay=1e-3))
+    ideal = simulate_closed_chain(chain, chain_laws("fl", chain)[0], ref, DURATION, rate=1000.0)
+    rms = float(np.sqrt(np.mean((by_hand.q - by_hand.r) ** 2)))
+    assert by_hand.info["engine"] == "python"
+    assert_allclose(campaign.nominal["fl_rms_error"], rms, rtol=1e-12)
+    assert abs(rms - float(np.sqrt(np.mean((ideal.q - ideal.r) ** 2)))) > 1e-3 * rms
+
+
 def test_api_refuses_settings_that_do_not_apply(fivebar, tmp_path):
     chain, laws = fivebar
     with pytest.raises(TypeError, match="tolerances must be a MechanismUncertainty"):
         run_chain_campaign(chain, laws, replace(SETTINGS, tolerances=Tolerances()))
-    effects = replace(RUN, effects=PlantEffects(bandwidth=300.0))
-    with pytest.raises(ValueError, match="does not implement effects"):
+    effects = replace(RUN, effects=PlantEffects(bandwidth=300.0), engine="compiled")
+    with pytest.raises(ValueError, match="plant effects with engine 'compiled'"):
         run_chain_campaign(chain, laws, replace(SETTINGS, run=effects))
     with pytest.raises(ValueError, match="does not implement limit_margin"):
         run_chain_campaign(chain, laws, replace(SETTINGS, run=replace(RUN, limit_margin=0.1)))

@@ -1026,7 +1026,8 @@ def _montecarlo_chain(args) -> int:
     unsupported = [opt for opt, given in (
         ("--lock", args.lock), ("--home", args.home),
         ("--engine codegen", args.engine == "codegen"),
-        ("--delay", args.delay), ("--actuator-bandwidth", args.actuator_bandwidth),
+        ("--delay/--actuator-bandwidth with --engine compiled (no plant effects there)",
+         args.engine == "compiled" and (args.delay or args.actuator_bandwidth is not None)),
         ("--q0", args.q0), ("--qd0", args.qd0), ("--uncertainty", args.uncertainty),
         ("--certify", args.certify),
         ("--reference other than sine", args.reference != "sine"),

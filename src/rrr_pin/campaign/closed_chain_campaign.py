@@ -28,8 +28,9 @@ Before each run a law's model has its loop-closure seed reset to ``home`` at ``r
 study does), so a row depends on its own plant only: the rows are identical whatever the
 number of workers, the chunks, or an interruption and resume.
 
-Options of a serial campaign that do not apply to closed chains are refused by name: plant
-effects, a joint-limit margin, the ``codegen`` engine, the serial arms' uncertainty sets.
+Options of a serial campaign that do not apply to closed chains are refused by name: a
+joint-limit margin, the ``codegen`` engine, plant effects on the ``compiled`` engine (``auto``
+runs them in Python), the serial arms' uncertainty sets.
 """
 
 from __future__ import annotations
@@ -110,8 +111,8 @@ def check_chain_settings(chain, settings: CampaignSettings) -> None:
     Raises
     ------
     ValueError
-        Active plant effects, a ``limit_margin``, the ``codegen`` engine, a nominal loaded from
-        an MJCF file (no parameter set to perturb).
+        A ``limit_margin``, the ``codegen`` engine, the ``compiled`` engine with active plant
+        effects (it has none), a nominal loaded from an MJCF file (no parameter set to perturb).
     TypeError
         ``settings.tolerances`` not a :class:`~rrr_pin.model.uncertainty.MechanismUncertainty`.
     """
@@ -125,13 +126,15 @@ def check_chain_settings(chain, settings: CampaignSettings) -> None:
                         f"Tolerances and IdentifiedUncertainty perturb serial arms' URDF")
     run = settings.run
     unsupported = [what for what, given in (
-        ("effects", run.effects is not None and run.effects.active),
+        ("plant effects with engine 'compiled' (it has none; auto runs them in Python)",
+         run.engine == "compiled" and run.effects is not None and run.effects.active),
         ("limit_margin", run.limit_margin != 0.0),
         (f"engine {run.engine!r}", run.engine not in ("auto", "python", "compiled"))) if given]
     if unsupported:
         raise ValueError(f"{chain.name} (a closed chain): the campaign does not implement "
                          f"{', '.join(unsupported)} (engines auto, python or compiled on the "
-                         f"constraint dynamics, no plant effects, no joint-limit check)")
+                         f"constraint dynamics, plant effects in Python, no joint-limit "
+                         f"check)")
 
 
 @dataclass(frozen=True)
@@ -195,7 +198,8 @@ def chain_sample_row(job: ChainCampaignJob, k: int) -> dict:
         try:
             traj = simulate_closed_chain(plant, law, job.reference, run.duration,
                                          rate=run.rate, dt=run.dt, method=run.method,
-                                         q0=run.q0, qd0=run.qd0, engine=run.engine)
+                                         q0=run.q0, qd0=run.qd0, engine=run.engine,
+                                         effects=run.effects)
         except FAILURES as exc:
             row[f"{law.name}_status"] = f"failed: {type(exc).__name__}: {exc}"
             failed.append(f"{law.name}: {type(exc).__name__}: {exc}")
