@@ -13,17 +13,17 @@ every joint, not the mechanism. Each class here is the built-in with that one in
 replaced by the reduced model, and nothing else: the outer loop, the controller ``K``, its
 discretization, the anti-windup conditioning and the linear model are the built-in's.
 
-======== ======================= ===================================================
-name     class                   reduced term
-======== ======================= ===================================================
-fl       :class:`ReducedTracking` ``M_r taubar + V_r + G_r`` (``K = None``)
-hinf     :class:`ReducedTracking` the same with the loop-shaping ``K`` (eq. 18, or the
-                                  full-order one)
+======== ========================== ======================================================
+name     class                      reduced term
+======== ========================== ======================================================
+fl       :class:`ReducedTracking`   ``M_r taubar + V_r + G_r`` (``K = None``)
+hinf     :class:`ReducedTracking`   the same with the loop-shaping ``K`` (eq. 18, or the
+                                    full-order one)
 hinf_aw  :class:`ReducedAntiWindup` the same, clipped, ``K`` conditioned on
-                                  ``M_r^-1 (tau_s - tau)``
-pd       :class:`ReducedPD`       ``Kp e + Kd ed + G_r`` (gains from ``diag M_r(home)``)
-hinf2dof :class:`ReducedTwoDOF`   ``M_r taubar + V_r + G_r`` with the 2-DOF ``tauhat``
-======== ======================= ===================================================
+                                    ``M_r^-1 (tau_s - tau)``
+pd       :class:`ReducedPD`         ``Kp e + Kd ed + G_r`` (gains from ``diag M_r(home)``)
+hinf2dof :class:`ReducedTwoDOF`     ``M_r taubar + V_r + G_r`` with the 2-DOF ``tauhat``
+======== ========================== ======================================================
 
 :data:`CHAIN_LAWS` maps every name of :data:`rrr_pin.control.catalog.LAWS` to its factory
 here (a test checks that the two sets are equal), and
