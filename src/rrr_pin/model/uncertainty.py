@@ -70,6 +70,15 @@ __all__ = [
 ]
 
 
+def _check_tolerances(tol) -> None:
+    """Check and store ``tol.inertia`` and ``tol.length``: real, in ``[0, 1)`` (frozen record)."""
+    for name in ("inertia", "length"):
+        value = check_real(f"{name} tolerance", getattr(tol, name))
+        if not 0.0 <= value < 1.0:
+            raise ValueError(f"{name} tolerance must be in [0, 1), got {value!r}")
+        object.__setattr__(tol, name, value)
+
+
 @dataclass(frozen=True)
 class Tolerances:
     """Relative tolerances of the uncertain plants (paper: 20 % inertia, 5 % lengths).
@@ -86,11 +95,7 @@ class Tolerances:
     length: float = 0.05
 
     def __post_init__(self) -> None:
-        for name in ("inertia", "length"):
-            value = check_real(f"{name} tolerance", getattr(self, name))
-            if not 0.0 <= value < 1.0:
-                raise ValueError(f"{name} tolerance must be in [0, 1), got {value!r}")
-            object.__setattr__(self, name, value)
+        _check_tolerances(self)
 
     def describe(self) -> str:
         """One line for reports: ``20% on masses and moments, 5% on lengths``."""
@@ -375,11 +380,7 @@ class MechanismTolerances(MechanismUncertainty):
     length: float = 0.05
 
     def __post_init__(self) -> None:
-        for name in ("inertia", "length"):
-            value = check_real(f"{name} tolerance", getattr(self, name))
-            if not 0.0 <= value < 1.0:
-                raise ValueError(f"{name} tolerance must be in [0, 1), got {value!r}")
-            object.__setattr__(self, name, value)
+        _check_tolerances(self)
 
     def draw(self, params, rng: np.random.Generator):
         """Return ``perturb_mechanism(params, rng, inertia, length)``."""
