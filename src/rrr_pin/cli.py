@@ -649,7 +649,7 @@ def _cmd_reproduce(args) -> int:
     limit, limit_info = None, {}
     if args.torque_limit is not None:
         limit, limit_info = _torque_limit_from_args(args.torque_limit, robot, reference,
-                                                    settings)
+                                                    settings.rate, settings.duration)
         import dataclasses
 
         from .control.effects import PlantEffects
@@ -700,13 +700,14 @@ def _cmd_reproduce(args) -> int:
     return 0
 
 
-def _torque_limit_from_args(text: str, robot, reference, settings):
+def _torque_limit_from_args(text: str, robot, reference, rate, duration):
     """Return the limits [N m] of ``--torque-limit`` (shape (n,)) and how they were chosen.
 
-    ``auto``: the URDF's effort limits; ``P%``: P percent of the peak inverse-dynamics torque
-    of the reference on the nominal arm per joint, over the control instants of the run; or
-    numbers. Each is checked (finite, > 0, one per joint, not below the gravity torque at
-    the reference's start) as ``--torque-limit``.
+    ``auto``: the URDF's effort limits (refused for a closed chain: an MJCF motor carries
+    none); ``P%``: P percent of the peak inverse-dynamics torque of the reference on the nominal
+    arm (a closed chain: its reduced model) per joint, over the control instants of a run of
+    ``duration`` [s] at ``rate`` [Hz]; or numbers. Each is checked (finite, > 0, one per joint,
+    not below the gravity torque at the reference's start) as ``--torque-limit``.
     """
     import numpy as np
 
@@ -714,28 +715,38 @@ def _torque_limit_from_args(text: str, robot, reference, settings):
     from .validation import FieldError
 
     name = "--torque-limit"
-    if settings.rate is None:
+    chain = hasattr(robot, "constraints")
+    if rate is None:
         raise ValueError(f"{name} acts on sampled controllers (the plant clips the torque each "
                          f"control period): give --rate HZ too, e.g. --rate 1000")
     text = text.strip()
     if text == "auto":
+        if chain:
+            raise FieldError(name, f"{{name}} auto reads a URDF's effort limits, and the MJCF "
+                                   f"motors of {robot.name!r} have none: give P% (percent of "
+                                   f"the reference's peak torque) or one number per actuated "
+                                   f"joint [N m]")
         info = {"spec": "auto", "rule": "the URDF's effort limits"}
         return check_torque_limit(robot, "urdf", reference, name=name), info
     if text.endswith("%"):
         try:
             percent = float(text[:-1])
         except ValueError:
-            raise FieldError(name, f"{{name}} {text!r}: expected auto, P% (a number P > 0, "
-                                   f"percent of the peak torque) or one number per joint "
-                                   f"[N m]") from None
+            raise FieldError(name, f"{{name}} {text!r}: expected {'' if chain else 'auto, '}P% "
+                                   f"(a number P > 0, percent of the peak torque) or one "
+                                   f"number per joint [N m]") from None
         if not (np.isfinite(percent) and percent > 0):
             raise FieldError(name, f"{{name}} {text!r}: the percent must be finite and > 0")
-        n_steps = round(settings.duration * settings.rate)
-        peak = peak_torque(robot, reference, np.arange(n_steps + 1) / settings.rate)
+        n_steps = round(duration * rate)
+        peak = peak_torque(robot, reference, np.arange(n_steps + 1) / rate)
         limit = check_torque_limit(robot, percent / 100.0 * peak, reference, name=name)
+        rule = (f"{percent:g} % of the peak |M_r(r) rdd + V_r(r, rd) + G_r(r)| per actuated "
+                f"joint of the reference on the nominal mechanism, over the control instants"
+                if chain else
+                f"{percent:g} % of the peak |M(r) rdd + V(r, rd) + G(r)| per joint of the "
+                f"reference on the nominal arm, over the control instants")
         info = {"spec": text, "percent": percent, "peak_torque_Nm": peak.tolist(),
-                "rule": f"{percent:g} % of the peak |M(r) rdd + V(r, rd) + G(r)| per joint "
-                        f"of the reference on the nominal arm, over the control instants"}
+                **({"limit_Nm": limit.tolist()} if chain else {}), "rule": rule}
         return limit, info
     values = _floats(text, name)
     info = {"spec": text, "rule": "given"}
@@ -771,48 +782,6 @@ def _chain_controllers(text: str, limited: bool = False) -> tuple:
     return names + (("hinf_aw",) if limited and "hinf_aw" not in names else ())
 
 
-def _chain_torque_limit(text: str, chain, reference, rate, duration) -> tuple:
-    """``--torque-limit`` on a closed chain: ``P%`` of the reference's peak or numbers [N m].
-
-    ``auto`` (a URDF's effort limits) is refused by name: an MJCF motor carries none. The peak
-    is the reduced model's inverse dynamics along the reference over the control instants
-    (:func:`rrr_pin.control.effects.peak_torque`). Returns the limits and how they were chosen.
-    """
-    import numpy as np
-
-    from .control.effects import check_torque_limit, peak_torque
-    from .validation import FieldError
-
-    name = "--torque-limit"
-    if rate is None:
-        raise ValueError(f"{name} acts on sampled controllers (the plant clips the torque each "
-                         f"control period): give --rate HZ too, e.g. --rate 1000")
-    text = text.strip()
-    if text == "auto":
-        raise FieldError(name, f"{{name}} auto reads a URDF's effort limits, and the MJCF "
-                               f"motors of {chain.name!r} have none: give P% (percent of the "
-                               f"reference's peak torque) or one number per actuated joint "
-                               f"[N m]")
-    if text.endswith("%"):
-        try:
-            percent = float(text[:-1])
-        except ValueError:
-            raise FieldError(name, f"{{name}} {text!r}: expected P% (a number P > 0, percent "
-                                   f"of the peak torque) or one number per joint [N m]") from None
-        if not (np.isfinite(percent) and percent > 0):
-            raise FieldError(name, f"{{name}} {text!r}: the percent must be finite and > 0")
-        n_steps = round(duration * rate)
-        peak = peak_torque(chain, reference, np.arange(n_steps + 1) / rate)
-        limit = check_torque_limit(chain, percent / 100.0 * peak, reference, name=name)
-        return limit, {"spec": text, "percent": percent, "peak_torque_Nm": peak.tolist(),
-                       "limit_Nm": limit.tolist(),
-                       "rule": f"{percent:g} % of the peak |M_r(r) rdd + V_r(r, rd) + G_r(r)| "
-                               f"per actuated joint of the reference on the nominal mechanism, "
-                               f"over the control instants"}
-    limit = check_torque_limit(chain, _floats(text, name), reference, name=name)
-    return limit, {"spec": text, "rule": "given", "limit_Nm": limit.tolist()}
-
-
 def _reproduce_chain(args, out) -> int:
     """``reproduce --robot fivebar|delta``: the study on a parallel mechanism."""
     from .campaign.closed_chain_study import ChainStudyConfig, run_chain_study
@@ -844,9 +813,10 @@ def _reproduce_chain(args, out) -> int:
         from .model.closed_chain import load_closed_chain
 
         chain = load_closed_chain(args.robot)
-        limit, limit_info = _chain_torque_limit(args.torque_limit, chain,
-                                                chain_reference(chain, args.duration),
-                                                args.rate, args.duration)
+        limit, limit_info = _torque_limit_from_args(args.torque_limit, chain,
+                                                    chain_reference(chain, args.duration),
+                                                    args.rate, args.duration)
+        limit_info.setdefault("limit_Nm", limit.tolist())  # the study records the limit used
     config = ChainStudyConfig(mechanism=args.robot, samples=args.samples, seed=args.seed,
                               duration=args.duration, rate=args.rate,
                               controllers=_chain_controllers(args.controllers,
