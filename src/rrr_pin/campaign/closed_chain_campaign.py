@@ -40,7 +40,7 @@ import logging
 from concurrent.futures import Executor
 from dataclasses import asdict, dataclass
 
-from ..control.closed_chain import CHAIN_LAWS, make_chain_law
+from ..control.closed_chain import CHAIN_LAWS, make_chain_law, reset_closure
 from ..control.references import Reference
 from ..model.closed_chain import load_closed_chain
 from ..model.mechanisms import DeltaParams, FiveBarParams
@@ -179,13 +179,6 @@ def _plant(job: ChainCampaignJob, k: int):
     return load_closed_chain(params, gravity=job.gravity), parameters
 
 
-def _reset(law, reference) -> None:
-    """Restart a law's closed-chain model from ``home`` at ``r(0)`` (as the study does)."""
-    model = getattr(law, "nominal", None)
-    if hasattr(model, "close") and hasattr(model, "home"):
-        model.close(reference(0.0)[0], seed=model.home)
-
-
 def chain_sample_row(job: ChainCampaignJob, k: int) -> dict:
     """Draw sample ``k`` (-1: the nominal), run every law on it and reduce it to one row."""
     plant, parameters = _plant(job, k)
@@ -194,7 +187,7 @@ def chain_sample_row(job: ChainCampaignJob, k: int) -> dict:
            "status": "ok", "parameters": parameters}
     figures, failed = {}, []
     for law in job.laws:
-        _reset(law, job.reference)
+        reset_closure(law, job.reference)
         try:
             traj = simulate_closed_chain(plant, law, job.reference, run.duration,
                                          rate=run.rate, dt=run.dt, method=run.method,

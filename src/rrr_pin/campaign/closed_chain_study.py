@@ -38,7 +38,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..control.catalog import make_law
-from ..control.closed_chain import CHAIN_LAWS
+from ..control.closed_chain import CHAIN_LAWS, reset_closure
 from ..control.effects import PlantEffects
 from ..control.laws import SampledLaw, check_law
 from ..control.references import SplineReference
@@ -431,9 +431,7 @@ def run_chain_study(config: ChainStudyConfig = ChainStudyConfig(), progress=None
         row = {"plant": "nominal" if i == 0 else f"sample{i - 1:03d}", "factors": factors}
         runs = {}
         for law in laws:
-            own = getattr(law, "nominal", None)
-            if hasattr(own, "constraints") and hasattr(own, "close"):
-                own.close(reference(0.0)[0], seed=own.home)  # reset its seed
+            reset_closure(law, reference)
             try:
                 traj = simulate_closed_chain(plant, law, reference, config.duration,
                                              rate=config.rate, engine=config.engine,

@@ -64,6 +64,7 @@ import numpy as np
 import scipy.linalg
 
 from ..control.catalog import DEFAULT_BUDGET, EFFECTS
+from ..control.closed_chain import reset_closure
 from ..control.effects import PlantEffects
 from ..model.closed_chain import LoopClosureError, SingularConfiguration
 from ..robust.barriers import model_error_bound, robust_stability_barrier
@@ -498,18 +499,6 @@ def _start(plant, reference, settings: StressSettings):
 _CHAIN_FAILURES = (ConstraintDrift, SingularConfiguration, LoopClosureError)
 
 
-def _fresh(plant, law, reference) -> None:
-    """Start a closed-chain law's loop-closure solver on its home branch at ``r(0)``.
-
-    The reduced-model laws (:mod:`rrr_pin.control.closed_chain`) seed their Newton solve from
-    the previous sample: after a diverged run that seed is anywhere. No-op for a serial arm.
-    """
-    nominal = getattr(law, "nominal", None)
-    if hasattr(plant, "constraints") and hasattr(nominal, "constraints"):
-        r0 = np.asarray(reference.sample(np.array([0.0]))[0][0], dtype=float)
-        nominal.close(r0, seed=nominal.home)
-
-
 def _rms(plant, law, reference, effect, size, settings: StressSettings, duration, fixed=None):
     """RMS tracking error [rad] of one run (from :func:`_start`), ``inf`` if it diverged."""
     kwargs = settings.run.simulate_kwargs()
@@ -517,7 +506,7 @@ def _rms(plant, law, reference, effect, size, settings: StressSettings, duration
     kwargs["q0"] = _start(plant, reference, settings)
     failures = (SimulationDiverged, *_CHAIN_FAILURES) if hasattr(plant, "constraints") else (
         SimulationDiverged,)
-    _fresh(plant, law, reference)
+    reset_closure(law, reference)
     try:
         traj = simulate(plant, law, reference, duration,
                         effects=effects_of(effect, size, fixed=fixed), **kwargs)
@@ -705,7 +694,7 @@ def torque_prediction(plant, law, reference, settings: StressSettings | None = N
     fields = {}
     for name, size in check_fixed(fixed, "torque").items():
         fields.update(EFFECTS[name].fields(size, 0))
-    _fresh(plant, law, reference)
+    reset_closure(law, reference)
     traj = simulate(plant, law, reference, duration,
                     effects=PlantEffects(**fields) if fields else None, **kwargs)
     r, rd, rdd = reference.sample(traj.t)

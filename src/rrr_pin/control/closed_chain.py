@@ -67,8 +67,8 @@ from .laws import (
 )
 
 __all__ = ["ReducedTracking", "ChainFLForm", "ReducedAntiWindup", "ReducedPD", "ReducedTwoDOF",
-           "closed_chain_fl", "closed_chain_hinf_fl", "closed_chain_hinf_aw", "closed_chain_pd",
-           "closed_chain_hinf_2dof", "CHAIN_LAWS", "make_chain_law"]
+           "reset_closure", "closed_chain_fl", "closed_chain_hinf_fl", "closed_chain_hinf_aw",
+           "closed_chain_pd", "closed_chain_hinf_2dof", "CHAIN_LAWS", "make_chain_law"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -221,6 +221,18 @@ class ReducedTwoDOF(TwoDOFController):
         K, n = self.K, self.n
         K2 = control.ss(K.A, K.B[:, n:], -K.C, -K.D[:, n:])
         return TwoDOFLinearModel(n, self.lam, K2, self.discretize)
+
+
+def reset_closure(law, reference) -> None:
+    """Restart a closed-chain law's loop-closure solver on its home branch at ``r(0)``.
+
+    The reduced-model laws seed their Newton solve from the previous sample, so after a run
+    (above all a diverged one) the seed is anywhere; a run that starts from here depends on its
+    own plant only. No-op for a law whose ``nominal`` is not a closed chain.
+    """
+    nominal = getattr(law, "nominal", None)
+    if hasattr(nominal, "constraints") and hasattr(nominal, "close"):
+        nominal.close(reference(0.0)[0], seed=nominal.home)
 
 
 def closed_chain_fl(chain, lam: float = 100.0, *, name: str = "fl") -> ReducedTracking:
