@@ -81,7 +81,6 @@ class CampaignSettings(Settings):
     """
 
     MIN_SAMPLES: ClassVar[int] = 1
-    UNCERTAINTIES: ClassVar[tuple] = (*Settings.UNCERTAINTIES, MechanismUncertainty)
 
     run: RunSettings = field(default_factory=lambda: RunSettings(duration=10.0, rate=1000.0))
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from ..model.identification import IdentifiedUncertainty
-from ..model.uncertainty import MechanismUncertainty, Tolerances
+from ..model.plant import UncertaintySet
+from ..model.uncertainty import Tolerances
 from ..validation import check_count
 from .runner import RunSettings
 
@@ -38,11 +38,13 @@ class Settings:
     run : RunSettings
         Duration, step, rate, engine, initial state and plant effects of every run (default
         :class:`~rrr_pin.campaign.runner.RunSettings`: 4 s, continuous-time laws).
-    tolerances : Tolerances, IdentifiedUncertainty or MechanismUncertainty
-        20 % inertia, 5 % lengths by default; or the distribution identified from data
-        (``rrr-pin identify``'s ``identification.json``); for a campaign on a parallel
-        mechanism, a :class:`~rrr_pin.model.uncertainty.MechanismUncertainty` (e.g.
-        ``MechanismTolerances()``, :attr:`UNCERTAINTIES`).
+    tolerances : UncertaintySet
+        Any :class:`~rrr_pin.model.plant.UncertaintySet` the plant accepts
+        (:meth:`~rrr_pin.model.plant.Plant.perturbed`): by default
+        :class:`~rrr_pin.model.uncertainty.Tolerances` (20 % inertia, 5 % lengths, for every
+        kind of plant); the distribution identified from data (``rrr-pin identify``'s
+        ``identification.json``, arms); a
+        :class:`~rrr_pin.model.uncertainty.MechanismUncertainty` of your own (mechanisms).
     baseline : str, default "fl"
         Name of the law the others are compared with.
 
@@ -51,26 +53,24 @@ class Settings:
     ValueError
         ``samples`` or ``seed`` not an integer in range, naming the field and the value.
     TypeError
-        ``run`` not a RunSettings, ``tolerances`` not a Tolerances, ``baseline`` not a string.
+        ``run`` not a RunSettings, ``tolerances`` not an UncertaintySet, ``baseline`` not a
+        string.
     """
 
     #: Smallest accepted ``samples``.
     MIN_SAMPLES: ClassVar[int] = 0
 
-    #: Accepted types of ``tolerances`` (a campaign adds the mechanisms' uncertainty sets).
-    UNCERTAINTIES: ClassVar[tuple] = (Tolerances, IdentifiedUncertainty)
-
     samples: int
     seed: int = 0
     run: RunSettings = field(default_factory=RunSettings)
-    tolerances: Tolerances = field(default_factory=Tolerances)
+    tolerances: UncertaintySet = field(default_factory=Tolerances)
     baseline: str = "fl"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "samples", check_count("samples", self.samples,
                                                         self.MIN_SAMPLES))
         object.__setattr__(self, "seed", check_count("seed", self.seed))
-        for key, kind in (("run", RunSettings), ("tolerances", self.UNCERTAINTIES),
+        for key, kind in (("run", RunSettings), ("tolerances", UncertaintySet),
                           ("baseline", str)):
             value = getattr(self, key)
             if not isinstance(value, kind):
@@ -80,13 +80,5 @@ class Settings:
 
     def to_dict(self) -> dict:
         """JSON-ready settings (units in the key names), as recorded in the outputs."""
-        tol = self.tolerances
-        if isinstance(tol, Tolerances):
-            drawn = {"tolerance_inertia": tol.inertia, "tolerance_length": tol.length}
-        elif isinstance(tol, MechanismUncertainty):
-            drawn = {"uncertainty": type(tol).__name__, **tol.to_dict()}
-        else:
-            drawn = {"uncertainty": "identified", **{k: v for k, v in tol.to_dict().items()
-                                                     if k != "kind"}}
-        return {**self.run.to_dict(), "samples": self.samples, "seed": self.seed, **drawn,
-                "baseline": self.baseline}
+        return {**self.run.to_dict(), "samples": self.samples, "seed": self.seed,
+                **self.tolerances.as_settings(), "baseline": self.baseline}

@@ -38,7 +38,11 @@ def _hinf(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
 
 def _hinf_aw(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
              torque_limit=None):
-    """``_hinf``'s law told ``torque_limit`` [N m] (None: the URDF's), ``K`` self-conditioned."""
+    """``_hinf``'s law told ``torque_limit`` [N m] (None: the URDF's), ``K`` self-conditioned.
+
+    A plant without effort limits in its description (a closed chain's MJCF) needs
+    ``torque_limit``: ``"urdf"`` is refused by name there.
+    """
     from .laws import hinf_aw_controller
 
     if K is None:
@@ -100,10 +104,7 @@ BUILTIN_LAWS = {name: law.description for name, law in LAWS.items()}
 
 
 def make_law(name: str, nominal, **options):
-    """Build the built-in law ``name`` on ``nominal``.
-
-    A closed chain (:class:`rrr_pin.model.closed_chain.ClosedChain`) gets the law on its
-    reduced model, :func:`rrr_pin.control.closed_chain.make_chain_law`.
+    """Build the built-in law ``name`` on ``nominal``, any plant (a serial arm, a closed chain).
 
     Options: ``K``, ``lam_fl``, ``lam_hinf``, ``torque_limit`` (:class:`BuiltinLaw`).
 
@@ -112,11 +113,6 @@ def make_law(name: str, nominal, **options):
     ValueError
         An unknown name (the message lists the built-in ones with what each is).
     """
-    if hasattr(nominal, "constraints") and hasattr(nominal, "reduced"):
-        # a parallel mechanism (rrr_pin.model.closed_chain): the law on its reduced model
-        from .closed_chain import make_chain_law
-
-        return make_chain_law(name, nominal, **options)
     law = LAWS.get(name) if isinstance(name, str) else None
     if law is None:
         raise ValueError(f"unknown controller {name!r}; built-in controllers: "

@@ -56,6 +56,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ..model.plant import EFFORT_LIMITS
 from ..validation import FieldError, check_multiple
 from .references import checked_sample
 
@@ -237,7 +238,11 @@ class PlantEffects:
         d = self.delay_substeps(h)
         limit = None
         if self.torque_limit == "urdf":
-            limit = np.asarray(plant.model.effortLimit, dtype=float).copy()
+            if not plant.has(EFFORT_LIMITS):
+                raise EffectsError(f"torque_limit = 'urdf': {plant.describe_kind()} "
+                                   f"{plant.name!r} has no URDF effort limits; give the limit "
+                                   f"[N m] per actuated joint ({', '.join(plant.joint_names)})")
+            limit = plant.effort_limits()
             if limit.shape != (n,) or not np.all(limit > 0):
                 raise EffectsError(f"torque_limit = 'urdf': the URDF of {plant.name!r} has "
                                    f"effort limits {limit.tolist()}, expected > 0 per joint")
@@ -484,7 +489,13 @@ def check_torque_limit(robot, value="urdf", reference=None, *,
     """
     n = robot.nq
     if isinstance(value, str) and value == "urdf":
-        arr = np.asarray(robot.model.effortLimit, dtype=float).copy()
+        if not robot.has(EFFORT_LIMITS):
+            raise FieldError(name, f"{{name}} = 'urdf' reads the effort limits of a URDF, and "
+                                   f"{robot.describe_kind()} {robot.name!r} carries none (an "
+                                   f"MJCF motor has no effort limit); give the limits [N m] "
+                                   f"(a number or one per actuated joint: "
+                                   f"{', '.join(robot.joint_names)})")
+        arr = robot.effort_limits()
         if arr.shape != (n,) or not np.all(np.isfinite(arr) & (arr > 0)):
             raise FieldError(name, f"{{name}} = 'urdf': the URDF of {robot.name!r} has effort "
                                    f"limits {arr.tolist()}, expected finite > 0 per joint [N m]")

@@ -34,6 +34,7 @@ from ..validation import FieldError, check_direction, check_positive, check_vect
 
 __all__ = [
     "default_reference",
+    "study_reference",
     "Reference",
     "SineReference",
     "QuinticReference",
@@ -771,3 +772,19 @@ def default_reference(robot, amp: float = 0.5, freq: float = 0.5,
     ref = SineReference(home=home, amp=amp, freq=freq, phase=2.0 * math.pi * np.arange(n) / n)
     ref.check_limits(robot)
     return ref
+
+
+def study_reference(plant, duration: float) -> Reference:
+    """Return the reference of the paper's study on ``plant`` over ``duration`` [s].
+
+    The plant's own task path when it declares one
+    (:meth:`rrr_pin.model.plant.Plant.task_path`: a closed chain's mechanism, e.g. the 5-bar's
+    tip circle or the Delta's adept cycle, its period ``duration``), as actuated waypoints
+    joined by a clamped C2 :class:`SplineReference` (at rest at both ends); otherwise the
+    joint-space sinusoid of :func:`default_reference` (the paper's section 5).
+    """
+    path = plant.task_path(duration)
+    if path is None:
+        return default_reference(plant)
+    t, W, source = path
+    return SplineReference(times=t, waypoints=W, source=source)

@@ -46,16 +46,24 @@ import math
 import os
 import tempfile
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from .mechanisms import MECHANISMS, DeltaParams, FiveBarParams, MechanismError, mjcf_from_params
+from .mechanisms import (
+    MECHANISMS,
+    MechanismError,
+    is_mechanism_params,
+    mechanism_of,
+    mjcf_from_params,
+)
+from .plant import FRAMES, Plant, Settler, UncertaintySet
 
 __all__ = ["ClosedChain", "load_closed_chain", "is_closed_chain_source", "SingularConfiguration",
-           "LoopClosureError", "COND_LIMIT", "CLOSURE_TOL", "PROXIMAL_MU"]
+           "LoopClosureError", "ConstraintDrift", "ChainSettler", "check_chain_reference",
+           "COND_LIMIT", "CLOSURE_TOL", "PROXIMAL_MU", "DRIFT_BOUND"]
 
 #: Largest condition number of ``J_p`` accepted; above it the configuration is refused as
 #: type-II singular (``S`` and the FL torque scale with ``J_p^-1``). For the built-in 5-bar,
@@ -69,6 +77,9 @@ CLOSURE_TOL = 1e-12
 #: ``CONTACT_3D``, Pinocchio 4.1.0 reaches 6e-11 rad/s^2 at ``mu = 1e-4`` but only 5e-5 at
 #: ``mu = 1e-10`` (a test pins both).
 PROXIMAL_MU = 1e-4
+
+#: Largest loop gap [m] one RK4 step may leave before its projection; above it the run stops.
+DRIFT_BOUND = 1e-6
 
 
 class SingularConfiguration(ValueError):
@@ -89,18 +100,26 @@ class LoopClosureError(ValueError):
     """The loop closure has no solution near the seed (the actuated angles cannot close it)."""
 
 
+class ConstraintDrift(RuntimeError):
+    """An RK4 step left a loop gap above :data:`DRIFT_BOUND` (time and gap in the message)."""
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 @dataclass
-class ClosedChain:
+class ClosedChain(Plant):
     """A parallel mechanism: Pinocchio tree, loop closures, actuated and passive coordinates.
 
-    The dynamics face is the one of :class:`rrr_pin.model.dynamics.Robot`, in the actuated
-    coordinates ``q_a`` (``nq`` of them): :meth:`M`, :meth:`V`, :meth:`G`,
-    :meth:`forward_dynamics`, :meth:`inverse_dynamics`; the passive coordinates are solved by
-    :meth:`close`, seeded from the last solution (so the calls are not thread-safe).
+    A :class:`~rrr_pin.model.plant.Plant` in the actuated coordinates ``q_a`` (``nq`` of
+    them): the model face is :meth:`terms` (the reduced ``M_r`` and ``V_r + G_r``),
+    :meth:`M`, :meth:`V`, :meth:`G`, :meth:`forward_dynamics`, :meth:`inverse_dynamics`; the
+    passive coordinates are solved by :meth:`close`, seeded from the last solution (so the
+    calls are not thread-safe; :meth:`reset` re-seeds it). The engine face runs the full tree:
+    :meth:`start` closes the loop, :meth:`acceleration` is Pinocchio's
+    ``constraintDynamics``, :meth:`settler` projects every step back onto the loop closure
+    and stops a run at a type-II singularity or a drift above :data:`DRIFT_BOUND`.
 
     Attributes
     ----------
@@ -121,8 +140,9 @@ class ClosedChain:
         passive coordinates.
     home : ndarray, shape (model.nq,)
         A closed configuration [rad, m] (the MJCF ``home`` keyframe).
-    params : FiveBarParams, DeltaParams or None
-        The built-in's parameter set.
+    params : parameter set or None
+        The mechanism's parameter set (:mod:`rrr_pin.model.mechanisms`); None for an MJCF file
+        loaded as it is.
     """
 
     model: pin.Model = field(repr=False)
@@ -137,6 +157,9 @@ class ClosedChain:
     rows: np.ndarray = field(repr=False)
     home: np.ndarray = field(repr=False)
     params: object = None
+
+    capabilities = frozenset({FRAMES})
+    failures = (SingularConfiguration, LoopClosureError, ConstraintDrift, np.linalg.LinAlgError)
 
     def __post_init__(self) -> None:
         self._act = np.array(self.actuated, dtype=int)
@@ -156,6 +179,12 @@ class ClosedChain:
         pin.initConstraintDynamics(self.model, self.data, self.constraints, self._cdatas)
         self._prox = pin.ProximalSettings(1e-14, PROXIMAL_MU, 200)
         self._q = self.home.copy()
+        self.actuated_index = self._act
+        self.loop_closures = tuple(self.constraint_names)
+
+    def describe_kind(self) -> str:
+        """Return ``"the closed chain"``."""
+        return "the closed chain"
 
     def __reduce__(self):
         """Pickle as the MJCF text and gravity it is built from (for worker processes).
@@ -429,6 +458,74 @@ class ClosedChain:
         Mr, h, _ = self.reduced_terms(q, qd)
         return np.linalg.solve(Mr, tau - h)
 
+    # --- the plant protocol (model/plant.py) -------------------------------------------------
+    def terms(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
+        """``(M_r, V_r + G_r)`` at actuated ``(q, qd)``, unchecked: :meth:`reduced`."""
+        return self.reduced(q, qd)
+
+    def reset(self, q=None) -> None:
+        """Re-seed the loop closure on the home branch, at the actuated ``q`` (default home)."""
+        if q is None:
+            self._q = self.home.copy()
+        else:
+            self.close(q, seed=self.home)
+
+    def start(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
+        """Full closed state at actuated ``(q, qd)``: Newton from ``home``, then ``S qd``."""
+        x = self.close(q, seed=self.home)
+        return x, self.velocity(x, qd)
+
+    def acceleration(self, x, v, tau) -> np.ndarray:
+        """``constraintDynamics`` under actuator torques ``tau`` [N m] (:meth:`actuation`)."""
+        return self.constrained_acceleration(x, v, self.actuation(tau))
+
+    def measure(self, x, v) -> tuple[np.ndarray, np.ndarray]:
+        """Return the actuated ``(q, qd)`` of a full state."""
+        act = self._act
+        return x[act], v[act]
+
+    def settler(self, t, h: float, x, v) -> ChainSettler:
+        """Return a :class:`ChainSettler` for one run.
+
+        On the grid ``t`` [s] with RK4 step ``h`` [s], from the full state ``(x, v)`` of
+        :meth:`start`.
+        """
+        return ChainSettler(self, t, h, x)
+
+    def task_path(self, period: float):
+        """Return the mechanism's task path as actuated waypoints ``(t, W, source)``, or None.
+
+        :meth:`rrr_pin.model.mechanisms.base.Mechanism.waypoints` of its parameter set (the
+        5-bar's tip circle, the Delta's adept cycle); None for an MJCF file without one.
+        """
+        return None if self.params is None else mechanism_of(self.params).waypoints(
+            self.params, period)
+
+    def check_path(self, t, R) -> dict:
+        """:func:`check_chain_reference`, recorded as ``reference_max_cond_Jp`` and its time."""
+        c = check_chain_reference(self, t, R)
+        return {"reference_max_cond_Jp": c["max_cond_Jp"], "reference_max_cond_at_s": c["at_s"]}
+
+    def perturbed(self, rng: np.random.Generator, tolerances, *, name: str | None = None
+                  ) -> tuple[ClosedChain, dict]:
+        """Draw an uncertain mechanism with ``tolerances.mechanism`` (:meth:`Plant.perturbed`).
+
+        The mechanism's parameter set is perturbed (a built-in's, or your own
+        :class:`~rrr_pin.model.mechanisms.FiveBarParams` / ``DeltaParams``); an MJCF file
+        without one is refused. Returns the closed chain and ``{"factors": ...}``.
+        """
+        if not isinstance(tolerances, UncertaintySet):
+            raise TypeError(f"tolerances must be an uncertainty set (e.g. "
+                            f"rrr_pin.Tolerances()), got {type(tolerances).__name__}")
+        if self.params is None:
+            raise ValueError(f"{self.name}: an MJCF file without a parameter set cannot be "
+                             f"perturbed (its uncertain plants perturb a FiveBarParams or "
+                             f"DeltaParams); load a built-in or your own parameter set")
+        params, factors = tolerances.mechanism(self.params, rng)
+        if name:
+            params = replace(params, name=name)
+        return load_closed_chain(params, gravity=self.gravity), {"factors": factors}
+
     # --- the plant ---------------------------------------------------------------------------
     def actuation(self, tau) -> np.ndarray:
         """Generalized force of actuator torques ``tau`` [N m], shape (model.nv,).
@@ -465,9 +562,109 @@ class ClosedChain:
         return q, qd
 
 
+class ChainSettler(Settler):
+    """After every RK4 step of a closed chain: drift check, projection, type-II checks.
+
+    The gap the step left is checked against :data:`DRIFT_BOUND` (:class:`ConstraintDrift`
+    above it) and recorded; the state is projected (:meth:`ClosedChain.project`); a sign
+    change of ``det J_p`` (a crossing of the type-II singularity between two steps) or a
+    refused projection stops the run with :class:`SingularConfiguration` naming the time.
+    Records ``drift_m``, ``drift_velocity_m_s`` (largest ``|J qd|`` before projection),
+    ``drift_bound_m`` and the final full state (:meth:`info`).
+    """
+
+    def __init__(self, chain: ClosedChain, t, h: float, x0):
+        self.chain, self.t, self.h = chain, t, h
+        self.drift = self.drift_v = 0.0
+        self._pas = list(chain.passive)
+        # det J_p where the run starts: the branch to stay on
+        self._sign = float(np.linalg.det(chain.jacobian(x0)[:, self._pas]))
+
+    def settle(self, k: int, x, v):
+        """Project a step of control period ``k`` (ending at ``t[k + 1]``) onto the loop."""
+        chain, t, pas = self.chain, self.t, self._pas
+        gap = float(np.max(np.abs(chain.residual(x))))
+        if not gap <= DRIFT_BOUND:
+            raise ConstraintDrift(
+                f"{chain.name}: one RK4 step of {self.h:g} s left a loop gap of {gap:.3g} m at "
+                f"t = {t[k]:.6g} s (bound {DRIFT_BOUND:g} m): take a smaller dt")
+        self.drift = max(self.drift, gap)
+        try:
+            x, v_new = chain.project(x, v)
+        except SingularConfiguration as exc:
+            raise SingularConfiguration(f"plant at t = {t[k + 1]:.6g} s: {exc}",
+                                        exc.cond) from None
+        # J at the projected x (the projection's own), applied to the unprojected v.
+        J = chain.jacobian(x, kinematics=False)
+        self.drift_v = max(self.drift_v, float(np.max(np.abs(J @ v))))
+        det = float(np.linalg.det(J[:, pas]))
+        if det * self._sign < 0.0:
+            raise SingularConfiguration(
+                f"plant at t = {t[k + 1]:.6g} s: crossed a type-II (parallel) singularity in "
+                f"the last step (det J_p changed sign; cond(J_p) = "
+                f"{np.linalg.cond(J[:, pas]):.3g} after it): the actuated angles no longer "
+                f"determine the mechanism's branch", math.inf)
+        self._sign = det
+        return x, v_new
+
+    def info(self, x, v) -> dict:
+        """``drift_m``, ``drift_velocity_m_s``, ``drift_bound_m``, ``final_q``, ``final_qd``."""
+        return {"drift_m": self.drift, "drift_velocity_m_s": self.drift_v,
+                "drift_bound_m": DRIFT_BOUND, "final_q": x.tolist(), "final_qd": v.tolist()}
+
+
+def check_chain_reference(chain, t, R) -> dict:
+    """Refuse a reference that leaves the workspace or crosses a type-II singularity.
+
+    Parameters
+    ----------
+    chain : ClosedChain
+        The mechanism (its loop closure and ``J_p``).
+    t : ndarray, shape (N,)
+        Sample times [s].
+    R : ndarray, shape (N, chain.nq)
+        Actuated reference [rad] at ``t``.
+
+    Returns
+    -------
+    dict
+        ``{"max_cond_Jp": float, "at_s": float}``: the worst conditioning met.
+
+    Raises
+    ------
+    SingularConfiguration
+        ``cond(J_p) > COND_LIMIT`` at a sample, or ``det J_p`` changes sign between two
+        samples (naming the time and the largest condition number there).
+    LoopClosureError
+        A sample where the loop cannot close (out of the workspace), naming the time.
+    """
+    q = chain.home.copy()
+    pas = list(chain.passive)
+    worst, at, sign = 0.0, 0.0, 0.0
+    for tk, r in zip(t, R, strict=True):
+        try:
+            q = chain.close(r, seed=q)
+        except SingularConfiguration as exc:
+            raise SingularConfiguration(f"reference at t = {tk:.6g} s: {exc}", exc.cond) from None
+        except LoopClosureError as exc:
+            raise LoopClosureError(f"reference at t = {tk:.6g} s: {exc}") from None
+        Jp = chain.jacobian(q)[:, pas]
+        cond = float(np.linalg.cond(Jp))
+        det = float(np.linalg.det(Jp))
+        if cond > worst:
+            worst, at = cond, float(tk)
+        if sign and det * sign < 0.0:
+            raise SingularConfiguration(
+                f"reference crosses a type-II (parallel) singularity before t = {tk:.6g} s "
+                f"(det J_p changes sign; cond(J_p) = {cond:.3g} there, limit {COND_LIMIT:g})",
+                cond)
+        sign = math.copysign(1.0, det)
+    return {"max_cond_Jp": worst, "at_s": at}
+
+
 def is_closed_chain_source(source) -> bool:
     """Whether :func:`rrr_pin.load_robot` hands ``source`` to :func:`load_closed_chain`."""
-    if isinstance(source, (FiveBarParams, DeltaParams)):
+    if is_mechanism_params(source):
         return True
     if isinstance(source, (str, Path)):
         text = str(source)
@@ -476,11 +673,11 @@ def is_closed_chain_source(source) -> bool:
 
 
 def _mjcf_of(source) -> tuple[str, str, str, object]:
-    if isinstance(source, (FiveBarParams, DeltaParams)):
+    if is_mechanism_params(source):
         return mjcf_from_params(source), source.name, "<params>", source
     text = str(source)
     if text in MECHANISMS:
-        params = MECHANISMS[text]()
+        params = MECHANISMS[text].params()
         return mjcf_from_params(params), text, text, params
     path = Path(text)
     if not path.is_file():
@@ -493,9 +690,9 @@ def load_closed_chain(source, *, gravity: float = 9.8) -> ClosedChain:
 
     Parameters
     ----------
-    source : str, path-like, FiveBarParams or DeltaParams
-        ``"fivebar"``, ``"delta"`` (the built-ins of :mod:`rrr_pin.model.mechanisms`), a
-        parameter set, or an MJCF file with ``<equality><connect>`` loop closures and one
+    source : str, path-like or parameter set
+        A name of :data:`rrr_pin.model.mechanisms.MECHANISMS` (``"fivebar"``, ``"delta"``), a
+        parameter set of one, or an MJCF file with ``<equality><connect>`` loop closures and one
         ``<motor joint=...>`` per actuated joint.
     gravity : float, default 9.8
         Gravity magnitude [m/s^2] along ``-z`` (the paper's value).

@@ -35,7 +35,8 @@ import pinocchio as pin
 
 from ..validation import check_positive, check_real
 from .dh import ArmParams, check_inertial
-from .robots import RobotModelError, read_source
+from .plant import EFFORT_LIMITS, FRAMES, JOINT_LIMITS, URDF, Plant, UncertaintySet
+from .robots import RobotModelError, nominal_params, read_source
 
 __all__ = ["Robot", "load_robot", "robot_from_xml", "check_urdf_inertials", "DEFAULT_GRAVITY"]
 
@@ -57,8 +58,8 @@ _F64 = np.dtype(float)
 
 
 @dataclass
-class Robot:
-    """A Pinocchio model of a fixed-base serial arm with its workspace.
+class Robot(Plant):
+    """A Pinocchio model of a fixed-base serial arm with its workspace: a :class:`Plant`.
 
     The dynamics methods (:meth:`M`, :meth:`V`, :meth:`G`, :meth:`inverse_dynamics`,
     :meth:`forward_dynamics`) check their arrays (shape ``(nq,)``, finite) unless called with
@@ -84,6 +85,9 @@ class Robot:
         The URDF text the model was built from (before joint locking).
     locked : dict
         Joints locked at fixed values [rad or m], by name.
+    params : ArmParams or None
+        The DH parameter set the arm is built from, when its uncertain plants perturb it (the
+        paper's RRR, :func:`rrr_pin.model.robots.nominal_params`) instead of its URDF.
     """
 
     model: pin.Model = field(repr=False)
@@ -92,6 +96,9 @@ class Robot:
     source: str
     urdf: str = field(repr=False)
     locked: dict = field(default_factory=dict)
+    params: ArmParams | None = field(default=None, repr=False)
+
+    capabilities = frozenset({URDF, EFFORT_LIMITS, JOINT_LIMITS, FRAMES})
 
     def __post_init__(self) -> None:
         self._shape = (self.model.nq,)
@@ -106,7 +113,7 @@ class Robot:
         # 200 kB): the workspaces and the zero-gravity copy are rebuilt on arrival, as at
         # construction. A campaign sends its laws' nominal Robot with every task.
         return {key: getattr(self, key) for key in ("model", "name", "source", "urdf",
-                                                    "locked")}
+                                                    "locked", "params")}
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
@@ -124,9 +131,19 @@ class Robot:
         return list(self.model.names)[1:]
 
     @property
+    def joint_units(self) -> list[str]:
+        """Unit of each joint coordinate: ``"m"`` for a prismatic joint, else ``"rad"``."""
+        return ["m" if j.shortname().startswith("JointModelP") else "rad"
+                for j in list(self.model.joints)[1:]]
+
+    @property
     def gravity(self) -> float:
         """Gravity magnitude [m/s^2] (along -z of the root link)."""
         return float(-self.model.gravity.linear[2])
+
+    def describe_kind(self) -> str:
+        """Return ``"the serial arm"``."""
+        return "the serial arm"
 
     @property
     def lower(self) -> np.ndarray:
@@ -141,6 +158,10 @@ class Robot:
     def neutral(self) -> np.ndarray:
         """Neutral configuration (all zeros for revolute/prismatic joints), shape (nq,)."""
         return np.array(pin.neutral(self.model), dtype=float)
+
+    def effort_limits(self) -> np.ndarray:
+        """Return the URDF's ``<limit effort>`` per joint [N m], shape (nq,) (a new array)."""
+        return np.asarray(self.model.effortLimit, dtype=float).copy()
 
     def check_state(self, name: str, x) -> np.ndarray:
         """Return ``x`` as a finite float64 array of shape ``(nq,)``, or raise ``ValueError``.
@@ -174,6 +195,44 @@ class Robot:
         if not math.isfinite(sum(x.tolist())) and not np.isfinite(x).all():
             raise ValueError(f"{name} must be finite, got {x}")
         return x
+
+    def terms(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(M(q), V(q, qd) + G(q))``, eq. (1), unchecked: CRBA and ``nonLinearEffects``.
+
+        The laws' fast path (:meth:`Plant.terms`): ``q, qd`` finite float64 arrays of shape
+        (nq,) [rad, rad/s]. ``M`` is a full symmetric new array [kg m^2] (as :meth:`M`), ``h``
+        shape (nq,) [N m].
+        """
+        model, data = self.model, self.data
+        # pin.crba's binding (pin >= 3, pinned to 4.1.0) returns a symmetric copy, its upper
+        # triangle mirrored (as M documents): no NumPy triu to complete it.
+        return pin.crba(model, data, q), pin.nonLinearEffects(model, data, q, qd)
+
+    def acceleration(self, x: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Forward dynamics ``qdd = M^-1 (tau - V - G)`` (ABA), unchecked: the engines' step.
+
+        ``x, v, tau`` float64 arrays of shape (nq,) [rad, rad/s, N m]; returns [rad/s^2].
+        """
+        return pin.aba(self.model, self.data, x, v, tau)
+
+    def perturbed(self, rng: np.random.Generator, tolerances, *, name: str | None = None
+                  ) -> tuple[Robot, dict]:
+        """Draw an uncertain arm with ``rng`` (:meth:`Plant.perturbed`).
+
+        ``tolerances.arm`` perturbs :attr:`params` when the arm has them (the paper's RRR)
+        and the URDF otherwise, the locked joints' origins left nominal
+        (:mod:`rrr_pin.model.uncertainty`); the arm drawn keeps this one's gravity and locks.
+        """
+        if not isinstance(tolerances, UncertaintySet):
+            raise TypeError(f"tolerances must be an uncertainty set (e.g. "
+                            f"rrr_pin.Tolerances()), got {type(tolerances).__name__}")
+        source = self.params if self.params is not None else self.urdf
+        urdf, parameters = tolerances.arm(source, rng, skip_joints=tuple(self.locked),
+                                          name=name)
+        label = name or f"{self.name} (perturbed)"
+        plant = robot_from_xml(urdf, gravity=self.gravity, lock=dict(self.locked),
+                               name=name or self.name, label=label, check=False)
+        return plant, parameters
 
     def M(self, q, *, check: bool = True) -> np.ndarray:
         """Joint-space inertia matrix ``M(q)`` (CRBA), eq. (2).
@@ -559,6 +618,7 @@ def load_robot(source="rrr", *, gravity: float | None = None,
         gravity = source.g if isinstance(source, ArmParams) else DEFAULT_GRAVITY
     raw, name, label = read_source(source)
     robot = robot_from_xml(raw, name=name, gravity=gravity, lock=lock, label=label)
+    robot.params = nominal_params(robot)
     logger.info("loaded %s from %s: %d joints (%s)%s", robot.name, label, robot.nq,
                 ", ".join(robot.joint_names),
                 f", locked {robot.locked}" if robot.locked else "")

@@ -93,6 +93,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..validation import FieldError, check_count, check_probability
+from .plant import UncertaintySet
 
 __all__ = [
     "STANDARD_NAMES",
@@ -921,7 +922,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
 # --- the uncertainty set of an identification -------------------------------------------------
 
 @dataclass(frozen=True)
-class IdentifiedUncertainty:
+class IdentifiedUncertainty(UncertaintySet):
     r"""Uncertain plants drawn from an identification's distribution (``identification.json``).
 
     Each plant: base parameters ``theta ~ N(theta_c, cov)`` kept only inside the
@@ -1032,6 +1033,20 @@ class IdentifiedUncertainty:
 
     def __setstate__(self, state):
         self.__dict__.update(state)
+
+    def as_settings(self) -> dict:
+        """Return what the outputs record: ``{"uncertainty": "identified", ...to_dict()}``."""
+        return {"uncertainty": "identified", **{k: v for k, v in self.to_dict().items()
+                                                if k != "kind"}}
+
+    def arm(self, source, rng: np.random.Generator, *, skip_joints=(), name=None
+            ) -> tuple[str, dict]:
+        """:meth:`draw` on the arm's URDF (kinematics nominal): ``(URDF, {"identified": ...})``."""
+        from .urdf import urdf_from_params
+
+        text = str(source) if isinstance(source, str) else urdf_from_params(source)
+        urdf, drawn = self.draw(text, rng)
+        return urdf, {"identified": drawn}
 
     def draw(self, urdf: str, rng: np.random.Generator) -> tuple[str, dict]:
         """One plant: its URDF text and ``{"base", "standard", "rejected": {...}}``.

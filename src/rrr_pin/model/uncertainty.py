@@ -52,8 +52,8 @@ import numpy as np
 from ..outputs import writing
 from ..validation import check_count, check_real, check_vector
 from .dh import ArmParams, check_inertial
-from .identification import IdentifiedUncertainty
-from .mechanisms import DeltaParams, FiveBarParams, perturb_mechanism
+from .mechanisms import is_mechanism_params, perturb_mechanism
+from .plant import UncertaintySet
 from .urdf import urdf_from_params
 
 __all__ = [
@@ -80,8 +80,13 @@ def _check_tolerances(tol) -> None:
 
 
 @dataclass(frozen=True)
-class Tolerances:
+class Tolerances(UncertaintySet):
     """Relative tolerances of the uncertain plants (paper: 20 % inertia, 5 % lengths).
+
+    The uncertainty set of every kind of plant: an arm's URDF (or DH parameters) is perturbed
+    as the module docstring says, a mechanism's parameter set by
+    :func:`~rrr_pin.model.mechanisms.perturb_mechanism` (masses and lengths; the rods'
+    moments follow).
 
     Parameters
     ----------
@@ -100,6 +105,28 @@ class Tolerances:
     def describe(self) -> str:
         """One line for reports: ``20% on masses and moments, 5% on lengths``."""
         return f"{self.inertia:.0%} on masses and moments, {self.length:.0%} on lengths"
+
+    def to_dict(self) -> dict:
+        """``{"tolerance_inertia", "tolerance_length"}``, as the outputs record them."""
+        return {"tolerance_inertia": self.inertia, "tolerance_length": self.length}
+
+    def as_settings(self) -> dict:
+        """Return what ``Settings.to_dict`` records of the set: :meth:`to_dict`."""
+        return self.to_dict()
+
+    def arm(self, source, rng: np.random.Generator, *, skip_joints=(), name=None
+            ) -> tuple[str, dict]:
+        """Perturb a DH parameter set (renamed ``name``) or a URDF text; see the module."""
+        if isinstance(source, ArmParams):
+            params, factors = perturb_params(source, rng, self)
+            urdf = urdf_from_params(replace(params, name=name) if name else params)
+            return urdf, {"params": params.to_dict(), "factors": factors}
+        urdf, factors = perturb_urdf(str(source), rng, self, skip_joints=skip_joints)
+        return urdf, {"factors": factors}
+
+    def mechanism(self, params, rng: np.random.Generator) -> tuple[object, dict]:
+        """``perturb_mechanism(params, rng, inertia, length)``: masses and lengths."""
+        return perturb_mechanism(params, rng, self.inertia, self.length)
 
 
 @dataclass(frozen=True)
@@ -321,23 +348,13 @@ def sample_plant(nominal, seed: int, index: int, tol: Tolerances = Tolerances(),
     ``sample_plant(nominal, s, k)`` equals ``sample_plants(nominal, n, s)[k]`` for any ``n > k``.
     """
     rng = np.random.default_rng([int(seed), int(index)])
-    if isinstance(tol, IdentifiedUncertainty):
-        text = urdf_from_params(nominal) if isinstance(nominal, ArmParams) else str(nominal)
-        urdf, drawn = tol.draw(text, rng)
-        return PlantSample(index=int(index), seed=[int(seed), int(index)], urdf=urdf,
-                           parameters={"identified": drawn})
-    if isinstance(nominal, ArmParams):
-        params, factors = perturb_params(nominal, rng, tol)
-        urdf = urdf_from_params(replace(params, name=f"{nominal.name}_sample{index:03d}"))
-        parameters = {"params": params.to_dict(), "factors": factors}
-    else:
-        urdf, factors = perturb_urdf(str(nominal), rng, tol, skip_joints=skip_joints)
-        parameters = {"factors": factors}
+    name = f"{nominal.name}_sample{index:03d}" if isinstance(nominal, ArmParams) else None
+    urdf, parameters = tol.arm(nominal, rng, skip_joints=skip_joints, name=name)
     return PlantSample(index=int(index), seed=[int(seed), int(index)], urdf=urdf,
                        parameters=parameters)
 
 
-class MechanismUncertainty:
+class MechanismUncertainty(UncertaintySet):
     """How an uncertain parallel mechanism is drawn: subclass it to write your own.
 
     A subclass is a frozen dataclass (it crosses process boundaries and is recorded whole in
@@ -358,6 +375,14 @@ class MechanismUncertainty:
     def to_dict(self) -> dict:
         """JSON-ready settings of the uncertainty set."""
         raise NotImplementedError(f"{type(self).__name__} must implement to_dict()")
+
+    def mechanism(self, params, rng: np.random.Generator) -> tuple[object, dict]:
+        """:meth:`draw`, checked to return a parameter set of the type of ``params``."""
+        out, factors = self.draw(params, rng)
+        if type(out) is not type(params):
+            raise TypeError(f"{type(self).__name__}.draw returned a {type(out).__name__}, "
+                            f"expected a {type(params).__name__}")
+        return out, factors
 
 
 @dataclass(frozen=True)
@@ -424,15 +449,11 @@ def sample_mechanism(nominal, seed: int, index: int,
         ``nominal`` not a mechanism parameter set, ``tol`` not a MechanismUncertainty, or a
         draw of another type than ``nominal``.
     """
-    if not isinstance(nominal, (FiveBarParams, DeltaParams)):
-        raise TypeError(f"nominal must be a FiveBarParams or DeltaParams, got "
-                        f"{type(nominal).__name__}")
+    if not is_mechanism_params(nominal):
+        raise TypeError(f"nominal must be a mechanism's parameter set (e.g. FiveBarParams), "
+                        f"got {type(nominal).__name__}")
     if not isinstance(tol, MechanismUncertainty):
         raise TypeError(f"tol must be a MechanismUncertainty (e.g. MechanismTolerances()), got "
                         f"{type(tol).__name__}")
     rng = np.random.default_rng([check_count("seed", seed), check_count("index", index)])
-    params, factors = tol.draw(nominal, rng)
-    if type(params) is not type(nominal):
-        raise TypeError(f"{type(tol).__name__}.draw returned a {type(params).__name__}, "
-                        f"expected a {type(nominal).__name__}")
-    return params, factors
+    return tol.mechanism(nominal, rng)

@@ -44,7 +44,8 @@ from .trajectory import (
 )
 
 __all__ = ["GENERATED", "BATCH_LAWS", "BATCH_MAX", "StructureMismatch", "generated_structure",
-           "plant_parameters", "batchable", "run_batch", "raise_or_return", "floor_ms"]
+           "plant_parameters", "batchable", "why_not", "run_batch", "raise_or_return",
+           "floor_ms"]
 
 #: The generated structures: name -> (robot source of :func:`rrr_pin.model.dynamics.load_robot`,
 #: joints locked) the generator reads the structure from (``scripts/gen_dynamics.py``).
@@ -173,9 +174,43 @@ def _parameters(robots, role: str) -> np.ndarray:
     return P
 
 
+def why_not(run, form):
+    """Why ``"codegen"`` cannot run ``run`` exactly (None: it can; :mod:`rrr_pin.sim.engines`).
+
+    A structure without generated dynamics is a :class:`StructureMismatch` (raised when the
+    engine is asked by name).
+    """
+    law, plant = run.law, run.plant
+    if form is None:
+        cls = type(getattr(law, "law", law)).__name__  # a sampled wrapper: its law's class
+        return (f"law {law.name!r} ({cls}) declares no compiled form, so the codegen engine "
+                f"cannot run it")
+    if not available():
+        try:
+            require()
+        except ImportError as exc:
+            return str(exc)
+    if plant.loop_closures or form.nominal.loop_closures:
+        who = plant if plant.loop_closures else form.nominal
+        return (f"engine 'codegen' does not implement closed chains ({who.name!r} closes "
+                f"{', '.join(who.loop_closures)}): its generated dynamics are serial trees")
+    if type(form) not in BATCH_LAWS:
+        known = ", ".join(cls.__name__ for cls in BATCH_LAWS)
+        return (f"compiled form {type(form).__qualname__} of law {law.name!r} is not "
+                f"implemented by the batched engine (known: {known})")
+    if run.effects is not None:
+        return "engine 'codegen' runs the ideal plant only, got plant effects"
+    for robot, role in ((plant, "plant"), (form.nominal, "nominal")):
+        if generated_structure(robot.model) is None:
+            return _refusal(robot, role)
+    return None
+
+
 def batchable(runs, form) -> bool:
     """Whether :func:`run_batch` can run these runs of a law's compiled ``form``."""
     if not available() or type(form) not in BATCH_LAWS or not runs:
+        return False
+    if any(r.plant.loop_closures for r in runs) or form.nominal.loop_closures:
         return False
     name = generated_structure(form.nominal.model)
     return (name is not None and all(r.effects is None for r in runs)

@@ -16,12 +16,12 @@ operation for operation (C++ in ``src/rrr_pin/_ext/chain.hpp``, ``chain.cpp``):
   plant; it reaches it to about 6e-11 rad/s^2 at
   :data:`~rrr_pin.model.closed_chain.PROXIMAL_MU`); RK4 with the torque held over the control
   period and ``substeps`` steps; after every step the drift check against
-  :data:`~rrr_pin.sim.closed_chain.DRIFT_BOUND`, the projection (Newton on the passive
+  :data:`~rrr_pin.model.closed_chain.DRIFT_BOUND`, the projection (Newton on the passive
   coordinates to :data:`~rrr_pin.model.closed_chain.CLOSURE_TOL`, then ``qd = S qd_a``), the
   drift records and the type-II checks (``cond(J_p)`` above
   :data:`~rrr_pin.model.closed_chain.COND_LIMIT`, a sign change of ``det J_p``);
-* the law: :class:`~rrr_pin.control.closed_chain.ChainFLForm`, the sampled
-  :class:`~rrr_pin.control.closed_chain.ReducedTracking` (FL alone, H-infinity + FL with ``K``
+* the law: :class:`~rrr_pin.control.laws.FLForm` with a closed-chain nominal, the sampled
+  :class:`~rrr_pin.control.laws.TrackingController` (FL alone, H-infinity + FL with ``K``
   discretized as the sampled law does), its own loop closure by Newton seeded from its previous
   sample (the first from its mechanism's ``home``).
 
@@ -43,7 +43,7 @@ Pinocchio's joint placements, velocities and accelerations; a test pins them on
 :meth:`~rrr_pin.model.closed_chain.ClosedChain.jacobian` and
 :meth:`~rrr_pin.model.closed_chain.ClosedChain.gamma`.
 
-Refusals, each by name (:func:`chain_engine`): a law without a compiled form, a compiled form
+Refusals, each by name (:func:`why_not`): a law without a compiled form, a compiled form
 this engine does not implement, a continuous-time law (sampled laws only), plant effects, or
 the extension not built. ``engine="auto"`` then runs Python and records why in
 ``info["engine_note"]``. A run that stops (drift, singularity, a loop that cannot close) raises
@@ -57,15 +57,22 @@ import math
 
 import numpy as np
 
-from ..control.closed_chain import ChainFLForm
-from ..model.closed_chain import CLOSURE_TOL, COND_LIMIT, LoopClosureError, SingularConfiguration
-from .extension import EXTENSION, available, cached, require
+from ..control.laws import FLForm
+from ..model.closed_chain import (
+    CLOSURE_TOL,
+    COND_LIMIT,
+    DRIFT_BOUND,
+    ConstraintDrift,
+    LoopClosureError,
+    SingularConfiguration,
+)
+from .extension import EXTENSION, cached, require
+from .trajectory import Trajectory, make_trajectory
 
-__all__ = ["chain_engine", "compile_chain", "run_chain_compiled", "check_reference_compiled",
-           "CHAIN_FORMS"]
+__all__ = ["why_not", "compile_chain", "run_chain", "check_reference_compiled", "CHAIN_FORMS"]
 
 #: The compiled forms the closed-chain C++ loop implements, by exact type, and their C++ law.
-CHAIN_FORMS = {ChainFLForm: "ChainFLLaw"}
+CHAIN_FORMS = {FLForm: "ChainFLLaw"}
 
 #: Newton iterations of a loop closure (the default of ClosedChain.close).
 _MAX_ITER = 30
@@ -101,79 +108,28 @@ def compile_chain(chain):
     return cached(_CACHE, chain, load)
 
 
-def _why_not(plant, law, continuous: bool, effects) -> str | None:
-    """Why the compiled engine cannot run this run (None: it can)."""
-    if not available():
-        try:
-            require()
-        except ImportError as exc:
-            return str(exc)
-    if effects is not None:
+def why_not(run, form) -> str | None:
+    """Why the closed-chain C++ loop cannot run ``run`` exactly (None: it can).
+
+    Called by :func:`rrr_pin.sim.compiled.why_not` for a plant (or a law's model) with loop
+    closures, once the law has a compiled form and the extension is built.
+    """
+    plant, law = run.plant, run.law
+    if run.effects is not None:
         return (f"plant effects are not implemented by the compiled closed-chain engine "
                 f"(plant {plant.name!r})")
-    if continuous:
+    if not run.sampled:
         return (f"law {law.name!r} runs in continuous time (no rate): the compiled "
                 f"closed-chain engine runs sampled laws only")
-    form = law.compiled_form() if hasattr(law, "compiled_form") else None
-    if form is None:
-        cls = type(getattr(law, "law", law)).__name__  # a sampled wrapper: its law's class
-        return (f"law {law.name!r} ({cls}) declares no compiled form, so the "
-                f"compiled closed-chain engine cannot run it")
     if type(form) not in CHAIN_FORMS:
         return (f"compiled form {type(form).__qualname__} of law {law.name!r} is not "
                 f"implemented by the compiled closed-chain engine (known: "
                 f"{', '.join(c.__name__ for c in CHAIN_FORMS)})")
-    if not hasattr(form.nominal, "constraints"):
+    if not form.nominal.loop_closures:
         return f"law {law.name!r}'s model {form.nominal.name!r} is not a closed chain"
+    if not plant.loop_closures:
+        return f"plant {plant.name!r} is not a closed chain, law {law.name!r}'s model is"
     return None
-
-
-def chain_engine(plant, law, engine: str, *, continuous: bool, effects=None
-                 ) -> tuple[str, str]:
-    """Choose the engine of a closed-chain run: ``(engine, note)``, or refuse by name.
-
-    Parameters
-    ----------
-    plant : ClosedChain
-    law : ControlLaw or SampledLaw
-        The law as it will run (sampled, or continuous when ``continuous``).
-    engine : {"auto", "python", "compiled"}
-        What was asked; ``"codegen"`` is refused (no generated dynamics of closed chains).
-    continuous : bool
-        Whether the law runs in continuous time (no rate).
-    effects : object, optional
-        The run's plant effects (None: the ideal plant); the compiled engine has none.
-
-    Returns
-    -------
-    engine : str
-        ``"compiled"`` or ``"python"``.
-    note : str
-        Why (recorded in ``info["engine_note"]``).
-
-    Raises
-    ------
-    ValueError
-        An unknown engine, ``"codegen"``, or ``"compiled"`` for a run it cannot do (the
-        message says why, naming the law).
-    """
-    if engine not in ("auto", "python", "compiled"):
-        if engine == "codegen":
-            raise ValueError(f"engine 'codegen' does not implement closed chains (plant "
-                             f"{plant.name!r}); use engine='compiled', 'python' or 'auto'")
-        raise ValueError(f"engine must be one of auto, python, compiled for a closed chain, "
-                         f"got {engine!r}")
-    if engine == "python":
-        return "python", "engine='python' asked"
-    why = _why_not(plant, law, continuous, effects)
-    if engine == "compiled":
-        if why is not None:
-            raise ValueError(f"engine 'compiled' cannot run this closed-chain run: {why}; use "
-                             f"engine='python' (or 'auto', which picks it)")
-        return "compiled", "engine='compiled' asked"
-    if why is None:
-        return "compiled", "auto: the plant and the law's compiled form run in C++"
-    return "python", f"auto: {why}"
 
 
 def check_reference_compiled(chain, t, R) -> dict | None:
@@ -199,64 +155,45 @@ def check_reference_compiled(chain, t, R) -> dict | None:
     return {"max_cond_Jp": float(cond), "at_s": float(t[k])}
 
 
-def run_chain_compiled(plant, law, t, R, RD, RDD, q, qd, x, h: float, substeps: int,
-                       drift_bound: float, drift_error) -> dict:
-    """Run a validated sampled closed-chain run in C++; return its arrays and drift records.
+def run_chain(run, form) -> Trajectory:
+    """Run a validated sampled closed-chain run (:class:`~rrr_pin.sim.trajectory.Run`) in C++.
 
-    :func:`rrr_pin.sim.closed_chain.simulate_closed_chain` validates the run and calls this
-    when :func:`chain_engine` picked ``"compiled"``.
-
-    Parameters
-    ----------
-    plant : ClosedChain
-        The true mechanism.
-    law : SampledLaw
-        Whose ``compiled_form()`` is a :class:`ChainFLForm`.
-    t : ndarray, shape (N + 1,)
-        Control instants [s].
-    R, RD, RDD : ndarray, shape (N + 1, plant.nq)
-        Actuated reference at ``t`` [rad, rad/s, rad/s^2].
-    q, qd : ndarray, shape (plant.model.nv,)
-        Closed, consistent initial full state [rad, rad/s].
-    x : ndarray, shape (law.nx,)
-        The law's initial state.
-    h : float
-        RK4 step [s].
-    substeps : int
-        RK4 steps per control period.
-    drift_bound : float
-        Largest loop gap [m] a step may leave.
-    drift_error : type
-        The exception of a drift stop (:class:`rrr_pin.sim.closed_chain.ConstraintDrift`).
-
-    Returns
-    -------
-    dict
-        ``Q, QD, TAU`` (N + 1, nq), ``drift_m``, ``drift_velocity_m_s``, ``final_q``,
-        ``final_qd`` (full, shape (model.nv,)).
+    The reference is checked along its grid in C++ (:func:`check_reference_compiled`; the
+    Python check re-raises a failure with its message), then the whole run is one call. The
+    trajectory's ``info`` has the Python engine's keys: the plant's records of the path
+    (:meth:`~rrr_pin.model.closed_chain.ClosedChain.check_path`) and of the run (the drift,
+    its bound, the final full state).
 
     Raises
     ------
     SingularConfiguration, LoopClosureError, ConstraintDrift
         As the Python engine, with its messages.
     """
-    form = law.compiled_form()
+    plant = run.plant
+    t, R = run.t, run.R
+    c = check_reference_compiled(plant, t, R)
+    path = ({"reference_max_cond_Jp": c["max_cond_Jp"], "reference_max_cond_at_s": c["at_s"]}
+            if c is not None else plant.check_path(t, R))
+    q, qd = run.state0
     claw = EXTENSION.ChainFLLaw()
     claw.lam, claw.A, claw.B, claw.C, claw.D = form.lam, form.A, form.B, form.C, form.D
     inputs = EXTENSION.ChainInputs()
-    for key, value in (("R", R), ("RD", RD), ("RDD", RDD), ("q0", q), ("qd0", qd), ("x0", x),
-                       ("h", float(h)), ("substeps", int(substeps)),
+    for key, value in (("R", R), ("RD", run.RD), ("RDD", run.RDD), ("q0", q), ("qd0", qd),
+                       ("x0", run.x0), ("h", float(run.h)), ("substeps", int(run.substeps)),
                        ("n_steps", len(t) - 1), ("closure_tol", CLOSURE_TOL),
                        ("max_iter", _MAX_ITER), ("cond_limit", COND_LIMIT),
-                       ("drift_bound", float(drift_bound))):
+                       ("drift_bound", float(DRIFT_BOUND))):
         setattr(inputs, key, value)
     out = EXTENSION.chain_rollout(compile_chain(plant), compile_chain(form.nominal), claw,
                                   inputs)
     if out.status != _OK:
-        _raise(plant, form.nominal, out, t, h, drift_bound, drift_error)
-    return {"Q": out.Q, "QD": out.QD, "TAU": out.TAU, "drift_m": float(out.drift),
-            "drift_velocity_m_s": float(out.drift_v), "final_q": out.q.tolist(),
-            "final_qd": out.qd.tolist()}
+        _raise(plant, form.nominal, out, t, run.h, DRIFT_BOUND, ConstraintDrift)
+    traj = make_trajectory(run, out.Q, out.QD, out.TAU)
+    traj.info.update(path)
+    traj.info.update({"drift_m": float(out.drift), "drift_velocity_m_s": float(out.drift_v),
+                      "drift_bound_m": DRIFT_BOUND, "final_q": out.q.tolist(),
+                      "final_qd": out.qd.tolist()})
+    return traj
 
 
 def _raise(plant, nominal, out, t, h, drift_bound, drift_error):

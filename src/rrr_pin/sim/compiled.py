@@ -48,8 +48,7 @@ import numpy as np
 
 from ..control.effects import Resolved
 from ..control.laws import FLAWForm, FLForm, PDForm, check_law_output
-from .codegen import compile_robot_codegen
-from .extension import EXTENSION, CompiledRobot, cached, require
+from .extension import EXTENSION, CompiledRobot, available, cached, require
 from .trajectory import (
     LAW_TORQUE,
     REASONS,
@@ -61,6 +60,7 @@ from .trajectory import (
 
 __all__ = [
     "compile_robot",
+    "why_not",
     "run_compiled",
     "floor_ms",
     "implements",
@@ -129,12 +129,34 @@ def _effects(fx: Resolved):
                                          if f.name != "info" and getattr(fx, f.name) is not None})
 
 
-def run_compiled(run, form, *, codegen: bool = False):
-    """Run a validated simulation (:class:`rrr_pin.sim.trajectory.Run`) of a law's compiled form.
+def why_not(run, form) -> str | None:
+    """Why the compiled engine cannot run ``run`` exactly (None: it can; :mod:`.engines`).
 
-    ``codegen=True`` (``simulate(..., engine="codegen")``) runs the same loop on the generated
-    dynamics of :mod:`rrr_pin.sim.codegen`, which refuses (``CodegenModelMismatch``) unless both
-    the plant and the nominal model are the generated model; ideal plant only.
+    A plant with loop closures runs on the closed-chain loop of
+    :mod:`rrr_pin.sim.chain_compiled`, which says what it implements.
+    """
+    law = run.law
+    if form is None:
+        cls = type(getattr(law, "law", law)).__name__  # a sampled wrapper: its law's class
+        return (f"law {law.name!r} ({cls}) declares no compiled form, so the compiled engine "
+                f"cannot run it")
+    if not available():
+        try:
+            require()
+        except ImportError as exc:
+            return str(exc)
+    if run.plant.loop_closures or form.nominal.loop_closures:
+        from .chain_compiled import why_not as chain_why_not
+
+        return chain_why_not(run, form)
+    if not implements(form):
+        return (f"compiled form {type(form).__qualname__} of law {law.name!r} is not "
+                f"implemented in C++ (known: {_known()})")
+    return None
+
+
+def run_compiled(run, form):
+    """Run a validated simulation (:class:`rrr_pin.sim.trajectory.Run`) of a law's compiled form.
 
     Parameters
     ----------
@@ -156,19 +178,17 @@ def run_compiled(run, form, *, codegen: bool = False):
         A compiled form of a type the C++ loop does not implement (never run as another).
     """
     require()
-    if not implements(form):
-        raise ValueError(f"compiled form {type(form).__qualname__} of law {run.law.name!r} is "
-                         f"not implemented in C++ (known: {_known()}); use engine='python'")
+    why = why_not(run, form)
+    if why is not None:
+        raise ValueError(f"{why}; use engine='python'")
     plant = run.plant
+    if plant.loop_closures:
+        from .chain_compiled import run_chain
+
+        return run_chain(run, form)
     fx = run.effects
-    if codegen:
-        if fx is not None:
-            raise ValueError("engine='codegen' runs the ideal plant only, got effects; use "
-                             "engine='compiled' with plant effects")
-        plant_m = compile_robot_codegen(plant, "plant")._model
-        nominal_m = compile_robot_codegen(form.nominal, "nominal")._model
-    else:
-        plant_m, nominal_m = compile_robot(plant)._model, compile_robot(form.nominal)._model
+    run.info.update(plant.check_path(run.grid, run.R))  # a tree's own check: nothing to record
+    plant_m, nominal_m = compile_robot(plant)._model, compile_robot(form.nominal)._model
     inputs = _fill(EXTENSION.RolloutInputs(), sampled=run.sampled, R=run.R, RD=run.RD,
                    RDD=run.RDD, q0=run.q0, qd0=run.qd0, x0=run.x0, lower=run.lower,
                    upper=run.upper, vlim=VELOCITY_LIMIT, h=run.h, substeps=run.substeps,

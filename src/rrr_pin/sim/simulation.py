@@ -1,16 +1,19 @@
-"""Closed-loop simulation of the nonlinear arm: one entry point, two engines.
+"""Closed-loop simulation of any plant: one entry point, the engines of one registry.
 
-The plant is the full rigid-body model of a URDF (Pinocchio's ABA); the law sees only its own
-model (:mod:`rrr_pin.control.laws`). :func:`simulate` validates its inputs once, samples the
-reference on the grid where the law is evaluated, and hands the run to an engine:
+The plant is any :class:`~rrr_pin.model.plant.Plant`: a serial arm (its full rigid-body model,
+Pinocchio's ABA) or a closed chain (the whole tree and its loop closures, Pinocchio's
+``constraintDynamics``, projected onto the loop after every step); the law sees only its own
+model (:mod:`rrr_pin.control.laws`) and the actuated coordinates. :func:`simulate` validates
+its inputs once, samples the reference on the grid where the law is evaluated, and hands the
+run to an engine of :mod:`rrr_pin.sim.engines`:
 
-* ``"python"``: :func:`_run_python`, the readable reference, runs any law;
+* ``"python"``: :mod:`rrr_pin.sim.python_engine`, the readable reference, runs any law;
 * ``"compiled"``: the C++ loop of :mod:`rrr_pin.sim.compiled`, which runs a law only if the law
-  declares a :class:`~rrr_pin.control.laws.CompiledForm`; the two agree to round-off
-  (``tests/test_engines.py`` pins every built-in law and reference on both);
-* ``"auto"`` (default): compiled when the extension is built and the law has a compiled form,
-  Python otherwise. The engine used is recorded in ``Trajectory.info["engine"]``; no law is ever
-  replaced by another.
+  declares a :class:`~rrr_pin.control.laws.CompiledForm` it implements for the plant; the two
+  agree to round-off (``tests/test_engines.py`` pins every built-in law and reference on both);
+* ``"auto"`` (default): the first of :data:`rrr_pin.sim.engines.AUTO_ORDER` that runs the run
+  exactly. The engine used is recorded in ``Trajectory.info["engine"]`` and why in
+  ``info["engine_note"]``; no law is ever replaced by another.
 
 Integration method: classical fixed-step Runge-Kutta 4.
 
@@ -52,17 +55,11 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from ..control.effects import PlantEffects, check_effects
-from ..control.laws import (
-    ControlLaw,
-    SampledLaw,
-    check_law,
-    check_law_output,
-    check_step_output,
-)
+from ..control.laws import ControlLaw, SampledLaw, check_law
 from ..control.references import Reference, check_reference, checked_sample
+from ..model.plant import JOINT_LIMITS
 from ..validation import (
     MULTIPLE_RTOL,
     FieldError,
@@ -71,17 +68,8 @@ from ..validation import (
     check_rate,
     check_vector,
 )
-from .trajectory import (
-    VELOCITY_LIMIT,
-    Run,
-    SimulationDiverged,
-    Trajectory,
-    diverged_joint,
-    divergence,
-    first_bad_torque,
-    law_divergence,
-    make_trajectory,
-)
+from .engines import AUTO, CODEGEN, check_engine, choose
+from .trajectory import Run, SimulationDiverged, Trajectory, diverged_joint
 
 __all__ = [
     "simulate",
@@ -90,7 +78,6 @@ __all__ = [
     "TimeGrid",
     "largest_substep",
     "DEFAULT_DT",
-    "ENGINES",
     "MAX_SUBSTEPS",
     "MAX_SAMPLES",
 ]
@@ -109,23 +96,6 @@ MAX_SUBSTEPS = 10_000_000
 #: ``8 (1 + 11 n)`` bytes per sample for ``n`` joints (t, q, qd, tau, the sampled reference
 #: and its half-step grid, sensor noise), 270 MB for the RRR, 630 MB for a 7-joint arm.
 MAX_SAMPLES = 1_000_000
-
-#: Accepted values of ``simulate(engine=...)``.
-ENGINES = ("auto", "python", "compiled", "codegen")
-
-
-def _surely_inside(q, qd, low: list, up: list) -> bool:
-    """Return True only if :func:`diverged_joint` would return None (per-step fast test).
-
-    On Python floats (``tolist``), which for an arm's few joints costs about a quarter of
-    NumPy's reductions. A finite sum means every entry is finite (NaN and inf propagate); False
-    (including a finite overflow of the sum) sends the step to :func:`diverged_joint`, the
-    definition, which names the joint and the reason.
-    """
-    ql, vl = q.tolist(), qd.tolist()
-    return (math.isfinite(sum(ql) + sum(vl)) and max(map(abs, vl)) <= VELOCITY_LIMIT
-            and all(map(float.__le__, low, ql)) and all(map(float.__le__, ql, up)))
-
 
 def _state(name: str, value, default: np.ndarray) -> np.ndarray:
     """Return a checked copy of the initial state ``value``, or of ``default`` if None."""
@@ -269,10 +239,9 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
 
     Parameters
     ----------
-    plant : Robot
-        The true arm (may differ from the law's model). A
-        :class:`~rrr_pin.model.closed_chain.ClosedChain` is run by
-        :func:`rrr_pin.sim.closed_chain.simulate_closed_chain` (effects on its actuated joints).
+    plant : Plant
+        The true plant (may differ from the law's model): a serial arm or a closed chain
+        (:mod:`rrr_pin.model.plant`); plant effects act on its actuated joints.
     law : ControlLaw or SampledLaw
         Any law (:mod:`rrr_pin.control.laws`): a built-in or your own.
     reference : Reference
@@ -298,8 +267,9 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
     limit_margin : float, default 0
         Slack beyond the plant's joint limits before the run counts as diverged [rad], >= 0.
     engine : {"auto", "python", "compiled", "codegen"}, default "auto"
-        See the module docstring. ``"compiled"`` with a law that declares no compiled form
-        raises ``ValueError`` naming the law. ``"codegen"``: the compiled loop on dynamics
+        A name of :data:`rrr_pin.sim.engines.ENGINE_CHOICES`; see the module docstring.
+        ``"compiled"`` with a law that declares no compiled form raises ``ValueError`` naming
+        the law. ``"codegen"``: the compiled loop on dynamics
         generated with the plant's parameters as inputs (:mod:`rrr_pin.sim.batched`), for a
         plant and nominal model of a generated structure (RRR, UR5, Panda); any other
         structure raises ``rrr_pin.sim.batched.StructureMismatch``. Never chosen by ``"auto"``
@@ -337,15 +307,6 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
     TypeError
         ``law`` or ``reference`` of the wrong type.
     """
-    if hasattr(plant, "constraints"):  # a parallel mechanism (rrr_pin.model.closed_chain)
-        from .closed_chain import simulate_closed_chain
-
-        if limit_margin:
-            raise ValueError(f"plant {plant.name!r} is a closed chain: limit_margin is not "
-                             f"implemented for it (its actuated joints have no limits)")
-        return simulate_closed_chain(plant, law, reference, duration, rate=rate, dt=dt,
-                                     method=method, q0=q0, qd0=qd0, engine=engine,
-                                     effects=effects)
     run = _prepare(plant, law, reference, duration, dt=dt, rate=rate, method=method, q0=q0,
                    qd0=qd0, limit_margin=limit_margin, effects=effects, check=check,
                    force=force)
@@ -354,18 +315,11 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
 
 def _execute(run: Run, engine: str) -> Trajectory:
     """Run a validated run on ``engine`` (as :func:`simulate` chooses it); record the engine."""
-    form, engine = _choose_engine(run.law, engine)
-    if engine == "codegen":
-        from .batched import raise_or_return, run_batch
-
-        traj = raise_or_return(run_batch([run], form)[0])
-    elif engine == "compiled":
-        from .compiled import run_compiled
-
-        traj = run_compiled(run, form)
-    else:
-        traj = _run_python(run)
-    traj.info["engine"] = engine
+    chosen, form, note = choose(run, engine)
+    logger.debug("engine for law %r: %s (%s)", run.law.name, chosen.name, note)
+    traj = chosen.run(run, form)
+    traj.info["engine"] = chosen.name
+    traj.info["engine_note"] = note
     return traj
 
 
@@ -405,22 +359,23 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
     if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or not (
             1 <= batch <= BATCH_MAX):
         raise ValueError(f"batch must be an integer in [1, {BATCH_MAX}], got {batch!r}")
-    if engine not in ENGINES:
-        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    check_engine(engine)
     plants = list(plants)
-    if engine in ("auto", "codegen"):
+    if engine in (AUTO, CODEGEN):
         with reuse_preparation():
             runs = [_prepare(p, law, reference, duration,
                              **{"dt": None, "rate": None, "method": "tustin", "q0": None,
                                 "qd0": None, "limit_margin": 0.0, **kwargs}) for p in plants]
         form = runs[0].law.compiled_form() if runs else None
-        if engine == "codegen" and form is None:
-            _choose_engine(law, "codegen")  # the refusal of a law without a compiled form
-        if engine == "codegen" or batchable(runs, form):
+        if engine == CODEGEN and runs:
+            choose(runs[0], CODEGEN)  # the refusal of a run the batched engine cannot run
+        if engine == CODEGEN or batchable(runs, form):
             out = run_batch(runs, form, batch=int(batch))
+            note = (f"engine={CODEGEN!r} asked" if engine == CODEGEN else
+                    f"{AUTO}: {CODEGEN} runs every plant of the batch exactly")
             for r in out:
                 if not isinstance(r, SimulationDiverged):
-                    r.info["engine"] = "codegen"
+                    r.info["engine"], r.info["engine_note"] = CODEGEN, note
             return out
     else:
         runs = [_prepare(p, law, reference, duration,
@@ -433,36 +388,6 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
         except SimulationDiverged as exc:
             out.append(exc)
     return out
-
-
-def _choose_engine(law, engine: str):
-    if engine not in ENGINES:
-        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    if engine == "python":
-        return None, "python"
-    form = law.compiled_form()
-    if engine in ("compiled", "codegen"):
-        if form is None:
-            raise ValueError(
-                f"law {law.name!r} ({type(law).__name__}) declares no compiled form, so the "
-                f"compiled engine cannot run it; use engine='python' (or 'auto', which picks "
-                f"Python for it)")
-        from .extension import require
-
-        require()
-        return form, engine
-    from .compiled import implements
-    from .extension import available
-
-    ok = form is not None and available() and implements(form)
-    if logger.isEnabledFor(logging.DEBUG):
-        why = ("it declares a compiled form the extension implements" if ok
-               else "it declares no compiled form" if form is None
-               else "the compiled extension is not built" if not available()
-               else "the extension does not implement its compiled form")
-        logger.debug("engine auto chose %s for law %r because %s",
-                     "compiled" if ok else "python", law.name, why)
-    return (form, "compiled") if ok else (None, "python")
 
 
 #: Reuse of the law-side work of :func:`_prepare` across runs, active only inside
@@ -590,6 +515,8 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         law = _sampled_law(law, rate, method)
     elif not isinstance(law, ControlLaw):
         raise TypeError(f"law must be a ControlLaw or SampledLaw, got {type(law).__name__}")
+    if limit_margin:
+        plant.require(JOINT_LIMITS, f"limit_margin = {limit_margin:g} rad")
     lower = plant.lower - limit_margin
     upper = plant.upper + limit_margin
     if check:
@@ -620,6 +547,7 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         raise ValueError(f"initial state of joint {plant.joint_names[j]!r} is invalid: "
                          f"{bad[1]} (q0 = {q0[j]:.6g} rad, limits [{plant.lower[j]:.4g}, "
                          f"{plant.upper[j]:.4g}], qd0 = {qd0[j]:.6g} rad/s)")
+    state0 = plant.start(q0, qd0)  # the full state (a closed chain closes its loop here)
     x0 = np.asarray(law.initial_state(), dtype=float)
     if x0.shape != (law.nx,):
         raise ValueError(f"law {law.name!r}: initial_state() has shape {x0.shape}, nx = "
@@ -629,7 +557,7 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         fx = effects.resolve(plant, substeps, h, len(t) - 1)
         info["effects"] = fx.info
     return Run(plant, law, rate is not None, t, R, RD, RDD, q0, qd0, x0, h, substeps,
-                lower, upper, info, fx)
+                lower, upper, info, fx, state0)
 
 
 def _check_rk4_step(law, dt: float) -> None:
@@ -645,170 +573,3 @@ def _check_rk4_step(law, dt: float) -> None:
             raise ValueError(
                 f"dt = {dt:g} s is too large for the controller's fastest pole "
                 f"({fastest:.4g} rad/s): RK4 needs dt < {2.5 / fastest:.3g} s")
-
-
-def _law_failure(run: Run, tau, k: int | None = None):
-    """Return the :func:`law_divergence` of the first NaN or inf torque of ``tau``, or None.
-
-    ``tau`` has one row per control step (its time ``run.t[row]``), or, with ``k``, the
-    torques of the stages of RK4 step ``k``. A law's non-finite torque makes the state
-    non-finite, so the engines look for one only when a run diverges (and once at its end).
-    """
-    hit = first_bad_torque(np.asarray(tau))
-    if hit is None:
-        return None
-    return law_divergence(run.plant, run.law.name, float(run.t[hit[0] if k is None else k]),
-                          hit[1])
-
-
-def _run_python(run: Run) -> Trajectory:
-    if run.effects is not None:
-        return _python_effects(run)
-    return (_python_sampled if run.sampled else _python_continuous)(run)
-
-
-def _python_sampled(run: Run) -> Trajectory:
-    plant, law = run.plant, run.law
-    model, data = plant.model, plant.data
-    aba, step, check, inside = pin.aba, law.step, diverged_joint, _surely_inside
-    lower, upper = run.lower, run.upper
-    low, up = lower.tolist(), upper.tolist()
-    h = run.h
-    h2, h6 = 0.5 * h, h / 6.0
-    t = run.t
-    R, RD, RDD = run.R, run.RD, run.RDD
-    N = len(t) - 1
-    Q = np.empty((N + 1, plant.nq))
-    QD = np.empty_like(Q)
-    TAU = np.empty_like(Q)
-    q, qd, x = run.q0, run.qd0, run.x0
-    Q[0], QD[0] = q, qd
-    for k in range(N):
-        if k:
-            tau, x = step(t[k], q, qd, R[k], RD[k], RDD[k], x)
-        else:  # the edge where the law meets the engine: check its first output
-            tau, x = check_step_output(law, step(t[0], q, qd, R[0], RD[0], RDD[0], x), t[0])
-        TAU[k] = tau
-        for _ in range(run.substeps):
-            a1 = aba(model, data, q, qd, tau)
-            v2 = qd + h2 * a1
-            a2 = aba(model, data, q + h2 * qd, v2, tau)
-            v3 = qd + h2 * a2
-            a3 = aba(model, data, q + h2 * v2, v3, tau)
-            v4 = qd + h * a3
-            a4 = aba(model, data, q + h * v3, v4, tau)
-            q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
-            qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
-        Q[k + 1], QD[k + 1] = q, qd
-        if not inside(q, qd, low, up):
-            bad = check(q, qd, lower, upper)
-            if bad is not None:
-                raise (_law_failure(run, TAU[:k + 1])
-                       or divergence(plant, float(t[k + 1]), q, qd, *bad))
-    # The torque held on the last interval is also the one "at" the final sample.
-    TAU[N] = TAU[N - 1]
-    return make_trajectory(run, Q, QD, TAU)
-
-
-def _python_continuous(run: Run) -> Trajectory:
-    plant, law = run.plant, run.law
-    model, data = plant.model, plant.data
-    aba, torque, deriv, check = pin.aba, law.torque, law.derivative, diverged_joint
-    inside = _surely_inside
-    lower, upper = run.lower, run.upper
-    low, up = lower.tolist(), upper.tolist()
-    dt = run.h
-    h2, h6 = 0.5 * dt, dt / 6.0
-    t = run.t
-    R, RD, RDD = run.R, run.RD, run.RDD
-    N = len(t) - 1
-    Q = np.empty((N + 1, plant.nq))
-    QD = np.empty_like(Q)
-    TAU = np.empty_like(Q)
-    stateful = law.nx > 0
-
-    def rhs(i, tk, q, qd, x):
-        r, rd, rdd = R[i], RD[i], RDD[i]
-        tau = torque(tk, q, qd, r, rd, rdd, x)
-        xd = deriv(tk, q, qd, r, rd, rdd, x) if stateful else x
-        if not i:  # the edge where the law meets the engine: check its first outputs
-            check_law_output(law, "torque()", tau, law.n, tk)
-            check_law_output(law, "derivative()", xd, law.nx, tk)
-        return aba(model, data, q, qd, tau), xd, tau
-
-    q, qd, x = run.q0, run.qd0, run.x0
-    for k in range(N + 1):
-        tk = t[k]
-        a1, x1, tau = rhs(2 * k, tk, q, qd, x)
-        Q[k], QD[k], TAU[k] = q, qd, tau
-        if k == N:
-            break
-        v2 = qd + h2 * a1
-        a2, x2, tau2 = rhs(2 * k + 1, tk + h2, q + h2 * qd, v2, x + h2 * x1)
-        v3 = qd + h2 * a2
-        a3, x3, tau3 = rhs(2 * k + 1, tk + h2, q + h2 * v2, v3, x + h2 * x2)
-        v4 = qd + dt * a3
-        a4, x4, tau4 = rhs(2 * k + 2, tk + dt, q + dt * v3, v4, x + dt * x3)
-        q = q + h6 * (qd + 2.0 * (v2 + v3) + v4)
-        qd = qd + h6 * (a1 + 2.0 * (a2 + a3) + a4)
-        if stateful:
-            x = x + h6 * (x1 + 2.0 * (x2 + x3) + x4)
-        if not inside(q, qd, low, up):
-            bad = check(q, qd, lower, upper)
-            if bad is not None:
-                raise (_law_failure(run, (tau, tau2, tau3, tau4), k)
-                       or divergence(plant, float(t[k + 1]), q, qd, *bad))
-    stop = _law_failure(run, TAU[N:], N)  # the torque at the last sample drives no step
-    if stop is not None:
-        raise stop
-    return make_trajectory(run, Q, QD, TAU)
-
-
-def _python_effects(run: Run) -> Trajectory:
-    """Run a sampled law with plant effects, in the order of :mod:`rrr_pin.control.effects`.
-
-    The effects' steps are the :class:`~rrr_pin.control.effects.Resolved` methods, which the
-    closed-chain engine (:mod:`rrr_pin.sim.closed_chain`) runs too.
-    """
-    plant, law, fx = run.plant, run.law, run.effects
-    model, data = plant.model, plant.data
-    aba, step, check = pin.aba, law.step, diverged_joint
-    lower, upper = run.lower, run.upper
-    h, S = run.h, run.substeps
-    t = run.t
-    R, RD, RDD = run.R, run.RD, run.RDD
-    N = len(t) - 1
-    n = plant.nq
-    Q = np.empty((N + 1, n))
-    QD = np.empty_like(Q)
-    TAU = np.empty_like(Q)
-    U = np.empty((N, n))
-
-    def accel(q, qd, tj):
-        return aba(model, data, q, qd, tj)
-
-    q, qd, x = run.q0, run.qd0, run.x0
-    a = th = thd = None
-    Q[0], QD[0] = q, qd
-    for k in range(N):
-        qm, qdm = fx.measure(k, q, qd)
-        if k:
-            tau, x = step(t[k], qm, qdm, R[k], RD[k], RDD[k], x)
-            # Checked at every step: a saturation would clip an inf, a delay hold a NaN back.
-            if not np.isfinite(tau).all():
-                raise _law_failure(run, (tau,), k)
-        else:  # the edge where the law meets the engine: check its first output
-            tau, x = check_step_output(law, step(t[0], qm, qdm, R[0], RD[0], RDD[0], x), t[0])
-        tau = fx.saturate(tau)
-        U[k] = tau
-        TAU[k] = tau
-        if k == 0:
-            a, th, thd = fx.start(q, qd, U[0])
-        for s in range(S):
-            q, qd, a, th, thd = fx.rk4(accel, q, qd, a, th, thd, fx.applied(U, k, s, S), h)
-        Q[k + 1], QD[k + 1] = q, qd
-        bad = check(q, qd, lower, upper)
-        if bad is not None:
-            raise divergence(plant, float(t[k + 1]), q, qd, *bad)
-    TAU[N] = TAU[N - 1]
-    return make_trajectory(run, Q, QD, TAU)

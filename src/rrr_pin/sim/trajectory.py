@@ -324,21 +324,25 @@ class Run:
     upper: np.ndarray
     info: dict
     effects: object = None  # rrr_pin.control.effects.Resolved, or None for the ideal plant
+    state0: tuple = None  # the plant's full initial state (plant.start(q0, qd0))
+
+    @property
+    def grid(self) -> np.ndarray:
+        """Times [s] of the rows of ``R``: ``t`` (sampled) or its half-step grid (continuous)."""
+        return self.t if self.sampled else 0.5 * self.h * np.arange(len(self.R))
 
 
 def make_trajectory(run: Run, Q, QD, TAU) -> Trajectory:
     """Build the :class:`Trajectory` of a finished run (states, torques of shape (N+1, n))."""
     R = run.R if run.sampled else run.R[::2]
     plant = run.plant
-    units = ["m" if j.shortname().startswith("JointModelP") else "rad"
-             for j in list(plant.model.joints)[1:]]
     info = dict(run.info)
     fx = run.effects
     if fx is not None and fx.limit is not None:
         info["saturation"] = saturation(TAU[:-1], fx.limit, float(run.t[1] - run.t[0]))
     return Trajectory(t=run.t, q=Q, qd=QD, r=R, tau=TAU, controller=run.law.name,
                       plant=plant.name, info=info,
-                      joint_names=list(plant.joint_names), joint_units=units)
+                      joint_names=list(plant.joint_names), joint_units=plant.joint_units)
 
 
 def saturation(tau, limit, Ts: float) -> dict:

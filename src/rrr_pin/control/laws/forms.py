@@ -1,0 +1,156 @@
+"""Compiled forms: the typed, frozen records of what a compiled engine must run for a law.
+
+A law declares its form with :meth:`~rrr_pin.control.laws.protocol.ControlLaw.compiled_form`;
+an engine runs a form only if it implements its exact type (and refuses any other by name),
+so a form it does not know is never run as another. The nominal model of a form is a
+:class:`~rrr_pin.model.plant.Plant` of any kind: ``M``, ``h`` and ``G`` are its
+:meth:`~rrr_pin.model.plant.Plant.terms` and :meth:`~rrr_pin.model.plant.Plant.G`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ...validation import check_matrix, check_positive, check_vector
+
+__all__ = ["CompiledForm", "FLForm", "FLAWForm", "PDForm"]
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledForm:
+    """Base of the compiled forms: what the compiled engine must run to reproduce a law exactly.
+
+    A law declares its form with :meth:`ControlLaw.compiled_form`. Each subclass is one law the
+    compiled engine may implement (:class:`FLForm`, :class:`PDForm`); the engine dispatches on
+    the form's exact type and refuses any other (``ValueError`` naming it), so a form it does
+    not know is never run as another.
+
+    Attributes
+    ----------
+    nominal : Robot
+        The law's model.
+    kind : str
+        Short name of the form (class attribute; messages and
+        :func:`rrr_pin.sim.compiled.floor_ms`).
+    """
+
+    nominal: object
+    kind: ClassVar[str] = ""
+
+
+@dataclass(frozen=True, eq=False)
+class FLForm(CompiledForm):
+    r"""Feedback linearization with a linear controller on the error, eq. (8)-(10).
+
+    .. math:: \bar\tau = \ddot r + 2\lambda(\dot r - \dot q) + \lambda^2 (e + y), \quad
+              \tau = \hat M(q)\,\bar\tau + \hat V(q, \dot q) + \hat G(q)
+
+    with ``e = r - q``, ``y = C x + D e`` and the controller state ``xdot = A x + B e``
+    (continuous law) or ``x+ = A x + B e`` after the output (sampled law, matrices already
+    discrete at its rate). FL alone has ``m = 0`` states and ``D = 0``.
+
+    Attributes
+    ----------
+    nominal : Robot
+        The law's model (``n = nominal.nq`` joints).
+    lam : float
+        Bandwidth ``lambda`` [rad/s], > 0.
+    A, B, C, D : ndarray, shapes (m, m), (m, n), (n, m), (n, n)
+        The controller ``K`` on ``e`` [rad] (output ``y`` in rad), negative feedback.
+    """
+
+    lam: float
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    kind: ClassVar[str] = "fl"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
+        n = self.nominal.nq
+        m = np.shape(self.A)[0] if np.ndim(self.A) == 2 else -1
+        for key, shape in (("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n))):
+            value = check_matrix(key, getattr(self, key), shape, readonly=True)
+            object.__setattr__(self, key, value)
+
+
+@dataclass(frozen=True, eq=False)
+class FLAWForm(CompiledForm):
+    r"""Feedback linearization with ``K`` self-conditioned on the saturated torque (Hanus).
+
+    The law of :class:`FLForm`, its torque clipped to the limits, and ``K``'s state driven by
+    the output ``y_hat`` the clipped torque realises (:class:`AntiWindupTracking`):
+
+    .. math:: \tau_s = \mathrm{sat}(\tau), \quad
+              \hat y - y = \hat M(q)^{-1} (\tau_s - \tau) / \lambda^2, \quad
+              x^+ = A x + B e + L (\hat y - y)
+
+    (sampled; continuous: ``xdot`` instead of ``x+``), with ``L = B D^-1``. The correction is
+    computed only at samples where a joint clips (it is exactly zero otherwise).
+
+    Attributes
+    ----------
+    nominal : Robot
+        The law's model (``n = nominal.nq`` joints).
+    lam : float
+        Bandwidth ``lambda`` [rad/s], > 0.
+    A, B, C, D : ndarray, shapes (m, m), (m, n), (n, m), (n, n)
+        The controller ``K`` on ``e`` [rad], as in :class:`FLForm` (``m >= 1``).
+    L : ndarray, shape (m, n)
+        Conditioning gain ``B D^-1``.
+    limit : ndarray, shape (n,)
+        Torque limits ``tau_max`` [N m], > 0.
+    """
+
+    lam: float
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    L: np.ndarray
+    limit: np.ndarray
+    kind: ClassVar[str] = "fl_aw"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
+        n = self.nominal.nq
+        m = np.shape(self.A)[0] if np.ndim(self.A) == 2 else -1
+        for key, shape in (("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n)),
+                           ("L", (m, n))):
+            value = check_matrix(key, getattr(self, key), shape, readonly=True)
+            object.__setattr__(self, key, value)
+        limit = check_vector("limit", self.limit, n, readonly=True)
+        if not np.all(limit > 0):
+            raise ValueError(f"limit must be > 0 per joint [N m], got {limit.tolist()}")
+        object.__setattr__(self, "limit", limit)
+
+
+@dataclass(frozen=True, eq=False)
+class PDForm(CompiledForm):
+    r"""PD control with gravity compensation.
+
+    .. math:: \tau = K_p (r - q) + K_d (\dot r - \dot q) + \hat G(q)
+
+    Attributes
+    ----------
+    nominal : Robot
+        The law's model (``n = nominal.nq`` joints).
+    Kp : ndarray, shape (n, n)
+        Stiffness [N m/rad].
+    Kd : ndarray, shape (n, n)
+        Damping [N m s/rad].
+    """
+
+    Kp: np.ndarray
+    Kd: np.ndarray
+    kind: ClassVar[str] = "pd"
+
+    def __post_init__(self) -> None:
+        n = self.nominal.nq
+        for key in ("Kp", "Kd"):
+            value = check_matrix(key, getattr(self, key), (n, n), readonly=True)
+            object.__setattr__(self, key, value)

@@ -1,0 +1,341 @@
+r"""The plant protocol: what every layer above ``model/`` may ask of a robot, serial or not.
+
+A **plant** is a mechanism in its *actuated* coordinates ``q`` (``nq`` of them): a fixed-base
+serial arm (:class:`rrr_pin.model.dynamics.Robot`, every joint actuated) or a closed chain
+(:class:`rrr_pin.model.closed_chain.ClosedChain`, passive joints solved from the loop
+closure). Laws, engines, studies, campaigns, reports and the command line take a
+:class:`Plant` and never ask which kind it is; what a kind lacks is declared in
+:attr:`Plant.capabilities` and refused by name (:meth:`Plant.require`), never sniffed.
+
+Two faces, at the grain their users need:
+
+* **the model face**, for control laws and analysis, in actuated coordinates: eq. (1) of the
+  paper, :math:`M(q) \ddot q + h(q, \dot q) = \tau` with :math:`h = V + G`, given by
+  :meth:`Plant.terms` (one call, ``(M, h)``), :meth:`Plant.G`, and the checked conveniences
+  ``M``, ``V``, ``inverse_dynamics``, ``forward_dynamics``;
+* **the engine face**, for the simulators, on the plant's *full* state ``(x, v)`` (every
+  coordinate: for a serial arm the joints themselves, for a closed chain the passive ones
+  too): :meth:`Plant.start` (the full state of an actuated one), :meth:`Plant.acceleration`
+  (the forward dynamics under actuator torques), :meth:`Plant.measure` (what the encoders
+  read: the actuated coordinates), and a per-run :class:`Settler` from :meth:`Plant.settler`
+  whose ``settle`` runs after every integration step (a closed chain projects onto its loop
+  closure and checks the singularity there; a serial arm has nothing to do).
+
+One engine loop over this protocol serves every kind (:mod:`rrr_pin.sim.simulation`):
+
+.. code-block:: python
+
+    x, v = plant.start(q0, qd0)
+    settler = plant.settler(t, h, x, v)
+    for k in ...:
+        q, qd = plant.measure(x, v)
+        tau = law(...)
+        x, v = rk4(plant.acceleration, x, v, tau, h)
+        x, v = settler.settle(k, x, v)
+
+Conventions, for every plant: SI units (rad, m, rad/s, N m), gravity of magnitude
+:attr:`Plant.gravity` along ``-z`` of the base.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["Plant", "Settler", "UncertaintySet", "CapabilityError", "CAPABILITIES", "URDF",
+           "EFFORT_LIMITS", "JOINT_LIMITS", "FRAMES", "CLOSED_FORM"]
+
+#: The plant is a serial tree described by a URDF: its regressor can be identified, its
+#: dynamics exported as C, its URDF written and perturbed link by link.
+URDF = "urdf"
+#: Its description carries the actuators' effort limits (``--torque-limit auto``,
+#: ``torque_limit="urdf"``).
+EFFORT_LIMITS = "effort_limits"
+#: Its actuated joints have position limits a run can leave (``limit_margin``).
+JOINT_LIMITS = "joint_limits"
+#: Named frames reachable from the actuated coordinates by forward kinematics
+#: (task-space references, ``--frame``, ``--home`` chosen by the frame's reach).
+FRAMES = "frames"
+#: The paper's closed form of eq. (2)-(7) applies (``check-dynamics``).
+CLOSED_FORM = "closed_form"
+
+#: Every capability a plant may declare, with what it allows (for messages and docs).
+CAPABILITIES = {
+    URDF: "a serial tree described by a URDF (identification, C export of its dynamics)",
+    EFFORT_LIMITS: "actuator effort limits in its description",
+    JOINT_LIMITS: "position limits on its actuated joints",
+    FRAMES: "named frames placed by forward kinematics of the actuated joints",
+    CLOSED_FORM: "the paper's closed-form dynamics, eq. (2)-(7)",
+}
+
+
+class CapabilityError(ValueError):
+    """A plant asked for something its kind does not declare (:meth:`Plant.require`).
+
+    Attributes
+    ----------
+    capability : str
+        The missing capability (a key of :data:`CAPABILITIES`).
+    """
+
+    def __init__(self, message: str, capability: str):
+        super().__init__(message)
+        self.capability = capability
+
+
+class Settler:
+    """What a plant does after every integration step of one run (here: nothing).
+
+    Made by :meth:`Plant.settler` at the start of a run. A closed chain's settler projects the
+    state back onto the loop closure, checks the type-II singularity and records the drift.
+    """
+
+    def settle(self, k: int, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the full state after a step of control period ``k`` (here: as it is)."""
+        return x, v
+
+    def info(self, x: np.ndarray, v: np.ndarray) -> dict:
+        """Return what the run records of the plant (``Trajectory.info``), given its final state."""
+        return {}
+
+
+class UncertaintySet:
+    """An uncertainty set: how uncertain plants are drawn around a nominal one.
+
+    The typed input of every study and campaign (``Settings.tolerances``); a plant applies it
+    in :meth:`Plant.perturbed`, through the one method for its description:
+
+    * :meth:`arm` for a plant described by a URDF (a serial arm);
+    * :meth:`mechanism` for a plant described by a parameter set (a closed chain).
+
+    A set implements those that make sense for it, the others refuse it by name. Built in:
+    :class:`rrr_pin.model.uncertainty.Tolerances` (both), the identified set
+    :class:`rrr_pin.model.identification.IdentifiedUncertainty` (arms) and
+    :class:`rrr_pin.model.uncertainty.MechanismUncertainty` (mechanisms; subclass it to
+    write your own). A subclass is a frozen dataclass (it crosses process boundaries and is
+    recorded whole in the outputs), and uses only the ``rng`` it is given for randomness.
+    """
+
+    def arm(self, source, rng: np.random.Generator, *, skip_joints=(), name=None
+            ) -> tuple[str, dict]:
+        """Return ``(URDF text, parameters)`` of an uncertain arm around ``source``.
+
+        ``source`` is an :class:`~rrr_pin.model.dh.ArmParams` or URDF text; ``skip_joints``
+        keep their nominal origins; ``name`` is the drawn arm's name.
+        """
+        raise TypeError(f"{type(self).__name__} does not perturb a serial arm (a URDF)")
+
+    def mechanism(self, params, rng: np.random.Generator) -> tuple[object, dict]:
+        """Return ``(parameter set, parameters drawn)`` of an uncertain mechanism."""
+        raise TypeError(f"{type(self).__name__} does not perturb a parallel mechanism (a "
+                        f"parameter set)")
+
+    def to_dict(self) -> dict:
+        """JSON-ready settings of the set (recorded; a resume must match them)."""
+        raise NotImplementedError(f"{type(self).__name__} must implement to_dict()")
+
+    def as_settings(self) -> dict:
+        """Return what the outputs record: ``{"uncertainty": <class name>, **to_dict()}``."""
+        return {"uncertainty": type(self).__name__, **self.to_dict()}
+
+    def describe(self) -> str:
+        """One line for reports and figure titles."""
+        return type(self).__name__
+
+
+#: The one settler of plants that need none (it holds no state).
+NO_SETTLING = Settler()
+
+
+class Plant:
+    """The protocol of a plant (module docstring); :class:`Robot` and ``ClosedChain`` follow it.
+
+    A subclass provides the attributes and methods below; the defaults here are those of a
+    plant whose coordinates are all actuated and need no settling.
+
+    Attributes
+    ----------
+    name : str
+        Plant name (results, figures, messages).
+    source : str
+        Where it came from (a path, a built-in name, ``"<params>"``).
+    capabilities : frozenset of str
+        Keys of :data:`CAPABILITIES` this plant has; everything else is refused by name.
+    failures : tuple of type
+        Exceptions (beyond :class:`rrr_pin.sim.trajectory.SimulationDiverged`) that end a run
+        of this plant as a recorded outcome, not an error: a closed chain's singularity, a loop
+        that will not close, a drift above its bound.
+    actuated_index : ndarray of int or None
+        Indices of the actuated coordinates in the full state, or None when they are all of
+        it (a serial arm).
+    loop_closures : tuple of str
+        Names of the kinematic loops the engine face closes (empty for a serial tree): an
+        engine that integrates trees only refuses a plant with any.
+    """
+
+    capabilities: frozenset = frozenset()
+    failures: tuple = ()
+    actuated_index = None
+    loop_closures: tuple = ()
+
+    # --- identity and workspace --------------------------------------------------------------
+    @property
+    def nq(self) -> int:
+        """Number of actuated coordinates."""
+        raise NotImplementedError
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Names of the actuated joints, shape (nq,)."""
+        raise NotImplementedError
+
+    @property
+    def joint_units(self) -> list[str]:
+        """Unit of each actuated coordinate, ``"rad"`` (revolute) or ``"m"`` (prismatic)."""
+        return ["rad"] * self.nq
+
+    @property
+    def gravity(self) -> float:
+        """Gravity magnitude [m/s^2], along ``-z`` of the base."""
+        raise NotImplementedError
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower limits of the actuated coordinates, shape (nq,); ``-inf`` where none."""
+        return np.full(self.nq, -np.inf)
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper limits of the actuated coordinates, shape (nq,); ``+inf`` where none."""
+        return np.full(self.nq, np.inf)
+
+    def neutral(self) -> np.ndarray:
+        """Return a configuration of the actuated coordinates to start from, shape (nq,)."""
+        raise NotImplementedError
+
+    def effort_limits(self) -> np.ndarray:
+        """Return the actuators' effort limits of the description [N m], shape (nq,).
+
+        Only for a plant with :data:`EFFORT_LIMITS` (:class:`CapabilityError` otherwise).
+        """
+        self.require(EFFORT_LIMITS, "effort limits")
+        raise NotImplementedError
+
+    def has(self, capability: str) -> bool:
+        """Whether the plant declares ``capability`` (a key of :data:`CAPABILITIES`)."""
+        if capability not in CAPABILITIES:
+            raise KeyError(f"unknown capability {capability!r}; known: "
+                           f"{', '.join(CAPABILITIES)}")
+        return capability in self.capabilities
+
+    def require(self, capability: str, what: str) -> None:
+        """Refuse ``what`` (a command, an option) by name unless the plant has ``capability``.
+
+        Raises
+        ------
+        CapabilityError
+            Naming the plant, ``what`` and what it would need.
+        """
+        if not self.has(capability):
+            raise CapabilityError(
+                f"{what} needs {CAPABILITIES[capability]}, which {self.describe_kind()} "
+                f"{self.name!r} does not have", capability)
+
+    def describe_kind(self) -> str:
+        """Return a few words saying what kind of plant this is, for messages."""
+        return "the plant"
+
+    # --- the model face (actuated coordinates) -----------------------------------------------
+    def terms(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(M(q), h(q, qd))`` with ``h = V + G``: the two terms of eq. (1), unchecked.
+
+        The grain a feedback-linearizing law needs (eq. 8, ``tau = M taubar + h``), in one
+        call. ``q, qd`` must be finite float64 arrays of shape (nq,) [rad, rad/s]; nothing
+        verifies it (the fast path of the laws). Returns shapes (nq, nq) [kg m^2] and (nq,)
+        [N m].
+        """
+        raise NotImplementedError
+
+    def G(self, q, *, check: bool = True) -> np.ndarray:
+        """Gravity torques ``G(q)`` [N m], shape (nq,)."""
+        raise NotImplementedError
+
+    def M(self, q, *, check: bool = True) -> np.ndarray:
+        """Inertia matrix ``M(q)`` [kg m^2], shape (nq, nq)."""
+        raise NotImplementedError
+
+    def V(self, q, qd, *, check: bool = True) -> np.ndarray:
+        """Centrifugal and Coriolis torques ``V(q, qd)`` [N m], shape (nq,)."""
+        raise NotImplementedError
+
+    def reset(self, q=None) -> None:
+        """Forget what the model carries from one call to the next; here nothing.
+
+        A closed chain solves its passive coordinates by Newton seeded from its previous
+        solution; ``reset(q)`` re-seeds it on the branch of its home configuration at the
+        actuated ``q`` (default: home), so that a run depends on its own inputs only.
+        """
+
+    # --- the engine face (full state) --------------------------------------------------------
+    def start(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Full state ``(x, v)`` at the actuated ``(q, qd)`` [rad, rad/s]; here ``(q, qd)``."""
+        return q, qd
+
+    def acceleration(self, x: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Full acceleration of the full state ``(x, v)`` under actuator torques ``tau`` [N m]."""
+        raise NotImplementedError
+
+    def measure(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the actuated ``(q, qd)`` of a full state (the encoders); here ``(x, v)``."""
+        return x, v
+
+    def settler(self, t: np.ndarray, h: float, x: np.ndarray, v: np.ndarray) -> Settler:
+        """Return the :class:`Settler` of one run.
+
+        On the output grid ``t`` [s] with RK4 step ``h`` [s], from the full state ``(x, v)``
+        of :meth:`start`.
+        """
+        return NO_SETTLING
+
+    def task_path(self, period: float):
+        """Return the plant's own task path as actuated waypoints ``(t, W, source)``, or None.
+
+        A closed chain's mechanism has one (its study reference: the 5-bar's tip circle, the
+        Delta's adept cycle) over ``period`` [s]; a serial arm has none (its study runs the
+        joint-space default, :func:`rrr_pin.control.references.study_reference`).
+        """
+        return None
+
+    def check_path(self, t: np.ndarray, R: np.ndarray) -> dict:
+        """Refuse a sampled reference the plant cannot follow; return what the run records.
+
+        ``t`` shape (N,) [s], ``R`` shape (N, nq) [rad]: the reference on the grid where the
+        law reads it. Joint limits are the reference's own check
+        (:meth:`rrr_pin.control.references.Reference.check_limits`); here nothing more.
+        """
+        return {}
+
+    # --- uncertainty -------------------------------------------------------------------------
+    def perturbed(self, rng: np.random.Generator, tolerances, *, name: str | None = None
+                  ) -> tuple[Plant, dict]:
+        """Draw an uncertain plant around this one with ``rng``.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            The only source of randomness (a study's sample ``k`` of seed ``s`` passes
+            ``numpy.random.default_rng([s, k])``).
+        tolerances : uncertainty set
+            :class:`rrr_pin.model.uncertainty.Tolerances`, or another set the kind accepts
+            (an identified set for an arm, a :class:`MechanismUncertainty` for a closed chain);
+            any other is refused with ``TypeError`` naming it.
+        name : str, optional
+            The new plant's name.
+
+        Returns
+        -------
+        plant : Plant
+            The uncertain plant, of the same kind, validated.
+        parameters : dict
+            JSON-ready description of what was drawn.
+        """
+        raise NotImplementedError
