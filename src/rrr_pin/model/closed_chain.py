@@ -59,7 +59,7 @@ from .mechanisms import (
     mechanism_of,
     mjcf_from_params,
 )
-from .plant import FRAMES, Plant, Settler, UncertaintySet
+from .plant import FRAMES, Plant, Settler, TreeDescription, UncertaintySet
 
 __all__ = ["ClosedChain", "load_closed_chain", "is_closed_chain_source", "SingularConfiguration",
            "LoopClosureError", "ConstraintDrift", "ChainSettler", "check_chain_reference",
@@ -500,6 +500,25 @@ class ClosedChain(Plant):
         """
         return None if self.params is None else mechanism_of(self.params).waypoints(
             self.params, period)
+
+    def description(self) -> TreeDescription:
+        """Return the tree, its loop closures and the coordinate split (:class:`TreeDescription`).
+
+        Each loop is the two joints of its ``RigidConstraintModel`` and the translations of
+        their ``joint1_placement``, ``joint2_placement`` (the anchor points); the tolerances are
+        this module's (:data:`CLOSURE_TOL`, :data:`COND_LIMIT`, :data:`DRIFT_BOUND`, 30
+        Newton iterations as :meth:`close`).
+        """
+        cons = self.constraints
+        return TreeDescription(
+            model=self.model, actuated=np.asarray(self.actuated, dtype=int),
+            passive=np.asarray(self.passive, dtype=int),
+            loop_joints=np.array([[c.joint1_id, c.joint2_id] for c in cons], dtype=int),
+            loop_anchors=np.array([[c.joint1_placement.translation,
+                                    c.joint2_placement.translation] for c in cons], dtype=float),
+            rows=np.asarray(self.rows, dtype=int), home=np.asarray(self.home, dtype=float),
+            closure_tol=CLOSURE_TOL, max_iter=30, cond_limit=COND_LIMIT,
+            drift_bound=DRIFT_BOUND)
 
     def check_path(self, t, R) -> dict:
         """:func:`check_chain_reference`, recorded as ``reference_max_cond_Jp`` and its time."""

@@ -35,7 +35,15 @@ import pinocchio as pin
 
 from ..validation import check_positive, check_real
 from .dh import ArmParams, check_inertial
-from .plant import EFFORT_LIMITS, FRAMES, JOINT_LIMITS, URDF, Plant, UncertaintySet
+from .plant import (
+    EFFORT_LIMITS,
+    FRAMES,
+    JOINT_LIMITS,
+    URDF,
+    Plant,
+    TreeDescription,
+    UncertaintySet,
+)
 from .robots import RobotModelError, nominal_params, read_source
 
 __all__ = ["Robot", "load_robot", "robot_from_xml", "check_urdf_inertials", "DEFAULT_GRAVITY"]
@@ -214,6 +222,14 @@ class Robot(Plant):
         ``x, v, tau`` float64 arrays of shape (nq,) [rad, rad/s, N m]; returns [rad/s^2].
         """
         return pin.aba(self.model, self.data, x, v, tau)
+
+    def description(self) -> TreeDescription:
+        """Return the arm as a tree with no loop, every joint actuated (a TreeDescription)."""
+        n = self.nq
+        return TreeDescription(model=self.model, actuated=np.arange(n), passive=np.arange(0),
+                               loop_joints=np.zeros((0, 2), dtype=int),
+                               loop_anchors=np.zeros((0, 2, 3)), rows=np.arange(0),
+                               home=self.neutral())
 
     def perturbed(self, rng: np.random.Generator, tolerances, *, name: str | None = None
                   ) -> tuple[Robot, dict]:

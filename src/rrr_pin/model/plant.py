@@ -39,10 +39,12 @@ Conventions, for every plant: SI units (rad, m, rad/s, N m), gravity of magnitud
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["Plant", "Settler", "UncertaintySet", "CapabilityError", "CAPABILITIES", "URDF",
-           "EFFORT_LIMITS", "JOINT_LIMITS", "FRAMES", "CLOSED_FORM"]
+__all__ = ["Plant", "Settler", "UncertaintySet", "TreeDescription", "CapabilityError",
+           "CAPABILITIES", "URDF", "EFFORT_LIMITS", "JOINT_LIMITS", "FRAMES", "CLOSED_FORM"]
 
 #: The plant is a serial tree described by a URDF: its regressor can be identified, its
 #: dynamics exported as C, its URDF written and perturbed link by link.
@@ -80,6 +82,52 @@ class CapabilityError(ValueError):
     def __init__(self, message: str, capability: str):
         super().__init__(message)
         self.capability = capability
+
+
+@dataclass(frozen=True, eq=False)
+class TreeDescription:
+    """A plant as plain data for a compiled engine: the tree, its loops, the coordinate split.
+
+    What :meth:`Plant.description` gives an engine that runs the plant outside Python, so the
+    engine never asks which kind of plant it has: a serial arm is a tree with no loop (every
+    coordinate actuated), a closed chain the same tree with loop closures.
+
+    Attributes
+    ----------
+    model : pinocchio.Model
+        The kinematic tree with every joint (``model.nq == model.nv``).
+    actuated, passive : ndarray of int
+        Velocity indices of the actuated and passive coordinates (``model.nv`` in all).
+    loop_joints : ndarray of int, shape (L, 2)
+        Per loop closure, the two joints its anchor points are fixed to.
+    loop_anchors : ndarray, shape (L, 2, 3)
+        The anchor points in those joints' frames [m]; a loop is closed when they coincide.
+    rows : ndarray of int
+        Independent rows of the stacked world-frame anchor gaps (``3 L``), as many as passive
+        coordinates.
+    home : ndarray, shape (model.nq,)
+        A closed configuration [rad, m] (the Newton seed of the loop closure).
+    closure_tol : float
+        Loop-closure residual [m] at which Newton stops.
+    max_iter : int
+        Newton iterations before the loop counts as not closing.
+    cond_limit : float
+        Largest condition number of ``J_p`` accepted (type-II singularity above it).
+    drift_bound : float
+        Largest loop gap [m] one RK4 step may leave before its projection.
+    """
+
+    model: object
+    actuated: np.ndarray
+    passive: np.ndarray
+    loop_joints: np.ndarray
+    loop_anchors: np.ndarray
+    rows: np.ndarray
+    home: np.ndarray
+    closure_tol: float = 0.0
+    max_iter: int = 0
+    cond_limit: float = 0.0
+    drift_bound: float = 0.0
 
 
 class Settler:
@@ -304,6 +352,10 @@ class Plant:
         joint-space default, :func:`rrr_pin.control.references.study_reference`).
         """
         return None
+
+    def description(self) -> TreeDescription:
+        """Return the plant as plain data for a compiled engine (:class:`TreeDescription`)."""
+        raise NotImplementedError
 
     def check_path(self, t: np.ndarray, R: np.ndarray) -> dict:
         """Refuse a sampled reference the plant cannot follow; return what the run records.
