@@ -15,21 +15,19 @@ import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.control.closed_chain import (
-    ChainFLForm,
-    ReducedTracking,
-    closed_chain_fl,
-    closed_chain_hinf_fl,
-)
+from rrr_pin.control.effects import PlantEffects
+from rrr_pin.control.laws import FLForm, TrackingController
+from rrr_pin.control.laws import fl_controller as closed_chain_fl
+from rrr_pin.control.laws import hinf_fl_controller as closed_chain_hinf_fl
 from rrr_pin.control.references import SineReference
 from rrr_pin.model.closed_chain import (
+    ConstraintDrift,
     LoopClosureError,
     SingularConfiguration,
     load_closed_chain,
 )
 from rrr_pin.model.mechanisms import perturb_mechanism
 from rrr_pin.sim import chain_compiled
-from rrr_pin.sim.closed_chain import ConstraintDrift
 from rrr_pin.sim.extension import available
 from rrr_pin.sim.simulation import simulate
 
@@ -133,7 +131,7 @@ def test_auto_picks_compiled_and_records_why(fivebar):
     assert "compiled form" in tr.info["engine_note"]
 
 
-class _Mine(ReducedTracking):
+class _Mine(TrackingController):
     """A subclass changes the law: no compiled form."""
 
 
@@ -150,14 +148,14 @@ def test_law_without_compiled_form_is_refused_by_name(fivebar):
 def test_continuous_law_and_codegen_are_refused(fivebar):
     ref = SineReference(home=fivebar.neutral(), amp=0.05, freq=1.0, phase=0.0)
     law = closed_chain_fl(load_closed_chain("fivebar"))
-    assert isinstance(law.compiled_form(), ChainFLForm)
+    assert isinstance(law.compiled_form(), FLForm)
     with pytest.raises(ValueError, match="continuous time .*sampled laws only"):
         simulate(fivebar, law, ref, 0.01, engine="compiled")
     with pytest.raises(ValueError, match="'codegen' does not implement closed chains"):
         simulate(fivebar, law, ref, 0.01, rate=1000, engine="codegen")
     with pytest.raises(ValueError, match="plant effects are not implemented"):
-        chain_compiled.chain_engine(fivebar, law.sampled(1000), "compiled", continuous=False,
-                                    effects=object())
+        simulate(fivebar, law, ref, 0.01, rate=1000, engine="compiled",
+                 effects=PlantEffects(delay=0.001))
 
 
 def test_drift_stop_has_the_python_message(fivebar):
@@ -209,7 +207,7 @@ def test_study_reference_on_a_perturbed_plant_pinned(mech, duration):
     # The study's own references (5-bar tip circle, Delta adept cycle) on a perturbed plant,
     # H-infinity + FL: measured 0.0 rad / 1.8e-15 N m (5-bar, 1 s) and 1.1e-16 rad /
     # 1.5e-13 N m (Delta, 0.3 s) between the engines.
-    from rrr_pin.campaign.closed_chain_study import chain_reference
+    from rrr_pin.control.references import study_reference as chain_reference
 
     params, _ = perturb_mechanism(load_closed_chain(mech).params, np.random.default_rng(1))
     plant = load_closed_chain(params)

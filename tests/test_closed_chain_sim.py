@@ -10,12 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rrr_pin.control.closed_chain import closed_chain_fl
 from rrr_pin.control.laws import ControlLaw
+from rrr_pin.control.laws import fl_controller as closed_chain_fl
 from rrr_pin.control.references import SineReference
+from rrr_pin.model import closed_chain as ccsim
 from rrr_pin.model.closed_chain import LoopClosureError, SingularConfiguration, load_closed_chain
-from rrr_pin.sim import closed_chain as ccsim
-from rrr_pin.sim import simulation
 from rrr_pin.sim.simulation import simulate
 
 
@@ -31,10 +30,6 @@ class _Passive(ControlLaw):
 
     def torque(self, t, q, qd, r, rd, rdd, x):
         return np.zeros(2)
-
-
-def test_default_step_is_the_simulators():
-    assert ccsim.DEFAULT_DT == simulation.DEFAULT_DT
 
 
 def test_fl_on_the_exact_model_tracks_to_integrator_noise(pair):
@@ -69,7 +64,7 @@ def test_compiled_engine_refuses_what_it_does_not_implement_by_name(pair):
     # (tests/test_closed_chain_compiled.py has the other refusals and the pinning).
     plant, nominal = pair
     ref = SineReference(home=plant.neutral(), amp=0.1, freq=1.0, phase=0.0)
-    with pytest.raises(ValueError, match="'compiled' cannot run .*continuous time"):
+    with pytest.raises(ValueError, match="continuous time .*sampled laws only"):
         simulate(plant, closed_chain_fl(nominal), ref, 0.01, engine="compiled")
 
 

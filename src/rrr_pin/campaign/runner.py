@@ -23,7 +23,8 @@ import numpy as np
 from ..control.catalog import BUILTIN_LAWS, make_law
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import check_law
-from ..sim.simulation import ENGINES, reuse_preparation, simulate, simulate_batch, time_grid
+from ..sim.engines import check_engine
+from ..sim.simulation import reuse_preparation, simulate, simulate_batch, time_grid
 from ..sim.trajectory import SimulationDiverged, Trajectory
 from ..validation import check_positive, check_rate, check_vector
 
@@ -98,8 +99,7 @@ class RunSettings:
             raise TypeError(f"force must be a bool, got {type(self.force).__name__}")
         grid = time_grid(self.duration, self.dt, self.rate, force=self.force)
         object.__setattr__(self, "dt", grid.h)
-        if self.engine not in ENGINES:
-            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
+        check_engine(self.engine)
         check_positive("limit_margin", self.limit_margin, allow_zero=True, unit="rad")
         for key in ("q0", "qd0"):
             v = getattr(self, key)

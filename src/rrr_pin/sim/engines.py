@@ -152,8 +152,8 @@ def choose(run, name: str) -> tuple[Engine, object, str]:
         engine = ENGINES[candidate]
         why = engine.why_not(run, form)
         if why is None:
-            note = f"{AUTO}: {candidate}" + (f" ({'; '.join(reasons)})" if reasons else
-                                             " runs it exactly")
+            note = (f"{AUTO}: {candidate}" + (f" ({'; '.join(reasons)})" if reasons else
+                    f" runs the law's compiled form {type(form).__name__} exactly"))
             return engine, (None if candidate == PYTHON else form), note
         reasons.append(f"not {candidate}: {why}")
     raise AssertionError("the Python engine runs every run")  # pragma: no cover
