@@ -4,11 +4,10 @@ Holds :mod:`~rrr_pin.campaign.settings` (the one frozen settings record of a stu
 campaign), :mod:`~rrr_pin.campaign.runner` (``RunSettings``, ``run_laws``: any laws on one plant),
 :mod:`~rrr_pin.campaign.study` (the section-5 study), :mod:`~rrr_pin.campaign.montecarlo`
 (campaigns of seeded plants), :mod:`~rrr_pin.campaign.stress` (breaking points of plant
-effects), :mod:`~rrr_pin.campaign.store` (append-only storage, resume),
-:mod:`~rrr_pin.campaign.executors` (local processes or Dask) and
-:mod:`~rrr_pin.campaign.closed_chain_study` (the section-5 study on a 5-bar or a Delta),
-:mod:`~rrr_pin.campaign.closed_chain_campaign` (Monte Carlo campaigns on them). The
-study and the campaign are siblings on the runner: neither imports the other.
+effects), :mod:`~rrr_pin.campaign.store` (append-only storage, resume) and
+:mod:`~rrr_pin.campaign.executors` (local processes or Dask). Each takes any plant
+(:mod:`rrr_pin.model.plant`): a serial arm and a closed chain run the same code. The study and
+the campaign are siblings on the runner: neither imports the other.
 
 Layer: above :mod:`rrr_pin.sim`. May import every layer below it, never :mod:`rrr_pin.report`.
 """

@@ -1,26 +1,26 @@
 """Monte Carlo robustness campaigns: thousands of seeded uncertain plants, any set of laws.
 
-Each sample ``k`` of a campaign with seed ``s`` is the plant
-:func:`rrr_pin.model.uncertainty.sample_plant` draws with ``default_rng([s, k])``; it is
-generated, simulated under every law (:func:`rrr_pin.campaign.runner.run_laws`) and reduced to
-figures inside the worker, so only a row of numbers travels back. Rows are put in sample order,
-so the results are identical whatever the number of workers or where they run.
-
-Parallel mechanisms (:mod:`rrr_pin.campaign.closed_chain_campaign`) run through the same
-machinery: their job is another kind of :class:`CampaignJob`-like object with a ``rows(indices)``
-method, given to :func:`run_samples`, and their rows are tabulated by the same functions.
+Each sample ``k`` of a campaign with seed ``s`` is the plant the nominal draws,
+``nominal.perturbed(default_rng([s, k]), settings.tolerances)``
+(:meth:`rrr_pin.model.plant.Plant.perturbed`: a serial arm's URDF or DH parameters, a closed
+chain's mechanism parameters); it is generated, simulated under every law
+(:func:`rrr_pin.campaign.runner.run_laws`) and reduced to figures inside the worker, so only a
+row of numbers travels back. The nominal plant runs too, as the row of index -1
+(:attr:`Campaign.nominal`, in ``summary.json``). Rows are put in sample order, so the results
+are identical whatever the number of workers or where they run.
 
 Workers: ``jobs`` local processes (:class:`concurrent.futures.ProcessPoolExecutor`) or a Dask
 distributed cluster (``scheduler="tcp://host:8786"``, through ``Client.get_executor()``, which
 is a ``concurrent.futures.Executor`` too): one code path, two executors.
 
-A sample where a law diverges is recorded with its status and parameters, with the figures of
-the laws that ran; the campaign goes on.
+A sample where a law's run ends (a divergence, or a plant's own failure such as a closed chain's
+type-II singularity) is recorded with its status and parameters, with the figures of the laws
+that ran; the campaign goes on. A plant that records more per run (a closed chain's loop drift)
+adds ``<law>_drift`` [m] to its rows (:attr:`Campaign.per_law`).
 """
 
 from __future__ import annotations
 
-import hashlib
 import itertools
 import logging
 import math
@@ -31,25 +31,29 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from ..control.references import Reference, default_reference
-from ..model.closed_chain import ClosedChain
-from ..model.dh import ArmParams
-from ..model.dynamics import Robot, robot_from_xml
-from ..model.robots import nominal_params
-from ..model.uncertainty import MechanismUncertainty, sample_plant
+from ..control.references import Reference, study_reference
 from ..sim.batched import BATCH_MAX
 from ..sim.simulation import reuse_preparation
-from ..sim.trajectory import SimulationDiverged
 from ..validation import check_count
 from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
-from .runner import RunSettings, check_laws, error_ratios, run_laws, run_laws_batch, run_metrics
+from .runner import (
+    RunSettings,
+    check_laws,
+    check_runs,
+    error_ratios,
+    failure_text,
+    run_laws,
+    run_laws_batch,
+    run_metrics,
+)
 from .settings import Settings
 from .store import CampaignStore
 
 if TYPE_CHECKING:
     from ..robust.certificates import CertificateSpec
 
-__all__ = ["Campaign", "CampaignSettings", "CampaignJob", "CampaignChunk", "run_campaign",
+__all__ = ["Campaign", "CampaignSettings", "CampaignJob", "CampaignChunk", "NOMINAL_INDEX",
+           "run_campaign",
            "run_chunk", "run_samples", "sample_row", "campaign_summary", "campaign_columns",
            "open_store", "store_settings", "OUTPUTS"]
 
@@ -72,10 +76,8 @@ class CampaignSettings(Settings):
         Number of plants, >= 1.
     seed, baseline
         As in :class:`~rrr_pin.campaign.settings.Settings`.
-    tolerances : Tolerances, IdentifiedUncertainty or MechanismUncertainty
-        As in :class:`~rrr_pin.campaign.settings.Settings`; a
-        :class:`~rrr_pin.model.uncertainty.MechanismUncertainty` for a closed chain
-        (:func:`rrr_pin.campaign.closed_chain_campaign.run_chain_campaign`) only.
+    tolerances : UncertaintySet
+        As in :class:`~rrr_pin.campaign.settings.Settings`: any set the plant accepts.
     run : RunSettings
         How each run is simulated (default: 10 s, 1 kHz sampled laws).
     """
@@ -83,6 +85,10 @@ class CampaignSettings(Settings):
     MIN_SAMPLES: ClassVar[int] = 1
 
     run: RunSettings = field(default_factory=lambda: RunSettings(duration=10.0, rate=1000.0))
+
+
+#: Index of the nominal plant's row (kept out of :attr:`Campaign.rows`).
+NOMINAL_INDEX = -1
 
 
 @dataclass(frozen=True)
@@ -94,18 +100,10 @@ class CampaignJob:
     settings : Settings
     laws : tuple of ControlLaw or SampledLaw
     reference : Reference
-    source : ArmParams or str
-        The nominal arm the plants are drawn around: a DH parameter set or URDF text.
-    gravity : float
-        Gravity of the plants [m/s^2].
-    lock : tuple of (str, float)
-        Locked joints of the plants and their positions [rad or m].
-    skip_joints : tuple of str
-        Joints whose origins are not perturbed.
-    joint_names : tuple of str
+    nominal : Plant
+        The nominal plant the samples are drawn around (its row is index -1), and the
+        certificate's model.
     certificate : CertificateSpec or None
-    nominal : Robot or None
-        The nominal arm, for the certificate (None without one).
     batch : int
         Plants per batched rollout (:func:`rrr_pin.campaign.runner.run_laws_batch`); changes
         no number, so it is not recorded.
@@ -114,13 +112,8 @@ class CampaignJob:
     settings: Settings
     laws: tuple
     reference: Reference
-    source: ArmParams | str
-    gravity: float
-    lock: tuple
-    skip_joints: tuple
-    joint_names: tuple
+    nominal: object
     certificate: CertificateSpec | None = None
-    nominal: Robot | None = None
     batch: int = 16
 
     def rows(self, indices) -> list[dict]:
@@ -136,8 +129,8 @@ class CampaignJob:
             made = [_sample(self, k) for k in indices]
             runs = run_laws_batch([plant for _, plant in made], self.laws, self.reference,
                                   self.settings.run, batch=self.batch)
-            return [_row(self, k, sample, plant, r)
-                    for k, (sample, plant), r in zip(indices, made, runs, strict=True)]
+            return [_row(self, k, parameters, plant, r)
+                    for k, (parameters, plant), r in zip(indices, made, runs, strict=True)]
 
 
 @dataclass(frozen=True)
@@ -145,7 +138,7 @@ class CampaignChunk:
     """Samples ``indices`` of campaign ``job``: one task of a worker (:func:`run_chunk`).
 
     ``job`` is a :class:`CampaignJob` or any picklable object with ``rows(indices) -> list
-    of dict`` (e.g. :class:`rrr_pin.campaign.closed_chain_campaign.ChainCampaignJob`).
+    of dict``.
     """
 
     job: CampaignJob
@@ -172,11 +165,11 @@ class Campaign:
     settings : dict
         :meth:`CampaignSettings.to_dict` plus the reference.
     nominal : dict or None
-        The nominal plant's row (same keys, ``index`` -1), where the campaign runs it (closed
-        chains); None otherwise.
+        The nominal plant's row (same keys, ``index`` -1; None if a store from before held
+        none).
     per_law : tuple of str
-        Further per-law keys of the rows, ``<law>_<key>`` (closed chains: ``drift`` [m],
-        the largest loop gap of the run, and ``status``); written to ``campaign.csv``.
+        Further per-law keys of the rows, ``<law>_<key>`` (a closed chain's ``drift`` [m], the
+        largest loop gap of the run); written to ``campaign.csv``.
     """
 
     robot: str
@@ -223,30 +216,33 @@ class Campaign:
 
 
 def sample_row(job: CampaignJob, k: int) -> dict:
-    """Generate sample ``k``, run every law on it and reduce it to one row."""
-    sample, plant = _sample(job, k)
-    return _row(job, k, sample, plant, run_laws(plant, job.laws, job.reference,
-                                                job.settings.run))
+    """Generate sample ``k`` (-1: the nominal), run every law on it and reduce it to one row."""
+    parameters, plant = _sample(job, k)
+    return _row(job, k, parameters, plant, run_laws(plant, job.laws, job.reference,
+                                                    job.settings.run))
 
 
 def _sample(job: CampaignJob, k: int):
-    """Sample ``k``'s :class:`~rrr_pin.model.uncertainty.PlantSample` and its Robot."""
-    sample = sample_plant(job.source, job.settings.seed, k, job.settings.tolerances,
-                          skip_joints=job.skip_joints)
-    plant = robot_from_xml(sample.urdf, gravity=job.gravity, lock=dict(job.lock),
-                           name=f"sample{k:05d}", label=f"sample {k}", check=False)
-    return sample, plant
+    """Sample ``k``'s parameters record and plant (-1: the nominal plant, ``{}``)."""
+    if k == NOMINAL_INDEX:
+        return {}, job.nominal
+    plant, parameters = job.nominal.perturbed(
+        np.random.default_rng([int(job.settings.seed), int(k)]), job.settings.tolerances,
+        name=f"sample{k:05d}")
+    return parameters, plant
 
 
-def _row(job: CampaignJob, k: int, sample, plant, runs: dict) -> dict:
+def _row(job: CampaignJob, k: int, parameters, plant, runs: dict) -> dict:
     """Reduce sample ``k``'s runs (by law name) to its row, from its own values only."""
     settings = job.settings
-    row = {"index": k, "seed": sample.seed, "status": "ok", "parameters": sample.parameters}
-    bad = [f"{name}: {v}" for name, v in runs.items() if isinstance(v, SimulationDiverged)]
+    seed = None if k == NOMINAL_INDEX else [int(settings.seed), int(k)]
+    row = {"index": k, "seed": seed, "status": "ok", "parameters": parameters}
+    bad = [f"{name}: {failure_text(v)}" for name, v in runs.items() if isinstance(v, Exception)]
     if bad:
         row["status"] = "diverged: " + "; ".join(bad)
-    figures = {name: run_metrics(t, job.joint_names) for name, t in runs.items()
-               if not isinstance(t, SimulationDiverged)}
+    joints = job.nominal.joint_names
+    figures = {name: run_metrics(t, joints) for name, t in runs.items()
+               if not isinstance(t, Exception)}
     for name, m in figures.items():
         row.update({f"{name}_{key}": v for key, v in m.items()})
     undefined = []
@@ -257,7 +253,7 @@ def _row(job: CampaignJob, k: int, sample, plant, runs: dict) -> dict:
         undefined += r.get("undefined", [])
     if undefined:
         row["undefined"] = "; ".join(undefined)
-    if job.certificate is not None:
+    if job.certificate is not None and k != NOMINAL_INDEX:
         cert = job.certificate.certify(job.nominal, plant, job.reference, settings.run.duration)
         row["certified"], row["nugap_max"] = cert["certified"], cert["nugap_max"]
     return row
@@ -268,43 +264,40 @@ def run_chunk(task: CampaignChunk) -> list[dict]:
     return task.job.rows(task.indices)
 
 
-def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Reference | None = None,
-                 params: ArmParams | None = None, jobs: int | None = None,
+def run_campaign(nominal, laws, settings: CampaignSettings, *,
+                 reference: Reference | None = None, jobs: int | None = None,
                  scheduler: str | None = None, executor: Executor | None = None,
-                 skip_joints=(), chunk: int | None = None, progress=None,
-                 store: CampaignStore | None = None, certificate=None,
-                 batch: int = 16) -> Campaign:
-    """Run every law on ``settings.samples`` seeded uncertain plants.
+                 chunk: int | None = None, progress=None, store: CampaignStore | None = None,
+                 certificate=None, batch: int = 16) -> Campaign:
+    """Run every law on the nominal plant and ``settings.samples`` seeded uncertain plants.
 
     Parameters
     ----------
-    robot : Robot
-        Nominal arm (the plants are drawn around it).
+    nominal : Plant
+        Nominal plant, a serial arm or a closed chain (the samples are drawn around it:
+        :meth:`~rrr_pin.model.plant.Plant.perturbed`).
     laws : sequence of ControlLaw or SampledLaw
         Built-in (:func:`rrr_pin.campaign.runner.make_laws`) or your own; picklable (a worker
         process receives them); the baseline among them.
     settings : CampaignSettings
     reference : Reference, optional
-        Default :func:`rrr_pin.control.references.default_reference`.
-    params : ArmParams, optional
-        Perturb this DH parameter set; default :func:`rrr_pin.model.robots.nominal_params`
-        (the paper's for ``"rrr"``), and for any other arm its URDF.
+        Default :func:`rrr_pin.control.references.study_reference` of ``nominal`` over the
+        run's duration.
     jobs : int, optional
         Local worker processes, >= 1 (default ``min(2, CPUs)``); 1 runs in this process.
     scheduler : str, optional
         Address of a Dask distributed scheduler; the same tasks go there instead.
     executor : concurrent.futures.Executor, optional
         Any executor to use as is (overrides ``jobs`` and ``scheduler``).
-    skip_joints : iterable of str
-        Joints whose origins are not perturbed.
     chunk : int, optional
         Samples per task (default: about 8 tasks per worker, at most 32 samples).
     batch : int, default 16
         Plants per batched rollout, 1 to 16 (:mod:`rrr_pin.sim.batched`, used under
-        ``engine="auto"`` when the arm's structure has generated dynamics); rows are the same
+        ``engine="auto"`` when the plant's structure has generated dynamics); rows are the same
         for every batch size, number of workers and chunk size.
     progress : callable, optional
-        ``progress(done, total)`` after each finished chunk.
+        ``progress(done, total)`` after each finished chunk (``total = samples + 1``, the
+        nominal plant counted).
     certificate : rrr_pin.robust.certificates.CertificateSpec, optional
         Certify every plant (frozen-configuration nu-gap < b(Gs, Ks)) and add the columns
         ``certified`` and ``nugap_max`` beside the simulated outcome (about 0.3 s per plant).
@@ -326,33 +319,31 @@ def run_campaign(robot, laws, settings: CampaignSettings, *, reference: Referenc
         Local worker processes died or no Dask worker was left; finished samples are kept.
     SchedulerUnreachable
         The Dask scheduler cannot be reached.
+    TypeError, ValueError
+        Before any work: an uncertainty set the plant does not accept, a run setting or engine
+        that cannot run a law on it (:func:`rrr_pin.campaign.runner.check_runs`).
     """
-    if isinstance(robot, ClosedChain):
-        raise TypeError(f"{robot.name} is a closed chain: run its campaign with "
-                        f"rrr_pin.campaign.closed_chain_campaign.run_chain_campaign")
-    if isinstance(settings.tolerances, MechanismUncertainty):
-        raise TypeError(f"tolerances {type(settings.tolerances).__name__} perturbs a parallel "
-                        f"mechanism; {robot.name} is a serial arm: use Tolerances, or "
-                        f"run_chain_campaign for a closed chain")
-    laws = check_laws(laws, robot.nq, settings.baseline)
+    laws = check_laws(laws, nominal.nq, settings.baseline)
     batch = check_count("batch", batch, 1, BATCH_MAX)
-    reference = default_reference(robot) if reference is None else reference
-    reference.check_limits(robot, duration=settings.run.duration)
-    if params is None:
-        params = nominal_params(robot)
+    reference = (study_reference(nominal, settings.run.duration) if reference is None
+                 else reference)
+    reference.check_limits(nominal, duration=settings.run.duration)
+    check_runs(nominal, laws, reference, settings.run)
+    # the uncertainty set, refused up front if the plant does not take it (draws sample 0)
+    nominal.perturbed(np.random.default_rng([int(settings.seed), 0]), settings.tolerances)
     job = CampaignJob(settings=settings, laws=tuple(laws), reference=reference,
-                      source=params if params is not None else robot.urdf,
-                      gravity=robot.gravity, lock=tuple(dict(robot.locked).items()),
-                      skip_joints=tuple(skip_joints), joint_names=tuple(robot.joint_names),
-                      certificate=certificate,
-                      nominal=robot if certificate is not None else None, batch=batch)
+                      nominal=nominal, certificate=certificate, batch=batch)
     samples = int(settings.samples)
-    rows = run_samples(job, range(samples), total=samples, name=robot.name, jobs=jobs,
-                       scheduler=scheduler, executor=executor, chunk=chunk, store=store,
-                       progress=progress, max_chunk=32)
-    return Campaign(robot=robot.name, joint_names=list(robot.joint_names),
-                    laws=[law.describe() for law in laws], rows=rows,
-                    settings={**settings.to_dict(), "reference": reference.to_dict()})
+    rows = run_samples(job, [NOMINAL_INDEX, *range(samples)], total=samples + 1,
+                       name=nominal.name, jobs=jobs, scheduler=scheduler, executor=executor,
+                       chunk=chunk, store=store, progress=progress, max_chunk=32)
+    per_law = ("drift",) if any(f"{law.name}_drift" in r for r in rows for law in laws) else ()
+    return Campaign(robot=nominal.name, joint_names=list(nominal.joint_names),
+                    laws=[law.describe() for law in laws],
+                    rows=[r for r in rows if r["index"] != NOMINAL_INDEX],
+                    settings={**settings.to_dict(), "reference": reference.to_dict()},
+                    nominal=next((r for r in rows if r["index"] == NOMINAL_INDEX), None),
+                    per_law=per_law)
 
 
 def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
@@ -507,11 +498,14 @@ def campaign_summary(campaign: Campaign) -> dict:
     return out
 
 
-def store_settings(robot, laws, settings: CampaignSettings, reference,
+def store_settings(nominal, laws, settings: CampaignSettings, reference,
                    certificate=None) -> dict:
-    """Everything that changes a row, JSON-ready: a resume must match it exactly."""
-    return {"robot": robot.name, "urdf_sha256": hashlib.sha256(robot.urdf.encode()).hexdigest(),
-            "locked": dict(robot.locked), "gravity": robot.gravity,
+    """Everything that changes a row, JSON-ready: a resume must match it exactly.
+
+    The plant's name and :meth:`~rrr_pin.model.plant.Plant.fingerprint` (the hash of its URDF
+    or MJCF, its locks and gravity), the laws, the settings, the reference and the certificate.
+    """
+    return {"robot": nominal.name, **nominal.fingerprint(),
             "controllers": [law.describe() for law in laws], **settings.to_dict(),
             "reference": reference.to_dict(),
             "certificate": certificate.to_dict() if certificate is not None else None}

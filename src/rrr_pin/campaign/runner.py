@@ -24,7 +24,7 @@ from ..control.catalog import BUILTIN_LAWS, make_law
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import check_law
 from ..sim.engines import check_engine
-from ..sim.simulation import reuse_preparation, simulate, simulate_batch, time_grid
+from ..sim.simulation import check_run, reuse_preparation, simulate, simulate_batch, time_grid
 from ..sim.trajectory import SimulationDiverged, Trajectory
 from ..validation import check_positive, check_rate, check_vector
 
@@ -34,9 +34,11 @@ __all__ = [
     "RunSettings",
     "make_laws",
     "check_laws",
+    "check_runs",
     "run_laws",
     "run_laws_batch",
     "run_metrics",
+    "failure_text",
     "error_ratios",
     "ratio",
 ]
@@ -188,6 +190,24 @@ def check_laws(laws, n: int, baseline: str | None = None) -> list:
     return laws
 
 
+def check_runs(plant, laws, reference, settings: RunSettings) -> dict:
+    """Validate every law's run on ``plant`` before any work; return the engine of each.
+
+    :func:`rrr_pin.sim.simulation.check_run` per law: a setting, an effect or an engine that
+    cannot run a law on this plant is refused here, once, naming it, instead of failing in a
+    worker or being recorded as a failed run.
+
+    Returns
+    -------
+    dict
+        Law name -> the engine that will run it (what ``settings.engine`` resolves to).
+    """
+    kwargs = settings.simulate_kwargs()
+    with reuse_preparation():
+        return {law.name: check_run(plant, law, reference, settings.duration, check=False,
+                                    **kwargs) for law in laws}
+
+
 def run_laws(plant, laws, reference, settings: RunSettings) -> dict:
     """Simulate every law on ``plant``.
 
@@ -195,19 +215,31 @@ def run_laws(plant, laws, reference, settings: RunSettings) -> dict:
     -------
     dict
         By law name: its :class:`~rrr_pin.sim.trajectory.Trajectory`, or the
-        :class:`~rrr_pin.sim.trajectory.SimulationDiverged` it raised (other errors propagate).
+        :class:`~rrr_pin.sim.trajectory.SimulationDiverged` (or the plant's own failure,
+        :attr:`rrr_pin.model.plant.Plant.failures`) it ended with; other errors propagate.
     """
     out = {}
     kwargs = settings.simulate_kwargs()
+    failures = (SimulationDiverged, *plant.failures)
     with reuse_preparation():  # the laws share the sampled reference (bit-identical)
         for law in laws:
             try:
                 # check=False: RunSettings validated duration, dt, rate and limit_margin.
                 out[law.name] = simulate(plant, law, reference, settings.duration, check=False,
                                          **kwargs)
-            except SimulationDiverged as exc:
+            except failures as exc:
                 out[law.name] = exc
     return out
+
+
+def failure_text(exc: Exception) -> str:
+    """How a run that ended is recorded: its message, with the kind of a plant's own failure.
+
+    A :class:`~rrr_pin.sim.trajectory.SimulationDiverged` is its message; a plant's failure
+    (:attr:`rrr_pin.model.plant.Plant.failures`, e.g. ``SingularConfiguration``) is
+    ``"<type>: <message>"``.
+    """
+    return str(exc) if isinstance(exc, SimulationDiverged) else f"{type(exc).__name__}: {exc}"
 
 
 def run_laws_batch(plants, laws, reference, settings: RunSettings, *, batch: int = 16) -> list:
@@ -239,13 +271,16 @@ def run_laws_batch(plants, laws, reference, settings: RunSettings, *, batch: int
 def run_metrics(traj: Trajectory, joint_names) -> dict:
     """Scalar figures of a run.
 
-    ``rms_error``, ``max_error`` [rad], ``rms_torque`` [N m] (over all joints and samples) and
-    ``rms_error_<joint>`` [rad] per joint.
+    ``rms_error``, ``max_error`` [rad], ``rms_torque`` [N m] (over all joints and samples),
+    ``drift`` [m] for a plant that records its loop drift (a closed chain,
+    ``info["drift_m"]``) and ``rms_error_<joint>`` [rad] per joint.
     """
     e, tau = traj.error, traj.tau
     out = {"rms_error": float(np.sqrt(np.mean(e * e))),
            "max_error": float(np.max(np.abs(e))),
            "rms_torque": float(np.sqrt(np.mean(tau * tau)))}
+    if "drift_m" in traj.info:
+        out["drift"] = float(traj.info["drift_m"])
     for name, v in zip(joint_names, np.sqrt(np.mean(e * e, axis=0)), strict=True):
         out[f"rms_error_{name}"] = float(v)
     return out

@@ -34,13 +34,12 @@ torque input saying on which side of it the law breaks (below for a loop that is
 conditionally stable, above for one that is, like the paper's H-infinity + FL, which winds up);
 the guaranteed one is a sufficient condition, the peak torque of the unsaturated run.
 
-**Parallel mechanisms** (a :class:`~rrr_pin.model.closed_chain.ClosedChain` plant, the 5-bar
-or the Delta): the effects act on the actuated joints (:mod:`rrr_pin.sim.closed_chain`) and the
-laws are the reduced-model ones (:mod:`rrr_pin.control.closed_chain`), whose loop in actuated
-coordinates is the serial one (:class:`~rrr_pin.control.laws.FLLinearModel`), so the same
-predictions apply. A run that leaves the mechanism's workspace, crosses a type-II singularity
-or drifts off its loop closure (the loop has gone unstable) counts as diverged; each run
-starts the law's loop-closure solver from the mechanism's home branch.
+**Any plant** (:mod:`rrr_pin.model.plant`): on a closed chain the effects act on the actuated
+joints and the laws run on its reduced model, whose loop in actuated coordinates is the serial
+one (:class:`~rrr_pin.control.laws.FLLinearModel`), so the same predictions apply. A run that
+ends by the plant's own failure (a closed chain leaving its workspace, crossing a type-II
+singularity or drifting off its loop closure: the loop has gone unstable,
+:attr:`~rrr_pin.model.plant.Plant.failures`) counts as diverged.
 
 **Combined effects** (``fixed``, CLI ``--with NAME=SIZE``): one effect is searched with others
 held at a size; the simulation, the digital prediction (delay and actuator together, exactly
@@ -64,13 +63,10 @@ import numpy as np
 import scipy.linalg
 
 from ..control.catalog import DEFAULT_BUDGET, EFFECTS
-from ..control.closed_chain import reset_closure
 from ..control.effects import PlantEffects
-from ..model.closed_chain import LoopClosureError, SingularConfiguration
 from ..robust.barriers import model_error_bound, robust_stability_barrier
 from ..robust.lti import static_gain
 from ..robust.robustness import check_robust_stability
-from ..sim.closed_chain import ConstraintDrift
 from ..sim.simulation import simulate
 from ..sim.trajectory import SimulationDiverged
 from ..validation import FieldError, check_count, check_positive
@@ -495,18 +491,12 @@ def _start(plant, reference, settings: StressSettings):
     return q0
 
 
-#: How a closed chain's run ends when its loop has gone unstable (besides SimulationDiverged).
-_CHAIN_FAILURES = (ConstraintDrift, SingularConfiguration, LoopClosureError)
-
-
 def _rms(plant, law, reference, effect, size, settings: StressSettings, duration, fixed=None):
     """RMS tracking error [rad] of one run (from :func:`_start`), ``inf`` if it diverged."""
     kwargs = settings.run.simulate_kwargs()
     kwargs.pop("effects", None)  # the effect under test replaces any in the settings
     kwargs["q0"] = _start(plant, reference, settings)
-    failures = (SimulationDiverged, *_CHAIN_FAILURES) if hasattr(plant, "constraints") else (
-        SimulationDiverged,)
-    reset_closure(law, reference)
+    failures = (SimulationDiverged, *plant.failures)
     try:
         traj = simulate(plant, law, reference, duration,
                         effects=effects_of(effect, size, fixed=fixed), **kwargs)
@@ -522,7 +512,7 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
 
     Parameters
     ----------
-    plant : Robot or ClosedChain
+    plant : Plant
         The simulated arm or mechanism.
     law : ControlLaw or SampledLaw
         Any law (sampled at ``settings.run.rate``).
@@ -694,7 +684,6 @@ def torque_prediction(plant, law, reference, settings: StressSettings | None = N
     fields = {}
     for name, size in check_fixed(fixed, "torque").items():
         fields.update(EFFECTS[name].fields(size, 0))
-    reset_closure(law, reference)
     traj = simulate(plant, law, reference, duration,
                     effects=PlantEffects(**fields) if fields else None, **kwargs)
     r, rd, rdd = reference.sample(traj.t)
@@ -720,7 +709,7 @@ def stress(plant, laws, reference, effect: str, settings: StressSettings | None 
 
     Parameters
     ----------
-    plant : Robot or ClosedChain
+    plant : Plant
         The nominal arm or mechanism (the laws' model is the plant: the effect is the only
         mismatch).
     laws : sequence of laws

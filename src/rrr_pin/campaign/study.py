@@ -1,11 +1,18 @@
-"""The paper's section-5 study, for any set of control laws: nominal and uncertain plants.
+"""The paper's section-5 study, for any set of control laws on any plant: nominal and uncertain.
 
-One code path for any fixed-base arm: the nominal robot (the paper's RRR, an example-robot-data
-arm or a URDF), its uncertain plants (:mod:`rrr_pin.model.uncertainty`, written out as URDF and
-loaded back), the laws (built-in or your own, :mod:`rrr_pin.control.laws`) and the runner
-(:mod:`rrr_pin.campaign.runner`), with the settings of :mod:`rrr_pin.campaign.settings`. Plants
-run in parallel processes; results do not depend on the number of processes. Laws are compared
-with a named baseline (``"fl"`` by default, the paper's).
+One code path for every plant (:mod:`rrr_pin.model.plant`): a serial arm (the paper's RRR, an
+example-robot-data arm, a URDF) or a closed chain (the 5-bar, the Delta, any registered
+mechanism). Its uncertain plants are drawn by the plant itself
+(:meth:`~rrr_pin.model.plant.Plant.perturbed`: plant ``k`` of seed ``s`` with
+``numpy.random.default_rng([s, k])``, from ``config.tolerances``), the laws are built-in or
+your own (:mod:`rrr_pin.control.laws`), the reference is the plant's study reference by default
+(:func:`rrr_pin.control.references.study_reference`: the joint-space sinusoid of an arm, the
+task path of a mechanism), and the runner (:mod:`rrr_pin.campaign.runner`) runs them with the
+settings of :mod:`rrr_pin.campaign.settings`. Plants run in parallel processes; results do not
+depend on the number of processes. Laws are compared with a named baseline (``"fl"`` by
+default, the paper's). A run that ends (a divergence, or a plant's own failure such as a closed
+chain's type-II singularity, :attr:`~rrr_pin.model.plant.Plant.failures`) is recorded in its
+sample's ``status``.
 
 Under a torque limit (``config.run.effects.torque_limit``, the study of the paper under limits)
 a law that diverges on the nominal plant is a result, not an error: it is set aside
@@ -20,19 +27,26 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..control.effects import check_torque_limit
-from ..control.references import Reference, TaskSpaceReference, default_reference
-from ..model.dynamics import Robot, robot_from_xml
-from ..model.robots import nominal_params
-from ..model.uncertainty import PlantSample, sample_plants
+from ..control.references import Reference, TaskSpaceReference, study_reference
+from ..outputs import writing
 from ..sim.simulation import time_grid
 from ..sim.trajectory import SimulationDiverged, metrics
 from .executors import check_jobs, default_jobs, run_tasks
-from .runner import RunSettings, check_laws, ratio, run_laws, run_laws_batch
+from .runner import (
+    RunSettings,
+    check_laws,
+    check_runs,
+    failure_text,
+    ratio,
+    run_laws,
+    run_laws_batch,
+)
 from .settings import Settings
 
 if TYPE_CHECKING:
@@ -41,6 +55,8 @@ if TYPE_CHECKING:
 __all__ = [
     "StudyConfig",
     "StudyResult",
+    "UncertainPlant",
+    "draw_plants",
     "PlantTask",
     "run_plant",
     "run_plants",
@@ -88,6 +104,53 @@ class StudyConfig(Settings):
 
 
 @dataclass(frozen=True)
+class UncertainPlant:
+    """One uncertain plant of a study: where it came from, and the plant.
+
+    Attributes
+    ----------
+    index : int
+        Sample number ``k``.
+    seed : list of int
+        ``[s, k]``, the seed of ``numpy.random.default_rng`` that drew it.
+    parameters : dict
+        JSON-ready description of what was drawn (:meth:`~rrr_pin.model.plant.Plant.perturbed`).
+    plant : Plant
+        The plant, of the nominal's kind.
+    """
+
+    index: int
+    seed: list
+    parameters: dict
+    plant: object
+
+    def write(self, folder: str | Path, stem: str = "plant") -> Path:
+        """Write the plant's description (URDF, MJCF) as ``folder/<stem>_<index:03d>.<ext>``."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        text, suffix = self.plant.source_text()
+        path = folder / f"{stem}_{self.index:03d}{suffix}"
+        with writing(path):  # a full disk names the file
+            path.write_text(text)
+        return path
+
+
+def draw_plants(nominal, count: int, seed: int, tolerances) -> list[UncertainPlant]:
+    """Draw the ``count`` uncertain plants of a study around ``nominal``.
+
+    Plant ``k`` is ``nominal.perturbed(numpy.random.default_rng([seed, k]), tolerances)``,
+    named ``<nominal>_sample<k:03d>``: a plant can be regenerated alone, whatever the count.
+    """
+    out = []
+    for k in range(int(count)):
+        plant, parameters = nominal.perturbed(np.random.default_rng([int(seed), k]), tolerances,
+                                              name=f"{nominal.name}_sample{k:03d}")
+        out.append(UncertainPlant(index=k, seed=[int(seed), k], parameters=parameters,
+                                  plant=plant))
+    return out
+
+
+@dataclass(frozen=True)
 class PlantTask:
     """One plant of a study, sent to a worker process (:func:`run_plant`).
 
@@ -96,12 +159,11 @@ class PlantTask:
     laws : tuple of ControlLaw or SampledLaw
     reference : Reference
     run : RunSettings
-    nominal : Robot
-        The nominal arm: gravity and locked joints of the plant, and the certificate's model.
+    nominal : Plant
+        The nominal plant: the certificate's model.
     certificate : CertificateSpec or None
-    plant_xml : str
-        URDF text of the plant.
-    plant_name : str
+    plant : Plant
+        The plant to run.
     certify : bool
         Certify this plant (the uncertain ones; not the nominal).
     """
@@ -109,10 +171,9 @@ class PlantTask:
     laws: tuple
     reference: Reference
     run: RunSettings
-    nominal: Robot
+    nominal: object
     certificate: CertificateSpec | None
-    plant_xml: str
-    plant_name: str
+    plant: object
     certify: bool
 
 
@@ -123,7 +184,7 @@ class StudyResult:
     Attributes
     ----------
     robot : str
-        Name of the nominal arm.
+        Name of the nominal plant.
     joint_names : list of str
     reference : Reference
     config : StudyConfig
@@ -133,9 +194,9 @@ class StudyResult:
         ``{name: Trajectory}`` on the nominal plant.
     samples : list of dict
         Per uncertain plant: ``index``, ``seed``, ``parameters``, ``status`` (``"ok"`` when
-        every law ran, otherwise the divergence messages), ``trajectories`` and ``metrics``
-        (by law name, for the laws that ran).
-    plants : list of PlantSample
+        every law ran, otherwise ``"diverged: "`` and how each law's run ended),
+        ``trajectories`` and ``metrics`` (by law name, for the laws that ran).
+    plants : list of UncertainPlant
     task_space : dict
         For a task-space reference (:class:`~rrr_pin.control.references.TaskSpaceReference`),
         the frame's Cartesian error (:func:`task_space_errors`): ``frame``, ``nominal`` and
@@ -251,7 +312,9 @@ def summarize(result: StudyResult) -> dict:
         divided by the law's: above 1, the law tracks better), ``error_ratio_uncertain_per_joint``
         and ``torque_ratio_uncertain`` (RMS torque of the law over the baseline's); each
         ratio by :func:`rrr_pin.campaign.runner.ratio`, None where undefined (0/0). Under a
-        torque limit, ``torque_limit`` (:func:`_torque_limit_summary`).
+        torque limit, ``torque_limit`` (:func:`_torque_limit_summary`). For a plant that
+        records its loop drift (a closed chain), ``drift_max_m`` [m] over every run. With
+        certificates, ``samples_certified``, ``certificate_b`` and ``nugap_max``.
     """
     names, base = result.names, result.config.baseline
     ok = [s for s in result.samples if s["status"] == "ok"]
@@ -266,6 +329,11 @@ def summarize(result: StudyResult) -> dict:
     limit = _torque_limit_summary(result)
     if limit:
         out["torque_limit"] = limit
+    drifts = [m["drift_m"] for s in result.samples for m in s["metrics"].values()
+              if "drift_m" in m] + [t.info["drift_m"] for t in result.nominal.values()
+                                    if "drift_m" in t.info]
+    if drifts:  # a plant that records its loop drift (a closed chain): the largest
+        out["drift_max_m"] = max(drifts)
     certs = [s["certificate"] for s in result.samples if "certificate" in s]
     if certs:
         out["samples_certified"] = sum(1 for c in certs if c["certified"])
@@ -342,7 +410,7 @@ def _torque_limit_summary(result: StudyResult) -> dict:
             "laws": laws}
 
 
-def task_space_errors(reference: TaskSpaceReference, nominal: Robot, runs: dict,
+def task_space_errors(reference: TaskSpaceReference, nominal, runs: dict,
                       samples: list, plants: list) -> dict:
     """Cartesian error of the frame a task-space reference moves, for every run of a study.
 
@@ -357,12 +425,13 @@ def task_space_errors(reference: TaskSpaceReference, nominal: Robot, runs: dict,
     Parameters
     ----------
     reference : TaskSpaceReference
-    nominal : Robot
+    nominal : Plant
+        With named frames (:data:`rrr_pin.model.plant.FRAMES`).
     runs : dict
         ``{law name: Trajectory}`` on the nominal plant.
     samples : list of dict
         The study's samples (``trajectories`` by law name).
-    plants : list of PlantSample
+    plants : list of UncertainPlant
         The uncertain plants, in the order of ``samples``.
     """
     def figures(d, prefix=""):
@@ -381,12 +450,8 @@ def task_space_errors(reference: TaskSpaceReference, nominal: Robot, runs: dict,
     true: dict = {name: [] for name in runs}
     seen: dict = {name: [] for name in runs}
     for sample, plant in zip(samples, plants, strict=True):
-        if not sample["trajectories"]:
-            continue
-        robot = robot_from_xml(plant.urdf, gravity=nominal.gravity, lock=dict(nominal.locked),
-                               name=f"sample{plant.index}", check=False)
         for name, traj in sample["trajectories"].items():
-            true[name].append(norm(robot, traj))
+            true[name].append(norm(plant.plant, traj))
             seen[name].append(norm(nominal, traj))
     out["errors"]["uncertain"] = seen
     for name in runs:
@@ -404,29 +469,24 @@ def run_plants(tasks: tuple) -> list[tuple[dict, dict | None]]:
     ``engine="auto"``, many per call on the generated dynamics of :mod:`rrr_pin.sim.batched`
     when the structure has them); each result is the one :func:`run_plant` gives its plant.
     """
-    plants = [robot_from_xml(t.plant_xml, gravity=t.nominal.gravity,
-                             lock=dict(t.nominal.locked), name=t.plant_name,
-                             label=t.plant_name, check=False) for t in tasks]
     task = tasks[0]
-    runs = run_laws_batch(plants, task.laws, task.reference, task.run)
+    runs = run_laws_batch([t.plant for t in tasks], task.laws, task.reference, task.run)
     out = []
-    for t, plant, r in zip(tasks, plants, runs, strict=True):
+    for t, r in zip(tasks, runs, strict=True):
         cert = None
         if t.certificate is not None and t.certify:
-            cert = t.certificate.certify(t.nominal, plant, t.reference, t.run.duration)
+            cert = t.certificate.certify(t.nominal, t.plant, t.reference, t.run.duration)
         out.append((r, cert))
     return out
 
 
 def run_plant(task: PlantTask) -> tuple[dict, dict | None]:
     """Simulate every law on one plant, and certify it (runs in a worker process)."""
-    nominal = task.nominal
-    plant = robot_from_xml(task.plant_xml, gravity=nominal.gravity, lock=dict(nominal.locked),
-                           name=task.plant_name, label=task.plant_name, check=False)
-    runs = run_laws(plant, task.laws, task.reference, task.run)
+    runs = run_laws(task.plant, task.laws, task.reference, task.run)
     cert = None
     if task.certificate is not None and task.certify:
-        cert = task.certificate.certify(nominal, plant, task.reference, task.run.duration)
+        cert = task.certificate.certify(task.nominal, task.plant, task.reference,
+                                        task.run.duration)
     return runs, cert
 
 
@@ -455,27 +515,23 @@ def check_study_size(config: StudyConfig, n_laws: int, n: int) -> int:
 
 
 def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
-              reference: Reference | None = None, params=None, skip_joints=(),
-              progress=None, certificate=None) -> StudyResult:
+              reference: Reference | None = None, progress=None,
+              certificate=None) -> StudyResult:
     """Run every law on the nominal plant and on ``config.samples`` uncertain plants.
 
     Parameters
     ----------
-    nominal : Robot
-        The nominal arm (the uncertain plants are drawn around it).
+    nominal : Plant
+        The nominal plant, a serial arm or a closed chain (the uncertain plants are drawn
+        around it: :func:`draw_plants`).
     laws : sequence of ControlLaw or SampledLaw
-        Built-in (:func:`rrr_pin.campaign.runner.make_laws`) or your own; unique names; the baseline
-        ``config.baseline`` among them.
+        Built-in (:func:`rrr_pin.campaign.runner.make_laws`) or your own; unique names; the
+        baseline ``config.baseline`` among them.
     config : StudyConfig
         Run settings, sample count, seed, tolerances, baseline, jobs.
     reference : Reference, optional
-        Default :func:`default_reference` of the nominal arm.
-    params : ArmParams, optional
-        Perturb this DH parameter set (its URDF is generated); default
-        :func:`rrr_pin.model.robots.nominal_params` (the paper's for ``"rrr"``), and for any
-        other arm the nominal URDF itself (:func:`rrr_pin.model.uncertainty.perturb_urdf`).
-    skip_joints : iterable of str
-        Joints whose origins are not perturbed (e.g. locked fingers).
+        Default :func:`rrr_pin.control.references.study_reference` of ``nominal`` over the
+        run's duration.
     progress : callable, optional
         Called as ``progress(done, total)`` after each plant.
     certificate : rrr_pin.robust.certificates.CertificateSpec, optional
@@ -489,8 +545,9 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     Raises
     ------
     SimulationDiverged
-        A law diverged on the nominal plant (under a torque limit: only the baseline; another
-        law is set aside in :attr:`StudyResult.dropped`).
+        A law's run ended on the nominal plant (a divergence, or the plant's own failure
+        such as a type-II singularity; under a torque limit: only the baseline's; another
+        law is then set aside in :attr:`StudyResult.dropped`).
     ValueError
         The trajectories kept would take more than :data:`MAX_STUDY_BYTES`
         (:func:`check_study_size`, before any work; ``config.run.force`` lifts the bound).
@@ -500,31 +557,27 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     """
     laws = check_laws(laws, nominal.nq, config.baseline)
     check_study_size(config, len(laws), nominal.nq)
-    reference = default_reference(nominal) if reference is None else reference
+    reference = (study_reference(nominal, config.run.duration) if reference is None
+                 else reference)
     reference.check_limits(nominal, duration=config.run.duration)
+    check_runs(nominal, laws, reference, config.run)
     fx = config.run.effects
     limited = fx is not None and fx.torque_limit is not None
-    if limited:  # the arm must at least hold itself where the reference starts
+    if limited:  # the plant must at least hold itself where the reference starts
         check_torque_limit(nominal, fx.torque_limit, reference)
-    if params is None:
-        params = nominal_params(nominal)
-    source = params if params is not None else nominal.urdf
     start = time.perf_counter()
     logger.info("study on %s: %d laws (%s), nominal + %d uncertain plants (seed %d), %g s runs",
                 nominal.name, len(laws), ", ".join(law.name for law in laws), config.samples,
                 config.seed, config.run.duration)
-    plants: list[PlantSample] = sample_plants(source, config.samples, config.seed,
-                                              config.tolerances, skip_joints=skip_joints)
+    plants = draw_plants(nominal, config.samples, config.seed, config.tolerances)
     for p in plants:
-        logger.debug("uncertain plant %d sampled with seed %s", p.index, p.seed)
+        logger.debug("uncertain plant %d drawn with seed %s", p.index, p.seed)
 
-    def task(xml: str, name: str, certify: bool) -> PlantTask:
+    def task(plant, certify: bool) -> PlantTask:
         return PlantTask(laws=tuple(laws), reference=reference, run=config.run, nominal=nominal,
-                         certificate=certificate, plant_xml=xml, plant_name=name,
-                         certify=certify)
+                         certificate=certificate, plant=plant, certify=certify)
 
-    tasks = [task(nominal.urdf, f"{nominal.name} (nominal)", False)]
-    tasks += [task(p.urdf, f"{nominal.name}_sample{p.index:03d}", True) for p in plants]
+    tasks = [task(nominal, False)] + [task(p.plant, True) for p in plants]
     jobs = 1 if len(tasks) <= 2 else config.jobs or default_jobs()
     logger.info("simulating %d plants in %s", len(tasks),
                 "this process" if jobs <= 1 else f"{jobs} processes")
@@ -543,19 +596,20 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
         if progress:
             progress(done, len(tasks))
     outputs = [o for group_out in outputs_by_group for o in group_out]
-    failed = {k: v for k, v in outputs[0][0].items() if isinstance(v, SimulationDiverged)}
+    failed = {k: v for k, v in outputs[0][0].items() if isinstance(v, Exception)}
     if failed and (not limited or config.baseline in failed):
         name, exc = next(iter(failed.items()))
-        raise SimulationDiverged(f"law {name!r} diverged on the nominal plant: {exc}",
-                                 time=exc.time, joint=exc.joint)
+        raise SimulationDiverged(f"law {name!r} diverged on the nominal plant: "
+                                 f"{failure_text(exc)}", time=getattr(exc, "time", math.nan),
+                                 joint=getattr(exc, "joint", ""))
     dropped = {}
     for name, exc in failed.items():  # under a torque limit: a result, set aside
         logger.warning("law %r diverged on the nominal plant under the torque limit: %s",
                        name, exc)
         dropped[name] = {
             "label": next(law.label or law.name for law in laws if law.name == name),
-            "nominal": str(exc),
-            "samples": [str(out[name]) if isinstance(out[name], SimulationDiverged) else
+            "nominal": failure_text(exc),
+            "samples": [failure_text(out[name]) if isinstance(out[name], Exception) else
                         {**metrics(out[name]),
                          "saturated": out[name].info["saturation"]["fraction"]}
                         for out, _ in outputs[1:]]}
@@ -563,8 +617,8 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
     samples = []
     for plant, (out, cert) in zip(plants, outputs[1:], strict=True):
         out = {k: v for k, v in out.items() if k not in dropped}
-        runs = {k: v for k, v in out.items() if not isinstance(v, SimulationDiverged)}
-        bad = [f"{k}: {v}" for k, v in out.items() if isinstance(v, SimulationDiverged)]
+        runs = {k: v for k, v in out.items() if not isinstance(v, Exception)}
+        bad = [f"{k}: {failure_text(v)}" for k, v in out.items() if isinstance(v, Exception)]
         entry = {"index": plant.index, "seed": plant.seed, "parameters": plant.parameters,
                  "status": "ok" if not bad else "diverged: " + "; ".join(bad),
                  "trajectories": runs, "metrics": {k: metrics(t) for k, t in runs.items()}}
@@ -582,4 +636,3 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
                        nominal=nominal_runs, samples=samples, plants=plants,
                        certificate=certificate.to_dict() if certificate is not None else None,
                        task_space=task_space, dropped=dropped)
-

@@ -6,10 +6,10 @@ registry of built-in laws by name, importable without numerical libraries),
 :mod:`~rrr_pin.control.references` (the ``Reference`` protocol and the built-in references),
 :mod:`~rrr_pin.control.paths` (task-space paths placed from the start),
 :mod:`~rrr_pin.control.specs` (a built-in reference named by kind and options),
-:mod:`~rrr_pin.control.effects` (``PlantEffects``), :mod:`~rrr_pin.control.closed_chain`
-(the laws on a parallel mechanism's reduced model) and :mod:`~rrr_pin.control.analysis`
+:mod:`~rrr_pin.control.effects` (``PlantEffects``) and :mod:`~rrr_pin.control.analysis`
 (``loop_at_input``, its margins, and the real-parametric robust stability of the
-feedback-linearized loop at frozen configurations).
+feedback-linearized loop at frozen configurations). Every law reads its model through the
+plant protocol only (:meth:`~rrr_pin.model.plant.Plant.terms`), so it runs on any plant.
 
 Layer: above :mod:`rrr_pin.robust`. May import :mod:`rrr_pin.validation`,
 :mod:`rrr_pin.model` and :mod:`rrr_pin.robust`.

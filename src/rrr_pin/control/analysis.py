@@ -18,13 +18,12 @@ loop closed by Newton to 1e-12 m), its input matrix is ``M_r^-1`` exactly.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import control
 import numpy as np
 import pinocchio as pin
 
-from ..model.closed_chain import ClosedChain
 from ..robust.mu import robstab
 from ..validation import check_positive, check_vector
 from .laws import ControlLaw, FLLinearModel, check_law
@@ -35,10 +34,6 @@ __all__ = ["loop_at_input", "loop_channel", "LoopMargins", "loop_margins", "Para
 # Relative central-difference step of the law's linearization (the built-in laws are affine
 # in qd and x and their q dependence is smooth: the error is O(h^2)).
 _H = 1e-6
-# Relative step of a closed chain's plant linearization: each call closes the loop by Newton to
-# CLOSURE_TOL = 1e-12 m, so a smaller step would amplify that closure error (1e-12 / h).
-_H_CHAIN = 1e-5
-
 
 def _jacobian(f, x0, h=_H):
     cols = []
@@ -93,10 +88,7 @@ def loop_at_input(law, robot, q) -> control.StateSpace:
     z = np.zeros(n)
     nx = int(law.nx)
     tau0 = robot.G(q0)
-    if isinstance(robot, ClosedChain):
-        dq, dv, dtau = _chain_plant(robot, q0, tau0)
-    else:
-        dq, dv, dtau = pin.computeABADerivatives(robot.model, robot.data, q0, z, tau0)
+    dq, dv, dtau = robot.linearization(q0, tau0)
     x0 = np.concatenate([q0, z, law.initial_state()])
 
     def tau(s):
@@ -113,15 +105,6 @@ def loop_at_input(law, robot, q) -> control.StateSpace:
                   [X]]) if nx else np.block([[Z, eye], [np.asarray(dq), np.asarray(dv)]])
     B = np.vstack([Z, np.asarray(dtau), np.zeros((nx, n))])
     return control.ss(A, B, -T, np.zeros((n, n)))
-
-
-def _chain_plant(chain: ClosedChain, q0: np.ndarray, tau0: np.ndarray, h: float = _H_CHAIN):
-    """``(d qdd_a/d q_a, d qdd_a/d qd_a, d qdd_a/d tau)`` of a closed chain at ``(q0, 0, tau0)``."""
-    z = np.zeros(chain.nq)
-    dq = _jacobian(lambda qa: chain.forward_dynamics(qa, z, tau0, check=False), q0, h)
-    dv = _jacobian(lambda v: chain.forward_dynamics(q0, v, tau0, check=False), z, h)
-    chain.close(q0)  # leave the Newton seed at q0
-    return dq, dv, np.linalg.inv(chain.M(q0, check=False))
 
 
 @dataclass(frozen=True)
@@ -272,29 +255,16 @@ def _scaled(model: pin.Model, factors: dict) -> pin.Model:
     return m
 
 
-def _M_Gq(model: pin.Model, q: np.ndarray):
-    data = model.createData()
-    M = pin.crba(model, data, q)
-    M = np.triu(M) + np.triu(M, 1).T
-    Gq = pin.computeGeneralizedGravityDerivatives(model, data, q)
-    return M, np.asarray(Gq)
-
-
 def _mats(nominal, model: pin.Model, q: np.ndarray):
-    """``M(q)`` and ``dG/dq`` of ``model``; on a closed chain, ``M_r`` and ``dG_r/dq_a``.
+    """``M(q)`` and ``dG/dq`` of the law's plant ``nominal`` on the tree ``model``.
 
-    ``nominal`` is the law's model (a Robot or a ClosedChain); ``model`` its Pinocchio tree or a
-    scaled copy. On a chain ``S`` does not depend on the inertias, so ``M_r = S^T M S`` and
-    ``G_r = S^T g`` stay affine in each factor; ``dG_r/dq_a`` is a central difference.
+    ``model`` is its Pinocchio tree or a scaled copy (``Plant.with_model``); on a closed
+    chain ``S`` does not depend on the inertias, so ``M_r = S^T M S`` and ``G_r = S^T g`` stay
+    affine in each factor. (Pinocchio's ``crba`` binding returns ``M`` already symmetric.)
     """
-    if not isinstance(nominal, ClosedChain):
-        return _M_Gq(model, q)
-    chain = nominal if model is nominal.model else replace(nominal, model=model,
-                                                             data=model.createData())
-    chain.close(q, seed=nominal.close(q))
-    Gq = _jacobian(lambda qa: chain.G(qa, check=False), q, _H_CHAIN)
-    chain.close(q)
-    return chain.M(q, check=False), Gq
+    plant = nominal if model is nominal.model else nominal.with_model(model)
+    Gq = plant.gravity_jacobian(q)
+    return plant.M(q, check=False), Gq
 
 
 def _fl_parts(law):
@@ -363,8 +333,8 @@ def parametric_loop(law, q, tol: float = 0.2) -> ParametricLoop:
     Mhat_inv = np.linalg.inv(Mhat)
     Ls, Rs, names, dropped, blocks = [], [], [], [], []
     scale = max(np.abs(Mhat).max(), 1e-12)
-    # a chain's dG_r/dq_a is a central difference (error ~1e-9 relative): a rank cut above it
-    cut = 1e-10 * scale if not isinstance(nominal, ClosedChain) else \
+    # central-difference derivatives (error ~1e-9 relative): a rank cut above it
+    cut = 1e-10 * scale if nominal.exact_derivatives else \
         1e-7 * max(scale, np.abs(Ghat).max())
     for name, j, k in _parameters(model):
         Mp, Gp = _mats(nominal, _scaled(model, {(j, k): 1 + tol}), q0)

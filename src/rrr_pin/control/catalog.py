@@ -13,7 +13,7 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 __all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "make_law", "StressEffect", "EFFECTS",
-           "DEFAULT_BUDGET"]
+           "DEFAULT_BUDGET", "REFERENCES"]
 
 
 def _fl(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
@@ -159,3 +159,16 @@ EFFECTS = {
 
 #: RMS tracking error [rad] above which a stress run counts as broken.
 DEFAULT_BUDGET = 0.05
+
+
+#: Built-in reference kinds and what each is (:class:`rrr_pin.control.specs.ReferenceSpec`);
+#: here, so the CLI's help lists them without importing NumPy.
+REFERENCES = {
+    "study": "the plant's own study reference: a mechanism's task path over the run (e.g. the "
+             "5-bar's tip circle), else the sinusoid of 'sine'",
+    "sine": "a sinusoid per joint about home (amp [rad], freq [Hz])",
+    "quintic": "rest-to-rest quintic from home to 'to' [rad] in move_time [s]",
+    "spline": "C2 spline through the waypoints of a CSV file (time [s], one column per joint)",
+    "line": "straight line of a frame's origin to 'end' [m], by inverse kinematics",
+    "circle": "circle of a frame's origin (radius [m], plane normal), by inverse kinematics",
+}

@@ -61,8 +61,7 @@ from ..validation import FieldError, check_multiple
 from .references import checked_sample
 
 __all__ = ["PlantEffects", "Resolved", "EffectsError", "check_effects", "check_torque_limit",
-           "peak_torque"]
-
+           "peak_torque", "torque_limit_spec"]
 
 class EffectsError(ValueError):
     """Bad plant effects: the message names every bad field, its value and the expected range."""
@@ -550,3 +549,73 @@ def peak_torque(robot, reference, t) -> np.ndarray:
     tau = np.array([robot.inverse_dynamics(R[k], RD[k], RDD[k], check=False)
                     for k in range(len(R))])
     return np.max(np.abs(tau), axis=0)
+
+
+def torque_limit_spec(plant, spec: str, reference, rate, duration: float, *,
+                      name: str = "torque_limit") -> tuple[np.ndarray, dict]:
+    """Return the actuator limits [N m] a text names, and how they were chosen (the rule).
+
+    Parameters
+    ----------
+    plant : Plant
+        The nominal plant (its description's effort limits, its inverse dynamics, its gravity).
+    spec : str
+        ``"auto"``: the description's effort limits (a URDF's; refused for a plant without
+        them, a closed chain's MJCF); ``"P%"``: P percent of the peak torque the reference asks
+        of the nominal plant per joint, its inverse dynamics
+        ``M(r) rdd + V(r, rd) + G(r)`` in actuated coordinates over the control instants of a
+        run of ``duration`` [s] at ``rate`` [Hz] (:func:`peak_torque`); or one number, or one
+        per joint, separated by commas [N m].
+    reference : Reference
+    rate : float or None
+        Control rate [Hz]: a limit acts on sampled controllers only (None is refused).
+    duration : float
+        Length of the run [s].
+    name : str
+        How the caller spells the option, for messages (``"--torque-limit"``).
+
+    Returns
+    -------
+    limit : ndarray, shape (nq,)
+        Checked by :func:`check_torque_limit` (finite, > 0, at least the gravity torque where
+        the reference starts).
+    info : dict
+        ``spec``, ``rule`` and, for ``P%``, ``percent`` and ``peak_torque_Nm``: what a study
+        records (``summary.torque_limit``).
+
+    Raises
+    ------
+    rrr_pin.validation.FieldError
+        Naming ``name``: no rate, a text that is none of the three forms, a percent that is not
+        finite and > 0, or limits :func:`check_torque_limit` refuses.
+    """
+    if rate is None:
+        raise FieldError(name, "{name} acts on sampled controllers (the plant clips the torque "
+                               "each control period): give the rate too, e.g. 1000 Hz")
+    text = spec.strip()
+    if text == "auto":
+        return (check_torque_limit(plant, "urdf", reference, name=name),
+                {"spec": "auto", "rule": "the URDF's effort limits"})
+    if text.endswith("%"):
+        try:
+            percent = float(text[:-1])
+        except ValueError:
+            raise FieldError(name, f"{{name}} {text!r}: expected auto, P% (a number P > 0, "
+                                   f"percent of the peak torque) or one number per joint "
+                                   f"[N m]") from None
+        if not (math.isfinite(percent) and percent > 0):
+            raise FieldError(name, f"{{name}} {text!r}: the percent must be finite and > 0")
+        n_steps = round(duration * rate)
+        peak = peak_torque(plant, reference, np.arange(n_steps + 1) / rate)
+        limit = check_torque_limit(plant, percent / 100.0 * peak, reference, name=name)
+        return limit, {"spec": text, "percent": percent, "peak_torque_Nm": peak.tolist(),
+                       "rule": f"{percent:g} % of the peak |M(r) rdd + V(r, rd) + G(r)| per "
+                               f"joint of the reference on the nominal arm, over the control "
+                               f"instants"}
+    try:
+        values = [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise FieldError(name, f"{{name}} expects auto, P% or numbers separated by commas, got "
+                               f"{text!r}") from None
+    return check_torque_limit(plant, values, reference, name=name), {"spec": text,
+                                                                     "rule": "given"}

@@ -16,7 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.plant import FRAMES
 from ..validation import FieldError, check_direction, check_positive, check_vector
+from .catalog import REFERENCES
 from .paths import circle_from_start, task_start
 from .references import (
     LinePath,
@@ -24,19 +26,14 @@ from .references import (
     Reference,
     SplineReference,
     default_reference,
+    study_reference,
     task_space_reference,
 )
 
 __all__ = ["KINDS", "ReferenceSpec"]
 
-#: Built-in reference kinds and what each is.
-KINDS = {
-    "sine": "a sinusoid per joint about home (amp [rad], freq [Hz])",
-    "quintic": "rest-to-rest quintic from home to 'to' [rad] in move_time [s]",
-    "spline": "C2 spline through the waypoints of a CSV file (time [s], one column per joint)",
-    "line": "straight line of a frame's origin to 'end' [m], by inverse kinematics",
-    "circle": "circle of a frame's origin (radius [m], plane normal), by inverse kinematics",
-}
+#: Built-in reference kinds and what each is (:data:`rrr_pin.control.catalog.REFERENCES`).
+KINDS = REFERENCES
 
 
 @dataclass(frozen=True)
@@ -46,7 +43,10 @@ class ReferenceSpec:
     Parameters
     ----------
     kind : str
-        One of :data:`KINDS`.
+        One of :data:`KINDS`; ``"study"`` (the plant's own study reference,
+        :func:`~rrr_pin.control.references.study_reference`) is the sinusoid of ``"sine"`` for
+        a plant without a task path, and that path for one with it (then the sinusoid's
+        options are refused).
     amp, freq : float
         ``sine``: amplitude [rad] and frequency [Hz], finite and >= 0.
     home : tuple of float, shape (n,), optional
@@ -89,8 +89,8 @@ class ReferenceSpec:
 
         Parameters
         ----------
-        robot : Robot
-            The arm (joint count, limits, frames).
+        robot : Plant
+            The plant (joint count, limits, frames, task path).
         duration : float
             Length of the run [s], > 0 (the default ``move_time`` is half of it).
         label : callable, default str
@@ -109,6 +109,18 @@ class ReferenceSpec:
             raise ValueError(f"{label('reference')} {kind!r} is unknown; known: "
                              f"{', '.join(KINDS)}")
         home = None if self.home is None else check_vector(label("home"), self.home, n)
+        if kind == "study":
+            if robot.task_path(duration) is None:
+                kind = "sine"
+            else:
+                given = [label(k) for k, on in (("home", self.home is not None),
+                                                ("amp", self.amp != 0.5),
+                                                ("freq", self.freq != 0.5)) if on]
+                if given:
+                    raise ValueError(f"{', '.join(given)} shape(s) a sinusoid; the study "
+                                     f"reference of {robot.name!r} is its task path (give "
+                                     f"{label('reference')} sine for a sinusoid)")
+                return study_reference(robot, duration)
         if kind == "sine":
             amp = check_positive(label("amp"), self.amp, allow_zero=True)
             freq = check_positive(label("freq"), self.freq, allow_zero=True)
@@ -128,6 +140,7 @@ class ReferenceSpec:
                 raise ValueError(f"{label('reference')} quintic needs {label('to')} Q1,Q2,... "
                                  f"(the goal, one value per joint)")
             return QuinticReference(start, check_vector(label("to"), self.to, n), move)
+        robot.require(FRAMES, f"{label('reference')} {kind}")
         frame = self.frame or robot.model.frames[len(robot.model.frames) - 1].name
         if home is None:
             start = task_start(robot, frame)  # neutral, unless singular there (see task_start)

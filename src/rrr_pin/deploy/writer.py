@@ -39,7 +39,8 @@ from ..sim.codegen import fingerprint
 from ..validation import FieldError, check_positive, check_rate
 from . import sources
 
-__all__ = ["Export", "ExportError", "export", "prepare_export", "FILES", "FORMAT",
+__all__ = ["Export", "ExportError", "export", "prepare_export", "check_exportable", "FILES",
+           "FORMAT",
            "EXPRESSIBLE_JOINTS", "generated_rrr_source"]
 
 #: ``controller.json``'s format name; its version is ``VERSION``.
@@ -220,6 +221,29 @@ def _design_record(design) -> dict | None:
                                    "margin_db": float(design.robust_performance.margin_db)}}
 
 
+#: Why an export needs a URDF-described serial tree (the refusal's reason).
+_NEEDS = ("the exported C code holds a serial tree's dynamics (CRBA and RNEA, or its generated "
+          "C) and no loop closure")
+
+
+def check_exportable(robot) -> None:
+    """Refuse, by name, a plant the exported C code cannot hold.
+
+    Raises
+    ------
+    TypeError
+        Not a plant (:func:`rrr_pin.load_robot` gives one).
+    rrr_pin.model.plant.CapabilityError
+        A plant without :data:`rrr_pin.model.plant.URDF` (a closed chain).
+    """
+    from ..model.plant import URDF, Plant
+
+    if not isinstance(robot, Plant):
+        raise TypeError(f"robot must be a plant (rrr_pin.load_robot), got "
+                        f"{type(robot).__name__}")
+    robot.require(URDF, f"export ({_NEEDS})")
+
+
 def prepare_export(law, robot, rate: float | None = None, *, method: str = "tustin",
                    prewarp: float | None = None, design=None,
                    dynamics: str = "auto") -> Export:
@@ -231,11 +255,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     -------
     Export
     """
-    from ..model.dynamics import Robot
-
-    if not isinstance(robot, Robot):
-        raise TypeError(f"robot must be an rrr_pin.Robot (rrr_pin.load_robot), got "
-                        f"{type(robot).__name__}")
+    check_exportable(robot)
     _check_model(robot)
     if isinstance(law, str):
         if law not in LAWS:

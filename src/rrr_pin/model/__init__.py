@@ -1,16 +1,18 @@
-"""The arm: DH parameters, URDF generation and checks, arm sources, Pinocchio dynamics.
+"""The plant: the plant protocol, serial arms and closed chains, their sources and dynamics.
 
-Holds :mod:`~rrr_pin.model.dh` (the paper's Tables 1-2), :mod:`~rrr_pin.model.urdf` (the URDF
-generator), :mod:`~rrr_pin.model.robots` (where an arm comes from: the paper's RRR, an
-example-robot-data name or a URDF path), :mod:`~rrr_pin.model.dynamics` (``Robot``,
-``load_robot``: M, V, G through Pinocchio), :mod:`~rrr_pin.model.closed_form` (the corrected
-eq. (2)-(7)), :mod:`~rrr_pin.model.uncertainty` (seeded uncertain plants as URDF),
-:mod:`~rrr_pin.model.identification` (base inertial parameters from measured torques, a
-physically consistent URDF, the identified uncertainty), :mod:`~rrr_pin.model.excitation`
-(Fourier excitation trajectories for it),
-:mod:`~rrr_pin.model.mechanisms` (the 5-bar and Delta parameter sets, their MJCF generator
-and closed-form kinematics) and :mod:`~rrr_pin.model.closed_chain` (``ClosedChain``: loop
-closure and the reduced dynamics in actuated coordinates).
+Holds :mod:`~rrr_pin.model.plant` (the ``Plant`` protocol every layer above uses, declared
+capabilities, the ``UncertaintySet`` base), :mod:`~rrr_pin.model.dh` (the paper's Tables 1-2),
+:mod:`~rrr_pin.model.urdf` (the URDF generator), :mod:`~rrr_pin.model.robots` (where an arm
+comes from: the paper's RRR, an example-robot-data name or a URDF path),
+:mod:`~rrr_pin.model.dynamics` (``Robot``, ``load_robot``: M, V, G through Pinocchio),
+:mod:`~rrr_pin.model.closed_form` (the corrected eq. (2)-(7)), :mod:`~rrr_pin.model.uncertainty`
+(seeded uncertain plants as URDF), :mod:`~rrr_pin.model.identification` (base inertial
+parameters from measured torques, a physically consistent URDF, the identified uncertainty),
+:mod:`~rrr_pin.model.excitation` (Fourier excitation trajectories for it),
+:mod:`~rrr_pin.model.mechanisms` (parallel mechanisms as data: one module per kind, its
+parameters, MJCF, closed-form kinematics and task path, one registry) and
+:mod:`~rrr_pin.model.closed_chain` (``ClosedChain``: loop closure and the reduced dynamics in
+actuated coordinates). Only this layer knows the kinds of plant.
 
 Layer: the lowest. May import :mod:`rrr_pin.validation` only.
 """

@@ -42,6 +42,7 @@ References
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 import tempfile
@@ -59,7 +60,7 @@ from .mechanisms import (
     mechanism_of,
     mjcf_from_params,
 )
-from .plant import FRAMES, Plant, Settler, TreeDescription, UncertaintySet
+from .plant import Plant, Settler, TreeDescription, UncertaintySet
 
 __all__ = ["ClosedChain", "load_closed_chain", "is_closed_chain_source", "SingularConfiguration",
            "LoopClosureError", "ConstraintDrift", "ChainSettler", "check_chain_reference",
@@ -80,6 +81,20 @@ PROXIMAL_MU = 1e-4
 
 #: Largest loop gap [m] one RK4 step may leave before its projection; above it the run stops.
 DRIFT_BOUND = 1e-6
+
+#: Relative central-difference step of the linearizations (:meth:`ClosedChain.linearization`):
+#: each call closes the loop to :data:`CLOSURE_TOL`, so a smaller step would amplify that error.
+LINEARIZATION_STEP = 1e-5
+
+
+def _jacobian(f, x0, h):
+    """Central-difference Jacobian of ``f`` at ``x0``, relative step ``h`` (at least ``h``)."""
+    cols = []
+    for i in range(x0.size):
+        e = np.zeros(x0.size)
+        e[i] = h * max(1.0, abs(x0[i]))
+        cols.append((f(x0 + e) - f(x0 - e)) / (2 * e[i]))
+    return np.array(cols).T if cols else np.zeros((f(x0).size, 0))
 
 
 class SingularConfiguration(ValueError):
@@ -158,7 +173,8 @@ class ClosedChain(Plant):
     home: np.ndarray = field(repr=False)
     params: object = None
 
-    capabilities = frozenset({FRAMES})
+    capabilities = frozenset()
+    exact_derivatives = False
     failures = (SingularConfiguration, LoopClosureError, ConstraintDrift, np.linalg.LinAlgError)
 
     def __post_init__(self) -> None:
@@ -283,12 +299,15 @@ class ClosedChain(Plant):
             f"{COND_LIMIT:g}; the actuated joints cannot determine the passive ones there",
             cond)
 
-    def close(self, qa, seed=None, *, tol: float = CLOSURE_TOL, max_iter: int = 30
-              ) -> np.ndarray:
+    def close(self, qa, seed=None, *, tol: float = CLOSURE_TOL, max_iter: int = 30,
+              remember: bool | None = None) -> np.ndarray:
         """Full configuration ``q`` [rad, m] with actuated part ``qa`` that closes the loop.
 
         Newton on the passive coordinates, ``q_p <- q_p - J_p^-1 phi``, from ``seed`` (a full
-        configuration; default: the last solution).
+        configuration; default: the last solution remembered). The solution is remembered as
+        the next default seed when ``remember`` (default: when no ``seed`` is given, the model
+        face's calls; the engine face's calls from an explicit seed leave the model's seed as
+        it is, so one object may serve as a law's model and as the plant).
 
         Parameters
         ----------
@@ -318,7 +337,8 @@ class ClosedChain(Plant):
                 cond = float(np.linalg.cond(J[:, pas]))
                 if not cond <= COND_LIMIT:
                     self._refuse_singular(q, cond)
-                self._q = q
+                if remember or (remember is None and seed is None):
+                    self._q = q
                 self._Jq = (q.copy(), J)
                 return q.copy()
             try:
@@ -468,7 +488,38 @@ class ClosedChain(Plant):
         if q is None:
             self._q = self.home.copy()
         else:
-            self.close(q, seed=self.home)
+            self.close(q, seed=self.home, remember=True)
+
+    def linearization(self, q, tau, h: float = LINEARIZATION_STEP):
+        """Central differences of :meth:`forward_dynamics` at ``(q, 0, tau)``; ``M_r^-1`` exactly.
+
+        ``h`` is the relative step: each call closes the loop by Newton to
+        :data:`CLOSURE_TOL`, so a smaller step would amplify that closure error
+        (``1e-12 / h``). The Newton seed is left at ``q``.
+        """
+        z = np.zeros(self.nq)
+        dq = _jacobian(lambda qa: self.forward_dynamics(qa, z, tau, check=False), q, h)
+        dv = _jacobian(lambda v: self.forward_dynamics(q, v, tau, check=False), z, h)
+        self.close(q)  # leave the Newton seed at q
+        return dq, dv, np.linalg.inv(self.M(q, check=False))
+
+    def gravity_jacobian(self, q, h: float = LINEARIZATION_STEP) -> np.ndarray:
+        """Return ``dG_r/dq_a`` [N m/rad] by central differences (relative step ``h``)."""
+        self.close(q)
+        Gq = _jacobian(lambda qa: self.G(qa, check=False), q, h)
+        self.close(q)
+        return Gq
+
+    def with_model(self, model) -> ClosedChain:
+        """Return this mechanism on another tree of the same joints, its Newton seed kept."""
+        out = replace(self, model=model, data=model.createData())
+        out._q = self._q.copy()
+        return out
+
+    def follow(self, Q) -> None:
+        """Close the loop at each actuated configuration of ``Q`` in turn (the Newton seed)."""
+        for qa in Q:
+            self.close(qa)
 
     def start(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
         """Full closed state at actuated ``(q, qd)``: Newton from ``home``, then ``S qd``."""
@@ -501,6 +552,15 @@ class ClosedChain(Plant):
         return None if self.params is None else mechanism_of(self.params).waypoints(
             self.params, period)
 
+    def source_text(self) -> tuple[str, str]:
+        """Return the MJCF text the mechanism was built from and ``".xml"``."""
+        return self.mjcf, ".xml"
+
+    def fingerprint(self) -> dict:
+        """Return ``{"mjcf_sha256", "gravity"}``."""
+        return {"mjcf_sha256": hashlib.sha256(self.mjcf.encode()).hexdigest(),
+                "gravity": self.gravity}
+
     def description(self) -> TreeDescription:
         """Return the tree, its loop closures and the coordinate split (:class:`TreeDescription`).
 
@@ -519,6 +579,38 @@ class ClosedChain(Plant):
             rows=np.asarray(self.rows, dtype=int), home=np.asarray(self.home, dtype=float),
             closure_tol=CLOSURE_TOL, max_iter=30, cond_limit=COND_LIMIT,
             drift_bound=DRIFT_BOUND)
+
+    def configurations(self, Q, seed=None, where=None) -> np.ndarray:
+        """Close the loop at each row of ``Q`` in turn (:meth:`Plant.configurations`)."""
+        Q = np.asarray(Q, dtype=float)
+        out = np.empty((Q.shape[0], self.model.nq))
+        last = np.asarray(self.home if seed is None else seed, dtype=float)
+        for k, qa in enumerate(Q):
+            try:
+                last = self.close(qa, seed=last)
+            except (LoopClosureError, SingularConfiguration) as exc:
+                if where is None:
+                    raise
+                message = f"{where(k)}: {exc}"
+                if isinstance(exc, SingularConfiguration):
+                    raise SingularConfiguration(message, exc.cond) from None
+                raise LoopClosureError(message) from None
+            out[k] = last
+        return out
+
+    def task_points(self, period: float, samples: int = 401):
+        """Return the task path as world points [m], shape (samples, 3), and its label."""
+        if self.params is None:
+            return None
+        kind = mechanism_of(self.params)
+        t = np.linspace(0.0, period, samples)
+        return (kind.world_points(self.params, kind.task_point(self.params, t, period)),
+                kind.path_label)
+
+    def task_position(self, Q) -> np.ndarray:
+        """Return the mechanism's task point [m] at each actuated row of ``Q``, shape (N, 3)."""
+        kind = mechanism_of(self.params)
+        return kind.world_points(self.params, np.array([kind.fk(self.params, q) for q in Q]))
 
     def check_path(self, t, R) -> dict:
         """:func:`check_chain_reference`, recorded as ``reference_max_cond_Jp`` and its time."""

@@ -25,10 +25,11 @@ References
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pinocchio as pin
@@ -223,6 +224,30 @@ class Robot(Plant):
         """
         return pin.aba(self.model, self.data, x, v, tau)
 
+    def linearization(self, q, tau) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return Pinocchio's ``computeABADerivatives`` at ``(q, 0, tau)``."""
+        dq, dv, dtau = pin.computeABADerivatives(self.model, self.data, q, np.zeros(self.nq),
+                                                 tau)
+        return np.asarray(dq), np.asarray(dv), np.asarray(dtau)
+
+    def gravity_jacobian(self, q) -> np.ndarray:
+        """Return ``computeGeneralizedGravityDerivatives`` at ``q`` [N m/rad], shape (nq, nq)."""
+        return np.asarray(pin.computeGeneralizedGravityDerivatives(self.model,
+                                                                   self.model.createData(), q))
+
+    def with_model(self, model) -> Robot:
+        """Return this arm on another Pinocchio model of the same joints (e.g. scaled inertias)."""
+        return replace(self, model=model, data=model.createData())
+
+    def source_text(self) -> tuple[str, str]:
+        """Return the URDF text the arm was built from and ``".urdf"``."""
+        return self.urdf, ".urdf"
+
+    def fingerprint(self) -> dict:
+        """Return ``{"urdf_sha256", "locked", "gravity"}``."""
+        return {"urdf_sha256": hashlib.sha256(self.urdf.encode()).hexdigest(),
+                "locked": dict(self.locked), "gravity": self.gravity}
+
     def description(self) -> TreeDescription:
         """Return the arm as a tree with no loop, every joint actuated (a TreeDescription)."""
         n = self.nq
@@ -245,9 +270,11 @@ class Robot(Plant):
         source = self.params if self.params is not None else self.urdf
         urdf, parameters = tolerances.arm(source, rng, skip_joints=tuple(self.locked),
                                           name=name)
-        label = name or f"{self.name} (perturbed)"
+        # source: the nominal's, so that the drawn arm's mesh references (the nominal's, byte
+        # for byte: only inertials and joint origins are perturbed) resolve where the
+        # nominal's do (an example-robot-data folder, the URDF's own folder).
         plant = robot_from_xml(urdf, gravity=self.gravity, lock=dict(self.locked),
-                               name=name or self.name, label=label, check=False)
+                               name=name or self.name, label=self.source, check=False)
         return plant, parameters
 
     def M(self, q, *, check: bool = True) -> np.ndarray:

@@ -218,12 +218,20 @@ class Plant:
     loop_closures : tuple of str
         Names of the kinematic loops the engine face closes (empty for a serial tree): an
         engine that integrates trees only refuses a plant with any.
+    exact_derivatives : bool
+        Whether :meth:`linearization` and :meth:`gravity_jacobian` are analytic (Pinocchio's
+        derivatives) rather than central differences (a closed chain's, about 1e-9 relative).
+    model : pinocchio.Model
+        The kinematic tree with every joint and its inertias (an instance attribute); the
+        parametric analysis scales its inertias and rebuilds the plant with
+        :meth:`with_model`.
     """
 
     capabilities: frozenset = frozenset()
     failures: tuple = ()
     actuated_index = None
     loop_closures: tuple = ()
+    exact_derivatives: bool = True
 
     # --- identity and workspace --------------------------------------------------------------
     @property
@@ -315,12 +323,38 @@ class Plant:
         """Centrifugal and Coriolis torques ``V(q, qd)`` [N m], shape (nq,)."""
         raise NotImplementedError
 
+    def linearization(self, q, tau) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return the forward dynamics' derivatives at ``(q, 0, tau)``.
+
+        ``(dqdd/dq, dqdd/dqd, M^-1)``, the last the input matrix.
+
+        ``q`` [rad], ``tau`` [N m], shape (nq,) each, in actuated coordinates; returns three
+        (nq, nq) arrays.
+        """
+        raise NotImplementedError
+
+    def gravity_jacobian(self, q) -> np.ndarray:
+        """Return ``dG/dq`` [N m/rad] at the actuated ``q`` [rad], shape (nq, nq)."""
+        raise NotImplementedError
+
+    def with_model(self, model) -> Plant:
+        """Return this plant with another tree ``model`` (the same joints; e.g. scaled inertias)."""
+        raise NotImplementedError
+
     def reset(self, q=None) -> None:
         """Forget what the model carries from one call to the next; here nothing.
 
         A closed chain solves its passive coordinates by Newton seeded from its previous
         solution; ``reset(q)`` re-seeds it on the branch of its home configuration at the
         actuated ``q`` (default: home), so that a run depends on its own inputs only.
+        """
+
+    def follow(self, Q) -> None:
+        """Take the model along the actuated configurations ``Q`` (N, nq) [rad], in order.
+
+        For a model that carries a solution from one call to the next (a closed chain's loop
+        closure, seeded from the last one): after ``follow``, a call at a configuration near
+        ``Q[-1]`` lands on the branch of the path. Nothing for a serial arm.
         """
 
     # --- the engine face (full state) --------------------------------------------------------
@@ -353,9 +387,48 @@ class Plant:
         """
         return None
 
+    def source_text(self) -> tuple[str, str]:
+        """Return the plant's own description as written, and its file suffix.
+
+        A serial arm's URDF (``".urdf"``), a closed chain's MJCF (``".xml"``): what a study
+        writes of each uncertain plant, and what :func:`rrr_pin.load_robot` reads back.
+        """
+        raise NotImplementedError
+
+    def fingerprint(self) -> dict:
+        """Return what identifies the plant's model, JSON-ready (a campaign's resume checks it)."""
+        raise NotImplementedError
+
     def description(self) -> TreeDescription:
         """Return the plant as plain data for a compiled engine (:class:`TreeDescription`)."""
         raise NotImplementedError
+
+    def configurations(self, Q, seed=None, where=None) -> np.ndarray:
+        """Full configurations of the actuated rows ``Q`` (N, nq) [rad]: shape (N, model.nq).
+
+        A serial arm's are ``Q`` itself. A closed chain completes each row with its passive
+        coordinates, seeded from the previous row's solution (the first from ``seed``,
+        default its home); a row where the loop does not close, or closes at a type-II
+        singularity, raises that failure, its message prefixed with ``where(k)`` (a
+        function of the row ``k``) when given.
+        """
+        return np.asarray(Q, dtype=float)
+
+    def task_points(self, period: float, samples: int = 401):
+        """Return the task path of :meth:`task_path` as world points ``(P, label)``, or None.
+
+        ``P`` shape (samples, 3) [m] over ``[0, period]`` (drawing the reference: the 5-bar's
+        tip circle, the Delta's platform cycle); ``label`` what it is. None without a path.
+        """
+        return None
+
+    def task_position(self, Q) -> np.ndarray:
+        """Return the task point of each actuated row of ``Q`` as world positions [m], (N, 3).
+
+        For a plant with a task path (:meth:`task_points` not None): where the path's point
+        is at each configuration (a closed chain's forward kinematics in closed form).
+        """
+        raise NotImplementedError(f"{self.name!r} has no task path")
 
     def check_path(self, t: np.ndarray, R: np.ndarray) -> dict:
         """Refuse a sampled reference the plant cannot follow; return what the run records.

@@ -7,11 +7,10 @@ Holds :mod:`~rrr_pin.report.results` (a study's ``results.json``, ``results.md``
 :mod:`~rrr_pin.report.dynamics` (the check-dynamics table and verdict),
 :mod:`~rrr_pin.report.plotting` (matplotlib figures, Agg), :mod:`~rrr_pin.report.margins`
 (singular values, Bode and Nyquist of the loops at the torque input),
-:mod:`~rrr_pin.report.viewer`
-(MeshCat scenes), :mod:`~rrr_pin.report.html` (the self-contained ``report.html`` page) and
-:mod:`~rrr_pin.report.jsondata` (strict JSON: ``null`` and a status for non-finite numbers)
-and :mod:`~rrr_pin.report.closed_chain` (a closed-chain study's claims, figures and
-``report.html``, the mechanism animated).
+:mod:`~rrr_pin.report.viewer` (MeshCat scenes), :mod:`~rrr_pin.report.html` (the self-contained
+``report.html`` page) and :mod:`~rrr_pin.report.jsondata` (strict JSON: ``null`` and a status
+for non-finite numbers). Every writer takes a study or a campaign of any plant (serial arm or
+closed chain): one schema, one page.
 
 Layer: above :mod:`rrr_pin.campaign`. May import every layer below it, never
 :mod:`rrr_pin.cli`.

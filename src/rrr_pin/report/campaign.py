@@ -66,7 +66,7 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
     summary = campaign_summary(campaign)
     record = {"robot": campaign.robot, "controllers": campaign.laws,
               "settings": campaign.settings, "summary": summary}
-    if campaign.nominal is not None:  # a closed chain's campaign runs the nominal plant too
+    if campaign.nominal is not None:  # every campaign runs the nominal plant too (index -1)
         record["nominal"] = campaign.nominal
     text = dumps(record, indent=1) + "\n"
     written = []
@@ -160,7 +160,7 @@ def write_campaign_report(campaign: Campaign, summary: dict, out: str | Path,
                if (out / name).exists()]
     tables = [(f"{summary['samples']} plants, baseline {summary['baseline']}",
                "\n".join(lines))]
-    if campaign.nominal is not None:  # a closed chain's campaign runs the nominal plant too
+    if campaign.nominal is not None:  # every campaign runs the nominal plant too (index -1)
         tables.append(("Nominal plant", _nominal_table(campaign)))
     path = write_report_html(
         out / "report.html", title=f"rrr-pin Monte Carlo campaign on {campaign.robot}",

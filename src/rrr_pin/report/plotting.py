@@ -40,6 +40,7 @@ from ..outputs import writing
 from ..robust.robustness import closed_loop, sigma
 
 __all__ = [
+    "plot_task_path",
     "design_omega",
     "save_figure",
     "plot_stress",
@@ -425,11 +426,12 @@ def plot_study_uncertain(result, *, axes=None):
     return _finish_study(fig, axes, result.joint_names, extra)
 
 
-def save_study_figures(result, out_dir) -> list[Path]:
-    """Write the study's figures: Fig. 5, Fig. 6, certificates and task space.
+def save_study_figures(result, out_dir, plant=None) -> list[Path]:
+    """Write the study's figures: Fig. 5, Fig. 6, certificates, task space and task path.
 
-    ``fig5_nominal.png``, ``fig6_uncertain.png``, ``certificates.png`` if certified, and
-    ``task_space.png`` for a task-space reference (:func:`plot_task_space`).
+    ``fig5_nominal.png``, ``fig6_uncertain.png``, ``certificates.png`` if certified,
+    ``task_space.png`` for a task-space reference (:func:`plot_task_space`) and
+    ``task_path.png`` for a plant with its own task path (:func:`plot_task_path`).
 
     Parameters
     ----------
@@ -437,6 +439,8 @@ def save_study_figures(result, out_dir) -> list[Path]:
         A study; its certified uncertain plants (if any) give :func:`plot_certificates`.
     out_dir : str or Path
         Directory, created if missing.
+    plant : Plant, optional
+        The nominal plant, for its task path (a closed chain's); None: none drawn.
 
     Returns
     -------
@@ -454,7 +458,46 @@ def save_study_figures(result, out_dir) -> list[Path]:
             out / "certificates.png"))
     if result.task_space:
         figures.append(save_figure(plot_task_space(result), out / "task_space.png"))
+    if plant is not None and plant.task_points(result.config.run.duration) is not None:
+        figures.append(save_figure(plot_task_path(result, plant), out / "task_path.png"))
     return figures
+
+
+def plot_task_path(result, plant, *, ax=None):
+    """Draw a plant's task path: the reference's and each law's on the nominal plant [mm].
+
+    The path (a closed chain's tip circle, a Delta's platform cycle; ``plant.task_points``)
+    in grey, and the task point of each law's nominal run (``plant.task_position`` of its
+    actuated angles), seen in the plane of the two world axes the path spans most.
+
+    Parameters
+    ----------
+    result : rrr_pin.campaign.study.StudyResult
+        A study on ``plant``.
+    plant : Plant
+        The nominal plant, with a task path.
+    ax : matplotlib.axes.Axes, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig, ax = _new((8.0, 4.5), ax)
+    path, label = plant.task_points(result.config.run.duration)
+    keep = np.sort(np.argsort(np.ptp(path, axis=0))[-2:])  # the two axes the path spans most
+    axis = "xyz"
+    ax.plot(1e3 * path[:, keep[0]], 1e3 * path[:, keep[1]], color="0.6", lw=4, label=label)
+    for k, name in enumerate(result.names):
+        p = 1e3 * plant.task_position(result.nominal[name].q)
+        ax.plot(p[:, keep[0]], p[:, keep[1]], f"C{k}", lw=1, ls="-" if k == 0 else "--",
+                label=f"{result.label(name)}, nominal plant")
+    ax.set_xlabel(f"{axis[keep[0]]} [mm]")
+    ax.set_ylabel(f"{axis[keep[1]]} [mm]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    _legend_right(ax)
+    ax.set_title(f"{result.robot}: task path, reference and nominal runs")
+    return fig
 
 
 def plot_task_space(result, *, axes=None):

@@ -1,4 +1,4 @@
-"""The report of a study: ``results.json``, ``results.md``, the plants' URDFs and ``report.html``.
+"""The report of a study on any plant: ``results.json``, ``results.md``, plants, ``report.html``.
 
 ``results.md`` has, for any set of controllers, a table of every controller against the
 baseline, and per-joint figures. Where the study includes the paper's two controllers (the
@@ -17,12 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from ..campaign.study import StudyResult
-from ..model.dynamics import Robot, robot_from_xml
 from ..outputs import writing
 from .design import DESIGN_UNITS
 from .html import write_report_html
 from .jsondata import dumps
-from .viewer import MissingMeshWarning, Scene, Track
+from .viewer import MissingMeshWarning, Scene, Track, task_path_points
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "study_captions",
            "summary_lines", "write_trajectories", "torque_limit_table", "PAPER_ERROR_RATIO",
@@ -235,7 +234,10 @@ def _list(v) -> str:
 
 
 def write_results(result: StudyResult, out: str | Path, design: dict | None = None) -> dict:
-    """Write ``results.json``, ``results.md`` and ``plants/*.urdf`` into ``out``.
+    """Write ``results.json``, ``results.md`` and the uncertain plants into ``out``.
+
+    Each plant as its own description (:meth:`rrr_pin.model.plant.Plant.source_text`):
+    ``plants/<robot>_<k>.urdf`` for a serial arm, ``.xml`` (MJCF) for a closed chain.
 
     Returns
     -------
@@ -249,7 +251,7 @@ def write_results(result: StudyResult, out: str | Path, design: dict | None = No
     data = result.to_json()
     plants = out / "plants"
     plants.mkdir(exist_ok=True)
-    for stale in plants.glob("*.urdf"):
+    for stale in (*plants.glob("*.urdf"), *plants.glob("*.xml")):
         stale.unlink()
     for plant in result.plants:
         plant.write(plants, stem=result.robot)
@@ -319,12 +321,13 @@ def write_trajectories(result: StudyResult, out: str | Path, fmt: str | None = "
 
 
 def write_study_report(result: StudyResult, out: str | Path, figures, design: dict | None,
-                       robot: Robot, data: dict | None = None) -> Path:
+                       nominal, data: dict | None = None) -> Path:
     """Write ``out/report.html``: results table, figures, design and one 3D scene per law.
 
-    In each scene the nominal plant is opaque and the uncertain plants are translucent ghosts.
-    Each uncertain plant's model is built once from its URDF (``result.plants``) and shared by
-    the scenes of every law that ran on it; its mesh files are looked for where the nominal's
+    In each scene the nominal plant is opaque and the uncertain plants (``result.plants``, each
+    with its own perturbed dimensions) are translucent ghosts; a closed chain's passive joints
+    move too (:func:`rrr_pin.report.viewer.full_configurations`), and a plant's task path is
+    drawn as a grey line. An uncertain arm's mesh files are looked for where the nominal's
     are. Mesh files not found are drawn as simple shapes, with one
     :class:`~rrr_pin.report.viewer.MissingMeshWarning` per distinct set of files.
 
@@ -337,8 +340,8 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
         Image files to inline.
     design : dict, optional
         Design summary shown as nested tables.
-    robot : Robot
-        The nominal arm (its gravity and locked joints are the plants').
+    nominal : Plant
+        The nominal plant.
     data : dict, optional
         The study's ``results.json`` content if already computed (:func:`write_results`
         returns it); default ``result.to_json()``.
@@ -348,30 +351,18 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
     Path
         The file written.
     """
-    models: dict[int, Robot] = {}
-
-    def model(plant) -> Robot:
-        if plant.index not in models:
-            # label: the plant's mesh references are the nominal's, byte for byte (only
-            # inertials and joint origins are perturbed), so the viewer looks for them where
-            # it finds the nominal's (an example-robot-data folder, the URDF's own folder).
-            models[plant.index] = robot_from_xml(plant.urdf, gravity=robot.gravity,
-                                                 lock=dict(robot.locked),
-                                                 name=f"sample{plant.index}", check=False,
-                                                 label=robot.source)
-        return models[plant.index]
-
+    path, path_label = task_path_points(nominal, result.config.run.duration)
     scenes = []
     for name in result.names:
-        nominal = result.nominal[name]
-        tracks = [Track("nominal plant", nominal.t, nominal.q)]
+        traj = result.nominal[name]
+        tracks = [Track("nominal plant", traj.t, traj.q)]
         for sample, plant in zip(result.samples, result.plants, strict=True):
             traj = sample["trajectories"].get(name)
             if traj is not None:
                 tracks.append(Track(f"uncertain plant {plant.index}", traj.t, traj.q,
-                                    opacity=0.35, robot=model(plant)))
-        scenes.append(Scene(f"{result.label(name)}: nominal and uncertain plants", robot,
-                            tracks))
+                                    opacity=0.35, robot=plant.plant))
+        scenes.append(Scene(f"{result.label(name)}: nominal and uncertain plants", nominal,
+                            tracks, path=path, path_label=path_label))
     captions = study_captions(result, design)
     caught: list = []
     try:

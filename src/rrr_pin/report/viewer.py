@@ -46,9 +46,6 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..model.closed_chain import ClosedChain, LoopClosureError, SingularConfiguration
-from ..model.dynamics import Robot
-
 __all__ = ["Track", "Scene", "scene_html", "scene_document", "write_scene_html",
            "camera_view", "full_configurations", "ViewerSizeError", "MissingMeshWarning",
            "MAX_SCENE_BYTES", "CAMERA_FOV"]
@@ -102,7 +99,7 @@ class Track:
     color : tuple of 3 floats in [0, 1], optional
         RGB colour of every shape of the arm. Default: the URDF's (MJCF's) colours for an opaque
         track, a colour from a fixed palette for a translucent one.
-    robot : Robot or ClosedChain, optional
+    robot : Plant, optional
         Model to draw this track with (e.g. an uncertain plant with its own kinematics);
         default the scene's robot. Must have the scene robot's ``nq``.
 
@@ -119,7 +116,7 @@ class Track:
     q: np.ndarray
     opacity: float = 1.0
     color: tuple[float, float, float] | None = None
-    robot: Robot | ClosedChain | None = field(default=None, repr=False)
+    robot: object = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.label, str) or not self.label.strip():
@@ -167,7 +164,7 @@ class Scene:
     ----------
     title : str
         Title of the scene (e.g. the controller's name).
-    robot : Robot or ClosedChain
+    robot : Plant
         Model drawn for every track without a robot of its own (:func:`rrr_pin.load_robot`).
     tracks : sequence of Track
         At least one; every ``q`` has ``robot.nq`` columns.
@@ -183,7 +180,7 @@ class Scene:
     """
 
     title: str
-    robot: Robot | ClosedChain = field(repr=False)
+    robot: object = field(repr=False)
     tracks: tuple[Track, ...]
     package_dirs: tuple[Path, ...] = ()
     path: np.ndarray | None = field(default=None, repr=False)
@@ -220,7 +217,7 @@ class Scene:
 # Geometry: the URDF's shapes and meshes, with missing meshes replaced by simple shapes.
 
 
-def _urdf_dir(robot: Robot) -> Path | None:
+def _urdf_dir(robot) -> Path | None:
     """Folder of the robot's URDF file, if it came from one."""
     from ..model.robots import erd_urdf_path, robot_names
 
@@ -231,7 +228,7 @@ def _urdf_dir(robot: Robot) -> Path | None:
     return path.parent.resolve() if path.is_file() else None
 
 
-def _search_dirs(robot: Robot, package_dirs) -> list[Path]:
+def _search_dirs(robot, package_dirs) -> list[Path]:
     dirs = list(package_dirs)
     dirs += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
     base = _urdf_dir(robot)
@@ -285,7 +282,7 @@ def _stick_shapes(root: ET.Element, link: str, radius: float) -> list[ET.Element
     return shapes
 
 
-def _geometry_urdf(robot: Robot, package_dirs) -> tuple[str, list[str]]:
+def _geometry_urdf(robot, package_dirs) -> tuple[str, list[str]]:
     """Rewrite the URDF with absolute mesh paths; missing meshes become simple shapes.
 
     Returns the URDF text and the list of mesh references that could not be found.
@@ -318,41 +315,50 @@ def _geometry_urdf(robot: Robot, package_dirs) -> tuple[str, list[str]]:
     return ET.tostring(root, encoding="unicode"), sorted(set(missing))
 
 
-def _mjcf_geometry(chain: ClosedChain) -> tuple[pin.GeometryModel, pin.GeometryModel,
-                                                list[str]]:
-    """Visual and collision geometry of a closed chain, from its MJCF through Pinocchio.
+def _mjcf_geometry(plant, package_dirs) -> tuple[pin.GeometryModel, pin.GeometryModel,
+                                                 list[str]]:
+    """Visual and collision geometry of a plant described by MJCF, through Pinocchio.
 
-    Read from the MJCF file itself when the chain came from one (its mesh paths stay
-    relative to it), else from the chain's MJCF text in a temporary file.
+    Read from the MJCF file itself when the plant came from one (its mesh paths stay relative
+    to it), else from the plant's MJCF text in a temporary file.
     """
-    source = Path(chain.source)
+    source = Path(plant.source)
     if source.is_file():
-        return tuple(pin.buildGeomFromMJCF(chain.model, str(source), kind)
+        return tuple(pin.buildGeomFromMJCF(plant.model, str(source), kind)
                      for kind in (pin.GeometryType.VISUAL, pin.GeometryType.COLLISION)) + ([],)
     fd, tmp = tempfile.mkstemp(suffix=".xml")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(chain.mjcf)
-        visual = pin.buildGeomFromMJCF(chain.model, tmp, pin.GeometryType.VISUAL)
-        collision = pin.buildGeomFromMJCF(chain.model, tmp, pin.GeometryType.COLLISION)
+            fh.write(plant.source_text()[0])
+        visual = pin.buildGeomFromMJCF(plant.model, tmp, pin.GeometryType.VISUAL)
+        collision = pin.buildGeomFromMJCF(plant.model, tmp, pin.GeometryType.COLLISION)
     finally:
         os.unlink(tmp)
     return visual, collision, []
 
 
-def _geometry_models(robot, package_dirs) -> tuple[pin.GeometryModel, pin.GeometryModel,
-                                                   list[str]]:
-    """Visual and collision geometry of ``robot`` (missing meshes warned about, replaced)."""
-    if isinstance(robot, ClosedChain):
-        return _mjcf_geometry(robot)
+def _urdf_geometry(robot, package_dirs) -> tuple[pin.GeometryModel, pin.GeometryModel,
+                                                 list[str]]:
+    """Visual and collision geometry of a plant described by URDF (missing meshes replaced)."""
     text, missing = _geometry_urdf(robot, package_dirs)
     if missing:
         warnings.warn(MissingMeshWarning(f"robot {robot.name!r}: mesh files not found, drawn as "
                                          f"simple shapes instead: {', '.join(missing)}",
-                                         missing), stacklevel=3)
+                                         missing), stacklevel=4)
     visual = pin.buildGeomFromUrdfString(robot.model, text, pin.GeometryType.VISUAL)
     collision = pin.buildGeomFromUrdfString(robot.model, text, pin.GeometryType.COLLISION)
     return visual, collision, missing
+
+
+#: The geometry loader of each description format (the suffix of ``Plant.source_text``), and
+#: the format's name in the scene's legend: the viewer knows formats, never kinds of plant.
+GEOMETRY_LOADERS = {".urdf": ("URDF", _urdf_geometry), ".xml": ("MJCF", _mjcf_geometry)}
+
+
+def _geometry_models(robot, package_dirs) -> tuple[pin.GeometryModel, pin.GeometryModel,
+                                                   list[str]]:
+    """Visual and collision geometry of ``robot`` by its description's format."""
+    return GEOMETRY_LOADERS[robot.source_text()[1]][1](robot, package_dirs)
 
 
 def _moving_only(geometry: pin.GeometryModel) -> pin.GeometryModel:
@@ -426,18 +432,27 @@ def _scaled(placement: pin.SE3, scale) -> np.ndarray:
     return T
 
 
+def task_path_points(plant, duration: float) -> tuple[np.ndarray | None, str]:
+    """Return a scene's path: the plant's task path as world points [m] and its label.
+
+    :meth:`rrr_pin.model.plant.Plant.task_points` over ``duration`` [s]; ``(None, "reference
+    path")`` for a plant without one (a serial arm).
+    """
+    found = plant.task_points(duration)
+    return (None, "reference path") if found is None else found
+
+
 def full_configurations(robot, q, seed=None, *, times=None, label: str = "") -> np.ndarray:
     """Return the configurations of ``robot.model`` drawn for the samples ``q`` of a track.
 
-    For a :class:`~rrr_pin.model.dynamics.Robot`, ``q`` itself. For a
-    :class:`~rrr_pin.model.closed_chain.ClosedChain`, each row of actuated angles is completed
-    with the passive coordinates by :meth:`~rrr_pin.model.closed_chain.ClosedChain.close`
-    (Newton on the loop closure to ``CLOSURE_TOL``), seeded from the previous row's solution
-    (the first from ``seed``, default the chain's ``home``).
+    :meth:`rrr_pin.model.plant.Plant.configurations`: for a serial arm ``q`` itself; for a
+    closed chain each row of actuated angles completed with the passive coordinates (Newton on
+    the loop closure, seeded from the previous row's solution, the first from ``seed``,
+    default the chain's ``home``).
 
     Parameters
     ----------
-    robot : Robot or ClosedChain
+    robot : Plant
     q : array-like, shape (N, robot.nq)
         Joint positions [rad or m]; a closed chain's actuated coordinates.
     seed : array-like, shape (robot.model.nq,), optional
@@ -455,25 +470,13 @@ def full_configurations(robot, q, seed=None, *, times=None, label: str = "") -> 
     ------
     rrr_pin.model.closed_chain.LoopClosureError, SingularConfiguration (ValueErrors)
         A row where the loop does not close, or closes at a type-II singularity; the
-        message names the track, the robot and the time (or row).
+        message names the track, the plant and the time (or row).
     """
-    q = np.asarray(q, dtype=float)
-    if not isinstance(robot, ClosedChain):
-        return q
-    out = np.empty((q.shape[0], robot.model.nq))
-    last = np.asarray(robot.home if seed is None else seed, dtype=float)
-    for k, qa in enumerate(q):
-        try:
-            last = robot.close(qa, seed=last)
-        except (LoopClosureError, SingularConfiguration) as exc:
-            where = f"row {k}" if times is None else f"t = {float(times[k]):.6g} s"
-            message = (f"{f'track {label!r}: ' if label else ''}cannot draw the closed chain "
-                       f"{robot.name!r} at {where}: {exc}")
-            if isinstance(exc, SingularConfiguration):
-                raise SingularConfiguration(message, exc.cond) from None
-            raise LoopClosureError(message) from None
-        out[k] = last
-    return out
+    def where(k):
+        at = f"row {k}" if times is None else f"t = {float(times[k]):.6g} s"
+        return f"{f'track {label!r}: ' if label else ''}cannot draw {robot.name!r} at {at}"
+
+    return robot.configurations(q, seed=seed, where=where)
 
 
 def _track_configurations(track: Track, robot, q: np.ndarray, times: np.ndarray
@@ -591,7 +594,8 @@ def _scene_points(scene: Scene) -> np.ndarray:
     for track in scene.tracks:
         robot = track.robot or scene.robot
         data = robot.model.createData()
-        stride = max(1, len(track.t) // (60 if isinstance(robot, ClosedChain) else 200))
+        # a plant with loops closes them at every point: fewer instants
+        stride = max(1, len(track.t) // (60 if robot.loop_closures else 200))
         q = _track_configurations(track, robot, track.q[::stride], track.t[::stride])
         for qk in q:
             pin.framesForwardKinematics(robot.model, data, qk)
@@ -817,7 +821,7 @@ def _legend(scene: Scene, facts: dict) -> str:
                      f"width:0.9em;height:0.9em;background:{swatch};opacity:"
                      f'{max(track.opacity, 0.35)};border:1px solid #555"></span> '
                      f"{html.escape(track.label)}</span>")
-    source = "MJCF" if isinstance(scene.robot, ClosedChain) else "URDF"
+    source = GEOMETRY_LOADERS[scene.robot.source_text()[1]][0]
     shapes = {"auto": f"the {source}'s visual shapes (ghosts: collision shapes if lighter)",
               "visual": f"the {source}'s visual shapes",
               "collision": f"the {source}'s collision shapes"}[facts["geometry"]]

@@ -14,11 +14,12 @@ shaped plant with the design's margin ``b(Gs, Ks)``: by Vinnicombe's theorem, ``
 implies that ``Ks`` stabilizes the frozen plant, with margin at least
 ``sin(arcsin b - arcsin nugap)``.
 
-A parallel mechanism (:class:`rrr_pin.model.closed_chain.ClosedChain`) offers the same
-``M, V, G`` in its actuated coordinates (the reduced model, eq. (1) in ``q_a``), so the same
-linearization applies to it; :func:`chain_certificate` walks both mechanisms along the
-reference first, so that each frozen configuration closes on the reference's assembly mode
-(:meth:`CertificateSpec.certify` calls it for a closed chain).
+Any plant (:mod:`rrr_pin.model.plant`) offers ``M, V, G`` in its actuated coordinates (a
+closed chain's reduced model, eq. (1) in ``q_a``), so the same linearization applies to every
+kind. :func:`certificate_along` (what :meth:`CertificateSpec.certify` runs) takes both models
+along the reference first (:meth:`~rrr_pin.model.plant.Plant.follow`: a closed chain then
+closes each frozen configuration on the reference's assembly mode; a serial arm has nothing
+to do).
 
 What a frozen-configuration certificate proves, and what it does not
 --------------------------------------------------------------------
@@ -57,7 +58,7 @@ from .ncf import _graph_symbols_ct, _series, ncfmargin
 from .reduction import _arcsin_bound
 
 __all__ = ["FrozenCertificate", "CertificateSpec", "frozen_linearization", "frozen_certificate",
-           "chain_certificate", "CHAIN_WALK_STEP"]
+           "certificate_along", "WALK_STEP"]
 
 _H = 1e-6  # relative central-difference step of frozen_linearization
 
@@ -213,10 +214,10 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
 
     Parameters
     ----------
-    nominal, plant : rrr_pin.model.dynamics.Robot or ClosedChain
-        The controller's model and the uncertain (true) arm. A closed chain solves its
+    nominal, plant : Plant
+        The controller's model and the uncertain (true) plant. A closed chain solves its
         passive coordinates from the last solution, in the order of ``q``: use
-        :func:`chain_certificate`, which seeds them along the reference.
+        :func:`certificate_along`, which takes both along the reference.
     q, qd : array-like, shape (N, nq)
         Frozen configurations [rad] and velocities [rad/s] along the reference.
     lam : float
@@ -259,35 +260,29 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
                              certified=bool(nus.max() < b))
 
 
-def _is_closed_chain(robot) -> bool:
-    return hasattr(robot, "constraints") and hasattr(robot, "close")
+#: Time step [s] of the walk along the reference that takes each model to its frozen
+#: configurations (:func:`certificate_along`): the study's task paths are sampled by inverse
+#: kinematics every 5 ms too.
+WALK_STEP = 0.005
 
 
-#: Time step [s] of the walk along the reference that seeds a closed chain's loop closure
-#: (:func:`chain_certificate`): the study's references are sampled by inverse kinematics every
-#: 5 ms too.
-CHAIN_WALK_STEP = 0.005
-
-
-def chain_certificate(nominal, plant, reference, t, *, lam: float, W1, W2,
+def certificate_along(nominal, plant, reference, t, *, lam: float, W1, W2,
                       Ks) -> FrozenCertificate:
-    r""":func:`frozen_certificate` of a closed chain at the reference's times ``t``.
+    r""":func:`frozen_certificate` at the reference's times ``t``, each model taken there.
 
-    A :class:`rrr_pin.model.closed_chain.ClosedChain`'s ``M, V, G`` (the reduced model in
-    the actuated coordinates, eq. (1) in ``q_a``) solve the passive coordinates by Newton from
-    the last solution. So that both mechanisms stay on the assembly mode of the reference at
-    every frozen configuration, each is walked along the reference from its ``home`` every
-    :data:`CHAIN_WALK_STEP` [s] (at most) before each configuration is linearized; the
-    certificate is then exactly :func:`frozen_certificate`'s at the configurations
-    ``reference.sample(t)``, the uncertain plant being ``plant`` (e.g. a
-    :func:`rrr_pin.model.mechanisms.perturb_mechanism` draw).
+    Both models start where the reference starts (:meth:`~rrr_pin.model.plant.Plant.reset`
+    at ``r(0)``) and follow it (:meth:`~rrr_pin.model.plant.Plant.follow`) every
+    :data:`WALK_STEP` [s] (at most) up to each frozen configuration before it is linearized,
+    so a model that carries a solution from call to call (a closed chain's loop closure)
+    stays on the assembly mode of the reference; for a serial arm this is exactly
+    :func:`frozen_certificate` at ``reference.sample(t)``.
 
     Parameters
     ----------
-    nominal, plant : ClosedChain
-        The controller's model and the uncertain mechanism (same ``nq``).
+    nominal, plant : Plant
+        The controller's model and the uncertain plant (same ``nq``).
     reference : Reference
-        Actuated reference, ``reference.sample(t) -> (R, RD, RDD)`` [rad, rad/s, rad/s^2].
+        ``reference.sample(t) -> (R, RD, RDD)`` [rad, rad/s, rad/s^2].
     t : array-like, shape (N,)
         Increasing times [s] of the frozen configurations, from ``t[0] >= 0``.
     lam, W1, W2, Ks
@@ -302,25 +297,30 @@ def chain_certificate(nominal, plant, reference, t, *, lam: float, W1, W2,
             or t[0] < 0:
         raise ValueError(f"t must be a non-empty increasing array of finite times >= 0 [s], "
                          f"got {t!r}")
-    _check_pair(nominal, plant)
+    nq = _check_pair(nominal, plant)
     R, RD, RDD = reference.sample(t)
-    parts, last = [], 0.0
-    for chain in (nominal, plant):
-        chain.close(reference.sample(np.array([0.0]))[0][0], seed=chain.home)
+    q, qd, qdd = _configs(nq, R, RD, RDD)
+    lam = check_positive("lam", lam, unit="rad/s")
+    Gs0, W1, W2, Ks = _shaped_loop(lam, W1, W2, Ks, nq)
+    b = ncfmargin(Gs0, Ks)[0]
+    G0, Gt0 = _graph_symbols_ct(Gs0)
+    r0 = reference.sample(np.array([0.0]))[0][0]
+    for model in (nominal, plant):
+        model.reset(r0)
+    nus, bf, last = np.empty(t.size), np.empty(t.size), 0.0
     for k, tk in enumerate(t):
-        walk = np.linspace(last, tk, max(2, int(np.ceil((tk - last) / CHAIN_WALK_STEP)) + 1))
+        walk = np.linspace(last, tk, max(2, int(np.ceil((tk - last) / WALK_STEP)) + 1))
         W = reference.sample(walk)[0]
-        for chain in (nominal, plant):
-            for qa in W:
-                chain.close(qa)
+        for model in (nominal, plant):
+            model.follow(W)
         last = tk
-        parts.append(frozen_certificate(nominal, plant, R[k:k + 1], RD[k:k + 1],
-                                        qdd=RDD[k:k + 1], lam=lam, W1=W1, W2=W2, Ks=Ks))
-    nus = np.concatenate([p.nugap for p in parts])
-    b = parts[0].b
-    return FrozenCertificate(nugap=nus, b=b,
-                             b_lower=np.concatenate([p.b_lower for p in parts]),
-                             b_frozen=np.concatenate([p.b_frozen for p in parts]),
+        Gk = _linearization(nominal, plant, q[k], qd[k], qdd[k], lam, _H)
+        Gsk = _series(W2, Gk, W1)
+        Gk_sym, _ = _graph_symbols_ct(Gsk)
+        nus[k] = _nugap(Gk_sym, G0, Gt0)
+        bf[k] = ncfmargin(Gsk, Ks)[0]
+    lower = np.array([_arcsin_bound(b, d) for d in nus])
+    return FrozenCertificate(nugap=nus, b=float(b), b_lower=lower, b_frozen=bf,
                              certified=bool(nus.max() < b))
 
 
@@ -372,13 +372,9 @@ class CertificateSpec:
             ``certified`` (bool), ``nugap_max`` and ``b`` (the design's ``b(Gs, Ks)``).
         """
         t = np.linspace(0.0, float(duration), self.points)
-        R, RD, RDD = reference.sample(t)
-        weights = dict(lam=self.lam, W1=control.ss(*self.W1), W2=control.ss(*self.W2),
-                       Ks=control.ss(*self.Ks))
-        if _is_closed_chain(nominal):
-            cert = chain_certificate(nominal, plant, reference, t, **weights)
-        else:
-            cert = frozen_certificate(nominal, plant, R, RD, qdd=RDD, **weights)
+        cert = certificate_along(nominal, plant, reference, t, lam=self.lam,
+                                 W1=control.ss(*self.W1), W2=control.ss(*self.W2),
+                                 Ks=control.ss(*self.Ks))
         return {"certified": cert.certified, "nugap_max": float(cert.nugap_max), "b": cert.b}
 
     def margin(self, nq: int) -> float:

@@ -74,6 +74,7 @@ from .trajectory import Run, SimulationDiverged, Trajectory, diverged_joint
 __all__ = [
     "simulate",
     "simulate_batch",
+    "check_run",
     "time_grid",
     "TimeGrid",
     "largest_substep",
@@ -313,10 +314,42 @@ def simulate(plant, law, reference: Reference, duration: float, *, dt: float | N
     return _execute(run, engine)
 
 
+def check_run(plant, law, reference: Reference, duration: float, *, engine: str = AUTO,
+              **kwargs) -> str:
+    """Validate one run as :func:`simulate` would, without running it; return its engine.
+
+    The edge check of a study or a campaign, once, before any work: every setting, the
+    reference on ``plant``, the initial state, and that ``engine`` can run the law on this
+    plant exactly (a refusal names why). A plant's own failure at the start (a closed chain
+    whose loop will not close at ``q0``) is not an error of the settings: it is left to the
+    run, and the engine is then reported as ``engine``.
+
+    Parameters
+    ----------
+    plant, law, reference, duration, engine
+        As for :func:`simulate`.
+    **kwargs
+        The other keywords of :func:`simulate`.
+
+    Returns
+    -------
+    str
+        The name of the engine that would run it.
+    """
+    options = {"dt": None, "rate": None, "method": "tustin", "q0": None, "qd0": None,
+               "limit_margin": 0.0, **kwargs}
+    try:
+        run = _prepare(plant, law, reference, duration, **options)
+    except plant.failures:
+        return engine
+    return choose(run, engine)[0].name
+
+
 def _execute(run: Run, engine: str) -> Trajectory:
     """Run a validated run on ``engine`` (as :func:`simulate` chooses it); record the engine."""
     chosen, form, note = choose(run, engine)
     logger.debug("engine for law %r: %s (%s)", run.law.name, chosen.name, note)
+    run.law.reset(run.R[0])  # a run depends on its own inputs only (a chain model's seed)
     traj = chosen.run(run, form)
     traj.info["engine"] = chosen.name
     traj.info["engine_note"] = note
@@ -351,8 +384,8 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
     Returns
     -------
     list
-        Per plant, in order: its :class:`Trajectory` or the :class:`SimulationDiverged` it
-        ended with.
+        Per plant, in order: its :class:`Trajectory`, or the :class:`SimulationDiverged` (or
+        the plant's own failure, :attr:`rrr_pin.model.plant.Plant.failures`) it ended with.
     """
     from .batched import BATCH_MAX, batchable, run_batch
 
@@ -360,12 +393,21 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
             1 <= batch <= BATCH_MAX):
         raise ValueError(f"batch must be an integer in [1, {BATCH_MAX}], got {batch!r}")
     check_engine(engine)
-    plants = list(plants)
-    if engine in (AUTO, CODEGEN):
-        with reuse_preparation():
-            runs = [_prepare(p, law, reference, duration,
-                             **{"dt": None, "rate": None, "method": "tustin", "q0": None,
-                                "qd0": None, "limit_margin": 0.0, **kwargs}) for p in plants]
+    options = {"dt": None, "rate": None, "method": "tustin", "q0": None, "qd0": None,
+               "limit_margin": 0.0, **kwargs}
+
+    def prepared(plant):
+        # A plant's own failures (a closed chain whose loop will not close at q0) are its
+        # result, as in the run; every other error propagates.
+        try:
+            return _prepare(plant, law, reference, duration, **options)
+        except (SimulationDiverged, *plant.failures) as exc:
+            return exc
+
+    with reuse_preparation():
+        runs = [prepared(p) for p in plants]
+    ready = [r for r in runs if not isinstance(r, Exception)]
+    if engine in (AUTO, CODEGEN) and len(ready) == len(runs):
         form = runs[0].law.compiled_form() if runs else None
         if engine == CODEGEN and runs:
             choose(runs[0], CODEGEN)  # the refusal of a run the batched engine cannot run
@@ -377,15 +419,14 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
                 if not isinstance(r, SimulationDiverged):
                     r.info["engine"], r.info["engine_note"] = CODEGEN, note
             return out
-    else:
-        runs = [_prepare(p, law, reference, duration,
-                         **{"dt": None, "rate": None, "method": "tustin", "q0": None,
-                            "qd0": None, "limit_margin": 0.0, **kwargs}) for p in plants]
     out = []
     for run in runs:
+        if isinstance(run, Exception):
+            out.append(run)
+            continue
         try:
             out.append(_execute(run, engine))
-        except SimulationDiverged as exc:
+        except (SimulationDiverged, *run.plant.failures) as exc:
             out.append(exc)
     return out
 

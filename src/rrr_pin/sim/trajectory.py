@@ -230,7 +230,9 @@ def metrics(traj: Trajectory) -> dict:
         ``rms_error`` and ``max_error`` [rad] of ``e = r - q``; ``rms_torque`` and
         ``peak_torque`` [N m] of ``tau``. RMS over the samples of the run. A run with a
         torque limit (``info["saturation"]``, :func:`saturation`) also has
-        ``saturated_fraction``, per joint the fraction [-] of its control periods at the limit.
+        ``saturated_fraction``, per joint the fraction [-] of its control periods at the limit;
+        a plant that records its loop drift (a closed chain) ``drift_m`` [m], the largest loop
+        gap a step left.
     """
     e, tau = traj.error, traj.tau
     out = {
@@ -241,6 +243,8 @@ def metrics(traj: Trajectory) -> dict:
     }
     if "saturation" in traj.info:
         out["saturated_fraction"] = list(traj.info["saturation"]["per_joint_fraction"])
+    if "drift_m" in traj.info:  # a plant that records its loop drift (a closed chain)
+        out["drift_m"] = float(traj.info["drift_m"])
     return out
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from ...validation import check_rate
 from ..effects import check_torque_limit
 from .forms import FLAWForm
-from .protocol import DEFAULT_RATE, ControlLaw, SampledLaw
+from .protocol import DEFAULT_RATE, ControlLaw, SampledForm, SampledLaw
 from .tracking import FLLinearModel, TrackingController, rebuild_tracking
 
 __all__ = ["AntiWindupTracking", "SampledAntiWindup", "hanus_gain", "hinf_aw_controller"]
@@ -172,12 +172,12 @@ def hanus_gain(name: str, what: str, A, B, C, D, *, discrete: bool = False) -> n
     return gain
 
 
-class SampledAntiWindup(SampledLaw):
+class SampledAntiWindup(SampledForm):
     """Sampled :class:`AntiWindupTracking`: ``x+ = Ad x + Bd e + Bd Dd^-1 (y_hat - y)``."""
 
     def __init__(self, law: AntiWindupTracking, rate: float, method: str, mats, gain):
-        self.law, self.rate, self.method, self.mats, self.gain = law, rate, method, mats, gain
-        self.name, self.label, self.n, self.nx = law.name, law.label, law.n, law.nx
+        super().__init__(law, rate)
+        self.method, self.mats, self.gain = method, mats, gain
 
     def step(self, t, q, qd, r, rd, rdd, x):
         """Clipped output with the old state, then the conditioned state update."""

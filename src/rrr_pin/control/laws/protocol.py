@@ -16,12 +16,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ...model.plant import Plant
 from ...validation import check_rate, describe_value
 
 if TYPE_CHECKING:
     from .forms import CompiledForm
 
-__all__ = ["ControlLaw", "SampledLaw", "LinearModel", "StaticSampled", "check_law",
+__all__ = ["ControlLaw", "SampledLaw", "LinearModel", "SampledForm", "StaticSampled", "check_law",
            "check_law_output", "check_step_output", "DEFAULT_RATE"]
 
 #: Default sampling rate of the sampled (digital) controllers [Hz].
@@ -90,6 +91,18 @@ class ControlLaw:
     def initial_state(self) -> np.ndarray:
         """Return the law's state at ``t = 0``, shape (nx,) (zeros by default)."""
         return np.zeros(self.nx)
+
+    def reset(self, q) -> None:
+        """Forget what the law carries from one run to the next, at the actuated ``q`` [rad].
+
+        The simulator calls it at the start of every run with ``r(0)``, so that a run depends
+        on its own inputs only. By default it resets the law's model, ``self.nominal`` when the
+        law has one (:meth:`rrr_pin.model.plant.Plant.reset`: a closed chain re-seeds its
+        loop-closure solver on its home branch); override it for state of your own.
+        """
+        nominal = getattr(self, "nominal", None)
+        if isinstance(nominal, Plant):
+            nominal.reset(q)
 
     def torque(self, t, q, qd, r, rd, rdd, x) -> np.ndarray:
         """Joint torque [N m], shape (n,).
@@ -162,6 +175,18 @@ class SampledLaw:
     def initial_state(self) -> np.ndarray:
         """Return the law's state at ``t = 0``, shape (nx,)."""
         return np.zeros(self.nx)
+
+    def reset(self, q) -> None:
+        """Forget what the law carries from one run to the next, at the actuated ``q`` [rad].
+
+        The simulator calls it at the start of every run with ``r(0)``, so that a run depends
+        on its own inputs only. By default it resets the law's model, ``self.nominal`` when the
+        law has one (:meth:`rrr_pin.model.plant.Plant.reset`: a closed chain re-seeds its
+        loop-closure solver on its home branch); override it for state of your own.
+        """
+        nominal = getattr(self, "nominal", None)
+        if isinstance(nominal, Plant):
+            nominal.reset(q)
 
     def step(self, t, q, qd, r, rd, rdd, x) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(tau, x_next)``: the torque held on ``[t, t + 1/rate)`` and the next state.
@@ -268,12 +293,27 @@ def check_step_output(law, out, t: float) -> tuple[np.ndarray, np.ndarray]:
             check_law_output(law, "step() next state", out[1], law.nx, t))
 
 
-class StaticSampled(SampledLaw):
-    """A static continuous law evaluated at the sampling instants (exact for ``nx = 0``)."""
+class SampledForm(SampledLaw):
+    """The sampled form of a continuous law ``law`` at ``rate`` [Hz]: the base of the wrappers.
+
+    Names, sizes and :meth:`reset` are the continuous law's.
+    """
 
     def __init__(self, law: ControlLaw, rate: float):
         self.law, self.rate = law, rate
-        self.name, self.label, self.n, self.nx = law.name, law.label, law.n, 0
+        self.name, self.label, self.n, self.nx = law.name, law.label, law.n, law.nx
+
+    def reset(self, q) -> None:
+        """Reset the continuous law (:meth:`ControlLaw.reset`)."""
+        self.law.reset(q)
+
+
+class StaticSampled(SampledForm):
+    """A static continuous law evaluated at the sampling instants (exact for ``nx = 0``)."""
+
+    def __init__(self, law: ControlLaw, rate: float):
+        super().__init__(law, rate)
+        self.nx = 0
 
     def step(self, t, q, qd, r, rd, rdd, x):
         """Evaluate the continuous law's torque; no state."""

@@ -22,7 +22,14 @@ import numpy as np
 
 from ...validation import check_rate
 from .forms import FLForm
-from .protocol import DEFAULT_RATE, ControlLaw, LinearModel, SampledLaw, check_law
+from .protocol import (
+    DEFAULT_RATE,
+    ControlLaw,
+    LinearModel,
+    SampledForm,
+    SampledLaw,
+    check_law,
+)
 
 __all__ = ["TrackingController", "DiscreteTrackingController", "SampledTracking",
            "FLLinearModel", "controller_ss", "fl_controller", "hinf_fl_controller"]
@@ -280,12 +287,12 @@ def rebuild_tracking(cls, state):
     return cls(**state, K=control.ss(*K) if K is not None else None)  # (A, B, C, D[, dt])
 
 
-class SampledTracking(SampledLaw):
+class SampledTracking(SampledForm):
     """Sampled :class:`TrackingController`: ``y = Cd x + Dd e``, ``x+ = Ad x + Bd e``."""
 
     def __init__(self, law: TrackingController, rate: float, method: str, mats):
-        self.law, self.rate, self.method, self.mats = law, rate, method, mats
-        self.name, self.label, self.n, self.nx = law.name, law.label, law.n, law.nx
+        super().__init__(law, rate)
+        self.method, self.mats = method, mats
 
     def step(self, t, q, qd, r, rd, rdd, x):
         """Output with the old state, then the state update."""

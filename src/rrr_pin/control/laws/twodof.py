@@ -12,7 +12,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...validation import check_positive, check_rate
-from .protocol import DEFAULT_RATE, ControlLaw, LinearModel, SampledLaw, check_law
+from .protocol import (
+    DEFAULT_RATE,
+    ControlLaw,
+    LinearModel,
+    SampledForm,
+    SampledLaw,
+    check_law,
+)
 
 __all__ = ["TwoDOFController", "TwoDOFLinearModel", "SampledTwoDOF", "hinf_2dof_controller",
            "TREF_BANDWIDTH"]
@@ -246,15 +253,15 @@ def _rebuild_2dof(cls, nominal, lam, mats, name, label):
     return cls(nominal=nominal, lam=lam, K=control.ss(*mats), name=name, label=label)
 
 
-class SampledTwoDOF(SampledLaw):
+class SampledTwoDOF(SampledForm):
     """Sampled :class:`TwoDOFController`: ``tauhat = q + Cd x + Dd v``, ``x+ = Ad x + Bd v``.
 
     ``v = [r - q; qd]``.
     """
 
     def __init__(self, law: TwoDOFController, rate: float, method: str, mats):
-        self.law, self.rate, self.method, self.mats = law, rate, method, mats
-        self.name, self.label, self.n, self.nx = law.name, law.label, law.n, law.nx
+        super().__init__(law, rate)
+        self.method, self.mats = method, mats
 
     def step(self, t, q, qd, r, rd, rdd, x):
         """Output with the old state, then the state update."""

@@ -106,9 +106,12 @@ class Mechanism:
     lengths : tuple of str
         Fields perturbed by the length tolerance; the masses (fields ``m*``) take the inertia
         tolerance, and the rods' moments follow from mass and length.
+    path_label : str
+        What the task path is, in a legend (``"tip circle (reference)"``).
     """
 
     name: ClassVar[str] = ""
+    path_label: ClassVar[str] = "reference path"
     title: ClassVar[str] = ""
     params: ClassVar[type] = type(None)
     lengths: ClassVar[tuple] = ()

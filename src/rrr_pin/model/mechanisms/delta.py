@@ -182,6 +182,7 @@ class Delta(Mechanism):
     name = "delta"
     title = "3-DOF Delta"
     params = DeltaParams
+    path_label = "adept cycle (platform reference)"
     lengths = ("R", "r", "L", "l")
 
     def ik(self, params, p) -> np.ndarray:

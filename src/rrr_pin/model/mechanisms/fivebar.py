@@ -149,6 +149,7 @@ class FiveBar(Mechanism):
     name = "fivebar"
     title = "planar 5-bar"
     params = FiveBarParams
+    path_label = "tip circle (reference)"
     lengths = ("d", "l1", "l2")
 
     def ik(self, params, p) -> np.ndarray:

@@ -1,0 +1,146 @@
+"""From parsed options to the typed inputs of the layers below: plant, settings, reference, laws.
+
+Each builder validates its options once, at this edge, with messages that spell them as the
+command line does (``--move-time``). What the options mean is the layers' own: the plant's
+capabilities, the reference kinds (:class:`rrr_pin.control.specs.ReferenceSpec`), the
+torque-limit rule (:func:`rrr_pin.control.effects.torque_limit_spec`).
+"""
+
+from __future__ import annotations
+
+from .common import as_options, floats, not_a_folder, option, parse_lock
+
+__all__ = ["load_plant", "reference_from_args", "settings_from_args", "tolerances_from_args",
+           "laws_from_args", "torque_limit_from_args", "with_torque_limit", "rejections_line",
+           "frozen_configuration"]
+
+
+def load_plant(args, *, lock: bool = True):
+    """Return the plant of ``--robot`` (and ``--lock``): any kind :func:`load_robot` reads."""
+    from ..model.dynamics import load_robot
+
+    not_a_folder(robot=args.robot)
+    return load_robot(args.robot, lock=parse_lock(args.lock) if lock else None)
+
+
+def reference_from_args(args, plant):
+    """Return the reference of the reference options (``--reference`` and its options)."""
+    from ..control.specs import ReferenceSpec
+
+    def values(text, name):
+        v = floats(text, name)
+        return None if v is None else tuple(v)
+
+    not_a_folder(csv=args.csv)
+    spec = ReferenceSpec(kind=args.reference, amp=args.amp, freq=args.freq,
+                         home=values(args.home, "--home"), to=values(args.to, "--to"),
+                         move_time=args.move_time, csv=args.csv, frame=args.frame,
+                         end=values(args.end, "--end"), radius=args.radius,
+                         normal=values(args.normal, "--normal"))
+    return spec.build(plant, args.duration, label=option)
+
+
+def settings_from_args(args, n: int):
+    """Return the :class:`~rrr_pin.campaign.runner.RunSettings` of the run options."""
+    from ..campaign.runner import RunSettings
+    from ..control.effects import PlantEffects
+    from ..validation import check_count, check_positive, check_vector
+
+    if args.jobs is not None:
+        check_count("--jobs", args.jobs, 1)
+    check_count("--seed", args.seed)
+    for name in ("delay", "actuator_bandwidth"):
+        if getattr(args, name) is not None:
+            check_positive(option(name), getattr(args, name), allow_zero=name == "delay")
+    effects = None
+    if args.delay or args.actuator_bandwidth is not None:
+        if args.rate is None:
+            raise ValueError("--delay and --actuator-bandwidth act on sampled controllers: "
+                             "give --rate HZ too")
+        with as_options():
+            effects = PlantEffects(delay=args.delay or 0.0, bandwidth=args.actuator_bandwidth)
+    q0, qd0 = (None if text is None else tuple(check_vector(name, floats(text, name), n))
+               for text, name in ((args.q0, "--q0"), (args.qd0, "--qd0")))
+    with as_options():
+        return RunSettings(duration=args.duration, dt=args.dt, rate=args.rate,
+                           engine=args.engine, q0=q0, qd0=qd0, effects=effects,
+                           force=args.force)
+
+
+def tolerances_from_args(args, plant):
+    """Return the paper's tolerances, or ``--uncertainty``'s identified distribution."""
+    from ..model.uncertainty import Tolerances
+
+    if args.uncertainty is None:
+        return Tolerances()
+    from ..model.identification import IdentifiedUncertainty
+
+    not_a_folder(uncertainty=args.uncertainty)
+    with as_options():
+        tol = IdentifiedUncertainty(args.uncertainty, confidence=args.confidence)
+    tol.check_robot(plant)
+    return tol
+
+
+def laws_from_args(args, plant, K=None, torque_limit=None, extra=()):
+    """Return the ``--controllers`` (plus ``extra`` names) on ``plant``, and the baseline."""
+    from ..campaign.runner import make_laws
+
+    names = [s.strip() for s in args.controllers.split(",")]
+    names += [name for name in extra if name not in names]
+    with as_options():
+        laws = make_laws(names, plant, K=K, torque_limit=torque_limit)
+    baseline = args.baseline or laws[0].name
+    if baseline not in [law.name for law in laws]:
+        raise ValueError(f"--baseline {baseline!r} is not among --controllers "
+                         f"({args.controllers})")
+    return laws, baseline
+
+
+def torque_limit_from_args(args, plant, reference, settings):
+    """Return ``--torque-limit``'s limits [N m] and their rule, or ``(None, {})`` without it."""
+    if args.torque_limit is None:
+        return None, {}
+    from ..control.effects import torque_limit_spec
+
+    if settings.rate is None:
+        raise ValueError("--torque-limit acts on sampled controllers (the plant clips the "
+                         "torque each control period): give --rate HZ too, e.g. --rate 1000")
+    return torque_limit_spec(plant, args.torque_limit, reference, settings.rate,
+                             settings.duration, name="--torque-limit")
+
+
+def with_torque_limit(settings, limit):
+    """Return ``settings`` whose plant effects clip the torque at ``limit`` [N m]."""
+    import dataclasses
+
+    from ..control.effects import PlantEffects
+
+    effects = dataclasses.replace(settings.effects or PlantEffects(),
+                                  torque_limit=tuple(limit.tolist()))
+    return dataclasses.replace(settings, effects=effects)
+
+
+def rejections_line(entries) -> str | None:
+    """How many draws of an identified distribution were rejected, or None (tolerances)."""
+    drawn = [e["parameters"]["identified"]["rejected"] for e in entries
+             if "identified" in (e.get("parameters") or {})]
+    if not drawn:
+        return None
+    outside = sum(d["outside_confidence"] for d in drawn)
+    inconsistent = sum(d["inconsistent"] for d in drawn)
+    return (f"identified uncertainty: {len(drawn)} plants drawn; rejected and redrawn: "
+            f"{outside} outside the confidence region, {inconsistent} with no physically "
+            f"consistent arm")
+
+
+def frozen_configuration(args, plant):
+    """Return ``--home`` checked, or the plant's neutral configuration inside its limits."""
+    import numpy as np
+
+    from ..validation import check_vector
+
+    home = floats(args.home, "--home")
+    if home is None:
+        return np.clip(plant.neutral(), plant.lower, plant.upper)
+    return check_vector("--home", home, plant.nq)

@@ -1,0 +1,114 @@
+"""``rrr-pin identify``: base inertial parameters from measured torques, or an excitation."""
+
+from __future__ import annotations
+
+import json
+
+from .build import load_plant
+from .common import as_options, claim_out, not_a_folder
+from .options import add_overwrite
+
+__all__ = ["add", "run_identify"]
+
+#: What identification needs of a plant, and why (the refusal's reason).
+_WHY = ("the base-parameter regressor is that of a serial tree with a torque at every joint "
+        "(a mechanism is driven at its actuated joints only: its passive joints' torques are "
+        "the loop forces)")
+
+
+def add(sub) -> None:
+    """Declare ``identify``."""
+    p = sub.add_parser(
+        "identify", help="identify the arm's base inertial parameters from measured torques",
+        description="Reads --data (CSV: t, q_<joint>, optionally qd_<joint> and qdd_<joint>, "
+                    "tau_<joint>, SI units), estimates the base inertial parameters of --robot "
+                    "with their covariance, makes them physically consistent (SDP) and writes "
+                    "DIR/identified.urdf and DIR/identification.json. With "
+                    "--design-excitation, writes instead an optimised Fourier excitation, "
+                    "DIR/excitation.csv (for --reference spline --csv) and excitation.json.")
+    p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
+                   help="arm whose kinematics are trusted and whose inertials are the prior: "
+                        "'rrr' (default), an example-robot-data name or a URDF path")
+    p.add_argument("--data", metavar="FILE.csv", default=None,
+                   help="measurements (required unless --design-excitation)")
+    p.add_argument("--method", choices=("wls", "ols"), default="wls",
+                   help="weighted (per-joint noise, default) or ordinary least squares")
+    p.add_argument("--held-out", type=float, default=0.2, metavar="FRACTION",
+                   help="final fraction of the samples left out of the fit and predicted (0.2)")
+    p.add_argument("--window", type=float, default=None, metavar="S",
+                   help="Savitzky-Golay window [s] for derivatives missing from the data "
+                        "(default max(0.2 s, 11 samples))")
+    g = p.add_argument_group("excitation")
+    g.add_argument("--design-excitation", action="store_true",
+                   help="design an excitation trajectory instead of identifying")
+    g.add_argument("--harmonics", type=int, default=5, help="Fourier harmonics per joint (5)")
+    g.add_argument("--frequency", type=float, default=0.2, metavar="HZ",
+                   help="base frequency [Hz] (0.2: a 5 s period)")
+    g.add_argument("--periods", type=int, default=2, help="periods in the trajectory (2)")
+    g.add_argument("--max-acceleration", type=float, default=10.0, metavar="RAD_S2",
+                   help="acceleration limit of every joint [rad/s^2] (10)")
+    g.add_argument("--maxiter", type=int, default=60, help="SLSQP iterations (60)")
+    g.add_argument("--seed", type=int, default=0, help="seed of the starting point (0)")
+    g.add_argument("--csv-rate", type=float, default=100.0, metavar="HZ",
+                   help="waypoints per second in excitation.csv (100)")
+    p.add_argument("--out", default="results/identify", metavar="DIR",
+                   help="output folder (results/identify)")
+    add_overwrite(p)
+    p.set_defaults(lock=None, func=run_identify)
+
+
+def run_identify(args) -> int:
+    """Identify from ``--data``, or design an excitation; write and print the result."""
+    from ..model.plant import URDF
+    from ..outputs import writing
+
+    not_a_folder(robot=args.robot, data=args.data)
+    if args.design_excitation and args.data is not None:
+        raise ValueError("--data is not read by --design-excitation (it designs the "
+                         "motion to log); give one or the other")
+    if not args.design_excitation and args.data is None:
+        raise ValueError("--data FILE.csv is required (or --design-excitation)")
+    robot = load_plant(args)
+    robot.require(URDF, f"rrr-pin identify --robot {args.robot} ({_WHY})")
+    if args.design_excitation:
+        from ..model.excitation import design_excitation
+
+        with as_options():
+            traj, info = design_excitation(
+                robot, harmonics=args.harmonics, frequency=args.frequency,
+                max_acceleration=args.max_acceleration, periods=args.periods,
+                seed=args.seed, maxiter=args.maxiter)
+        out = claim_out(args, "identify")
+        csv_path = traj.write_csv(out / "excitation.csv", args.csv_rate, robot.joint_names)
+        path = out / "excitation.json"
+        with writing(path):
+            path.write_text(json.dumps({"robot": robot.name, **info,
+                                        "trajectory": traj.to_dict()}, indent=1) + "\n")
+        print(f"{robot.name}: Fourier excitation, {info['harmonics']} harmonics at "
+              f"{info['frequency_hz']:g} Hz, {traj.duration:g} s; condition number of the "
+              f"base regressor {info['cond']:.4g} (random start {info['cond_random']:.4g})")
+        print(f"wrote {csv_path} and {path}; run it with --reference spline --csv {csv_path} "
+              f"--duration {traj.duration:g}")
+        return 0
+    from ..model.identification import identify, read_measurements
+
+    with as_options():
+        data = read_measurements(args.data, robot, window=args.window)
+        result = identify(robot, data, method=args.method, held_out=args.held_out)
+    out = claim_out(args, "identify")
+    written = result.write(out)
+    s = result.summary
+    print(f"{robot.name}: {s['base_count']} base parameters from {s['samples_fit']} samples "
+          f"({s['method']}), condition number {s['condition_number']:.4g}")
+    print("residual RMS [N m]: " + ", ".join(f"{k} {v:.4g}"
+                                             for k, v in s["residual_rms_Nm"].items()))
+    if s["held_out"] is not None:
+        print(f"held-out {s['held_out']['samples']} samples, identified URDF's torque error "
+              "RMS [N m]: " + ", ".join(f"{k} {v:.4g}" for k, v in
+                                       s["held_out"]["rms_error_urdf_Nm"].items()))
+    c = s["consistency"]
+    print("physically consistent: " + ("the estimate itself" if c["feasible_at_estimate"]
+                                       else f"nearest consistent arm at RMS torque change "
+                                            f"{c['distance_rms_Nm']:.3g} N m"))
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0

@@ -1,0 +1,120 @@
+"""The options several commands share, declared once (their help names no plant kind).
+
+Nothing here imports a numerical library: ``rrr-pin --help`` stays fast. The engine choices
+come from the engine registry (:data:`rrr_pin.sim.engines.ENGINE_CHOICES`), the controllers
+and reference kinds from :mod:`rrr_pin.control.catalog`.
+"""
+
+from __future__ import annotations
+
+__all__ = ["add_overwrite", "add_plant_arguments", "add_law_arguments", "add_force_argument",
+           "add_reference_arguments"]
+
+_PLANT_HELP = ("plant: 'rrr' (the paper's arm, default), an example-robot-data arm (ur5, ur3, "
+               "ur10, panda, kinova, ...), a URDF path, a parallel mechanism (fivebar, delta, "
+               "...) or an MJCF path")
+
+
+def add_overwrite(p) -> None:
+    """``--overwrite``: replace this command's previous run in ``--out``."""
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the previous run of this command in a non-empty --out (only "
+                        "the files its manifest rrr-pin-run*.json lists are removed)")
+
+
+def add_plant_arguments(p, *, home: bool = True) -> None:
+    """``--robot``, ``--lock`` (and ``--home`` unless ``home=False``)."""
+    p.add_argument("--robot", default="rrr", metavar="NAME|PATH", help=_PLANT_HELP)
+    p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
+                   help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
+                        "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
+    if home:
+        p.add_argument("--home", metavar="Q1,Q2,...", default=None,
+                       help="centre of the sinusoid, start of a quintic or task-space motion "
+                            "[rad] (default: the neutral configuration, moved inside the "
+                            "limits; for line/circle, bent one joint away from it if the frame "
+                            "is singular there)")
+
+
+def add_force_argument(p) -> None:
+    """``--force``: run above the work bounds of one run."""
+    # The bounds are named, not imported: --help must not load NumPy (rrr_pin.sim does).
+    p.add_argument("--force", action="store_true",
+                   help="run even above the work bounds of one run (MAX_SUBSTEPS RK4 steps "
+                        "and MAX_SAMPLES stored samples of rrr_pin.sim.simulation, 1e7 and "
+                        "1e6), refused otherwise before any work")
+
+
+def add_law_arguments(p, default_duration: float, default_rate) -> None:
+    """Declare the controllers, the run settings, the uncertain plants, the plant effects."""
+    from ..control.catalog import BUILTIN_LAWS
+    from ..sim.engines import ENGINE_CHOICES, ENGINES
+
+    p.add_argument("--controllers", default="fl,hinf", metavar="NAMES",
+                   help="comma-separated built-in controllers to compare: "
+                        + "; ".join(f"{k} = {v}" for k, v in BUILTIN_LAWS.items())
+                        + " (default: fl,hinf, the paper's)")
+    p.add_argument("--baseline", default=None, metavar="NAME",
+                   help="controller the others are compared with (default: the first)")
+    p.add_argument("--duration", type=float, default=default_duration,
+                   help=f"simulated time [s] ({default_duration:g}; a mechanism's task path "
+                        f"runs once in it)")
+    p.add_argument("--dt", type=float, default=None,
+                   help="RK4 step [s] (1e-3); with --rate the plant sub-step, which must "
+                        "divide 1/rate (default: the largest such step up to 1e-3)")
+    p.add_argument("--rate", type=float, default=default_rate, metavar="HZ",
+                   help="sampled controllers at this rate [Hz] (zero-order hold, Tustin K)"
+                        + (f" ({default_rate:g})" if default_rate else
+                           "; default: continuous-time laws as in the paper's Simulink study"))
+    p.add_argument("--engine", choices=ENGINE_CHOICES, default=ENGINE_CHOICES[0],
+                   help="simulation engine: auto, the first engine that runs each run exactly "
+                        "(recorded per run); " + "; ".join(f"{k}: {e.description}"
+                                                           for k, e in ENGINES.items()))
+    p.add_argument("--q0", metavar="Q1,Q2,...", default=None,
+                   help="initial joint positions [rad] (default: on the reference)")
+    p.add_argument("--qd0", metavar="V1,V2,...", default=None,
+                   help="initial joint velocities [rad/s] (default: on the reference)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the uncertain plants (0)")
+    p.add_argument("--uncertainty", metavar="IDENTIFICATION.json", default=None,
+                   help="draw the uncertain plants from an identification (rrr-pin identify) "
+                        "instead of the paper's 20 %% inertia / 5 %% length tolerances; use "
+                        "--robot DIR/identified.urdf as the nominal")
+    p.add_argument("--confidence", type=float, default=0.95,
+                   help="with --uncertainty: confidence region the plants are drawn in (0.95)")
+    p.add_argument("--delay", type=float, default=None, metavar="S",
+                   help="plant effect: actuator transport delay [s] (sampled controllers; "
+                        "a whole number of plant sub-steps --dt, others are refused)")
+    p.add_argument("--actuator-bandwidth", type=float, default=None, metavar="RAD_S",
+                   help="plant effect: first-order actuator wa/(s + wa), wa [rad/s] "
+                        "(sampled controllers)")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="worker processes (default: min(2, CPUs))")
+    add_force_argument(p)
+    add_reference_arguments(p)
+
+
+def add_reference_arguments(p) -> None:
+    """Declare the reference group: ``--reference`` and the options of each kind."""
+    from ..control.catalog import REFERENCES
+
+    g = p.add_argument_group("reference")
+    g.add_argument("--reference", default="study", choices=tuple(REFERENCES),
+                   help="; ".join(f"{k}: {v}" for k, v in REFERENCES.items())
+                        + " (default: study)")
+    g.add_argument("--amp", type=float, default=0.5, help="sine: amplitude [rad] (0.5)")
+    g.add_argument("--freq", type=float, default=0.5, help="sine: frequency [Hz] (0.5)")
+    g.add_argument("--to", metavar="Q1,Q2,...", default=None, help="quintic: goal [rad]")
+    g.add_argument("--move-time", type=float, default=None,
+                   help="quintic, line, circle: duration of the motion [s] (default: "
+                        "half of --duration)")
+    g.add_argument("--csv", metavar="PATH", default=None,
+                   help="spline: waypoints, one row each: time [s], then one column per "
+                        "joint [rad]")
+    g.add_argument("--frame", default=None,
+                   help="line, circle: frame whose origin moves (default: the model's last frame)")
+    g.add_argument("--end", metavar="X,Y,Z", default=None,
+                   help="line: end point [m] (the line starts where the frame is at --home)")
+    g.add_argument("--radius", type=float, default=None,
+                   help="circle: radius [m]; the circle starts where the frame is at --home")
+    g.add_argument("--normal", metavar="X,Y,Z", default="0,0,1",
+                   help="circle: normal of its plane (0,0,1)")

@@ -1,0 +1,121 @@
+"""``rrr-pin reproduce``: the paper end to end on any plant (design, study, figures, report)."""
+
+from __future__ import annotations
+
+from .build import (
+    laws_from_args,
+    load_plant,
+    reference_from_args,
+    rejections_line,
+    settings_from_args,
+    tolerances_from_args,
+    torque_limit_from_args,
+    with_torque_limit,
+)
+from .common import check_out_early, claim_out, control_ss
+from .options import add_law_arguments, add_overwrite, add_plant_arguments
+
+__all__ = ["add", "run_reproduce"]
+
+
+def add(sub) -> None:
+    """Declare ``reproduce``."""
+    p = sub.add_parser(
+        "reproduce", help="the paper end to end: design, nominal and uncertain studies, figures",
+        description="Runs the loop-shaping design (section 4) and the closed-loop study "
+                    "(section 5): every --controllers law on the nominal plant and on "
+                    "uncertain plants, and writes fig2-fig4b, margins, fig5_nominal, "
+                    "fig6_uncertain, the plants (plants/*.urdf or *.xml), results.json, "
+                    "results.md and report.html into --out. Any plant: a serial arm or a "
+                    "closed chain (its own task path is its reference by default).")
+    add_plant_arguments(p)
+    add_law_arguments(p, 4.0, None)
+    p.add_argument("--samples", type=int, default=10, help="uncertain plants (10, the paper's)")
+    p.add_argument("--torque-limit", default=None, metavar="auto|P%|T1,T2,...",
+                   help="run the study under actuator limits |tau_j| <= T_j [N m] (sampled "
+                        "controllers: give --rate too), with hinf_aw added to --controllers "
+                        "and told the limits: auto = the URDF's effort limits; P%% = P percent "
+                        "of the peak torque the reference asks of the nominal plant, per joint "
+                        "(its inverse dynamics over the control instants); or one number per "
+                        "joint. results.json records the limits used (summary.torque_limit)")
+    p.add_argument("--no-certify", action="store_true",
+                   help="skip the frozen-configuration nu-gap certificate of each uncertain "
+                        "plant (about 0.3 s per plant)")
+    p.add_argument("--full-order", action="store_true",
+                   help="use the full-order K instead of the reduced eq. (18)")
+    p.add_argument("--out", default="results", metavar="DIR", help="output folder (results/)")
+    add_overwrite(p)
+    p.add_argument("--save-trajectories", nargs="?", const="npz", default=None,
+                   choices=("npz", "csv", "parquet"), metavar="FORMAT",
+                   help="also write every run's time series (t, q, qd, r, tau with units) as "
+                        "DIR/trajectories/<nominal|sampleNNN>_<controller>.FORMAT; FORMAT npz "
+                        "(default), csv or parquet; read with Trajectory.load")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run_reproduce)
+
+
+def run_reproduce(args) -> int:
+    """Design, run the study, write its outputs and print its summary."""
+    from tqdm import tqdm
+
+    from ..campaign.study import StudyConfig, check_study_size, run_study
+    from ..report.design import study_design
+    from ..report.margins import save_margins_figure
+    from ..report.plotting import save_design_figures, save_study_figures
+    from ..report.results import (
+        summary_lines,
+        write_results,
+        write_study_report,
+        write_trajectories,
+    )
+    from ..robust.certificates import CertificateSpec
+    from ..robust.loopshaping import design
+    from ..validation import check_count
+
+    out = check_out_early(args, "reproduce")  # a file, no permission, another tool's run
+    check_count("--samples", args.samples)
+    plant = load_plant(args)
+    settings = settings_from_args(args, plant.nq)
+    reference = reference_from_args(args, plant)
+    limit, limit_info = torque_limit_from_args(args, plant, reference, settings)
+    if limit is not None:
+        settings = with_torque_limit(settings, limit)
+    tolerances = tolerances_from_args(args, plant)
+    if out is None:  # --overwrite: the previous run is removed now that the options hold
+        out = claim_out(args, "reproduce")
+    d = design(lam=45.0, n=plant.nq)
+    laws, baseline = laws_from_args(args, plant, K=d.K_full if args.full_order else
+                                    d.K_reduced, torque_limit=limit,
+                                    extra=("hinf_aw",) if limit is not None else ())
+    config = StudyConfig(run=settings, samples=args.samples, seed=args.seed, jobs=args.jobs,
+                         baseline=baseline, tolerances=tolerances)
+    check_study_size(config, len(laws), plant.nq)  # before the design figures are written
+    figures = save_design_figures(d, out)
+    figures.append(save_margins_figure({"G K": control_ss(d.G * d.K)}, out))
+    bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{plant.name}: simulating",
+               disable=args.no_progress)
+    certificate = None if args.no_certify else CertificateSpec.from_design(
+        d, reduced=not args.full_order)
+    try:
+        result = run_study(plant, laws, config=config, reference=reference,
+                           certificate=certificate,
+                           progress=lambda done, total: bar.update(done - bar.n))
+    finally:  # on Ctrl-C too, so the interrupt message starts on a line of its own
+        bar.close()
+    result.torque_limit = limit_info
+    design_info = study_design(d, full_order=args.full_order)
+    data = write_results(result, out, design=design_info)
+    figures += save_study_figures(result, out, plant)
+    report = write_study_report(result, out, figures, design_info, plant, data=data)
+    saved = write_trajectories(result, out, args.save_trajectories)  # None: clears old ones
+    print(f"{plant.name}: {plant.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "
+          f"{', '.join(result.names)} (baseline {baseline})")
+    print("\n".join(summary_lines(result, data["summary"])))
+    if rejections_line(result.samples):
+        print(rejections_line(result.samples))
+    print(f"wrote {out}/results.json, results.md, plants/, {len(figures)} figures and "
+          f"{report.name} (open it in a browser)")
+    if saved:
+        print(f"wrote {len(saved)} trajectories to {out}/trajectories/ "
+              f"({args.save_trajectories})")
+    return 0
