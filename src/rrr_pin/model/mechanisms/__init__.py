@@ -8,7 +8,9 @@ independent reference of the loaded model), its MJCF body and its task path, gat
 :class:`~rrr_pin.model.mechanisms.base.Mechanism` registered in :data:`MECHANISMS`:
 
 * :mod:`~rrr_pin.model.mechanisms.fivebar`: the planar 5-bar (DexTAR class), ``"fivebar"``;
-* :mod:`~rrr_pin.model.mechanisms.delta`: Clavel's 3-DOF Delta, ``"delta"``.
+* :mod:`~rrr_pin.model.mechanisms.delta`: Clavel's 3-DOF Delta, ``"delta"``;
+* :mod:`~rrr_pin.model.mechanisms.threerrr`: the 3-RRR planar parallel manipulator,
+  ``"threerrr"``.
 
 A new kind is one module (a parameter dataclass and a ``Mechanism`` subclass) plus one line
 in :data:`MECHANISMS`. The functions here are generic: they find the kind of a parameter set
@@ -45,17 +47,20 @@ from .fivebar import (
     fivebar_fk,
     fivebar_ik,
 )
+from .threerrr import THREERRR, ThreeRRRParams
 
 __all__ = ["Mechanism", "MechanismError", "MECHANISMS", "mechanism_of", "mechanism_params",
            "is_mechanism_params", "mjcf_from_params", "write_mjcf", "check_mjcf",
            "home_configuration", "perturb_mechanism", "FiveBarParams", "DeltaParams",
            "fivebar_ik", "fivebar_fk", "fivebar_elbows", "delta_ik", "delta_fk",
-           "delta_elbows", "circle_point", "adept_point", "CIRCLE_RADIUS", "ADEPT_MM"]
+           "delta_elbows", "circle_point", "adept_point", "CIRCLE_RADIUS", "ADEPT_MM",
+           "ThreeRRRParams"]
 
 #: The registry: every built-in mechanism kind by name.
 MECHANISMS: dict[str, Mechanism] = {
     "fivebar": FIVEBAR,
     "delta": DELTA,
+    "threerrr": THREERRR,
 }
 
 _BY_PARAMS = {m.params: m for m in MECHANISMS.values()}

@@ -42,15 +42,20 @@ def rod_inertia(m: float, length: float, rho: float) -> tuple[float, float, floa
 
 
 def check_params(params) -> None:
-    """Check every field of a parameter set: ``home*`` real [m], the others > 0 [kg or m]."""
+    """Check every field of a parameter set: ``home*`` real [m], the others > 0 [kg or m].
+
+    A field's ``metadata["unit"]`` (``dataclasses.field``), when given, is the unit its
+    message names instead (``"rad"`` for an angle, ``"kg m^2"`` for a moment of inertia).
+    """
     for f in fields(params):
         if f.name == "name":
             continue
         value = getattr(params, f.name)
         if f.name.startswith("home"):
-            check_real(f.name, value, unit="m")
+            check_real(f.name, value, unit=f.metadata.get("unit", "m"))
         else:
-            check_positive(f.name, value, unit="kg" if f.name.startswith("m") else "m")
+            check_positive(f.name, value, unit=f.metadata.get(
+                "unit", "kg" if f.name.startswith("m") else "m"))
 
 
 
@@ -106,6 +111,9 @@ class Mechanism:
     lengths : tuple of str
         Fields perturbed by the length tolerance; the masses (fields ``m*``) take the inertia
         tolerance, and the rods' moments follow from mass and length.
+    inertias : tuple of str
+        Further fields perturbed by the inertia tolerance: moments of inertia that are
+        parameters of their own [kg m^2] (a platform's), not a rod's mass and length.
     path_label : str
         What the task path is, in a legend (``"tip circle (reference)"``).
     """
@@ -115,6 +123,7 @@ class Mechanism:
     title: ClassVar[str] = ""
     params: ClassVar[type] = type(None)
     lengths: ClassVar[tuple] = ()
+    inertias: ClassVar[tuple] = ()
 
     # --- what a kind provides ------------------------------------------------------------
     def ik(self, params, p) -> np.ndarray:
@@ -178,11 +187,11 @@ class Mechanism:
                 length: float = 0.05, attempts: int = 100):
         """Draw an uncertain mechanism: masses and lengths scaled by uniform factors.
 
-        As the paper's uncertain RRR (sec. 5): every mass by a factor in ``[1 - inertia,
-        1 + inertia]`` and every length (:attr:`lengths`) in ``[1 - length, 1 + length]``;
-        the rods' moments of inertia follow (uniform cylinders). A draw whose loop cannot
-        close, or whose ``home`` point it cannot reach, is drawn again (at most ``attempts``
-        times), so the plant is always closable.
+        As the paper's uncertain RRR (sec. 5): every mass (and :attr:`inertias`) by a factor
+        in ``[1 - inertia, 1 + inertia]`` and every length (:attr:`lengths`) in
+        ``[1 - length, 1 + length]``; the rods' moments of inertia follow (uniform cylinders).
+        A draw whose loop cannot close, or whose ``home`` point it cannot reach, is drawn again
+        (at most ``attempts`` times), so the plant is always closable.
 
         Returns
         -------
@@ -192,7 +201,7 @@ class Mechanism:
             Field name -> factor drawn.
         """
         names = [f.name for f in fields(params) if f.name.startswith("m")]
-        names += list(self.lengths)
+        names += list(self.inertias) + list(self.lengths)
         for _ in range(attempts):
             factors = {n: float(rng.uniform(1.0 - (length if n in self.lengths else inertia),
                                             1.0 + (length if n in self.lengths else inertia)))
