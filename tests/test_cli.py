@@ -90,7 +90,7 @@ def test_reproduce_saves_trajectories(tmp_path, capsys):
         e = traj.r - traj.q
         assert_allclose(np.sqrt(np.mean(e * e, axis=0)), group["hinf"]["rms_error"],
                         rtol=1e-12)
-    args = cli._build_parser().parse_args(["reproduce", "--save-trajectories"])
+    args = cli.build_parser().parse_args(["reproduce", "--save-trajectories"])
     assert args.save_trajectories == "npz"  # the documented default format
 
 
@@ -197,7 +197,7 @@ def test_help_loads_no_numerical_library():
     import subprocess
     import sys
 
-    code = ("import sys, rrr_pin.cli as c; c._build_parser(); "
+    code = ("import sys, rrr_pin.cli as c; c.build_parser(); "
             "print(sorted(m for m in ('pinocchio', 'control', 'numpy') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip().splitlines()[-1]
@@ -314,7 +314,7 @@ def test_force_help_names_the_bounds():
     # The help spells the bounds without importing them (it must not load NumPy).
     from rrr_pin.sim.simulation import MAX_SAMPLES, MAX_SUBSTEPS
 
-    text = cli._build_parser()._subparsers._group_actions[0].choices["montecarlo"].format_help()
+    text = cli.build_parser()._subparsers._group_actions[0].choices["montecarlo"].format_help()
     assert f"{MAX_SUBSTEPS:.0e}".replace("+0", "") in text
     assert f"{MAX_SAMPLES:.0e}".replace("+0", "") in text
 

@@ -133,7 +133,7 @@ def test_montecarlo_sigterm_in_process_exits_143_with_the_count(tmp_path, capsys
     assert code == 143
     assert len(lines) == 1 and lines[0].startswith(
         "rrr-pin montecarlo: campaign interrupted (received SIGTERM): "), lines
-    assert "of 40 samples done" in lines[0] and "--resume" in lines[0]
+    assert "of 41 samples done" in lines[0] and "--resume" in lines[0]
 
 
 @pytest.mark.slow

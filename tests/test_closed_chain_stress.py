@@ -169,7 +169,7 @@ def test_cli_stress_fivebar_writes_figure_and_json(tmp_path, capsys):
 
 def test_cli_stress_on_a_chain_builds_every_built_in_law():
     # The chain study's laws (make_chain_law): PD and the 2-DOF law have reduced forms too.
-    args = cli._build_parser().parse_args(["stress", "--robot", "fivebar", "--effect", "delay",
+    args = cli.build_parser().parse_args(["stress", "--robot", "fivebar", "--effect", "delay",
                                            "--controllers", "fl,pd,hinf2dof"])
     chain, laws, _ = cli._stress_chain(args)
     assert [type(law).__name__ for law in laws] == ["ReducedTracking", "ReducedPD",

@@ -164,14 +164,14 @@ def test_interrupted_campaign_resumes_to_identical_tables(tmp_path):
     assert proc.returncode == 130, err
     assert "samples done" in err and "--resume" in err and "Traceback" not in err
     kept = len(parts.read_text().splitlines())
-    assert 2 <= kept < 12
+    assert 2 <= kept < 13  # the 12 samples and the nominal plant (row -1)
     assert not (out / "campaign.csv").exists()
     # Without --resume the folder is refused; with it, only the missing samples run.
     refused = subprocess.run(_mc(out), capture_output=True, text=True, timeout=60)
     assert refused.returncode == 2 and "--resume" in refused.stderr
     done = subprocess.run(_mc(out, "--resume"), capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
-    assert f"{kept} of 12 samples already done" in done.stdout
+    assert f"{kept} of 13 plants (with the nominal) already done" in done.stdout
     for name in ("campaign.csv", "samples.jsonl", "summary.json"):
         a, b = (ref / name).read_bytes(), (out / name).read_bytes()
         if name == "summary.json":  # identical but for the list of files this run wrote
@@ -233,9 +233,9 @@ def test_chunk_tasks_are_frozen_picklable_and_give_the_rows(setup, serial):
     from rrr_pin.model.dh import paper_params
 
     robot, laws = setup
+    assert robot.params == paper_params()
     job = mc.CampaignJob(settings=SETTINGS, laws=tuple(laws), reference=default_reference(robot),
-                         source=paper_params(), gravity=robot.gravity, lock=(),
-                         skip_joints=(), joint_names=tuple(robot.joint_names))
+                         nominal=robot)
     task = pickle.loads(pickle.dumps(mc.CampaignChunk(job, (1, 2))))
     assert mc.run_chunk(task) == serial.rows[1:3]
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -243,14 +243,16 @@ def test_chunk_tasks_are_frozen_picklable_and_give_the_rows(setup, serial):
 
 
 def test_rrr_campaign_perturbs_the_papers_parameters(setup, serial):
-    # The "rrr means paper_params()" rule (rrr_pin.model.robots.nominal_params): the default
-    # (the `serial` campaign) equals passing the parameters.
+    # The "rrr means paper_params()" rule (rrr_pin.model.robots.nominal_params): sample k of
+    # seed s is sample_plant(paper_params(), s, k), drawn here independently of the campaign.
     from rrr_pin.model.dh import paper_params
+    from rrr_pin.model.uncertainty import sample_plant
 
-    robot, laws = setup
-    settings = mc.CampaignSettings(samples=1, run=RUN)
-    given = mc.run_campaign(robot, laws, settings, params=paper_params(), jobs=1)
-    assert given.rows == serial.rows[:1]
+    robot, _ = setup
+    assert robot.params == paper_params()
+    for k in (0, 1):
+        expected = sample_plant(paper_params(), serial.settings["seed"], k)
+        assert serial.rows[k]["parameters"] == expected.parameters
 
 
 # --- degenerate metrics (issue 24) ------------------------------------------------------------

@@ -281,10 +281,10 @@ def test_montecarlo_full_disk_keeps_the_rows(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert f"cannot write {out / 'montecarlo.png'}: No space left on device (ENOSPC)" in err
     assert "--resume" in err and "Traceback" not in err
-    assert len((out / "parts.jsonl").read_text().splitlines()) == 2
+    assert len((out / "parts.jsonl").read_text().splitlines()) == 3  # and the nominal plant
     monkeypatch.undo()
     assert cli.main(argv + ["--resume"]) == 0
-    assert "resuming: 2 of 2 samples already done" in capsys.readouterr().out
+    assert "resuming: 3 of 3 plants (with the nominal) already done" in capsys.readouterr().out
     assert (out / "montecarlo.png").is_file()
 
 

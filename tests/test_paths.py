@@ -150,7 +150,7 @@ def test_study_reports_the_cartesian_error_of_a_task_space_reference(rrr, tmp_pa
     got = np.array([rrr.frame_placement(q, "ee")[:3, 3] for q in traj.q])
     d = np.linalg.norm(got - want, axis=1)
     assert_allclose(ts["nominal"]["fl"]["rms_error_m"], np.sqrt(np.mean(d * d)), rtol=1e-9)
-    plant = robot_from_xml(result.plants[0].urdf, check=False)
+    plant = robot_from_xml(result.plants[0].plant.urdf, check=False)
     q1 = result.samples[0]["trajectories"]["fl"].q
     d1 = np.linalg.norm(np.array([plant.frame_placement(q, "ee")[:3, 3] for q in q1]) - want,
                         axis=1)

@@ -3,7 +3,7 @@
 Everything is read from README.md at test time, so a section added later is checked too:
 
 * every ``rrr-pin`` command of a fenced ``sh``/``bash`` block parses with the real parser
-  (``rrr_pin.cli._build_parser``), and the concrete ones (no ``[...]``, ``|`` or ``...``) run
+  (``rrr_pin.cli.build_parser``), and the concrete ones (no ``[...]``, ``|`` or ``...``) run
   for real, in-process, in a temporary folder, with the small overrides of :data:`SHRINK`
   (their README settings take minutes); :data:`PARSE_ONLY` names the ones that only parse, and
   why. A synopsis line, and every inline ``rrr-pin ...`` span of the prose, must name only
@@ -38,6 +38,7 @@ import pytest
 import tomllib
 
 from rrr_pin import cli
+from rrr_pin.cli.common import parse_lock
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
@@ -128,7 +129,7 @@ def is_synopsis(argv: list[str]) -> bool:
     return any(c in " ".join(argv) for c in ("[", "|", "..."))
 
 
-PARSER = cli._build_parser()
+PARSER = cli.build_parser()
 SUBCOMMANDS = next(a for a in PARSER._actions
                    if isinstance(a, argparse._SubParsersAction)).choices
 
@@ -226,7 +227,7 @@ def test_reproduce_arms_load(argv, line):
     from rrr_pin.model.dynamics import load_robot
 
     args = PARSER.parse_args(argv)
-    robot = load_robot(args.robot, lock=cli._parse_lock(args.lock))
+    robot = load_robot(args.robot, lock=parse_lock(args.lock))
     assert robot.nq >= 1, f"README line {line}"
 
 

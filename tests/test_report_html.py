@@ -267,21 +267,25 @@ def small_study(rrr):
     return run_study(rrr, laws, config=StudyConfig(run=run, samples=2, jobs=1))
 
 
-def test_study_report_builds_each_plant_model_once(small_study, rrr, tmp_path, monkeypatch):
-    # 2 laws x 2 plants: one model per plant (2 builds), shared by both laws' scenes.
+def test_study_report_draws_the_studys_own_plants(small_study, rrr, tmp_path, monkeypatch):
+    # 2 laws x 2 plants: the scenes draw the study's plant objects (each uncertain plant with
+    # its own perturbed dimensions), none rebuilt from a description.
+    import rrr_pin.model.dynamics as dynamics
     import rrr_pin.report.results as results
 
-    calls = []
-    real = results.robot_from_xml
+    monkeypatch.setattr(dynamics, "robot_from_xml", None)  # a rebuild would fail here
+    drawn = []
+    real = results.Track
 
-    def counting(*args, **kwargs):
-        calls.append(kwargs["name"])
+    def track(*args, **kwargs):
+        drawn.append(kwargs.get("robot"))
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(results, "robot_from_xml", counting)
+    monkeypatch.setattr(results, "Track", track)
     path = results.write_study_report(small_study, tmp_path, [], {"gamma": 2.1}, rrr)
     assert path == tmp_path / "report.html"
-    assert calls == ["sample0", "sample1"]
+    ghosts = [p.plant for p in small_study.plants]
+    assert [r for r in drawn if r is not None] == ghosts * 2  # each law's scene, same objects
     text = path.read_text()
     assert text.count("uncertain plant 1") >= 2  # a ghost in each law's scene
     assert "rrr-pin study on rrr" in text

@@ -232,11 +232,12 @@ def test_auto_engine_choice_is_logged_with_its_reason(caplog):
     with caplog.at_level(logging.DEBUG, logger="rrr_pin.sim.simulation"):
         fl = simulate(robot, fl_controller(robot), ref, 0.01, dt=1e-3)
         hold = simulate(robot, Hold(), ref, 0.01, dt=1e-3)
-    said = [r.getMessage() for r in caplog.records if "engine auto chose" in r.getMessage()]
-    # the engine named is the one the run records as used
-    assert said[0].startswith(f"engine auto chose {fl.info['engine']} for law 'fl' because ")
-    assert said[1] == ("engine auto chose python for law 'hold' because it declares no "
-                       "compiled form") and hold.info["engine"] == "python"
+    said = [r.getMessage() for r in caplog.records if r.getMessage().startswith("engine for")]
+    # the engine named is the one the run records as used, with the same reason
+    assert said[0] == f"engine for law 'fl': {fl.info['engine']} ({fl.info['engine_note']})"
+    assert hold.info["engine"] == "python"
+    assert "law 'hold' (Hold) declares no compiled form" in hold.info["engine_note"]
+    assert said[1] == f"engine for law 'hold': python ({hold.info['engine_note']})"
 
 
 # --- a user's law that returns the wrong thing (issue 24) -----------------------------------

@@ -70,7 +70,7 @@ def option(field):
 
 
 @pytest.mark.parametrize("spec, message", [
-    (ReferenceSpec(kind="zigzag"), "--reference 'zigzag' is unknown; known: sine"),
+    (ReferenceSpec(kind="zigzag"), "--reference 'zigzag' is unknown; known: study, sine"),
     (ReferenceSpec(kind="spline"), "--reference spline needs --csv PATH"),
     (ReferenceSpec(kind="quintic"), "--reference quintic needs --to"),
     (ReferenceSpec(kind="quintic", to=(0, 0, 0), move_time=0.0),
@@ -91,7 +91,8 @@ def test_default_label_is_the_field_name(rrr):
 
 
 def test_every_kind_is_documented():
-    assert set(KINDS) == {"sine", "quintic", "spline", "line", "circle"}
+    assert set(KINDS) == {"study", "sine", "quintic", "spline", "line", "circle"}
+    assert all(isinstance(v, str) and v for v in KINDS.values())
 
 
 @pytest.mark.parametrize("amp", [10.0, 3.0], ids=["amp-10", "amp-3"])

@@ -208,7 +208,7 @@ def test_study_and_campaign_share_one_settings_record():
 @pytest.mark.parametrize("kwargs,error,message", [
     ({"run": {"duration": 1.0}}, TypeError, "run must be a RunSettings, got dict"),
     ({"tolerances": 0.2}, TypeError,
-     "tolerances must be a Tolerances or IdentifiedUncertainty, got float"),
+     "tolerances must be an UncertaintySet, got float"),
     ({"baseline": None}, TypeError, "baseline must be a str, got NoneType"),
     ({"samples": 2.5}, ValueError, "samples must be an integer >= 0, got 2.5"),
     ({"jobs": True}, TypeError, "jobs must be an integer >= 1"),
@@ -221,11 +221,13 @@ def test_config_refuses_wrong_types(kwargs, error, message):
 def test_plant_tasks_are_frozen_and_rrr_plants_come_from_the_papers_parameters(robot,
                                                                                monkeypatch):
     # Every task sent to a worker is a frozen PlantTask; for "rrr" the plants perturb the
-    # paper's DH parameters (rrr_pin.model.robots.nominal_params), as for params=paper_params().
+    # paper's DH parameters (rrr_pin.model.robots.nominal_params): plant k of seed s is
+    # sample_plant(paper_params(), s, k), drawn here independently of the study.
     import dataclasses
 
     import rrr_pin.campaign.study as study
     from rrr_pin.model.dh import paper_params
+    from rrr_pin.model.uncertainty import sample_plant
 
     seen = []
     real = study.run_plants
@@ -236,14 +238,16 @@ def test_plant_tasks_are_frozen_and_rrr_plants_come_from_the_papers_parameters(r
 
     monkeypatch.setattr(study, "run_plants", spy)
     laws = [fl_controller(robot)]
-    a = run_study(robot, laws, config=_config(samples=1, jobs=1))
-    b = run_study(robot, laws, config=_config(samples=1, jobs=1), params=paper_params())
-    assert all(isinstance(t, study.PlantTask) for t in seen) and len(seen) == 4
+    config = _config(samples=1, jobs=1)
+    a = run_study(robot, laws, config=config)
+    assert all(isinstance(t, study.PlantTask) for t in seen) and len(seen) == 2
     with pytest.raises(dataclasses.FrozenInstanceError):
         seen[0].certify = True
     assert [t.certify for t in seen[:2]] == [False, True]
-    assert a.plants[0].urdf == b.plants[0].urdf
-    assert a.to_json()["uncertain"]["samples"] == b.to_json()["uncertain"]["samples"]
+    assert robot.params == paper_params()
+    expected = sample_plant(paper_params(), config.seed, 0, config.tolerances)
+    assert a.plants[0].plant.urdf == expected.urdf
+    assert a.plants[0].parameters == expected.parameters
 
 
 def test_a_study_too_large_to_keep_is_refused_before_any_work():

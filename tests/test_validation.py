@@ -15,6 +15,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rrr_pin import cli
+from rrr_pin.cli.common import parse_lock
 from rrr_pin.model.dh import INERTIA_RTOL, ArmParams, check_inertial, paper_params
 from rrr_pin.model.dynamics import check_urdf_inertials, load_robot
 from rrr_pin.model.robots import RobotModelError
@@ -188,7 +189,7 @@ def test_bad_lock_value_refused(tmp_path, value, match):
 
 def test_cli_lock_parse_refuses_duplicates():
     with pytest.raises(ValueError, match="--lock j1 given twice"):
-        cli._parse_lock(["j1=0", "j1=0.5"])
+        parse_lock(["j1=0", "j1=0.5"])
 
 
 def test_binary_urdf_names_the_file(tmp_path, capsys):

@@ -76,7 +76,8 @@ class Settings:
             if not isinstance(value, kind):
                 names = " or ".join(k.__name__ for k in (kind if isinstance(kind, tuple)
                                                           else (kind,)))
-                raise TypeError(f"{key} must be a {names}, got {type(value).__name__}")
+                article = "an" if names[0] in "AEIOU" else "a"
+                raise TypeError(f"{key} must be {article} {names}, got {type(value).__name__}")
 
     def to_dict(self) -> dict:
         """JSON-ready settings (units in the key names), as recorded in the outputs."""

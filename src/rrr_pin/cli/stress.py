@@ -101,13 +101,13 @@ def run_stress(args) -> int:
                                                   force=args.force),
                                   budget=args.budget)
     stem = args.effect + "".join(f"_with_{k}{v:g}" for k, v in fixed.items())
+    claim_out(args, "stress", part=stem)  # one folder holds every effect's run
     plant = load_plant(args)
     home = floats(args.home, "--home")
     reference = ReferenceSpec(kind="study", home=None if home is None else tuple(home)).build(
         plant, args.duration, label=option)
     with as_options():
         laws = make_laws(args.controllers, plant)
-    claim_out(args, "stress", part=stem)  # one folder holds every effect's run
     start = time.perf_counter()
     bar = tqdm(total=len(laws), unit="law", desc=f"{plant.name}: stress {args.effect}",
                disable=args.no_progress)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..campaign.study import StudyResult
+from ..control.laws import TrackingController
 from ..outputs import writing
 from .design import DESIGN_UNITS
 from .html import write_report_html
@@ -34,7 +35,7 @@ PAPER_ERROR_RATIO = 10.0
 #: claims are checked only when both are the built-in tracking law (not a user's law that
 #: happens to carry one of these names).
 PAPER_LAWS = ("fl", "hinf")
-_TRACKING = "rrr_pin.control.laws.TrackingController"
+_TRACKING = f"{TrackingController.__module__}.{TrackingController.__qualname__}"
 
 #: Nominal errors below this fraction of the reference amplitude count as "equivalent": both
 #: at the noise level of the integrator (continuous-time laws, ~1e-9 rad) or of the sampling
