@@ -63,6 +63,8 @@ __all__ = [
     "run_study",
     "summarize",
     "task_space_errors",
+    "refined_run",
+    "refined_nominal_errors",
     "MAX_STUDY_BYTES",
     "check_study_size",
 ]
@@ -213,6 +215,11 @@ class StudyResult:
     torque_limit : dict
         How the torque limit was chosen (e.g. by the CLI: ``spec``, ``rule``,
         ``peak_torque_Nm``), recorded in ``summary["torque_limit"]``.
+    refined : dict
+        Per law, the nominal run's largest error [rad] with the discretization halved
+        (:func:`refined_nominal_errors`; None where not measured), recorded in
+        ``summary["nominal_max_error_refined"]``: how much of the nominal error is the
+        sampling's or the integrator's.
     """
 
     robot: str
@@ -228,6 +235,7 @@ class StudyResult:
     task_space: dict = field(default_factory=dict)
     dropped: dict = field(default_factory=dict)
     torque_limit: dict = field(default_factory=dict)
+    refined: dict = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:
@@ -321,6 +329,8 @@ def summarize(result: StudyResult) -> dict:
     out = {
         "baseline": base,
         "nominal_max_error": {k: float(np.max(np.abs(result.nominal[k].error))) for k in names},
+        **({"nominal_max_error_refined": {k: result.refined.get(k) for k in names}}
+           if result.refined else {}),
         "samples_ok": len(ok),
         "samples_diverged": len(result.samples) - len(ok),
         "diverged": {k: sum(1 for s in result.samples if k not in s.get("metrics", {}))
@@ -408,6 +418,48 @@ def _torque_limit_summary(result: StudyResult) -> dict:
     return {**result.torque_limit, "limit_Nm": limit,
             "saturated_means": "fraction [-] of the control periods with any joint at its limit",
             "laws": laws}
+
+
+def refined_run(run: RunSettings) -> RunSettings | None:
+    """Return the run with its discretization halved, or None when it cannot be.
+
+    Twice the rate (and half the sub-step), or half the RK4 step of a continuous-time law;
+    None when the settings refuse it (a delay off the finer grid).
+    """
+    import dataclasses
+
+    try:
+        if run.rate is not None:
+            return dataclasses.replace(run, rate=2.0 * run.rate, dt=0.5 * run.dt)
+        return dataclasses.replace(run, dt=0.5 * run.dt)
+    except ValueError:
+        return None
+
+
+def refined_nominal_errors(nominal, laws, reference, run: RunSettings) -> dict:
+    """Each law's largest nominal error [rad] with the discretization halved (:func:`refined_run`).
+
+    On the nominal plant the law's model is exact, so its tracking error is the sampling's
+    (zero-order hold: first order in the period) or the integrator's (RK4: fourth order in the
+    step), plus round-off: the error falls when the discretization is refined. A law sampled at
+    its own fixed rate (a :class:`~rrr_pin.control.laws.SampledLaw`), a run that cannot be
+    refined, or one that ends, gives None.
+    """
+    from ..control.laws import SampledLaw
+
+    fine = refined_run(run)
+    out = {}
+    for law in laws:
+        out[law.name] = None
+        if fine is None or isinstance(law, SampledLaw):
+            continue
+        try:
+            traj = run_laws(nominal, [law], reference, fine)[law.name]
+        except ValueError:  # a setting the refined grid cannot realize
+            continue
+        if not isinstance(traj, Exception):
+            out[law.name] = float(np.max(np.abs(traj.error)))
+    return out
 
 
 def task_space_errors(reference: TaskSpaceReference, nominal, runs: dict,
@@ -626,6 +678,7 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
             entry["certificate"] = cert
         samples.append(entry)
     nominal_runs = {k: v for k, v in outputs[0][0].items() if k not in dropped}
+    refined = refined_nominal_errors(nominal, laws, reference, config.run)
     task_space = (task_space_errors(reference, nominal, nominal_runs, samples, plants)
                   if isinstance(reference, TaskSpaceReference) else {})
     logger.info("study on %s done in %.1f s: %d of %d uncertain plants ran every law",
@@ -635,4 +688,4 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
                        config=config, laws=[law.describe() for law in laws],
                        nominal=nominal_runs, samples=samples, plants=plants,
                        certificate=certificate.to_dict() if certificate is not None else None,
-                       task_space=task_space, dropped=dropped)
+                       task_space=task_space, dropped=dropped, refined=refined)
