@@ -47,7 +47,7 @@ import math
 import os
 import tempfile
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -109,6 +109,10 @@ class SingularConfiguration(ValueError):
     def __init__(self, message: str, cond: float):
         super().__init__(message)
         self.cond = cond
+
+    def __reduce__(self):
+        # A run's outcome travels back from a worker process: rebuild with both arguments.
+        return (type(self), (str(self), self.cond))
 
 
 class LoopClosureError(ValueError):
@@ -623,7 +627,8 @@ class ClosedChain(Plant):
 
         The mechanism's parameter set is perturbed (a built-in's, or your own
         :class:`~rrr_pin.model.mechanisms.FiveBarParams` / ``DeltaParams``); an MJCF file
-        without one is refused. Returns the closed chain and ``{"factors": ...}``.
+        without one is refused. Returns the closed chain and ``{"params", "factors"}`` (the
+        parameter set drawn, and each field's factor).
         """
         if not isinstance(tolerances, UncertaintySet):
             raise TypeError(f"tolerances must be an uncertainty set (e.g. "
@@ -633,9 +638,10 @@ class ClosedChain(Plant):
                              f"perturbed (its uncertain plants perturb a FiveBarParams or "
                              f"DeltaParams); load a built-in or your own parameter set")
         params, factors = tolerances.mechanism(self.params, rng)
+        record = {"params": asdict(params), "factors": factors}
         if name:
             params = replace(params, name=name)
-        return load_closed_chain(params, gravity=self.gravity), {"factors": factors}
+        return load_closed_chain(params, gravity=self.gravity), record
 
     # --- the plant ---------------------------------------------------------------------------
     def actuation(self, tau) -> np.ndarray:

@@ -83,6 +83,9 @@ class CapabilityError(ValueError):
         super().__init__(message)
         self.capability = capability
 
+    def __reduce__(self):
+        return (type(self), (str(self), self.capability))
+
 
 @dataclass(frozen=True, eq=False)
 class TreeDescription:
