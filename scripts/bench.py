@@ -281,16 +281,15 @@ def closed_chain_ms(duration, rate, repeat):
     from rrr_pin.control.laws import fl_controller
     from rrr_pin.control.references import SineReference
     from rrr_pin.model.closed_chain import load_closed_chain
-    from rrr_pin.sim.chain_compiled import compile_chain
-    from rrr_pin.sim.extension import EXTENSION
+    from rrr_pin.sim.compiled import acceleration_ms
 
     plant, nominal = load_closed_chain("fivebar"), load_closed_chain("fivebar")
     ref = SineReference(home=plant.neutral(), amp=0.05, freq=0.5, phase=0.0)
     law = fl_controller(nominal)
     q, qd = plant.home, plant.velocity(plant.home, np.array([0.1, -0.1]))
-    u = plant.actuation(np.array([0.1, 0.1]))
+    tau = np.array([0.1, 0.1])
+    u = plant.actuation(tau)
     calls = 4 * int(round(duration * rate))
-    cm = compile_chain(plant)
 
     def calls_alone():
         for _ in range(calls):
@@ -299,7 +298,7 @@ def closed_chain_ms(duration, rate, repeat):
     fast = side_by_side_ms(
         {"compiled": lambda: simulate(plant, law, ref, duration, rate=rate, engine="compiled"),
          "calls": calls_alone,
-         "floor_kkt": lambda: 1e3 * EXTENSION.chain_kkt_timing(cm, q, qd, u, calls)}, repeat)
+         "floor_kkt": lambda: acceleration_ms(plant, q, qd, tau, calls, repeat=1)}, repeat)
     slow = side_by_side_ms(
         {"python": lambda: simulate(plant, law, ref, duration, rate=rate, engine="python")}, 1)
     traj = {e: simulate(plant, law, ref, duration, rate=rate, engine=e)
