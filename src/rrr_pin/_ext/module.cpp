@@ -10,8 +10,6 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 
-#include <pinocchio/algorithm/jacobian.hpp>
-
 #include "rollout.hpp"
 
 namespace nb = nanobind;

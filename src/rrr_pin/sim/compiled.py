@@ -222,6 +222,11 @@ def check_reference_compiled(plant, t, R) -> dict | None:
         Sample times [s].
     R : ndarray, shape (N, plant.nq)
         Actuated reference [rad].
+
+    Returns
+    -------
+    dict or None
+        What the run records of the path, or None where the check fails.
     """
     compiled = compile_robot(plant)
     status, k, cond = EXTENSION.check_reference(compiled._model,
@@ -395,6 +400,11 @@ def acceleration_ms(plant, x, v, tau, calls: int, repeat: int = 5) -> float:
         Accelerations per run, >= 0.
     repeat : int, default 5
         Runs, >= 1.
+
+    Returns
+    -------
+    float
+        Wall time [ms] of the fastest run.
     """
     compiled = compile_robot(plant)
     if repeat < 1:
