@@ -41,6 +41,7 @@ Usage::
     python scripts/bench.py --json           # one JSON object
     python scripts/bench.py --campaign-samples 1000   # the campaign of issue 13's table
     python scripts/bench.py --quick          # seconds, to check that it runs
+    python scripts/bench.py --sections 2,2b,2c,4b   # the engines' sections alone
     python scripts/bench.py --export         # also section 9 (builds three exports)
 """
 
@@ -271,25 +272,24 @@ def closed_chain_ms(duration, rate, repeat):
     """Issue 22: a closed-loop FL run of the 5-bar on both engines, against its KKT calls alone.
 
     The run: ``simulate`` of the FL law on the reduced model, 1 sub-step per period, on the
-    Python engine and on the compiled one (:mod:`rrr_pin.sim.chain_compiled`). The floors: the
+    Python engine and on the compiled one (:mod:`rrr_pin.sim.compiled`). The floors: the
     ``4 x steps`` ``pin.constraintDynamics`` calls the Python engine's RK4 plant makes, in a
     bare Python loop, and as many exact-KKT accelerations of the compiled engine in a bare C++
     loop. The Python engine runs twice (a warm-up and one timed run: 15 s each), the others
     ``repeat`` times, interleaved.
     """
-    from rrr_pin.control.closed_chain import closed_chain_fl
+    from rrr_pin.control.laws import fl_controller
     from rrr_pin.control.references import SineReference
     from rrr_pin.model.closed_chain import load_closed_chain
-    from rrr_pin.sim.chain_compiled import compile_chain
-    from rrr_pin.sim.extension import EXTENSION
+    from rrr_pin.sim.compiled import acceleration_ms
 
     plant, nominal = load_closed_chain("fivebar"), load_closed_chain("fivebar")
     ref = SineReference(home=plant.neutral(), amp=0.05, freq=0.5, phase=0.0)
-    law = closed_chain_fl(nominal)
+    law = fl_controller(nominal)
     q, qd = plant.home, plant.velocity(plant.home, np.array([0.1, -0.1]))
-    u = plant.actuation(np.array([0.1, 0.1]))
+    tau = np.array([0.1, 0.1])
+    u = plant.actuation(tau)
     calls = 4 * int(round(duration * rate))
-    cm = compile_chain(plant)
 
     def calls_alone():
         for _ in range(calls):
@@ -298,7 +298,7 @@ def closed_chain_ms(duration, rate, repeat):
     fast = side_by_side_ms(
         {"compiled": lambda: simulate(plant, law, ref, duration, rate=rate, engine="compiled"),
          "calls": calls_alone,
-         "floor_kkt": lambda: 1e3 * EXTENSION.chain_kkt_timing(cm, q, qd, u, calls)}, repeat)
+         "floor_kkt": lambda: acceleration_ms(plant, q, qd, tau, calls, repeat=1)}, repeat)
     slow = side_by_side_ms(
         {"python": lambda: simulate(plant, law, ref, duration, rate=rate, engine="python")}, 1)
     traj = {e: simulate(plant, law, ref, duration, rate=rate, engine=e)
@@ -393,9 +393,16 @@ def loopsyn_3x3_s(repeat: int = 1) -> float:
     return best
 
 
+#: The sections, in order (``--sections``); 9 only with ``--export``.
+SECTIONS = ("1", "2", "2b", "2c", "3", "4", "4b", "5", "6", "7", "8")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--sections", default=",".join(SECTIONS),
+                        help=f"comma-separated sections to run, of {', '.join(SECTIONS)} "
+                             f"(default: all); e.g. 2,2b,2c,4b for the engines alone")
     parser.add_argument("--duration", type=float, default=10.0, help="rollout length [s] (10)")
     parser.add_argument("--rate", type=float, default=1000.0, help="control rate [Hz] (1000)")
     parser.add_argument("--repeat", type=int, default=5, help="runs per rollout timing (5)")
@@ -410,36 +417,51 @@ def main(argv=None):
                         help="tiny settings (0.05 s rollouts, 2 plants), to check that it runs")
     parser.add_argument("--export", metavar="DIR", nargs="?", const="bench_export",
                         default=None,
-                        help="also section 6, the exported ctrl_step (three CMake builds in DIR, "
+                        help="also section 9, the exported ctrl_step (three CMake builds in DIR, "
                              "bench_export/, minutes)")
     args = parser.parse_args(argv)
+    sections = [x.strip() for x in args.sections.split(",") if x.strip()]
+    unknown = [x for x in sections if x not in SECTIONS]
+    if unknown:
+        parser.error(f"--sections: unknown {', '.join(unknown)} (known: {', '.join(SECTIONS)})")
+    args.sections = set(sections)
     if args.quick:
         args.duration, args.repeat, args.calls = 0.05, 1, 20
         args.campaign_samples, args.mc_samples, args.startup_repeat = 2, 2, 1
+    run = args.sections.__contains__
 
     robot = rrr_pin.load_robot("rrr")
     params = rrr_pin.paper_params()
     model, data = robot.model, robot.data
     rng = np.random.default_rng(0)
     q, qd = rng.uniform(-np.pi, np.pi, 3), rng.uniform(-5, 5, 3)
+    result = {"machine": machine()}
 
     # 1. Per call. The bare calls are the ones the Robot methods make (V: RNEA with zero
     # acceleration on the zero-gravity copy of the model).
-    m0, d0, zero = robot._model0, robot._data0, np.zeros(robot.nq)
-    calls = {
-        "M": {"robot": lambda: robot.M(q), "robot_unchecked": lambda: robot.M(q, check=False),
-              "bare": lambda: pin.crba(model, data, q),
-              "closed_form": lambda: closed_form.M(params, q)},
-        "V": {"robot": lambda: robot.V(q, qd),
-              "robot_unchecked": lambda: robot.V(q, qd, check=False),
-              "bare": lambda: pin.rnea(m0, d0, q, qd, zero),
-              "closed_form": lambda: closed_form.V(params, q, qd)},
-        "G": {"robot": lambda: robot.G(q), "robot_unchecked": lambda: robot.G(q, check=False),
-              "bare": lambda: pin.computeGeneralizedGravity(model, data, q),
-              "closed_form": lambda: closed_form.G(params, q)},
-    }
-    per_call = {k: {path: per_call_us(fn, args.calls) for path, fn in v.items()}
-                for k, v in calls.items()}
+    if run("1"):
+        m0, d0, zero = robot._model0, robot._data0, np.zeros(robot.nq)
+        calls = {
+            "M": {"robot": lambda: robot.M(q),
+                  "robot_unchecked": lambda: robot.M(q, check=False),
+                  "bare": lambda: pin.crba(model, data, q),
+                  "closed_form": lambda: closed_form.M(params, q)},
+            "V": {"robot": lambda: robot.V(q, qd),
+                  "robot_unchecked": lambda: robot.V(q, qd, check=False),
+                  "bare": lambda: pin.rnea(m0, d0, q, qd, zero),
+                  "closed_form": lambda: closed_form.V(params, q, qd)},
+            "G": {"robot": lambda: robot.G(q),
+                  "robot_unchecked": lambda: robot.G(q, check=False),
+                  "bare": lambda: pin.computeGeneralizedGravity(model, data, q),
+                  "closed_form": lambda: closed_form.G(params, q)},
+        }
+        per_call = {k: {path: per_call_us(fn, args.calls) for path, fn in v.items()}
+                    for k, v in calls.items()}
+        result.update({"per_call_us": per_call,
+                       "robot_call_us": {k: v["robot"] for k, v in per_call.items()},
+                       "robot_call_unchecked_us": {k: v["robot_unchecked"]
+                                                   for k, v in per_call.items()},
+                       "bare_call_us": {k: v["bare"] for k, v in per_call.items()}})
 
     # 2. Compiled rollouts against the floor, every law x time x reference.
     laws = dict(zip(("fl", "hinf", "pd"), make_laws("fl,hinf,pd", robot, K=K18), strict=True))
@@ -447,71 +469,105 @@ def main(argv=None):
     n_steps = int(round(args.duration * args.rate))
     n_rk4 = int(round(args.duration / 1e-3))
     floors = {}
-    compiled_rows = []
-    for name, law in laws.items():
-        kind = law.compiled_form().kind
-        for timing, rate in (("sampled", args.rate), ("continuous", None)):
-            steps = n_steps if rate else n_rk4
-            for ref_name, ref in refs.items():
-                ms = side_by_side_ms({
-                    "compiled": lambda law=law, ref=ref, rate=rate: simulate(
-                        robot, law, ref, args.duration, rate=rate, engine="compiled"),
-                    "floor": lambda kind=kind, rate=rate, steps=steps: floor_ms(
-                        robot, robot, steps, repeat=1, kind=kind, sampled=rate is not None),
-                }, args.repeat)
-                key = kind, timing
-                floors[key] = min(floors.get(key, float("inf")), ms["floor"])
-                compiled_rows.append({"law": name, "time": timing, "reference": ref_name,
-                                      "compiled_ms": ms["compiled"], "floor_ms": ms["floor"],
-                                      "ratio": ms["compiled"] / ms["floor"]})
+    if run("2"):
+        compiled_rows = []
+        for name, law in laws.items():
+            kind = law.compiled_form().kind
+            for timing, rate in (("sampled", args.rate), ("continuous", None)):
+                steps = n_steps if rate else n_rk4
+                for ref_name, ref in refs.items():
+                    ms = side_by_side_ms({
+                        "compiled": lambda law=law, ref=ref, rate=rate: simulate(
+                            robot, law, ref, args.duration, rate=rate, engine="compiled"),
+                        "floor": lambda kind=kind, rate=rate, steps=steps: floor_ms(
+                            robot, robot, steps, repeat=1, kind=kind, sampled=rate is not None),
+                    }, args.repeat)
+                    key = kind, timing
+                    floors[key] = min(floors.get(key, float("inf")), ms["floor"])
+                    compiled_rows.append({"law": name, "time": timing, "reference": ref_name,
+                                          "compiled_ms": ms["compiled"],
+                                          "floor_ms": ms["floor"],
+                                          "ratio": ms["compiled"] / ms["floor"]})
+        hinf_sampled = {r["reference"]: r for r in compiled_rows
+                        if r["law"] == "hinf" and r["time"] == "sampled"}["sine"]
+        fl_sampled = {r["reference"]: r for r in compiled_rows
+                      if r["law"] == "fl" and r["time"] == "sampled"}["sine"]
+        floor = floors["fl", "sampled"]
+        result.update({"compiled_vs_floor": compiled_rows,
+                       "floor_ms": floor,
+                       "floors_ms": {f"{k}_{t}": v for (k, t), v in floors.items()},
+                       "compiled_rollout_ms": {"hinf": hinf_sampled["compiled_ms"],
+                                               "fl": fl_sampled["compiled_ms"]}})
 
     # 2b. Engine "codegen" (issues 13, 23): the same loop on the parameter-input generated
     # dynamics (rrr_pin.sim.batched, one plant per call), against the compiled engine and both
     # floors in the same interleaved rounds; sine reference.
-    codegen_rows = []
-    for name, law in laws.items():
-        kind = law.compiled_form().kind
-        for timing, rate in (("sampled", args.rate), ("continuous", None)):
-            steps = n_steps if rate else n_rk4
-            ms = side_by_side_ms({
-                f"{eng}": lambda law=law, rate=rate, eng=eng: simulate(
-                    robot, law, refs["sine"], args.duration, rate=rate, engine=eng)
-                for eng in ("compiled", "codegen")} | {
-                "floor": lambda kind=kind, rate=rate, steps=steps: floor_ms(
-                    robot, robot, steps, repeat=1, kind=kind, sampled=rate is not None),
-                "floor_codegen": lambda kind=kind, rate=rate, steps=steps: batch_floor_ms(
-                    robot, robot, steps, repeat=1, kind=kind, sampled=rate is not None),
-            }, args.repeat)
-            codegen_rows.append({"law": name, "time": timing, "reference": "sine",
-                                 "codegen_ms": ms["codegen"], "compiled_ms": ms["compiled"],
-                                 "floor_ms": ms["floor"],
-                                 "floor_codegen_ms": ms["floor_codegen"],
-                                 "speedup": ms["compiled"] / ms["codegen"],
-                                 "speedup_vs_floor": ms["floor"] / ms["codegen"]})
+    if run("2b"):
+        codegen_rows = []
+        for name, law in laws.items():
+            kind = law.compiled_form().kind
+            for timing, rate in (("sampled", args.rate), ("continuous", None)):
+                steps = n_steps if rate else n_rk4
+                ms = side_by_side_ms({
+                    f"{eng}": lambda law=law, rate=rate, eng=eng: simulate(
+                        robot, law, refs["sine"], args.duration, rate=rate, engine=eng)
+                    for eng in ("compiled", "codegen")} | {
+                    "floor": lambda kind=kind, rate=rate, steps=steps: floor_ms(
+                        robot, robot, steps, repeat=1, kind=kind, sampled=rate is not None),
+                    "floor_codegen": lambda kind=kind, rate=rate, steps=steps: batch_floor_ms(
+                        robot, robot, steps, repeat=1, kind=kind, sampled=rate is not None),
+                }, args.repeat)
+                codegen_rows.append({"law": name, "time": timing, "reference": "sine",
+                                     "codegen_ms": ms["codegen"], "compiled_ms": ms["compiled"],
+                                     "floor_ms": ms["floor"],
+                                     "floor_codegen_ms": ms["floor_codegen"],
+                                     "speedup": ms["compiled"] / ms["codegen"],
+                                     "speedup_vs_floor": ms["floor"] / ms["codegen"]})
+        result.update({"codegen_rollout_ms": next(r["codegen_ms"] for r in codegen_rows
+                                                  if r["law"] == "hinf"
+                                                  and r["time"] == "sampled"),
+                       "codegen_vs_compiled": codegen_rows})
 
     # 2c. Batched rollouts (issue 23): per-plant time of an uncertain-plant rollout (sampled
     # at the rate, sine reference; H-inf + FL on the RRR, FL on UR5 and Panda) on the compiled
     # engine, on the generated dynamics one plant per call, and 16 plants per call; each with
     # its dynamics-call floor; same interleaved rounds.
-    batch_rows = [batch_row(arm, args, n_steps) for arm in ("rrr", "ur5", "panda")]
+    if run("2c") or run("4"):
+        result["batched_vs_compiled"] = [batch_row(arm, args, n_steps)
+                                         for arm in (("rrr", "ur5", "panda") if run("2c")
+                                                     else ("rrr",))]
 
     # 3. Python engine against the hand-written loop (FL, ZOH, sine), and H-inf for the record.
-    sine = refs["sine"]
-    Ts = 1.0 / args.rate
-    grid = Ts * np.arange(n_steps + 1)
-    R, RD, RDD = (np.ascontiguousarray(a) for a in sine.sample(grid))
-    lam = laws["fl"].lam
-    fns = {"handwritten": lambda: handwritten_fl_rollout(robot, robot, lam, R, RD, RDD, Ts,
-                                                         n_steps)}
-    fns.update({name: lambda law=law: simulate(robot, law, sine, args.duration, rate=args.rate,
-                                               engine="python") for name, law in laws.items()})
-    py = side_by_side_ms(fns, args.repeat)
-    handwritten_ms = py.pop("handwritten")
-    python_ms = py
-    same = np.max(np.abs(
-        handwritten_fl_rollout(robot, robot, lam, R, RD, RDD, Ts, n_steps)
-        - simulate(robot, laws["fl"], sine, args.duration, rate=args.rate,
-                           engine="python").q))
+    if run("3"):
+        sine = refs["sine"]
+        Ts = 1.0 / args.rate
+        grid = Ts * np.arange(n_steps + 1)
+        R, RD, RDD = (np.ascontiguousarray(a) for a in sine.sample(grid))
+        lam = laws["fl"].lam
+        fns = {"handwritten": lambda: handwritten_fl_rollout(robot, robot, lam, R, RD, RDD, Ts,
+                                                             n_steps)}
+        fns.update({name: lambda law=law: simulate(robot, law, sine, args.duration,
+                                                   rate=args.rate, engine="python")
+                    for name, law in laws.items()})
+        python_ms = side_by_side_ms(fns, args.repeat)
+        handwritten_ms = python_ms.pop("handwritten")
+        same = np.max(np.abs(
+            handwritten_fl_rollout(robot, robot, lam, R, RD, RDD, Ts, n_steps)
+            - simulate(robot, laws["fl"], sine, args.duration, rate=args.rate,
+                       engine="python").q))
+        result.update({"python_rollout_ms": python_ms["fl"],
+                       "python_rollout_ms_by_law": python_ms,
+                       "handwritten_python_ms": handwritten_ms,
+                       "handwritten_max_diff_rad": float(same)})
+    if run("2") and run("3"):
+        rollout = {"python": result["python_rollout_ms_by_law"]["hinf"],
+                   "compiled": result["compiled_rollout_ms"]["hinf"]}
+        result.update({
+            "rollout_ms": rollout,
+            "rollout_ms_fl": {"python": result["python_rollout_ms"],
+                              "compiled": result["compiled_rollout_ms"]["fl"]},
+            "ratio_to_floor": {path: v / result["floor_ms"] for path, v in rollout.items()},
+            "us_per_step": {path: 1e3 * v / n_steps for path, v in rollout.items()}})
 
     # 4. Campaign: N plants x (FL, H-inf), 10 s at 1 kHz, 2 workers; bound from the floor.
     two = [laws["fl"], laws["hinf"]]
@@ -523,174 +579,167 @@ def main(argv=None):
         run_campaign(robot, two, settings, jobs=jobs)
         return time.perf_counter() - t0
 
-    chain = closed_chain_ms(args.duration, args.rate, args.repeat)
+    if run("4b"):
+        result.update(closed_chain_ms(args.duration, args.rate, args.repeat))
 
-    load_before = os.getloadavg()[0]
-    campaign_s = campaign(args.campaign_samples, 2)
-    campaign_load = [load_before, os.getloadavg()[0]]
-    campaign_bound_s = 2 * args.campaign_samples * 1e-3 * floors["fl", "sampled"] / 2
-    # The batched bound: the same count of rollouts at the batched floor per plant (RRR).
-    campaign_batched_bound_s = (2 * args.campaign_samples * 1e-3
-                                * batch_rows[0]["floor_batched_ms"] / 2)
-    one_job_s = campaign(args.mc_samples, 1)
+    if run("4"):
+        floor = result.get("floor_ms") or floor_ms(robot, robot, n_steps, kind="fl",
+                                                   repeat=args.repeat)
+        result["floor_ms"] = floor
+        load_before = os.getloadavg()[0]
+        campaign_s = campaign(args.campaign_samples, 2)
+        campaign_load = [load_before, os.getloadavg()[0]]
+        # The batched bound: the same count of rollouts at the batched floor per plant (RRR).
+        one_job_s = campaign(args.mc_samples, 1)
+        result.update({
+            "campaign_s": campaign_s,
+            "campaign_bound_s": 2 * args.campaign_samples * 1e-3 * floor / 2,
+            "campaign_batched_bound_s": (2 * args.campaign_samples * 1e-3
+                                         * result["batched_vs_compiled"][0]["floor_batched_ms"]
+                                         / 2),
+            "campaign_load_avg": campaign_load,
+            "montecarlo_rollouts_per_s": {"1": 2 * args.mc_samples / one_job_s,
+                                          "2": 2 * args.campaign_samples / campaign_s}})
 
     # 5. Start-up in fresh processes.
-    exe = shutil.which("rrr-pin", path=str(Path(sys.executable).parent)) or "rrr-pin"
-    cli_help_s = subprocess_s([exe, "--help"], args.startup_repeat)
-    import_s = subprocess_s([sys.executable, "-c", "import rrr_pin"], args.startup_repeat)
-    python_s = subprocess_s([sys.executable, "-c", "pass"], args.startup_repeat)
+    if run("5"):
+        exe = shutil.which("rrr-pin", path=str(Path(sys.executable).parent)) or "rrr-pin"
+        result.update({
+            "cli_help_s": subprocess_s([exe, "--help"], args.startup_repeat),
+            "import_s": subprocess_s([sys.executable, "-c", "import rrr_pin"],
+                                     args.startup_repeat),
+            "python_startup_s": subprocess_s([sys.executable, "-c", "pass"],
+                                             args.startup_repeat)})
 
     # 6. loopsyn on a 3 x 3 plant (issue 21).
-    loopsyn_s = loopsyn_3x3_s(1 if args.quick else 3)
-
-    hinf_sampled = {r["reference"]: r for r in compiled_rows
-                    if r["law"] == "hinf" and r["time"] == "sampled"}["sine"]
-    fl_sampled = {r["reference"]: r for r in compiled_rows
-                  if r["law"] == "fl" and r["time"] == "sampled"}["sine"]
-    rollout = {"python": python_ms["hinf"], "compiled": hinf_sampled["compiled_ms"]}
-    floor = floors["fl", "sampled"]
-    result = {
-        "machine": machine(),
-        "per_call_us": per_call,
-        "robot_call_us": {k: v["robot"] for k, v in per_call.items()},
-        "robot_call_unchecked_us": {k: v["robot_unchecked"] for k, v in per_call.items()},
-        "bare_call_us": {k: v["bare"] for k, v in per_call.items()},
-        "rollout_ms": rollout,
-        "rollout_ms_fl": {"python": python_ms["fl"], "compiled": fl_sampled["compiled_ms"]},
-        "floor_ms": floor,
-        "floors_ms": {f"{k}_{t}": v for (k, t), v in floors.items()},
-        "ratio_to_floor": {path: v / floor for path, v in rollout.items()},
-        "us_per_step": {path: 1e3 * v / n_steps for path, v in rollout.items()},
-        "compiled_vs_floor": compiled_rows,
-        "codegen_rollout_ms": next(r["codegen_ms"] for r in codegen_rows
-                                   if r["law"] == "hinf" and r["time"] == "sampled"),
-        "codegen_vs_compiled": codegen_rows,
-        "python_rollout_ms": python_ms["fl"],
-        "python_rollout_ms_by_law": python_ms,
-        "handwritten_python_ms": handwritten_ms,
-        "handwritten_max_diff_rad": float(same),
-        "campaign_s": campaign_s,
-        "campaign_bound_s": campaign_bound_s,
-        "campaign_batched_bound_s": campaign_batched_bound_s,
-        "batched_vs_compiled": batch_rows,
-        "campaign_load_avg": campaign_load,
-        "montecarlo_rollouts_per_s": {"1": 2 * args.mc_samples / one_job_s,
-                                      "2": 2 * args.campaign_samples / campaign_s},
-        **chain,
-        "cli_help_s": cli_help_s,
-        "import_s": import_s,
-        "python_startup_s": python_s,
-        "loopsyn_3x3_s": loopsyn_s,
-        "goals": GOALS,
-        "settings": {"duration_s": args.duration, "rate_hz": args.rate, "substeps": 1,
-                     "continuous_dt_s": 1e-3, "repeat": args.repeat, "calls": args.calls,
-                     "campaign_samples": args.campaign_samples, "campaign_jobs": 2,
-                     "mc_samples": args.mc_samples, "startup_repeat": args.startup_repeat},
-    }
-    result["identification"] = identification_bench(5.0 if args.quick else 10.0)
-    result["mu"] = mu_upper_s(1 if args.quick else 10)
+    if run("6"):
+        result["loopsyn_3x3_s"] = loopsyn_3x3_s(1 if args.quick else 3)
+    result["goals"] = GOALS
+    result["settings"] = {"duration_s": args.duration, "rate_hz": args.rate, "substeps": 1,
+                          "continuous_dt_s": 1e-3, "repeat": args.repeat, "calls": args.calls,
+                          "campaign_samples": args.campaign_samples, "campaign_jobs": 2,
+                          "mc_samples": args.mc_samples, "startup_repeat": args.startup_repeat,
+                          "sections": [x for x in SECTIONS if run(x)]}
+    if run("8"):
+        result["identification"] = identification_bench(5.0 if args.quick else 10.0)
+    if run("7"):
+        result["mu"] = mu_upper_s(1 if args.quick else 10)
     if args.export is not None:
         result["export"] = export_step_us(200 if args.quick else 200000, Path(args.export))
     if args.json:
         print(json.dumps(result))
         return
     report(result, args)
-    report_identification(result["identification"])
+    if "8" in args.sections:
+        report_identification(result["identification"])
 
 
 def report(res, args):
     """Print the table of every figure, ratio and goal."""
     print(f"machine: {res['machine']}")
-    print(f"\n1. per call from Python [us] (fastest of 5 x {args.calls})")
-    print(f"  {'':4}{'Robot':>9}{'check=False':>13}{'bare pin':>10}{'closed form':>13}"
-          f"{'Robot/bare':>12}{'unchecked/bare':>16}   goal")
-    for k, v in res["per_call_us"].items():
-        r1, r2 = v["robot"] / v["bare"], v["robot_unchecked"] / v["bare"]
-        print(f"  {k:4}{v['robot']:9.2f}{v['robot_unchecked']:13.2f}{v['bare']:10.2f}"
-              f"{v['closed_form']:13.2f}{r1:12.2f}{r2:16.2f}   "
-              f"{verdict(r1, GOALS['robot_call'])}")
-    print(f"\n2. compiled engine, nominal RRR, {args.duration:g} s; sampled at {args.rate:g} Hz "
-          f"(RK4 plant, ZOH) or continuous (RK4, dt = 1 ms, law at every stage); fastest of "
-          f"{args.repeat} rounds, each with the floor")
-    print(f"  {'law':6}{'time':12}{'reference':10}{'compiled [ms]':>14}{'floor [ms]':>12}"
-          f"{'ratio':>8}   goal")
-    for r in res["compiled_vs_floor"]:
-        print(f"  {r['law']:6}{r['time']:12}{r['reference']:10}{r['compiled_ms']:14.1f}"
-              f"{r['floor_ms']:12.1f}{r['ratio']:8.2f}   {verdict(r['ratio'], GOALS['compiled'])}")
-    print("\n2b. engine='codegen' (parameter-input generated dynamics), nominal RRR, sine, same "
-          "rounds as the compiled engine and both floors")
-    print(f"  {'law':6}{'time':12}{'codegen [ms]':>13}{'compiled [ms]':>14}{'floor [ms]':>12}"
-          f"{'cg floor [ms]':>14}{'compiled/cg':>12}{'floor/cg':>10}")
-    for r in res["codegen_vs_compiled"]:
-        print(f"  {r['law']:6}{r['time']:12}{r['codegen_ms']:13.2f}{r['compiled_ms']:14.1f}"
-              f"{r['floor_ms']:12.1f}{r['floor_codegen_ms']:14.2f}{r['speedup']:12.2f}"
-              f"{r['speedup_vs_floor']:10.2f}")
-    print(f"\n2c. batched rollouts (issue 23): per plant, an uncertain plant, {args.duration:g} s "
-          f"at {args.rate:g} Hz, sine-like default reference; 16 plants per batched call; same "
-          f"rounds")
-    print(f"  {'robot':6}{'law':6}{'compiled':>10}{'codegen':>9}{'batched':>9}{'floor':>8}"
-          f"{'cg floor':>9}{'b floor':>9}{'compiled/batched':>18}{'max |dq|':>10}   goal")
-    goals = {"rrr": GOALS["batched_rrr"], "ur5": GOALS["batched_ur5"]}
-    for r in res["batched_vs_compiled"]:
-        g = goals.get(r["robot"])
-        mark = (f">= {g:g}: {'met' if r['compiled_vs_batched'] >= g else 'NOT MET'}" if g
-                else "-")
-        print(f"  {r['robot']:6}{r['law']:6}{r['compiled_ms']:10.1f}{r['codegen_ms']:9.2f}"
-              f"{r['batched_ms']:9.2f}{r['floor_ms']:8.1f}{r['floor_codegen_ms']:9.2f}"
-              f"{r['floor_batched_ms']:9.2f}{r['compiled_vs_batched']:18.2f}"
-              f"{r['max_diff_rad']:10.1e}   {mark}")
-    print("  [ms]; codegen: generated dynamics, one plant per call; floors: the bare dynamics "
-          "calls (generic Pinocchio, generated, generated 16 at a time)")
-    hw = res["handwritten_python_ms"]
-    print(f"\n3. Python engine, {args.duration:g} s at {args.rate:g} Hz ZOH, sine (fastest of "
-          f"{args.repeat} interleaved rounds)")
-    print(f"  hand-written FL loop on pin (yardstick): {hw:8.1f} ms  (same q as the engine to "
-          f"{res['handwritten_max_diff_rad']:.1e} rad)")
-    for name, ms in res["python_rollout_ms_by_law"].items():
-        print(f"  simulate(engine='python'), {name:5}:     {ms:8.1f} ms  {ms / hw:5.2f} x the "
-              f"yardstick" + (f"   {verdict(ms / hw, GOALS['python'])}" if name == "fl" else ""))
-    c, b = res["campaign_s"], res["campaign_bound_s"]
-    print(f"\n4. campaign: {args.campaign_samples} plants x 2 laws (FL, H-inf), "
-          f"{args.duration:g} s at {args.rate:g} Hz, 2 jobs")
-    print(f"  measured {c:8.2f} s; bound 2 x {args.campaign_samples} x "
-          f"{res['floor_ms']:.1f} ms / 2 cores = {b:.2f} s; ratio {c / b:.2f}   "
-          f"{verdict(c / b, GOALS['campaign'])}")
-    bb = res["campaign_batched_bound_s"]
-    goal_s = (f"; 1000 plants under {GOALS['campaign_1000_s']:g} s: "
-              f"{'met' if c < GOALS['campaign_1000_s'] else 'NOT MET'}"
-              if args.campaign_samples == 1000 else "")
-    print(f"  batched bound 2 x {args.campaign_samples} x "
-          f"{res['batched_vs_compiled'][0]['floor_batched_ms']:.2f} ms / 2 cores = {bb:.2f} s; "
-          f"ratio {c / bb:.2f}   {verdict(c / bb, GOALS['campaign_batched'])}{goal_s}")
-    print("  1-minute load average {:.2f} before the campaign, {:.2f} after (2 cores)".format(
-        *res["campaign_load_avg"]))
-    print("  throughput: " + ", ".join(
-        f"{r:.1f} rollouts/s with {j} job{'s' if j != '1' else ''}"
-        for j, r in res["montecarlo_rollouts_per_s"].items()))
-    cp, cf = res["closed_chain_rollout_ms"], res["constraint_dynamics_floor_ms"]
-    cc, ck = res["closed_chain_compiled_ms"], res["closed_chain_kkt_floor_ms"]
-    goal = res["closed_chain_goal_ms"]
-    print(f"\n4b. closed chain (issue 22): 5-bar FL, {args.duration:g} s at {args.rate:g} Hz "
-          f"({4 * round(args.duration * args.rate)} plant accelerations)")
-    print(f"  python engine   {cp:9.1f} ms ({cp / cf:5.1f} x its constraintDynamics calls "
-          f"alone, {cf:.1f} ms)")
-    print(f"  compiled engine {cc:9.1f} ms ({cc / cf:5.3f} x the constraintDynamics calls; "
-          f"{cp / cc:.0f} x faster than Python; its exact-KKT calls alone in C++ {ck:.1f} ms)")
-    print(f"  goal < {goal:g} ms on the fastest engine: {'met' if cc < goal else 'NOT MET'}")
-    print(f"\n5. start-up, fresh processes (median of {args.startup_repeat}; bare `python -c "
-          f"pass` takes {res['python_startup_s']:.3f} s)")
-    for key, what in (("cli_help_s", "rrr-pin --help"), ("import_s", "import rrr_pin")):
-        v, goal = res[key], GOALS[key]
-        print(f"  {what:16}{v:8.3f} s   goal < {goal:g} s: {'met' if v < goal else 'NOT MET'}")
-    v, goal = res["loopsyn_3x3_s"], GOALS["loopsyn_3x3_s"]
-    print(f"\n6. loopsyn(G, 10/s), G coupled 3 x 3 (6 states): {v:.3f} s   goal < {goal:g} s: "
-          f"{'met' if v < goal else 'NOT MET'}")
+    if "1" in args.sections:
+        print(f"\n1. per call from Python [us] (fastest of 5 x {args.calls})")
+        print(f"  {'':4}{'Robot':>9}{'check=False':>13}{'bare pin':>10}{'closed form':>13}"
+              f"{'Robot/bare':>12}{'unchecked/bare':>16}   goal")
+        for k, v in res["per_call_us"].items():
+            r1, r2 = v["robot"] / v["bare"], v["robot_unchecked"] / v["bare"]
+            print(f"  {k:4}{v['robot']:9.2f}{v['robot_unchecked']:13.2f}{v['bare']:10.2f}"
+                  f"{v['closed_form']:13.2f}{r1:12.2f}{r2:16.2f}   "
+                  f"{verdict(r1, GOALS['robot_call'])}")
+    if "2" in args.sections:
+        print(f"\n2. compiled engine, nominal RRR, {args.duration:g} s; sampled at "
+              f"{args.rate:g} Hz (RK4 plant, ZOH) or continuous (RK4, dt = 1 ms, law at every "
+              f"stage); fastest of {args.repeat} rounds, each with the floor")
+        print(f"  {'law':6}{'time':12}{'reference':10}{'compiled [ms]':>14}{'floor [ms]':>12}"
+              f"{'ratio':>8}   goal")
+        for r in res["compiled_vs_floor"]:
+            print(f"  {r['law']:6}{r['time']:12}{r['reference']:10}{r['compiled_ms']:14.1f}"
+                  f"{r['floor_ms']:12.1f}{r['ratio']:8.2f}   "
+                  f"{verdict(r['ratio'], GOALS['compiled'])}")
+    if "2b" in args.sections:
+        print("\n2b. engine='codegen' (parameter-input generated dynamics), nominal RRR, sine, "
+              "same rounds as the compiled engine and both floors")
+        print(f"  {'law':6}{'time':12}{'codegen [ms]':>13}{'compiled [ms]':>14}{'floor [ms]':>12}"
+              f"{'cg floor [ms]':>14}{'compiled/cg':>12}{'floor/cg':>10}")
+        for r in res["codegen_vs_compiled"]:
+            print(f"  {r['law']:6}{r['time']:12}{r['codegen_ms']:13.2f}{r['compiled_ms']:14.1f}"
+                  f"{r['floor_ms']:12.1f}{r['floor_codegen_ms']:14.2f}{r['speedup']:12.2f}"
+                  f"{r['speedup_vs_floor']:10.2f}")
+    if "2c" in args.sections:
+        print(f"\n2c. batched rollouts (issue 23): per plant, an uncertain plant, "
+              f"{args.duration:g} s at {args.rate:g} Hz, sine-like default reference; 16 plants "
+              f"per batched call; same rounds")
+        print(f"  {'robot':6}{'law':6}{'compiled':>10}{'codegen':>9}{'batched':>9}{'floor':>8}"
+              f"{'cg floor':>9}{'b floor':>9}{'compiled/batched':>18}{'max |dq|':>10}   goal")
+        goals = {"rrr": GOALS["batched_rrr"], "ur5": GOALS["batched_ur5"]}
+        for r in res["batched_vs_compiled"]:
+            g = goals.get(r["robot"])
+            mark = (f">= {g:g}: {'met' if r['compiled_vs_batched'] >= g else 'NOT MET'}" if g
+                    else "-")
+            print(f"  {r['robot']:6}{r['law']:6}{r['compiled_ms']:10.1f}{r['codegen_ms']:9.2f}"
+                  f"{r['batched_ms']:9.2f}{r['floor_ms']:8.1f}{r['floor_codegen_ms']:9.2f}"
+                  f"{r['floor_batched_ms']:9.2f}{r['compiled_vs_batched']:18.2f}"
+                  f"{r['max_diff_rad']:10.1e}   {mark}")
+        print("  [ms]; codegen: generated dynamics, one plant per call; floors: the bare dynamics "
+              "calls (generic Pinocchio, generated, generated 16 at a time)")
+    if "3" in args.sections:
+        hw = res["handwritten_python_ms"]
+        print(f"\n3. Python engine, {args.duration:g} s at {args.rate:g} Hz ZOH, sine (fastest of "
+              f"{args.repeat} interleaved rounds)")
+        print(f"  hand-written FL loop on pin (yardstick): {hw:8.1f} ms  (same q as the engine to "
+              f"{res['handwritten_max_diff_rad']:.1e} rad)")
+        for name, ms in res["python_rollout_ms_by_law"].items():
+            mark = f"   {verdict(ms / hw, GOALS['python'])}" if name == "fl" else ""
+            print(f"  simulate(engine='python'), {name:5}:     {ms:8.1f} ms  {ms / hw:5.2f} x the "
+                  f"yardstick{mark}")
+    if "4" in args.sections:
+        c, b = res["campaign_s"], res["campaign_bound_s"]
+        print(f"\n4. campaign: {args.campaign_samples} plants x 2 laws (FL, H-inf), "
+              f"{args.duration:g} s at {args.rate:g} Hz, 2 jobs")
+        print(f"  measured {c:8.2f} s; bound 2 x {args.campaign_samples} x "
+              f"{res['floor_ms']:.1f} ms / 2 cores = {b:.2f} s; ratio {c / b:.2f}   "
+              f"{verdict(c / b, GOALS['campaign'])}")
+        bb = res["campaign_batched_bound_s"]
+        goal_s = (f"; 1000 plants under {GOALS['campaign_1000_s']:g} s: "
+                  f"{'met' if c < GOALS['campaign_1000_s'] else 'NOT MET'}"
+                  if args.campaign_samples == 1000 else "")
+        print(f"  batched bound 2 x {args.campaign_samples} x "
+              f"{res['batched_vs_compiled'][0]['floor_batched_ms']:.2f} ms / 2 cores = {bb:.2f} s; "
+              f"ratio {c / bb:.2f}   {verdict(c / bb, GOALS['campaign_batched'])}{goal_s}")
+        print("  1-minute load average {:.2f} before the campaign, {:.2f} after (2 cores)".format(
+            *res["campaign_load_avg"]))
+        print("  throughput: " + ", ".join(
+            f"{r:.1f} rollouts/s with {j} job{'s' if j != '1' else ''}"
+            for j, r in res["montecarlo_rollouts_per_s"].items()))
+    if "4b" in args.sections:
+        cp, cf = res["closed_chain_rollout_ms"], res["constraint_dynamics_floor_ms"]
+        cc, ck = res["closed_chain_compiled_ms"], res["closed_chain_kkt_floor_ms"]
+        goal = res["closed_chain_goal_ms"]
+        print(f"\n4b. closed chain (issue 22): 5-bar FL, {args.duration:g} s at {args.rate:g} Hz "
+              f"({4 * round(args.duration * args.rate)} plant accelerations)")
+        print(f"  python engine   {cp:9.1f} ms ({cp / cf:5.1f} x its constraintDynamics calls "
+              f"alone, {cf:.1f} ms)")
+        print(f"  compiled engine {cc:9.1f} ms ({cc / cf:5.3f} x the constraintDynamics calls; "
+              f"{cp / cc:.0f} x faster than Python; its exact-KKT calls alone in C++ {ck:.1f} ms)")
+        print(f"  goal < {goal:g} ms on the fastest engine: {'met' if cc < goal else 'NOT MET'}")
+    if "5" in args.sections:
+        print(f"\n5. start-up, fresh processes (median of {args.startup_repeat}; bare `python -c "
+              f"pass` takes {res['python_startup_s']:.3f} s)")
+        for key, what in (("cli_help_s", "rrr-pin --help"), ("import_s", "import rrr_pin")):
+            v, goal = res[key], GOALS[key]
+            print(f"  {what:16}{v:8.3f} s   goal < {goal:g} s: {'met' if v < goal else 'NOT MET'}")
+    if "6" in args.sections:
+        v, goal = res["loopsyn_3x3_s"], GOALS["loopsyn_3x3_s"]
+        print(f"\n6. loopsyn(G, 10/s), G coupled 3 x 3 (6 states): {v:.3f} s   goal < {goal:g} s: "
+              f"{'met' if v < goal else 'NOT MET'}")
 
-    m = res["mu"]
-    print(f"\n7. mu upper bound (D,G LMI, Clarabel) on the frozen FL loop, {m['parameters']} real "
-          f"parameters, M of size {m['size']}: {m['s_per_frequency']:.3f} s per frequency "
-          f"(mean of {m['frequencies']}; with the lower bound {m['both_s_per_frequency']:.3f} s)   "
-          f"goal < 0.5 s: {'met' if m['s_per_frequency'] < 0.5 else 'NOT MET'}")
+    if "7" in args.sections:
+        m = res["mu"]
+        print(f"\n7. mu upper bound (D,G LMI, Clarabel) on the frozen FL loop, "
+              f"{m['parameters']} real parameters, M of size {m['size']}: "
+              f"{m['s_per_frequency']:.3f} s per frequency (mean of {m['frequencies']}; with the "
+              f"lower bound {m['both_s_per_frequency']:.3f} s)   "
+              f"goal < 0.5 s: {'met' if m['s_per_frequency'] < 0.5 else 'NOT MET'}")
 
     if "export" in res:
         e = res["export"]

@@ -2,8 +2,8 @@
 """Regenerate (or check) the committed generated dynamics of the nominal RRR.
 ==========================================================================
 
-``src/rrr_pin/_ext/codegen_rrr.c`` is plain C for CRBA, nonLinearEffects and ABA of the model
-``rrr_pin.model.dynamics.load_robot("rrr")`` (``urdf/rrr.urdf``, gravity ``DEFAULT_GRAVITY`` =
+``src/rrr_pin/_ext/generated/codegen_rrr.c`` is plain C for CRBA, nonLinearEffects and ABA of the
+model ``rrr_pin.model.dynamics.load_robot("rrr")`` (``urdf/rrr.urdf``, gravity ``DEFAULT_GRAVITY`` =
 9.8 m/s^2 along -z), made by CppADCodeGen through ``tools/codegen/gen.cpp``. Its header records
 the sha256 of the URDF and the :func:`rrr_pin.sim.codegen.fingerprint` of the model it was made for.
 
@@ -13,8 +13,8 @@ Usage::
     scripts/codegen.py --gen PATH/TO/gen  # regenerate (build the generator: docs/codegen.md)
 
 The generator is a developer tool (cmeel-cppadcodegen, about 4 min of compilation and 5 GB of
-RAM), not part of ``pip install``; the generated C is committed and compiled into
-``rrr_pin.sim._rollout``.
+RAM), not part of ``pip install``; the generated C is committed, ships with the package and is
+copied by ``rrr-pin export`` into the folders of the nominal RRR (``rrr_pin.deploy.writer``).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 URDF = ROOT / "urdf" / "rrr.urdf"
-OUT = ROOT / "src" / "rrr_pin" / "_ext" / "codegen_rrr.c"
+OUT = ROOT / "src" / "rrr_pin" / "_ext" / "generated" / "codegen_rrr.c"
 
 
 def current() -> dict:
@@ -74,7 +74,8 @@ def generate(gen: Path) -> None:
  * urdf_sha256: {info["urdf_sha256"]}
  * fingerprint: {info["fingerprint"]}
  * gravity: {info["gravity"]}
- * Used by engine="codegen" (rrr_pin.sim.codegen) only for models with this fingerprint.
+ * Copied by rrr_pin.export into the folders of the model with this fingerprint
+ * (rrr_pin.sim.codegen.fingerprint); not compiled into the extension.
  */
 #include <math.h>
 """

@@ -1,6 +1,6 @@
 #!/usr/bin/env python
-"""Write (or check) the committed parameter-input dynamics ``src/rrr_pin/_ext/dyn_<name>.c``.
-==========================================================================================
+"""Write (or check) the committed parameter-input dynamics ``_ext/generated/dyn_<name>.c``.
+========================================================================================
 
 One file per generated structure (:data:`rrr_pin.sim.batched.GENERATED`: the RRR, UR5 and
 Panda with its fingers locked), made by the hand-written generator :mod:`rrr_pin.sim.dyngen`
@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-EXT = ROOT / "src" / "rrr_pin" / "_ext"
+EXT = ROOT / "src" / "rrr_pin" / "_ext" / "generated"
 
 
 def expected() -> dict:

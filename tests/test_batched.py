@@ -165,6 +165,18 @@ def test_a_structure_without_generated_code(rrr, ref):
     assert traj.info["engine"] == "compiled"
 
 
+def test_a_closed_chain_is_refused_by_name():
+    # Its generated dynamics are serial trees; auto runs a chain on the compiled engine.
+    chain = load_robot("fivebar")
+    ref5 = SineReference(home=chain.neutral(), amp=0.05, freq=1.0, phase=0.0)
+    with pytest.raises(ValueError, match="'codegen' does not implement closed chains"):
+        simulate(chain, fl_controller(load_robot("fivebar")), ref5, 0.01, rate=RATE,
+                 engine="codegen")
+    (traj,) = simulate_batch([chain], fl_controller(load_robot("fivebar")), ref5, 0.01,
+                             rate=RATE)
+    assert traj.info["engine"] == "compiled"
+
+
 def test_a_parameter_vector_outside_physical_consistency(rrr, ref):
     m = rrr.model.copy()
     Y = m.inertias[2]

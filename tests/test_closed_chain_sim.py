@@ -35,7 +35,7 @@ class _Passive(ControlLaw):
 def test_fl_on_the_exact_model_tracks_to_integrator_noise(pair):
     plant, nominal = pair
     ref = SineReference(home=plant.neutral(), amp=0.2, freq=1.0, phase=0.0)
-    tr = simulate(plant, closed_chain_fl(nominal, 100.0), ref, 0.2)
+    tr = simulate(plant, closed_chain_fl(nominal, 100.0), ref, 0.2, engine="python")
     assert tr.info["engine"] == "python"
     # The law cancels the constrained dynamics exactly: what is left is RK4's error at 1 ms
     # (a few 1e-10 rad on this 0.2 rad, 1 Hz motion) and Newton's 1e-12 m loop closure.
@@ -57,15 +57,6 @@ def test_passive_simulation_conserves_energy(pair):
     # RK4 with projection: the energy error at 1 ms is below 1e-8 J (E0 = 2.45 J; measured
     # 4.0e-11) and falls by more than 8x when the step is halved (measured 16.1x: 4th order).
     assert err[1] < 1e-8 and err[0] > 8.0 * err[1]
-
-
-def test_compiled_engine_refuses_what_it_does_not_implement_by_name(pair):
-    # A continuous-time law (no rate): the compiled closed-chain engine runs sampled laws only
-    # (tests/test_closed_chain_compiled.py has the other refusals and the pinning).
-    plant, nominal = pair
-    ref = SineReference(home=plant.neutral(), amp=0.1, freq=1.0, phase=0.0)
-    with pytest.raises(ValueError, match="continuous time .*sampled laws only"):
-        simulate(plant, closed_chain_fl(nominal), ref, 0.01, engine="compiled")
 
 
 def test_reference_through_a_singularity_is_refused_with_time_and_cond(pair):

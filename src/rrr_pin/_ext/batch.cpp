@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "rk4.hpp"
+
 extern "C" {
 #define RRR_DYN_DECLARE(name)                                                                  \
   extern const char name##_dyn_structure[];                                                    \
@@ -31,8 +33,6 @@ namespace rrr_pin
                name##_nle,    name##_gravity,       name##_fd}
     const DynFunctions kTable[] = {RRR_DYN_ENTRY(rrr), RRR_DYN_ENTRY(ur5), RRR_DYN_ENTRY(panda)};
 #undef RRR_DYN_ENTRY
-
-    using Lanes = std::vector<double>;  // n entries of B plants: [j * B + b]
 
     /// The law's nominal model and the plants' parameters, structure-of-arrays.
     struct Models
@@ -193,59 +193,16 @@ namespace rrr_pin
       }
     };
 
-    /// The arm state of B plants and a continuous law's state.
-    struct BState
-    {
-      Lanes q, qd, x;
-    };
+    using BState = LaneState;
+    using BRK4 = RK4Work<Lanes>;
 
-    struct BRK4
+    /// RK4 stage points and slopes of B plants of n joints and a law of m states, sized.
+    BRK4 lane_work(std::size_t nB, std::size_t mB)
     {
-      BState ys, k1, k2, k3, k4;
-      explicit BRK4(std::size_t nB, std::size_t mB)
-      {
-        for (BState * s : {&ys, &k1, &k2, &k3, &k4})
-          s->q.resize(nB), s->qd.resize(nB), s->x.resize(mB);
-      }
-    };
-
-    /// out = y + c k, entry by entry.
-    inline void axpy(const Lanes & y, double c, const Lanes & k, Lanes & out)
-    {
-      for (std::size_t i = 0; i < y.size(); ++i)
-        out[i] = y[i] + c * k[i];
-    }
-
-    inline void combine(Lanes & y, double h6, const BState & k1, const BState & k2,
-                        const BState & k3, const BState & k4, Lanes BState::*part)
-    {
-      Lanes & v = y;
-      const Lanes &a = k1.*part, &b = k2.*part, &c = k3.*part, &d = k4.*part;
-      for (std::size_t i = 0; i < v.size(); ++i)
-        v[i] += h6 * (a[i] + 2.0 * (b[i] + c[i]) + d[i]);
-    }
-
-    /// Classical RK4 (rk4.hpp's order: qd before q in each stage point).
-    template<class System>
-    void rk4_rest(System & sys, BState & y, double h, BRK4 & w)
-    {
-      const double h2 = 0.5 * h, h6 = h / 6.0;
-      const BState * ks[3] = {&w.k1, &w.k2, &w.k3};
-      BState * outs[3] = {&w.k2, &w.k3, &w.k4};
-      const double cs[3] = {h2, h2, h};
-      const int points[3] = {1, 1, 2};
-      for (int s = 0; s < 3; ++s)
-      {
-        axpy(y.qd, cs[s], ks[s]->qd, w.ys.qd);
-        axpy(y.q, cs[s], ks[s]->q, w.ys.q);
-        if (sys.with_x)
-          axpy(y.x, cs[s], ks[s]->x, w.ys.x);
-        sys.slope(w.ys, points[s], *outs[s]);
-      }
-      combine(y.q, h6, w.k1, w.k2, w.k3, w.k4, &BState::q);
-      combine(y.qd, h6, w.k1, w.k2, w.k3, w.k4, &BState::qd);
-      if (sys.with_x)
-        combine(y.x, h6, w.k1, w.k2, w.k3, w.k4, &BState::x);
+      BRK4 w;
+      for (BState * s : {&w.ys, &w.k1, &w.k2, &w.k3, &w.k4})
+        s->q.resize(nB), s->qd.resize(nB), s->x.resize(mB);
+      return w;
     }
 
     /// The ideal sampled plant: B arms driven by their held commands u.
@@ -253,7 +210,7 @@ namespace rrr_pin
     {
       const Models & md;
       Lanes u;
-      bool with_x = false;
+      Parts parts;
 
       void slope(const BState & y, int, BState & k)
       {
@@ -269,7 +226,7 @@ namespace rrr_pin
       const Models & md;
       BatchLaw<Law> & law;
       const RolloutInputs & in;
-      bool with_x;
+      Parts parts;
       std::int64_t k = 0;
       Lanes tau1;                     // torque of the step's first stage
       std::vector<int> bad_joint;     // per plant: first joint of a non-finite torque, or -1
@@ -290,7 +247,7 @@ namespace rrr_pin
               }
         if (point == 0)
           tau1 = tau;
-        if (with_x)
+        if (parts.x)
           law.state_map(y.x.data(), d.x.data());
         d.q = y.qd;
         md.f.fd(B, md.plant.data(), y.q.data(), y.qd.data(), tau.data(), d.qd.data());
@@ -389,7 +346,8 @@ namespace rrr_pin
     BState initial(int B, const RolloutInputs & in)
     {
       const int n = static_cast<int>(in.q0.size()), m = static_cast<int>(in.x0.size());
-      BState y{Lanes(n * B), Lanes(n * B), Lanes(m * B)};
+      BState y;
+      y.q.resize(n * B), y.qd.resize(n * B), y.x.resize(m * B);
       for (int b = 0; b < B; ++b)
         park(y, b, B, in);
       return y;
@@ -406,7 +364,7 @@ namespace rrr_pin
       BatchPlant plant{md, Lanes(n * B)};
       BState y = initial(B, in);
       Lanes xn(m * B);
-      BRK4 w(n * B, 0);
+      BRK4 w = lane_work(n * B, 0);
       std::vector<int> stopped;
       for (int b = 0; b < B; ++b)
       {
@@ -469,9 +427,11 @@ namespace rrr_pin
       const std::int64_t N = in.n_steps;
       BatchOutputs out(B, n, N);
       BatchLaw<Law> eval(law, md);
-      BatchContinuous<Law> loop{md, eval, in, m > 0, 0, Lanes(n * B), std::vector<int>(B, -1)};
+      Parts parts;
+      parts.x = m > 0;
+      BatchContinuous<Law> loop{md, eval, in, parts, 0, Lanes(n * B), std::vector<int>(B, -1)};
       BState y = initial(B, in);
-      BRK4 w(n * B, m * B);
+      BRK4 w = lane_work(n * B, m * B);
       std::vector<int> stopped;
       for (int b = 0; b < B; ++b)
       {

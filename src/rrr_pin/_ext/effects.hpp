@@ -2,10 +2,12 @@
 // rrr_pin.control.effects.Resolved (rrr_pin.sim.compiled copies them by name). Default-constructed,
 // every effect is off (empty vectors, zero-row noise, wa = quantum = 0, no delay): the ideal loop.
 //
-// Order in the loop, operation for operation as rrr_pin.sim.simulation._python_effects:
+// Order in the loop, operation for operation as rrr_pin.sim.python_engine._effects:
 // sensor (noise, quantization) -> law -> saturation -> delay (delay_steps plant sub-steps) ->
-// first-order actuator (wa > 0) -> flexible joint (Kf non-empty) -> arm with friction (Fv
-// non-empty). A new effect: a field here, its check, its step below and the Python step.
+// first-order actuator (wa > 0) -> flexible joint (Kf non-empty) -> plant with friction (Fv
+// non-empty). The drive train acts on the actuated coordinates (the n measured ones); a closed
+// chain's passive coordinates stay ideal. A new effect: a field here, its check, its step below
+// and the Python step.
 #pragma once
 
 #include <algorithm>
@@ -84,26 +86,29 @@ namespace rrr_pin
     }
 
     /// Plant state at t = 0, at rest on the first command tau_0: a = tau_0, and a flexible
-    /// joint's spring carrying it, th = q + tau_0 / K, thd = qd.
-    void start(const Vec & tau0, State & y) const
+    /// joint's spring carrying it, th = q + tau_0 / K, thd = qd (q, qd: the actuated
+    /// coordinates of y).
+    void start(const Vec & tau0, const Vec & q, const Vec & qd, State & y) const
     {
       if (lags())
         y.a = tau0;
       if (flexes())
       {
-        y.th = y.q + tau0.cwiseQuotient(Kf);
-        y.thd = y.qd;
+        y.th = q + tau0.cwiseQuotient(Kf);
+        y.thd = qd;
       }
     }
 
-    /// Torque on the links, tj [N m], for command u at plant state y; fills the slopes of the
-    /// actuator (k.a) and of the motor (k.th, k.thd). tm, fr: scratch (n,).
-    void joint_torque(const State & y, const Vec & u, State & k, Vec & tj, Vec & tm, Vec & fr) const
+    /// Torque on the actuated joints, tj [N m], for command u at plant state y whose actuated
+    /// coordinates are (q, qd); fills the slopes of the actuator (k.a) and of the motor (k.th,
+    /// k.thd). tm, fr: scratch (n,).
+    void joint_torque(const Vec & q, const Vec & qd, const State & y, const Vec & u, State & k,
+                      Vec & tj, Vec & tm, Vec & fr) const
     {
       tm = lags() ? y.a : u;
       if (flexes())
       {
-        tj = Kf.cwiseProduct(y.th - y.q) + Df.cwiseProduct(y.thd - y.qd);
+        tj = Kf.cwiseProduct(y.th - q) + Df.cwiseProduct(y.thd - qd);
         k.th = y.thd;
         k.thd = (tm - tj).cwiseQuotient(Bm);
       }
@@ -112,7 +117,7 @@ namespace rrr_pin
       if (rubs())
       {
         for (Eigen::Index j = 0; j < tj.size(); ++j)
-          fr[j] = Fv[j] * y.qd[j] + Fc[j] * std::tanh(y.qd[j] / veps);
+          fr[j] = Fv[j] * qd[j] + Fc[j] * std::tanh(qd[j] / veps);
         tj = tj - fr;
       }
       if (lags())

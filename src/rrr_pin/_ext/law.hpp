@@ -1,21 +1,26 @@
 // The control laws the compiled engine implements, one struct of parameters per compiled form of
-// rrr_pin.control.laws (FLForm -> FLLaw, PDForm -> PDLaw; rrr_pin.sim.compiled maps one to the
-// other by type and copies the fields by name). Each law's Eval evaluates it on the nominal model,
-// operation for operation as the Python laws do:
+// rrr_pin.control.laws (FLForm -> FLLaw, FLAWForm -> FLAWLaw, PDForm -> PDLaw;
+// rrr_pin.sim.compiled maps one to the other by type and copies the fields by name). Each law's
+// Eval<Terms> evaluates it on the law's model, operation for operation as the Python laws do;
+// Terms (terms.hpp) is where M, h and G come from: a serial tree's (ArmTerms) or a closed
+// chain's reduced model (ChainTerms), as the Python laws read nominal.terms() and nominal.G():
 //
 //   FLLaw: taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), y = C x + D e,
-//          tau = Mhat(q) taubar + nle_hat(q, qd)                                       eq. (8)
+//          tau = Mhat(q) taubar + h_hat(q, qd)                                         eq. (8)
 //          state: xdot = A x + B e (continuous) or x+ = A x + B e after the output (sampled,
 //          A..D already discrete).
 //   FLAWLaw: FLLaw's tau clipped, tau_s = clip(tau, -limit, limit); K conditioned on it (Hanus):
 //          x+ (or xdot) = A x + B e + L dy, dy = Mhat^-1 (tau_s - tau) / lam^2, L = B D^-1, the
 //          last term only at evaluations where a joint clips (FLAWForm).
 //   PDLaw: tau = Kp e + Kd (rd - qd) + Ghat(q); no state.
+//
+// torque() returns kOk or the stop of the law's model (a closed chain's loop that does not close
+// there); the torque is then tau().
 #pragma once
 
 #include <Eigen/LU>
 
-#include "model.hpp"
+#include "terms.hpp"
 
 namespace rrr_pin
 {
@@ -36,7 +41,7 @@ namespace rrr_pin
         throw std::invalid_argument("controller matrices have inconsistent shapes");
     }
 
-    /// The nominal-model calls one torque() makes (for floor_timing).
+    /// The nominal-model calls one torque() makes on a serial tree (for floor_timing).
     static void model_calls(Workspace & nominal, const Vec & q, const Vec & qd, Vec & tau,
                             double & sink)
     {
@@ -44,24 +49,24 @@ namespace rrr_pin
       tau = nle(nominal, q, qd);
     }
 
+    template<class Terms>
     class Eval
     {
     public:
-      Eval(const FLLaw & law, const CompiledModel & nominal_model)
-      : p(law)
-      , nominal(nominal_model)
+      Eval(const FLLaw & law, const Tree & nominal)
+      : terms(nominal)
+      , p(law)
       , m(law.nx())
-      , e(nominal_model.model.nq)
+      , e(nominal.na())
       , y(e.size())
       , taubar(e.size())
-      , tau(e.size())
-      , M(e.size(), e.size())
+      , tau_(e.size())
       {
       }
 
       /// Torque at (q, qd) for reference row (r, rd, rdd) and law state x; keeps e.
       template<typename R1, typename R2, typename R3>
-      const Vec & torque(
+      int torque(
         const Vec & q, const Vec & qd, const R1 & r, const R2 & rd, const R3 & rdd, const Vec & x)
       {
         e = r.transpose() - q;
@@ -70,13 +75,15 @@ namespace rrr_pin
           y.noalias() += p.C * x;
         const double lam = p.lam;
         taubar = rdd.transpose() + 2.0 * lam * (rd.transpose() - qd) + lam * lam * (e + y);
-        // Eq. (8) with the nominal model; crba fills the upper triangle.
-        M = crba(nominal, q);
-        M.triangularView<Eigen::StrictlyLower>() = M.transpose();
-        tau.noalias() = M * taubar;
-        tau += nle(nominal, q, qd);
-        return tau;
+        // Eq. (8) with the law's model.
+        if (const int st = terms.terms(q, qd); st != kOk)
+          return st;
+        tau_.noalias() = terms.M() * taubar;
+        tau_ += terms.h();
+        return kOk;
       }
+
+      const Vec & tau() const { return tau_; }
 
       /// x+ = A x + B e (sampled) or xdot = A x + B e (continuous), e of the last torque().
       void state_map(const Vec & x, Vec & out) const
@@ -86,14 +93,14 @@ namespace rrr_pin
       }
 
       /// Mhat(q) of the last torque() (symmetric).
-      const Mat & inertia() const { return M; }
+      const Mat & inertia() const { return terms.M(); }
+
+      Terms terms;
 
     private:
       const FLLaw & p;
-      Workspace nominal;
       Eigen::Index m;
-      Vec e, y, taubar, tau;
-      Mat M;
+      Vec e, y, taubar, tau_;
     };
   };
 
@@ -110,29 +117,35 @@ namespace rrr_pin
         throw std::invalid_argument("L must be m x nq and limit of size nq");
     }
 
+    template<class Terms>
     class Eval
     {
     public:
-      Eval(const FLAWLaw & law, const CompiledModel & nominal_model)
-      : p(law)
-      , fl(law, nominal_model)
-      , tau(nominal_model.model.nq)
-      , dy(nominal_model.model.nq)
+      Eval(const FLAWLaw & law, const Tree & nominal)
+      : fl(law, nominal)
+      , terms(fl.terms)
+      , p(law)
+      , tau_(nominal.na())
+      , dy(nominal.na())
       {
       }
 
       /// FLLaw's torque clipped to the limits; keeps the correction dy if a joint clipped.
       template<typename R1, typename R2, typename R3>
-      const Vec & torque(
+      int torque(
         const Vec & q, const Vec & qd, const R1 & r, const R2 & rd, const R3 & rdd, const Vec & x)
       {
-        const Vec & raw = fl.torque(q, qd, r, rd, rdd, x);
-        tau = raw.cwiseMax(-p.limit).cwiseMin(p.limit);
-        clipped = tau != raw;
+        if (const int st = fl.torque(q, qd, r, rd, rdd, x); st != kOk)
+          return st;
+        const Vec & raw = fl.tau();
+        tau_ = raw.cwiseMax(-p.limit).cwiseMin(p.limit);
+        clipped = tau_ != raw;
         if (clipped)
-          dy = fl.inertia().partialPivLu().solve(tau - raw) / (p.lam * p.lam);
-        return tau;
+          dy = fl.inertia().partialPivLu().solve(tau_ - raw) / (p.lam * p.lam);
+        return kOk;
       }
+
+      const Vec & tau() const { return tau_; }
 
       /// FLLaw's state map, plus L dy after a torque() that clipped.
       void state_map(const Vec & x, Vec & out) const
@@ -143,9 +156,14 @@ namespace rrr_pin
       }
 
     private:
+      typename FLLaw::template Eval<Terms> fl;
+
+    public:
+      Terms & terms;
+
+    private:
       const FLAWLaw & p;
-      FLLaw::Eval fl;
-      Vec tau, dy;
+      Vec tau_, dy;
       bool clipped = false;
     };
   };
@@ -169,35 +187,41 @@ namespace rrr_pin
       tau = gravity(nominal, q);
     }
 
+    template<class Terms>
     class Eval
     {
     public:
-      Eval(const PDLaw & law, const CompiledModel & nominal_model)
-      : p(law)
-      , nominal(nominal_model)
-      , e(nominal_model.model.nq)
-      , tau(e.size())
+      Eval(const PDLaw & law, const Tree & nominal)
+      : terms(nominal)
+      , p(law)
+      , e(nominal.na())
+      , tau_(e.size())
       {
       }
 
       template<typename R1, typename R2, typename R3>
-      const Vec & torque(
+      int torque(
         const Vec & q, const Vec & qd, const R1 & r, const R2 & rd, const R3 &, const Vec &)
       {
         e = r.transpose() - q;
-        tau.noalias() = p.Kp * e;
-        tau.noalias() += p.Kd * (rd.transpose() - qd);
-        tau += gravity(nominal, q);
-        return tau;
+        tau_.noalias() = p.Kp * e;
+        tau_.noalias() += p.Kd * (rd.transpose() - qd);
+        if (const int st = terms.gravity(q); st != kOk)
+          return st;
+        tau_ += terms.G();
+        return kOk;
       }
+
+      const Vec & tau() const { return tau_; }
 
       /// A static law has no state (the loops never call this with nx = 0).
       void state_map(const Vec &, Vec &) const {}
 
+      Terms terms;
+
     private:
       const PDLaw & p;
-      Workspace nominal;
-      Vec e, tau;
+      Vec e, tau_;
     };
   };
 } // namespace rrr_pin

@@ -1,6 +1,7 @@
 // Python bindings of the compiled rollout: rrr_pin.sim._rollout (private; use
-// rrr_pin.sim.compiled). Parameters travel as objects whose fields Python sets by name: a law
-// (FLLaw, FLAWLaw or PDLaw, one per compiled form), RolloutInputs and Effects.
+// rrr_pin.sim.compiled). Parameters travel as objects whose fields Python sets by name: a plant's
+// Tree (rrr_pin.model.plant.TreeDescription), a law (FLLaw, FLAWLaw or PDLaw, one per compiled
+// form), RolloutInputs and Effects.
 #include <cstdint>
 #include <string>
 
@@ -17,11 +18,12 @@ using namespace rrr_pin;
 namespace rrr_pin
 {
   void bind_batch(nb::module_ & mod);  // batch_bind.cpp
-  void bind_chain(nb::module_ & mod);  // chain_bind.cpp
 }
 
 namespace
 {
+  using LoopJoints = Eigen::Matrix<int, Eigen::Dynamic, 2, Eigen::RowMajor>;
+
   /// Bind rollout() and floor_timing() for one law (overloads, selected by the law's type).
   template<class Law>
   nb::class_<Law> def_law(nb::module_ & mod, const char * name, const char * doc)
@@ -31,17 +33,16 @@ namespace
     mod.def(
       "rollout", &rollout<Law>, nb::arg("plant"), nb::arg("nominal"), nb::arg("law"),
       nb::arg("inputs"), nb::arg("effects").none() = nb::none(),
-      nb::call_guard<nb::gil_scoped_release>(),
-      "Run the closed loop; returns (q, qd, tau, bad_step, bad_joint, reason).");
+      nb::call_guard<nb::gil_scoped_release>(), "Run the closed loop; returns a RolloutResult.");
     mod.def(
       "floor_timing",
-      [](const CompiledModel & plant, const CompiledModel & nominal, const Law &, bool sampled,
-         int substeps, std::int64_t n_steps) {
+      [](const Tree & plant, const Tree & nominal, const Law &, bool sampled, int substeps,
+         std::int64_t n_steps) {
         return floor_timing<Law>(plant, nominal, sampled, substeps, n_steps);
       },
       nb::arg("plant"), nb::arg("nominal"), nb::arg("law"), nb::arg("sampled"),
       nb::arg("substeps"), nb::arg("n_steps"), nb::call_guard<nb::gil_scoped_release>(),
-      "Wall time [s] of the bare dynamics calls of a rollout of this law.");
+      "Wall time [s] of the bare dynamics calls of a rollout of this law (serial trees).");
     return cls;
   }
 } // namespace
@@ -50,16 +51,41 @@ NB_MODULE(_rollout, mod)
 {
   mod.doc() = "Compiled closed-loop rollout on Pinocchio (private; use rrr_pin.sim.compiled).";
 
-  nb::class_<CompiledModel>(mod, "CompiledModel")
+  nb::class_<Tree>(mod, "Tree", "A plant's tree, loop closures and coordinate split.")
     .def(
-      nb::init<const std::string &>(), nb::arg("serialized"),
-      "Load a model from pinocchio.Model.saveToString() text.")
-    .def_prop_ro("nq", &CompiledModel::nq)
-    .def("save", &CompiledModel::save, "The model re-serialized with saveToString().")
+      nb::init<const std::string &, const IVec &, const IVec &, const LoopJoints &,
+               const RowMat &, const IVec &, const Vec &, double, int, double, double>(),
+      nb::arg("serialized"), nb::arg("actuated"), nb::arg("passive"), nb::arg("loop_joints"),
+      nb::arg("loop_anchors"), nb::arg("rows"), nb::arg("home"), nb::arg("closure_tol"),
+      nb::arg("max_iter"), nb::arg("cond_limit"), nb::arg("drift_bound"),
+      "From pinocchio.Model.saveToString() text and a TreeDescription's arrays (loop_anchors "
+      "(2 L, 3)).")
+    .def_prop_ro("nv", &Tree::nv)
+    .def_prop_ro("na", &Tree::na)
+    .def_prop_ro("loops", &Tree::loops, "Number of loop closures (0: a serial tree).")
     .def(
-      "use_codegen", &CompiledModel::use_codegen, nb::arg("name"),
-      "Use generated dynamics `name` instead of Pinocchio (caller checks the fingerprint).")
-    .def_prop_ro("codegen", &CompiledModel::codegen);
+      "save", [](const Tree & t) { return t.tree.save(); },
+      "The model re-serialized with saveToString().")
+    .def(
+      "acceleration", &plant_acceleration, nb::arg("q"), nb::arg("qd"), nb::arg("tau"),
+      "The plant's full qdd at (q, qd) under actuator torques tau (ABA or exact KKT).")
+    .def(
+      "closure_terms",
+      [](const Tree & t, const Vec & q, const Vec & qd) {
+        // M (full), nle, J, phi, gamma at (q, qd): the engine's own kinematics, for tests.
+        if (q.size() != t.nv() || qd.size() != t.nv())
+          throw std::invalid_argument("q and qd must have nv entries");
+        Closure w(t);
+        Mat M = pinocchio::crba(t.tree.model, w.data, CRef(q));
+        M.triangularView<Eigen::StrictlyLower>() = M.transpose();
+        Vec nle = pinocchio::nonLinearEffects(t.tree.model, w.data, CRef(q), CRef(qd));
+        w.jacobian(q);
+        Mat J = w.J;
+        Vec phi = w.phi;
+        w.gamma(q, qd);
+        return nb::make_tuple(M, nle, J, phi, Vec(w.g));
+      },
+      nb::arg("q"), nb::arg("qd"), "(M, nle, J, phi, gamma) at (q, qd).");
 
   nb::class_<RolloutInputs>(mod, "RolloutInputs", "A validated run (rrr_pin.sim.trajectory.Run).")
     .def(nb::init<>())
@@ -76,6 +102,21 @@ NB_MODULE(_rollout, mod)
     .def_rw("h", &RolloutInputs::h)
     .def_rw("substeps", &RolloutInputs::substeps)
     .def_rw("n_steps", &RolloutInputs::n_steps);
+
+  nb::class_<RolloutResult>(mod, "RolloutResult", "What a rollout returns (rollout.hpp).")
+    .def_ro("Q", &RolloutResult::Q)
+    .def_ro("QD", &RolloutResult::QD)
+    .def_ro("TAU", &RolloutResult::TAU)
+    .def_ro("step", &RolloutResult::step)
+    .def_ro("joint", &RolloutResult::joint)
+    .def_ro("reason", &RolloutResult::reason)
+    .def_ro("value", &RolloutResult::value)
+    .def_ro("drift", &RolloutResult::drift)
+    .def_ro("drift_v", &RolloutResult::drift_v)
+    .def_ro("q", &RolloutResult::q)
+    .def_ro("qd", &RolloutResult::qd)
+    .def_ro("law_q", &RolloutResult::law_q)
+    .def_ro("seed", &RolloutResult::seed);
 
   nb::class_<Effects>(mod, "Effects", "Plant effects (rrr_pin.control.effects.Resolved); all off.")
     .def(nb::init<>())
@@ -110,16 +151,16 @@ NB_MODULE(_rollout, mod)
     .def_rw("Kp", &PDLaw::Kp)
     .def_rw("Kd", &PDLaw::Kd);
 
-  mod.def("codegen_models", []() {
-    nb::dict d;
-    d["rrr"] = nb::make_tuple(
-      std::string(rrr_cg_fingerprint), std::string(rrr_cg_urdf_sha256),
-      std::string(rrr_cg_gravity));
-    return d;
-  }, "Generated models: name -> (fingerprint, URDF sha256, gravity text).");
+  mod.def("check_reference", &check_reference, nb::arg("plant"), nb::arg("R"),
+          nb::call_guard<nb::gil_scoped_release>(),
+          "Close the loop along R from home: (status, index, cond) (check_chain_reference's "
+          "test; a serial tree passes).");
+  mod.def("acceleration_timing", &acceleration_timing, nb::arg("plant"), nb::arg("q"),
+          nb::arg("qd"), nb::arg("tau"), nb::arg("calls"),
+          nb::call_guard<nb::gil_scoped_release>(),
+          "Wall time [s] of `calls` plant accelerations (ABA or exact KKT).");
 
   bind_batch(mod);
-  bind_chain(mod);
 
   mod.def("pinocchio_version", []() { return std::string(PINOCCHIO_VERSION); });
   mod.def("eigen_version", []() {

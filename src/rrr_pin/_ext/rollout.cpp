@@ -1,15 +1,15 @@
-// The loops of a compiled rollout (see rollout.hpp): a sampled law on the ideal plant or with
-// the plant effects of effects.hpp (one template, two instances), and a continuous law
-// integrated with the arm. Both take
-// their RK4 stages from rk4.hpp.
+// The loops of a compiled rollout (see rollout.hpp), each written once over the plant (plant.hpp)
+// and the law's model (terms.hpp): a sampled law on the ideal plant or with the plant effects of
+// effects.hpp (one template, two instances), and a continuous law integrated with the plant. All
+// take their RK4 steps from rk4.hpp.
 #include "rollout.hpp"
 
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-#include <type_traits>
 
+#include "plant.hpp"
 #include "rk4.hpp"
 
 namespace rrr_pin
@@ -60,272 +60,353 @@ namespace rrr_pin
       return -1;
     }
 
-    void check_inputs(
-      const CompiledModel & plant, const CompiledModel & nominal, Eigen::Index nx,
-      const RolloutInputs & in)
+    void check_models(
+      const Tree & plant, const Tree & nominal, Eigen::Index nx, const RolloutInputs & in)
     {
-      const Eigen::Index n = plant.model.nq;
-      if (nominal.model.nq != n)
-        throw std::invalid_argument("plant and nominal models differ in nq");
+      const Eigen::Index n = plant.na();
+      if (nominal.na() != n)
+        throw std::invalid_argument("plant and nominal models differ in actuated coordinates");
       check_inputs(in, n, nx);
-      if (
-        in.q0.size() != n || in.qd0.size() != n || in.lower.size() != n || in.upper.size() != n)
-        throw std::invalid_argument("state and limit vectors must have nq entries");
+      if (in.q0.size() != plant.nv() || in.qd0.size() != plant.nv())
+        throw std::invalid_argument("q0 and qd0 must be the plant's full state (nv entries)");
+      if (in.lower.size() != n || in.upper.size() != n)
+        throw std::invalid_argument("limit vectors must have one entry per actuated coordinate");
     }
 
-    /// The sampled plant: the arm driven by the command u (held on the sub-step) through the
-    /// actuator, the flexible joint and the friction of the effects.
-    struct SampledPlant
+    /// What a law's model keeps of its stop: nothing for a serial tree (it never stops).
+    void keep_stop(const ArmTerms &, RolloutResult &) {}
+
+    /// A closed chain's: the actuated q of the closure, its Newton seed and cond(J_p).
+    void keep_stop(const ChainTerms & terms, RolloutResult & out)
     {
-      Workspace arm;
+      out.law_q = terms.law_q;
+      out.seed = terms.seed;
+      out.value = terms.value;
+    }
+
+    /// The sampled plant: driven by the command u (held on the sub-step), directly (Ideal) or
+    /// through the actuator, the flexible joint and the friction of the effects, on its
+    /// actuated coordinates.
+    template<class Plant, bool Ideal>
+    struct Driven
+    {
+      Plant & plant;
       const Effects & fx;
       Parts parts;
-      Vec u, tj, tm, fr;
+      Vec u, tj, tm, fr, qa, qda;
 
-      SampledPlant(const CompiledModel & model, const Effects & effects)
-      : arm(model)
+      Driven(Plant & p, const Effects & effects, Eigen::Index n)
+      : plant(p)
       , fx(effects)
       , parts(effects.parts())
-      , u(model.model.nq)
-      , tj(model.model.nq)
-      , tm(model.model.nq)
-      , fr(model.model.nq)
+      , u(n)
+      , tj(n)
+      , tm(n)
+      , fr(n)
+      , qa(n)
+      , qda(n)
       {
       }
 
       void slope(const State & y, int, State & k)
       {
         k.q = y.qd;
-        fx.joint_torque(y, u, k, tj, tm, fr);
-        k.qd = aba(arm, y.q, y.qd, tj);
+        if constexpr (Ideal)
+          k.qd = plant.acceleration(y.q, y.qd, u);
+        else
+        {
+          const Measured m = plant.measure(y.q, y.qd, qa, qda);
+          fx.joint_torque(m.q, m.qd, y, u, k, tj, tm, fr);
+          k.qd = plant.acceleration(y.q, y.qd, tj);
+        }
       }
     };
 
-    /// The ideal sampled plant: the arm alone, driven by the held command u. The effects loop's
-    /// SampledPlant with every effect off computes the same numbers; this one skips its copies.
-    struct IdealPlant
-    {
-      Workspace arm;
-      Parts parts;
-      Vec u;
-
-      explicit IdealPlant(const CompiledModel & model)
-      : arm(model)
-      , u(model.model.nq)
-      {
-      }
-
-      void slope(const State & y, int, State & k)
-      {
-        k.q = y.qd;
-        k.qd = aba(arm, y.q, y.qd, u);
-      }
-    };
-
-    /// A continuous law and the arm, integrated together; the law at every RK4 stage, on the
+    /// A continuous law and the plant, integrated together; the law at every RK4 stage, on the
     /// reference row of the stage's half step.
-    template<class Eval>
+    template<class Plant, class Eval>
     struct ContinuousLoop
     {
-      Workspace arm;
+      Plant & plant;
       Eval & law;
       const RolloutInputs & in;
+      RolloutResult & out;
       Parts parts;
+      Vec qa, qda;
       std::int64_t k = 0;          // RK4 step
       const Vec * tau = nullptr;   // torque of the last slope
       int bad_joint = -1;          // first joint of a NaN or inf torque of the law, or -1
+      int law_stop = kOk;          // the first stop of the law's model, or kOk
 
       void slope(const State & y, int point, State & d)
       {
         const std::int64_t i = 2 * k + point;
-        tau = &law.torque(y.q, y.qd, in.R.row(i), in.RD.row(i), in.RDD.row(i), y.x);
+        const Measured m = plant.measure(y.q, y.qd, qa, qda);
+        const int st = law.torque(m.q, m.qd, in.R.row(i), in.RD.row(i), in.RDD.row(i), y.x);
+        if (st != kOk && law_stop == kOk)
+        {
+          law_stop = st;
+          keep_stop(law.terms, out);
+        }
+        tau = &law.tau();
         if (bad_joint < 0)
           bad_joint = first_nonfinite(*tau);
         if (parts.x)
           law.state_map(y.x, d.x);
         d.q = y.qd;
-        d.qd = aba(arm, y.q, y.qd, *tau);
+        d.qd = plant.acceleration(y.q, y.qd, *tau);
       }
     };
 
     struct Outputs
     {
-      RowMat Q, QD, TAU;
-      std::int64_t bad_step = -1;
-      Divergence bad;
+      RolloutResult r;
 
       Outputs(std::int64_t n_steps, Eigen::Index n)
-      : Q(RowMat::Constant(n_steps + 1, n, std::numeric_limits<double>::quiet_NaN()))
-      , QD(RowMat::Constant(n_steps + 1, n, std::numeric_limits<double>::quiet_NaN()))
-      , TAU(RowMat::Constant(n_steps + 1, n, std::numeric_limits<double>::quiet_NaN()))
       {
+        const double nan = std::numeric_limits<double>::quiet_NaN();
+        r.Q = RowMat::Constant(n_steps + 1, n, nan);
+        r.QD = RowMat::Constant(n_steps + 1, n, nan);
+        r.TAU = RowMat::Constant(n_steps + 1, n, nan);
       }
 
-      /// Record the state after step k; false (and the divergence kept) if it diverged.
-      bool record(std::int64_t k, const State & y, const RolloutInputs & in)
+      /// Record the measured state after step k; false (and the divergence kept) if it diverged.
+      bool record(std::int64_t k, const Measured & m, const RolloutInputs & in)
       {
-        Q.row(k + 1) = y.q.transpose();
-        QD.row(k + 1) = y.qd.transpose();
-        bad = diverged(y.q, y.qd, in.lower, in.upper, in.vlim);
+        r.Q.row(k + 1) = m.q.transpose();
+        r.QD.row(k + 1) = m.qd.transpose();
+        const Divergence bad = diverged(m.q, m.qd, in.lower, in.upper, in.vlim);
         if (bad.reason == kOk)
           return true;
-        bad_step = k + 1;
+        r.step = k + 1;
+        r.joint = bad.joint;
+        r.reason = bad.reason;
         return false;
       }
 
       /// Stop at step k: the law returned a NaN or inf torque for joint j.
       void law_failed(std::int64_t k, int j)
       {
-        bad_step = k;
-        bad = {j, kLawTorque};
+        r.step = k;
+        r.joint = j;
+        r.reason = kLawTorque;
       }
 
-      RolloutResult result()
+      /// Stop at step k for `reason` (a plant's settle or a law's model).
+      void stop(std::int64_t k, int reason)
       {
-        return {std::move(Q), std::move(QD), std::move(TAU), bad_step, bad.joint, bad.reason};
+        r.step = k;
+        r.reason = reason;
+      }
+
+      /// The result, with the plant's records and its final (or stopped) state.
+      template<class Plant>
+      RolloutResult finish(const Plant & plant, const State & y)
+      {
+        r.drift = plant.drift;
+        r.drift_v = plant.drift_v;
+        if (r.reason >= kDrift && r.reason <= kPlantCrossed)
+          r.value = plant.value;
+        r.q = y.q;
+        r.qd = y.qd;
+        return std::move(r);
       }
     };
 
     /// Sampled law: sensor -> law -> saturation -> delay -> plant (effects.hpp), S RK4 sub-steps
-    /// of h per control period, the command held. Ideal = true: no effects (the same operations
-    /// on the same numbers, without the sensor, saturation, delay-line and actuator copies).
-    template<class Law, bool Ideal>
+    /// of h per control period, the command held, the plant settled after each. Ideal = true: no
+    /// effects (the same operations on the same numbers, without the sensor, saturation,
+    /// delay-line and actuator copies).
+    template<class Plant, class Terms, class Law, bool Ideal>
     RolloutResult sampled_loop(
-      const CompiledModel & plant_model, const CompiledModel & nominal_model, const Law & law,
-      const RolloutInputs & in, const Effects & fx)
+      const Tree & plant_tree, const Tree & nominal, const Law & law, const RolloutInputs & in,
+      const Effects & fx)
     {
-      const Eigen::Index n = plant_model.model.nq, m = law.nx();
+      const Eigen::Index n = plant_tree.na(), m = law.nx();
       const std::int64_t N = in.n_steps;
       Outputs out(N, n);
-      std::conditional_t<Ideal, IdealPlant, SampledPlant> plant = [&] {
-        if constexpr (Ideal)
-          return IdealPlant(plant_model);
-        else
-          return SampledPlant(plant_model, fx);
-      }();
-      typename Law::Eval eval(law, nominal_model);
+      Plant plant(plant_tree, in.q0);
+      Driven<Plant, Ideal> sys(plant, fx, n);
+      typename Law::template Eval<Terms> eval(law, nominal);
       State y;
       y.q = in.q0;
       y.qd = in.qd0;
-      Vec x = in.x0, xn(m), tau(n), qm(n), qdm(n);
+      Vec x = in.x0, xn(m), tau(n), qm(n), qdm(n), qa(n), qda(n);
       RK4 w;
-      out.Q.row(0) = y.q.transpose();
-      out.QD.row(0) = y.qd.transpose();
+      {
+        const Measured m0 = plant.measure(y.q, y.qd, qa, qda);
+        out.r.Q.row(0) = m0.q.transpose();
+        out.r.QD.row(0) = m0.qd.transpose();
+      }
       for (std::int64_t k = 0; k < N; ++k)
       {
+        const Measured ms = plant.measure(y.q, y.qd, qa, qda);
+        int st;
         if constexpr (Ideal)
-          tau = eval.torque(y.q, y.qd, in.R.row(k), in.RD.row(k), in.RDD.row(k), x);
+          st = eval.torque(ms.q, ms.qd, in.R.row(k), in.RD.row(k), in.RDD.row(k), x);
         else
         {
-          fx.sense(k, y.q, y.qd, qm, qdm);
-          tau = eval.torque(qm, qdm, in.R.row(k), in.RD.row(k), in.RDD.row(k), x);
+          fx.sense(k, ms.q, ms.qd, qm, qdm);
+          st = eval.torque(qm, qdm, in.R.row(k), in.RD.row(k), in.RDD.row(k), x);
         }
+        if (st != kOk)  // the law's model could not be evaluated there
+        {
+          out.stop(k, st);
+          keep_stop(eval.terms, out.r);
+          break;
+        }
+        tau = eval.tau();
         if (m > 0)
         {
           eval.state_map(x, xn);
           x.swap(xn);
         }
-        if (const int j = first_nonfinite(tau); j >= 0)  // the law's own output
+        // The law's own output. With the effects (a saturation could clip an inf, a delay hold
+        // a NaN back) and on a plant that does not settle, it stops here; a settling plant's
+        // Python loop meets it in the settle first (the step's gap is NaN), so it is kept for
+        // after the step.
+        const int bad = first_nonfinite(tau);
+        if (bad >= 0 && !(Ideal && Plant::settles))
         {
-          out.TAU.row(k) = tau.transpose();
-          out.law_failed(k, j);
+          out.r.TAU.row(k) = tau.transpose();
+          out.law_failed(k, bad);
           break;
         }
         if constexpr (!Ideal)
           fx.saturate(tau);
+        out.r.TAU.row(k) = tau.transpose();  // also the delay line: row j = command j
         if constexpr (Ideal)
+          sys.u = tau;
+        else if (k == 0)
+          fx.start(tau, ms.q, ms.qd, y);
+        for (int s = 0; s < in.substeps; ++s)
         {
-          out.TAU.row(k) = tau.transpose();
-          plant.u = tau;
-          for (int s = 0; s < in.substeps; ++s)
-            rk4_step(plant, y, in.h, w);
+          if constexpr (!Ideal)
+            sys.u = out.r.TAU.row(fx.delayed_row(k, s, in.substeps)).transpose();
+          rk4_step(sys, y, in.h, w);
+          st = plant.settle(y.q, y.qd);
+          if (st != kOk)
+            break;
         }
-        else
+        if (st != kOk)
         {
-          out.TAU.row(k) = tau.transpose();  // also the delay line: row j = command j
-          if (k == 0)
-            fx.start(tau, y);
-          for (int s = 0; s < in.substeps; ++s)
-          {
-            plant.u = out.TAU.row(fx.delayed_row(k, s, in.substeps)).transpose();
-            rk4_step(plant, y, in.h, w);
-          }
+          out.stop(k, st);
+          break;
         }
-        if (!out.record(k, y, in))
+        if (bad >= 0)
+        {
+          out.law_failed(k, bad);
+          break;
+        }
+        if (!out.record(k, plant.measure(y.q, y.qd, qa, qda), in))
           break;
       }
       // The torque held on the last interval is also the one "at" the final sample.
-      if (out.bad_step < 0)
-        out.TAU.row(N) = out.TAU.row(N - 1);
-      return out.result();
+      if (out.r.step < 0)
+        out.r.TAU.row(N) = out.r.TAU.row(N - 1);
+      return out.finish(plant, y);
     }
 
-    /// Continuous law: (q, qd, x) integrated together by RK4 steps of h.
-    template<class Law>
+    /// Continuous law: (q, qd, x) integrated together by RK4 steps of h, the plant settled after
+    /// each.
+    template<class Plant, class Terms, class Law>
     RolloutResult continuous_loop(
-      const CompiledModel & plant_model, const CompiledModel & nominal_model, const Law & law,
-      const RolloutInputs & in)
+      const Tree & plant_tree, const Tree & nominal, const Law & law, const RolloutInputs & in)
     {
-      const Eigen::Index n = plant_model.model.nq;
+      const Eigen::Index n = plant_tree.na();
       const std::int64_t N = in.n_steps;
       Outputs out(N, n);
-      typename Law::Eval eval(law, nominal_model);
-      ContinuousLoop<typename Law::Eval> loop{Workspace(plant_model), eval, in, Parts{}};
+      Plant plant(plant_tree, in.q0);
+      using Eval = typename Law::template Eval<Terms>;
+      Eval eval(law, nominal);
+      ContinuousLoop<Plant, Eval> loop{plant, eval, in, out.r, Parts{}, Vec(n), Vec(n)};
       loop.parts.x = law.nx() > 0;
       State y;
       y.q = in.q0;
       y.qd = in.qd0;
       y.x = in.x0;
       RK4 w;
-      out.Q.row(0) = y.q.transpose();
-      out.QD.row(0) = y.qd.transpose();
+      Vec qa(n), qda(n);
+      {
+        const Measured m0 = plant.measure(y.q, y.qd, qa, qda);
+        out.r.Q.row(0) = m0.q.transpose();
+        out.r.QD.row(0) = m0.qd.transpose();
+      }
       for (std::int64_t k = 0;; ++k)
       {
         loop.k = k;
         loop.slope(y, 0, w.k1);
-        out.TAU.row(k) = loop.tau->transpose();
+        out.r.TAU.row(k) = loop.tau->transpose();
         if (k < N)
           rk4_rest(loop, y, in.h, w);
+        if (loop.law_stop != kOk)
+        {
+          out.stop(k, loop.law_stop);
+          break;
+        }
+        if (k < N)
+          if (const int st = plant.settle(y.q, y.qd); st != kOk)
+          {
+            out.stop(k, st);
+            break;
+          }
         if (loop.bad_joint >= 0)
         {
           out.law_failed(k, loop.bad_joint);
           break;
         }
-        if (k == N || !out.record(k, y, in))
+        if (k == N || !out.record(k, plant.measure(y.q, y.qd, qa, qda), in))
           break;
       }
-      return out.result();
+      return out.finish(plant, y);
+    }
+
+    template<class Plant, class Terms, class Law>
+    RolloutResult run(
+      const Tree & plant, const Tree & nominal, const Law & law, const RolloutInputs & in,
+      const Effects * fx)
+    {
+      if (!in.sampled)
+        return continuous_loop<Plant, Terms>(plant, nominal, law, in);
+      if (!fx)
+        return sampled_loop<Plant, Terms, Law, true>(plant, nominal, law, in, Effects{});
+      return sampled_loop<Plant, Terms, Law, false>(plant, nominal, law, in, *fx);
     }
   } // namespace
 
   template<class Law>
   RolloutResult rollout(
-    const CompiledModel & plant, const CompiledModel & nominal, const Law & law,
-    const RolloutInputs & in, const Effects * fx)
+    const Tree & plant, const Tree & nominal, const Law & law, const RolloutInputs & in,
+    const Effects * fx)
   {
-    const Eigen::Index n = plant.model.nq;
+    const Eigen::Index n = plant.na();
     if (!in.sampled && fx)
       throw std::invalid_argument("plant effects need a sampled law");
-    check_inputs(plant, nominal, law.nx(), in);
+    check_models(plant, nominal, law.nx(), in);
     law.check(n);
-    if (!in.sampled)
-      return continuous_loop(plant, nominal, law, in);
-    if (!fx)
-      return sampled_loop<Law, true>(plant, nominal, law, in, Effects{});
-    fx->check(n, in.n_steps);
-    return sampled_loop<Law, false>(plant, nominal, law, in, *fx);
+    if (fx)
+      fx->check(n, in.n_steps);
+    // The plant's kind and its law model's, each from its own description (loops or none).
+    if (plant.loops() > 0)
+      return nominal.loops() > 0 ? run<ChainPlant, ChainTerms>(plant, nominal, law, in, fx)
+                                 : run<ChainPlant, ArmTerms>(plant, nominal, law, in, fx);
+    return nominal.loops() > 0 ? run<ArmPlant, ChainTerms>(plant, nominal, law, in, fx)
+                               : run<ArmPlant, ArmTerms>(plant, nominal, law, in, fx);
   }
 
   template<class Law>
   double floor_timing(
-    const CompiledModel & plant_model, const CompiledModel & nominal_model, bool sampled,
-    int substeps, std::int64_t n_steps)
+    const Tree & plant_tree, const Tree & nominal_tree, bool sampled, int substeps,
+    std::int64_t n_steps)
   {
-    if (nominal_model.model.nq != plant_model.model.nq)
+    if (plant_tree.loops() > 0 || nominal_tree.loops() > 0)
+      throw std::invalid_argument("floor_timing times serial trees (ABA, CRBA); a closed chain's "
+                                  "plant calls are timed by acceleration_timing");
+    if (nominal_tree.na() != plant_tree.na())
       throw std::invalid_argument("plant and nominal models differ in nq");
     if (substeps < 1 || n_steps < 0)
       throw std::invalid_argument("substeps must be >= 1 and n_steps >= 0");
-    Workspace plant(plant_model), nominal(nominal_model);
+    Workspace plant(plant_tree.tree), nominal(nominal_tree.tree);
     const Eigen::Index n = plant.model.nq;
     Vec q = Vec::Constant(n, 0.3), qd = Vec::Constant(n, 0.1), tau = Vec::Zero(n);
     double sink = 0.0;
@@ -351,19 +432,52 @@ namespace rrr_pin
     return std::chrono::duration<double>(t1 - t0).count();
   }
 
-  template RolloutResult rollout<FLLaw>(
-    const CompiledModel &, const CompiledModel &, const FLLaw &, const RolloutInputs &,
-    const Effects *);
-  template RolloutResult rollout<FLAWLaw>(
-    const CompiledModel &, const CompiledModel &, const FLAWLaw &, const RolloutInputs &,
-    const Effects *);
-  template RolloutResult rollout<PDLaw>(
-    const CompiledModel &, const CompiledModel &, const PDLaw &, const RolloutInputs &,
-    const Effects *);
-  template double floor_timing<FLLaw>(
-    const CompiledModel &, const CompiledModel &, bool, int, std::int64_t);
-  template double floor_timing<FLAWLaw>(
-    const CompiledModel &, const CompiledModel &, bool, int, std::int64_t);
-  template double floor_timing<PDLaw>(
-    const CompiledModel &, const CompiledModel &, bool, int, std::int64_t);
+  namespace
+  {
+    template<class Plant>
+    double time_accelerations(const Tree & tree, const Vec & q, const Vec & qd, const Vec & tau,
+                              std::int64_t calls)
+    {
+      Plant plant(tree, q);
+      double sink = 0.0;
+      const auto t0 = std::chrono::steady_clock::now();
+      for (std::int64_t i = 0; i < calls; ++i)
+        sink += plant.acceleration(q, qd, tau)[0];
+      const auto t1 = std::chrono::steady_clock::now();
+      if (std::isnan(sink))
+        return std::numeric_limits<double>::quiet_NaN();
+      return std::chrono::duration<double>(t1 - t0).count();
+    }
+
+    void check_state(const Tree & tree, const Vec & q, const Vec & qd, const Vec & tau)
+    {
+      if (q.size() != tree.nv() || qd.size() != tree.nv() || tau.size() != tree.na())
+        throw std::invalid_argument("q and qd must have nv entries, tau one per actuated "
+                                    "coordinate");
+    }
+  } // namespace
+
+  double acceleration_timing(const Tree & tree, const Vec & q, const Vec & qd, const Vec & tau,
+                             std::int64_t calls)
+  {
+    check_state(tree, q, qd, tau);
+    return tree.loops() > 0 ? time_accelerations<ChainPlant>(tree, q, qd, tau, calls)
+                            : time_accelerations<ArmPlant>(tree, q, qd, tau, calls);
+  }
+
+  Vec plant_acceleration(const Tree & tree, const Vec & q, const Vec & qd, const Vec & tau)
+  {
+    check_state(tree, q, qd, tau);
+    if (tree.loops() > 0)
+    {
+      ChainPlant plant(tree, q);
+      return plant.acceleration(q, qd, tau);
+    }
+    ArmPlant plant(tree, q);
+    return plant.acceleration(q, qd, tau);
+  }
+
+  RRR_PIN_ROLLOUT_LAW(FLLaw, )
+  RRR_PIN_ROLLOUT_LAW(FLAWLaw, )
+  RRR_PIN_ROLLOUT_LAW(PDLaw, )
 } // namespace rrr_pin

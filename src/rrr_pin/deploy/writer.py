@@ -111,10 +111,10 @@ class Export:
 def generated_rrr_source() -> tuple[str, str] | None:
     """Return ``(fingerprint, text)`` of the generated RRR dynamics, or None if not installed.
 
-    The file is ``rrr_pin/_ext/codegen_rrr.c`` (:mod:`rrr_pin.sim.codegen`); its header records
-    the fingerprint of the model it was generated for.
+    The file is ``rrr_pin/_ext/generated/codegen_rrr.c`` (:mod:`rrr_pin.sim.codegen`); its header
+    records the fingerprint of the model it was generated for.
     """
-    path = Path(__file__).resolve().parents[1] / "_ext" / "codegen_rrr.c"
+    path = Path(__file__).resolve().parents[1] / "_ext" / "generated" / "codegen_rrr.c"
     if not path.is_file():
         return None
     text = path.read_text(encoding="ascii")

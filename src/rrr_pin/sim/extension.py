@@ -1,7 +1,7 @@
-"""The compiled extension ``rrr_pin.sim._rollout``: loading, version check, loaded models.
+"""The compiled extension ``rrr_pin.sim._rollout``: loading, version check, loaded plants.
 
-Shared by the compiled engine (:mod:`rrr_pin.sim.compiled`) and the codegen engine
-(:mod:`rrr_pin.sim.codegen`); imports nothing of rrr_pin.
+Shared by the compiled engine (:mod:`rrr_pin.sim.compiled`) and the batched engine
+(:mod:`rrr_pin.sim.batched`); imports nothing of rrr_pin.
 """
 
 from __future__ import annotations
@@ -47,24 +47,32 @@ def require() -> None:
 
 @dataclass(frozen=True)
 class CompiledRobot:
-    """A robot model loaded into the extension, reusable across rollouts and threads.
+    """A plant loaded into the extension, reusable across rollouts and threads.
 
     Attributes
     ----------
     name : str
-        Robot name (for messages).
+        Plant name (for messages).
     joint_names : tuple of str
-        Names of the moving joints, shape (nq,).
+        Names of the actuated joints, shape (nq,).
+    description : TreeDescription or None
+        What it was loaded from (:meth:`rrr_pin.model.plant.Plant.description`).
     """
 
     name: str
     joint_names: tuple[str, ...]
     _model: object = field(repr=False)
+    description: object = field(default=None, repr=False)
 
     @property
     def nq(self) -> int:
-        """Number of joints."""
-        return self._model.nq
+        """Number of actuated coordinates."""
+        return self._model.na
+
+    @property
+    def loops(self) -> int:
+        """Number of loop closures of its tree (0: a serial tree), as the extension reads them."""
+        return self._model.loops
 
 
 def cached(cache: dict, robot, load):

@@ -43,7 +43,7 @@ VELOCITY_LIMIT = 1e4
 REASONS = ("became NaN or infinite", f"exceeded {VELOCITY_LIMIT:g} rad/s (blow-up)",
            "left its joint limits", "got a non-finite torque (NaN or inf) from the law")
 
-#: Index in :data:`REASONS` of a law's non-finite torque (``kLawTorque`` of rollout.hpp).
+#: Index in :data:`REASONS` of a law's non-finite torque (``kLawTorque`` of _ext/terms.hpp).
 LAW_TORQUE = 3
 
 class SimulationDiverged(RuntimeError):

@@ -4,7 +4,8 @@
  * urdf_sha256: 40eff6a5e84407c87a9d320e883adc052424d0f6575a95125d6c756427a88d1a
  * fingerprint: bd3f90df4d5b10039891943f8c0089a61d9e6460af2d16b1e06833ea49787756
  * gravity: 9.8
- * Used by engine="codegen" (rrr_pin.sim.codegen) only for models with this fingerprint.
+ * Copied by rrr_pin.export into the folders of the model with this fingerprint
+ * (rrr_pin.sim.codegen.fingerprint); not compiled into the extension.
  */
 #include <math.h>
 // gravity 9.8000000000000007 m/s^2 along -z
