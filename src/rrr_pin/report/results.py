@@ -443,6 +443,11 @@ def study_captions(result: StudyResult, design: dict | None = None) -> dict:
         "certificates.png": "Frozen-configuration certificates: each uncertain plant's largest "
                             "nu-gap to the nominal shaped plant against b(Gs, Ks); below the "
                             "line, certified.",
+        "task_space.png": "Task space: the frame's path and its Cartesian error [mm] on the "
+                          "nominal plant (thick) and the uncertain plants (thin).",
+        "task_path.png": "The plant's task path [mm] (grey: the reference, e.g. a mechanism's "
+                         "tip circle or platform cycle) and each controller's path on the "
+                         "nominal plant, in the plane the path spans most.",
     }
 
 
