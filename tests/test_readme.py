@@ -38,7 +38,7 @@ import pytest
 import tomllib
 
 from rrr_pin import cli
-from rrr_pin.cli.common import parse_lock
+from rrr_pin.cli.common import negative_values, parse_lock
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
@@ -167,7 +167,7 @@ def test_fenced_command_parses(argv, line):
     assert unknown_options(argv) == [], f"README line {line}: rrr-pin {' '.join(argv)}"
     if not is_synopsis(argv):
         try:
-            PARSER.parse_args(cli._negative_values(argv))
+            PARSER.parse_args(negative_values(argv))
         except SystemExit:
             pytest.fail(f"README line {line}: `rrr-pin {' '.join(argv)}` does not parse")
 
@@ -430,8 +430,14 @@ def test_layer_table_lists_every_module():
     assert {layer for layer, _ in rows} == {"validation", "outputs", "model", "robust", "control",
                                             "sim", "deploy", "campaign", "report", "cli"}
     for layer, modules in rows:
-        listed = set(re.findall(r"`(\w+)`", modules))
+        # a module as `name`, a subpackage as `name/` with its modules after it
+        listed = set(re.findall(r"`(\w+)/?`", modules))
         folder = ROOT / "src" / "rrr_pin" / layer
-        present = ({p.stem for p in folder.glob("*.py") if not p.stem.startswith("_")}
-                   if folder.is_dir() else set())
+        present = set()
+        if folder.is_dir():
+            present = {p.stem for p in folder.glob("*.py") if not p.stem.startswith("_")}
+            for sub in folder.iterdir():
+                if (sub / "__init__.py").is_file():
+                    present |= {sub.name} | {p.stem for p in sub.glob("*.py")
+                                             if not p.stem.startswith("_")}
         assert listed == present, f"README's layer table, rrr_pin.{layer}"
