@@ -24,6 +24,7 @@ import control
 import numpy as np
 import pinocchio as pin
 
+from ..model.plant import central_jacobian
 from ..robust.mu import robstab
 from ..validation import check_positive, check_vector
 from .laws import ControlLaw, FLLinearModel, check_law
@@ -35,13 +36,6 @@ __all__ = ["loop_at_input", "loop_channel", "LoopMargins", "loop_margins", "Para
 # in qd and x and their q dependence is smooth: the error is O(h^2)).
 _H = 1e-6
 
-def _jacobian(f, x0, h=_H):
-    cols = []
-    for i in range(x0.size):
-        e = np.zeros(x0.size)
-        e[i] = h * max(1.0, abs(x0[i]))
-        cols.append((f(x0 + e) - f(x0 - e)) / (2 * e[i]))
-    return np.array(cols).T if cols else np.zeros((f(x0).size, 0))
 
 
 def loop_at_input(law, robot, q) -> control.StateSpace:
@@ -97,8 +91,8 @@ def loop_at_input(law, robot, q) -> control.StateSpace:
     def xdot(s):
         return law.derivative(0.0, s[:n], s[n:2 * n], q0, z, z, s[2 * n:])
 
-    T = _jacobian(tau, x0)
-    X = _jacobian(xdot, x0) if nx else np.zeros((0, 2 * n))
+    T = central_jacobian(tau, x0, _H)
+    X = central_jacobian(xdot, x0, _H) if nx else np.zeros((0, 2 * n))
     Z, eye = np.zeros((n, n)), np.eye(n)
     A = np.block([[Z, eye, np.zeros((n, nx))],
                   [np.asarray(dq), np.asarray(dv), np.zeros((n, nx))],

@@ -60,7 +60,7 @@ from .mechanisms import (
     mechanism_of,
     mjcf_from_params,
 )
-from .plant import Plant, Settler, TreeDescription, UncertaintySet
+from .plant import Plant, Settler, TreeDescription, UncertaintySet, central_jacobian
 
 __all__ = ["ClosedChain", "load_closed_chain", "is_closed_chain_source", "SingularConfiguration",
            "LoopClosureError", "ConstraintDrift", "ChainSettler", "check_chain_reference",
@@ -85,16 +85,6 @@ DRIFT_BOUND = 1e-6
 #: Relative central-difference step of the linearizations (:meth:`ClosedChain.linearization`):
 #: each call closes the loop to :data:`CLOSURE_TOL`, so a smaller step would amplify that error.
 LINEARIZATION_STEP = 1e-5
-
-
-def _jacobian(f, x0, h):
-    """Central-difference Jacobian of ``f`` at ``x0``, relative step ``h`` (at least ``h``)."""
-    cols = []
-    for i in range(x0.size):
-        e = np.zeros(x0.size)
-        e[i] = h * max(1.0, abs(x0[i]))
-        cols.append((f(x0 + e) - f(x0 - e)) / (2 * e[i]))
-    return np.array(cols).T if cols else np.zeros((f(x0).size, 0))
 
 
 class SingularConfiguration(ValueError):
@@ -240,16 +230,6 @@ class ClosedChain(Plant):
     def gravity(self) -> float:
         """Gravity magnitude [m/s^2] (along ``-z``)."""
         return float(-self.model.gravity.linear[2])
-
-    @property
-    def lower(self) -> np.ndarray:
-        """Actuated joint limits: none (``-inf``), shape (nq,); the loop sets the workspace."""
-        return np.full(self.nq, -np.inf)
-
-    @property
-    def upper(self) -> np.ndarray:
-        """Actuated joint limits: none (``+inf``), shape (nq,)."""
-        return np.full(self.nq, np.inf)
 
     def neutral(self) -> np.ndarray:
         """Actuated coordinates of the ``home`` configuration, shape (nq,) [rad]."""
@@ -502,15 +482,15 @@ class ClosedChain(Plant):
         (``1e-12 / h``). The Newton seed is left at ``q``.
         """
         z = np.zeros(self.nq)
-        dq = _jacobian(lambda qa: self.forward_dynamics(qa, z, tau, check=False), q, h)
-        dv = _jacobian(lambda v: self.forward_dynamics(q, v, tau, check=False), z, h)
+        dq = central_jacobian(lambda qa: self.forward_dynamics(qa, z, tau, check=False), q, h)
+        dv = central_jacobian(lambda v: self.forward_dynamics(q, v, tau, check=False), z, h)
         self.close(q)  # leave the Newton seed at q
         return dq, dv, np.linalg.inv(self.M(q, check=False))
 
     def gravity_jacobian(self, q, h: float = LINEARIZATION_STEP) -> np.ndarray:
         """Return ``dG_r/dq_a`` [N m/rad] by central differences (relative step ``h``)."""
         self.close(q)
-        Gq = _jacobian(lambda qa: self.G(qa, check=False), q, h)
+        Gq = central_jacobian(lambda qa: self.G(qa, check=False), q, h)
         self.close(q)
         return Gq
 

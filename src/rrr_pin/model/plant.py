@@ -44,7 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Plant", "Settler", "UncertaintySet", "TreeDescription", "CapabilityError",
-           "CAPABILITIES", "URDF", "EFFORT_LIMITS", "JOINT_LIMITS", "FRAMES", "CLOSED_FORM"]
+           "CAPABILITIES", "URDF", "EFFORT_LIMITS", "JOINT_LIMITS", "FRAMES", "CLOSED_FORM",
+           "central_jacobian"]
 
 #: The plant is a serial tree described by a URDF: its regressor can be identified, its
 #: dynamics exported as C, its URDF written and perturbed link by link.
@@ -68,6 +69,21 @@ CAPABILITIES = {
     FRAMES: "named frames placed by forward kinematics of the actuated joints",
     CLOSED_FORM: "the paper's closed-form dynamics, eq. (2)-(7)",
 }
+
+
+def central_jacobian(f, x0: np.ndarray, h: float) -> np.ndarray:
+    """Return the central-difference Jacobian of ``f`` at ``x0``, shape (len(f(x0)), len(x0)).
+
+    Coordinate ``i`` steps by ``h * max(1, |x0[i]|)`` (relative, at least ``h``): an
+    ``O(h^2)`` truncation error for a smooth ``f``. Used where no analytic derivative exists
+    (a closed chain's dynamics, a user's law); ``(f(x0).size, 0)`` zeros for an empty ``x0``.
+    """
+    cols = []
+    for i in range(x0.size):
+        e = np.zeros(x0.size)
+        e[i] = h * max(1.0, abs(x0[i]))
+        cols.append((f(x0 + e) - f(x0 - e)) / (2 * e[i]))
+    return np.array(cols).T if cols else np.zeros((f(x0).size, 0))
 
 
 class CapabilityError(ValueError):

@@ -244,12 +244,23 @@ def frozen_certificate(nominal, plant, q, qd, *, lam: float, W1, W2, Ks,
     """
     nq = _check_pair(nominal, plant)
     q, qd, qdd = _configs(nq, q, qd, qdd)
+    return _frozen(nominal, plant, q, qd, qdd, nq, lam, W1, W2, Ks)
+
+
+def _frozen(nominal, plant, q, qd, qdd, nq, lam, W1, W2, Ks, visit=None) -> FrozenCertificate:
+    """Return the certificate at the (checked) configurations ``q, qd, qdd``.
+
+    ``visit(k)``, if given, first takes both models to configuration ``k``
+    (:func:`certificate_along`).
+    """
     lam = check_positive("lam", lam, unit="rad/s")
     Gs0, W1, W2, Ks = _shaped_loop(lam, W1, W2, Ks, nq)
     b = ncfmargin(Gs0, Ks)[0]
     G0, Gt0 = _graph_symbols_ct(Gs0)
     nus, bf = np.empty(q.shape[0]), np.empty(q.shape[0])
     for k in range(q.shape[0]):
+        if visit is not None:
+            visit(k)
         Gk = _linearization(nominal, plant, q[k], qd[k], qdd[k], lam, _H)
         Gsk = _series(W2, Gk, W1)
         Gk_sym, _ = _graph_symbols_ct(Gsk)
@@ -300,28 +311,20 @@ def certificate_along(nominal, plant, reference, t, *, lam: float, W1, W2,
     nq = _check_pair(nominal, plant)
     R, RD, RDD = reference.sample(t)
     q, qd, qdd = _configs(nq, R, RD, RDD)
-    lam = check_positive("lam", lam, unit="rad/s")
-    Gs0, W1, W2, Ks = _shaped_loop(lam, W1, W2, Ks, nq)
-    b = ncfmargin(Gs0, Ks)[0]
-    G0, Gt0 = _graph_symbols_ct(Gs0)
+    check_positive("lam", lam, unit="rad/s")
     r0 = reference.sample(np.array([0.0]))[0][0]
     for model in (nominal, plant):
         model.reset(r0)
-    nus, bf, last = np.empty(t.size), np.empty(t.size), 0.0
-    for k, tk in enumerate(t):
-        walk = np.linspace(last, tk, max(2, int(np.ceil((tk - last) / WALK_STEP)) + 1))
+    last = [0.0]
+
+    def walk_to(k):
+        walk = np.linspace(last[0], t[k], max(2, int(np.ceil((t[k] - last[0]) / WALK_STEP)) + 1))
         W = reference.sample(walk)[0]
         for model in (nominal, plant):
             model.follow(W)
-        last = tk
-        Gk = _linearization(nominal, plant, q[k], qd[k], qdd[k], lam, _H)
-        Gsk = _series(W2, Gk, W1)
-        Gk_sym, _ = _graph_symbols_ct(Gsk)
-        nus[k] = _nugap(Gk_sym, G0, Gt0)
-        bf[k] = ncfmargin(Gsk, Ks)[0]
-    lower = np.array([_arcsin_bound(b, d) for d in nus])
-    return FrozenCertificate(nugap=nus, b=float(b), b_lower=lower, b_frozen=bf,
-                             certified=bool(nus.max() < b))
+        last[0] = t[k]
+
+    return _frozen(nominal, plant, q, qd, qdd, nq, lam, W1, W2, Ks, visit=walk_to)
 
 
 def _matrices(sys) -> tuple:

@@ -32,7 +32,7 @@ from ..model.dh import INERTIA_RTOL, check_inertial
 from ..validation import FieldError
 from . import dyngen
 from .codegen import CodegenModelMismatch
-from .extension import EXTENSION, available, require
+from .extension import EXTENSION, available, cannot_start, require
 from .trajectory import (
     LAW_TORQUE,
     REASONS,
@@ -181,15 +181,9 @@ def why_not(run, form):
     engine is asked by name).
     """
     law, plant = run.law, run.plant
-    if form is None:
-        cls = type(getattr(law, "law", law)).__name__  # a sampled wrapper: its law's class
-        return (f"law {law.name!r} ({cls}) declares no compiled form, so the codegen engine "
-                f"cannot run it")
-    if not available():
-        try:
-            require()
-        except ImportError as exc:
-            return str(exc)
+    reason = cannot_start(law, form, "codegen")
+    if reason is not None:
+        return reason
     if plant.loop_closures or form.nominal.loop_closures:
         who = plant if plant.loop_closures else form.nominal
         return (f"engine 'codegen' does not implement closed chains ({who.name!r} closes "

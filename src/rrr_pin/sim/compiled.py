@@ -83,7 +83,7 @@ import numpy as np
 from ..control.effects import Resolved
 from ..control.laws import FLAWForm, FLForm, PDForm, check_law_output
 from ..model.closed_chain import ConstraintDrift, LoopClosureError, SingularConfiguration
-from .extension import EXTENSION, CompiledRobot, available, cached, require
+from .extension import EXTENSION, CompiledRobot, cached, cannot_start, require
 from .trajectory import (
     LAW_TORQUE,
     REASONS,
@@ -191,15 +191,9 @@ def why_not(run, form) -> str | None:
     runs nothing when the extension is not built.
     """
     law = run.law
-    if form is None:
-        cls = type(getattr(law, "law", law)).__name__  # a sampled wrapper: its law's class
-        return (f"law {law.name!r} ({cls}) declares no compiled form, so the compiled engine "
-                f"cannot run it")
-    if not available():
-        try:
-            require()
-        except ImportError as exc:
-            return str(exc)
+    reason = cannot_start(law, form, "compiled")
+    if reason is not None:
+        return reason
     if not implements(form):
         return (f"compiled form {type(form).__qualname__} of law {law.name!r} is not "
                 f"implemented in C++ (known: {_known()})")

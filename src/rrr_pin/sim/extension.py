@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import pinocchio as pin  # loads libpinocchio_default.so before the extension needs it
 
-__all__ = ["EXTENSION", "CompiledRobot", "available", "require", "cached"]
+__all__ = ["EXTENSION", "CompiledRobot", "available", "require", "cached", "cannot_start"]
 
 
 def _load_extension():
@@ -43,6 +43,19 @@ def require() -> None:
     """Raise ``ImportError`` saying why the compiled engine cannot run, if it cannot."""
     if EXTENSION is None:
         raise ImportError(_UNAVAILABLE)
+
+
+def cannot_start(law, form, engine: str) -> str | None:
+    """Why a compiled engine cannot start on ``law`` at all (None: it can try).
+
+    Its compiled ``form`` is None (the law declares none), or the extension is not built
+    (:func:`require`'s reason). The engines' own refusals follow.
+    """
+    if form is None:
+        cls = type(getattr(law, "law", law)).__name__  # a sampled wrapper: its law's class
+        return (f"law {law.name!r} ({cls}) declares no compiled form, so the {engine} engine "
+                f"cannot run it")
+    return None if EXTENSION is not None else _UNAVAILABLE
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,21 @@ class CompiledForm:
     kind: ClassVar[str] = ""
 
 
+def _check_controller(form, *extra) -> None:
+    """Check ``lam`` and ``K``'s matrices ``A, B, C, D`` of ``form``, stored back read-only.
+
+    ``extra`` names further matrices of ``B``'s shape ``(m, n)`` (the conditioning gain ``L``).
+    """
+    object.__setattr__(form, "lam", check_positive("lam", form.lam, unit="rad/s"))
+    n = form.nominal.nq
+    m = np.shape(form.A)[0] if np.ndim(form.A) == 2 else -1
+    shapes = [("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n))]
+    shapes += [(key, (m, n)) for key in extra]
+    for key, shape in shapes:
+        object.__setattr__(form, key, check_matrix(key, getattr(form, key), shape,
+                                                   readonly=True))
+
+
 @dataclass(frozen=True, eq=False)
 class FLForm(CompiledForm):
     r"""Feedback linearization with a linear controller on the error, eq. (8)-(10).
@@ -70,12 +85,7 @@ class FLForm(CompiledForm):
     kind: ClassVar[str] = "fl"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
-        n = self.nominal.nq
-        m = np.shape(self.A)[0] if np.ndim(self.A) == 2 else -1
-        for key, shape in (("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n))):
-            value = check_matrix(key, getattr(self, key), shape, readonly=True)
-            object.__setattr__(self, key, value)
+        _check_controller(self)
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,13 +126,8 @@ class FLAWForm(CompiledForm):
     kind: ClassVar[str] = "fl_aw"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
+        _check_controller(self, "L")
         n = self.nominal.nq
-        m = np.shape(self.A)[0] if np.ndim(self.A) == 2 else -1
-        for key, shape in (("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n)),
-                           ("L", (m, n))):
-            value = check_matrix(key, getattr(self, key), shape, readonly=True)
-            object.__setattr__(self, key, value)
         limit = check_vector("limit", self.limit, n, readonly=True)
         if not np.all(limit > 0):
             raise ValueError(f"limit must be > 0 per joint [N m], got {limit.tolist()}")

@@ -22,8 +22,8 @@ from ...validation import check_rate, describe_value
 if TYPE_CHECKING:
     from .forms import CompiledForm
 
-__all__ = ["ControlLaw", "SampledLaw", "LinearModel", "SampledForm", "StaticSampled", "check_law",
-           "check_law_output", "check_step_output", "DEFAULT_RATE"]
+__all__ = ["LawBase", "ModelLaw", "ControlLaw", "SampledLaw", "LinearModel", "SampledForm",
+           "StaticSampled", "check_law", "check_law_output", "check_step_output", "DEFAULT_RATE"]
 
 #: Default sampling rate of the sampled (digital) controllers [Hz].
 DEFAULT_RATE = 1000.0
@@ -65,11 +65,10 @@ class LinearModel:
         raise NotImplementedError(f"{type(self).__name__} must implement bandwidth()")
 
 
-class ControlLaw:
-    """Base class of a continuous-time control law.
+class LawBase:
+    """What every law has, continuous or sampled: names, sizes, its reset and its forms.
 
-    Subclasses implement :meth:`torque`; a law with its own state also sets :attr:`nx`,
-    implements :meth:`derivative` and, to run sampled, :meth:`sampled`.
+    Subclass :class:`ControlLaw` or :class:`SampledLaw`, never this class itself.
 
     Attributes
     ----------
@@ -104,6 +103,41 @@ class ControlLaw:
         if isinstance(nominal, Plant):
             nominal.reset(q)
 
+    def compiled_form(self) -> CompiledForm | None:
+        """Return the compiled engine's exact equivalent of this law, or None (Python only)."""
+        return None
+
+    def linear_model(self) -> LinearModel | None:
+        """Return the linear loop this law closes on the arm, or None (no linear prediction)."""
+        return None
+
+
+class ModelLaw:
+    """Mixin of a built-in law on a model ``nominal`` with its matrices in ``_mats``.
+
+    ``n`` is the model's number of (actuated) joints, ``nx`` the size of the state matrix
+    ``_mats[0]`` (0 for FL alone, whose ``A`` is empty).
+    """
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return self.nominal.nq
+
+    @property
+    def nx(self) -> int:
+        """Number of controller states."""
+        return self._mats[0].shape[0]
+
+
+class ControlLaw(LawBase):
+    """Base class of a continuous-time control law.
+
+    Subclasses implement :meth:`torque`; a law with its own state also sets :attr:`nx`,
+    implements :meth:`derivative` and, to run sampled, :meth:`sampled`. Names, sizes,
+    :meth:`~LawBase.reset` and the forms are :class:`LawBase`'s.
+    """
+
     def torque(self, t, q, qd, r, rd, rdd, x) -> np.ndarray:
         """Joint torque [N m], shape (n,).
 
@@ -137,13 +171,6 @@ class ControlLaw:
                 f"them: override sampled(rate) or write it as a SampledLaw")
         return StaticSampled(self, check_rate("rate", rate))
 
-    def compiled_form(self) -> CompiledForm | None:
-        """Return the compiled engine's exact equivalent of this law, or None (Python only)."""
-        return None
-
-    def linear_model(self) -> LinearModel | None:
-        """Return the linear loop this law closes on the arm, or None (no linear prediction)."""
-        return None
 
     def describe(self) -> dict:
         """JSON-ready description of the law (recorded in results)."""
@@ -152,7 +179,7 @@ class ControlLaw:
                 "time": "continuous"}
 
 
-class SampledLaw:
+class SampledLaw(LawBase):
     """Base class of a discrete-time (digital) law sampled at :attr:`rate` Hz.
 
     Subclasses implement :meth:`step`. The simulator calls it at ``t_k = k / rate`` with the
@@ -161,32 +188,13 @@ class SampledLaw:
     Attributes
     ----------
     name, label, n, nx
-        As for :class:`ControlLaw`.
+        As for :class:`LawBase`.
     rate : float
         Sampling rate [Hz].
     """
 
-    name: str = "law"
-    label: str = ""
-    n: int = 0
-    nx: int = 0
     rate: float = DEFAULT_RATE
 
-    def initial_state(self) -> np.ndarray:
-        """Return the law's state at ``t = 0``, shape (nx,)."""
-        return np.zeros(self.nx)
-
-    def reset(self, q) -> None:
-        """Forget what the law carries from one run to the next, at the actuated ``q`` [rad].
-
-        The simulator calls it at the start of every run with ``r(0)``, so that a run depends
-        on its own inputs only. By default it resets the law's model, ``self.nominal`` when the
-        law has one (:meth:`rrr_pin.model.plant.Plant.reset`: a closed chain re-seeds its
-        loop-closure solver on its home branch); override it for state of your own.
-        """
-        nominal = getattr(self, "nominal", None)
-        if isinstance(nominal, Plant):
-            nominal.reset(q)
 
     def step(self, t, q, qd, r, rd, rdd, x) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(tau, x_next)``: the torque held on ``[t, t + 1/rate)`` and the next state.
@@ -195,13 +203,6 @@ class SampledLaw:
         """
         raise NotImplementedError(f"{type(self).__name__} must implement step()")
 
-    def compiled_form(self) -> CompiledForm | None:
-        """Return the compiled engine's exact equivalent of this law, or None (Python only)."""
-        return None
-
-    def linear_model(self) -> LinearModel | None:
-        """Return the linear loop this law closes on the arm, or None (no linear prediction)."""
-        return None
 
     def describe(self) -> dict:
         """JSON-ready description of the law."""

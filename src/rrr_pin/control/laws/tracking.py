@@ -26,6 +26,7 @@ from .protocol import (
     DEFAULT_RATE,
     ControlLaw,
     LinearModel,
+    ModelLaw,
     SampledForm,
     SampledLaw,
     check_law,
@@ -130,7 +131,7 @@ class FLLinearModel(LinearModel):
 
 
 @dataclass(frozen=True, eq=False)
-class TrackingController(ControlLaw):
+class TrackingController(ModelLaw, ControlLaw):
     r"""Feedback-linearizing tracking law with an optional linear controller on the error.
 
     .. math:: \bar\tau = \ddot r + 2\lambda(\dot r - \dot q)
@@ -176,16 +177,6 @@ class TrackingController(ControlLaw):
             mats = (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((n, 0)), np.zeros((n, n)))
         object.__setattr__(self, "_mats", mats)
         check_law(self)
-
-    @property
-    def n(self) -> int:
-        """Number of joints."""
-        return self.nominal.nq
-
-    @property
-    def nx(self) -> int:
-        """Number of controller states (0 for FL alone)."""
-        return self._mats[0].shape[0]
 
     def continuous_matrices(self):
         """Return ``(A, B, C, D)`` of ``K`` as arrays (empty for FL alone)."""
@@ -318,7 +309,7 @@ class SampledTracking(SampledForm):
 
 
 @dataclass(frozen=True, eq=False)
-class DiscreteTrackingController(SampledLaw):
+class DiscreteTrackingController(ModelLaw, SampledLaw):
     r"""The tracking law of :class:`TrackingController` with a DISCRETE-time ``K``, sampled.
 
     .. math:: \bar\tau_k = \ddot r_k + 2\lambda(\dot r_k - \dot q_k)
@@ -360,16 +351,6 @@ class DiscreteTrackingController(SampledLaw):
         object.__setattr__(self, "_mats",
                            tuple(np.asarray(x, dtype=float) for x in (K.A, K.B, K.C, K.D)))
         check_law(self)
-
-    @property
-    def n(self) -> int:
-        """Number of joints."""
-        return self.nominal.nq
-
-    @property
-    def nx(self) -> int:
-        """Number of controller states."""
-        return self._mats[0].shape[0]
 
     @property
     def rate(self) -> float:

@@ -16,6 +16,7 @@ from .protocol import (
     DEFAULT_RATE,
     ControlLaw,
     LinearModel,
+    ModelLaw,
     SampledForm,
     SampledLaw,
     check_law,
@@ -102,7 +103,7 @@ class TwoDOFLinearModel(LinearModel):
 
 
 @dataclass(frozen=True, eq=False)
-class TwoDOFController(ControlLaw):
+class TwoDOFController(ModelLaw, ControlLaw):
     r"""Feedback linearization with a two-degrees-of-freedom controller ``K = [K1, -K2]``.
 
     .. math:: \hat\tau = K_1(s)\, r - K_2(s)\, q, \quad
@@ -173,16 +174,6 @@ class TwoDOFController(ControlLaw):
             m.setflags(write=False)
         object.__setattr__(self, "_mats", mats)
         check_law(self)
-
-    @property
-    def n(self) -> int:
-        """Number of joints."""
-        return self.nominal.nq
-
-    @property
-    def nx(self) -> int:
-        """Number of controller states."""
-        return self._mats[0].shape[0]
 
     def _tau(self, q, qd, tauhat):
         lam = self.lam

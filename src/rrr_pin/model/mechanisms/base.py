@@ -88,6 +88,19 @@ def cylinder(length: float, rho: float, rgba: str) -> str:
             f'rgba="{rgba}" contype="0" conaffinity="0" mass="0"/>')
 
 
+def closures(loops, motors) -> list[str]:
+    """Return the MJCF ``<equality>`` and ``<actuator>`` blocks that follow ``</worldbody>``.
+
+    ``loops`` holds ``(name, site1, site2)`` of each ``<connect>`` loop closure, ``motors`` the
+    actuated joints in order (one ``<motor name="motor<i>">`` each, ``i`` from 1).
+    """
+    return (['  <equality>']
+            + [f'    <connect name="{name}" site1="{a}" site2="{b}"/>' for name, a, b in loops]
+            + ['  </equality>', '  <actuator>']
+            + [f'    <motor name="motor{i}" joint="{joint}"/>'
+               for i, joint in enumerate(motors, start=1)]
+            + ['  </actuator>'])
+
 
 #: Colours of the proximal and distal links in the MJCF (and the report's scenes).
 LINK_RGBA, DISTAL_RGBA = "0.95 0.55 0.15 1", "0.2 0.22 0.28 1"

@@ -31,6 +31,7 @@ from .base import (
     Mechanism,
     MechanismError,
     check_params,
+    closures,
     cylinder,
     inertial,
     num,
@@ -246,13 +247,9 @@ class Delta(Mechanism):
         for i, phi in enumerate(_PHI, start=1):
             out.append(f'        <site name="joint{i}" '
                        f'pos="{vec((params.r * math.cos(phi), params.r * math.sin(phi), 0.0))}"/>')
-        out += ['      </body>', '    </body>', '  </worldbody>', '  <equality>']
-        out += [f'    <connect name="loop{i}" site1="wrist{i}" site2="joint{i}"/>'
-                for i in (1, 2, 3)]
-        out += ['  </equality>', '  <actuator>']
-        out += [f'    <motor name="motor{i}" joint="qa{i}"/>' for i in (1, 2, 3)]
-        out += ['  </actuator>']
-        return out
+        out += ['      </body>', '    </body>', '  </worldbody>']
+        return out + closures([(f"loop{i}", f"wrist{i}", f"joint{i}") for i in (1, 2, 3)],
+                              ["qa1", "qa2", "qa3"])
 
     def task_point(self, params, t, period: float) -> np.ndarray:
         """:func:`adept_point`: the platform's adept cycle [m]."""

@@ -32,6 +32,7 @@ from .base import (
     Mechanism,
     MechanismError,
     check_params,
+    closures,
     cylinder,
     inertial,
     num,
@@ -192,11 +193,8 @@ class FiveBar(Mechanism):
                 f'          <site name="tip{side}" pos="{num(params.l2)} 0 0"/>',
                 '        </body>',
                 '      </body>']
-        out += ['    </body>', '  </worldbody>', '  <equality>',
-                '    <connect name="loop" site1="tip1" site2="tip2"/>', '  </equality>',
-                '  <actuator>', '    <motor name="motor1" joint="qa1"/>',
-                '    <motor name="motor2" joint="qa2"/>', '  </actuator>']
-        return out
+        out += ['    </body>', '  </worldbody>']
+        return out + closures([("loop", "tip1", "tip2")], ["qa1", "qa2"])
 
     def task_point(self, params, t, period: float) -> np.ndarray:
         """:func:`circle_point`: the tip circle ``(x, z)`` [m]."""

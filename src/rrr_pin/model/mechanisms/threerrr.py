@@ -72,6 +72,7 @@ from .base import (
     Mechanism,
     MechanismError,
     check_params,
+    closures,
     cylinder,
     inertial,
     num,
@@ -352,13 +353,9 @@ class ThreeRRR(Mechanism):
                        f'contype="0" conaffinity="0" mass="0"/>')
         out += [f'        <site name="joint{i}" pos="{vec((c[0], 0.0, c[1]))}"/>'
                 for i, c in enumerate(corners, start=1)]
-        out += ['      </body>', '    </body>', '  </worldbody>', '  <equality>']
-        out += [f'    <connect name="loop{i}" site1="tip{i}" site2="joint{i}"/>'
-                for i in (1, 2, 3)]
-        out += ['  </equality>', '  <actuator>']
-        out += [f'    <motor name="motor{i}" joint="qa{i}"/>' for i in (1, 2, 3)]
-        out += ['  </actuator>']
-        return out
+        out += ['      </body>', '    </body>', '  </worldbody>']
+        return out + closures([(f"loop{i}", f"tip{i}", f"joint{i}") for i in (1, 2, 3)],
+                              ["qa1", "qa2", "qa3"])
 
     def task_point(self, params, t, period: float) -> np.ndarray:
         """:func:`platform_path`: the platform poses ``(x, z, phi)`` [m, m, rad]."""
