@@ -1,6 +1,31 @@
-"""Shared fixtures; matplotlib renders off-screen in every test."""
+"""Shared fixtures: the models and designs of every test file, and the end-to-end CLI runs.
 
+Models and designs are session-scoped (built once per pytest-xdist worker). **Never mutate
+them**: a test that changes a model (its inertias, gravity, locks) loads its own with
+:func:`rrr_pin.load_robot`. A session-scoped :class:`~rrr_pin.model.closed_chain.ClosedChain`
+carries the Newton seed of its loop closure from one call to the next; every ``simulate`` run
+resets it (``Plant.reset``), and a test that evaluates the model face at its own states seeds
+it there first (``chain.reset(q)``), so sharing one object is safe.
+
+* ``rrr`` (the paper's arm), ``ur5``, ``fivebar``, ``delta``, ``threerrr``: the plants;
+* ``plant``: one of them by name, for a test parametrized over plant kinds::
+
+      @pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+      def test_something(plant): ...
+
+* ``paper``: the paper's design (:func:`rrr_pin.design`, 3 joints); ``design_for(n)``: the
+  same design for ``n`` joints (cached), e.g. a certificate on the 5-bar's 2 joints;
+* ``reproduced``, ``montecarlo_run``, ``stress_run``: one ``rrr-pin reproduce``,
+  ``montecarlo`` and ``stress`` run per plant kind (default ``"rrr"``; parametrize them
+  indirectly like ``plant``), for the tests that only read their outputs.
+"""
+
+import contextlib
+import functools
+import io
 import json
+from pathlib import Path
+from typing import NamedTuple
 
 import matplotlib
 import pytest
@@ -11,6 +36,7 @@ matplotlib.use("Agg")
 # development install its import may first rebuild it in a subprocess, which needs real file
 # descriptors (a regular install has no such step).
 import rrr_pin.sim.compiled  # noqa: E402, F401
+from rrr_pin import cli, load_robot  # noqa: E402
 
 
 def _strict_loads(text: str):
@@ -24,3 +50,106 @@ def _strict_loads(text: str):
 def strict_json():
     """The strict JSON parser: every JSON file or stream the tool writes must pass it."""
     return _strict_loads
+
+
+# --- plants and designs ------------------------------------------------------------------------
+
+@pytest.fixture(scope="session")
+def rrr():
+    """The paper's RRR arm (Tables 1-2)."""
+    return load_robot("rrr")
+
+
+@pytest.fixture(scope="session")
+def ur5():
+    """example-robot-data's UR5."""
+    return load_robot("ur5")
+
+
+@pytest.fixture(scope="session")
+def fivebar():
+    """The built-in planar 5-bar (a closed chain, 2 actuated joints)."""
+    return load_robot("fivebar")
+
+
+@pytest.fixture(scope="session")
+def delta():
+    """The built-in Delta (a closed chain, 3 actuated joints)."""
+    return load_robot("delta")
+
+
+@pytest.fixture(scope="session")
+def threerrr():
+    """The built-in 3-RRR planar parallel manipulator (3 actuated joints)."""
+    return load_robot("threerrr")
+
+
+@pytest.fixture(scope="session")
+def plant(request):
+    """The plant fixture named by an indirect parametrization (``"rrr"``, ``"fivebar"``, ...)."""
+    return request.getfixturevalue(request.param)
+
+
+@pytest.fixture(scope="session")
+def design_for():
+    """``design_for(n)``: the paper's design (:func:`rrr_pin.design`) for ``n`` joints, cached."""
+    from rrr_pin.robust.loopshaping import design
+
+    return functools.cache(lambda n: design(n=n))
+
+
+@pytest.fixture(scope="session")
+def paper(design_for):
+    """The paper's design: lam = 45 rad/s, 3 joints (:func:`rrr_pin.design`)."""
+    return design_for(3)
+
+
+# --- end-to-end CLI runs, shared by the tests that only read their outputs ---------------------
+
+class CliRun(NamedTuple):
+    """One ``rrr-pin`` run: its exit status, output folder and what it printed."""
+
+    code: int
+    out: Path
+    stdout: str
+    stderr: str
+
+
+def run_cli(argv, out: Path) -> CliRun:
+    """``rrr_pin.cli.main(argv + ["--out", out])``, its standard output and error captured."""
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = cli.main([*argv, "--out", str(out)])
+    return CliRun(code, Path(out), stdout.getvalue(), stderr.getvalue())
+
+
+#: Small settings of the shared runs: the same for every kind of plant.
+REPRODUCE = ["reproduce", "--samples", "2", "--duration", "0.3", "--jobs", "1", "--no-progress"]
+MONTECARLO = ["montecarlo", "--samples", "2", "--duration", "0.05", "--jobs", "1",
+              "--no-progress"]
+STRESS = ["stress", "--effect", "actuator", "--controllers", "fl", "--duration", "0.3",
+          "--no-progress"]
+
+
+def _shared_run(request, tmp_path_factory, argv) -> CliRun:
+    name = getattr(request, "param", "rrr")
+    out = tmp_path_factory.mktemp(f"{argv[0]}_{name}") / "out"
+    return run_cli([*argv, "--robot", name], out)
+
+
+@pytest.fixture(scope="session")
+def reproduced(request, tmp_path_factory):
+    """``rrr-pin reproduce`` (2 uncertain plants, 0.3 s) of a plant kind (default ``"rrr"``)."""
+    return _shared_run(request, tmp_path_factory, REPRODUCE)
+
+
+@pytest.fixture(scope="session")
+def montecarlo_run(request, tmp_path_factory):
+    """``rrr-pin montecarlo`` (2 plants, 50 ms at 1 kHz) of a plant kind (default ``"rrr"``)."""
+    return _shared_run(request, tmp_path_factory, MONTECARLO)
+
+
+@pytest.fixture(scope="session")
+def stress_run(request, tmp_path_factory):
+    """``rrr-pin stress --effect actuator`` of FL alone (runs of 0.3 s at least)."""
+    return _shared_run(request, tmp_path_factory, STRESS)
