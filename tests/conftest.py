@@ -127,8 +127,8 @@ def run_cli(argv, out: Path) -> CliRun:
 REPRODUCE = ["reproduce", "--samples", "2", "--duration", "0.3", "--jobs", "1", "--no-progress"]
 MONTECARLO = ["montecarlo", "--samples", "2", "--duration", "0.05", "--jobs", "1",
               "--no-progress"]
-STRESS = ["stress", "--effect", "actuator", "--controllers", "fl", "--duration", "0.3",
-          "--no-progress"]
+STRESS = ["stress", "--effect", "delay", "--controllers", "fl", "--duration", "0.2", "--json",
+          "-v"]
 
 
 def _shared_run(request, tmp_path_factory, argv) -> CliRun:
@@ -151,5 +151,5 @@ def montecarlo_run(request, tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def stress_run(request, tmp_path_factory):
-    """``rrr-pin stress --effect actuator`` of FL alone (runs of 0.3 s at least)."""
+    """``rrr-pin stress --effect delay --json -v`` of FL alone, of a plant kind (default rrr)."""
     return _shared_run(request, tmp_path_factory, STRESS)
