@@ -107,12 +107,16 @@ def paper(design_for):
 # --- end-to-end CLI runs, shared by the tests that only read their outputs ---------------------
 
 class CliRun(NamedTuple):
-    """One ``rrr-pin`` run: its exit status, output folder and what it printed."""
+    """One ``rrr-pin`` run: its exit status, output folder, what it printed and its arguments.
+
+    ``argv`` is the command line without ``--out`` (a test may rerun it, e.g. to resume).
+    """
 
     code: int
     out: Path
     stdout: str
     stderr: str
+    argv: list
 
 
 def run_cli(argv, out: Path) -> CliRun:
@@ -120,36 +124,49 @@ def run_cli(argv, out: Path) -> CliRun:
     stdout, stderr = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
         code = cli.main([*argv, "--out", str(out)])
-    return CliRun(code, Path(out), stdout.getvalue(), stderr.getvalue())
+    return CliRun(code, Path(out), stdout.getvalue(), stderr.getvalue(), list(argv))
 
 
 #: Small settings of the shared runs: the same for every kind of plant.
 REPRODUCE = ["reproduce", "--samples", "2", "--duration", "0.3", "--jobs", "1", "--no-progress"]
 MONTECARLO = ["montecarlo", "--samples", "2", "--duration", "0.05", "--jobs", "1",
-              "--no-progress"]
+              "--controllers", "fl,hinf,pd", "--no-progress"]
 STRESS = ["stress", "--effect", "delay", "--controllers", "fl", "--duration", "0.2", "--json",
           "-v"]
 
 
-def _shared_run(request, tmp_path_factory, argv) -> CliRun:
-    name = getattr(request, "param", "rrr")
-    out = tmp_path_factory.mktemp(f"{argv[0]}_{name}") / "out"
-    return run_cli([*argv, "--robot", name], out)
-
-
 @pytest.fixture(scope="session")
-def reproduced(request, tmp_path_factory):
+def shared_runs(tmp_path_factory):
+    """``shared_runs(argv, robot)``: run ``argv --robot robot`` once per worker, then reuse it.
+
+    A memo rather than a parametrized session fixture: pytest keeps one value per fixture, so
+    tests of several plant kinds in turn would otherwise redo a run at each change of kind.
+    """
+    runs = {}
+
+    def get(argv, robot) -> CliRun:
+        key = (tuple(argv), robot)
+        if key not in runs:
+            out = tmp_path_factory.mktemp(f"{argv[0]}_{robot}") / "out"
+            runs[key] = run_cli([*argv, "--robot", robot], out)
+        return runs[key]
+
+    return get
+
+
+@pytest.fixture
+def reproduced(request, shared_runs):
     """``rrr-pin reproduce`` (2 uncertain plants, 0.3 s) of a plant kind (default ``"rrr"``)."""
-    return _shared_run(request, tmp_path_factory, REPRODUCE)
+    return shared_runs(REPRODUCE, getattr(request, "param", "rrr"))
 
 
-@pytest.fixture(scope="session")
-def montecarlo_run(request, tmp_path_factory):
-    """``rrr-pin montecarlo`` (2 plants, 50 ms at 1 kHz) of a plant kind (default ``"rrr"``)."""
-    return _shared_run(request, tmp_path_factory, MONTECARLO)
+@pytest.fixture
+def montecarlo_run(request, shared_runs):
+    """``rrr-pin montecarlo`` (fl, hinf, pd; 2 plants, 50 ms at 1 kHz) of a plant kind."""
+    return shared_runs(MONTECARLO, getattr(request, "param", "rrr"))
 
 
-@pytest.fixture(scope="session")
-def stress_run(request, tmp_path_factory):
+@pytest.fixture
+def stress_run(request, shared_runs):
     """``rrr-pin stress --effect delay --json -v`` of FL alone, of a plant kind (default rrr)."""
-    return _shared_run(request, tmp_path_factory, STRESS)
+    return shared_runs(STRESS, getattr(request, "param", "rrr"))
