@@ -31,8 +31,8 @@ def add(sub) -> None:
     p = sub.add_parser("mjcf", help="write (or check) the MJCF of a parallel mechanism "
                                     "generated from its parameter set")
     p.add_argument("mechanism", metavar="MECHANISM",
-                   help="a registered mechanism (rrr_pin.model.mechanisms.MECHANISMS: "
-                        "fivebar, delta, ...)")
+                   help="a registered mechanism (a name of "
+                        "rrr_pin.model.mechanisms.MECHANISMS)")
     p.add_argument("--out", metavar="PATH", default=None,
                    help="where to write it (default: standard output; with --check, the "
                         "committed mjcf/MECHANISM.xml)")

@@ -11,8 +11,8 @@ __all__ = ["add_overwrite", "add_plant_arguments", "add_law_arguments", "add_for
            "add_reference_arguments"]
 
 _PLANT_HELP = ("plant: 'rrr' (the paper's arm, default), an example-robot-data arm (ur5, ur3, "
-               "ur10, panda, kinova, ...), a URDF path, a parallel mechanism (fivebar, delta, "
-               "...) or an MJCF path")
+               "ur10, panda, kinova, ...), a URDF path, a parallel mechanism (a name of "
+               "rrr_pin.model.mechanisms.MECHANISMS) or an MJCF path")
 
 
 def add_overwrite(p) -> None:
