@@ -251,7 +251,7 @@ def test_out_is_a_file(tmp_path, capsys, cmd):
     assert "exists and is not a folder" in err and "Traceback" not in err
 
 
-def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path):
+def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path, rrr):
     # The circle of --reference circle starts at the frame's position at the start
     # configuration: centre + radius * start_dir is that point (rrr_pin.control.paths).
     import ast
@@ -266,7 +266,7 @@ def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path):
     assert source.startswith("task-space circle of frame ")
     path = ast.literal_eval(source[source.index("{"):source.index("}, fk_error_m") + 1])
     assert path["kind"] == "circle" and path["radius_m"] == 0.05
-    robot = load_robot("rrr")
+    robot = rrr
     start = np.array([0.3, 0.6, -1.2])  # --home: a bent arm, the circle within reach
     p0 = robot.frame_placement(start, robot.model.frames[len(robot.model.frames) - 1].name)
     np.testing.assert_allclose(np.add(path["center_m"], 0.05 * np.array(path["start_dir"])),

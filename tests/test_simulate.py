@@ -27,8 +27,8 @@ K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
 
 
 @pytest.fixture(scope="module")
-def setup():
-    nominal = load_robot("rrr")
+def setup(rrr):
+    nominal = rrr
     sample = sample_plants(paper_params(), 1, seed=0)[0]
     plant = load_robot(ArmParams.from_dict(sample.parameters["params"]))
     controllers = {"fl": fl_controller(nominal), "hinf": hinf_fl_controller(nominal, K18)}

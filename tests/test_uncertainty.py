@@ -79,8 +79,8 @@ def test_written_urdf_loads_back_as_the_sampled_plant(tmp_path):
                     atol=1e-12)
 
 
-def test_perturb_urdf_ur5(tmp_path):
-    nominal = load_robot("ur5")
+def test_perturb_urdf_ur5(tmp_path, ur5):
+    nominal = ur5
     text, factors = perturb_urdf(nominal.urdf, np.random.default_rng(0), Tolerances())
     path = tmp_path / "ur5_pert.urdf"
     path.write_text(text)

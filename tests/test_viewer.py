@@ -181,8 +181,8 @@ def test_missing_meshes_drawn_as_shapes_with_a_warning(tmp_path):
     assert "MeshCat.Viewer" in doc
 
 
-def test_example_robot_data_meshes_found():
-    robot = load_robot("ur5")
+def test_example_robot_data_meshes_found(ur5):
+    robot = ur5
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no mesh may be missing
         visual, collision, missing = _geometry_models(robot, ())
