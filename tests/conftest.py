@@ -18,6 +18,10 @@ it there first (``chain.reset(q)``), so sharing one object is safe.
 * ``reproduced``, ``montecarlo_run``, ``stress_run``: one ``rrr-pin reproduce``,
   ``montecarlo`` and ``stress`` run per plant kind (default ``"rrr"``; parametrize them
   indirectly like ``plant``), for the tests that only read their outputs.
+
+Under pytest-xdist (``-n 2``) the tests reading one shared run go to one worker, so the run is
+made once per suite, not once per worker: ``-n`` distributes as ``--dist loadgroup`` ("load"
+plus the ``xdist_group`` marks given here to every test of a shared run).
 """
 
 import contextlib
@@ -37,6 +41,25 @@ matplotlib.use("Agg")
 # descriptors (a regular install has no such step).
 import rrr_pin.sim.compiled  # noqa: E402, F401
 from rrr_pin import cli, load_robot  # noqa: E402
+
+#: The fixtures of the shared CLI runs (each test of one run and plant kind: one xdist group).
+SHARED_RUNS = ("reproduced", "montecarlo_run", "stress_run")
+
+
+def pytest_configure(config):
+    """Distribute ``-n N`` as ``loadgroup``: ``load``, a shared run's tests on one worker."""
+    if getattr(config.option, "dist", "no") == "load":
+        config.option.dist = "loadgroup"
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Mark each test of a shared run with its group ``<fixture>-<plant kind>``."""
+    for item in items:
+        params = item.callspec.params if hasattr(item, "callspec") else {}
+        for name in SHARED_RUNS:
+            if name in getattr(item, "fixturenames", ()):
+                item.add_marker(pytest.mark.xdist_group(f"{name}-{params.get(name, 'rrr')}"))
 
 
 def _strict_loads(text: str):

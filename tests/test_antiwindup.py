@@ -24,7 +24,12 @@ from rrr_pin import cli, paper_params
 from rrr_pin.campaign.runner import RunSettings, make_laws
 from rrr_pin.campaign.study import StudyConfig, run_study
 from rrr_pin.control.catalog import make_law
-from rrr_pin.control.effects import PlantEffects, check_torque_limit, peak_torque
+from rrr_pin.control.effects import (
+    PlantEffects,
+    check_torque_limit,
+    peak_torque,
+    torque_limit_spec,
+)
 from rrr_pin.control.laws import (
     AntiWindupTracking,
     FLAWForm,
@@ -380,19 +385,32 @@ def test_a_chain_clips_at_the_limit_and_records_the_time_there(fivebar):
     assert at > 0.0
 
 
+def _peak(plant, duration=DURATION, rate=1000.0):
+    """The peak torque of the study reference over a run's control instants, checked torques."""
+    t = np.arange(round(duration * rate) + 1) / rate
+    return np.max(np.abs(_checked_inverse_dynamics(plant, study_reference(plant, duration),
+                                                   t)), axis=0)
+
+
 @pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
-def test_cli_percent_is_of_the_peak_torque_of_the_reference(plant, tmp_path, capsys):
+def test_percent_is_of_the_peak_torque_of_the_reference(plant):
     # 200 %: above the gravity torque at r(0) on every joint of both plants
+    limit, info = torque_limit_spec(plant, "200%", study_reference(plant, DURATION), 1000.0,
+                                    DURATION)
+    peak = _peak(plant)
+    assert_allclose(info["peak_torque_Nm"], peak, rtol=1e-12)
+    assert_allclose(limit, 2.0 * peak, rtol=1e-12)
+    assert (info["spec"], info["percent"]) == ("200%", 200.0)
+
+
+def test_cli_records_the_torque_limit_of_a_percent(fivebar, tmp_path, capsys):
     out = tmp_path / "r"
-    assert cli.main(["reproduce", "--robot", plant.name, "--torque-limit", "200%",
+    assert cli.main(["reproduce", "--robot", "fivebar", "--torque-limit", "200%",
                      "--samples", "0", "--duration", str(DURATION), "--rate", "1000",
                      "--no-certify", "--no-progress", "--out", str(out)]) == 0
     data = json.loads((out / "results.json").read_text())
     tl = data["summary"]["torque_limit"]
-    # the peak over the control instants, from torques the forward dynamics check
-    t = np.arange(round(DURATION * 1000) + 1) / 1000.0
-    peak = np.max(np.abs(_checked_inverse_dynamics(plant, study_reference(plant, DURATION),
-                                                   t)), axis=0)
+    peak = _peak(fivebar)
     assert_allclose(tl["peak_torque_Nm"], peak, rtol=1e-12)
     assert_allclose(tl["limit_Nm"], 2.0 * peak, rtol=1e-12)
     assert_allclose(data["config"]["effects"]["torque_limit_Nm"], 2.0 * peak, rtol=1e-12)

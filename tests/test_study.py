@@ -5,6 +5,8 @@ rule ``Plant.perturbed(default_rng([seed, k]))``; the certificates against the d
 ``b = 1 / gamma``.
 """
 
+import re
+
 import control
 import numpy as np
 import pytest
@@ -332,3 +334,29 @@ def test_on_the_exact_model_both_laws_track_alike(plant):
     row = next(line for line in results_markdown(result).splitlines()
                if line.startswith("| Nominal model: both controllers track alike"))
     assert f"agrees: both below {threshold:.2g} rad" in row
+
+
+@pytest.mark.parametrize("plant, engine, names, message", [
+    ("rrr", "compiled", "fl,hinf2dof",
+     "law 'hinf2dof' (TwoDOFController) declares no compiled form, so the compiled engine "
+     "cannot run it"),
+    ("fivebar", "compiled", "fl,hinf2dof",
+     "law 'hinf2dof' (TwoDOFController) declares no compiled form, so the compiled engine "
+     "cannot run it"),
+    ("fivebar", "compiled", "fl,pd",
+     "compiled form PDForm of law 'pd' is not implemented by the compiled closed-chain engine"),
+    ("fivebar", "codegen", "fl",
+     "engine 'codegen' does not implement closed chains ('fivebar' closes loop)"),
+], indirect=["plant"], ids=["rrr-compiled-2dof", "fivebar-compiled-2dof", "fivebar-compiled-pd",
+                            "fivebar-codegen"])
+def test_an_engine_that_cannot_run_a_law_is_refused_before_any_run(plant, engine, names,
+                                                                   message, monkeypatch):
+    import rrr_pin.campaign.study as study
+
+    def never(tasks):
+        raise AssertionError("a plant was run")
+
+    monkeypatch.setattr(study, "run_plants", never)
+    config = StudyConfig(run=RunSettings(duration=0.01, rate=1000.0, engine=engine), samples=1)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        run_study(plant, make_laws(names, plant), config=config)
