@@ -19,9 +19,9 @@ it there first (``chain.reset(q)``), so sharing one object is safe.
   ``montecarlo`` and ``stress`` run per plant kind (default ``"rrr"``; parametrize them
   indirectly like ``plant``), for the tests that only read their outputs.
 
-Under pytest-xdist (``-n 2``) the tests reading one shared run go to one worker, so the run is
-made once per suite, not once per worker: ``-n`` distributes as ``--dist loadgroup`` ("load"
-plus the ``xdist_group`` marks given here to every test of a shared run).
+A shared run is made once per test session, also under pytest-xdist (``-n 2``): the first
+worker that needs it runs it in the session's common temporary folder, under a file lock, and
+the others read what it wrote (its folder, exit status and output).
 """
 
 import contextlib
@@ -41,25 +41,6 @@ matplotlib.use("Agg")
 # descriptors (a regular install has no such step).
 import rrr_pin.sim.compiled  # noqa: E402, F401
 from rrr_pin import cli, load_robot  # noqa: E402
-
-#: The fixtures of the shared CLI runs (each test of one run and plant kind: one xdist group).
-SHARED_RUNS = ("reproduced", "montecarlo_run", "stress_run")
-
-
-def pytest_configure(config):
-    """Distribute ``-n N`` as ``loadgroup``: ``load``, a shared run's tests on one worker."""
-    if getattr(config.option, "dist", "no") == "load":
-        config.option.dist = "loadgroup"
-
-
-@pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(config, items):
-    """Mark each test of a shared run with its group ``<fixture>-<plant kind>``."""
-    for item in items:
-        params = item.callspec.params if hasattr(item, "callspec") else {}
-        for name in SHARED_RUNS:
-            if name in getattr(item, "fixturenames", ()):
-                item.add_marker(pytest.mark.xdist_group(f"{name}-{params.get(name, 'rrr')}"))
 
 
 def _strict_loads(text: str):
@@ -160,18 +141,38 @@ STRESS = ["stress", "--effect", "delay", "--controllers", "fl", "--duration", "0
 
 @pytest.fixture(scope="session")
 def shared_runs(tmp_path_factory):
-    """``shared_runs(argv, robot)``: run ``argv --robot robot`` once per worker, then reuse it.
+    """``shared_runs(argv, robot)``: run ``argv --robot robot`` once per session, then reuse it.
 
-    A memo rather than a parametrized session fixture: pytest keeps one value per fixture, so
-    tests of several plant kinds in turn would otherwise redo a run at each change of kind.
+    The run goes to ``<session temp>/shared-runs/<command>_<robot>/out``; under pytest-xdist the
+    session temp is the workers' common parent folder, and a file lock makes one worker run it
+    while the others wait, then read its record (``run.json``). A memo rather than a
+    parametrized session fixture: pytest keeps one value per fixture, so tests of several plant
+    kinds in turn would otherwise redo a run at each change of kind.
     """
+    import fcntl
+    import os
+
+    base = tmp_path_factory.getbasetemp()  # a worker's is <session temp>/popen-gw<k>
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "shared-runs"
+    root.mkdir(parents=True, exist_ok=True)
     runs = {}
 
     def get(argv, robot) -> CliRun:
         key = (tuple(argv), robot)
         if key not in runs:
-            out = tmp_path_factory.mktemp(f"{argv[0]}_{robot}") / "out"
-            runs[key] = run_cli([*argv, "--robot", robot], out)
+            folder = root / f"{argv[0]}_{robot}"
+            with open(root / f"{folder.name}.lock", "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+                record = folder / "run.json"
+                if record.exists():
+                    done = json.loads(record.read_text())
+                    runs[key] = CliRun(done["code"], folder / "out", done["stdout"],
+                                       done["stderr"], done["argv"])
+                else:
+                    run = run_cli([*argv, "--robot", robot], folder / "out")
+                    record.write_text(json.dumps({"code": run.code, "stdout": run.stdout,
+                                                  "stderr": run.stderr, "argv": run.argv}))
+                    runs[key] = run
         return runs[key]
 
     return get
