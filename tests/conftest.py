@@ -3,9 +3,10 @@
 Models and designs are session-scoped (built once per pytest-xdist worker). **Never mutate
 them**: a test that changes a model (its inertias, gravity, locks) loads its own with
 :func:`rrr_pin.load_robot`. A session-scoped :class:`~rrr_pin.model.closed_chain.ClosedChain`
-carries the Newton seed of its loop closure from one call to the next; every ``simulate`` run
-resets it (``Plant.reset``), and a test that evaluates the model face at its own states seeds
-it there first (``chain.reset(q)``), so sharing one object is safe.
+carries the Newton seed of its loop closure from one call to the next: every ``simulate`` run
+resets it (``Plant.reset``), a test that evaluates the model face at its own states seeds it
+there first (``chain.reset(q)``), and after every test each shared chain is re-seeded at home
+(``_home_seeds``), so no test depends on where another left it.
 
 * ``rrr`` (the paper's arm), ``ur5``, ``fivebar``, ``delta``, ``threerrr``: the plants;
 * ``plant``: one of them by name, for a test parametrized over plant kinds::
@@ -70,22 +71,40 @@ def ur5():
     return load_robot("ur5")
 
 
+#: The shared closed chains made so far in this process (re-seeded after every test).
+_CHAINS = []
+
+
+def _chain(name):
+    chain = load_robot(name)
+    _CHAINS.append(chain)
+    return chain
+
+
+@pytest.fixture(autouse=True)
+def _home_seeds():
+    """After each test, put every shared closed chain's Newton seed back at home."""
+    yield
+    for chain in _CHAINS:
+        chain.reset()
+
+
 @pytest.fixture(scope="session")
 def fivebar():
     """The built-in planar 5-bar (a closed chain, 2 actuated joints)."""
-    return load_robot("fivebar")
+    return _chain("fivebar")
 
 
 @pytest.fixture(scope="session")
 def delta():
     """The built-in Delta (a closed chain, 3 actuated joints)."""
-    return load_robot("delta")
+    return _chain("delta")
 
 
 @pytest.fixture(scope="session")
 def threerrr():
     """The built-in 3-RRR planar parallel manipulator (3 actuated joints)."""
-    return load_robot("threerrr")
+    return _chain("threerrr")
 
 
 @pytest.fixture(scope="session")
