@@ -207,9 +207,7 @@ def test_check_dynamics_refuses_an_mjcf(capsys):
 
 
 @pytest.mark.parametrize("robot, argv, message", [
-    # the engines' refusals of each law and plant: test_study (before any run); the CLI's here
-    ("fivebar", ["--engine", "codegen"],
-     "engine 'codegen' does not implement closed chains ('fivebar' closes loop)"),
+    # (the engines' refusals of each law and plant: test_study, before any run)
     ("fivebar", ["--reference", "circle", "--radius", "0.05"],
      "--reference circle needs named frames placed by forward kinematics of the actuated "
      "joints, which the closed chain 'fivebar' does not have"),
@@ -217,8 +215,7 @@ def test_check_dynamics_refuses_an_mjcf(capsys):
     ("fivebar", ["--controllers", "fl,fl"], "control law names must be unique, repeated: fl"),
     ("fivebar", ["--home", "0,0,0"], "Expected --home of shape (2,), got (3,)"),
     ("delta", ["--controllers", "fl,bogus"], "unknown controller 'bogus'; built-in controllers"),
-], ids=["fivebar-codegen", "fivebar-circle", "fivebar-lock", "fivebar-repeated", "fivebar-home",
-        "delta-unknown"])
+], ids=["fivebar-circle", "fivebar-lock", "fivebar-repeated", "fivebar-home", "delta-unknown"])
 def test_reproduce_refuses_what_the_plant_or_engine_cannot_run(robot, argv, message, tmp_path,
                                                                capsys):
     # Refused by name before any run: no results.json (the design figures may be written).

@@ -162,8 +162,8 @@ def test_task_path_figure_draws_the_cycle_and_the_platform(delta):
     # task_path.png of a Delta study: the adept cycle in grey, and the platform of the
     # nominal run by the closed-form kinematics, in the plane the cycle spans (x and z) [mm].
     duration = 0.5
-    result = run_study(delta, make_laws("fl", delta),
-                       config=StudyConfig(samples=0, run=RunSettings(duration=duration)))
+    result = run_study(delta, make_laws("fl", delta), config=StudyConfig(
+        samples=0, run=RunSettings(duration=duration, rate=1000.0)))
     ax = plot_task_path(result, delta).axes[0]
     path, traj = ax.lines[0], result.nominal["fl"]
     cycle = 1e3 * adept_point(delta.params, np.linspace(0.0, duration, 401), duration)

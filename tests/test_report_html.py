@@ -258,7 +258,7 @@ def small_study(plant):
     from rrr_pin.campaign.study import StudyConfig, run_study
 
     laws = make_laws("fl,pd", plant)
-    run = RunSettings(duration=0.2, engine="python")
+    run = RunSettings(duration=0.2, rate=1000.0)
     return run_study(plant, laws, config=StudyConfig(run=run, samples=2, jobs=1))
 
 
