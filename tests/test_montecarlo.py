@@ -422,10 +422,11 @@ def _mc(out, *extra):
             "fl,hinf", "--out", str(out), "--no-progress", *extra]
 
 
-def test_interrupted_campaign_resumes_to_identical_tables(tmp_path):
+def test_interrupted_campaign_resumes_to_identical_tables(tmp_path, capsys):
     # A real interruption: start the CLI as a subprocess, send SIGINT once some samples are on
-    # disk, then --resume; the final tables must equal those of an uninterrupted run (made in
-    # this process: the same command).
+    # disk, then --resume; the final tables must equal those of an uninterrupted run. Only the
+    # interrupted run needs a process of its own: the others run in this one (the same
+    # command).
     import signal
     import subprocess
     import time
@@ -450,11 +451,11 @@ def test_interrupted_campaign_resumes_to_identical_tables(tmp_path):
     assert 2 <= kept < 13  # the 12 samples and the nominal plant (row -1)
     assert not (out / "campaign.csv").exists()
     # Without --resume the folder is refused; with it, only the missing samples run.
-    refused = subprocess.run(_mc(out), capture_output=True, text=True, timeout=60)
-    assert refused.returncode == 2 and "--resume" in refused.stderr
-    done = subprocess.run(_mc(out, "--resume"), capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    assert f"{kept} of 13 plants (with the nominal) already done" in done.stdout
+    capsys.readouterr()
+    assert cli.main(_mc(out)[3:]) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert cli.main(_mc(out, "--resume")[3:]) == 0
+    assert f"{kept} of 13 plants (with the nominal) already done" in capsys.readouterr().out
     for name in ("campaign.csv", "samples.jsonl", "summary.json"):
         a, b = (ref / name).read_bytes(), (out / name).read_bytes()
         if name == "summary.json":  # identical but for the list of files this run wrote
