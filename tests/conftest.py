@@ -153,7 +153,7 @@ def run_cli(argv, out: Path) -> CliRun:
 #: Small settings of the shared runs, the same for every kind of plant: laws sampled at 1 kHz
 #: (which the compiled engines run; continuous-time laws on a closed chain take the Python one).
 REPRODUCE = ["reproduce", "--samples", "2", "--duration", "0.3", "--rate", "1000", "--jobs", "1",
-             "--no-progress"]
+             "--save-trajectories", "csv", "--no-progress"]
 MONTECARLO = ["montecarlo", "--samples", "2", "--duration", "0.05", "--jobs", "1",
               "--controllers", "fl,hinf,pd", "--no-progress"]
 STRESS = ["stress", "--effect", "delay", "--controllers", "fl", "--duration", "0.2", "--json",
@@ -201,7 +201,7 @@ def shared_runs(tmp_path_factory):
 
 @pytest.fixture
 def reproduced(request, shared_runs):
-    """``rrr-pin reproduce`` (2 uncertain plants, 0.3 s at 1 kHz) of a plant kind (default rrr)."""
+    """``rrr-pin reproduce`` (2 uncertain plants, 0.3 s at 1 kHz, trajectories as CSV)."""
     return shared_runs(REPRODUCE, getattr(request, "param", "rrr"))
 
 

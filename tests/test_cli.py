@@ -6,6 +6,7 @@ are read by every test that only inspects their outputs.
 
 import json
 
+import numpy as np
 import pytest
 
 from rrr_pin import cli
@@ -85,8 +86,9 @@ def test_reproduce_prints_the_report_lines(reproduced, plant):
     assert printed[3].startswith(f"certified (frozen nu-gap < b = {summary['certificate_b']:.4g}"
                                  f"): {summary['samples_certified']} of 2 plants")
     figures = len(list(out.glob("*.png")))
-    assert printed[-1] == (f"wrote {out}/results.json, results.md, plants/, {figures} figures "
+    assert printed[-2] == (f"wrote {out}/results.json, results.md, plants/, {figures} figures "
                            f"and report.html (open it in a browser)")
+    assert printed[-1].startswith("wrote 6 trajectories")  # --save-trajectories
 
 
 @pytest.mark.parametrize("extra", [
@@ -105,26 +107,25 @@ def test_reproduce_references_and_controllers(tmp_path, extra):
     assert set(data["summary"]["error_ratio_uncertain"]) == set(names[1:])
 
 
-def test_reproduce_saves_trajectories(tmp_path, capsys):
-    import numpy as np
+@pytest.mark.parametrize("reproduced, plant", [(k, k) for k in KINDS], indirect=True, ids=KINDS)
+def test_reproduce_saves_trajectories(reproduced, plant):
     from numpy.testing import assert_allclose
 
     from rrr_pin.sim.trajectory import Trajectory
 
-    out = tmp_path / "r"
-    assert cli.main(["reproduce", "--out", str(out), "--samples", "1", "--duration", "0.2",
-                     "--jobs", "1", "--no-progress", "--no-certify",
-                     "--save-trajectories", "csv"]) == 0
-    assert "wrote 4 trajectories" in capsys.readouterr().out
+    out = reproduced.out  # the shared run, with --save-trajectories csv
+    assert reproduced.stdout.splitlines()[-1] == (f"wrote 6 trajectories to {out}/trajectories/ "
+                                                  f"(csv)")
     files = sorted(p.name for p in (out / "trajectories").iterdir())
-    assert files == ["nominal_fl.csv", "nominal_hinf.csv", "sample000_fl.csv",
-                     "sample000_hinf.csv"]
+    assert files == [f"{p}_{law}.csv" for p in ("nominal", "sample000", "sample001")
+                     for law in ("fl", "hinf")]
     data = json.loads((out / "results.json").read_text())
-    for plant, group in (("nominal", data["nominal"]), ("sample000",
-                                                        data["uncertain"]["samples"][0])):
-        traj = Trajectory.load(out / "trajectories" / f"{plant}_hinf.csv")
-        assert traj.joint_names == data["joint_names"] and traj.controller == "hinf"
-        assert_allclose(traj.t[-1], 0.2, rtol=0, atol=1e-12)  # the grid's last point
+    for name, group in (("nominal", data["nominal"]), ("sample001",
+                                                       data["uncertain"]["samples"][1])):
+        traj = Trajectory.load(out / "trajectories" / f"{name}_hinf.csv")
+        assert traj.joint_names == data["joint_names"] == plant.joint_names
+        assert traj.controller == "hinf"
+        assert_allclose(traj.t[-1], 0.3, rtol=0, atol=1e-12)  # the grid's last point
         # The file holds the run whose figures results.json reports: RMS error recomputed
         # from it (rtol 1e-12: the same float64 arrays, summed in the same order).
         e = traj.r - traj.q
