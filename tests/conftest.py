@@ -164,13 +164,15 @@ STRESS = ["stress", "--effect", "delay", "--controllers", "fl", "--duration", "0
 def shared_runs(tmp_path_factory):
     """``shared_runs(argv, robot)``: run ``argv --robot robot`` once per session, then reuse it.
 
-    The run goes to ``<session temp>/shared-runs/<command>_<robot>/out``; under pytest-xdist the
-    session temp is the workers' common parent folder, and a file lock makes one worker run it
-    while the others wait, then read its record (``run.json``). A memo rather than a
-    parametrized session fixture: pytest keeps one value per fixture, so tests of several plant
-    kinds in turn would otherwise redo a run at each change of kind.
+    The run goes to ``<session temp>/shared-runs/<command>_<robot>_<hash of argv>/out``; under
+    pytest-xdist the session temp is the workers' common parent folder, and a file lock makes
+    one worker run it while the others wait, then read its record (``run.json``). A memo rather
+    than a
+    parametrized session fixture: pytest keeps one value per fixture, so tests of several
+    plant kinds in turn would otherwise redo a run at each change of kind.
     """
     import fcntl
+    import hashlib
     import os
 
     base = tmp_path_factory.getbasetemp()  # a worker's is <session temp>/popen-gw<k>
@@ -181,7 +183,8 @@ def shared_runs(tmp_path_factory):
     def get(argv, robot) -> CliRun:
         key = (tuple(argv), robot)
         if key not in runs:
-            folder = root / f"{argv[0]}_{robot}"
+            digest = hashlib.sha256(json.dumps([*argv, robot]).encode()).hexdigest()[:8]
+            folder = root / f"{argv[0]}_{robot}_{digest}"
             with open(root / f"{folder.name}.lock", "w") as lock:
                 fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
                 record = folder / "run.json"
