@@ -167,9 +167,8 @@ def shared_runs(tmp_path_factory):
     The run goes to ``<session temp>/shared-runs/<command>_<robot>_<hash of argv>/out``; under
     pytest-xdist the session temp is the workers' common parent folder, and a file lock makes
     one worker run it while the others wait, then read its record (``run.json``). A memo rather
-    than a
-    parametrized session fixture: pytest keeps one value per fixture, so tests of several
-    plant kinds in turn would otherwise redo a run at each change of kind.
+    than a parametrized session fixture: pytest keeps one value per fixture, so tests of
+    several plant kinds in turn would otherwise redo a run at each change of kind.
     """
     import fcntl
     import hashlib
