@@ -1,6 +1,36 @@
-"""Shared fixtures; matplotlib renders off-screen in every test."""
+"""Shared fixtures: the models and designs of every test file, and the end-to-end CLI runs.
 
+Models and designs are session-scoped (built once per pytest-xdist worker). **Never mutate
+them**: a test that changes a model (its inertias, gravity, locks) loads its own with
+:func:`rrr_pin.load_robot`. A session-scoped :class:`~rrr_pin.model.closed_chain.ClosedChain`
+carries the Newton seed of its loop closure from one call to the next: every ``simulate`` run
+resets it (``Plant.reset``), a test that evaluates the model face at its own states seeds it
+there first (``chain.reset(q)``), and after every test each shared chain is re-seeded at home
+(``_home_seeds``), so no test depends on where another left it.
+
+* ``rrr`` (the paper's arm), ``ur5``, ``fivebar``, ``delta``, ``threerrr``: the plants;
+* ``plant``: one of them by name, for a test parametrized over plant kinds::
+
+      @pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+      def test_something(plant): ...
+
+* ``paper``: the paper's design (:func:`rrr_pin.design`, 3 joints); ``design_for(n)``: the
+  same design for ``n`` joints (cached), e.g. a certificate on the 5-bar's 2 joints;
+* ``reproduced``, ``montecarlo_run``, ``stress_run``: one ``rrr-pin reproduce``,
+  ``montecarlo`` and ``stress`` run per plant kind (default ``"rrr"``; parametrize them
+  indirectly like ``plant``), for the tests that only read their outputs.
+
+A shared run is made once per test session, also under pytest-xdist (``-n 2``): the first
+worker that needs it runs it in the session's common temporary folder, under a file lock, and
+the others read what it wrote (its folder, exit status and output).
+"""
+
+import contextlib
+import functools
+import io
 import json
+from pathlib import Path
+from typing import NamedTuple
 
 import matplotlib
 import pytest
@@ -11,6 +41,7 @@ matplotlib.use("Agg")
 # development install its import may first rebuild it in a subprocess, which needs real file
 # descriptors (a regular install has no such step).
 import rrr_pin.sim.compiled  # noqa: E402, F401
+from rrr_pin import cli, load_robot  # noqa: E402
 
 
 def _strict_loads(text: str):
@@ -24,3 +55,165 @@ def _strict_loads(text: str):
 def strict_json():
     """The strict JSON parser: every JSON file or stream the tool writes must pass it."""
     return _strict_loads
+
+
+# --- plants and designs ------------------------------------------------------------------------
+
+@pytest.fixture(scope="session")
+def rrr():
+    """The paper's RRR arm (Tables 1-2)."""
+    return load_robot("rrr")
+
+
+@pytest.fixture(scope="session")
+def ur5():
+    """example-robot-data's UR5."""
+    return load_robot("ur5")
+
+
+#: The shared closed chains made so far in this process (re-seeded after every test).
+_CHAINS = []
+
+
+def _chain(name):
+    chain = load_robot(name)
+    _CHAINS.append(chain)
+    return chain
+
+
+@pytest.fixture(autouse=True)
+def _home_seeds():
+    """After each test, put every shared closed chain's Newton seed back at home."""
+    yield
+    for chain in _CHAINS:
+        chain.reset()
+
+
+@pytest.fixture(scope="session")
+def fivebar():
+    """The built-in planar 5-bar (a closed chain, 2 actuated joints)."""
+    return _chain("fivebar")
+
+
+@pytest.fixture(scope="session")
+def delta():
+    """The built-in Delta (a closed chain, 3 actuated joints)."""
+    return _chain("delta")
+
+
+@pytest.fixture(scope="session")
+def threerrr():
+    """The built-in 3-RRR planar parallel manipulator (3 actuated joints)."""
+    return _chain("threerrr")
+
+
+@pytest.fixture(scope="session")
+def plant(request):
+    """The plant fixture named by an indirect parametrization (``"rrr"``, ``"fivebar"``, ...)."""
+    return request.getfixturevalue(request.param)
+
+
+@pytest.fixture(scope="session")
+def design_for():
+    """``design_for(n)``: the paper's design (:func:`rrr_pin.design`) for ``n`` joints, cached."""
+    from rrr_pin.robust.loopshaping import design
+
+    return functools.cache(lambda n: design(n=n))
+
+
+@pytest.fixture(scope="session")
+def paper(design_for):
+    """The paper's design: lam = 45 rad/s, 3 joints (:func:`rrr_pin.design`)."""
+    return design_for(3)
+
+
+# --- end-to-end CLI runs, shared by the tests that only read their outputs ---------------------
+
+class CliRun(NamedTuple):
+    """One ``rrr-pin`` run: its exit status, output folder, what it printed and its arguments.
+
+    ``argv`` is the command line without ``--out`` (a test may rerun it, e.g. to resume).
+    """
+
+    code: int
+    out: Path
+    stdout: str
+    stderr: str
+    argv: list
+
+
+def run_cli(argv, out: Path) -> CliRun:
+    """``rrr_pin.cli.main(argv + ["--out", out])``, its standard output and error captured."""
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = cli.main([*argv, "--out", str(out)])
+    return CliRun(code, Path(out), stdout.getvalue(), stderr.getvalue(), list(argv))
+
+
+#: Small settings of the shared runs, the same for every kind of plant: laws sampled at 1 kHz
+#: (which the compiled engines run; continuous-time laws on a closed chain take the Python one).
+REPRODUCE = ["reproduce", "--samples", "2", "--duration", "0.3", "--rate", "1000", "--jobs", "1",
+             "--save-trajectories", "csv", "--no-progress"]
+MONTECARLO = ["montecarlo", "--samples", "2", "--duration", "0.05", "--jobs", "1",
+              "--controllers", "fl,hinf,pd", "--no-progress"]
+STRESS = ["stress", "--effect", "delay", "--controllers", "fl", "--duration", "0.2", "--json",
+          "-v"]
+
+
+@pytest.fixture(scope="session")
+def shared_runs(tmp_path_factory):
+    """``shared_runs(argv, robot)``: run ``argv --robot robot`` once per session, then reuse it.
+
+    The run goes to ``<session temp>/shared-runs/<command>_<robot>_<hash of argv>/out``; under
+    pytest-xdist the session temp is the workers' common parent folder, and a file lock makes
+    one worker run it while the others wait, then read its record (``run.json``). A memo rather
+    than a parametrized session fixture: pytest keeps one value per fixture, so tests of
+    several plant kinds in turn would otherwise redo a run at each change of kind.
+    """
+    import fcntl
+    import hashlib
+    import os
+
+    base = tmp_path_factory.getbasetemp()  # a worker's is <session temp>/popen-gw<k>
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "shared-runs"
+    root.mkdir(parents=True, exist_ok=True)
+    runs = {}
+
+    def get(argv, robot) -> CliRun:
+        key = (tuple(argv), robot)
+        if key not in runs:
+            digest = hashlib.sha256(json.dumps([*argv, robot]).encode()).hexdigest()[:8]
+            folder = root / f"{argv[0]}_{robot}_{digest}"
+            with open(root / f"{folder.name}.lock", "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+                record = folder / "run.json"
+                if record.exists():
+                    done = json.loads(record.read_text())
+                    runs[key] = CliRun(done["code"], folder / "out", done["stdout"],
+                                       done["stderr"], done["argv"])
+                else:
+                    run = run_cli([*argv, "--robot", robot], folder / "out")
+                    record.write_text(json.dumps({"code": run.code, "stdout": run.stdout,
+                                                  "stderr": run.stderr, "argv": run.argv}))
+                    runs[key] = run
+        return runs[key]
+
+    return get
+
+
+@pytest.fixture
+def reproduced(request, shared_runs):
+    """``rrr-pin reproduce`` (2 uncertain plants, 0.3 s at 1 kHz, trajectories as CSV)."""
+    return shared_runs(REPRODUCE, getattr(request, "param", "rrr"))
+
+
+@pytest.fixture
+def montecarlo_run(request, shared_runs):
+    """``rrr-pin montecarlo`` (fl, hinf, pd; 2 plants, 50 ms at 1 kHz) of a plant kind."""
+    return shared_runs(MONTECARLO, getattr(request, "param", "rrr"))
+
+
+@pytest.fixture
+def stress_run(request, shared_runs):
+    """``rrr-pin stress --effect delay --json -v`` of FL alone, of a plant kind (default rrr)."""
+    return shared_runs(STRESS, getattr(request, "param", "rrr"))

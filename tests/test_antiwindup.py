@@ -5,9 +5,13 @@ textbook form, ``x+ = Ad x + Bd Dd^-1 (y_hat - Cd x)`` with ``y_hat`` from Pinoc
 ``computeMinverse`` and ``rnea`` (a second algorithm for ``Mhat^-1`` and ``Vhat + Ghat``); the
 unconditioned law (``hinf``) where nothing saturates; and the Python engine against the compiled
 one. Then the study of issue 20: at 90 % of the peak torque ``hinf`` diverges, ``hinf_aw`` does
-not.
+not. On every kind of plant (a closed chain's actuated joints too): a limit never reached runs
+the ideal study's numbers, and the torque limit of ``--torque-limit P%`` is P % of the peak of
+torques that Pinocchio's forward dynamics (ABA; ``constraintDynamics`` on a closed chain) turn
+back into the reference's acceleration.
 """
 
+import json
 from dataclasses import fields
 
 import control
@@ -16,17 +20,26 @@ import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from rrr_pin import paper_params
-from rrr_pin.control.effects import PlantEffects, check_torque_limit, peak_torque
+from rrr_pin import cli, paper_params
+from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.campaign.study import StudyConfig, run_study
+from rrr_pin.control.catalog import make_law
+from rrr_pin.control.effects import (
+    PlantEffects,
+    check_torque_limit,
+    peak_torque,
+    torque_limit_spec,
+)
 from rrr_pin.control.laws import (
     AntiWindupTracking,
     FLAWForm,
     hinf_aw_controller,
     hinf_fl_controller,
 )
-from rrr_pin.control.references import default_reference
-from rrr_pin.model.dynamics import load_robot, robot_from_xml
-from rrr_pin.model.uncertainty import sample_plants
+from rrr_pin.control.references import default_reference, study_reference
+from rrr_pin.model.dynamics import robot_from_xml
+from rrr_pin.model.plant import EFFORT_LIMITS
+from rrr_pin.model.uncertainty import Tolerances, sample_plants
 from rrr_pin.sim.compiled import ENGINE_LAWS
 from rrr_pin.sim.extension import EXTENSION, available
 from rrr_pin.sim.simulation import simulate
@@ -44,11 +57,6 @@ needs_ext = pytest.mark.skipif(not available(), reason="compiled extension not b
 
 
 @pytest.fixture(scope="module")
-def rrr():
-    return load_robot("rrr")
-
-
-@pytest.fixture(scope="module")
 def ref(rrr):
     return default_reference(rrr)
 
@@ -59,19 +67,47 @@ def plants(rrr, count):
             for p in sample_plants(paper_params(), count, 0)]
 
 
+@pytest.mark.parametrize("plant, duration", [("rrr", 0.5), ("fivebar", 0.1)],
+                         indirect=["plant"], ids=["rrr", "fivebar"])
 @pytest.mark.parametrize("rate", [None, 1000.0], ids=["continuous", "sampled"])
-def test_without_saturation_hinf_aw_is_hinf(rrr, ref, rate):
-    # The URDF's limits (1000 N m) are never reached (peak 299 N m): the conditioning never
-    # acts, so the run is the unconditioned law's. 1e-12 rad: the issue's specification (the
-    # two compute the same floating-point operations; measured: equal to the last bit).
-    plant = plants(rrr, 1)[0]
-    aw = hinf_aw_controller(rrr, K18)
-    assert_array_equal(aw.limit, rrr.model.effortLimit)
-    a = simulate(plant, aw, ref, 0.5, rate=rate, engine="python")
-    b = simulate(plant, hinf_fl_controller(rrr, K18), ref, 0.5, rate=rate, engine="python")
+def test_without_saturation_hinf_aw_is_hinf(plant, duration, rate):
+    # Limits never reached (a URDF's, 1000 N m on the RRR against a peak of 299 N m; a closed
+    # chain, whose MJCF carries none, is told 1000 N m): the conditioning never acts, so the
+    # run on an uncertain plant is the unconditioned law's. 1e-12 rad: the issue's
+    # specification (the two compute the same floating-point operations).
+    uncertain, _ = plant.perturbed(np.random.default_rng([0, 0]), Tolerances())
+    limit = "urdf" if plant.has(EFFORT_LIMITS) else 1e3
+    aw = hinf_aw_controller(plant, K18, torque_limit=limit)
+    if plant.has(EFFORT_LIMITS):
+        assert_array_equal(aw.limit, plant.model.effortLimit)
+    ref = study_reference(plant, duration)
+    a = simulate(uncertain, aw, ref, duration, rate=rate, engine="python")
+    b = simulate(uncertain, hinf_fl_controller(plant, K18), ref, duration, rate=rate,
+                 engine="python")
     assert np.abs(a.tau).max() < 0.5 * aw.limit.min()
     assert_allclose(a.q, b.q, rtol=0.0, atol=1e-12)
     assert_allclose(a.tau, b.tau, rtol=0.0, atol=1e-9)
+    # ... and it clips to its limits where they are reached: 0.5 N m, 0.1 rad off
+    tight = hinf_aw_controller(plant, K18, torque_limit=0.5)
+    q = plant.neutral()
+    plant.reset(q)
+    tau = tight.torque(0.0, q, 0 * q, q + 0.1, 0 * q, 0 * q, np.zeros(tight.nx))
+    assert_allclose(np.abs(tau), 0.5, rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("make", [
+    lambda plant: make_law("hinf_aw", plant),
+    lambda plant: hinf_aw_controller(plant, K18),
+    lambda plant: make_laws("fl,hinf_aw", plant),
+], ids=["make_law", "hinf_aw_controller", "make_laws"])
+def test_hinf_aw_on_a_plant_without_effort_limits_must_be_told_them(fivebar, make):
+    # The default limits are the description's (EFFORT_LIMITS): an MJCF motor has none, so a
+    # closed chain's hinf_aw is refused by that capability, naming the plant and the joints.
+    assert not fivebar.has(EFFORT_LIMITS)
+    with pytest.raises(FieldError, match=r"torque_limit = 'urdf' reads the effort limits of a "
+                                         r"URDF, and the closed chain 'fivebar' carries none "
+                                         r".*one per actuated joint: qa1, qa2"):
+        make(fivebar)
 
 
 def _textbook(rrr, law, mats, q, qd, r, rd, rdd, x):
@@ -226,9 +262,6 @@ def test_at_90_percent_hinf_diverges_and_hinf_aw_does_not(rrr, ref):
 
 
 def test_study_under_a_limit_sets_aside_a_law_that_diverges_on_the_nominal_arm(rrr, ref):
-    from rrr_pin.campaign.runner import RunSettings, make_laws
-    from rrr_pin.campaign.study import StudyConfig, run_study
-
     # hinf diverges on the nominal arm at 1.895 s at the issue's limits (issue 20): 2 s runs.
     run = RunSettings(duration=2.0, rate=1000.0, effects=PlantEffects(torque_limit=ISSUE_LIMIT))
     laws = make_laws("fl,hinf,hinf_aw", rrr, K=K18, torque_limit=ISSUE_LIMIT)
@@ -252,9 +285,6 @@ def test_study_under_a_limit_sets_aside_a_law_that_diverges_on_the_nominal_arm(r
 
 
 def test_a_study_refuses_a_limit_below_gravity(rrr, ref):
-    from rrr_pin.campaign.runner import RunSettings, make_laws
-    from rrr_pin.campaign.study import StudyConfig, run_study
-
     run = RunSettings(duration=0.1, rate=1000.0,
                       effects=PlantEffects(torque_limit=(150.0, 100.0, 45.0)))
     with pytest.raises(FieldError, match=r"joint 'joint2' is 100 N m, below the gravity torque "
@@ -263,37 +293,134 @@ def test_a_study_refuses_a_limit_below_gravity(rrr, ref):
                   reference=ref)
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--torque-limit=-1", "--rate", "1000"], "--torque-limit = [-1.0]: expected finite > 0"),
-    (["--torque-limit", "150,0,45", "--rate", "1000"],
+@pytest.mark.parametrize("robot, argv, message", [
+    ("rrr", ["--torque-limit=-1", "--rate", "1000"],
+     "--torque-limit = [-1.0]: expected finite > 0"),
+    ("rrr", ["--torque-limit", "150,0,45", "--rate", "1000"],
      "--torque-limit = [150.0, 0.0, 45.0]: expected finite > 0 per joint"),
-    (["--torque-limit", "nan,270,45", "--rate", "1000"],
+    ("rrr", ["--torque-limit", "nan,270,45", "--rate", "1000"],
      "--torque-limit = [nan, 270.0, 45.0]: expected finite > 0"),
-    (["--torque-limit", "150,270", "--rate", "1000"],
+    ("rrr", ["--torque-limit", "150,270", "--rate", "1000"],
      "expected one value or 3 (one per joint), got 2"),
-    (["--torque-limit", "150,100,45", "--rate", "1000"],
+    ("fivebar", ["--torque-limit", "1,2,3", "--rate", "1000"],
+     "--torque-limit = [1.0, 2.0, 3.0]: expected one value or 2 (one per joint), got 3"),
+    ("rrr", ["--torque-limit", "150,100,45", "--rate", "1000"],
      "--torque-limit of joint 'joint2' is 100 N m, below the gravity torque 202.41 N m"),
-    (["--torque-limit", "50%", "--rate", "1000"],
+    ("rrr", ["--torque-limit", "50%", "--rate", "1000"],
      "--torque-limit of joint 'joint2' is 149.718 N m, below the gravity torque 202.41 N m"),
-    (["--torque-limit", "0%", "--rate", "1000"], "the percent must be finite and > 0"),
-    (["--torque-limit", "x%", "--rate", "1000"], "expected auto, P% (a number P > 0"),
-    (["--torque-limit", "auto"], "give --rate HZ too"),
-], ids=["negative", "zero", "nan", "size", "below-gravity", "percent-below-gravity",
-        "percent-zero", "percent-word", "no-rate"])
-def test_reproduce_refuses_bad_torque_limits(argv, message, capsys, tmp_path):
-    from rrr_pin import cli
-
-    assert cli.main(["reproduce"] + argv + ["--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    ("rrr", ["--torque-limit", "0%", "--rate", "1000"], "the percent must be finite and > 0"),
+    ("fivebar", ["--torque-limit=-5%", "--rate", "1000"], "the percent must be finite and > 0"),
+    ("rrr", ["--torque-limit", "x%", "--rate", "1000"], "expected auto, P% (a number P > 0"),
+    ("rrr", ["--torque-limit", "auto"], "give --rate HZ too"),
+    # a closed chain's MJCF motors carry no effort limit: auto, and hinf_aw without a limit
+    ("fivebar", ["--torque-limit", "auto", "--rate", "1000"],
+     "--torque-limit = 'urdf' reads the effort limits of a URDF, and the closed chain "
+     "'fivebar' carries none"),
+    ("fivebar", ["--controllers", "fl,hinf_aw"],
+     "reads the effort limits of a URDF, and the closed chain 'fivebar' carries none"),
+], ids=["negative", "zero", "nan", "size", "chain-size", "below-gravity",
+        "percent-below-gravity", "percent-zero", "chain-percent-negative", "percent-word",
+        "no-rate", "chain-auto", "chain-aw-without-limit"])
+def test_reproduce_refuses_bad_torque_limits(robot, argv, message, capsys, tmp_path):
+    out = tmp_path / "o"
+    assert cli.main(["reproduce", "--robot", robot, *argv, "--out", str(out),
+                     "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+    assert not (out / "results.json").exists()
+
+
+def _checked_inverse_dynamics(plant, reference, t):
+    """The reference's torques ``inverse_dynamics(r, rd, rdd)``, each checked by the plant's
+    forward dynamics (ABA; a closed chain's ``constraintDynamics`` on its full closed state):
+    applied at ``(r, rd)`` they give back ``rdd``."""
+    R, RD, RDD = reference.sample(t)
+    out = []
+    for r, rd, rdd in zip(R, RD, RDD, strict=True):
+        tau = plant.inverse_dynamics(r, rd, rdd)
+        x, v = plant.start(r, rd)
+        a = plant.acceleration(x, v, tau)
+        a = a if plant.actuated_index is None else a[plant.actuated_index]
+        # a second algorithm for the same dynamics: round-off (constraintDynamics' proximal
+        # accuracy, 6e-11 rad/s^2 at mu = 1e-4, on a closed chain)
+        assert_allclose(a, rdd, rtol=1e-9, atol=1e-8)
+        out.append(tau)
+    return np.array(out)
+
+
+DURATION = 0.05  # s, at 1 kHz
+
+
+def _limited_study(plant, laws, limit):
+    run = RunSettings(duration=DURATION, rate=1000.0,
+                      effects=None if limit is None else PlantEffects(torque_limit=limit))
+    return run_study(plant, make_laws(laws, plant, K=K18, torque_limit=limit),
+                     config=StudyConfig(run=run, samples=0))
+
+
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+def test_a_limit_never_reached_is_the_ideal_study(plant):
+    # 1e9 N m: the plants run with a torque-limit effect that never acts; the ideal study
+    # runs without effects (possibly on another engine, pinned to the Python one): the same
+    # numbers to round-off.
+    ideal = _limited_study(plant, "fl,hinf", None)
+    limited = _limited_study(plant, "fl,hinf,hinf_aw", 1e9)
+    for law in ("fl", "hinf"):
+        a, b = ideal.nominal[law], limited.nominal[law]
+        assert b.info["saturation"]["fraction"] == 0.0 and "saturation" not in a.info
+        assert_allclose(b.q, a.q, rtol=0, atol=1e-12)
+    # hinf_aw unsaturated is hinf (the same arithmetic on the same engine)
+    assert_allclose(limited.nominal["hinf_aw"].q, limited.nominal["hinf"].q, rtol=0, atol=0)
+
+
+def test_a_chain_clips_at_the_limit_and_records_the_time_there(fivebar):
+    # The arm's counterpart is the study above that sets hinf aside (limits above gravity).
+    # N m: above the gravity torque at r(0) (1.1 N m), below the reference's peak (285 N m:
+    # the tip circle once in 50 ms)
+    limit = 50.0
+    traj = _limited_study(fivebar, "fl", limit).nominal["fl"]
+    assert np.max(np.abs(traj.tau)) <= limit
+    at = (np.abs(traj.tau[:-1]) >= limit).any(axis=1).mean()  # recount from the torques
+    assert traj.info["saturation"]["fraction"] == pytest.approx(at, abs=0)
+    assert at > 0.0
+
+
+def _peak(plant, duration=DURATION, rate=1000.0):
+    """The peak torque of the study reference over a run's control instants, checked torques."""
+    t = np.arange(round(duration * rate) + 1) / rate
+    return np.max(np.abs(_checked_inverse_dynamics(plant, study_reference(plant, duration),
+                                                   t)), axis=0)
+
+
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+def test_percent_is_of_the_peak_torque_of_the_reference(plant):
+    # 200 %: above the gravity torque at r(0) on every joint of both plants
+    limit, info = torque_limit_spec(plant, "200%", study_reference(plant, DURATION), 1000.0,
+                                    DURATION)
+    peak = _peak(plant)
+    assert_allclose(info["peak_torque_Nm"], peak, rtol=1e-12)
+    assert_allclose(limit, 2.0 * peak, rtol=1e-12)
+    assert (info["spec"], info["percent"]) == ("200%", 200.0)
+
+
+def test_cli_records_the_torque_limit_of_a_percent(fivebar, tmp_path, capsys):
+    out = tmp_path / "r"
+    assert cli.main(["reproduce", "--robot", "fivebar", "--torque-limit", "200%",
+                     "--samples", "0", "--duration", str(DURATION), "--rate", "1000",
+                     "--no-certify", "--no-progress", "--out", str(out)]) == 0
+    data = json.loads((out / "results.json").read_text())
+    tl = data["summary"]["torque_limit"]
+    peak = _peak(fivebar)
+    assert_allclose(tl["peak_torque_Nm"], peak, rtol=1e-12)
+    assert_allclose(tl["limit_Nm"], 2.0 * peak, rtol=1e-12)
+    assert_allclose(data["config"]["effects"]["torque_limit_Nm"], 2.0 * peak, rtol=1e-12)
+    assert tl["spec"] == "200%" and set(tl["laws"]) == {"fl", "hinf", "hinf_aw"}
+    assert [c["name"] for c in data["controllers"]] == ["fl", "hinf", "hinf_aw"]
+    assert " N m (200%), per controller" in capsys.readouterr().out
 
 
 @pytest.mark.slow
 def test_reproduce_under_a_limit_records_it(tmp_path, capsys):
-    import json
-
-    from rrr_pin import cli
-
     out = tmp_path / "o"
     assert cli.main(["reproduce", "--torque-limit", "90%", "--rate", "1000", "--samples", "1",
                      "--duration", "3", "--no-certify", "--no-progress", "--out", str(out)]) == 0

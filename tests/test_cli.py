@@ -1,52 +1,94 @@
+"""The command line end to end, on every kind of plant (serial arms and closed chains).
+
+The shared runs (``reproduced`` of tests/conftest.py: one ``rrr-pin reproduce`` per plant kind)
+are read by every test that only inspects their outputs.
+"""
+
 import json
 
+import numpy as np
 import pytest
 
 from rrr_pin import cli
 from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.plant import CAPABILITIES, URDF
 
 KEYS = {"rms_error", "max_error", "rms_torque", "peak_torque"}
 
+#: The kinds of plant every shared-run test reads (indirect parametrization of ``reproduced``).
+KINDS = ["rrr", "fivebar"]
 
-@pytest.fixture(scope="module")
-def reproduced(tmp_path_factory):
-    out = tmp_path_factory.mktemp("results")
-    code = cli.main(["reproduce", "--out", str(out), "--samples", "2", "--duration", "0.3",
-                     "--jobs", "1", "--no-progress"])
-    return code, out
+#: Each kind's study reference (``--reference study``): an arm's sine, a mechanism's task path
+#: (a spline through its inverse kinematics).
+REFERENCE_KIND = {"rrr": "sine", "fivebar": "spline"}
 
 
-def test_reproduce_writes_everything(reproduced):
-    code, out = reproduced
-    assert code == 0
-    for name in ("fig2", "fig3", "fig4a", "fig4b", "fig5_nominal", "fig6_uncertain"):
+@pytest.mark.parametrize("reproduced, plant", [(k, k) for k in KINDS], indirect=True, ids=KINDS)
+def test_reproduce_writes_everything(reproduced, plant):
+    assert reproduced.code == 0, reproduced.stderr
+    out = reproduced.out
+    for name in ("fig2", "fig3", "fig4a", "fig4b", "fig5_nominal", "fig6_uncertain",
+                 "certificates", "margins"):
         assert (out / f"{name}.png").stat().st_size > 10_000
-    plants = sorted((out / "plants").glob("*.urdf"))
-    assert [p.name for p in plants] == ["rrr_000.urdf", "rrr_001.urdf"]
-    assert load_robot(plants[0]).nq == 3  # the written plants load back
+    # a plant with a task path (a mechanism's) has its figure, the others none
+    assert (out / "task_path.png").exists() == (plant.task_points(0.3) is not None)
+    # each uncertain plant as its own description (URDF, MJCF), which loads back
+    suffix = plant.source_text()[1]
+    plants = sorted((out / "plants").iterdir())
+    assert [p.name for p in plants] == [f"{plant.name}_000{suffix}", f"{plant.name}_001{suffix}"]
+    assert [load_robot(p).nq for p in plants] == [plant.nq] * 2
     assert "| Uncertain plants: RMS error FL alone / H-inf+FL" in (out / "results.md").read_text()
+    assert (out / "report.html").stat().st_size > 10_000
 
 
-def test_results_json_layout(reproduced, strict_json):
-    _, out = reproduced
-    data = strict_json((out / "results.json").read_text())
-    assert {"kind", "home_rad", "amp_rad", "freq_hz", "phase_rad", "duration_s"} <= set(
-        data["reference"])
+@pytest.mark.parametrize("reproduced, plant", [(k, k) for k in KINDS], indirect=True, ids=KINDS)
+def test_results_json_layout(reproduced, plant, strict_json):
+    data = strict_json((reproduced.out / "results.json").read_text())
+    assert data["robot"] == plant.name and data["joint_names"] == plant.joint_names
+    assert data["reference"]["kind"] == REFERENCE_KIND[plant.name]
+    assert data["reference"]["duration_s"] == 0.3
+    # a plant that records its loop drift (a closed chain) has it per run, in metres
+    keys = KEYS | ({"drift_m"} if plant.loop_closures else set())
     for group in ("nominal", "uncertain"):
         for key in ("fl", "hinf"):
-            assert set(data[group][key]) == KEYS
-            assert all(len(v) == 3 for v in data[group][key].values())
+            assert set(data[group][key]) == keys
+            assert all(len(data[group][key][k]) == plant.nq for k in KEYS)
     samples = data["uncertain"]["samples"]
     assert [s["seed"] for s in samples] == [[0, 0], [0, 1]]
-    assert {"fl", "hinf", "parameters", "status"} <= set(samples[0])
+    assert {"fl", "hinf", "parameters", "status", "certificate"} <= set(samples[0])
+    assert [s["status"] for s in samples] == ["ok", "ok"]
     summary = data["summary"]
-    assert set(summary["nominal_max_error"]) == {"fl", "hinf"}
+    # the headline nominal error is the largest of the per-joint maxima, and the paper's
+    # nominal claim in results.md is read from it
+    nom = summary["nominal_max_error"]
+    assert nom == {k: max(data["nominal"][k]["max_error"]) for k in ("fl", "hinf")}
+    assert (f"max abs error: FL {nom['fl']:.3g} rad, H-inf+FL {nom['hinf']:.3g} rad"
+            in (reproduced.out / "results.md").read_text())
     assert summary["error_ratio_uncertain"]["hinf"] > 0
-    assert len(summary["error_ratio_uncertain_per_joint"]["hinf"]) == 3
+    assert len(summary["error_ratio_uncertain_per_joint"]["hinf"]) == plant.nq
     assert summary["torque_ratio_uncertain"]["hinf"] > 0
+    assert summary["samples_certified"] == sum(s["certificate"]["certified"] for s in samples)
     assert data["config"]["engine"] == "auto" and data["config"]["baseline"] == "fl"
     # The design recorded beside the study is the paper's (eq. 18 within 0.5 %).
     assert abs(data["design"]["gamma_min"] / 2.1436 - 1) < 5e-3
+
+
+@pytest.mark.parametrize("reproduced, plant", [(k, k) for k in KINDS], indirect=True, ids=KINDS)
+def test_reproduce_prints_the_report_lines(reproduced, plant):
+    # The CLI prints the report layer's lines (rrr_pin.report.results.summary_lines).
+    printed = reproduced.stdout.splitlines()
+    out = reproduced.out
+    summary = json.loads((out / "results.json").read_text())["summary"]
+    assert printed[0].startswith(f"{plant.name}: {plant.nq} joints, gamma = 2.14")
+    assert printed[1] == "nominal max |e| [rad]: " + ", ".join(
+        f"{k} {v:.3g}" for k, v in summary["nominal_max_error"].items())
+    assert printed[2].startswith("uncertain (2 plants): RMS error fl / hinf = ")
+    assert printed[3].startswith(f"certified (frozen nu-gap < b = {summary['certificate_b']:.4g}"
+                                 f"): {summary['samples_certified']} of 2 plants")
+    figures = len(list(out.glob("*.png")))
+    assert printed[-2] == (f"wrote {out}/results.json, results.md, plants/, {figures} figures "
+                           f"and report.html (open it in a browser)")
+    assert printed[-1].startswith("wrote 6 trajectories")  # --save-trajectories
 
 
 @pytest.mark.parametrize("extra", [
@@ -57,7 +99,7 @@ def test_results_json_layout(reproduced, strict_json):
 def test_reproduce_references_and_controllers(tmp_path, extra):
     out = tmp_path / "r"
     assert cli.main(["reproduce", "--out", str(out), "--samples", "1", "--duration", "0.3",
-                     "--jobs", "1", "--no-progress"] + extra) == 0
+                     "--jobs", "1", "--no-progress", "--no-certify"] + extra) == 0
     data = json.loads((out / "results.json").read_text())
     names = extra[1].split(",")
     assert [c["name"] for c in data["controllers"]] == names
@@ -65,26 +107,25 @@ def test_reproduce_references_and_controllers(tmp_path, extra):
     assert set(data["summary"]["error_ratio_uncertain"]) == set(names[1:])
 
 
-def test_reproduce_saves_trajectories(tmp_path, capsys):
-    import numpy as np
+@pytest.mark.parametrize("reproduced, plant", [(k, k) for k in KINDS], indirect=True, ids=KINDS)
+def test_reproduce_saves_trajectories(reproduced, plant):
     from numpy.testing import assert_allclose
 
     from rrr_pin.sim.trajectory import Trajectory
 
-    out = tmp_path / "r"
-    assert cli.main(["reproduce", "--out", str(out), "--samples", "1", "--duration", "0.2",
-                     "--jobs", "1", "--no-progress", "--no-certify",
-                     "--save-trajectories", "csv"]) == 0
-    assert "wrote 4 trajectories" in capsys.readouterr().out
+    out = reproduced.out  # the shared run, with --save-trajectories csv
+    assert reproduced.stdout.splitlines()[-1] == (f"wrote 6 trajectories to {out}/trajectories/ "
+                                                  f"(csv)")
     files = sorted(p.name for p in (out / "trajectories").iterdir())
-    assert files == ["nominal_fl.csv", "nominal_hinf.csv", "sample000_fl.csv",
-                     "sample000_hinf.csv"]
+    assert files == [f"{p}_{law}.csv" for p in ("nominal", "sample000", "sample001")
+                     for law in ("fl", "hinf")]
     data = json.loads((out / "results.json").read_text())
-    for plant, group in (("nominal", data["nominal"]), ("sample000",
-                                                        data["uncertain"]["samples"][0])):
-        traj = Trajectory.load(out / "trajectories" / f"{plant}_hinf.csv")
-        assert traj.joint_names == data["joint_names"] and traj.controller == "hinf"
-        assert_allclose(traj.t[-1], 0.2, rtol=0, atol=1e-12)  # the grid's last point
+    for name, group in (("nominal", data["nominal"]), ("sample001",
+                                                       data["uncertain"]["samples"][1])):
+        traj = Trajectory.load(out / "trajectories" / f"{name}_hinf.csv")
+        assert traj.joint_names == data["joint_names"] == plant.joint_names
+        assert traj.controller == "hinf"
+        assert_allclose(traj.t[-1], 0.3, rtol=0, atol=1e-12)  # the grid's last point
         # The file holds the run whose figures results.json reports: RMS error recomputed
         # from it (rtol 1e-12: the same float64 arrays, summed in the same order).
         e = traj.r - traj.q
@@ -96,6 +137,7 @@ def test_reproduce_saves_trajectories(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv,message", [
     (["reproduce", "--robot", "nosuch"], "unknown robot 'nosuch'"),
+    (["reproduce", "--robot", "nosuch.xml"], "MJCF file not found: nosuch.xml"),
     (["reproduce", "--lock", "joint1"], "--lock expects JOINT=VALUE"),
     (["reproduce", "--home", "0,0,3.0"], "reference for joint 'joint3' spans"),
     (["reproduce", "--home", "0,0"], "Expected --home of shape (3,), got (2,)"),
@@ -128,7 +170,7 @@ def test_reproduce_saves_trajectories(tmp_path, capsys):
     (["reproduce", "--reference", "circle", "--radius", "0.05", "--normal", "0,0,0"],
      "--normal must be a non-zero vector (a direction), got [0.0, 0.0, 0.0]"),
     (["montecarlo", "--samples", "0"], "--samples must be an integer >= 1, got 0"),
-], ids=["robot", "lock-syntax", "home-limits", "home-size", "lock-unknown", "amp-nan",
+], ids=["robot", "mjcf", "lock-syntax", "home-limits", "home-size", "lock-unknown", "amp-nan",
         "amp-inf", "short", "short-sampled", "jobs0", "jobs-1", "seed", "samples", "dt",
         "rate-nan", "delay", "delay-no-rate", "q0-nan", "controller", "baseline", "q0",
         "quintic", "spline", "ik", "move-time", "circle-radius", "circle-radius-negative",
@@ -137,6 +179,54 @@ def test_reproduce_bad_input(argv, message, capsys, tmp_path):
     assert cli.main(argv + ["--out", str(tmp_path / "o"), "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("robot", ["fivebar", "delta"])
+@pytest.mark.parametrize("argv, what", [
+    (["export", "--rate", "1000"], "export"),
+    (["identify", "--design-excitation"], "rrr-pin identify"),
+    (["identify", "--data", "measurements.csv"], "rrr-pin identify"),
+], ids=["export", "identify-excitation", "identify-data"])
+def test_commands_refuse_a_plant_without_their_capability_by_name(argv, what, robot, tmp_path,
+                                                                   capsys):
+    # export and identify need a serial tree described by a URDF; a closed chain declares no
+    # such capability and is refused by it (rrr_pin.model.plant.Plant.require), naming both.
+    out = tmp_path / "out"
+    assert cli.main([*argv, "--robot", robot, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rrr-pin {argv[0]}: error: {what}")
+    assert f"needs {CAPABILITIES[URDF]}, which the closed chain {robot!r} does not have" in err
+    assert "Traceback" not in err and not out.exists()
+
+
+def test_check_dynamics_refuses_an_mjcf(capsys):
+    assert cli.main(["check-dynamics", "--urdf", "mjcf/fivebar.xml"]) == 2
+    err = capsys.readouterr().err
+    assert "check-dynamics --urdf mjcf/fivebar.xml (it compares a serial arm with the RRR's " \
+           "closed form eq. (2)-(7))" in err
+    assert f"needs {CAPABILITIES[URDF]}, which the closed chain 'fivebar'" in err
+
+
+@pytest.mark.parametrize("robot, argv, message", [
+    # (the engines' refusals of each law and plant: test_study, before any run)
+    ("fivebar", ["--reference", "circle", "--radius", "0.05"],
+     "--reference circle needs named frames placed by forward kinematics of the actuated "
+     "joints, which the closed chain 'fivebar' does not have"),
+    ("fivebar", ["--lock", "qa1=0"], "joints of a closed chain cannot be locked"),
+    ("fivebar", ["--controllers", "fl,fl"], "control law names must be unique, repeated: fl"),
+    ("fivebar", ["--home", "0,0,0"], "Expected --home of shape (2,), got (3,)"),
+    ("delta", ["--controllers", "fl,bogus"], "unknown controller 'bogus'; built-in controllers"),
+], ids=["fivebar-circle", "fivebar-lock", "fivebar-repeated", "fivebar-home", "delta-unknown"])
+def test_reproduce_refuses_what_the_plant_or_engine_cannot_run(robot, argv, message, tmp_path,
+                                                               capsys):
+    # Refused by name before any run: no results.json (the design figures may be written).
+    out = tmp_path / "o"
+    assert cli.main(["reproduce", "--robot", robot, *argv, "--samples", "0", "--duration",
+                     "0.01", "--rate", "1000", "--no-certify", "--no-progress", "--out",
+                     str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not (out / "results.json").exists()
 
 
 @pytest.mark.parametrize("cmd", [["reproduce", "--no-progress"],
@@ -152,7 +242,7 @@ def test_out_is_a_file(tmp_path, capsys, cmd):
     assert "exists and is not a folder" in err and "Traceback" not in err
 
 
-def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path):
+def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path, rrr):
     # The circle of --reference circle starts at the frame's position at the start
     # configuration: centre + radius * start_dir is that point (rrr_pin.control.paths).
     import ast
@@ -167,28 +257,11 @@ def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path):
     assert source.startswith("task-space circle of frame ")
     path = ast.literal_eval(source[source.index("{"):source.index("}, fk_error_m") + 1])
     assert path["kind"] == "circle" and path["radius_m"] == 0.05
-    robot = load_robot("rrr")
+    robot = rrr
     start = np.array([0.3, 0.6, -1.2])  # --home: a bent arm, the circle within reach
     p0 = robot.frame_placement(start, robot.model.frames[len(robot.model.frames) - 1].name)
     np.testing.assert_allclose(np.add(path["center_m"], 0.05 * np.array(path["start_dir"])),
                                p0[:3, 3], rtol=0, atol=1e-12)  # round-off of c + r u only
-
-
-def test_reproduce_prints_the_report_lines(reproduced, capsys, tmp_path):
-    # The CLI prints the report layer's lines (rrr_pin.report.results.summary_lines).
-    out = tmp_path / "again"
-    assert cli.main(["reproduce", "--out", str(out), "--samples", "2", "--duration", "0.3",
-                     "--jobs", "1", "--no-progress"]) == 0
-    printed = capsys.readouterr().out.splitlines()
-    summary = json.loads((out / "results.json").read_text())["summary"]
-    assert printed[0].startswith("rrr: 3 joints, gamma = 2.14")
-    assert printed[1] == "nominal max |e| [rad]: " + ", ".join(
-        f"{k} {v:.3g}" for k, v in summary["nominal_max_error"].items())
-    assert printed[2].startswith("uncertain (2 plants): RMS error fl / hinf = ")
-    assert printed[3].startswith(f"certified (frozen nu-gap < b = {summary['certificate_b']:.4g}"
-                                 f"): {summary['samples_certified']} of 2 plants")
-    assert printed[-1] == (f"wrote {out}/results.json, results.md, plants/, 8 figures and "
-                           f"report.html (open it in a browser)")
 
 
 def test_help_loads_no_numerical_library():

@@ -39,6 +39,7 @@ from rrr_pin.model.mechanisms import (
     FiveBarParams,
     MechanismError,
     ThreeRRRParams,
+    adept_point,
     check_mjcf,
     delta_fk,
     delta_ik,
@@ -58,19 +59,10 @@ KINDS = list(MECHANISMS)
 THETA = [math.pi / 2 + 2 * math.pi * i / 3 for i in range(3)]
 
 
-@pytest.fixture(scope="module")
-def fivebar():
-    return load_closed_chain("fivebar")
-
-
-@pytest.fixture(scope="module")
-def threerrr():
-    return load_closed_chain("threerrr")
-
-
-@pytest.fixture(scope="module", params=KINDS, ids=KINDS)
+@pytest.fixture(params=KINDS, ids=KINDS)
 def chain(request):
-    return load_closed_chain(request.param)
+    """Every registered mechanism kind in turn (the shared models of tests/conftest.py)."""
+    return request.getfixturevalue(request.param)
 
 
 def _random_state(chain, rng, spread=0.08):
@@ -152,6 +144,9 @@ def test_perturbed_mechanism_is_closable(name):
         # and the nominal home's actuated angles close it too (the study's start)
         q = plant.close(nominal.neutral(), seed=plant.home)
         assert np.abs(plant.residual(q)).max() <= 1e-12
+        # the same seed draws the same plant
+        again, _ = nominal.perturbed(np.random.default_rng([0, k]), rrr_pin.Tolerances())
+        assert again.params == plant.params
 
 
 def test_load_robot_reports_joints_and_constraints():
@@ -266,6 +261,27 @@ def test_loop_that_cannot_close_is_refused():
         DeltaParams(R=2.0)
     with pytest.raises(ValueError, match="l1"):
         FiveBarParams(l1=-0.1)
+
+
+def test_adept_cycle_is_25_305_25_mm():
+    P = DeltaParams()
+    period = 2.0
+    half = period / 2
+    corners = adept_point(P, [0.0, 0.2 * half, 0.8 * half, half, period], period)
+    # The cycle's own numbers, written here independently: 25 mm up, 305 mm across, down.
+    assert_allclose(corners[1] - corners[0], [0.0, 0.0, 0.025], atol=1e-15)
+    assert_allclose(corners[2] - corners[1], [0.305, 0.0, 0.0], atol=1e-15)
+    assert_allclose(corners[3] - corners[2], [0.0, 0.0, -0.025], atol=1e-15)
+    assert_allclose(corners[4], corners[0], atol=1e-15)
+
+
+def test_delta_study_reference_is_the_inverse_kinematics_of_the_adept_cycle(delta):
+    ref = study_reference(delta, 2.0)
+    t = ref.times[::7]
+    R = ref.sample(t)[0]
+    # The spline passes through its IK knots: the closed-form FK gives the path back.
+    assert_allclose([delta_fk(delta.params, r) for r in R], adept_point(delta.params, t, 2.0),
+                    rtol=0, atol=1e-12)
 
 
 def test_delta_ik_and_fk_round_trip_across_the_workspace():

@@ -206,7 +206,7 @@ def test_wrong_number_of_links_and_bad_state_raise():
         cf.M(p, [0.0, np.nan, 0.0])
 
 
-def test_compare_with_pinocchio():
+def test_compare_with_pinocchio(ur5):
     params = PARAM_SETS["perturbed-1"]
     same = cf.compare_with_pinocchio(load_robot(params, gravity=params.g), params, 50, seed=3)
     other = cf.compare_with_pinocchio(load_robot(paper_params()), params, 50, seed=3)
@@ -215,7 +215,7 @@ def test_compare_with_pinocchio():
         assert other[key]["rel"] > 1e-3  # masses differ by up to 20 %
         assert same[key]["scale"] > 1.0
     with pytest.raises(ValueError, match="3 joints"):
-        cf.compare_with_pinocchio(load_robot("ur5"), params)
+        cf.compare_with_pinocchio(ur5, params)
     robot = load_robot(params)
     with pytest.raises(ValueError, match="samples must be an integer in \\[1, 1000000\\], got 0"):
         cf.compare_with_pinocchio(robot, params, samples=0)

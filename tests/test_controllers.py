@@ -1,3 +1,12 @@
+"""The built-in laws on every kind of plant, against Pinocchio's algorithms and closed forms.
+
+Independent references: RNEA for the arm's inverse dynamics (the laws use CRBA + NLE); on a
+closed chain, the reduced inverse dynamics from the closed full state
+(``ClosedChain.inverse_dynamics``, through ``reduced_terms``, not the laws' ``terms``); the
+gravity as the gradient of Pinocchio's potential energy of the whole tree (finite
+differences, no ``S`` or ``J_p``).
+"""
+
 import control
 import numpy as np
 import pinocchio as pin
@@ -5,6 +14,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rrr_pin.control.laws import (
+    PD_BANDWIDTH,
     CompiledForm,
     ControlLaw,
     FLForm,
@@ -16,11 +26,11 @@ from rrr_pin.control.laws import (
     TrackingController,
     check_law,
     fl_controller,
+    hinf_2dof_controller,
     hinf_fl_controller,
     pd_controller,
 )
 from rrr_pin.control.references import QuinticReference
-from rrr_pin.model.dynamics import load_robot
 from rrr_pin.sim.simulation import simulate
 
 # The paper's eq. (18), typed from the paper (used here only as a test input).
@@ -28,9 +38,11 @@ K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
                  [1.0, 513.37 + 0.19, 513.37 * 0.19])
 
 
-@pytest.fixture(scope="module")
-def rrr():
-    return load_robot("rrr")
+def _state(plant, rng, spread=0.05):
+    """A state ``(q, qd)`` near the plant's neutral configuration, its model seeded there."""
+    q = plant.neutral() + rng.uniform(-spread, spread, plant.nq)
+    plant.reset(q)  # a closed chain: close the loop at q on its home branch
+    return q, rng.standard_normal(plant.nq)
 
 
 def test_on_reference_the_law_is_inverse_dynamics(rrr):
@@ -43,6 +55,32 @@ def test_on_reference_the_law_is_inverse_dynamics(rrr):
             tau = ctrl.torque(0.0, q, qd, q, qd, qdd, np.zeros(ctrl.nx))
             expected = pin.rnea(rrr.model, rrr.data, q, qd, qdd)
             assert_allclose(tau, expected, rtol=1e-12, atol=1e-9)  # round-off of 1e2 N m terms
+
+
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+def test_feedback_linearizing_laws_are_the_plants_inverse_dynamics(plant):
+    # Off the reference and with a state x: tau = inverse_dynamics(q, qd, taubar), eq. (8)-(10)
+    # with taubar = rdd + 2 lam (rd - qd) + lam^2 (e + C x + D e).
+    rng = np.random.default_rng(3)
+    n = plant.nq
+    q, qd = _state(plant, rng)
+    r, rd, rdd = q + 0.01, qd - 0.2, rng.standard_normal(n)
+    for law in (fl_controller(plant), hinf_fl_controller(plant, K18)):
+        x = rng.standard_normal(law.nx)
+        _, _, C, D = law.continuous_matrices()
+        lam = law.lam
+        taubar = rdd + 2 * lam * (rd - qd) + lam ** 2 * ((r - q) + C @ x + D @ (r - q))
+        # two algorithms (RNEA against CRBA + NLE; on a closed chain the reduced model from
+        # the closed full state against the laws' fast path): round-off of ~1e2 N m terms
+        assert_allclose(law.torque(0.0, q, qd, r, rd, rdd, x),
+                        plant.inverse_dynamics(q, qd, taubar), rtol=1e-12, atol=1e-9)
+    # the 2-DOF law: tauhat = q + C x + Dr (r - q), taubar = lam^2 (tauhat - q) - 2 lam qd
+    law = hinf_2dof_controller(plant)
+    x = rng.standard_normal(law.nx)
+    tauhat = q + law.K.C @ x + law.K.D[:, :n] @ (r - q)
+    taubar = law.lam ** 2 * (tauhat - q) - 2 * law.lam * qd
+    assert_allclose(law.torque(0.0, q, qd, r, rd, rdd, x),
+                    plant.inverse_dynamics(q, qd, taubar), rtol=1e-12, atol=1e-9)
 
 
 def test_feedback_terms_with_a_static_K(rrr):
@@ -58,13 +96,18 @@ def test_feedback_terms_with_a_static_K(rrr):
     assert_allclose(tau, expected, rtol=1e-12)
 
 
-def test_siso_K_is_copied_on_the_diagonal(rrr):
-    ctrl = hinf_fl_controller(rrr, K18)
-    assert ctrl.nx == 6
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+def test_siso_K_is_copied_on_the_diagonal(plant, paper):
+    n = plant.nq
+    ctrl = hinf_fl_controller(plant, K18)
+    assert ctrl.nx == 2 * n
     K = control.ss(*ctrl.continuous_matrices())
     for w in (0.1, 10.0, 500.0):
         expected = complex(K18(1j * w))
-        assert_allclose(K(1j * w), expected * np.eye(3), rtol=1e-10, atol=1e-12)
+        assert_allclose(K(1j * w), expected * np.eye(n), rtol=1e-10, atol=1e-12)
+    # the design's full-order K (reproduce --full-order) too: one copy per actuated joint
+    full = hinf_fl_controller(plant, paper.K_full)
+    assert full.nx == n * control.ss(paper.K_full).nstates > ctrl.nx
 
 
 def test_tustin_keeps_dc_gain(rrr):
@@ -86,15 +129,34 @@ def test_pd_gravity_regulates_a_set_point(rrr):
     assert_allclose(traj.q[-1], goal, atol=1e-4)  # 20 rad/s, critically damped: e ~ 1e-6 at 3 s
 
 
-def test_pd_torque_against_rnea(rrr):
-    # tau = Kp e + Kd ed + G(q), with G from RNEA at zero velocity and acceleration.
-    law = PDGravity(rrr, Kp=[100.0, 200.0, 50.0], Kd=[10.0, 20.0, 5.0])
-    q, qd = np.array([0.2, -0.3, 0.4]), np.array([0.1, 0.2, -0.1])
-    r, rd = q + [0.01, -0.02, 0.03], qd + [0.1, 0.0, -0.2]
-    tau = law.torque(0.0, q, qd, r, rd, np.zeros(3), np.zeros(0))
-    G = pin.rnea(rrr.model, rrr.data, q, np.zeros(3), np.zeros(3))
-    assert_allclose(tau, np.diag(law.Kp) * (r - q) + np.diag(law.Kd) * (rd - qd) + G,
-                    rtol=1e-12, atol=1e-12)
+@pytest.mark.parametrize("plant", ["rrr", "fivebar", "delta"], indirect=True)
+def test_pd_is_kp_e_plus_kd_ed_plus_the_gradient_of_the_potential_energy(plant):
+    # tau = Kp e + Kd ed + G(q) with the default gains wn^2 diag(M(home)), 2 wn diag(M(home));
+    # G the gradient of Pinocchio's potential energy of the whole tree at the configuration
+    # the actuated q gives (a closed chain's passive joints solved, the loop closed).
+    law = pd_controller(plant)
+    home = np.clip(plant.neutral(), plant.lower, plant.upper)
+    m = np.diag(plant.M(home))
+    assert_allclose(np.diag(law.Kp), PD_BANDWIDTH ** 2 * m, rtol=1e-15)
+    assert_allclose(np.diag(law.Kd), 2.0 * PD_BANDWIDTH * m, rtol=1e-15)
+    data = plant.model.createData()
+
+    def U(q):
+        full = plant.configurations([q])[0]
+        return pin.computePotentialEnergy(plant.model, data, full)
+
+    rng = np.random.default_rng(2)
+    for _ in range(3):
+        q, qd = _state(plant, rng)
+        h = 1e-3  # five-point stencil: truncation ~h^4 = 1e-12
+        G = np.array([(8 * (U(q + h * e) - U(q - h * e)) - U(q + 2 * h * e)
+                       + U(q - 2 * h * e)) / (12 * h) for e in np.eye(plant.nq)])
+        r, rd = q + rng.uniform(-0.02, 0.02, plant.nq), rng.standard_normal(plant.nq)
+        plant.reset(q)
+        tau = law.torque(0.0, q, qd, r, rd, 0.0 * rd, np.zeros(0))
+        # U ~ 1 J closed to 1e-12 m (~1e-11 J) over 12 h: ~1e-9 N m; the arm's U ~ 1e2 J at
+        # round-off 1e-14 over 12 h: ~1e-11 N m.
+        assert_allclose(tau, law.Kp @ (r - q) + law.Kd @ (rd - qd) + G, rtol=0, atol=1e-8)
 
 
 def test_compiled_form_only_for_the_exact_class(rrr):

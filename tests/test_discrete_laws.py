@@ -14,18 +14,12 @@ from rrr_pin import (
     QuinticReference,
     TrackingController,
     hinf_fl_controller,
-    load_robot,
     ncfsyn,
     simulate,
 )
 from rrr_pin.robust.loopshaping import fl_plant, lag_weight
 
 RATE = 1000.0
-
-
-@pytest.fixture(scope="module")
-def rrr():
-    return load_robot("rrr")
 
 
 @pytest.fixture(scope="module")

@@ -132,10 +132,9 @@ def test_M_V_G_consistent_with_inverse_dynamics(robot):
     ],
     ids=["M-q", "G-q-2d", "V-qd", "rnea-qdd", "aba-tau", "M-inf"],
 )
-def test_wrong_array_raises(method, args, match):
-    robot = load_robot("rrr")
+def test_wrong_array_raises(method, args, match, rrr):
     with pytest.raises(ValueError, match=match):
-        getattr(robot, method)(*args)
+        getattr(rrr, method)(*args)
 
 
 def test_missing_file_raises(tmp_path):

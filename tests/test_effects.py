@@ -3,6 +3,11 @@
 The physics checks run on the RRR with joints 2 and 3 locked at 0: a single joint about the
 vertical axis with constant inertia I = M(q)[0, 0] and no gravity torque, driven by a law that
 commands a known torque. Its motion then has closed forms independent of the simulator.
+
+On every kind of plant (a closed chain's effects act on its actuated joints): an effect set
+that is off, or a torque limit that never acts, runs the ideal loop's numbers; a transport
+delay of one control period is realized too by a law that applies its previous command (a
+delay line written here, independent of the engines').
 """
 
 import math
@@ -14,7 +19,7 @@ from scipy.optimize import brentq
 
 from rrr_pin.control.effects import EffectsError, PlantEffects
 from rrr_pin.control.laws import SampledLaw, fl_controller
-from rrr_pin.control.references import QuinticReference, default_reference
+from rrr_pin.control.references import QuinticReference, default_reference, study_reference
 from rrr_pin.model.dynamics import load_robot
 from rrr_pin.sim.simulation import simulate
 from rrr_pin.validation import FieldError
@@ -38,7 +43,7 @@ class StepTorque(SampledLaw):
 
 @pytest.fixture(scope="module")
 def joint1():
-    return load_robot("rrr", lock={"joint2": 0.0, "joint3": 0.0})
+    return load_robot("rrr", lock={"joint2": 0.0, "joint3": 0.0})  # its own model: locked
 
 
 @pytest.fixture(scope="module")
@@ -122,20 +127,51 @@ class HoldPrevious(SampledLaw):
         return out, x
 
 
-@pytest.mark.parametrize("engine", ["python", "compiled"])
-def test_a_one_period_delay_equals_holding_the_previous_command(rrr, engine):
-    # A delay of 4 sub-steps of 2.5e-4 s = one control period of 1 ms, on the RRR under FL.
-    ref = default_reference(rrr)
-    fl = fl_controller(rrr).sampled(1000.0)
-    delayed = simulate(rrr, fl, ref, 0.3, dt=2.5e-4, engine=engine,
-                       effects=PlantEffects(delay=1e-3))
-    held = simulate(rrr, HoldPrevious(fl), ref, 0.3, dt=2.5e-4, engine="python")
-    assert delayed.info["effects"]["delay_substeps"] == 4
-    # Same RK4 arithmetic on both sides; the compiled engine adds its round-off (test_engines
-    # pins the engines to 1e-9 rad).
+RATE, DT = 1000.0, 5e-4  # Hz, s: one control period is two sub-steps
+
+
+def _run(plant, law, effects=None, duration=0.1, **kwargs):
+    """``law`` on ``plant`` along its study reference (0.5 s), from 0.01 rad off it."""
+    ref = study_reference(plant, 0.5)
+    return simulate(plant, law, ref, duration, rate=RATE, dt=DT, q0=ref(0.0)[0] + 0.01,
+                    effects=effects, **kwargs)
+
+
+@pytest.mark.parametrize("plant, engine", [("rrr", "python"), ("rrr", "compiled"),
+                                           ("fivebar", "python")],
+                         indirect=["plant"], ids=["rrr-python", "rrr-compiled", "fivebar"])
+def test_a_one_period_delay_equals_holding_the_previous_command(plant, engine):
+    # A delay of 2 sub-steps of 5e-4 s = one control period of 1 ms, under FL.
+    fl = fl_controller(plant).sampled(RATE)
+    delayed = _run(plant, fl, PlantEffects(delay=1.0 / RATE), engine=engine)
+    held = _run(plant, HoldPrevious(fl), engine="python")
+    assert delayed.info["effects"]["delay_substeps"] == round(1.0 / RATE / DT)
+    # Same RK4 arithmetic on both sides (the delay only picks which torque is held); the
+    # compiled engine adds its round-off (test_engines pins the engines to 1e-9 rad).
     assert_allclose(delayed.q, held.q, rtol=0, atol=1e-9)
-    ideal = simulate(rrr, fl, ref, 0.3, dt=2.5e-4, engine="python")
+    # A trajectory records the commanded torque: the held law's is the delayed one's, one
+    # period later (round-off of lam^2 M times the 1e-9 rad above)
+    assert_allclose(held.tau[1:-1], delayed.tau[:-2], rtol=0,
+                    atol=1e-12 if engine == "python" else 1e-5)
+    ideal = _run(plant, fl, engine="python")
     assert np.abs(ideal.q - held.q).max() > 1e-6  # the delay changed the run
+
+
+@pytest.mark.parametrize("plant, limit", [("rrr", 400.0), ("fivebar", 50.0)],
+                         indirect=["plant"], ids=["rrr", "fivebar"])
+def test_each_drive_effect_runs_and_is_recorded(plant, limit):
+    # Mild effects of every drive kind at once (a limit above the reference's torques): the
+    # loop still tracks; a plant that closes a loop records its drift, within its bound.
+    fx = PlantEffects(bandwidth=2000.0, viscous=0.01, coulomb=0.01, torque_limit=limit,
+                      noise_q=1e-5, encoder_counts=2 ** 18, seed=3)
+    traj = _run(plant, fl_controller(plant, 100.0), fx)
+    assert traj.info["effects"]["bandwidth_rad_s"] == 2000.0
+    assert traj.info["effects"]["torque_limit_Nm"] == limit
+    assert np.all(np.abs(traj.tau) <= limit)
+    assert ("drift_m" in traj.info) == bool(plant.loop_closures)
+    if plant.loop_closures:
+        assert traj.info["drift_m"] <= traj.info["drift_bound_m"]
+    assert np.sqrt(np.mean(traj.error ** 2)) < 0.02
 
 
 def test_saturation_clips_the_torque(joint1, rest):
@@ -197,11 +233,6 @@ def test_quantization_measures_whole_counts(joint1, rest):
     assert len(np.unique(steps)) > 3  # the arm moved across several counts
 
 
-@pytest.fixture(scope="module")
-def rrr():
-    return load_robot("rrr")
-
-
 def test_noise_runs_are_reproducible_from_the_seed(rrr):
     law, ref = fl_controller(rrr), default_reference(rrr)
 
@@ -236,9 +267,10 @@ def test_every_bad_field_is_named_at_once():
         PlantEffects(delay=-1, bandwidth=0)
 
 
-def test_effects_refuse_a_continuous_law(rrr):
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+def test_effects_refuse_a_continuous_law(plant):
     with pytest.raises(ValueError, match="sampled .digital. controllers only"):
-        simulate(rrr, fl_controller(rrr), default_reference(rrr), 0.1,
+        simulate(plant, fl_controller(plant), study_reference(plant, 0.5), 0.01,
                  effects=PlantEffects(delay=1e-3))
 
 
@@ -250,9 +282,38 @@ def test_wrong_joint_count_and_too_fast_actuator(rrr):
         simulate(rrr, law, ref, 0.1, rate=1000, effects=PlantEffects(bandwidth=1e5))
 
 
-def test_no_effect_is_the_ideal_run(rrr):
-    law, ref = fl_controller(rrr), default_reference(rrr)
-    a = simulate(rrr, law, ref, 0.2, rate=1000)
-    b = simulate(rrr, law, ref, 0.2, rate=1000, effects=PlantEffects())
-    np.testing.assert_array_equal(a.q, b.q)
-    assert "effects" not in b.info
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+@pytest.mark.parametrize("make, error, match", [
+    (lambda n: PlantEffects(delay=2.5e-4), FieldError, r"delay = 0\.00025 s is not a whole "
+                                                        r"number of plant sub-steps"),
+    (lambda n: PlantEffects(viscous=(0.1,) * (n + 1)), EffectsError,
+     r"viscous: expected one value or \d \(one per joint\)"),
+    (lambda n: {"delay": 1e-3}, TypeError, "PlantEffects or None"),
+], ids=["delay-between-substeps", "per-joint-size", "not-effects"])
+def test_refused_effects_name_themselves(plant, make, error, match):
+    with pytest.raises(error, match=match):
+        _run(plant, fl_controller(plant), make(plant.nq))
+
+
+def test_a_closed_chain_has_no_urdf_effort_limits(fivebar):
+    # The arm's torque_limit="urdf" is test_urdf_effort_limits; an MJCF motor carries none.
+    with pytest.raises(EffectsError, match=r"torque_limit = 'urdf': the closed chain 'fivebar' "
+                                           r"has no URDF effort limits; give the limit \[N m\] "
+                                           r"per actuated joint \(qa1, qa2\)"):
+        _run(fivebar, fl_controller(fivebar), PlantEffects(torque_limit="urdf"))
+
+
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+def test_no_effect_is_the_ideal_run(plant):
+    law = fl_controller(plant)
+    a = _run(plant, law)
+    for off in (PlantEffects(), PlantEffects(delay=0.0, viscous=0.0, noise_q=0.0)):
+        b = _run(plant, law, off)
+        np.testing.assert_array_equal(a.q, b.q)  # an inactive set is no effect: the same loop
+        assert "effects" not in b.info
+    # A torque limit far above any torque switches the effect engine on, and never acts: the
+    # effect loop's RK4 (and a closed chain's projection) must then be the ideal loop's.
+    wide = _run(plant, law, PlantEffects(torque_limit=1e9))
+    assert wide.info["effects"]["torque_limit_Nm"] == 1e9
+    np.testing.assert_allclose(wide.q, a.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(wide.tau, a.tau, rtol=0, atol=1e-9)

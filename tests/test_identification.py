@@ -27,16 +27,6 @@ from rrr_pin.model.excitation import FourierTrajectory, design_excitation
 from rrr_pin.model.uncertainty import sample_plant, sample_plants
 
 
-@pytest.fixture(scope="module")
-def rrr():
-    return load_robot("rrr")
-
-
-@pytest.fixture(scope="module")
-def ur5():
-    return load_robot("ur5")
-
-
 def _truth(robot, radius=0.05, seed=7):
     """A hidden 'true' arm: the nominal's kinematics and changed bodies.
 

@@ -52,11 +52,6 @@ def resp(sys, w=OMEGA):
     return np.asarray(sys(1j * np.asarray(w), squeeze=False))
 
 
-@pytest.fixture(scope="module")
-def paper():
-    return design()
-
-
 # --- barriers ---------------------------------------------------------------------------------
 
 def test_barriers_reproduce_paper_eq13_eq15():

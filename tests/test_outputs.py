@@ -207,9 +207,11 @@ def test_design_out_refused_before_the_design(tmp_path, capsys, monkeypatch, whe
     assert "rrr-pin design: error: --out: " in err and out in err and "Traceback" not in err
 
 
-def test_reproduce_twice_into_one_folder(tmp_path, capsys):
+def test_reproduce_twice_into_one_folder(reproduced, tmp_path, capsys):
+    import shutil
+
     out = tmp_path / "r"
-    assert cli.main(["reproduce", "--out", str(out), "--samples", "1", *_FAST]) == 0
+    shutil.copytree(reproduced.out, out)  # a finished run of `rrr-pin reproduce` (shared)
     assert {"certificates.png", "plants", "report.html"} <= {p.name for p in out.iterdir()}
     (out / "notes.txt").write_text("mine")
     capsys.readouterr()

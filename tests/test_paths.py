@@ -40,13 +40,6 @@ def test_circle_refuses_bad_input(kwargs, message):
 
 # --- the default start of a task-space motion (rrr_pin.control.paths.task_start) -------------
 
-@pytest.fixture(scope="module")
-def rrr():
-    from rrr_pin.model.dynamics import load_robot
-
-    return load_robot("rrr")
-
-
 def _fd_conditioning(robot, frame, q, h=1e-6):
     # A second algorithm: the position Jacobian by central differences of forward kinematics
     # (Robot.frame_placement), not Pinocchio's analytic frame Jacobian.
@@ -70,9 +63,8 @@ def test_position_conditioning_matches_finite_differences(rrr):
                         rtol=1e-6)
 
 
-def test_task_start_bends_the_stretched_rrr_and_keeps_a_good_neutral(rrr):
+def test_task_start_bends_the_stretched_rrr_and_keeps_a_good_neutral(rrr, ur5):
     from rrr_pin.control.paths import COND_MAX, position_conditioning, task_start
-    from rrr_pin.model.dynamics import load_robot
 
     # The paper's RRR at zero is stretched (l2 and l3 aligned): the origin of 'ee' cannot move
     # along the arm, the position Jacobian has rank 2 (its smallest singular value is 0).
@@ -88,7 +80,6 @@ def test_task_start_bends_the_stretched_rrr_and_keeps_a_good_neutral(rrr):
                 p[j] = sign * m * 0.05
                 assert _fd_conditioning(rrr, "ee", p) > COND_MAX
     assert np.count_nonzero(q) == 1
-    ur5 = load_robot("ur5")  # conditioned at its neutral configuration: kept as it is
     assert_allclose(task_start(ur5, "tool0"), np.clip(ur5.neutral(), ur5.lower, ur5.upper),
                     rtol=0, atol=0)
 

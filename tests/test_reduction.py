@@ -5,14 +5,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rrr_pin.robust.loopshaping import design, fl_plant, zpk_data
+from rrr_pin.robust.loopshaping import fl_plant, zpk_data
 from rrr_pin.robust.ncf import ncfmargin, ncfsyn
 from rrr_pin.robust.reduction import ncf_reduce, reduction_guarantee
-
-
-@pytest.fixture(scope="module")
-def paper():
-    return design()
 
 
 def test_paper_eq18_reduction_guarantee(paper):

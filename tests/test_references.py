@@ -19,11 +19,6 @@ from rrr_pin.model.dynamics import load_robot
 from rrr_pin.sim.simulation import simulate
 
 
-@pytest.fixture(scope="module")
-def rrr():
-    return load_robot("rrr")
-
-
 def _central_differences(ref, t, h=1e-5):
     R_p, RD_p, _ = ref.sample(t + h)
     R_m, RD_m, _ = ref.sample(t - h)
@@ -167,9 +162,8 @@ _Z = np.zeros(3)
     (lambda t: (_Z, _Z, _Z + (np.inf if t > 0.0105 else 0.0)),
      r"rdd is inf \(not finite\) at t = 0\.011 s for joint 0"),
 ], ids=["scalar", "None", "pair", "shape", "nan-r", "inf-rdd-later"])
-def test_a_wrong_reference_is_refused_naming_it(out, message):
+def test_a_wrong_reference_is_refused_naming_it(out, message, rrr):
     # They gave a TypeError, an IndexError, numpy's "cannot reshape", or (a NaN rdd) nothing.
-    rrr = load_robot("rrr")
     with pytest.raises(ValueError, match=r"reference _Returns: " + message):
         simulate(rrr, pd_controller(rrr), _Returns(out), 0.05, engine="python")
 

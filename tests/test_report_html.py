@@ -36,11 +36,6 @@ DESIGN = {"gamma_min": 2.1436, "K": {"gain": 47.4011, "zeros": [-134.752, -12.16
           "emax": float("nan")}
 
 
-@pytest.fixture(scope="module")
-def rrr():
-    return load_robot("rrr")
-
-
 def _q(t, phase=0.0):
     return 0.5 * np.sin(np.pi * t[:, None] + 2 * np.pi * np.arange(3) / 3 + phase)
 
@@ -258,22 +253,25 @@ def test_report_renders_in_headless_chromium(rrr, figure, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def small_study(rrr):
+def small_study(plant):
     from rrr_pin.campaign.runner import RunSettings, make_laws
     from rrr_pin.campaign.study import StudyConfig, run_study
 
-    laws = make_laws("fl,pd", rrr)
-    run = RunSettings(duration=0.2, engine="python")
-    return run_study(rrr, laws, config=StudyConfig(run=run, samples=2, jobs=1))
+    laws = make_laws("fl,pd", plant)
+    run = RunSettings(duration=0.2, rate=1000.0)
+    return run_study(plant, laws, config=StudyConfig(run=run, samples=2, jobs=1))
 
 
-def test_study_report_draws_the_studys_own_plants(small_study, rrr, tmp_path, monkeypatch):
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+def test_study_report_draws_the_studys_own_plants(small_study, plant, tmp_path, monkeypatch):
     # 2 laws x 2 plants: the scenes draw the study's plant objects (each uncertain plant with
-    # its own perturbed dimensions), none rebuilt from a description.
+    # its own perturbed dimensions), none rebuilt from a description (URDF or MJCF).
+    import rrr_pin.model.closed_chain as closed_chain
     import rrr_pin.model.dynamics as dynamics
     import rrr_pin.report.results as results
 
     monkeypatch.setattr(dynamics, "robot_from_xml", None)  # a rebuild would fail here
+    monkeypatch.setattr(closed_chain, "_from_mjcf", None)
     drawn = []
     real = results.Track
 
@@ -282,13 +280,64 @@ def test_study_report_draws_the_studys_own_plants(small_study, rrr, tmp_path, mo
         return real(*args, **kwargs)
 
     monkeypatch.setattr(results, "Track", track)
-    path = results.write_study_report(small_study, tmp_path, [], {"gamma": 2.1}, rrr)
+    path = results.write_study_report(small_study, tmp_path, [], {"gamma": 2.1}, plant)
     assert path == tmp_path / "report.html"
     ghosts = [p.plant for p in small_study.plants]
     assert [r for r in drawn if r is not None] == ghosts * 2  # each law's scene, same objects
     text = path.read_text()
-    assert text.count("uncertain plant 1") >= 2  # a ghost in each law's scene
-    assert "rrr-pin study on rrr" in text
+    assert text.count("uncertain plant 1</span>") == 2  # a ghost in each law's scene
+    assert f"rrr-pin study on {plant.name}" in text
+
+
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+def test_study_report_skips_a_failed_run(small_study, plant, tmp_path):
+    # A run that ended on an uncertain plant has no trajectory: that law's scene draws the
+    # others only.
+    import copy
+    import dataclasses
+
+    from rrr_pin.report.results import write_study_report
+
+    samples = copy.copy(small_study.samples)
+    samples[1] = {**samples[1], "status": "diverged: pd: test",
+                  "trajectories": {"fl": samples[1]["trajectories"]["fl"]},
+                  "metrics": {"fl": samples[1]["metrics"]["fl"]}}
+    failed = dataclasses.replace(small_study, samples=samples)
+    text = write_study_report(failed, tmp_path, [], None, plant).read_text()
+    assert text.count("uncertain plant 0</span>") == 2  # in both laws' scenes
+    assert text.count("uncertain plant 1</span>") == 1  # FL's scene only
+
+
+@pytest.mark.parametrize("reproduced, plant", [("rrr", "rrr"), ("fivebar", "fivebar")],
+                         indirect=True, ids=["rrr", "fivebar"])
+def test_study_report_is_self_contained_and_covers_every_law(reproduced, plant):
+    # The shared `rrr-pin reproduce` run's page.
+    out = reproduced.out
+    text = (out / "report.html").read_text(encoding="utf-8")
+    # no external resource: every script inline, every image a data: URI
+    assert not re.search(r"<script[^>]*\bsrc=", text, re.I)
+    assert not re.search(r"""(src|href)=["']?(https?:)?//""", text, re.I)
+    assert "url(http" not in text
+    images = re.findall(r'<img [^>]*src="([^"]*)"', text)
+    pngs = sorted(out.glob("*.png"))
+    assert len(images) == len(pngs) and all(i.startswith("data:image/png;base64,")
+                                            for i in images)
+    inlined = {base64.b64decode(i.split(",", 1)[1]) for i in images}
+    assert inlined == {p.read_bytes() for p in pngs}  # each figure, byte for byte
+    # one scene per law, the nominal and its uncertain plants in each
+    assert text.count('<figure class="rrr-scene"') == 2
+    for label in ("FL alone", "H-infinity + FL"):
+        assert f"<b>{label}: nominal and uncertain plants</b>" in text
+    assert text.count("uncertain plant 0</span>") == text.count("uncertain plant 1</span>") == 2
+    # a plant with a task path has it drawn in each scene, the others none
+    found = plant.task_points(0.3)
+    if found is None:
+        assert "(reference)</span>" not in text
+    else:
+        assert text.count(f" {found[1]}</span>") == 2  # e.g. the 5-bar's tip circle
+    # the tables: results.md's, with the settings and the reference
+    assert "| Uncertain plants: RMS error FL alone / H-inf+FL" not in text  # as HTML, not md
+    assert "<td>Uncertain plants: RMS error FL alone / H-inf+FL [-] (Fig. 6c)</td>" in text
 
 
 @pytest.mark.parametrize("where", ["example-robot-data", "copied"])
@@ -321,6 +370,7 @@ def test_study_report_warns_of_missing_meshes_once(where, tmp_path):
         assert len(meshes[0].message.missing) == 14  # 7 visual + 7 collision meshes of the UR5
 
 
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
 def test_study_summary_lines(small_study):
     from rrr_pin.report.results import summary_lines
 

@@ -14,9 +14,10 @@ from rrr_pin.control.laws import (
     hinf_fl_controller,
     pd_controller,
 )
-from rrr_pin.control.references import SineReference, default_reference
+from rrr_pin.control.references import SineReference, default_reference, study_reference
 from rrr_pin.model.dh import ArmParams, paper_params
 from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.plant import CAPABILITIES, JOINT_LIMITS, CapabilityError
 from rrr_pin.model.uncertainty import sample_plants
 from rrr_pin.sim.simulation import simulate
 from rrr_pin.sim.trajectory import REASONS, SimulationDiverged, metrics
@@ -26,8 +27,8 @@ K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
 
 
 @pytest.fixture(scope="module")
-def setup():
-    nominal = load_robot("rrr")
+def setup(rrr):
+    nominal = rrr
     sample = sample_plants(paper_params(), 1, seed=0)[0]
     plant = load_robot(ArmParams.from_dict(sample.parameters["params"]))
     controllers = {"fl": fl_controller(nominal), "hinf": hinf_fl_controller(nominal, K18)}
@@ -213,6 +214,17 @@ def test_work_bound_and_force(setup, monkeypatch):
     monkeypatch.setattr(simulation, "MAX_SAMPLES", 5)
     with pytest.raises(ValueError, match=r"11 stored samples \(about 0\.002992 MB for 3 joints\)"):
         simulate(rrr, fl_controller(rrr), ref, 0.01)  # continuous: 10 steps, 11 samples
+
+
+def test_limit_margin_needs_joint_limits(fivebar):
+    # A closed chain's actuated joints have no position limits (the loop sets the
+    # workspace): a margin beyond them is refused by that capability, before any step.
+    assert not fivebar.has(JOINT_LIMITS)
+    with pytest.raises(CapabilityError, match=rf"limit_margin = 0.1 rad needs "
+                                              rf"{CAPABILITIES[JOINT_LIMITS]}, which the closed "
+                                              rf"chain 'fivebar' does not have"):
+        simulate(fivebar, fl_controller(fivebar), study_reference(fivebar, 0.5), 0.01,
+                 rate=1000.0, limit_margin=0.1)
 
 
 def test_auto_engine_choice_is_logged_with_its_reason(caplog):

@@ -12,13 +12,6 @@ from rrr_pin.control.references import (
     task_space_reference,
 )
 from rrr_pin.control.specs import KINDS, ReferenceSpec
-from rrr_pin.model.dynamics import load_robot
-
-
-@pytest.fixture(scope="module")
-def rrr():
-    return load_robot("rrr")
-
 
 T = np.linspace(0.0, 2.0, 41)
 

@@ -9,7 +9,6 @@ from numpy.testing import assert_allclose
 
 from rrr_pin.control.laws import fl_controller
 from rrr_pin.control.references import default_reference
-from rrr_pin.model.dynamics import load_robot
 from rrr_pin.sim.simulation import simulate
 from rrr_pin.sim.trajectory import FORMATS, Trajectory, TrajectoryFileError
 
@@ -17,8 +16,8 @@ ARRAYS = ("t", "q", "qd", "r", "tau")
 
 
 @pytest.fixture(scope="module")
-def simulated():
-    robot = load_robot("rrr")
+def simulated(rrr):
+    robot = rrr
     return simulate(robot, fl_controller(robot), default_reference(robot), 0.05, dt=1e-3,
                     rate=1000.0, engine="python")
 
@@ -52,10 +51,9 @@ def test_round_trip_is_exact(tmp_path, suffix, make, simulated):
     assert back.info == json.loads(json.dumps(traj.info, default=float))
 
 
-def test_simulated_trajectory_names_its_joints(simulated):
-    robot = load_robot("rrr")
-    assert simulated.joint_names == robot.joint_names
-    assert simulated.joint_units == ["rad"] * robot.nq
+def test_simulated_trajectory_names_its_joints(simulated, rrr):
+    assert simulated.joint_names == rrr.joint_names
+    assert simulated.joint_units == ["rad"] * rrr.nq
 
 
 def test_csv_layout_has_units_and_metadata(tmp_path):

@@ -1,11 +1,24 @@
+"""Uncertain plants (rrr_pin.model.uncertainty): seeded draws of arms and of mechanisms."""
+
+from dataclasses import dataclass, replace
+
 import numpy as np
 import pinocchio as pin
 import pytest
 from numpy.testing import assert_allclose
 
+from rrr_pin.campaign.montecarlo import CampaignSettings
 from rrr_pin.model.dh import ArmParams, forward_kinematics, paper_params
 from rrr_pin.model.dynamics import load_robot, robot_from_xml
-from rrr_pin.model.uncertainty import Tolerances, perturb_inertia, perturb_urdf, sample_plants
+from rrr_pin.model.mechanisms import FiveBarParams
+from rrr_pin.model.uncertainty import (
+    MechanismUncertainty,
+    Tolerances,
+    perturb_inertia,
+    perturb_urdf,
+    sample_mechanism,
+    sample_plants,
+)
 
 
 def test_same_seed_same_plants():
@@ -66,8 +79,8 @@ def test_written_urdf_loads_back_as_the_sampled_plant(tmp_path):
                     atol=1e-12)
 
 
-def test_perturb_urdf_ur5(tmp_path):
-    nominal = load_robot("ur5")
+def test_perturb_urdf_ur5(tmp_path, ur5):
+    nominal = ur5
     text, factors = perturb_urdf(nominal.urdf, np.random.default_rng(0), Tolerances())
     path = tmp_path / "ur5_pert.urdf"
     path.write_text(text)
@@ -121,3 +134,35 @@ def test_bad_sampling_arguments(kwargs, message):
 def test_bad_tolerance(kwargs, message):
     with pytest.raises(ValueError, match=message):
         Tolerances(**kwargs)
+
+
+@dataclass(frozen=True)
+class MassesOnly(MechanismUncertainty):
+    """A user's uncertainty set of a 5-bar: its two masses only."""
+
+    inertia: float = 0.1
+
+    def draw(self, params, rng):
+        f = rng.uniform(1 - self.inertia, 1 + self.inertia, size=2)
+        return replace(params, m1=params.m1 * f[0], m2=params.m2 * f[1]), {"f": f.tolist()}
+
+    def to_dict(self):
+        return {"inertia": self.inertia}
+
+
+def test_a_users_mechanism_uncertainty_set_draws_the_plants(fivebar, rrr):
+    plant, drawn = fivebar.perturbed(np.random.default_rng([3, 5]), MassesOnly())
+    f = np.random.default_rng([3, 5]).uniform(0.9, 1.1, size=2)  # the seed rule, recomputed
+    assert drawn == {"factors": {"f": f.tolist()}}
+    P = plant.params
+    assert (P.m1, P.m2) == (0.5 * f[0], 0.3 * f[1])
+    assert (P.d, P.l1, P.l2) == (0.12, 0.23, 0.23)
+    # sample_mechanism draws sample k of seed s alone, by the same rule
+    params, factors = sample_mechanism(FiveBarParams(), 3, 5, MassesOnly())
+    assert factors == drawn["factors"] and (params.m1, params.m2) == (P.m1, P.m2)
+    # recorded whole in a campaign's settings
+    record = CampaignSettings(samples=1, tolerances=MassesOnly()).to_dict()
+    assert record["uncertainty"] == "MassesOnly" and record["inertia"] == 0.1
+    # a mechanism's set does not perturb a URDF: an arm refuses it by name
+    with pytest.raises(TypeError, match="MassesOnly does not perturb a serial arm"):
+        rrr.perturbed(np.random.default_rng(0), MassesOnly())

@@ -346,8 +346,8 @@ def test_fast_path_equals_checked_path(source, lock):
                         - robot.G(q), rtol=0, atol=1e-11 * max(1.0, np.abs(robot.G(q)).max()))
 
 
-def test_check_state():
-    robot = load_robot("rrr")
+def test_check_state(rrr):
+    robot = rrr
     x = np.array([0.1, 0.2, 0.3])
     assert robot.check_state("q", x) is x  # a valid float64 array passes through, no copy
     big = np.array([1e308, 1e308, 0.0])  # finite, though its sum overflows

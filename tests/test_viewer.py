@@ -25,11 +25,6 @@ from rrr_pin.report.viewer import (
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture(scope="module")
-def rrr():
-    return load_robot("rrr")
-
-
 def _q(t, nq, phase=0.0):
     j = np.arange(nq)
     return 0.5 * np.sin(np.pi * t[:, None] + 2 * np.pi * j / 3 + phase)
@@ -186,8 +181,8 @@ def test_missing_meshes_drawn_as_shapes_with_a_warning(tmp_path):
     assert "MeshCat.Viewer" in doc
 
 
-def test_example_robot_data_meshes_found():
-    robot = load_robot("ur5")
+def test_example_robot_data_meshes_found(ur5):
+    robot = ur5
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no mesh may be missing
         visual, collision, missing = _geometry_models(robot, ())
@@ -205,3 +200,14 @@ def test_example_robot_data_scene_size(name):
     robot = load_robot(name, lock=lock)
     doc = scene_document(_scene(robot, ghosts=10, duration=10.0), max_bytes=9_000_000)
     assert len(doc.encode()) <= 9_000_000
+
+
+@pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
+def test_scene_path_is_checked(plant):
+    # A scene's path (a plant's task path, drawn as a line) is validated where it is given.
+    track = Track("nominal", [0.0], [plant.neutral()])
+    with pytest.raises(ValueError, match=r"expected path of shape \(K, 3\) with K >= 2, got "
+                                         r"\(4, 2\)"):
+        Scene(plant.name, plant, [track], path=np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="path must be finite"):
+        Scene(plant.name, plant, [track], path=[[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]])
