@@ -10,7 +10,7 @@ RRR, the mechanism's parameter set for the 5-bar). The CLI tests read one shared
 import csv
 import json
 import shutil
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import pytest
@@ -58,7 +58,7 @@ def redrawn(plant, seed, k):
         return sample.parameters, robot_from_xml(sample.urdf, gravity=plant.gravity)
     params, factors = perturb_mechanism(FiveBarParams(), np.random.default_rng([seed, k]),
                                         0.2, 0.05)
-    return {"factors": factors}, load_robot(params)
+    return {"params": asdict(params), "factors": factors}, load_robot(params)
 
 
 @pytest.fixture(scope="module")
@@ -339,8 +339,6 @@ def test_resume_with_other_settings_is_refused(montecarlo_run, tmp_path, capsys)
 
 
 @pytest.mark.parametrize("extra, message", [
-    (["--delay", "0.001", "--engine", "compiled"],
-     "plant effects are not implemented by the compiled closed-chain engine (plant 'fivebar')"),
     (["--engine", "codegen"], "engine 'codegen' does not implement closed chains"),
     (["--reference", "circle", "--radius", "0.1"],
      "--reference circle needs named frames placed by forward kinematics"),
@@ -348,7 +346,7 @@ def test_resume_with_other_settings_is_refused(montecarlo_run, tmp_path, capsys)
     (["--controllers", "fl,nosuch"], "unknown controller 'nosuch'"),
     (["--baseline", "pd"], "--baseline 'pd' is not among --controllers (fl,hinf)"),
     (["--duration", "0.0505"], "--duration = 0.0505 s is not a whole number of control periods"),
-], ids=["compiled-effects", "codegen", "circle", "lock", "unknown", "baseline", "off-grid"])
+], ids=["codegen", "circle", "lock", "unknown", "baseline", "off-grid"])
 def test_cli_on_a_chain_refuses_what_it_cannot_run(extra, message, tmp_path, capsys):
     out = tmp_path / "x"
     argv = ["montecarlo", "--robot", "fivebar", "--samples", "2", "--duration", "0.05",
@@ -359,6 +357,27 @@ def test_cli_on_a_chain_refuses_what_it_cannot_run(extra, message, tmp_path, cap
     # no row computed (an engine's refusal comes after the store is opened: it is empty)
     parts = out / "parts.jsonl"
     assert not parts.exists() or parts.read_text() == ""
+
+
+def test_cli_runs_a_chain_with_effects_on_the_compiled_engine_as_on_python(tmp_path):
+    # A closed chain takes every plant effect and every built-in law on the compiled engine:
+    # its rows equal the Python engine's (the reference path) to the engines' pinned tolerance.
+    rows = {}
+    for engine in ("compiled", "python"):
+        out = tmp_path / engine
+        argv = ["montecarlo", "--robot", "fivebar", "--samples", "2", "--duration", "0.2",
+                "--controllers", "fl,hinf,pd", "--delay", "0.001", "--actuator-bandwidth",
+                "1000", "--engine", engine, "--jobs", "1", "--no-progress", "--out", str(out)]
+        assert cli.main(argv) == 0
+        with open(out / "campaign.csv") as f:
+            rows[engine] = list(csv.DictReader(f))
+        assert json.loads((out / "summary.json").read_text())["settings"]["engine"] == engine
+    assert [r["status"] for r in rows["compiled"]] == ["ok", "ok"]
+    for a, b in zip(rows["compiled"], rows["python"], strict=True):
+        for key in a:
+            if key.endswith(("_rms_error", "_max_error", "_rms_torque")):
+                # one RK4 in both engines: only the order of floating-point sums differs
+                assert_allclose(float(a[key]), float(b[key]), rtol=1e-9, err_msg=key)
 
 
 def test_cli_refuses_an_mjcf_it_cannot_perturb(tmp_path, capsys):
@@ -376,14 +395,10 @@ def test_cli_refuses_an_mjcf_it_cannot_perturb(tmp_path, capsys):
 @pytest.mark.parametrize("plant, change, error, match", [
     ("rrr", {"tolerances": MechanismTolerances()}, TypeError,
      "MechanismTolerances does not perturb a serial arm"),
-    ("fivebar", {"run": RunSettings(duration=0.05, rate=1000.0, engine="compiled",
-                                    effects=PlantEffects(bandwidth=300.0))}, ValueError,
-     "plant effects are not implemented by the compiled closed-chain engine"),
     ("fivebar", {"run": RunSettings(duration=0.05, rate=1000.0, limit_margin=0.1)},
      CapabilityError, "limit_margin = 0.1 rad needs position limits on its actuated joints"),
     ("fivebar", {"baseline": "pd"}, ValueError, "baseline 'pd' is not among"),
-], indirect=["plant"], ids=["arm-mechanism-tolerances", "chain-compiled-effects",
-                            "chain-limit-margin", "baseline"])
+], indirect=["plant"], ids=["arm-mechanism-tolerances", "chain-limit-margin", "baseline"])
 def test_api_refuses_settings_the_plant_cannot_take(plant, laws, change, error, match):
     # Refused before any run (the uncertainty set by drawing sample 0 up front).
     with pytest.raises(error, match=match):

@@ -289,7 +289,7 @@ def _check_report(page: str, n_figures: int):
     assert levels[0] == 1 and levels.count(1) == 1
     assert all(b <= a + 1 for a, b in zip(levels, levels[1:], strict=False)), p.headings
     figures = [c for c in p.captions
-               if c.startswith(("Fig.", "Left:", "Frozen", "The design's loop"))]
+               if c.startswith(("Fig.", "Left:", "Frozen", "The design's loop", "Task "))]
     assert len(figures) == n_figures
     assert not [c for c in p.captions if c.endswith(".png")]
     number = r"^-?\d[\d.e+-]*$"
@@ -308,12 +308,7 @@ def _check_report(page: str, n_figures: int):
                     assert "[" in name or "[" in row[0], (name, row)
 
 
-@pytest.mark.parametrize("reproduced", [
-    "rrr",
-    pytest.param("fivebar", marks=pytest.mark.xfail(
-        strict=True, reason="rrr_pin.report.results.study_captions has no caption for "
-                            "task_path.png: the page shows the file name")),
-], indirect=True)
+@pytest.mark.parametrize("reproduced", ["rrr", "fivebar"], indirect=True)
 def test_study_report_has_one_hierarchy_captions_and_units(reproduced):
     # The shared `rrr-pin reproduce` run's page: every figure it wrote, captioned.
     page = (reproduced.out / "report.html").read_text()

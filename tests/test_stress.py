@@ -307,12 +307,9 @@ def test_cli_stress_no_progress_prints_nothing_on_stderr(tmp_path, capsys):
      "joints of a closed chain cannot be locked"),
     (["stress", "--effect", "delay", "--robot", "fivebar", "--home", "0,0"],
      "--home shape(s) a sinusoid; the study reference of 'fivebar' is its task path"),
-    (["stress", "--effect", "delay", "--robot", "fivebar", "--engine", "compiled",
-      "--controllers", "fl"],
-     "plant effects are not implemented by the compiled closed-chain engine (plant 'fivebar')"),
 ], ids=["unknown-effect", "nan-budget", "neg-delay", "zero-bandwidth", "with-no-size",
         "with-itself", "with-unknown", "with-nan", "with-twice", "chain-unknown", "chain-lock",
-        "chain-home", "chain-compiled"])
+        "chain-home"])
 def test_cli_bad_input_names_the_option(argv, match, capsys, tmp_path):
     assert main(argv + ["--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err

@@ -343,12 +343,9 @@ def test_on_the_exact_model_both_laws_track_alike(plant):
     ("fivebar", "compiled", "fl,hinf2dof",
      "law 'hinf2dof' (TwoDOFController) declares no compiled form, so the compiled engine "
      "cannot run it"),
-    ("fivebar", "compiled", "fl,pd",
-     "compiled form PDForm of law 'pd' is not implemented by the compiled closed-chain engine"),
     ("fivebar", "codegen", "fl",
      "engine 'codegen' does not implement closed chains ('fivebar' closes loop)"),
-], indirect=["plant"], ids=["rrr-compiled-2dof", "fivebar-compiled-2dof", "fivebar-compiled-pd",
-                            "fivebar-codegen"])
+], indirect=["plant"], ids=["rrr-compiled-2dof", "fivebar-compiled-2dof", "fivebar-codegen"])
 def test_an_engine_that_cannot_run_a_law_is_refused_before_any_run(plant, engine, names,
                                                                    message, monkeypatch):
     import rrr_pin.campaign.study as study

@@ -1,6 +1,6 @@
 """Uncertain plants (rrr_pin.model.uncertainty): seeded draws of arms and of mechanisms."""
 
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -153,8 +153,10 @@ class MassesOnly(MechanismUncertainty):
 def test_a_users_mechanism_uncertainty_set_draws_the_plants(fivebar, rrr):
     plant, drawn = fivebar.perturbed(np.random.default_rng([3, 5]), MassesOnly())
     f = np.random.default_rng([3, 5]).uniform(0.9, 1.1, size=2)  # the seed rule, recomputed
-    assert drawn == {"factors": {"f": f.tolist()}}
     P = plant.params
+    assert drawn["factors"] == {"f": f.tolist()}
+    # the drawn set is recorded whole (the plant may carry another name)
+    assert {**drawn["params"], "name": P.name} == asdict(P)
     assert (P.m1, P.m2) == (0.5 * f[0], 0.3 * f[1])
     assert (P.d, P.l1, P.l2) == (0.12, 0.23, 0.23)
     # sample_mechanism draws sample k of seed s alone, by the same rule

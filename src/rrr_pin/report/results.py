@@ -445,9 +445,10 @@ def study_captions(result: StudyResult, design: dict | None = None) -> dict:
                             "line, certified.",
         "task_space.png": "Task space: the frame's path and its Cartesian error [mm] on the "
                           "nominal plant (thick) and the uncertain plants (thin).",
-        "task_path.png": "The plant's task path [mm] (grey: the reference, e.g. a mechanism's "
-                         "tip circle or platform cycle) and each controller's path on the "
-                         "nominal plant, in the plane the path spans most.",
+        "task_path.png": "Task path: the plant's task point [mm] along the reference (grey, "
+                         "e.g. a mechanism's tip circle or platform cycle) and along each "
+                         "controller's run on the nominal plant, in the plane the path spans "
+                         "most.",
     }
 
 
