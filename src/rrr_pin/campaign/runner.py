@@ -23,6 +23,7 @@ import numpy as np
 from ..control.catalog import BUILTIN_LAWS, make_law
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import check_law
+from ..sim.engine_names import AUTO
 from ..sim.engines import check_engine
 from ..sim.simulation import check_run, reuse_preparation, simulate, simulate_batch, time_grid
 from ..sim.trajectory import SimulationDiverged, Trajectory
@@ -84,7 +85,7 @@ class RunSettings:
     dt: float | None = None
     rate: float | None = None
     method: str = "tustin"
-    engine: str = "auto"
+    engine: str = AUTO
     limit_margin: float = 0.0
     q0: tuple | None = None
     qd0: tuple | None = None

@@ -2,7 +2,8 @@
 
 Holds :mod:`~rrr_pin.sim.trajectory` (the leaf: ``Trajectory``, ``SimulationDiverged``, the
 divergence test), :mod:`~rrr_pin.sim.simulation` (``simulate``: validation, then an engine),
-:mod:`~rrr_pin.sim.engines` (the registry of engines), :mod:`~rrr_pin.sim.python_engine` (the
+:mod:`~rrr_pin.sim.engines` (the registry of engines; their names in
+:mod:`~rrr_pin.sim.engine_names`), :mod:`~rrr_pin.sim.python_engine` (the
 Python reference engine, any plant), :mod:`~rrr_pin.sim.extension` (the C++ extension
 ``_rollout``), :mod:`~rrr_pin.sim.compiled` (the compiled engine: serial arms and closed chains
 in one C++ loop), :mod:`~rrr_pin.sim.codegen` (the fingerprint of the fixed-model generated C),

@@ -32,6 +32,7 @@ from ..model.dh import INERTIA_RTOL, check_inertial
 from ..validation import FieldError
 from . import dyngen
 from .codegen import CodegenModelMismatch
+from .engine_names import AUTO, CODEGEN, COMPILED
 from .extension import EXTENSION, available, cannot_start, require
 from .trajectory import (
     LAW_TORQUE,
@@ -89,9 +90,9 @@ def generated_structure(model) -> str | None:
 def _refusal(robot, role: str) -> StructureMismatch:
     known = ", ".join(f"{name} ({st})" for st, (name, _) in _structures().items())
     return StructureMismatch(
-        f"engine='codegen': the {role} model {robot.name!r} has the structure "
+        f"engine={CODEGEN!r}: the {role} model {robot.name!r} has the structure "
         f"{dyngen.structure(robot.model)!r} (joint types @ parent), for which no dynamics are "
-        f"generated (known: {known}); use engine='compiled' (or 'auto', which falls back to "
+        f"generated (known: {known}); use engine={COMPILED!r} (or {AUTO!r}, which falls back to "
         f"it)")
 
 
@@ -181,19 +182,19 @@ def why_not(run, form):
     engine is asked by name).
     """
     law, plant = run.law, run.plant
-    reason = cannot_start(law, form, "codegen")
+    reason = cannot_start(law, form, CODEGEN)
     if reason is not None:
         return reason
     if plant.loop_closures or form.nominal.loop_closures:
         who = plant if plant.loop_closures else form.nominal
-        return (f"engine 'codegen' does not implement closed chains ({who.name!r} closes "
+        return (f"engine {CODEGEN!r} does not implement closed chains ({who.name!r} closes "
                 f"{', '.join(who.loop_closures)}): its generated dynamics are serial trees")
     if type(form) not in BATCH_LAWS:
         known = ", ".join(cls.__name__ for cls in BATCH_LAWS)
         return (f"compiled form {type(form).__qualname__} of law {law.name!r} is not "
                 f"implemented by the batched engine (known: {known})")
     if run.effects is not None:
-        return "engine 'codegen' runs the ideal plant only, got plant effects"
+        return f"engine {CODEGEN!r} runs the ideal plant only, got plant effects"
     for robot, role in ((plant, "plant"), (form.nominal, "nominal")):
         if generated_structure(robot.model) is None:
             return _refusal(robot, role)
@@ -261,14 +262,14 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
     if type(form) not in BATCH_LAWS:
         known = ", ".join(cls.__name__ for cls in BATCH_LAWS)
         raise ValueError(f"compiled form {type(form).__qualname__} is not implemented by "
-                         f"the batched engine (known: {known}); use engine='compiled'")
+                         f"the batched engine (known: {known}); use engine={COMPILED!r}")
     if not 1 <= int(batch) <= BATCH_MAX:
         raise ValueError(f"batch must be an integer in [1, {BATCH_MAX}], got {batch!r}")
     if not runs:
         return []
     if any(r.effects is not None for r in runs):
-        raise ValueError("engine='codegen' runs the ideal plant only, got effects; use "
-                         "engine='compiled' with plant effects")
+        raise ValueError(f"engine={CODEGEN!r} runs the ideal plant only, got effects; use "
+                         f"engine={COMPILED!r} with plant effects")
     if any(r.law is not runs[0].law for r in runs):
         raise ValueError("a batch runs one law: its runs have different laws")
     for key in ("R", "RD", "RDD", "q0", "qd0", "x0"):
@@ -280,7 +281,7 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
     for r in runs:
         if generated_structure(r.plant.model) != name:
             raise StructureMismatch(
-                f"engine='codegen': plant {r.plant.name!r} has the structure "
+                f"engine={CODEGEN!r}: plant {r.plant.name!r} has the structure "
                 f"{dyngen.structure(r.plant.model)!r}, the law's model "
                 f"{form.nominal.name!r} has {dyngen.structure(form.nominal.model)!r}")
     inputs = EXTENSION.RolloutInputs()

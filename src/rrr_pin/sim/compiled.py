@@ -83,6 +83,7 @@ import numpy as np
 from ..control.effects import Resolved
 from ..control.laws import FLAWForm, FLForm, PDForm, check_law_output
 from ..model.closed_chain import ConstraintDrift, LoopClosureError, SingularConfiguration
+from .engine_names import COMPILED, PYTHON
 from .extension import EXTENSION, CompiledRobot, cached, cannot_start, require
 from .trajectory import (
     LAW_TORQUE,
@@ -191,7 +192,7 @@ def why_not(run, form) -> str | None:
     runs nothing when the extension is not built.
     """
     law = run.law
-    reason = cannot_start(law, form, "compiled")
+    reason = cannot_start(law, form, COMPILED)
     if reason is not None:
         return reason
     if not implements(form):
@@ -261,7 +262,7 @@ def run_compiled(run, form):
     require()
     why = why_not(run, form)
     if why is not None:
-        raise ValueError(f"{why}; use engine='python'")
+        raise ValueError(f"{why}; use engine={PYTHON!r}")
     plant = run.plant
     compiled = compile_robot(plant)
     path = check_reference_compiled(compiled, run.grid, run.R)

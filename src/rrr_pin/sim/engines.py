@@ -20,14 +20,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-__all__ = ["Engine", "ENGINES", "ENGINE_CHOICES", "AUTO", "PYTHON", "COMPILED", "CODEGEN",
-           "AUTO_ORDER", "register", "choose", "check_engine"]
+from .engine_names import AUTO, CODEGEN, COMPILED, PYTHON
 
-#: The policy that picks an engine per run (not an engine itself).
-AUTO = "auto"
-PYTHON = "python"
-COMPILED = "compiled"
-CODEGEN = "codegen"
+__all__ = ["Engine", "ENGINES", "ENGINE_CHOICES", "AUTO_ORDER", "register", "choose",
+           "check_engine"]
+
 
 
 @dataclass(frozen=True)

@@ -68,7 +68,8 @@ from ..validation import (
     check_rate,
     check_vector,
 )
-from .engines import AUTO, CODEGEN, check_engine, choose
+from .engine_names import AUTO, CODEGEN
+from .engines import check_engine, choose
 from .trajectory import Run, SimulationDiverged, Trajectory, diverged_joint
 
 __all__ = [
