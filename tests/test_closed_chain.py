@@ -116,8 +116,9 @@ def test_cli_mjcf_check_exit_codes(tmp_path):
 
 
 def test_home_closes_as_the_closed_form_says(chain):
-    # The MJCF keyframe is the closed form's home (no Pinocchio); Pinocchio's loop gap there is
-    # round-off on ~0.3 m coordinates (a few 1e-17 m measured), so the loader kept it as is.
+    # A parameter set's home is the closed form's (no Pinocchio; the keyframe holds it to 12
+    # decimals); Pinocchio's loop gap there is round-off on ~0.3 m coordinates (a few 1e-17 m
+    # measured), so the loader kept it as is.
     home = mechanism_of(chain.params).home(chain.params)
     assert_allclose(chain.home, home, rtol=0, atol=0)
     assert_allclose(chain.residual(home), 0.0, atol=1e-15)
@@ -465,3 +466,63 @@ def test_trap_planar_contact_3d_has_a_zero_row(fivebar):
     one = pin.constraintDynamics(m, d, q, qd, tau, fivebar.constraints, cds,
                                  pin.ProximalSettings(1e-12, 1e-4, 1))
     assert np.abs(one - ref).max() > 1e-6
+
+
+# --- <connect> checked in Python before Pinocchio reads the file (issue 36) ------------------
+
+_LOOP = '<connect name="loop" site1="tip1" site2="tip2"/>'
+
+
+@pytest.mark.parametrize("connect, message", [
+    # Before: a segfault (exit 139) in 4 of 10 runs, else "type-II singularity cond(J_p) = inf"
+    ('<connect name="loop" site1="tip1" site2="tip99"/>',
+     r"<connect loop>: site2='tip99': no such site \(the sites are tip1, tip2\)"),
+    # Before: a segfault in 6 of 10 runs, else "The index of the parent joint is not valid"
+    ('<connect name="loop" site1="nosuch" site2="tip2"/>', r"site1='nosuch': no such site"),
+    # Before: "mobility is 4"
+    ('<connect name="loop" site1="tip1" site2="tip1"/>', r"connects 'tip1' to itself"),
+    # Before: Pinocchio's empty "message:"
+    ('<connect name="loop"/>', r"names no target: give site1 and site2"),
+    ('<connect name="loop" site1="tip1"/>', r"names site1 and site2 .*\['site1'\]"),
+    ('<connect name="loop" body1="distal9" anchor="0.23 0 0"/>', r"body1='distal9': no such"),
+    ('<connect name="loop" body1="distal1" body2="distal2"/>', r"needs an anchor"),
+], ids=["site2", "site1", "itself", "empty", "one-site", "body", "anchor"])
+def test_a_connect_naming_a_missing_or_equal_target_is_refused_in_python(
+        connect, message, tmp_path):
+    text = mjcf_from_params(mechanism_params("fivebar"))
+    assert _LOOP in text
+    path = tmp_path / "bad.xml"
+    path.write_text(text.replace(_LOOP, connect))
+    for _ in range(3):  # the crash was intermittent: the refusal must not be
+        with pytest.raises(MechanismError, match=rf"{path}: .*{message}"):
+            load_robot(path)
+
+
+def test_a_home_keyframe_with_an_open_loop_names_the_gap(tmp_path):
+    # Before: "2 actuator(s) ... but the mechanism's mobility is ..." (J at an open loop)
+    text = mjcf_from_params(mechanism_params("fivebar"))
+    root = ET.fromstring(text)
+    q = [float(v) for v in root.find("keyframe/key").get("qpos").split()]
+    opened = " ".join(repr(v) for v in [q[0], q[1] + 0.3, q[2], q[3]])
+    path = tmp_path / "open.xml"
+    path.write_text(text.replace(root.find("keyframe/key").get("qpos"), opened))
+    with pytest.raises(MechanismError, match=r"<connect loop> is open by 0\.\d+ m at the home "
+                                             r"keyframe"):
+        load_robot(path)
+    path.write_text(text.replace(root.find("keyframe/key").get("qpos"), "0 0 0"))
+    with pytest.raises(MechanismError, match=r"qpos must be 4 finite numbers"):
+        load_robot(path)
+
+
+def test_cli_names_the_missing_site_without_a_crash(tmp_path):
+    import subprocess
+    import sys
+
+    text = mjcf_from_params(mechanism_params("fivebar"))
+    path = tmp_path / "bad.xml"
+    path.write_text(text.replace(_LOOP, '<connect name="loop" site1="tip1" site2="tip99"/>'))
+    for _ in range(3):
+        run = subprocess.run([sys.executable, "-m", "rrr_pin.cli", "margins", "--robot",
+                              str(path)], capture_output=True, text=True, timeout=120)
+        assert run.returncode == 2, run.stderr
+        assert "site2='tip99': no such site" in run.stderr and "Traceback" not in run.stderr

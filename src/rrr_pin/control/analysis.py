@@ -229,9 +229,17 @@ def _scaled(model: pin.Model, factors: dict) -> pin.Model:
 
     The mass is scaled with the centre of mass and the rotational inertia about it fixed;
     ``k`` scales the ``k``-th principal moment of inertia about the centre of mass (the
-    paper's ``Jx, Jy, Jz``), axes fixed. ``M(q)`` and ``dG/dq`` are affine in each factor;
-    a factor may be 0 or negative (the algebraic extension the LFT also represents).
+    paper's ``Jx, Jy, Jz``), axes fixed. ``M(q)`` and ``dG/dq`` are affine in each factor.
+
+    Every factor must be > 0: Pinocchio composes a subtree's inertia through its total mass
+    and centre of mass, so a non-positive mass (a subtree of total mass 0 or below) gives
+    meaningless ``M(q)`` (measured: 1e17 to 1e34 at the RRR's ``joint2.mass`` factors -0.5 and
+    -1). Below zero, the affine extension (the LFT's, and :func:`sampled_margin`'s) holds.
     """
+    bad = {key: f for key, f in factors.items() if not f > 0}
+    if bad:
+        raise ValueError(f"inertial scale factors must be > 0 for a Pinocchio model, got "
+                         f"{bad} (below zero, use the affine extension in the factors)")
     m = model.copy()
     per_joint: dict = {}
     for (j, k), f in factors.items():
@@ -247,6 +255,22 @@ def _scaled(model: pin.Model, factors: dict) -> pin.Model:
         Z.mass, Z.inertia = Y.mass * fm, (R * (J * fJ)) @ R.T
         m.inertias[j] = Z
     return m
+
+
+#: Step of the central differences in a scale factor (:func:`_derivatives`): factors 0.5 and
+#: 1.5, inside the physical range (``M`` and ``dG/dq`` are affine: any step is exact).
+_FACTOR_STEP = 0.5
+
+
+def _derivatives(nominal, model: pin.Model, q: np.ndarray, j: int, k):
+    """``(dM/df, d(dG/dq)/df)`` of parameter ``(j, k)``'s scale factor ``f`` at ``q``.
+
+    Exact central differences (both are affine in ``f``) at ``1 +- _FACTOR_STEP``.
+    """
+    h = _FACTOR_STEP
+    Mp, Gp = _mats(nominal, _scaled(model, {(j, k): 1 + h}), q)
+    Mm, Gm = _mats(nominal, _scaled(model, {(j, k): 1 - h}), q)
+    return (Mp - Mm) / (2 * h), (Gp - Gm) / (2 * h)
 
 
 def _mats(nominal, model: pin.Model, q: np.ndarray):
@@ -331,9 +355,8 @@ def parametric_loop(law, q, tol: float = 0.2) -> ParametricLoop:
     cut = 1e-10 * scale if nominal.exact_derivatives else \
         1e-7 * max(scale, np.abs(Ghat).max())
     for name, j, k in _parameters(model):
-        Mp, Gp = _mats(nominal, _scaled(model, {(j, k): 1 + tol}), q0)
-        Mm, Gm = _mats(nominal, _scaled(model, {(j, k): 1 - tol}), q0)
-        E = np.hstack([(Mp - Mm) / 2, (Gp - Gm) / 2])
+        dM, dG = _derivatives(nominal, model, q0, j, k)
+        E = tol * np.hstack([dM, dG])
         U, s, Vh = np.linalg.svd(E)
         r = int(np.sum(s > cut))
         if r == 0:
@@ -377,7 +400,8 @@ def sampled_margin(law, loop: ParametricLoop, samples: int = 200, seed: int = 0,
     else random vertices) scales the link parameters of a copy of the Pinocchio model, and
     the closed loop ``M qdd + G_q q = Mhat taubar + Ghat_q q`` is rebuilt from ``crba`` and
     the gravity derivatives; the scaling is bisected to the first eigenvalue with real part
-    ``>= 0``.
+    ``>= 0``. Where a factor reaches 0 or below (``a tol >= 1``), which no Pinocchio model
+    can hold, ``M`` and ``G_q`` are their affine extension in the factors (the LFT's too).
 
     Returns
     -------
@@ -399,10 +423,24 @@ def sampled_margin(law, loop: ParametricLoop, samples: int = 200, seed: int = 0,
     else:
         dirs = rng.choice((-1.0, 1.0), size=(samples, k))
 
+    slopes = {}  # the affine extension, for factors <= 0 (no Pinocchio model has them)
+
+    def mats(f):
+        if all(v > 0 for v in f.values()):
+            return _mats(law.nominal, _scaled(model, f), loop.q)
+        if not slopes:
+            slopes.update({key: _derivatives(law.nominal, model, loop.q, *key)
+                           for key in keys})
+        M, Gq = Mhat.copy(), Ghat.copy()
+        for key, v in f.items():
+            M += (v - 1.0) * slopes[key][0]
+            Gq += (v - 1.0) * slopes[key][1]
+        return M, Gq
+
     def stable(d, a):
         f = {key: 1.0 + loop.tol * a * di for key, di in zip(keys, d, strict=True)}
         try:
-            M, Gq = _mats(law.nominal, _scaled(model, f), loop.q)
+            M, Gq = mats(f)
             A = _closed_loop(lm.lam, lm.K, Mhat, Ghat, M, Gq)
         except np.linalg.LinAlgError:  # M singular: the loop is not well posed
             return False

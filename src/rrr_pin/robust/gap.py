@@ -223,7 +223,7 @@ def gapmetric(P1, P2, rtol: float = 1e-6) -> tuple[float, float]:
     rtol : float
         Relative accuracy of the gap bisection (the returned gap is an upper bound). Near 0
         the Riccati test resolves the gap to about 1e-5 absolute; the nu-gap, an exact
-        H-infinity norm, to about 1e-10.
+        H-infinity norm, to a few 1e-10.
 
     Returns
     -------

@@ -65,6 +65,12 @@ def quintic(s: np.ndarray) -> np.ndarray:
     return s ** 3 * (10.0 - 15.0 * s + 6.0 * s * s)
 
 
+#: Decimals of the ``home`` keyframe [rad, m]: the closed form's last bits (1e-17 where it is
+#: 0) differ between libm and NumPy builds, and a committed file must equal the generator's
+#: output everywhere; the loader closes the loop from there (to ``closed_chain.CLOSURE_TOL``).
+HOME_DIGITS = 12
+
+
 def num(x: float) -> str:
     """Return ``x`` as MJCF writes it: ``0`` or its shortest round-trip repr."""
     x = float(x)
@@ -191,7 +197,7 @@ class Mechanism:
                '  <option gravity="0 0 -9.8"/>',
                *self.body(params),
                '  <keyframe>',
-               f'    <key name="home" qpos="{vec(self.home(params))}"/>',
+               f'    <key name="home" qpos="{vec(np.round(self.home(params), HOME_DIGITS))}"/>',
                '  </keyframe>',
                '</mujoco>', '']
         return "\n".join(out)
