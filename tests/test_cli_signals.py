@@ -179,3 +179,23 @@ def test_a_closed_stdout_stops_quietly():
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141
     assert "Broken pipe" not in err and "Traceback" not in err
+
+
+def test_a_refused_reproduce_prints_one_line_and_writes_nothing(tmp_path, capsys):
+    # Before: the design figures (fig2-fig4b, margins.png) and two progress-bar lines came
+    # before the refusal, and an --overwrite had already removed the previous run.
+    from rrr_pin import cli
+
+    out = tmp_path / "results"
+    assert cli.main(["reproduce", "--samples", "1", "--duration", "0.2", "--no-certify",
+                     "--out", str(out), "--no-progress"]) == 0  # the previous run
+    capsys.readouterr()
+    keep = sorted(p.name for p in out.iterdir())
+    for _ in range(3):  # the worker traceback was 1 in 15: the refusal happens before any pool
+        code = cli.main(["reproduce", "--actuator-bandwidth", "1e9", "--rate", "1000",
+                         "--out", str(out), "--overwrite"])
+        lines = capsys.readouterr().err.splitlines()
+        assert code == 2
+        assert lines == ["rrr-pin reproduce: error: bandwidth = 1e+09 rad/s is too fast for "
+                         "the plant sub-step h = 0.001 s (RK4 needs wa h < 2.5): lower dt"]
+        assert sorted(p.name for p in out.iterdir()) == keep

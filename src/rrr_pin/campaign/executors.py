@@ -342,12 +342,19 @@ def _stop_pool(pool: ProcessPoolExecutor, kill: bool) -> None:
         return
     # Python < 3.14 has no public terminate: the running tasks' results are unwanted.
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    # shutdown(wait=False) forgets the pool's manager thread without joining it, and a second
+    # shutdown(wait=True) then has nothing to join: the thread, still closing its wake-up pipe,
+    # raced concurrent.futures' exit handler writing to it ("Exception ignored ... OSError:
+    # [Errno 9] Bad file descriptor", 3 of 9 interrupted runs). Join it here.
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for p in processes:
         if p.is_alive():
             p.terminate()
     for p in processes:
         p.join(5.0)
+    if manager is not None:
+        manager.join(5.0)
     pool.shutdown(wait=True)
 
 

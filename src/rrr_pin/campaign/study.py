@@ -60,6 +60,7 @@ __all__ = [
     "PlantTask",
     "run_plant",
     "run_plants",
+    "check_study",
     "run_study",
     "summarize",
     "task_space_errors",
@@ -566,6 +567,37 @@ def check_study_size(config: StudyConfig, n_laws: int, n: int) -> int:
     return kept
 
 
+def check_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
+                reference: Reference | None = None) -> tuple[list, Reference]:
+    """Every refusal of :func:`run_study` that needs no run, before any work; its inputs.
+
+    A caller that writes files first (``rrr-pin reproduce``'s design figures, a progress bar)
+    calls this before them, so that a refused study writes and prints nothing but the refusal.
+
+    Returns
+    -------
+    (list, Reference)
+        The checked laws and the reference (the plant's study reference if ``None``).
+
+    Raises
+    ------
+    ValueError, rrr_pin.validation.FieldError
+        As :func:`run_study` before any run: the laws, the study's size, the reference on the
+        plant, each law's run (settings, effects, engine) and a torque limit below gravity.
+    """
+    laws = check_laws(laws, nominal.nq, config.baseline)
+    check_study_size(config, len(laws), nominal.nq)
+    reference = (study_reference(nominal, config.run.duration) if reference is None
+                 else reference)
+    reference.check_limits(nominal, duration=config.run.duration)
+    check_runs(nominal, laws, reference, config.run)
+    fx = config.run.effects
+    if fx is not None and fx.torque_limit is not None:
+        # the plant must at least hold itself where the reference starts
+        check_torque_limit(nominal, fx.torque_limit, reference)
+    return laws, reference
+
+
 def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
               reference: Reference | None = None, progress=None,
               certificate=None) -> StudyResult:
@@ -607,16 +639,9 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
         A torque limit below the gravity torque at the reference's start
         (:func:`~rrr_pin.control.effects.check_torque_limit`), before any run.
     """
-    laws = check_laws(laws, nominal.nq, config.baseline)
-    check_study_size(config, len(laws), nominal.nq)
-    reference = (study_reference(nominal, config.run.duration) if reference is None
-                 else reference)
-    reference.check_limits(nominal, duration=config.run.duration)
-    check_runs(nominal, laws, reference, config.run)
+    laws, reference = check_study(nominal, laws, config=config, reference=reference)
     fx = config.run.effects
     limited = fx is not None and fx.torque_limit is not None
-    if limited:  # the plant must at least hold itself where the reference starts
-        check_torque_limit(nominal, fx.torque_limit, reference)
     start = time.perf_counter()
     logger.info("study on %s: %d laws (%s), nominal + %d uncertain plants (seed %d), %g s runs",
                 nominal.name, len(laws), ", ".join(law.name for law in laws), config.samples,

@@ -58,7 +58,7 @@ def run_reproduce(args) -> int:
     """Design, run the study, write its outputs and print its summary."""
     from tqdm import tqdm
 
-    from ..campaign.study import StudyConfig, check_study_size, run_study
+    from ..campaign.study import StudyConfig, check_study, run_study
     from ..report.design import study_design
     from ..report.margins import save_margins_figure
     from ..report.plotting import save_design_figures, save_study_figures
@@ -81,15 +81,17 @@ def run_reproduce(args) -> int:
     if limit is not None:
         settings = with_torque_limit(settings, limit)
     tolerances = tolerances_from_args(args, plant)
-    if out is None:  # --overwrite: the previous run is removed now that the options hold
-        out = claim_out(args, "reproduce")
     d = design(lam=45.0, n=plant.nq)
     laws, baseline = laws_from_args(args, plant, K=d.K_full if args.full_order else
                                     d.K_reduced, torque_limit=limit,
                                     extra=("hinf_aw",) if limit is not None else ())
     config = StudyConfig(run=settings, samples=args.samples, seed=args.seed, jobs=args.jobs,
                          baseline=baseline, tolerances=tolerances)
-    check_study_size(config, len(laws), plant.nq)  # before the design figures are written
+    # every refusal before the design figures and the progress bar: a refused study writes
+    # and prints nothing but its one line
+    laws, reference = check_study(plant, laws, config=config, reference=reference)
+    if out is None:  # --overwrite: the previous run is removed now that the study holds
+        out = claim_out(args, "reproduce")
     figures = save_design_figures(d, out)
     figures.append(save_margins_figure({"G K": control_ss(d.G * d.K)}, out))
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{plant.name}: simulating",
