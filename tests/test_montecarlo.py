@@ -115,7 +115,13 @@ def test_rows_agree_with_the_study(plant, laws, serial):
         assert (f"{law}_drift" in nominal) == ("drift_m" in traj.info)
         if "drift_m" in traj.info:
             assert nominal[f"{law}_drift"] == traj.info["drift_m"]
-    assert serial.per_law == (("drift",) if plant.loop_closures else ())
+        # the engine that ran the row, not the one asked for ("auto")
+        assert nominal[f"{law}_engine"] == traj.info["engine"] != "auto"
+    for sample, row in zip(study.samples, serial.rows, strict=False):
+        assert row["fl_engine"] == sample["trajectories"]["fl"].info["engine"]
+    assert serial.per_law == (("drift",) if plant.loop_closures else ()) + ("engine",)
+    counts = mc.campaign_summary(serial)["engines"]["fl"]
+    assert sum(counts.values()) == len(serial.rows)
 
 
 @over_kinds
@@ -354,9 +360,9 @@ def test_cli_on_a_chain_refuses_what_it_cannot_run(extra, message, tmp_path, cap
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
-    # no row computed (an engine's refusal comes after the store is opened: it is empty)
-    parts = out / "parts.jsonl"
-    assert not parts.exists() or parts.read_text() == ""
+    # nothing written: before, an engine's refusal came after the store was opened and left
+    # campaign.json and an empty parts.jsonl behind
+    assert not out.exists() or list(out.iterdir()) == []
 
 
 def test_cli_runs_a_chain_with_effects_on_the_compiled_engine_as_on_python(tmp_path):

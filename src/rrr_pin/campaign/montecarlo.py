@@ -53,7 +53,7 @@ if TYPE_CHECKING:
     from ..robust.certificates import CertificateSpec
 
 __all__ = ["Campaign", "CampaignSettings", "CampaignJob", "CampaignChunk", "NOMINAL_INDEX",
-           "run_campaign",
+           "check_campaign", "run_campaign",
            "run_chunk", "run_samples", "sample_row", "campaign_summary", "campaign_columns",
            "open_store", "store_settings", "OUTPUTS"]
 
@@ -157,9 +157,10 @@ class Campaign:
         Each law's description (``name``, ``label``, ...), in order.
     rows : list of dict
         ``index``, ``seed``, ``status`` (``"ok"``, or which laws diverged and why),
-        ``parameters`` and, per law that ran, ``<law>_rms_error``, ``<law>_max_error`` [rad],
-        ``<law>_rms_torque`` [N m], ``<law>_rms_error_<joint>`` [rad]; per law other than the
-        baseline, ``error_ratio_<law>`` and ``torque_ratio_<law>``
+        ``parameters`` and, per law that ran, ``<law>_engine`` (the engine that ran it:
+        ``"codegen"``, ``"compiled"`` or ``"python"``), ``<law>_rms_error``,
+        ``<law>_max_error`` [rad], ``<law>_rms_torque`` [N m], ``<law>_rms_error_<joint>``
+        [rad]; per law other than the baseline, ``error_ratio_<law>`` and ``torque_ratio_<law>``
         (:func:`rrr_pin.campaign.runner.error_ratios`); a ratio that is undefined (0/0) is
         left out and ``undefined`` says which and why.
     settings : dict
@@ -168,8 +169,8 @@ class Campaign:
         The nominal plant's row (same keys, ``index`` -1; None if a store from before held
         none).
     per_law : tuple of str
-        Further per-law keys of the rows, ``<law>_<key>`` (a closed chain's ``drift`` [m], the
-        largest loop gap of the run); written to ``campaign.csv``.
+        Further per-law keys of the rows, ``<law>_<key>`` (``engine``; a closed chain's
+        ``drift`` [m], the largest loop gap of the run); written to ``campaign.csv``.
     """
 
     robot: str
@@ -245,6 +246,10 @@ def _row(job: CampaignJob, k: int, parameters, plant, runs: dict) -> dict:
                if not isinstance(t, Exception)}
     for name, m in figures.items():
         row.update({f"{name}_{key}": v for key, v in m.items()})
+    for name, t in runs.items():  # the engine that ran it, not the one asked for ("auto")
+        engine = getattr(t, "info", {}).get("engine")
+        if engine is not None:
+            row[f"{name}_engine"] = engine
     undefined = []
     for name, r in error_ratios(figures, settings.baseline).items():
         for key in ("error_ratio", "torque_ratio"):
@@ -262,6 +267,35 @@ def _row(job: CampaignJob, k: int, parameters, plant, runs: dict) -> dict:
 def run_chunk(task: CampaignChunk) -> list[dict]:
     """Simulate the samples of one chunk, in order (runs in a worker): ``job.rows(indices)``."""
     return task.job.rows(task.indices)
+
+
+def check_campaign(nominal, laws, settings: CampaignSettings, *,
+                   reference: Reference | None = None) -> tuple[list, Reference]:
+    """Every refusal of :func:`run_campaign` that needs no run, before any work; its inputs.
+
+    A caller that opens a store first (``rrr-pin montecarlo``) calls this before it, so that a
+    refused campaign leaves no ``campaign.json`` or empty ``parts.jsonl`` behind.
+
+    Returns
+    -------
+    (list, Reference)
+        The checked laws and the reference (the plant's study reference if ``None``).
+
+    Raises
+    ------
+    TypeError, ValueError
+        The laws, the reference on the plant, a run setting or engine that cannot run a law on
+        it (:func:`rrr_pin.campaign.runner.check_runs`), an uncertainty set the plant does not
+        accept (sample 0 is drawn).
+    """
+    laws = check_laws(laws, nominal.nq, settings.baseline)
+    reference = (study_reference(nominal, settings.run.duration) if reference is None
+                 else reference)
+    reference.check_limits(nominal, duration=settings.run.duration)
+    check_runs(nominal, laws, reference, settings.run)
+    # the uncertainty set, refused up front if the plant does not take it (draws sample 0)
+    nominal.perturbed(np.random.default_rng([int(settings.seed), 0]), settings.tolerances)
+    return laws, reference
 
 
 def run_campaign(nominal, laws, settings: CampaignSettings, *,
@@ -323,14 +357,8 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
         Before any work: an uncertainty set the plant does not accept, a run setting or engine
         that cannot run a law on it (:func:`rrr_pin.campaign.runner.check_runs`).
     """
-    laws = check_laws(laws, nominal.nq, settings.baseline)
+    laws, reference = check_campaign(nominal, laws, settings, reference=reference)
     batch = check_count("batch", batch, 1, BATCH_MAX)
-    reference = (study_reference(nominal, settings.run.duration) if reference is None
-                 else reference)
-    reference.check_limits(nominal, duration=settings.run.duration)
-    check_runs(nominal, laws, reference, settings.run)
-    # the uncertainty set, refused up front if the plant does not take it (draws sample 0)
-    nominal.perturbed(np.random.default_rng([int(settings.seed), 0]), settings.tolerances)
     job = CampaignJob(settings=settings, laws=tuple(laws), reference=reference,
                       nominal=nominal, certificate=certificate, batch=batch)
     samples = int(settings.samples)
@@ -338,6 +366,7 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
                        name=nominal.name, jobs=jobs, scheduler=scheduler, executor=executor,
                        chunk=chunk, store=store, progress=progress, max_chunk=32)
     per_law = ("drift",) if any(f"{law.name}_drift" in r for r in rows for law in laws) else ()
+    per_law += ("engine",)
     return Campaign(robot=nominal.name, joint_names=list(nominal.joint_names),
                     laws=[law.describe() for law in laws],
                     rows=[r for r in rows if r["index"] != NOMINAL_INDEX],
@@ -457,7 +486,8 @@ def campaign_summary(campaign: Campaign) -> dict:
         ``{median, p95, worst, count}`` ("worst" is the maximum, except for the error ratios,
         where it is the minimum: the least benefit over the baseline); ``undefined``
         (when some ratio is undefined, e.g. 0/0): per ratio, the number of samples where it
-        is (they are left out of its figures).
+        is (they are left out of its figures); ``engines``: per law, how many samples each
+        engine ran.
     """
     rows, base = campaign.rows, campaign.baseline
     ok = [r for r in rows if r["status"] == "ok"]
@@ -469,6 +499,13 @@ def campaign_summary(campaign: Campaign) -> dict:
         both = [r for r in rows if key in r]
         if name != base and both:
             out["fraction_better"][name] = float(np.mean([r[key] > 1.0 for r in both]))
+    engines = {}
+    for name in campaign.names:
+        ran = [r[f"{name}_engine"] for r in rows if f"{name}_engine" in r]
+        if ran:
+            engines[name] = {e: ran.count(e) for e in sorted(set(ran))}
+    if engines:
+        out["engines"] = engines
     metrics = _metrics(campaign.names, base)
     if "drift" in campaign.per_law:
         metrics.update({f"{name}_drift": "max" for name in campaign.names})

@@ -59,7 +59,12 @@ def run_montecarlo(args) -> int:
     from tqdm import tqdm
 
     from ..campaign.executors import CampaignInterrupted, WorkersLost, exit_status
-    from ..campaign.montecarlo import CampaignSettings, open_store, run_campaign
+    from ..campaign.montecarlo import (
+        CampaignSettings,
+        check_campaign,
+        open_store,
+        run_campaign,
+    )
     from ..outputs import check_writable
     from ..report.campaign import summary_lines, write_campaign, write_campaign_report
     from ..validation import check_count
@@ -82,6 +87,8 @@ def run_montecarlo(args) -> int:
     laws, baseline = laws_from_args(args, plant, K=K)
     settings = CampaignSettings(samples=args.samples, seed=args.seed, run=run,
                                 baseline=baseline, tolerances=tolerances)
+    # every refusal before the store is opened: a refused campaign leaves no files behind
+    laws, reference = check_campaign(plant, laws, settings, reference=reference)
     store = open_store(args.out, plant, laws, settings, reference, resume=args.resume,
                        overwrite=args.overwrite, certificate=certificate)
     total = args.samples + 1  # the nominal plant too

@@ -188,9 +188,9 @@ def _nominal_table(campaign: Campaign) -> str:
 def summary_lines(campaign: Campaign, summary: dict) -> list[str]:
     """Return the summary of a campaign as text lines (no newlines), for a terminal.
 
-    How many plants every law ran on, the certificates (if any), the share of plants where
-    each law beats the baseline, and a fixed-width table of median, 95th percentile and worst
-    of each error and torque ratio and error metric.
+    How many plants every law ran on, the engines that ran them, the certificates (if any),
+    the share of plants where each law beats the baseline, and a fixed-width table of median,
+    95th percentile and worst of each error and torque ratio and error metric.
     """
     s = summary
     lines = [f"every controller ran on {s['samples_ok']}, a run diverged on "
@@ -199,6 +199,10 @@ def summary_lines(campaign: Campaign, summary: dict) -> list[str]:
         lines.append(f"certified (frozen nu-gap < b): {s['certified']} plants, of which "
                      f"{s['certified_and_ran']} ran; not certified but ran: "
                      f"{s['not_certified_but_ran']}; largest nu-gap {s['nugap_max']:.4g}")
+    if s.get("engines"):
+        lines.append("engines that ran: " + "; ".join(
+            f"{name} " + ", ".join(f"{e} {n}" for e, n in counts.items())
+            for name, counts in s["engines"].items()))
     lines += [f"{name} better than {s['baseline']} on {100 * frac:.1f} % of the plants"
               for name, frac in s["fraction_better"].items()]
     lines += [f"{key} undefined (no ratio: 0/0 or not finite) on {count} plants, left out; "
