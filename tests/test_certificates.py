@@ -182,3 +182,18 @@ def test_chain_certificate_against_a_plant_built_from_constraint_dynamics(design
     assert_allclose(cert.nugap[0], nugap(Gs_k, Gs_0), rtol=1e-5, atol=1e-7)
     assert cert.nugap[0] > 1e-3
     assert_allclose(cert.b, 1 / d.gamma_reduced, rtol=1e-9)
+
+
+def test_a_chain_reference_leaving_the_workspace_names_its_time(design_for):
+    # Before: the certificate's walk along the reference said only "the loop does not close
+    # at q_a = ...", hiding the nominal run's "reference at t = ..." (issue 31).
+    from rrr_pin.control.specs import ReferenceSpec
+    from rrr_pin.model.closed_chain import LoopClosureError
+
+    d = design_for(2)
+    nominal = load_robot("fivebar")
+    ref = ReferenceSpec(kind="sine").build(nominal, 4.0)
+    with pytest.raises(LoopClosureError, match=r"^reference at t = 0\.\d+ s: fivebar: the loop "
+                                               r"does not close"):
+        certificate_along(nominal, load_robot("fivebar"), ref, np.linspace(0, 4.0, 8),
+                          lam=45.0, W1=d.W1, W2=d.W2, Ks=d.Ks_reduced)

@@ -526,3 +526,34 @@ def test_cli_names_the_missing_site_without_a_crash(tmp_path):
                               str(path)], capture_output=True, text=True, timeout=120)
         assert run.returncode == 2, run.stderr
         assert "site2='tip99': no such site" in run.stderr and "Traceback" not in run.stderr
+
+
+@pytest.mark.parametrize("old, new, message", [
+    # before: margins were computed on a negative mass; a NaN mass gave Pinocchio's
+    # "conversion of data to type double failed"
+    ('mass="0.3"', 'mass="-0.3"', r"<body distal1> <inertial>: mass='-0.3': expected a finite"),
+    ('mass="0.3"', 'mass="nan"', r"mass='nan'"),
+    ('diaginertia="1.5e-05 0.00133 0.00133"', 'diaginertia="1.5e-05 0.00133"',
+     r"diaginertia='1.5e-05 0.00133': expected 3 finite moments"),
+], ids=["negative", "nan", "two-moments"])
+def test_a_non_physical_inertial_is_refused_by_body(old, new, message, tmp_path):
+    text = mjcf_from_params(mechanism_params("fivebar"))
+    assert old in text
+    path = tmp_path / "bad.xml"
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(MechanismError, match=message):
+        load_robot(path)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("<mujoco><worldbody>", r"not well-formed XML"),
+    ("", r"not well-formed XML"),
+    ("<mujoco/>", r"not an MJCF model \(no <mujoco><worldbody>\)"),
+    ("<robot/>", r"not an MJCF model"),
+], ids=["truncated", "empty", "no-worldbody", "urdf-root"])
+def test_a_malformed_mjcf_is_refused_naming_the_file(text, message, tmp_path):
+    # before: ParseError / AttributeError tracebacks (issue 31)
+    path = tmp_path / "bad.xml"
+    path.write_text(text)
+    with pytest.raises(MechanismError, match=rf"{path}: {message}"):
+        load_robot(path)

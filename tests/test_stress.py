@@ -305,8 +305,10 @@ def test_cli_stress_no_progress_prints_nothing_on_stderr(tmp_path, capsys):
      "unknown controller 'nosuch'; built-in controllers"),
     (["stress", "--effect", "delay", "--robot", "fivebar", "--lock", "qa1=1"],
      "joints of a closed chain cannot be locked"),
+    # before: "... (give --reference sine for a sinusoid)", an option stress does not have
     (["stress", "--effect", "delay", "--robot", "fivebar", "--home", "0,0"],
-     "--home shape(s) a sinusoid; the study reference of 'fivebar' is its task path"),
+     "the study reference of 'fivebar' is its task path, which --home does not move (stress "
+     "runs the study reference only)"),
 ], ids=["unknown-effect", "nan-budget", "neg-delay", "zero-bandwidth", "with-no-size",
         "with-itself", "with-unknown", "with-nan", "with-twice", "chain-unknown", "chain-lock",
         "chain-home"])

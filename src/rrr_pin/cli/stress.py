@@ -104,6 +104,11 @@ def run_stress(args) -> int:
     claim_out(args, "stress", part=stem)  # one folder holds every effect's run
     plant = load_plant(args)
     home = floats(args.home, "--home")
+    if home is not None and plant.task_path(args.duration) is not None:
+        # stress has no --reference: the specification's hint to give one does not apply
+        raise ValueError(f"--home centres the sinusoid of a serial arm's study reference; the "
+                         f"study reference of {plant.name!r} is its task path, which --home "
+                         f"does not move (stress runs the study reference only)")
     reference = ReferenceSpec(kind="study", home=None if home is None else tuple(home)).build(
         plant, args.duration, label=option)
     with as_options():

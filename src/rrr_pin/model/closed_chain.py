@@ -500,10 +500,18 @@ class ClosedChain(Plant):
         out._q = self._q.copy()
         return out
 
-    def follow(self, Q) -> None:
-        """Close the loop at each actuated configuration of ``Q`` in turn (the Newton seed)."""
-        for qa in Q:
-            self.close(qa)
+    def follow(self, Q, where=None) -> None:
+        """Close the loop at each actuated configuration of ``Q`` in turn (the Newton seed).
+
+        ``where(k)`` names row ``k`` in a failure's message (:meth:`Plant.follow`).
+        """
+        for k, qa in enumerate(Q):
+            try:
+                self.close(qa)
+            except (LoopClosureError, SingularConfiguration) as exc:
+                if where is None:
+                    raise
+                raise _located(exc, where(k)) from None
 
     def start(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
         """Full closed state at actuated ``(q, qd)``: Newton from ``home``, then ``S qd``."""
@@ -575,10 +583,7 @@ class ClosedChain(Plant):
             except (LoopClosureError, SingularConfiguration) as exc:
                 if where is None:
                     raise
-                message = f"{where(k)}: {exc}"
-                if isinstance(exc, SingularConfiguration):
-                    raise SingularConfiguration(message, exc.cond) from None
-                raise LoopClosureError(message) from None
+                raise _located(exc, where(k)) from None
             out[k] = last
         return out
 
@@ -710,6 +715,13 @@ class ChainSettler(Settler):
                 "drift_bound_m": DRIFT_BOUND, "final_q": x.tolist(), "final_qd": v.tolist()}
 
 
+def _located(exc, where: str):
+    """``exc`` (a loop-closure failure) with ``where`` in front of its message."""
+    if isinstance(exc, SingularConfiguration):
+        return SingularConfiguration(f"{where}: {exc}", exc.cond)
+    return LoopClosureError(f"{where}: {exc}")
+
+
 def check_chain_reference(chain, t, R) -> dict:
     """Refuse a reference that leaves the workspace or crosses a type-II singularity.
 
@@ -821,7 +833,8 @@ def _check_mjcf(root, label: str) -> None:
     a singularity or an invalid parent joint. Checked here: a ``<worldbody>`` with a body; every
     ``<connect>`` names two existing, different sites (``site1``/``site2``) or bodies
     (``body1``, ``body2`` or the world, with an ``anchor``) inside the first top-level body,
-    the only one the parser keeps; the ``home`` keyframe has one number per joint.
+    the only one the parser keeps; every ``<inertial>`` has a finite mass > 0 and finite
+    principal moments > 0; the ``home`` keyframe has one number per joint.
     """
     world = root.find("worldbody")
     if root.tag != "mujoco" or world is None:
@@ -885,6 +898,26 @@ def _check_mjcf(root, label: str) -> None:
         if a == b:
             raise MechanismError(f"{tag}: connects {a!r} to itself: a loop closure joins two "
                                  f"different points")
+    for body in kept.iter("body"):
+        inertial = body.find("inertial")
+        if inertial is None:
+            continue
+        where = f"{label}: <body {body.get('name') or '(unnamed)'}> <inertial>"
+        try:
+            mass = float(inertial.get("mass", "nan"))
+        except ValueError:
+            mass = math.nan
+        if not (math.isfinite(mass) and mass > 0):
+            raise MechanismError(f"{where}: mass={inertial.get('mass')!r}: expected a finite "
+                                 f"mass > 0 [kg]")
+        if inertial.get("diaginertia") is not None:
+            try:
+                diag = [float(v) for v in inertial.get("diaginertia").split()]
+            except ValueError:
+                diag = []
+            if len(diag) != 3 or not all(math.isfinite(v) and v > 0 for v in diag):
+                raise MechanismError(f"{where}: diaginertia={inertial.get('diaginertia')!r}: "
+                                     f"expected 3 finite moments > 0 [kg m^2]")
     joints = list(world.iter("joint"))
     for key in root.iter("key"):
         if key.get("name") == "home" and key.get("qpos"):

@@ -368,12 +368,13 @@ class Plant:
         actuated ``q`` (default: home), so that a run depends on its own inputs only.
         """
 
-    def follow(self, Q) -> None:
+    def follow(self, Q, where=None) -> None:
         """Take the model along the actuated configurations ``Q`` (N, nq) [rad], in order.
 
         For a model that carries a solution from one call to the next (a closed chain's loop
         closure, seeded from the last one): after ``follow``, a call at a configuration near
-        ``Q[-1]`` lands on the branch of the path. Nothing for a serial arm.
+        ``Q[-1]`` lands on the branch of the path. Nothing for a serial arm. ``where(k)``, if
+        given, names row ``k`` (e.g. its time) in the message of a failure there.
         """
 
     # --- the engine face (full state) --------------------------------------------------------

@@ -321,7 +321,7 @@ def certificate_along(nominal, plant, reference, t, *, lam: float, W1, W2,
         walk = np.linspace(last[0], t[k], max(2, int(np.ceil((t[k] - last[0]) / WALK_STEP)) + 1))
         W = reference.sample(walk)[0]
         for model in (nominal, plant):
-            model.follow(W)
+            model.follow(W, where=lambda i: f"reference at t = {walk[i]:.6g} s")
         last[0] = t[k]
 
     return _frozen(nominal, plant, q, qd, qdd, nq, lam, W1, W2, Ks, visit=walk_to)

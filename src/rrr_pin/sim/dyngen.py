@@ -13,7 +13,7 @@ structure-of-arrays (input ``x[k * B + b]`` is entry ``k`` of plant ``b``):
 * ``<name>_gravity``: ``G(q)`` = RNEA(q, 0, 0);
 * ``<name>_fd``: forward dynamics ``qdd = M(q)^{-1} (tau - nle(q, v))``, from the same CRBA and
   RNEA with an unrolled ``L D L^T`` solve. Pinocchio's ABA computes the same ``qdd`` by another
-  algorithm; ``tests/test_dyngen.py`` compares the two.
+  algorithm; ``tests/test_batched.py`` compares the two.
 
 Conventions are Pinocchio's: spatial motion ``(linear, angular)``, joint frames after the joint,
 ``liMi = jointPlacement * R_axis(q)``, the spatial inertia ``(m, c, I_c)`` of each body in its
