@@ -321,6 +321,19 @@ def test_negative_option_values_reach_the_options_check(capsys, tmp_path, value,
     assert f"--dt must be a finite number > 0 [s], got {shown}" in err
 
 
+@pytest.mark.parametrize("argv, message", [
+    (["--torque-limit", "-5%", "--rate", "1000"], "--torque-limit '-5%': the percent must be "
+                                                  "finite and > 0"),
+    (["--home", "-9,0,0"], "reference for joint 'joint1' spans [-9.5, -8.5] rad, outside its "
+                           "limits"),
+], ids=["percent", "list"])
+def test_negative_percent_and_list_values_reach_the_options_check(capsys, tmp_path, argv,
+                                                                   message):
+    # before: "argument --torque-limit: expected one argument" (issue 31)
+    assert cli.main(["reproduce", *argv, "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    assert message in capsys.readouterr().err
+
+
 # --- issue 24: nothing silently substituted (rounded, clipped) and no endless work -------------
 
 @pytest.mark.parametrize("argv, message", [
