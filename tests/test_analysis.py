@@ -72,6 +72,10 @@ def test_fl_loop_without_gravity_is_the_shaped_double_integrator(name, atol):
     c = (2 * lam * 1j * ww + lam**2) / (1j * ww) ** 2
     alpha = 1 / np.max(np.abs(0.5 * (1 - c) / (1 + c)))
     assert_allclose(m.disk, alpha, rtol=1e-3)
+    # the balanced disk's gain range [1/k, k], k = (1 + alpha/2) / (1 - alpha/2), a factor
+    # (before: python-control's dB figure was shown as a factor, "x15.3" for 5.83)
+    assert_allclose(m.disk_gain, (1 + alpha / 2) / (1 - alpha / 2), rtol=5e-3)
+    assert_allclose(m.disk_gain_db, 20 * np.log10(m.disk_gain), rtol=1e-12)
 
 
 @pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)

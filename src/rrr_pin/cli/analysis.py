@@ -60,6 +60,7 @@ def run_margins(args) -> int:
                 "gain_margin": m.gain.tolist(), "phase_margin_deg": m.phase.tolist(),
                 "crossover_rad_s": m.crossover.tolist(), "delay_margin_s": m.delay.tolist(),
                 "disk_margin": m.disk, "disk_gain_margin": m.disk_gain,
+                "disk_gain_margin_db": m.disk_gain_db,
                 "disk_phase_margin_deg": m.disk_phase}
     if args.out is not None:
         from ..report.margins import save_margins_figure
@@ -75,7 +76,8 @@ def run_margins(args) -> int:
               f"{join(m['crossover_rad_s'], '.1f')} rad/s; delay margin "
               f"{join([1e3 * d for d in m['delay_margin_s']], '.2f')} ms; gain margin "
               f"{join(m['gain_margin'], '.3g')}; disk margin {m['disk_margin']:.3f} "
-              f"(gain x{m['disk_gain_margin']:.3g}, phase {m['disk_phase_margin_deg']:.1f} "
+              f"(gain x{m['disk_gain_margin']:.3g} = {m['disk_gain_margin_db']:.3g} dB, "
+              f"phase {m['disk_phase_margin_deg']:.1f} "
               f"deg, all joints at once)")
     if "figure" in out:
         print(f"wrote {out['figure']}")

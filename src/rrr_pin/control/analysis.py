@@ -122,8 +122,14 @@ class LoopMargins:
         Multiloop disk margin ``alpha`` (balanced, ``skew = 0``) of the MIMO loop
         (python-control's ``disk_margins``): stable for simultaneous gain and phase
         changes in every channel inside the disk.
-    disk_gain, disk_phase : float
-        The gain [-] and phase [deg] margins that disk guarantees.
+    disk_gain : float
+        The gain margin that disk guarantees, as a factor [-]: ``(1 + disk/2) / (1 - disk/2)``
+        for the balanced disk (any gain in ``[1/disk_gain, disk_gain]``).
+    disk_gain_db : float
+        The same in dB, ``20 log10(disk_gain)`` (what python-control's ``disk_margins``
+        returns).
+    disk_phase : float
+        The phase margin [deg] that disk guarantees.
     """
 
     gain: np.ndarray
@@ -132,6 +138,7 @@ class LoopMargins:
     delay: np.ndarray
     disk: float
     disk_gain: float
+    disk_gain_db: float
     disk_phase: float
 
 
@@ -175,8 +182,9 @@ def loop_margins(L, omega=None) -> LoopMargins:
     gm, pm, wc = (np.array(x, dtype=float) for x in (gm, pm, wc))
     with np.errstate(divide="ignore", invalid="ignore"):
         delay = np.where(wc > 0, np.deg2rad(pm) / wc, np.inf)
-    dm, dgm, dpm = control.disk_margins(L, w)
-    return LoopMargins(gm, pm, wc, delay, float(dm), float(dgm), float(dpm))
+    dm, dgm_db, dpm = control.disk_margins(L, w)  # the gain margin in dB
+    return LoopMargins(gm, pm, wc, delay, float(dm), float(10.0 ** (float(dgm_db) / 20.0)),
+                       float(dgm_db), float(dpm))
 
 
 # ---------------------------------------------------------------- parametric uncertainty
