@@ -346,3 +346,18 @@ def test_cli_robstab_at_tol_2_is_the_closed_form(capsys):
     assert_allclose(r["sampled_margin"], 0.5, rtol=1e-4)  # the sweep's bisection: 1e-4
     assert_allclose(r["margin_upper"], 0.5, rtol=1e-9)
     assert 0.99 * 0.5 <= r["margin_lower"] <= 0.5  # mu's real upper bound: within 1 %
+
+
+def test_cli_margins_figure_names_the_laws_and_the_configuration(tmp_path, capsys, monkeypatch):
+    # before: margins.png named neither the controller nor the configuration (issue 31)
+    import rrr_pin.report.margins as rm
+
+    titles = []
+    real = rm.margins_figure
+    monkeypatch.setattr(rm, "margins_figure",
+                        lambda loops, omega=None, title=None: titles.append(title) or
+                        real(loops, omega, title))
+    assert cli.main(["margins", "--home", "0.3,0.6,-0.9", "--controllers", "fl",
+                     "--out", str(tmp_path / "m")]) == 0
+    assert titles == ["rrr: fl loops at the torque input, frozen at q = [0.3, 0.6, -0.9] rad"]
+    assert (tmp_path / "m" / "margins.png").stat().st_size > 0

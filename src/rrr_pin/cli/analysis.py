@@ -65,7 +65,10 @@ def run_margins(args) -> int:
     if args.out is not None:
         from ..report.margins import save_margins_figure
 
-        out["figure"] = str(save_margins_figure(loops, args.out))
+        qs = ", ".join(f"{float(v):.4g}" for v in q)
+        out["figure"] = str(save_margins_figure(
+            loops, args.out, title=f"{robot.name}: {', '.join(loops)} loops at the torque input, "
+                                   f"frozen at q = [{qs}] rad"))
     if args.json:
         print(dumps(out))
         return 0

@@ -42,12 +42,13 @@ def run_design(args) -> int:
         raise exc.relabelled(lambda f: "--joints" if f == "n" else option(f)) from None
     figures = []
     if args.out is not None:
-        from ..report.margins import save_margins_figure
+        from ..report.margins import design_loop_title, save_margins_figure
         from ..report.plotting import save_design_figures
 
         figures = [str(f) for f in save_design_figures(d, args.out)]
         # the design's own loop, G K (eq. 11 plant, eq. 18 controller): margins.png
-        figures.append(str(save_margins_figure({"G K": control_ss(d.G * d.K)}, args.out)))
+        figures.append(str(save_margins_figure({"G K": control_ss(d.G * d.K)}, args.out,
+                                               title=design_loop_title(d))))
     if args.json:
         print(dumps({**design_summary(d), **({"figures": figures} if figures else {})}))
         return 0

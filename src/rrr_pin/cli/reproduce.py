@@ -60,7 +60,7 @@ def run_reproduce(args) -> int:
 
     from ..campaign.study import StudyConfig, check_study, run_study
     from ..report.design import study_design
-    from ..report.margins import save_margins_figure
+    from ..report.margins import design_loop_title, save_margins_figure
     from ..report.plotting import save_design_figures, save_study_figures
     from ..report.results import (
         summary_lines,
@@ -93,7 +93,8 @@ def run_reproduce(args) -> int:
     if out is None:  # --overwrite: the previous run is removed now that the study holds
         out = claim_out(args, "reproduce")
     figures = save_design_figures(d, out)
-    figures.append(save_margins_figure({"G K": control_ss(d.G * d.K)}, out))
+    figures.append(save_margins_figure({"G K": control_ss(d.G * d.K)}, out,
+                                       title=design_loop_title(d)))
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{plant.name}: simulating",
                disable=args.no_progress)
     certificate = None if args.no_certify else CertificateSpec.from_design(

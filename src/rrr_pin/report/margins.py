@@ -16,10 +16,10 @@ from matplotlib.figure import Figure
 
 from ..control.analysis import loop_channel
 
-__all__ = ["margins_figure", "save_margins_figure"]
+__all__ = ["margins_figure", "save_margins_figure", "design_loop_title"]
 
 
-def margins_figure(loops: dict, omega=None) -> Figure:
+def margins_figure(loops: dict, omega=None, title: str | None = None) -> Figure:
     """Return a figure of singular values, joint Bode phases and Nyquist curves of ``loops``.
 
     Parameters
@@ -28,6 +28,8 @@ def margins_figure(loops: dict, omega=None) -> Figure:
         Each law's loop at the torque input, by law name.
     omega : array-like, optional
         Frequencies [rad/s]; default 1e-1 to 1e5.
+    title : str, optional
+        What the loops are (the plant, its configuration, the laws): the figure's title.
     """
     w = np.logspace(-1, 5, 1500) if omega is None else np.asarray(omega, dtype=float)
     fig = Figure(figsize=(13, 4.2), layout="constrained")
@@ -62,13 +64,21 @@ def margins_figure(loops: dict, omega=None) -> Figure:
     for ax in (ax_sv, ax_ph, ax_ny):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7, loc="best")
+    if title:
+        fig.suptitle(title, fontsize=10)
     return fig
 
 
-def save_margins_figure(loops: dict, folder) -> Path:
-    """Write :func:`margins_figure` as ``folder/margins.png``; return its path."""
+def design_loop_title(d) -> str:
+    """Title of the design's own loop ``G K`` (eq. 11 plant, eq. 18 controller)."""
+    return (f"design loop G K: the FL plant (eq. 11, lam = {d.lam:g} rad/s, {d.n} joints) "
+            f"with the H-inf controller K (eq. 18), no robot configuration")
+
+
+def save_margins_figure(loops: dict, folder, title: str | None = None) -> Path:
+    """Write :func:`margins_figure` (with ``title``) as ``folder/margins.png``; return its path."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "margins.png"
-    margins_figure(loops).savefig(path, dpi=110)
+    margins_figure(loops, title=title).savefig(path, dpi=110)
     return path
