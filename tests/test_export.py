@@ -416,3 +416,24 @@ def test_antiwindup_export_refuses_a_prewarp(rrr):
     law = hinf_aw_controller(rrr, design(lam=45.0, n=3).K_reduced, torque_limit=AW_LIMIT)
     with pytest.raises(FieldError, match="prewarp.*TrackingController"):
         prepare_export(law, rrr, RATE, prewarp=100.0)
+
+
+def test_cli_export_refuses_a_rate_its_sampled_loop_cannot_hold(tmp_path, capsys, rrr):
+    # Before: `export --law fl --rate 1` wrote the folder without a word (issue 31).
+    from rrr_pin.control.catalog import make_law
+    from rrr_pin.control.references import study_reference
+    from rrr_pin.sim.simulation import simulate
+    from rrr_pin.sim.trajectory import SimulationDiverged
+
+    assert main(["export", "--law", "fl", "--rate", "1", "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert "--rate 1 Hz: the sampled loop of 'fl' is unstable there" in err
+    assert "it is stable from about 100 Hz" in err
+    assert not (tmp_path / "e" / "controller.c").exists()
+    # independent of the linear loop: the nonlinear simulation of the nominal arm diverges
+    # below the stated rate and tracks above it
+    law = make_law("fl", rrr)
+    ref = study_reference(rrr, 1.0)
+    with pytest.raises(SimulationDiverged):
+        simulate(rrr, law, ref, 1.0, rate=90.0, engine="python")
+    assert np.max(np.abs(simulate(rrr, law, ref, 1.0, rate=110.0).error)) < 0.1

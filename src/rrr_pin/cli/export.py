@@ -64,6 +64,7 @@ def run_export(args) -> int:
         law = make_law(args.law, robot, **({"K": K} if K is not None else {}))
         prepared = prepare_export(law, robot, args.rate, method=args.method,
                                   prewarp=args.prewarp, design=d)
+    check_sampled_loop(law, robot, prepared.rate)
     if out is None:  # --overwrite: the previous export is removed now that the options hold
         out = claim_out(args, "export")
     prepared.write(out)
@@ -73,3 +74,28 @@ def run_export(args) -> int:
     print(f"build: cmake -S {out} -B {out}/build && cmake --build {out}/build && "
           f"{out}/build/ctrl_main")
     return 0
+
+
+def check_sampled_loop(law, robot, rate: float) -> None:
+    """Refuse a rate at which the law's linear digital loop is unstable, naming the figure.
+
+    The loop of :func:`rrr_pin.campaign.stress.spectral_radius` (the law's zero-order-hold
+    output on its linear plant, at the neutral configuration): before, ``--law fl --rate 1``
+    was exported without a word while its Python twin diverged at once.
+    """
+    from ..campaign.stress import spectral_radius
+
+    home = robot.neutral()
+    rho = spectral_radius(law, rate, home)
+    if rho < 1.0:
+        return
+    lo, hi = rate, rate
+    while spectral_radius(law, hi, home) >= 1.0 and hi < 1e6:
+        lo, hi = hi, 2.0 * hi
+    while hi / lo - 1.0 > 1e-3:  # the smallest stable rate, to 0.1 %
+        mid = (lo * hi) ** 0.5
+        lo, hi = (lo, mid) if spectral_radius(law, mid, home) < 1.0 else (mid, hi)
+    raise ValueError(f"--rate {rate:g} Hz: the sampled loop of {law.name!r} is unstable there "
+                     f"(spectral radius {rho:.4g} >= 1 of its linear digital loop at the neutral "
+                     f"configuration); it is stable from about {hi:.4g} Hz: give a faster rate")
+
