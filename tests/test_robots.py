@@ -90,9 +90,11 @@ def test_ur3_is_not_ur5():
     assert sum(i.mass for i in ur3.model.inertias) < sum(i.mass for i in ur5.model.inertias)
 
 
-def test_mimic_joint_must_be_locked():
+def test_mimic_joint_of_a_urdf_file_must_be_locked():
+    # a URDF path is the user's file: its mimic joint is refused, not locked behind their back
+    # (the name "panda" locks it with a warning, test_example_robot_data_names_load_by_name...)
     with pytest.raises(RobotModelError, match="mimics 'panda_finger_joint1'.*lock it"):
-        load_robot("panda")
+        load_robot(erd_urdf_path("panda"))
 
 
 def test_floating_base_refused(tmp_path):
