@@ -456,3 +456,15 @@ def test_a_folder_does_not_shadow_a_robot_name(name, tmp_path, monkeypatch):
     (tmp_path / "myarm").mkdir()
     with pytest.raises(ValueError, match="--robot myarm: is a directory, expected a file"):
         not_a_folder(robot="myarm")
+
+
+def test_a_negative_percentage_reaches_the_options_own_check(capsys, tmp_path):
+    # Issue 31: `--torque-limit -5%` said "expected one argument" (argparse took it for an
+    # option); joined as --torque-limit=-5% it reaches the torque-limit rule.
+    from rrr_pin.cli.common import negative_values
+
+    assert negative_values(["--torque-limit", "-5%"]) == ["--torque-limit=-5%"]
+    assert negative_values(["--dt", "-1e-3", "--x", "-1"]) == ["--dt=-1e-3", "--x", "-1"]
+    assert cli.main(["reproduce", "--torque-limit", "-5%", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "--torque-limit" in err and "expected one argument" not in err

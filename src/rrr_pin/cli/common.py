@@ -72,12 +72,12 @@ def negative_values(argv: list[str]) -> list[str]:
     """Join ``--opt -1e-3`` into ``--opt=-1e-3``: argparse reads ``-1e-3`` as an option.
 
     argparse takes a token for a negative number only in the forms ``-1`` and ``-0.5``; an
-    exponent (``-1e-3``) made ``--dt -1e-3`` fail with "expected one argument" instead of
-    reaching the option's own check.
+    exponent (``-1e-3``) or a percentage (``--torque-limit -5%``) failed with "expected one
+    argument" instead of reaching the option's own check.
     """
     import re
 
-    number = re.compile(r"^-(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
+    number = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+%?|%)$")
     out = []
     for token in argv:
         if out and number.match(token) and out[-1].startswith("--") and "=" not in out[-1]:
