@@ -452,3 +452,33 @@ def test_design_names_its_options(argv, message, capsys):
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
 
+
+
+@pytest.mark.parametrize("name", ["xarm7", "panda", "rrr", "fivebar"])
+def test_a_folder_does_not_shadow_a_robot_name(name, tmp_path, monkeypatch):
+    # Issue 31: `--robot xarm7 --out xarm7` claimed the folder first, then refused the name
+    # as "is a directory, expected a file". A built-in name resolves before any path.
+    from rrr_pin.cli.common import not_a_folder
+    from rrr_pin.model.robots import read_source
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / name).mkdir()
+    not_a_folder(robot=name)  # no error: a name, not the folder
+    if name != "fivebar":
+        assert read_source(name)[1] == name
+    (tmp_path / "myarm").mkdir()
+    with pytest.raises(ValueError, match="--robot myarm: is a directory, expected a file"):
+        not_a_folder(robot="myarm")
+
+
+def test_a_negative_percentage_reaches_the_options_own_check(capsys, tmp_path):
+    # Issue 31: `--torque-limit -5%` said "expected one argument" (argparse took it for an
+    # option); joined as --torque-limit=-5% it reaches the torque-limit rule.
+    from rrr_pin.cli.common import negative_values
+
+    assert negative_values(["--torque-limit", "-5%"]) == ["--torque-limit=-5%"]
+    # "-1" is joined too: "--x=-1" is what argparse reads "--x -1" as
+    assert negative_values(["--dt", "-1e-3", "--x", "-1"]) == ["--dt=-1e-3", "--x=-1"]
+    assert cli.main(["reproduce", "--torque-limit", "-5%", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "--torque-limit" in err and "expected one argument" not in err

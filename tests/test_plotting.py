@@ -322,3 +322,26 @@ def test_campaign_report_has_one_hierarchy_captions_and_units(tmp_path, campaign
     summary = write_campaign(campaign, tmp_path)
     page = write_campaign_report(campaign, summary, tmp_path).read_text()
     _check_report(page, 1)
+
+
+def test_study_figures_share_the_error_scale_and_name_the_plant_effects(study):
+    # Issue 31: panels (c) and (d) of Fig. 6 on one y-scale, so the controllers' error sizes
+    # compare; the titles name the effects the plants carry, not only the tolerances.
+    from dataclasses import replace
+
+    from rrr_pin.control.effects import PlantEffects
+
+    for fig in (plotting.plot_study_uncertain(study), plotting.plot_study_nominal(study)):
+        cols = len(study.names)
+        errors = fig.axes[cols:2 * cols]
+        assert len({ax.get_ylim() for ax in errors}) == 1
+        assert "with" not in fig._suptitle.get_text()  # no effects in this study
+    fx = PlantEffects(viscous=0.5, delay=0.002)
+    carried = replace(study, config=replace(study.config, run=replace(study.config.run,
+                                                                      effects=fx, rate=1000.0)))
+    title = plotting.plot_study_uncertain(carried)._suptitle.get_text()
+    assert "20% on masses and moments, 5% on lengths; with delay 2 ms, viscous friction " \
+           "0.5 N m s" in title
+    nominal = plotting.plot_study_nominal(carried)._suptitle.get_text()
+    assert "exact model" not in nominal and "viscous friction 0.5 N m s" in nominal
+    assert plotting.plant_effects_phrase(PlantEffects()) == ""

@@ -90,9 +90,11 @@ def test_ur3_is_not_ur5():
     assert sum(i.mass for i in ur3.model.inertias) < sum(i.mass for i in ur5.model.inertias)
 
 
-def test_mimic_joint_must_be_locked():
+def test_mimic_joint_of_a_urdf_file_must_be_locked():
+    # a URDF path is the user's file: its mimic joint is refused, not locked behind their back
+    # (the name "panda" locks it with a warning, test_example_robot_data_names_load_by_name...)
     with pytest.raises(RobotModelError, match="mimics 'panda_finger_joint1'.*lock it"):
-        load_robot("panda")
+        load_robot(erd_urdf_path("panda"))
 
 
 def test_floating_base_refused(tmp_path):
@@ -181,3 +183,29 @@ def test_so100_by_name_says_why_and_loads_by_path():
     assert arm.nq == len(re.findall(r'type="(?:revolute|continuous|prismatic)"', text))
     with pytest.raises(RobotModelError):
         erd_urdf_path("so100")
+
+
+def test_example_robot_data_names_load_by_name_with_mimic_joints_locked(caplog):
+    # Issue 31: "panda" is listed by name; its mimic finger joint (and the finger it follows)
+    # is locked at 0 m, recorded in `locked`, and said in a warning.
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="rrr_pin.model.dynamics"):
+        robot = load_robot("panda")
+    assert robot.locked == PANDA_LOCK
+    assert robot.nq == 7
+    assert "panda_finger_joint2" in caplog.text and "locked" in caplog.text
+    # a lock given by the user is kept, the other mimic joint still added
+    assert load_robot("panda", lock={"panda_finger_joint1": 0.01}).locked == {
+        "panda_finger_joint1": 0.01, "panda_finger_joint2": 0.0}
+
+
+@pytest.mark.parametrize("name", ["ur3", "ur5", "ur10", "kinova", "z1", "bravo7_no_ee",
+                                  "xarm7"])
+def test_every_listed_arm_loads_by_name(name):
+    # every name the README lists loads without a lock (none of these has a mimic joint)
+    from rrr_pin.model.robots import ERD_ARMS
+
+    assert name in ERD_ARMS
+    robot = load_robot(name)
+    assert robot.nq >= 6

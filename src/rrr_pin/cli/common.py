@@ -115,8 +115,18 @@ def floats(text: str | None, name: str):
 
 
 def not_a_folder(**options) -> None:
-    """Refuse a folder given where a file is expected (``--urdf DIR``), naming the option."""
+    """Refuse a folder given where a file is expected (``--urdf DIR``), naming the option.
+
+    A built-in robot name (``--robot panda``, ``--robot fivebar``) is a name, never a path:
+    a folder of that name in the working directory (``--out xarm7``) does not shadow it,
+    as :func:`rrr_pin.model.robots.read_source` resolves names before paths.
+    """
+    from ..model.closed_chain import MECHANISMS
+    from ..model.robots import robot_names
+
     for field, path in options.items():
+        if field == "robot" and str(path) in (*robot_names(), *MECHANISMS):
+            continue
         if path is not None and Path(path).is_dir():
             raise ValueError(f"{option(field)} {path}: is a directory, expected a file")
 

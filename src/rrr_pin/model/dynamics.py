@@ -45,7 +45,7 @@ from .plant import (
     TreeDescription,
     UncertaintySet,
 )
-from .robots import RobotModelError, nominal_params, read_source
+from .robots import ERD_ARMS, RobotModelError, nominal_params, read_source
 
 __all__ = ["Robot", "load_robot", "robot_from_xml", "check_urdf_inertials", "DEFAULT_GRAVITY"]
 
@@ -660,12 +660,44 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     if gravity is None:
         gravity = source.g if isinstance(source, ArmParams) else DEFAULT_GRAVITY
     raw, name, label = read_source(source)
+    if isinstance(source, str) and source in ERD_ARMS:
+        lock = _lock_mimics(raw, name, lock)
     robot = robot_from_xml(raw, name=name, gravity=gravity, lock=lock, label=label)
     robot.params = nominal_params(robot)
     logger.info("loaded %s from %s: %d joints (%s)%s", robot.name, label, robot.nq,
                 ", ".join(robot.joint_names),
                 f", locked {robot.locked}" if robot.locked else "")
     return robot
+
+
+def _lock_mimics(urdf: str, name: str, lock: dict[str, float] | None) -> dict[str, float]:
+    """Lock an example-robot-data arm's mimic joints and the joints they follow (a gripper).
+
+    rrr-pin cannot simulate a mimic joint; a built-in name must still load, so each mimic
+    joint and its leader not already in ``lock`` are locked at 0 clipped to their limits
+    [rad or m], with a logged warning naming them (the robot's ``locked`` field records them).
+    """
+    import xml.etree.ElementTree as ET
+
+    lock = dict(lock or {})
+    joints = {j.get("name"): j for j in ET.fromstring(urdf).findall("joint")}
+    added = {}
+    for joint in joints.values():
+        mimic = joint.find("mimic")
+        if mimic is None:
+            continue
+        for jname in (joint.get("name"), mimic.get("joint")):
+            if jname in lock or jname in added or jname not in joints:
+                continue
+            limit = joints[jname].find("limit")
+            lower = float(limit.get("lower", 0.0)) if limit is not None else 0.0
+            upper = float(limit.get("upper", 0.0)) if limit is not None else 0.0
+            added[jname] = min(max(0.0, lower), upper) if lower <= upper else 0.0
+    if added:
+        logger.warning("%s: locked %s (mimic joints and the joints they follow cannot be "
+                       "simulated; pass lock= to choose their positions)", name,
+                       ", ".join(f"{k}={v:g}" for k, v in added.items()))
+    return {**lock, **added}
 
 
 def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAULT_GRAVITY,

@@ -40,6 +40,7 @@ from ..outputs import writing
 from ..robust.robustness import closed_loop, sigma
 
 __all__ = [
+    "plant_effects_phrase",
     "plot_task_path",
     "design_omega",
     "save_figure",
@@ -299,6 +300,50 @@ _JOINT_COLOURS = mpl.rcParams["axes.prop_cycle"].by_key()["color"]
 _NOMINAL_OUTLINE = [patheffects.withStroke(linewidth=3.6, foreground="k")]
 
 
+def plant_effects_phrase(effects, lead: str = "") -> str:
+    """Say what a study's plants carry besides the model, for a title; ``""`` without effects.
+
+    Parameters
+    ----------
+    effects : rrr_pin.control.effects.PlantEffects or None
+        The effects the runs applied (``result.config.run.effects``).
+    lead : str
+        Text put before a non-empty phrase (e.g. ``"; "``).
+
+    Returns
+    -------
+    str
+        E.g. ``"; with viscous friction 0.5 N m s, delay 2 ms"``, or ``""``.
+    """
+    if effects is None or not effects.active:
+        return ""
+
+    def val(v) -> str:
+        return "/".join(f"{x:g}" for x in np.atleast_1d(v))
+
+    parts = []
+    if effects.delay > 0:
+        parts.append(f"delay {effects.delay * 1e3:g} ms")
+    if effects.bandwidth is not None:
+        parts.append(f"actuator bandwidth {effects.bandwidth:g} rad/s")
+    if np.any(np.asarray(effects.viscous) > 0):
+        parts.append(f"viscous friction {val(effects.viscous)} N m s")
+    if np.any(np.asarray(effects.coulomb) > 0):
+        parts.append(f"Coulomb friction {val(effects.coulomb)} N m")
+    if effects.torque_limit is not None:
+        limit = effects.torque_limit
+        parts.append(f"torque limit {limit if isinstance(limit, str) else val(limit) + ' N m'}")
+    if np.any(np.asarray(effects.noise_q) > 0):
+        parts.append(f"angle noise {val(effects.noise_q)} rad")
+    if np.any(np.asarray(effects.noise_qd) > 0):
+        parts.append(f"velocity noise {val(effects.noise_qd)} rad/s")
+    if effects.encoder_counts is not None:
+        parts.append(f"encoder {effects.encoder_counts} counts/rev")
+    if effects.stiffness is not None:
+        parts.append(f"joint stiffness {val(effects.stiffness)} N m/rad")
+    return f"{lead}with {', '.join(parts)}"
+
+
 def _study_axes(title: str, labels: list[str], axes=None):
     cols = len(labels)
     fig, axes = _grid(axes, 2, cols, (2.5 + 5.0 * cols, 7), sharex=True)
@@ -328,11 +373,13 @@ def _plot_runs(axes, runs: dict, names, joint_names, **style):
 
 
 def _finish_study(fig, axes, joint_names, extra=()):
-    # Torques of all controllers on one scale, so their sizes compare at a glance.
-    lo = min(ax.get_ylim()[0] for ax in axes[0])
-    hi = max(ax.get_ylim()[1] for ax in axes[0])
-    for ax in axes[0]:
-        ax.set_ylim(lo, hi)
+    # Torques, and tracking errors, of all controllers on one scale per row, so their sizes
+    # compare at a glance (Fig. 6 exists to show one controller's errors 20x another's).
+    for row in axes:
+        lo = min(ax.get_ylim()[0] for ax in row)
+        hi = max(ax.get_ylim()[1] for ax in row)
+        for ax in row:
+            ax.set_ylim(lo, hi)
     for ax in axes[1]:
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
     handles = [Line2D([], [], color=_JOINT_COLOURS[j % len(_JOINT_COLOURS)], lw=1.5,
@@ -386,7 +433,8 @@ def plot_study_nominal(result, *, axes=None):
     matplotlib.figure.Figure
     """
     return plot_runs({k: result.nominal[k] for k in result.names}, result.joint_names,
-                     title=f"{result.robot}: nominal plant (exact model)",
+                     title=f"{result.robot}: nominal plant ("
+                           f"{plant_effects_phrase(result.config.run.effects) or 'exact model'})",
                      labels={k: result.label(k) for k in result.names}, axes=axes)
 
 
@@ -410,7 +458,8 @@ def plot_study_uncertain(result, *, axes=None):
     """
     names = result.names
     n = len(result.samples)
-    title = f"{result.robot}: {n} uncertain plants ({result.config.tolerances.describe()})"
+    title = (f"{result.robot}: {n} uncertain plants ({result.config.tolerances.describe()}"
+             f"{plant_effects_phrase(result.config.run.effects, lead='; ')})")
     lost = {k: sum(1 for s in result.samples if k not in s["trajectories"]) for k in names}
     if any(lost.values()):
         title += ", diverged (not shown): " + ", ".join(
