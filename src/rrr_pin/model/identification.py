@@ -47,11 +47,13 @@ of the (weighted) base regressor ``W`` over the training samples, ``sigma^2`` th
 squares over ``rows - p``. A final fraction of the samples (in time) is held out and predicted.
 When the log has no velocities or accelerations, they come from a Savitzky-Golay filter
 (:func:`estimate_derivatives`), the torques get the same filter (parallel filtering, so both
-sides of the equation see one frequency response), and the fit keeps one sample per filter
-window (decimation: the filter colours the residuals, and the covariance above assumes them
-independent) and none within half a window of either end of the log. The intervals cover the
-noise; a model error (unmodelled friction, a torque delayed against the positions) is not in
-them.
+sides of the equation see one frequency response); every sample enters the fit (none within
+half a window of either end of the log), and since the filter colours the residuals the
+covariance is then the block sandwich of :func:`least_squares` (blocks of one window) instead of
+the formula above, which assumes them independent. Friction (viscous, Coulomb, offset per joint,
+:func:`friction_regressor`) is identified with the base parameters on request. The intervals
+cover the noise; a model error (unmodelled friction, a torque delayed against the positions)
+is not in them.
 
 Physical consistency (Wensing, Kim & Slotine 2017)
 --------------------------------------------------
@@ -63,10 +65,10 @@ A body's parameters are those of a mass distribution exactly when its pseudo-ine
 :func:`consistent_parameters` solves two semidefinite programs (cvxpy, Clarabel), with
 ``J_b >= eps_b 1`` (``eps_b = 1e-6`` of the largest eigenvalue of the nominal body's ``J``, a
 margin so that the URDF written passes the strict checks): the base parameters as close to the
-estimate as the constraint allows (in the metric of the estimate's covariance; exactly the
-estimate when it is consistent), then, among those, the standard parameters closest to the
-nominal URDF's (each relative to its nominal size), which fixes the directions that the data
-cannot see.
+estimate as the constraint allows (in the metric of the estimate's covariance; the estimate
+itself when it is consistent, up to the margin), then, among those, the standard parameters
+closest to the nominal URDF's (each relative to its nominal size), which fixes the directions
+that the data cannot see.
 
 References
 ----------
@@ -102,6 +104,9 @@ __all__ = [
     "standard_parameters",
     "standard_names",
     "regressor",
+    "FRICTION_NAMES",
+    "friction_regressor",
+    "friction_names",
     "random_states",
     "BaseParameters",
     "base_parameters",
@@ -109,9 +114,13 @@ __all__ = [
     "Measurements",
     "read_measurements",
     "estimate_derivatives",
+    "filter_like",
+    "check_in_limits",
     "Identification",
     "least_squares",
     "identify",
+    "friction_suspects",
+    "predict_torques",
     "consistent_parameters",
     "pseudo_inertia",
     "urdf_with_parameters",
@@ -177,6 +186,42 @@ def regressor(robot, q, qd, qdd) -> np.ndarray:
     for k in range(len(q)):
         out[k * n:(k + 1) * n] = pin.computeJointTorqueRegressor(model, data, q[k], qd[k], qdd[k])
     return out
+
+
+#: The friction parameters of a joint, in the order of :func:`friction_regressor`'s columns.
+FRICTION_NAMES = ("fv", "fc", "off")
+
+
+def friction_regressor(qd) -> np.ndarray:
+    r"""Per-joint friction and offset columns stacked over samples (no checks: inner code).
+
+    .. math:: \tau_{f,j} = f_{v,j}\, \dot q_j + f_{c,j} \operatorname{sign}(\dot q_j) + o_j
+
+    Parameters
+    ----------
+    qd : ndarray, shape (N, nq)
+        Velocities [rad/s].
+
+    Returns
+    -------
+    ndarray, shape (N nq, 3 nq)
+        Row ``k nq + j``, columns ``3 j .. 3 j + 2``: ``qd[k, j]``, ``sign(qd[k, j])``, 1; zero
+        elsewhere: ``tau_f[k, j] = Y_f[k nq + j] @ [fv_1, fc_1, off_1, ...]`` with ``fv``
+        [N m s/rad], ``fc`` [N m] and ``off`` [N m].
+    """
+    qd = np.asarray(qd, dtype=float)
+    N, n = qd.shape
+    out = np.zeros((N, n, 3 * n))
+    j = np.arange(n)
+    out[:, j, 3 * j] = qd
+    out[:, j, 3 * j + 1] = np.sign(qd)
+    out[:, j, 3 * j + 2] = 1.0
+    return out.reshape(N * n, 3 * n)
+
+
+def friction_names(robot) -> list[str]:
+    """Name the columns of :func:`friction_regressor`: ``fv[joint]``, ``fc[joint]``, ``off``."""
+    return [f"{k}[{j}]" for j in robot.joint_names for k in FRICTION_NAMES]
 
 
 def random_states(robot, samples: int, seed: int):
@@ -344,7 +389,9 @@ def estimate_derivatives(t, q, window: float | None = None, polyorder: int = 4):
     Parameters
     ----------
     t : ndarray, shape (N,)
-        Uniformly spaced times [s] (relative spread of the steps <= 1e-6).
+        Strictly increasing times [s]. Uniform steps (relative spread <= 1e-6) are filtered
+        as they are; irregular ones are resampled linearly onto the uniform grid of the mean
+        step, filtered, and the derivatives interpolated back (``info["uniform"]`` says which).
     q : ndarray, shape (N, nq)
         Positions [rad].
     window : float, optional
@@ -362,21 +409,51 @@ def estimate_derivatives(t, q, window: float | None = None, polyorder: int = 4):
     """
     from scipy.signal import savgol_filter
 
+    if window is not None and not (math.isfinite(window) and window > 0.0):
+        raise FieldError("window", "{name} must be a finite duration > 0 [s] (the "
+                         f"derivative filter's length), got {window!r}")
     steps = np.diff(t)
     dt = float(np.mean(steps))
-    if np.ptp(steps) > 1e-6 * dt:
-        raise IdentificationError(
-            f"the time steps vary from {steps.min():.6g} to {steps.max():.6g} s: estimating "
-            f"velocities and accelerations needs a uniform step; give qd_ and qdd_ columns")
+    uniform = np.ptp(steps) <= 1e-6 * dt
     w = max(0.2 if window is None else float(window), (2 * polyorder + 3) * dt)
     n = int(round(w / dt)) | 1
     if n > len(t):
         raise IdentificationError(f"{len(t)} samples are fewer than the derivative filter's "
                                   f"window of {n} samples ({n * dt:.4g} s)")
-    qd = savgol_filter(q, n, polyorder, deriv=1, delta=dt, axis=0)
-    qdd = savgol_filter(q, n, polyorder, deriv=2, delta=dt, axis=0)
+    grid = t if uniform else t[0] + dt * np.arange(len(t))
+    # Irregular time stamps: q resampled (linear interpolation) onto the uniform grid of the
+    # mean step, filtered there, and the derivatives interpolated back to the stamps.
+    qg = q if uniform else _resample(t, q, grid)
+    qd = savgol_filter(qg, n, polyorder, deriv=1, delta=dt, axis=0)
+    qdd = savgol_filter(qg, n, polyorder, deriv=2, delta=dt, axis=0)
+    if not uniform:
+        qd, qdd = _resample(grid, qd, t), _resample(grid, qdd, t)
     return qd, qdd, {"filter": "savgol", "window_samples": n, "window_s": n * dt,
-                     "polyorder": polyorder, "dt_s": dt}
+                     "polyorder": polyorder, "dt_s": dt, "uniform": bool(uniform),
+                     "max_step_s": float(steps.max()), "min_step_s": float(steps.min())}
+
+
+def _resample(t, x, grid) -> np.ndarray:
+    """Linear interpolation of every column of ``x`` (shape (N, n)) from ``t`` to ``grid``."""
+    return np.column_stack([np.interp(grid, t, x[:, j]) for j in range(x.shape[1])])
+
+
+def filter_like(data: Measurements, x) -> np.ndarray:
+    """Filter ``x`` (shape (N, n), at ``data.t``) as :func:`estimate_derivatives` filtered ``q``.
+
+    The zero-derivative Savitzky-Golay filter of the same window and order (on the uniform grid
+    of the mean step when the stamps are irregular): parallel filtering of the torques.
+    """
+    from scipy.signal import savgol_filter
+
+    d = data.derived
+    if not d:
+        return np.asarray(x, dtype=float)
+    n, order = d["window_samples"], d["polyorder"]
+    if d.get("uniform", True):
+        return savgol_filter(x, n, order, axis=0)
+    grid = data.t[0] + d["dt_s"] * np.arange(len(data.t))
+    return _resample(grid, savgol_filter(_resample(data.t, x, grid), n, order, axis=0), data.t)
 
 
 def read_measurements(path, robot, *, window: float | None = None) -> Measurements:
@@ -396,7 +473,8 @@ def read_measurements(path, robot, *, window: float | None = None) -> Measuremen
     path = Path(path)
     where = f"measurements {str(path)!r}"
     try:
-        rows = list(csv.reader(path.read_text().splitlines()))
+        # utf-8-sig: a byte-order mark (spreadsheet exports) is not part of the first column.
+        rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
     except (OSError, UnicodeDecodeError) as exc:
         raise IdentificationError(f"cannot read {where}: {exc}") from None
     rows = [r for r in rows if r and any(c.strip() for c in r)]
@@ -446,6 +524,7 @@ def read_measurements(path, robot, *, window: float | None = None) -> Measuremen
         raise IdentificationError(f"{where}: time must be strictly increasing; row {k + 3} has "
                                   f"t = {float(t[k + 1])!r} s after t = {float(t[k])!r} s")
     q, tau = (np.column_stack([col[f"{kind}_{j}"] for j in joints]) for kind in ("q", "tau"))
+    check_in_limits(robot, q, where)
     given = {kind: np.column_stack([col[f"{kind}_{j}"] for j in joints])
              for kind in ("qd", "qdd") if all(has[kind])}
     derived = {}
@@ -455,6 +534,29 @@ def read_measurements(path, robot, *, window: float | None = None) -> Measuremen
         given = {"qd": qd_f, "qdd": qdd_f, **given}
     qd, qdd = given["qd"], given["qdd"]
     return Measurements(t, q, qd, qdd, tau, tuple(joints), derived, str(path))
+
+
+def check_in_limits(robot, q, where: str) -> None:
+    """Refuse positions outside a joint's limits by more than 10 % of its range (or 0.1 rad).
+
+    A log in degrees, or of another arm, is refused here rather than identified.
+
+    Raises
+    ------
+    IdentificationError
+        Naming the joint, its range and the extreme value.
+    """
+    lo, hi = np.asarray(robot.lower, dtype=float), np.asarray(robot.upper, dtype=float)
+    slack = np.where(np.isfinite(hi - lo), np.maximum(0.1 * (hi - lo), 0.1), np.inf)
+    for j, name in enumerate(robot.joint_names):
+        if not np.isfinite(slack[j]):
+            continue
+        qmin, qmax = float(q[:, j].min()), float(q[:, j].max())
+        if qmin < lo[j] - slack[j] or qmax > hi[j] + slack[j]:
+            raise IdentificationError(
+                f"{where}: q_{name} spans [{qmin:.4g}, {qmax:.4g}], outside the joint's "
+                f"limits [{lo[j]:.4g}, {hi[j]:.4g}] rad of {robot.name!r} by more than 10 % of "
+                f"the range: positions must be in rad (not degrees) and of this arm")
 
 
 # --- physical consistency ---------------------------------------------------------------------
@@ -536,7 +638,9 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     -------
     phi : ndarray, shape (10 nq,)
     info : dict
-        ``distance_rms_Nm`` (``t*``), ``mahalanobis`` (``t* / sigma``, or None), statuses.
+        ``distance_rms_Nm`` (``t*``, stage 1's optimum), ``mahalanobis`` (``t* / sigma``, or
+        None), ``distance_returned_rms_Nm`` and ``mahalanobis_returned``: the same for the arm
+        returned (stage 2's, within ``1e-6 ||A theta||`` of stage 1's), statuses.
 
     Raises
     ------
@@ -582,13 +686,18 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
         status2 = "solver_error"
     # Stage 2 only chooses among equally good arms: if it fails, stage 1's arm is kept.
     out = np.asarray(phi.value, dtype=float) if status2 == "optimal" else phi1
+    # Where the arm returned sits (stage 2 may move up to 1e-6 ||A theta|| beyond stage 1).
+    final = float(np.linalg.norm(A @ (base.K @ out - theta)))
     return out, {"stage2": status2 if status2 == "optimal" else
                  f"{status2}: kept the stage-1 arm",
-        "distance_rms_Nm": t_star, "mahalanobis": mahal, "feasible_at_estimate":
+        "distance_rms_Nm": t_star, "mahalanobis": mahal,
+        "distance_returned_rms_Nm": final,
+        "mahalanobis_returned": None if mahal is None else final / sigma,
+        "feasible_at_estimate":
         bool(t_star <= 1e-6 * max(scale, 1e-300)), "pseudo_inertia_margins": margins.tolist()}
 
 
-def urdf_with_parameters(urdf: str, links, phi) -> str:
+def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -> str:
     """Return the URDF text with each moving body's inertial replaced by standard parameters.
 
     Parameters
@@ -601,6 +710,13 @@ def urdf_with_parameters(urdf: str, links, phi) -> str:
         ``<inertial>`` (Pinocchio had merged it into the body).
     phi : ndarray, shape (10 nq,)
         Standard parameters, Pinocchio's order.
+    moving : sequence of str, optional
+        The model's joints; any other non-fixed joint of the URDF is locked (Pinocchio merged
+        its child into the body) and treated as fixed. Default: every joint.
+    friction : dict, optional
+        ``{joint: {"viscous_Nms_rad", "coulomb_Nm", ...}}``: written as each joint's
+        ``<dynamics damping=... friction=...>`` (URDF's viscous and Coulomb coefficients; the
+        offset has no URDF field and stays in ``identification.json``).
 
     Returns
     -------
@@ -621,7 +737,8 @@ def urdf_with_parameters(urdf: str, links, phi) -> str:
         while stack:  # links fixed to the body: their inertial is now in the body's
             current = stack.pop()
             for joint in children.get(current, []):
-                if joint.get("type") == "fixed":
+                if joint.get("type") == "fixed" or (
+                        moving is not None and joint.get("name") not in moving):
                     child = joint.find("child").get("link")
                     el = by_name[child].find("inertial")
                     if el is not None:
@@ -640,6 +757,15 @@ def urdf_with_parameters(urdf: str, links, phi) -> str:
             ("ixx", (0, 0)), ("ixy", (0, 1)), ("ixz", (0, 2)), ("iyy", (1, 1)),
             ("iyz", (1, 2)), ("izz", (2, 2)))})
         link.insert(index, el)
+    for joint in root.findall("joint"):
+        f = (friction or {}).get(joint.get("name"))
+        if f is None:
+            continue
+        el = joint.find("dynamics")
+        if el is None:
+            el = ET.SubElement(joint, "dynamics")
+        el.set("damping", repr(float(f["viscous_Nms_rad"])))
+        el.set("friction", repr(float(f["coulomb_Nm"])))
     text = ET.tostring(root, encoding="unicode")
     check_urdf_inertials(text)
     return text
@@ -663,7 +789,12 @@ class Identification:
     urdf : str
         The identified URDF (the nominal's kinematics, inertials from ``phi``).
     summary : dict
-        Method, noise, condition number, residuals, held-out errors, consistency record.
+        Method, noise, condition number, residuals, held-out errors, consistency record,
+        identified friction (``summary["friction"]``, per joint, with standard deviations).
+    friction : ndarray, shape (3 nq,) or (0,)
+        ``fv, fc, off`` per joint (:func:`friction_regressor`), empty without friction.
+    cov_all : ndarray, shape (p + 3 nq, p + 3 nq), optional
+        Covariance of base and friction parameters together.
     """
 
     base: BaseParameters
@@ -672,6 +803,8 @@ class Identification:
     phi: np.ndarray
     urdf: str = field(repr=False)
     summary: dict = field(default_factory=dict)
+    friction: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cov_all: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def std(self) -> np.ndarray:
@@ -684,7 +817,9 @@ class Identification:
                 "base": self.base.to_dict(), "estimate": self.theta.tolist(),
                 "std": self.std.tolist(), "cov": self.cov.tolist(),
                 "base_consistent": self.base(self.phi).tolist(),
-                "standard_consistent": self.phi.tolist()}
+                "standard_consistent": self.phi.tolist(),
+                "friction_estimate": self.friction.tolist(),
+                "cov_all": None if self.cov_all is None else self.cov_all.tolist()}
 
     def write(self, folder, *, urdf_name: str = "identified.urdf") -> list[Path]:
         """Write ``identified.urdf`` and ``identification.json`` into ``folder``."""
@@ -727,7 +862,7 @@ def _qr_solve(W: np.ndarray, y: np.ndarray):
     return solve_triangular(R, Rf[:p, p]), R
 
 
-def _unidentifiable(base: BaseParameters, R: np.ndarray) -> list[str]:
+def _unidentifiable(names, R: np.ndarray) -> list[str]:
     """Names of the base parameters in the numerical null space of a regressor (its ``R``).
 
     Columns scaled to unit norm; singular values below ``1e-8`` of the largest count as zero,
@@ -739,11 +874,11 @@ def _unidentifiable(base: BaseParameters, R: np.ndarray) -> list[str]:
     _, s, Vt = np.linalg.svd(Rn)
     null = Vt[s <= 1e-8 * s[0]]
     involved = zero | (np.abs(null) > 0.1).any(axis=0) if null.size else zero
-    return [base.names[i] for i in np.flatnonzero(involved)]
+    return [names[i] for i in np.flatnonzero(involved)]
 
 
 def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
-                  method: str = "wls"):
+                  method: str = "wls", *, names=None, block: int = 1):
     r"""Estimate base parameters by ordinary or weighted least squares, with their covariance.
 
     Parameters
@@ -759,6 +894,18 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
     method : {"wls", "ols"}
         ``wls``: the rows of joint ``j`` divided by its OLS residual standard deviation
         ``sigma_j`` (``sigma_j^2 = ||r_j||^2 / (N - p / n)``), then solved again.
+    names : sequence of str, shape (p,), optional
+        Names of ``W``'s columns (default ``base.names``; with friction columns appended).
+    block : int, default 1
+        Consecutive samples whose residuals may be correlated (a derivative filter's window).
+        Above 1, the covariance is the cluster-robust sandwich over blocks of that many
+        samples (Newey & West 1987 with a flat kernel of that width; Cameron & Miller 2015),
+
+        .. math:: \operatorname{cov} = (W^T W)^{-1} \Big(\tfrac{B}{B-1} \sum_b W_b^T r_b
+                  r_b^T W_b\Big) (W^T W)^{-1},
+
+        so that every sample enters the fit and the correlation that the filter puts between
+        neighbours is counted, not assumed away.
 
     Returns
     -------
@@ -783,7 +930,8 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
     N = len(y) // n
     p = W.shape[1]
     theta, R = _qr_solve(W, y)
-    lost = _unidentifiable(base, R)
+    names = base.names if names is None else names
+    lost = _unidentifiable(names, R)
     if lost:
         raise IdentificationError(
             f"the trajectory does not excite every base parameter (the regressor of its "
@@ -808,12 +956,27 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
     s2 = float(np.sum(rw * rw)) / (N * n - p)
     Rinv = np.linalg.inv(R)
     cov = s2 * (Rinv @ Rinv.T)
+    if block > 1:
+        Ww = (W * np.tile(weights, N)[:, None]).reshape(N, n, p)
+        B = -(-N // block)
+        pad = B * block - N
+        g = np.einsum("kjp,kj->kp", Ww, rw)
+        g = np.concatenate([g, np.zeros((pad, p))]).reshape(B, block, p).sum(axis=1)
+        meat = (B / max(B - 1, 1)) * (g.T @ g)
+        cov = (Rinv @ Rinv.T) @ meat @ (Rinv @ Rinv.T)
+        cov = 0.5 * (cov + cov.T)
     return theta, cov, R, sigma_j, s2, cond
 
 
 def identify(robot, data: Measurements, *, method: str = "wls", held_out: float = 0.2,
-             base: BaseParameters | None = None) -> Identification:
-    """Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
+             base: BaseParameters | None = None, friction: bool = False) -> Identification:
+    r"""Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
+
+    Every sample enters the fit (none within half a derivative-filter window of either end of
+    the log, where the filter extrapolates). When derivatives were estimated, the torques get
+    the same zero-phase filter (parallel filtering, :func:`filter_like`) and the covariance is
+    the block sandwich of :func:`least_squares` over blocks of one filter window, which counts
+    the correlation the filter puts between neighbouring residuals.
 
     Parameters
     ----------
@@ -829,16 +992,28 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         ``[0, 0.9]``.
     base : BaseParameters, optional
         Default :func:`base_parameters` of ``robot``.
+    friction : bool, default False
+        Identify, with the base parameters, each joint's viscous and Coulomb friction and a
+        torque offset (:func:`friction_regressor`):
+        ``tau = Y_b theta_b + fv qd + fc sign(qd) + off``.
 
     Returns
     -------
     Identification
 
+    Warns
+    -----
+    UserWarning
+        The residual of a joint correlates with ``qd`` or ``sign(qd)`` (``|r| > 0.3``, named
+        joints): a friction term is missing from the model (``friction=False``) or not of the
+        form modelled. The intervals then do not cover the model error.
+
     Raises
     ------
     IdentificationError
         Joints that differ from the URDF's; too few samples for the base parameters; a
-        trajectory that does not excite every base parameter (naming them); an infeasible
+        trajectory that does not excite every base parameter (naming them; with ``friction``,
+        a joint the data never move in both directions names its ``fc``); an infeasible
         consistency problem (:func:`consistent_parameters`).
     ValueError
         ``method`` or ``held_out`` out of range.
@@ -856,67 +1031,181 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     n, p = robot.nq, base.p
     N = data.N
     n_fit = N - int(round(held_out * N))
-    # Estimated derivatives: the torques get the same zero-phase filter (parallel filtering)
-    # and the fit keeps one sample per filter window (decimation), so that its residuals,
-    # coloured by the filter, are about independent, as the covariance assumes. The half
-    # windows at both ends of the data, where the filter extrapolates, are left out.
-    step = int(data.derived.get("window_samples", 1)) if data.derived else 1
-    edge = step // 2
-    fit = np.arange(edge, n_fit, step)
+    block = int(data.derived.get("window_samples", 1)) if data.derived else 1
+    edge = block // 2
+    fit = np.arange(edge, min(n_fit, N - edge))
     m = len(fit)
-    if m * n < 2 * p or m * n - p < n:
+    names = list(base.names) + (friction_names(robot) if friction else [])
+    P = len(names)
+    if m * n < 2 * P or m * n - P < n:
         raise IdentificationError(
             f"too few samples: {m} samples for the fit give {m * n} equations for "
-            f"{p} base parameters of {robot.name!r}; need at least {math.ceil(2 * p / n)} "
+            f"{P} {'base and friction ' if friction else 'base '}parameters of "
+            f"{robot.name!r}; need at least {math.ceil(2 * P / n)} "
             f"samples (twice as many equations as parameters) after the held-out "
-            f"{held_out:.0%}" + (f" and one sample per derivative-filter window of {step}"
-                                 if step > 1 else ""))
-    tau_fit = data.tau
-    if step > 1:
-        from scipy.signal import savgol_filter
+            f"{held_out:.0%}" + (f" and half a derivative-filter window ({edge} samples) "
+                                 f"at each end" if edge else ""))
+    tau_f = filter_like(data, data.tau) if block > 1 else data.tau
+    if friction:  # linear in f: filtered exactly as the torques (sign(qd) jumps included)
+        Yf = friction_regressor(data.qd).reshape(N, n * 3 * n)
+        Yf = (filter_like(data, Yf) if block > 1 else Yf).reshape(N * n, 3 * n)
 
-        tau_fit = savgol_filter(data.tau, step, data.derived["polyorder"], axis=0)
-    W1 = base.reduce(regressor(robot, data.q[fit], data.qd[fit], data.qdd[fit]))
-    y1 = tau_fit[fit].reshape(-1)
-    theta, cov, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method)
-    r = (y1 - W1 @ theta).reshape(m, n)
+    def design(sl):
+        W = base.reduce(regressor(robot, data.q[sl], data.qd[sl], data.qdd[sl]))
+        if not friction:
+            return W
+        rows_ = np.arange(N)[sl]
+        return np.hstack([W, Yf.reshape(N, n, 3 * n)[rows_].reshape(-1, 3 * n)])
+
+    W1 = design(fit)
+    y1 = tau_f[fit].reshape(-1)
+    x, cov_x, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method, names=names,
+                                                   block=block)
+    r = (y1 - W1 @ x).reshape(m, n)
     rows = m * n
-    A = R / math.sqrt(rows)
+    theta, cov = x[:p], cov_x[:p, :p]
+    # The consistency metric from the base parameters' marginal covariance: A^T A = s2 cov^-1
+    # / rows, which is R^T R / rows of the (weighted) regressor when there are no friction
+    # columns and the residuals are independent.
+    A = np.linalg.cholesky(np.linalg.inv(cov)).T * math.sqrt(s2 / rows)
     phi0 = standard_parameters(robot)
     phi, consistency = consistent_parameters(base, theta, A, phi0,
                                              sigma=math.sqrt(s2 / rows))
     from .dynamics import robot_from_xml
 
-    urdf = urdf_with_parameters(robot.urdf, body_links(robot), phi)
+    fr = None
+    if friction:
+        f, fs = x[p:].reshape(n, 3), np.sqrt(np.diag(cov_x))[p:].reshape(n, 3)
+        fr = {j: {"viscous_Nms_rad": float(f[i, 0]), "coulomb_Nm": float(f[i, 1]),
+                  "offset_Nm": float(f[i, 2]), "std": {"viscous_Nms_rad": float(fs[i, 0]),
+                                                       "coulomb_Nm": float(fs[i, 1]),
+                                                       "offset_Nm": float(fs[i, 2])}}
+              for i, j in enumerate(robot.joint_names)}
+    urdf = urdf_with_parameters(robot.urdf, body_links(robot), phi,
+                                moving=robot.joint_names, friction=fr)
     identified = robot_from_xml(urdf, name=f"{robot.name}_identified",
                                 gravity=robot.gravity, label="identified URDF")
+    suspect = friction_suspects(robot, data.qd[fit], r, tau_f[fit])
     summary = {
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
         "links": body_links(robot), "gravity_m_s2": robot.gravity,
+        "locked": dict(robot.locked),
         "kinematics": _kinematics(robot), "data": data.source, "samples": N,
-        "samples_fit": m, "fit_decimation": step, "torque_filter": "savgol (as q)" if step > 1
-        else None, "held_out_fraction": held_out, "derivatives": data.derived or
+        "samples_fit": m, "fit_decimation": 1,
+        "covariance": ("block sandwich over blocks of one derivative-filter window "
+                       f"({block} samples): the filter correlates neighbouring residuals"
+                       if block > 1 else "s2 (W^T W)^-1 (independent residuals)"),
+        "torque_filter": "savgol (as q)" if block > 1 else None,
+        "held_out_fraction": held_out, "derivatives": data.derived or
         {"filter": None, "estimated": []}, "method": method, "base_count": p,
         "condition_number": cond,
         "noise_std_Nm": _per_joint(robot, sigma_j.tolist()),
         "residual_rms_Nm": _per_joint(robot, np.sqrt(np.mean(r * r, axis=0)).tolist()),
+        "residual_r2": _per_joint(robot, _r2(tau_f[fit], tau_f[fit] - r)),
         "sigma2_weighted": s2, "consistency": consistency,
+        "friction_model": "viscous + coulomb + offset" if friction else None,
+        "friction": fr, "model_error_warning": suspect or None,
+        "intervals_cover": "noise only: a model error (unmodelled friction, delays, "
+                           "flexibility) is not in the standard deviations",
     }
+    if suspect:
+        import warnings
+
+        warnings.warn(suspect, stacklevel=2)
     if n_fit < N - edge:
         sl = slice(n_fit, N - edge)
-        W2 = base.reduce(regressor(robot, data.q[sl], data.qd[sl], data.qdd[sl]))
-        e_est = data.tau[sl] - (W2 @ theta).reshape(-1, n)
-        e_urdf = data.tau[sl] - np.array([identified.inverse_dynamics(
-            data.q[k], data.qd[k], data.qdd[k], check=False) for k in range(n_fit, N - edge)])
-        rms = np.sqrt(np.mean(data.tau[sl] ** 2, axis=0))
+        tau2 = tau_f[sl]
+        e_est = tau2 - (design(sl) @ x).reshape(-1, n)
+        pred = predict_torques(identified, data, fr)[sl]
+        e_urdf = tau2 - pred
+        rms = np.sqrt(np.mean(tau2 ** 2, axis=0))
         summary["held_out"] = {
             "samples": N - edge - n_fit, "first_sample": n_fit, "last_sample": N - edge - 1,
             "rms_error_estimate_Nm": _per_joint(robot, np.sqrt(np.mean(e_est ** 2, axis=0))),
             "rms_error_urdf_Nm": _per_joint(robot, np.sqrt(np.mean(e_urdf ** 2, axis=0))),
+            "r2_urdf": _per_joint(robot, _r2(tau2, pred)),
             "rms_torque_Nm": _per_joint(robot, rms.tolist())}
     else:
         summary["held_out"] = None
-    return Identification(base, theta, cov, phi, urdf, summary)
+    return Identification(base, theta, cov, phi, urdf, summary, x[p:].copy(),
+                          cov_x)
+
+
+def _r2(tau, pred) -> np.ndarray:
+    """Per-column coefficient of determination ``1 - SS_res / SS_tot`` (shape (n,))."""
+    tau, pred = np.asarray(tau), np.asarray(pred)
+    ss = np.sum((tau - tau.mean(axis=0)) ** 2, axis=0)
+    return 1.0 - np.sum((tau - pred) ** 2, axis=0) / np.where(ss > 0.0, ss, np.nan)
+
+
+def friction_suspects(robot, qd, r, tau=None, threshold: float = 0.3) -> str:
+    """Return a warning naming the joints whose residual correlates with ``qd`` or its sign.
+
+    Parameters
+    ----------
+    qd, r : ndarray, shape (N, nq)
+        Velocities [rad/s] and torque residuals [N m] of the fit.
+    tau : ndarray, shape (N, nq), optional
+        The torques fitted [N m]: a joint whose residual RMS is below ``1e-9`` of their RMS
+        (round-off of exact data) is not named.
+    threshold : float, default 0.3
+        ``|corr|`` above which a joint is named.
+
+    Returns
+    -------
+    str
+        Empty when no joint is suspect.
+    """
+    bad = []
+    for j, name in enumerate(robot.joint_names):
+        rj = r[:, j] - r[:, j].mean()
+        if tau is not None and np.sqrt(np.mean(rj * rj)) <= 1e-9 * np.sqrt(
+                np.mean(tau[:, j] ** 2)):
+            continue
+        for what, x in (("sign(qd)", np.sign(qd[:, j])), ("qd", qd[:, j])):
+            x = x - x.mean()
+            den = float(np.linalg.norm(rj) * np.linalg.norm(x))
+            c = float(rj @ x) / den if den > 0.0 else 0.0
+            if abs(c) > threshold:
+                bad.append(f"{name} (corr with {what} {c:+.2f})")
+                break
+    if not bad:
+        return ""
+    return ("model error: the torque residual correlates with the joint velocity or its sign "
+            "at " + ", ".join(bad) + ": likely missing term: joint friction (viscous/Coulomb; "
+            "identify with --friction). The standard deviations cover the noise, not this "
+            "model error")
+
+
+def predict_torques(robot, data: Measurements, friction: dict | None = None) -> np.ndarray:
+    """Inverse dynamics of ``robot`` plus identified friction, as :func:`identify` fits them.
+
+    The friction torque gets the torques' filter when the data's derivatives were estimated
+    (:func:`filter_like`: parallel filtering, as in the fit), so the prediction is compared
+    with ``filter_like(data, data.tau)``.
+
+    Parameters
+    ----------
+    robot : rrr_pin.model.dynamics.Robot
+    data : Measurements
+    friction : dict, optional
+        ``{joint: {"viscous_Nms_rad", "coulomb_Nm", "offset_Nm"}}``
+        (``Identification.summary["friction"]``).
+
+    Returns
+    -------
+    ndarray, shape (N, nq)
+        Torques [N m].
+    """
+    q, qd, qdd = data.q, data.qd, data.qdd
+    tau = np.array([robot.inverse_dynamics(q[k], qd[k], qdd[k], check=False)
+                    for k in range(len(q))])
+    if friction:
+        f = np.array([[friction[j][k] for k in ("viscous_Nms_rad", "coulomb_Nm", "offset_Nm")]
+                      for j in robot.joint_names])
+        tf = (friction_regressor(qd) @ f.reshape(-1)).reshape(tau.shape)
+        tau = tau + filter_like(data, tf)
+    return tau
 
 
 # --- the uncertainty set of an identification -------------------------------------------------
