@@ -205,6 +205,33 @@ def test_consistency_record_reports_the_returned_arm(rrr):
     assert_allclose(c["mahalanobis_returned"], mahal, rtol=1e-6, atol=1e-9)
 
 
+def test_mass_band_keeps_every_body_inside_and_the_base_parameters(rrr):
+    """Bounds [m0 / 1.5, 1.5 m0] that the truth (masses 0.8 to 1.2 m0) meets: every body inside
+    and pseudo-inertia PSD, the base parameters those of the unbounded fit to the solver's
+    tolerance: stage 2 may move the base parameters by 1e-6 ||A theta|| in RMS torque, a
+    parameter by that times the conditioning; 1e-5 of the largest (measured 1.3e-6)."""
+    truth = _truth(rrr)
+    data = _data(rrr, truth, np.arange(0.0, 10.0, 0.02), noise=0.05, friction=None)
+    free = idn.identify(rrr, data, held_out=0.0)
+    bounded = idn.identify(rrr, data, held_out=0.0, mass_band=1.5)
+    m0 = idn.standard_parameters(rrr)[0::10]
+    m = bounded.phi[0::10]
+    assert np.all((m >= m0 / 1.5 * (1 - 1e-7)) & (m <= 1.5 * m0 * (1 + 1e-7)))
+    for b in range(rrr.nq):
+        assert np.linalg.eigvalsh(idn.pseudo_inertia(bounded.phi[10 * b:10 * b + 10])).min() > 0
+    assert bounded.summary["consistency"]["bounded"].startswith("every body's mass in")
+    scale = np.abs(free.base(free.phi)).max()
+    assert_allclose(bounded.base(bounded.phi), free.base(free.phi), rtol=0, atol=1e-5 * scale)
+
+
+@pytest.mark.parametrize("band", [1.0, 0.5, float("nan")], ids=["one", "below-one", "nan"])
+def test_a_band_no_body_meets_is_refused(rrr, band):
+    """A band that excludes even the nominal masses (f <= 1) is refused by name."""
+    data = _data(rrr, _truth(rrr), np.arange(0.0, 2.0, 0.02), friction=None)
+    with pytest.raises(ValueError, match=r"mass_band must be a finite factor > 1"):
+        idn.identify(rrr, data, held_out=0.0, mass_band=band)
+
+
 # --- bad input (issue 31) ---------------------------------------------------------------------
 
 @pytest.fixture(scope="module")

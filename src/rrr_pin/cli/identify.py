@@ -44,6 +44,14 @@ def add(sub) -> None:
                    help="identify each joint's viscous and Coulomb friction and torque offset "
                         "with the base parameters (written into identification.json and the "
                         "URDF's <dynamics damping friction>)")
+    p.add_argument("--mass-band", type=float, default=None, metavar="F",
+                   help="plausibility bound of the consistent arm: every body's mass within "
+                        "[m0/F, F m0] of --robot's (default: pseudo-inertia positive definite "
+                        "only)")
+    p.add_argument("--keep-inconsistent", action="store_true",
+                   help="keep the nearest consistent arm, with a warning, when it lies outside "
+                        "the estimate's 99.9%% region (real logs, whose model error the noise "
+                        "model does not cover); refused by default")
     p.add_argument("--model", metavar="DIR", default=None,
                    help="predict only: the torques of --data with the model identified in DIR "
                         "(its identified.urdf and friction); writes --out/prediction.csv and "
@@ -87,6 +95,9 @@ def run_identify(args) -> int:
             raise ValueError(f"--{name} must be an integer in [1, "
                              f"{MAX_HARMONICS if name == 'harmonics' else 'inf'}), got "
                              f"{getattr(args, name)!r}")
+    if args.mass_band is not None and not (math.isfinite(args.mass_band)
+                                           and args.mass_band > 1.0):
+        raise ValueError(f"--mass-band must be a finite factor > 1, got {args.mass_band!r}")
     for name in ("frequency", "csv_rate", "max_acceleration"):
         v = getattr(args, name)
         if not (math.isfinite(v) and v > 0.0):
@@ -130,7 +141,8 @@ def run_identify(args) -> int:
     with as_options():
         data = read_measurements(args.data, robot, window=args.window)
         result = identify(robot, data, method=args.method, held_out=args.held_out,
-                          friction=args.friction)
+                          friction=args.friction, mass_band=args.mass_band,
+                          refuse_inconsistent=not args.keep_inconsistent)
     out = claim_out(args, "identify")
     written = result.write(out)
     s = result.summary

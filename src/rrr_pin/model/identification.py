@@ -113,6 +113,8 @@ __all__ = [
     "regressor_rank",
     "Measurements",
     "read_measurements",
+    "read_split_log",
+    "write_measurements",
     "estimate_derivatives",
     "filter_like",
     "check_in_limits",
@@ -536,6 +538,113 @@ def read_measurements(path, robot, *, window: float | None = None) -> Measuremen
     return Measurements(t, q, qd, qdd, tau, tuple(joints), derived, str(path))
 
 
+def read_split_log(folder, robot, *, time: str = "time.txt", q: str = "positions.txt",
+                   qd: str | None = "velocity.txt", tau: str = "torques.txt",
+                   window: float | None = None) -> Measurements:
+    """Read a log split into one text file per quantity (e.g. the Panda logs of Gaz et al.).
+
+    Every file holds one number per line (blank lines skipped): ``time`` one per sample [s];
+    ``q`` [rad], ``qd`` [rad/s] and ``tau`` [N m] ``nq`` per sample, sample after sample, joints
+    in ``robot.joint_names`` order. Accelerations (and velocities when ``qd`` is None) are
+    derived as in :func:`read_measurements` (:func:`estimate_derivatives`). To hand such a log
+    to ``rrr-pin identify``, write it as a CSV with :func:`write_measurements`.
+
+    Parameters
+    ----------
+    folder : str or Path
+    robot : rrr_pin.model.dynamics.Robot
+        Its joints, in the files' order (the Panda with its fingers locked: 7).
+    time, q, qd, tau : str
+        File names inside ``folder``; ``qd=None`` when the log has no velocities.
+    window : float, optional
+        Savitzky-Golay window [s] (:func:`estimate_derivatives`).
+
+    Raises
+    ------
+    IdentificationError
+        Naming the file: unreadable, not numbers or not finite (line), a length that is not
+        ``nq`` times the time file's (files disagree), time not strictly increasing (line),
+        positions outside the joint limits (:func:`check_in_limits`).
+    """
+    folder = Path(folder)
+    n = robot.nq
+    values = {}
+    for kind, name in (("t", time), ("q", q), ("qd", qd), ("tau", tau)):
+        if name is None:
+            continue
+        path = folder / name
+        try:
+            lines = path.read_text(encoding="utf-8-sig").splitlines()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise IdentificationError(f"cannot read log file {str(path)!r}: {exc}") from None
+        cells = [(k + 1, c.strip()) for k, c in enumerate(lines) if c.strip()]
+        try:
+            x = np.array([float(c) for _, c in cells])
+        except ValueError:
+            k, c = next((k, c) for k, c in cells if not _is_float(c))
+            raise IdentificationError(f"log file {str(path)!r} line {k}: {c!r} is not a "
+                                      f"number") from None
+        if not np.all(np.isfinite(x)):
+            k = cells[int(np.flatnonzero(~np.isfinite(x))[0])][0]
+            raise IdentificationError(f"log file {str(path)!r} line {k}: not finite")
+        values[kind] = (x, path)
+    t, tpath = values["t"]
+    N = len(t)
+    for kind in ("q", "qd", "tau"):
+        if kind not in values:
+            continue
+        x, path = values[kind]
+        if len(x) != n * N:
+            raise IdentificationError(
+                f"log files disagree in length: {str(path)!r} has {len(x)} values, "
+                f"{str(tpath)!r} {N} samples; {n} joints of {robot.name!r} need {n * N}")
+        values[kind] = (x.reshape(N, n), path)
+    if N < 3:
+        raise IdentificationError(f"log {str(folder)!r}: {N} samples; need at least 3")
+    steps = np.diff(t)
+    if np.any(steps <= 0.0):
+        k = int(np.flatnonzero(steps <= 0.0)[0])
+        raise IdentificationError(f"log file {str(tpath)!r}: time must be strictly increasing; "
+                                  f"sample {k + 2} has t = {t[k + 1]!r} s after {t[k]!r} s")
+    qv = values["q"][0]
+    check_in_limits(robot, qv, f"log file {str(values['q'][1])!r}")
+    qd_f, qdd_f, derived = estimate_derivatives(t, qv, window)
+    derived["estimated"] = ["qdd"] if "qd" in values else ["qd", "qdd"]
+    qdv = values["qd"][0] if "qd" in values else qd_f
+    return Measurements(t, qv, qdv, qdd_f, values["tau"][0], tuple(robot.joint_names), derived,
+                        str(folder))
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def write_measurements(path, data: Measurements, *, derivatives: bool = False) -> Path:
+    """Write measurements as the CSV :func:`read_measurements` reads (``t, q_, [qd_], tau_``).
+
+    Parameters
+    ----------
+    path : str or Path
+    data : Measurements
+    derivatives : bool, default False
+        Write ``qdd_`` columns too; by default velocities are written when the data gave them
+        (``"qd"`` not in ``data.derived["estimated"]``) and accelerations never, so that the
+        reader derives them again with the filter of its ``window``.
+    """
+    est = data.derived.get("estimated", []) if data.derived else []
+    kinds = ["q"] + (["qd"] if "qd" not in est or derivatives else []) + (
+        ["qdd"] if derivatives else []) + ["tau"]
+    header = ["t"] + [f"{k}_{j}" for k in kinds for j in data.joint_names]
+    table = np.column_stack([data.t] + [getattr(data, k) for k in kinds])
+    path = Path(path)
+    np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    return path
+
+
 def check_in_limits(robot, q, where: str) -> None:
     """Refuse positions outside a joint's limits by more than 10 % of its range (or 0.1 rad).
 
@@ -610,7 +719,8 @@ def _solve(problem, what: str):
 
 
 def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float | None = None,
-                          confidence: float = CONSISTENCY_CONFIDENCE):
+                          confidence: float = CONSISTENCY_CONFIDENCE, refuse: bool = True,
+                          mass_band: float | None = None):
     r"""Find the standard parameters of a physically consistent arm nearest to estimated base ones.
 
     Stage 1: ``t* = min ||A (K phi - theta)||`` over ``phi`` with every pseudo-inertia
@@ -633,6 +743,12 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
         consistent point outside the ``confidence`` region of the estimate is refused, unless
         its distance is below ``10 PSEUDO_INERTIA_MARGIN ||A theta||`` (what the margin alone
         can cost: an estimate on the boundary, e.g. noise-free data of thin rods).
+    refuse : bool, default True
+        ``False``: such a point is kept with a warning (``info["outside_confidence"]``), for
+        real logs whose model error (friction, flexibility) the noise model does not cover.
+    mass_band : float, optional
+        Plausibility bound ``f > 1``: every body's mass within ``[m0 / f, f m0]`` of the
+        nominal's ``m0`` (both stages). Default: no bound beyond positive definiteness.
 
     Returns
     -------
@@ -657,6 +773,12 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     phi = cp.Variable(len(phi0))
     resid = A @ (base.K @ phi) - A @ theta
     lmis = _lmi(phi, nb, margins)
+    if mass_band is not None:
+        if not (math.isfinite(mass_band) and mass_band > 1.0):
+            raise FieldError("mass_band", "{name} must be a finite factor > 1 (masses within "
+                             f"[m0 / f, f m0]), got {mass_band!r}")
+        m0 = phi0[0::10]
+        lmis = lmis + [phi[0::10] >= m0 / mass_band, phi[0::10] <= m0 * mass_band]
     p1 = cp.Problem(cp.Minimize(cp.norm(resid)), lmis)
     status = _solve(p1, "nearest consistent base parameters")
     if status != "optimal":
@@ -668,7 +790,15 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     if sigma is not None and sigma > 0.0:
         mahal = t_star / sigma
         limit = math.sqrt(chi2.ppf(confidence, base.p))
-        if mahal > limit and t_star > 10.0 * PSEUDO_INERTIA_MARGIN * scale:
+        outside = bool(mahal > limit and t_star > 10.0 * PSEUDO_INERTIA_MARGIN * scale)
+        if outside and not refuse:
+            import warnings
+
+            warnings.warn(f"the nearest physically consistent arm lies at Mahalanobis "
+                          f"distance {mahal:.4g} from the estimate, outside its "
+                          f"{confidence:.1%} confidence region (RMS torque change "
+                          f"{t_star:.4g} N m): kept, as asked", stacklevel=3)
+        elif outside:
             raise IdentificationError(
                 f"infeasible consistency problem: no physically consistent arm (every body's "
                 f"pseudo-inertia positive semi-definite) has base parameters inside the "
@@ -684,14 +814,28 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
         status2 = _solve(p2, "nearest standard parameters")
     except IdentificationError:
         status2 = "solver_error"
-    # Stage 2 only chooses among equally good arms: if it fails, stage 1's arm is kept.
+    # Stage 2 only chooses among equally good arms: if it fails, stage 1's arm is kept. An
+    # inaccurate end (real logs: parameters over 6 decades) is kept when it checks: every
+    # pseudo-inertia positive semi-definite and the torque change within 1e-5 ||A theta||.
+    if status2 == "optimal_inaccurate" and phi.value is not None:
+        cand = np.asarray(phi.value, dtype=float)
+        ok = all(np.linalg.eigvalsh(pseudo_inertia(cand[10 * b:10 * b + 10])).min() >= 0.0
+                 for b in range(nb))
+        if ok and np.linalg.norm(A @ (base.K @ cand - theta)) <= t_star + 1e-5 * scale:
+            status2 = "optimal"
+            phi.value = cand
     out = np.asarray(phi.value, dtype=float) if status2 == "optimal" else phi1
     # Where the arm returned sits (stage 2 may move up to 1e-6 ||A theta|| beyond stage 1).
     final = float(np.linalg.norm(A @ (base.K @ out - theta)))
     return out, {"stage2": status2 if status2 == "optimal" else
                  f"{status2}: kept the stage-1 arm",
         "distance_rms_Nm": t_star, "mahalanobis": mahal,
-        "distance_returned_rms_Nm": final,
+        "distance_returned_rms_Nm": final, "mass_band": mass_band,
+        "bounded": (f"every body's mass in [m0 / {mass_band:g}, {mass_band:g} m0] of the "
+                    f"nominal URDF's" if mass_band else "pseudo-inertia only"),
+        "outside_confidence": bool(
+            sigma is not None and sigma > 0.0 and mahal > math.sqrt(chi2.ppf(confidence, base.p))
+            and t_star > 10.0 * PSEUDO_INERTIA_MARGIN * scale),
         "mahalanobis_returned": None if mahal is None else final / sigma,
         "feasible_at_estimate":
         bool(t_star <= 1e-6 * max(scale, 1e-300)), "pseudo_inertia_margins": margins.tolist()}
@@ -969,7 +1113,9 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
 
 
 def identify(robot, data: Measurements, *, method: str = "wls", held_out: float = 0.2,
-             base: BaseParameters | None = None, friction: bool = False) -> Identification:
+             base: BaseParameters | None = None, friction: bool = False,
+             refuse_inconsistent: bool = True,
+             mass_band: float | None = None) -> Identification:
     r"""Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
 
     Every sample enters the fit (none within half a derivative-filter window of either end of
@@ -996,6 +1142,12 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         Identify, with the base parameters, each joint's viscous and Coulomb friction and a
         torque offset (:func:`friction_regressor`):
         ``tau = Y_b theta_b + fv qd + fc sign(qd) + off``.
+    refuse_inconsistent : bool, default True
+        Refuse an estimate with no physically consistent arm inside its 99.9 % region
+        (:func:`consistent_parameters`); ``False`` keeps the nearest with a warning.
+    mass_band : float, optional
+        Bound every body's mass to ``[m0 / f, f m0]`` of the nominal's
+        (:func:`consistent_parameters`).
 
     Returns
     -------
@@ -1069,8 +1221,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     # columns and the residuals are independent.
     A = np.linalg.cholesky(np.linalg.inv(cov)).T * math.sqrt(s2 / rows)
     phi0 = standard_parameters(robot)
-    phi, consistency = consistent_parameters(base, theta, A, phi0,
-                                             sigma=math.sqrt(s2 / rows))
+    phi, consistency = consistent_parameters(base, theta, A, phi0, sigma=math.sqrt(s2 / rows),
+                                             refuse=refuse_inconsistent, mass_band=mass_band)
     from .dynamics import robot_from_xml
 
     fr = None
@@ -1084,7 +1236,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     urdf = urdf_with_parameters(robot.urdf, body_links(robot), phi,
                                 moving=robot.joint_names, friction=fr)
     identified = robot_from_xml(urdf, name=f"{robot.name}_identified",
-                                gravity=robot.gravity, label="identified URDF")
+                                gravity=robot.gravity, label="identified URDF",
+                                lock=dict(robot.locked) or None)
     suspect = friction_suspects(robot, data.qd[fit], r, tau_f[fit])
     summary = {
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
