@@ -136,13 +136,18 @@ def run_identify(args) -> int:
         print(f"wrote {csv_path} and {path}; run it with --reference spline --csv {csv_path} "
               f"--duration {traj.duration:g}")
         return 0
+    import warnings
+
     from ..model.identification import identify, read_measurements
 
-    with as_options():
+    with as_options(), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         data = read_measurements(args.data, robot, window=args.window)
         result = identify(robot, data, method=args.method, held_out=args.held_out,
                           friction=args.friction, mass_band=args.mass_band,
                           refuse_inconsistent=not args.keep_inconsistent)
+    for w in caught:  # the model-error and consistency warnings, said once, without a path
+        print(f"warning: {w.message}")
     out = claim_out(args, "identify")
     written = result.write(out)
     s = result.summary
