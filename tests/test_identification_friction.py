@@ -345,3 +345,65 @@ def test_identify_takes_lock_like_reproduce(tmp_path, capsys):
     assert_allclose(got, phi, rtol=1e-9, atol=1e-12)
     fr = record["friction"]["panda_joint7"]
     assert_allclose([fr["viscous_Nms_rad"], fr["coulomb_Nm"]], [0.2, 0.5], rtol=1e-6)
+
+
+# --- a malformed identification.json (issue 31) -----------------------------------------------
+
+@pytest.fixture(scope="module")
+def record_path(rrr, tmp_path_factory):
+    data = _data(rrr, _truth(rrr), np.arange(0.0, 10.0, 0.02), noise=0.05, friction=None)
+    folder = tmp_path_factory.mktemp("rec")
+    idn.identify(rrr, data, held_out=0.0).write(folder)
+    return folder / "identification.json"
+
+
+def _edit_drop(key):
+    def edit(r):
+        r.pop(key)
+    return edit
+
+
+def _edit_cov(f):
+    def edit(r):
+        r["cov"] = f(np.array(r["cov"])).tolist()
+    return edit
+
+
+def _edit_estimate(r):
+    r["estimate"] = r["estimate"][:-1]
+
+
+def _nan_cov(c):
+    c[0, 0] = np.nan
+    return c
+
+
+@pytest.mark.parametrize(("edit", "match"), [
+    (_edit_drop("joints"), r"missing keys \['joints'\]"),
+    (_edit_drop("kinematics"), r"missing keys \['kinematics'\]"),
+    (_edit_drop("base"), r"missing keys \['base'\]"),
+    (_edit_drop("cov"), r"missing keys \['cov'\]"),
+    (_edit_estimate, r"the number of base parameters disagrees"),
+    (_edit_cov(lambda c: c[:-1, :-1]), r"'cov' has shape \(14, 14\), expected \(15, 15\)"),
+    (_edit_cov(_nan_cov), r"not finite"),
+    (_edit_cov(lambda c: -c), r"'cov' is not positive definite"),
+], ids=["joints", "kinematics", "base", "cov", "estimate-length", "cov-shape", "cov-nan",
+        "cov-not-pd"])
+def test_malformed_identification_is_refused_by_name(edit, match, record_path, tmp_path):
+    record = json.loads(record_path.read_text())
+    edit(record)
+    path = tmp_path / "identification.json"
+    path.write_text(json.dumps(record))
+    with pytest.raises(idn.IdentificationError, match=match):
+        idn.IdentifiedUncertainty(str(path))
+
+
+def test_malformed_uncertainty_on_the_cli_exits_2(record_path, tmp_path, capsys):
+    record = json.loads(record_path.read_text())
+    record.pop("kinematics")
+    path = tmp_path / "identification.json"
+    path.write_text(json.dumps(record))
+    assert main(["montecarlo", "--uncertainty", str(path), "--samples", "1", "--duration",
+                 "0.2", "--out", str(tmp_path / "mc")]) == 2
+    err = capsys.readouterr().err
+    assert "missing keys ['kinematics']" in err and "Traceback" not in err

@@ -127,6 +127,7 @@ __all__ = [
     "pseudo_inertia",
     "urdf_with_parameters",
     "IdentifiedUncertainty",
+    "check_identification_record",
 ]
 
 #: The ten standard parameters of a body, in Pinocchio's order (``Inertia.toDynamicParameters``).
@@ -1361,6 +1362,58 @@ def predict_torques(robot, data: Measurements, friction: dict | None = None) -> 
     return tau
 
 
+#: Keys of ``identification.json`` that :class:`IdentifiedUncertainty` reads.
+RECORD_KEYS = ("joints", "links", "kinematics", "base", "base_count", "estimate", "cov",
+               "standard_consistent", "consistency")
+
+
+def check_identification_record(record: dict, path) -> None:
+    """Refuse an ``identification.json`` that :class:`IdentifiedUncertainty` cannot draw from.
+
+    Raises
+    ------
+    IdentificationError
+        Naming the file and the key: missing keys; base names, ``K`` rows, ``estimate`` and
+        ``base_count`` of different lengths; a covariance of the wrong shape, not finite, not
+        symmetric or not positive definite.
+    """
+    missing = [k for k in RECORD_KEYS if k not in record]
+    if not missing and isinstance(record["base"], dict):
+        missing = [f"base.{k}" for k in ("names", "expressions", "standard", "independent",
+                                         "K") if k not in record["base"]]
+    if not missing and "pseudo_inertia_margins" not in (record["consistency"] or {}):
+        missing = ["consistency.pseudo_inertia_margins"]
+    if missing:
+        raise IdentificationError(f"identification {str(path)!r}: missing keys {missing} (not "
+                                  f"written by `rrr-pin identify`, or edited)")
+    try:
+        p = int(record["base_count"])
+        K = np.asarray(record["base"]["K"], dtype=float)
+        est = np.asarray(record["estimate"], dtype=float)
+        cov = np.asarray(record["cov"], dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise IdentificationError(f"identification {str(path)!r}: not numbers: {exc}") from None
+    sizes = {"base_count": p, "base.names": len(record["base"]["names"]),
+             "base.K rows": K.shape[0] if K.ndim == 2 else -1, "estimate": est.size}
+    if len(set(sizes.values())) != 1 or est.ndim != 1:
+        raise IdentificationError(f"identification {str(path)!r}: the number of base "
+                                  f"parameters disagrees: {sizes}")
+    if cov.shape != (p, p):
+        raise IdentificationError(f"identification {str(path)!r}: 'cov' has shape "
+                                  f"{cov.shape}, expected ({p}, {p}) for {p} base parameters")
+    if not np.all(np.isfinite(cov)) or not np.all(np.isfinite(est)):
+        raise IdentificationError(f"identification {str(path)!r}: 'cov' or 'estimate' holds a "
+                                  f"value that is not finite")
+    if not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
+        raise IdentificationError(f"identification {str(path)!r}: 'cov' is not symmetric")
+    try:
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        raise IdentificationError(f"identification {str(path)!r}: 'cov' is not positive "
+                                  f"definite (smallest eigenvalue "
+                                  f"{np.linalg.eigvalsh(cov).min():.3g})") from None
+
+
 # --- the uncertainty set of an identification -------------------------------------------------
 
 @dataclass(frozen=True)
@@ -1411,6 +1464,7 @@ class IdentifiedUncertainty(UncertaintySet):
                 raise IdentificationError(f"{self.path!r} is not an identification.json of "
                                           f"`rrr-pin identify` (no format "
                                           f"'rrr-pin-identification')")
+            check_identification_record(record, self.path)
             object.__setattr__(self, "record", record)
             object.__setattr__(self, "sha256", hashlib.sha256(raw).hexdigest())
 
@@ -1438,6 +1492,10 @@ class IdentifiedUncertainty(UncertaintySet):
                     f"{self.path}: joint {mine['joint']!r} of {robot.name!r} is not placed as "
                     f"in the identified arm (kinematics differ); use the URDF identified "
                     f"({rec.get('urdf', 'identified.urdf')}) or the one it was identified on")
+        if len(rec["base"]["K"][0]) != 10 * robot.nq:
+            raise IdentificationError(f"{self.path}: its base parameters combine "
+                                      f"{len(rec['base']['K'][0])} standard parameters; the "
+                                      f"robot {robot.name!r} has {10 * robot.nq} (10 per body)")
         if body_links(robot) != rec["links"]:
             raise IdentificationError(f"{self.path}: body links {rec['links']} are not the "
                                       f"robot's {body_links(robot)}")
