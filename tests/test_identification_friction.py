@@ -407,3 +407,10 @@ def test_malformed_uncertainty_on_the_cli_exits_2(record_path, tmp_path, capsys)
                  "0.2", "--out", str(tmp_path / "mc")]) == 2
     err = capsys.readouterr().err
     assert "missing keys ['kinematics']" in err and "Traceback" not in err
+
+
+def test_design_excitation_bounds_the_harmonics_before_any_work(rrr):
+    from rrr_pin.model.excitation import MAX_HARMONICS, design_excitation
+
+    with pytest.raises(ValueError, match=rf"harmonics must be <= {MAX_HARMONICS}"):
+        design_excitation(rrr, harmonics=2000)

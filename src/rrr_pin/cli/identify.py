@@ -11,8 +11,6 @@ from .options import add_overwrite
 
 __all__ = ["add", "run_identify"]
 
-#: Upper bound of --harmonics: 6 nq * harmonics SLSQP variables (a 6-joint arm at 200: 7,200).
-MAX_HARMONICS = 200
 #: Upper bound of the waypoints written to excitation.csv.
 MAX_CSV_SAMPLES = 10_000_000
 
@@ -90,11 +88,14 @@ def run_identify(args) -> int:
     not_a_folder(robot=args.robot, data=args.data)
     if args.model is not None:
         return _predict(args)
-    for name in ("harmonics", "periods", "maxiter"):
-        if getattr(args, name) < 1 or (name == "harmonics" and args.harmonics > MAX_HARMONICS):
-            raise ValueError(f"--{name} must be an integer in [1, "
-                             f"{MAX_HARMONICS if name == 'harmonics' else 'inf'}), got "
-                             f"{getattr(args, name)!r}")
+    from ..model.excitation import MAX_HARMONICS
+
+    for name, lo in (("harmonics", 2), ("periods", 1), ("maxiter", 1)):
+        hi = MAX_HARMONICS if name == "harmonics" else None
+        v = getattr(args, name)
+        if v < lo or (hi is not None and v > hi):
+            raise ValueError(f"--{name} must be an integer >= {lo}"
+                             + (f" and <= {hi}" if hi else "") + f", got {v!r}")
     if args.mass_band is not None and not (math.isfinite(args.mass_band)
                                            and args.mass_band > 1.0):
         raise ValueError(f"--mass-band must be a finite factor > 1, got {args.mass_band!r}")
