@@ -414,3 +414,28 @@ def test_design_excitation_bounds_the_harmonics_before_any_work(rrr):
 
     with pytest.raises(ValueError, match=rf"harmonics must be <= {MAX_HARMONICS}"):
         design_excitation(rrr, harmonics=2000)
+
+
+def test_friction_of_a_joint_that_never_reverses_is_not_identifiable(rrr):
+    """qd_3 > 0 throughout: sign(qd_3) is the offset's column, so fc and off of joint 3 are
+    named as not identifiable."""
+    truth = _truth(rrr)
+    t = np.arange(0.0, 10.0, 0.02)
+    data = _data(rrr, truth, t)
+    q, qd = data.q.copy(), data.qd.copy()
+    qd[:, 2] = 0.5 + 0.1 * np.sin(t)
+    q[:, 2] = 0.5 * t - 0.1 * np.cos(t)
+    tau = _torques(truth, q, qd, data.qdd)
+    moved = idn.Measurements(t, q, qd, data.qdd, tau, data.joint_names)
+    with pytest.raises(idn.IdentificationError, match=r"not identifiable: .*fc\[joint3\], "
+                                                      r"off\[joint3\]"):
+        idn.identify(rrr, moved, friction=True)
+
+
+def test_friction_of_the_wrong_sign_is_warned(rrr):
+    """Torques of a joint with negative Coulomb friction (the sign convention flipped)."""
+    truth = _truth(rrr)
+    fr = FRICTION * np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0]])
+    data = _data(rrr, truth, np.arange(0.0, 10.0, 0.02), noise=0.05, friction=fr)
+    with pytest.warns(UserWarning, match=r"friction of the wrong sign .*joint2 coulomb_Nm -4"):
+        idn.identify(rrr, data, held_out=0.0, friction=True, refuse_inconsistent=False)

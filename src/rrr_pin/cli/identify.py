@@ -152,7 +152,8 @@ def run_identify(args) -> int:
     out = claim_out(args, "identify")
     written = result.write(out)
     s = result.summary
-    print(f"{robot.name}: {s['base_count']} base parameters from {s['samples_fit']} samples "
+    extra = f" and {3 * robot.nq} friction" if s["friction"] else ""
+    print(f"{robot.name}: {s['base_count']} base{extra} parameters from {s['samples_fit']} samples "
           f"({s['method']}), condition number {s['condition_number']:.4g}")
     print("residual RMS [N m]: " + ", ".join(f"{k} {v:.4g}"
                                              for k, v in s["residual_rms_Nm"].items()))

@@ -861,7 +861,8 @@ def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -
     friction : dict, optional
         ``{joint: {"viscous_Nms_rad", "coulomb_Nm", ...}}``: written as each joint's
         ``<dynamics damping=... friction=...>`` (URDF's viscous and Coulomb coefficients; the
-        offset has no URDF field and stays in ``identification.json``).
+        offset has no URDF field and stays in ``identification.json``; so does a negative
+        coefficient, which URDF readers refuse).
 
     Returns
     -------
@@ -906,11 +907,15 @@ def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -
         f = (friction or {}).get(joint.get("name"))
         if f is None:
             continue
+        values = {"damping": float(f["viscous_Nms_rad"]), "friction": float(f["coulomb_Nm"])}
+        values = {k: v for k, v in values.items() if v >= 0.0}  # URDF: >= 0 (a negative one
+        if not values:                                          # stays in the JSON, warned)
+            continue
         el = joint.find("dynamics")
         if el is None:
             el = ET.SubElement(joint, "dynamics")
-        el.set("damping", repr(float(f["viscous_Nms_rad"])))
-        el.set("friction", repr(float(f["coulomb_Nm"])))
+        for k, v in values.items():
+            el.set(k, repr(v))
     text = ET.tostring(root, encoding="unicode")
     check_urdf_inertials(text)
     return text
@@ -1240,6 +1245,14 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
                                 gravity=robot.gravity, label="identified URDF",
                                 lock=dict(robot.locked) or None)
     suspect = friction_suspects(robot, data.qd[fit], r, tau_f[fit])
+    if fr:  # friction dissipates: a coefficient below zero by 3 standard deviations contradicts
+        wrong = [f"{j} {k} {v[k]:.3g} +- {v['std'][k]:.2g}" for j, v in fr.items()
+                 for k in ("viscous_Nms_rad", "coulomb_Nm") if v[k] < -3.0 * v["std"][k]]
+        if wrong:
+            suspect = "; ".join(filter(None, [suspect, (
+                "friction of the wrong sign (it would feed energy in): " + ", ".join(wrong)
+                + ": check the torque sign convention, or a term the model lacks "
+                  "(Stribeck, position-dependent friction, a coupling)")]))
     summary = {
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
         "links": body_links(robot), "gravity_m_s2": robot.gravity,
