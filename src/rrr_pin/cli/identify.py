@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import json
+import math
 
 from .build import load_plant
 from .common import as_options, claim_out, not_a_folder
 from .options import add_overwrite
 
 __all__ = ["add", "run_identify"]
+
+#: Upper bound of the waypoints written to excitation.csv.
+MAX_CSV_SAMPLES = 10_000_000
 
 #: What identification needs of a plant, and why (the refusal's reason).
 _WHY = ("the base-parameter regressor is that of a serial tree with a torque at every joint "
@@ -29,8 +33,27 @@ def add(sub) -> None:
     p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
                    help="arm whose kinematics are trusted and whose inertials are the prior: "
                         "'rrr' (default), an example-robot-data name or a URDF path")
+    p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
+                   help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
+                        "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
     p.add_argument("--data", metavar="FILE.csv", default=None,
                    help="measurements (required unless --design-excitation)")
+    p.add_argument("--friction", action="store_true",
+                   help="identify each joint's viscous and Coulomb friction and torque offset "
+                        "with the base parameters (written into identification.json and the "
+                        "URDF's <dynamics damping friction>)")
+    p.add_argument("--mass-band", type=float, default=None, metavar="F",
+                   help="plausibility bound of the consistent arm: every body's mass within "
+                        "[m0/F, F m0] of --robot's (default: pseudo-inertia positive definite "
+                        "only)")
+    p.add_argument("--keep-inconsistent", action="store_true",
+                   help="keep the nearest consistent arm, with a warning, when it lies outside "
+                        "the estimate's 99.9%% region (real logs, whose model error the noise "
+                        "model does not cover); refused by default")
+    p.add_argument("--model", metavar="DIR", default=None,
+                   help="predict only: the torques of --data with the model identified in DIR "
+                        "(its identified.urdf and friction); writes --out/prediction.csv and "
+                        "prediction.json, fits nothing")
     p.add_argument("--method", choices=("wls", "ols"), default="wls",
                    help="weighted (per-joint noise, default) or ordinary least squares")
     p.add_argument("--held-out", type=float, default=0.2, metavar="FRACTION",
@@ -54,7 +77,7 @@ def add(sub) -> None:
     p.add_argument("--out", default="results/identify", metavar="DIR",
                    help="output folder (results/identify)")
     add_overwrite(p)
-    p.set_defaults(lock=None, func=run_identify)
+    p.set_defaults(func=run_identify)
 
 
 def run_identify(args) -> int:
@@ -63,6 +86,30 @@ def run_identify(args) -> int:
     from ..outputs import writing
 
     not_a_folder(robot=args.robot, data=args.data)
+    if args.model is not None:
+        return _predict(args)
+    from ..model.excitation import MAX_HARMONICS
+
+    for name, lo in (("harmonics", 2), ("periods", 1), ("maxiter", 1)):
+        hi = MAX_HARMONICS if name == "harmonics" else None
+        v = getattr(args, name)
+        if v < lo or (hi is not None and v > hi):
+            raise ValueError(f"--{name} must be an integer >= {lo}"
+                             + (f" and <= {hi}" if hi else "") + f", got {v!r}")
+    if args.mass_band is not None and not (math.isfinite(args.mass_band)
+                                           and args.mass_band > 1.0):
+        raise ValueError(f"--mass-band must be a finite factor > 1, got {args.mass_band!r}")
+    for name in ("frequency", "csv_rate", "max_acceleration"):
+        v = getattr(args, name)
+        if not (math.isfinite(v) and v > 0.0):
+            raise ValueError(f"--{name.replace('_', '-')} must be a finite number > 0, got {v!r}")
+    if args.design_excitation:
+        samples = args.periods / args.frequency * args.csv_rate
+        if samples > MAX_CSV_SAMPLES:
+            raise ValueError(f"--periods {args.periods} / --frequency {args.frequency:g} Hz at "
+                             f"--csv-rate {args.csv_rate:g} Hz make {samples:.3g} waypoints, "
+                             f"above {MAX_CSV_SAMPLES:.0e}: lower --csv-rate or raise "
+                             f"--frequency")
     if args.design_excitation and args.data is not None:
         raise ValueError("--data is not read by --design-excitation (it designs the "
                          "motion to log); give one or the other")
@@ -90,18 +137,30 @@ def run_identify(args) -> int:
         print(f"wrote {csv_path} and {path}; run it with --reference spline --csv {csv_path} "
               f"--duration {traj.duration:g}")
         return 0
+    import warnings
+
     from ..model.identification import identify, read_measurements
 
-    with as_options():
+    with as_options(), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         data = read_measurements(args.data, robot, window=args.window)
-        result = identify(robot, data, method=args.method, held_out=args.held_out)
+        result = identify(robot, data, method=args.method, held_out=args.held_out,
+                          friction=args.friction, mass_band=args.mass_band,
+                          refuse_inconsistent=not args.keep_inconsistent)
+    for w in caught:  # the model-error and consistency warnings, said once, without a path
+        print(f"warning: {w.message}")
     out = claim_out(args, "identify")
     written = result.write(out)
     s = result.summary
-    print(f"{robot.name}: {s['base_count']} base parameters from {s['samples_fit']} samples "
+    extra = f" and {3 * robot.nq} friction" if s["friction"] else ""
+    print(f"{robot.name}: {s['base_count']} base{extra} parameters from {s['samples_fit']} samples "
           f"({s['method']}), condition number {s['condition_number']:.4g}")
     print("residual RMS [N m]: " + ", ".join(f"{k} {v:.4g}"
                                              for k, v in s["residual_rms_Nm"].items()))
+    if s["friction"]:
+        print("friction (viscous [N m s/rad], Coulomb [N m], offset [N m]): " + ", ".join(
+            f"{k} {v['viscous_Nms_rad']:.3g}/{v['coulomb_Nm']:.3g}/{v['offset_Nm']:.3g}"
+            for k, v in s["friction"].items()))
     if s["held_out"] is not None:
         print(f"held-out {s['held_out']['samples']} samples, identified URDF's torque error "
               "RMS [N m]: " + ", ".join(f"{k} {v:.4g}" for k, v in
@@ -111,4 +170,61 @@ def run_identify(args) -> int:
                                        else f"nearest consistent arm at RMS torque change "
                                             f"{c['distance_rms_Nm']:.3g} N m"))
     print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
+def _predict(args) -> int:
+    """``--model DIR``: predict ``--data``'s torques with DIR's identified model; fit nothing."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..model.dynamics import robot_from_xml
+    from ..model.identification import IdentificationError, predict_torques, read_measurements
+    from ..outputs import writing
+
+    if args.data is None:
+        raise ValueError("--model DIR predicts --data FILE.csv: give --data")
+    if args.design_excitation or args.friction:
+        raise ValueError("--model DIR predicts with DIR's model: --design-excitation and "
+                         "--friction are not read with it")
+    folder = Path(args.model)
+    rec_path = folder / "identification.json"
+    try:
+        rec = json.loads(rec_path.read_text())
+        urdf = (folder / rec["urdf"]).read_text()
+    except (OSError, ValueError, KeyError) as exc:
+        raise IdentificationError(f"--model {args.model!r}: cannot read its "
+                                  f"identification.json and identified URDF: {exc}") from None
+    lock = dict(rec.get("locked") or {})
+    robot = robot_from_xml(urdf, name=f"{rec.get('robot', 'arm')}_identified",
+                           gravity=rec["gravity_m_s2"], label=f"--model {args.model}",
+                           **({"lock": lock} if lock else {}))
+    with as_options():
+        data = read_measurements(args.data, robot, window=args.window)
+    pred = predict_torques(robot, data, rec.get("friction"))
+    from ..model.identification import _r2, filter_like
+
+    tau = filter_like(data, data.tau)
+    e = tau - pred
+    rms = np.sqrt(np.mean(e ** 2, axis=0))
+    r2 = _r2(tau, pred)
+    out = claim_out(args, "identify")
+    csv_path, js = out / "prediction.csv", out / "prediction.json"
+    header = "t," + ",".join(f"tau_{j}" for j in robot.joint_names)
+    with writing(csv_path):
+        np.savetxt(csv_path, np.column_stack([data.t, pred]), delimiter=",", header=header,
+                   comments="", fmt="%.10g")
+    summary = {"model": str(folder), "data": data.source, "samples": data.N,
+               "derivatives": data.derived or None,
+               "torque_filter": "savgol (as q)" if data.derived else None,
+               "residual_rms_Nm": dict(zip(robot.joint_names, rms.tolist(), strict=True)),
+               "r2": dict(zip(robot.joint_names, r2.tolist(), strict=True))}
+    with writing(js):
+        js.write_text(json.dumps(summary, indent=1) + "\n")
+    print(f"predicted {data.N} samples of {data.source} with {folder}")
+    print("residual RMS [N m]: " + ", ".join(f"{k} {v:.4g}" for k, v in
+                                             summary["residual_rms_Nm"].items()))
+    print("R^2: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["r2"].items()))
+    print(f"wrote {csv_path} and {js}")
     return 0

@@ -30,9 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..validation import check_count, check_positive
+from ..validation import FieldError, check_count, check_positive
 
-__all__ = ["FourierTrajectory", "design_excitation", "LIMIT_MARGIN"]
+__all__ = ["FourierTrajectory", "design_excitation", "LIMIT_MARGIN", "MAX_HARMONICS"]
+
+#: Upper bound of the harmonics per joint of :func:`design_excitation` (a 6-joint arm at 200:
+#: 7,200 SLSQP variables; 2000 ran past 90 s, issue 31).
+MAX_HARMONICS = 200
 
 #: Fraction of every limit the optimisation may use (the rest covers the time between the
 #: instants where the limits are imposed).
@@ -163,6 +167,9 @@ def design_excitation(robot, *, harmonics: int = 5, frequency: float = 0.2,
     from .identification import base_parameters
 
     L = check_count("harmonics", harmonics, 2)
+    if L > MAX_HARMONICS:  # 6 n L SLSQP variables: bound the work before any
+        raise FieldError("harmonics", f"{{name}} must be <= {MAX_HARMONICS} (6 x joints x "
+                         f"harmonics SLSQP variables), got {L}")
     frequency = check_positive("frequency", frequency, unit="Hz")
     amax = check_positive("max_acceleration", max_acceleration, unit="rad/s^2")
     periods = check_count("periods", periods, 1)

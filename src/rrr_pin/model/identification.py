@@ -47,11 +47,13 @@ of the (weighted) base regressor ``W`` over the training samples, ``sigma^2`` th
 squares over ``rows - p``. A final fraction of the samples (in time) is held out and predicted.
 When the log has no velocities or accelerations, they come from a Savitzky-Golay filter
 (:func:`estimate_derivatives`), the torques get the same filter (parallel filtering, so both
-sides of the equation see one frequency response), and the fit keeps one sample per filter
-window (decimation: the filter colours the residuals, and the covariance above assumes them
-independent) and none within half a window of either end of the log. The intervals cover the
-noise; a model error (unmodelled friction, a torque delayed against the positions) is not in
-them.
+sides of the equation see one frequency response); every sample enters the fit (none within
+half a window of either end of the log), and since the filter colours the residuals the
+covariance is then the block sandwich of :func:`least_squares` (blocks of one window) instead of
+the formula above, which assumes them independent. Friction (viscous, Coulomb, offset per joint,
+:func:`friction_regressor`) is identified with the base parameters on request. The intervals
+cover the noise; a model error (unmodelled friction, a torque delayed against the positions)
+is not in them.
 
 Physical consistency (Wensing, Kim & Slotine 2017)
 --------------------------------------------------
@@ -63,10 +65,10 @@ A body's parameters are those of a mass distribution exactly when its pseudo-ine
 :func:`consistent_parameters` solves two semidefinite programs (cvxpy, Clarabel), with
 ``J_b >= eps_b 1`` (``eps_b = 1e-6`` of the largest eigenvalue of the nominal body's ``J``, a
 margin so that the URDF written passes the strict checks): the base parameters as close to the
-estimate as the constraint allows (in the metric of the estimate's covariance; exactly the
-estimate when it is consistent), then, among those, the standard parameters closest to the
-nominal URDF's (each relative to its nominal size), which fixes the directions that the data
-cannot see.
+estimate as the constraint allows (in the metric of the estimate's covariance; the estimate
+itself when it is consistent, up to the margin), then, among those, the standard parameters
+closest to the nominal URDF's (each relative to its nominal size), which fixes the directions
+that the data cannot see.
 
 References
 ----------
@@ -102,20 +104,30 @@ __all__ = [
     "standard_parameters",
     "standard_names",
     "regressor",
+    "FRICTION_NAMES",
+    "friction_regressor",
+    "friction_names",
     "random_states",
     "BaseParameters",
     "base_parameters",
     "regressor_rank",
     "Measurements",
     "read_measurements",
+    "read_split_log",
+    "write_measurements",
     "estimate_derivatives",
+    "filter_like",
+    "check_in_limits",
     "Identification",
     "least_squares",
     "identify",
+    "friction_suspects",
+    "predict_torques",
     "consistent_parameters",
     "pseudo_inertia",
     "urdf_with_parameters",
     "IdentifiedUncertainty",
+    "check_identification_record",
 ]
 
 #: The ten standard parameters of a body, in Pinocchio's order (``Inertia.toDynamicParameters``).
@@ -177,6 +189,42 @@ def regressor(robot, q, qd, qdd) -> np.ndarray:
     for k in range(len(q)):
         out[k * n:(k + 1) * n] = pin.computeJointTorqueRegressor(model, data, q[k], qd[k], qdd[k])
     return out
+
+
+#: The friction parameters of a joint, in the order of :func:`friction_regressor`'s columns.
+FRICTION_NAMES = ("fv", "fc", "off")
+
+
+def friction_regressor(qd) -> np.ndarray:
+    r"""Per-joint friction and offset columns stacked over samples (no checks: inner code).
+
+    .. math:: \tau_{f,j} = f_{v,j}\, \dot q_j + f_{c,j} \operatorname{sign}(\dot q_j) + o_j
+
+    Parameters
+    ----------
+    qd : ndarray, shape (N, nq)
+        Velocities [rad/s].
+
+    Returns
+    -------
+    ndarray, shape (N nq, 3 nq)
+        Row ``k nq + j``, columns ``3 j .. 3 j + 2``: ``qd[k, j]``, ``sign(qd[k, j])``, 1; zero
+        elsewhere: ``tau_f[k, j] = Y_f[k nq + j] @ [fv_1, fc_1, off_1, ...]`` with ``fv``
+        [N m s/rad], ``fc`` [N m] and ``off`` [N m].
+    """
+    qd = np.asarray(qd, dtype=float)
+    N, n = qd.shape
+    out = np.zeros((N, n, 3 * n))
+    j = np.arange(n)
+    out[:, j, 3 * j] = qd
+    out[:, j, 3 * j + 1] = np.sign(qd)
+    out[:, j, 3 * j + 2] = 1.0
+    return out.reshape(N * n, 3 * n)
+
+
+def friction_names(robot) -> list[str]:
+    """Name the columns of :func:`friction_regressor`: ``fv[joint]``, ``fc[joint]``, ``off``."""
+    return [f"{k}[{j}]" for j in robot.joint_names for k in FRICTION_NAMES]
 
 
 def random_states(robot, samples: int, seed: int):
@@ -344,7 +392,9 @@ def estimate_derivatives(t, q, window: float | None = None, polyorder: int = 4):
     Parameters
     ----------
     t : ndarray, shape (N,)
-        Uniformly spaced times [s] (relative spread of the steps <= 1e-6).
+        Strictly increasing times [s]. Uniform steps (relative spread <= 1e-6) are filtered
+        as they are; irregular ones are resampled linearly onto the uniform grid of the mean
+        step, filtered, and the derivatives interpolated back (``info["uniform"]`` says which).
     q : ndarray, shape (N, nq)
         Positions [rad].
     window : float, optional
@@ -362,21 +412,51 @@ def estimate_derivatives(t, q, window: float | None = None, polyorder: int = 4):
     """
     from scipy.signal import savgol_filter
 
+    if window is not None and not (math.isfinite(window) and window > 0.0):
+        raise FieldError("window", "{name} must be a finite duration > 0 [s] (the "
+                         f"derivative filter's length), got {window!r}")
     steps = np.diff(t)
     dt = float(np.mean(steps))
-    if np.ptp(steps) > 1e-6 * dt:
-        raise IdentificationError(
-            f"the time steps vary from {steps.min():.6g} to {steps.max():.6g} s: estimating "
-            f"velocities and accelerations needs a uniform step; give qd_ and qdd_ columns")
+    uniform = np.ptp(steps) <= 1e-6 * dt
     w = max(0.2 if window is None else float(window), (2 * polyorder + 3) * dt)
     n = int(round(w / dt)) | 1
     if n > len(t):
         raise IdentificationError(f"{len(t)} samples are fewer than the derivative filter's "
                                   f"window of {n} samples ({n * dt:.4g} s)")
-    qd = savgol_filter(q, n, polyorder, deriv=1, delta=dt, axis=0)
-    qdd = savgol_filter(q, n, polyorder, deriv=2, delta=dt, axis=0)
+    grid = t if uniform else t[0] + dt * np.arange(len(t))
+    # Irregular time stamps: q resampled (linear interpolation) onto the uniform grid of the
+    # mean step, filtered there, and the derivatives interpolated back to the stamps.
+    qg = q if uniform else _resample(t, q, grid)
+    qd = savgol_filter(qg, n, polyorder, deriv=1, delta=dt, axis=0)
+    qdd = savgol_filter(qg, n, polyorder, deriv=2, delta=dt, axis=0)
+    if not uniform:
+        qd, qdd = _resample(grid, qd, t), _resample(grid, qdd, t)
     return qd, qdd, {"filter": "savgol", "window_samples": n, "window_s": n * dt,
-                     "polyorder": polyorder, "dt_s": dt}
+                     "polyorder": polyorder, "dt_s": dt, "uniform": bool(uniform),
+                     "max_step_s": float(steps.max()), "min_step_s": float(steps.min())}
+
+
+def _resample(t, x, grid) -> np.ndarray:
+    """Linear interpolation of every column of ``x`` (shape (N, n)) from ``t`` to ``grid``."""
+    return np.column_stack([np.interp(grid, t, x[:, j]) for j in range(x.shape[1])])
+
+
+def filter_like(data: Measurements, x) -> np.ndarray:
+    """Filter ``x`` (shape (N, n), at ``data.t``) as :func:`estimate_derivatives` filtered ``q``.
+
+    The zero-derivative Savitzky-Golay filter of the same window and order (on the uniform grid
+    of the mean step when the stamps are irregular): parallel filtering of the torques.
+    """
+    from scipy.signal import savgol_filter
+
+    d = data.derived
+    if not d:
+        return np.asarray(x, dtype=float)
+    n, order = d["window_samples"], d["polyorder"]
+    if d.get("uniform", True):
+        return savgol_filter(x, n, order, axis=0)
+    grid = data.t[0] + d["dt_s"] * np.arange(len(data.t))
+    return _resample(grid, savgol_filter(_resample(data.t, x, grid), n, order, axis=0), data.t)
 
 
 def read_measurements(path, robot, *, window: float | None = None) -> Measurements:
@@ -396,7 +476,8 @@ def read_measurements(path, robot, *, window: float | None = None) -> Measuremen
     path = Path(path)
     where = f"measurements {str(path)!r}"
     try:
-        rows = list(csv.reader(path.read_text().splitlines()))
+        # utf-8-sig: a byte-order mark (spreadsheet exports) is not part of the first column.
+        rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
     except (OSError, UnicodeDecodeError) as exc:
         raise IdentificationError(f"cannot read {where}: {exc}") from None
     rows = [r for r in rows if r and any(c.strip() for c in r)]
@@ -446,6 +527,7 @@ def read_measurements(path, robot, *, window: float | None = None) -> Measuremen
         raise IdentificationError(f"{where}: time must be strictly increasing; row {k + 3} has "
                                   f"t = {float(t[k + 1])!r} s after t = {float(t[k])!r} s")
     q, tau = (np.column_stack([col[f"{kind}_{j}"] for j in joints]) for kind in ("q", "tau"))
+    check_in_limits(robot, q, where)
     given = {kind: np.column_stack([col[f"{kind}_{j}"] for j in joints])
              for kind in ("qd", "qdd") if all(has[kind])}
     derived = {}
@@ -455,6 +537,136 @@ def read_measurements(path, robot, *, window: float | None = None) -> Measuremen
         given = {"qd": qd_f, "qdd": qdd_f, **given}
     qd, qdd = given["qd"], given["qdd"]
     return Measurements(t, q, qd, qdd, tau, tuple(joints), derived, str(path))
+
+
+def read_split_log(folder, robot, *, time: str = "time.txt", q: str = "positions.txt",
+                   qd: str | None = "velocity.txt", tau: str = "torques.txt",
+                   window: float | None = None) -> Measurements:
+    """Read a log split into one text file per quantity (e.g. the Panda logs of Gaz et al.).
+
+    Every file holds one number per line (blank lines skipped): ``time`` one per sample [s];
+    ``q`` [rad], ``qd`` [rad/s] and ``tau`` [N m] ``nq`` per sample, sample after sample, joints
+    in ``robot.joint_names`` order. Accelerations (and velocities when ``qd`` is None) are
+    derived as in :func:`read_measurements` (:func:`estimate_derivatives`). To hand such a log
+    to ``rrr-pin identify``, write it as a CSV with :func:`write_measurements`.
+
+    Parameters
+    ----------
+    folder : str or Path
+    robot : rrr_pin.model.dynamics.Robot
+        Its joints, in the files' order (the Panda with its fingers locked: 7).
+    time, q, qd, tau : str
+        File names inside ``folder``; ``qd=None`` when the log has no velocities.
+    window : float, optional
+        Savitzky-Golay window [s] (:func:`estimate_derivatives`).
+
+    Raises
+    ------
+    IdentificationError
+        Naming the file: unreadable, not numbers or not finite (line), a length that is not
+        ``nq`` times the time file's (files disagree), time not strictly increasing (line),
+        positions outside the joint limits (:func:`check_in_limits`).
+    """
+    folder = Path(folder)
+    n = robot.nq
+    values = {}
+    for kind, name in (("t", time), ("q", q), ("qd", qd), ("tau", tau)):
+        if name is None:
+            continue
+        path = folder / name
+        try:
+            lines = path.read_text(encoding="utf-8-sig").splitlines()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise IdentificationError(f"cannot read log file {str(path)!r}: {exc}") from None
+        cells = [(k + 1, c.strip()) for k, c in enumerate(lines) if c.strip()]
+        try:
+            x = np.array([float(c) for _, c in cells])
+        except ValueError:
+            k, c = next((k, c) for k, c in cells if not _is_float(c))
+            raise IdentificationError(f"log file {str(path)!r} line {k}: {c!r} is not a "
+                                      f"number") from None
+        if not np.all(np.isfinite(x)):
+            k = cells[int(np.flatnonzero(~np.isfinite(x))[0])][0]
+            raise IdentificationError(f"log file {str(path)!r} line {k}: not finite")
+        values[kind] = (x, path)
+    t, tpath = values["t"]
+    N = len(t)
+    for kind in ("q", "qd", "tau"):
+        if kind not in values:
+            continue
+        x, path = values[kind]
+        if len(x) != n * N:
+            raise IdentificationError(
+                f"log files disagree in length: {str(path)!r} has {len(x)} values, "
+                f"{str(tpath)!r} {N} samples; {n} joints of {robot.name!r} need {n * N}")
+        values[kind] = (x.reshape(N, n), path)
+    if N < 3:
+        raise IdentificationError(f"log {str(folder)!r}: {N} samples; need at least 3")
+    steps = np.diff(t)
+    if np.any(steps <= 0.0):
+        k = int(np.flatnonzero(steps <= 0.0)[0])
+        raise IdentificationError(f"log file {str(tpath)!r}: time must be strictly increasing; "
+                                  f"sample {k + 2} has t = {t[k + 1]!r} s after {t[k]!r} s")
+    qv = values["q"][0]
+    check_in_limits(robot, qv, f"log file {str(values['q'][1])!r}")
+    qd_f, qdd_f, derived = estimate_derivatives(t, qv, window)
+    derived["estimated"] = ["qdd"] if "qd" in values else ["qd", "qdd"]
+    qdv = values["qd"][0] if "qd" in values else qd_f
+    return Measurements(t, qv, qdv, qdd_f, values["tau"][0], tuple(robot.joint_names), derived,
+                        str(folder))
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def write_measurements(path, data: Measurements, *, derivatives: bool = False) -> Path:
+    """Write measurements as the CSV :func:`read_measurements` reads (``t, q_, [qd_], tau_``).
+
+    Parameters
+    ----------
+    path : str or Path
+    data : Measurements
+    derivatives : bool, default False
+        Write ``qdd_`` columns too; by default velocities are written when the data gave them
+        (``"qd"`` not in ``data.derived["estimated"]``) and accelerations never, so that the
+        reader derives them again with the filter of its ``window``.
+    """
+    est = data.derived.get("estimated", []) if data.derived else []
+    kinds = ["q"] + (["qd"] if "qd" not in est or derivatives else []) + (
+        ["qdd"] if derivatives else []) + ["tau"]
+    header = ["t"] + [f"{k}_{j}" for k in kinds for j in data.joint_names]
+    table = np.column_stack([data.t] + [getattr(data, k) for k in kinds])
+    path = Path(path)
+    np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    return path
+
+
+def check_in_limits(robot, q, where: str) -> None:
+    """Refuse positions outside a joint's limits by more than 10 % of its range (or 0.1 rad).
+
+    A log in degrees, or of another arm, is refused here rather than identified.
+
+    Raises
+    ------
+    IdentificationError
+        Naming the joint, its range and the extreme value.
+    """
+    lo, hi = np.asarray(robot.lower, dtype=float), np.asarray(robot.upper, dtype=float)
+    slack = np.where(np.isfinite(hi - lo), np.maximum(0.1 * (hi - lo), 0.1), np.inf)
+    for j, name in enumerate(robot.joint_names):
+        if not np.isfinite(slack[j]):
+            continue
+        qmin, qmax = float(q[:, j].min()), float(q[:, j].max())
+        if qmin < lo[j] - slack[j] or qmax > hi[j] + slack[j]:
+            raise IdentificationError(
+                f"{where}: q_{name} spans [{qmin:.4g}, {qmax:.4g}], outside the joint's "
+                f"limits [{lo[j]:.4g}, {hi[j]:.4g}] rad of {robot.name!r} by more than 10 % of "
+                f"the range: positions must be in rad (not degrees) and of this arm")
 
 
 # --- physical consistency ---------------------------------------------------------------------
@@ -508,7 +720,8 @@ def _solve(problem, what: str):
 
 
 def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float | None = None,
-                          confidence: float = CONSISTENCY_CONFIDENCE):
+                          confidence: float = CONSISTENCY_CONFIDENCE, refuse: bool = True,
+                          mass_band: float | None = None):
     r"""Find the standard parameters of a physically consistent arm nearest to estimated base ones.
 
     Stage 1: ``t* = min ||A (K phi - theta)||`` over ``phi`` with every pseudo-inertia
@@ -531,12 +744,20 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
         consistent point outside the ``confidence`` region of the estimate is refused, unless
         its distance is below ``10 PSEUDO_INERTIA_MARGIN ||A theta||`` (what the margin alone
         can cost: an estimate on the boundary, e.g. noise-free data of thin rods).
+    refuse : bool, default True
+        ``False``: such a point is kept with a warning (``info["outside_confidence"]``), for
+        real logs whose model error (friction, flexibility) the noise model does not cover.
+    mass_band : float, optional
+        Plausibility bound ``f > 1``: every body's mass within ``[m0 / f, f m0]`` of the
+        nominal's ``m0`` (both stages). Default: no bound beyond positive definiteness.
 
     Returns
     -------
     phi : ndarray, shape (10 nq,)
     info : dict
-        ``distance_rms_Nm`` (``t*``), ``mahalanobis`` (``t* / sigma``, or None), statuses.
+        ``distance_rms_Nm`` (``t*``, stage 1's optimum), ``mahalanobis`` (``t* / sigma``, or
+        None), ``distance_returned_rms_Nm`` and ``mahalanobis_returned``: the same for the arm
+        returned (stage 2's, within ``1e-6 ||A theta||`` of stage 1's), statuses.
 
     Raises
     ------
@@ -553,6 +774,12 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     phi = cp.Variable(len(phi0))
     resid = A @ (base.K @ phi) - A @ theta
     lmis = _lmi(phi, nb, margins)
+    if mass_band is not None:
+        if not (math.isfinite(mass_band) and mass_band > 1.0):
+            raise FieldError("mass_band", "{name} must be a finite factor > 1 (masses within "
+                             f"[m0 / f, f m0]), got {mass_band!r}")
+        m0 = phi0[0::10]
+        lmis = lmis + [phi[0::10] >= m0 / mass_band, phi[0::10] <= m0 * mass_band]
     p1 = cp.Problem(cp.Minimize(cp.norm(resid)), lmis)
     status = _solve(p1, "nearest consistent base parameters")
     if status != "optimal":
@@ -564,7 +791,15 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     if sigma is not None and sigma > 0.0:
         mahal = t_star / sigma
         limit = math.sqrt(chi2.ppf(confidence, base.p))
-        if mahal > limit and t_star > 10.0 * PSEUDO_INERTIA_MARGIN * scale:
+        outside = bool(mahal > limit and t_star > 10.0 * PSEUDO_INERTIA_MARGIN * scale)
+        if outside and not refuse:
+            import warnings
+
+            warnings.warn(f"the nearest physically consistent arm lies at Mahalanobis "
+                          f"distance {mahal:.4g} from the estimate, outside its "
+                          f"{confidence:.1%} confidence region (RMS torque change "
+                          f"{t_star:.4g} N m): kept, as asked", stacklevel=3)
+        elif outside:
             raise IdentificationError(
                 f"infeasible consistency problem: no physically consistent arm (every body's "
                 f"pseudo-inertia positive semi-definite) has base parameters inside the "
@@ -580,15 +815,34 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
         status2 = _solve(p2, "nearest standard parameters")
     except IdentificationError:
         status2 = "solver_error"
-    # Stage 2 only chooses among equally good arms: if it fails, stage 1's arm is kept.
+    # Stage 2 only chooses among equally good arms: if it fails, stage 1's arm is kept. An
+    # inaccurate end (real logs: parameters over 6 decades) is kept when it checks: every
+    # pseudo-inertia positive semi-definite and the torque change within 1e-5 ||A theta||.
+    if status2 == "optimal_inaccurate" and phi.value is not None:
+        cand = np.asarray(phi.value, dtype=float)
+        ok = all(np.linalg.eigvalsh(pseudo_inertia(cand[10 * b:10 * b + 10])).min() >= 0.0
+                 for b in range(nb))
+        if ok and np.linalg.norm(A @ (base.K @ cand - theta)) <= t_star + 1e-5 * scale:
+            status2 = "optimal"
+            phi.value = cand
     out = np.asarray(phi.value, dtype=float) if status2 == "optimal" else phi1
+    # Where the arm returned sits (stage 2 may move up to 1e-6 ||A theta|| beyond stage 1).
+    final = float(np.linalg.norm(A @ (base.K @ out - theta)))
     return out, {"stage2": status2 if status2 == "optimal" else
                  f"{status2}: kept the stage-1 arm",
-        "distance_rms_Nm": t_star, "mahalanobis": mahal, "feasible_at_estimate":
+        "distance_rms_Nm": t_star, "mahalanobis": mahal,
+        "distance_returned_rms_Nm": final, "mass_band": mass_band,
+        "bounded": (f"every body's mass in [m0 / {mass_band:g}, {mass_band:g} m0] of the "
+                    f"nominal URDF's" if mass_band else "pseudo-inertia only"),
+        "outside_confidence": bool(
+            sigma is not None and sigma > 0.0 and mahal > math.sqrt(chi2.ppf(confidence, base.p))
+            and t_star > 10.0 * PSEUDO_INERTIA_MARGIN * scale),
+        "mahalanobis_returned": None if mahal is None else final / sigma,
+        "feasible_at_estimate":
         bool(t_star <= 1e-6 * max(scale, 1e-300)), "pseudo_inertia_margins": margins.tolist()}
 
 
-def urdf_with_parameters(urdf: str, links, phi) -> str:
+def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -> str:
     """Return the URDF text with each moving body's inertial replaced by standard parameters.
 
     Parameters
@@ -601,6 +855,14 @@ def urdf_with_parameters(urdf: str, links, phi) -> str:
         ``<inertial>`` (Pinocchio had merged it into the body).
     phi : ndarray, shape (10 nq,)
         Standard parameters, Pinocchio's order.
+    moving : sequence of str, optional
+        The model's joints; any other non-fixed joint of the URDF is locked (Pinocchio merged
+        its child into the body) and treated as fixed. Default: every joint.
+    friction : dict, optional
+        ``{joint: {"viscous_Nms_rad", "coulomb_Nm", ...}}``: written as each joint's
+        ``<dynamics damping=... friction=...>`` (URDF's viscous and Coulomb coefficients; the
+        offset has no URDF field and stays in ``identification.json``; so does a negative
+        coefficient, which URDF readers refuse).
 
     Returns
     -------
@@ -621,7 +883,8 @@ def urdf_with_parameters(urdf: str, links, phi) -> str:
         while stack:  # links fixed to the body: their inertial is now in the body's
             current = stack.pop()
             for joint in children.get(current, []):
-                if joint.get("type") == "fixed":
+                if joint.get("type") == "fixed" or (
+                        moving is not None and joint.get("name") not in moving):
                     child = joint.find("child").get("link")
                     el = by_name[child].find("inertial")
                     if el is not None:
@@ -640,6 +903,19 @@ def urdf_with_parameters(urdf: str, links, phi) -> str:
             ("ixx", (0, 0)), ("ixy", (0, 1)), ("ixz", (0, 2)), ("iyy", (1, 1)),
             ("iyz", (1, 2)), ("izz", (2, 2)))})
         link.insert(index, el)
+    for joint in root.findall("joint"):
+        f = (friction or {}).get(joint.get("name"))
+        if f is None:
+            continue
+        values = {"damping": float(f["viscous_Nms_rad"]), "friction": float(f["coulomb_Nm"])}
+        values = {k: v for k, v in values.items() if v >= 0.0}  # URDF: >= 0 (a negative one
+        if not values:                                          # stays in the JSON, warned)
+            continue
+        el = joint.find("dynamics")
+        if el is None:
+            el = ET.SubElement(joint, "dynamics")
+        for k, v in values.items():
+            el.set(k, repr(v))
     text = ET.tostring(root, encoding="unicode")
     check_urdf_inertials(text)
     return text
@@ -663,7 +939,12 @@ class Identification:
     urdf : str
         The identified URDF (the nominal's kinematics, inertials from ``phi``).
     summary : dict
-        Method, noise, condition number, residuals, held-out errors, consistency record.
+        Method, noise, condition number, residuals, held-out errors, consistency record,
+        identified friction (``summary["friction"]``, per joint, with standard deviations).
+    friction : ndarray, shape (3 nq,) or (0,)
+        ``fv, fc, off`` per joint (:func:`friction_regressor`), empty without friction.
+    cov_all : ndarray, shape (p + 3 nq, p + 3 nq), optional
+        Covariance of base and friction parameters together.
     """
 
     base: BaseParameters
@@ -672,6 +953,8 @@ class Identification:
     phi: np.ndarray
     urdf: str = field(repr=False)
     summary: dict = field(default_factory=dict)
+    friction: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cov_all: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def std(self) -> np.ndarray:
@@ -684,7 +967,9 @@ class Identification:
                 "base": self.base.to_dict(), "estimate": self.theta.tolist(),
                 "std": self.std.tolist(), "cov": self.cov.tolist(),
                 "base_consistent": self.base(self.phi).tolist(),
-                "standard_consistent": self.phi.tolist()}
+                "standard_consistent": self.phi.tolist(),
+                "friction_estimate": self.friction.tolist(),
+                "cov_all": None if self.cov_all is None else self.cov_all.tolist()}
 
     def write(self, folder, *, urdf_name: str = "identified.urdf") -> list[Path]:
         """Write ``identified.urdf`` and ``identification.json`` into ``folder``."""
@@ -727,7 +1012,7 @@ def _qr_solve(W: np.ndarray, y: np.ndarray):
     return solve_triangular(R, Rf[:p, p]), R
 
 
-def _unidentifiable(base: BaseParameters, R: np.ndarray) -> list[str]:
+def _unidentifiable(names, R: np.ndarray) -> list[str]:
     """Names of the base parameters in the numerical null space of a regressor (its ``R``).
 
     Columns scaled to unit norm; singular values below ``1e-8`` of the largest count as zero,
@@ -739,11 +1024,11 @@ def _unidentifiable(base: BaseParameters, R: np.ndarray) -> list[str]:
     _, s, Vt = np.linalg.svd(Rn)
     null = Vt[s <= 1e-8 * s[0]]
     involved = zero | (np.abs(null) > 0.1).any(axis=0) if null.size else zero
-    return [base.names[i] for i in np.flatnonzero(involved)]
+    return [names[i] for i in np.flatnonzero(involved)]
 
 
 def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
-                  method: str = "wls"):
+                  method: str = "wls", *, names=None, block: int = 1):
     r"""Estimate base parameters by ordinary or weighted least squares, with their covariance.
 
     Parameters
@@ -759,6 +1044,18 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
     method : {"wls", "ols"}
         ``wls``: the rows of joint ``j`` divided by its OLS residual standard deviation
         ``sigma_j`` (``sigma_j^2 = ||r_j||^2 / (N - p / n)``), then solved again.
+    names : sequence of str, shape (p,), optional
+        Names of ``W``'s columns (default ``base.names``; with friction columns appended).
+    block : int, default 1
+        Consecutive samples whose residuals may be correlated (a derivative filter's window).
+        Above 1, the covariance is the cluster-robust sandwich over blocks of that many
+        samples (Newey & West 1987 with a flat kernel of that width; Cameron & Miller 2015),
+
+        .. math:: \operatorname{cov} = (W^T W)^{-1} \Big(\tfrac{B}{B-1} \sum_b W_b^T r_b
+                  r_b^T W_b\Big) (W^T W)^{-1},
+
+        so that every sample enters the fit and the correlation that the filter puts between
+        neighbours is counted, not assumed away.
 
     Returns
     -------
@@ -783,7 +1080,8 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
     N = len(y) // n
     p = W.shape[1]
     theta, R = _qr_solve(W, y)
-    lost = _unidentifiable(base, R)
+    names = base.names if names is None else names
+    lost = _unidentifiable(names, R)
     if lost:
         raise IdentificationError(
             f"the trajectory does not excite every base parameter (the regressor of its "
@@ -808,12 +1106,29 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
     s2 = float(np.sum(rw * rw)) / (N * n - p)
     Rinv = np.linalg.inv(R)
     cov = s2 * (Rinv @ Rinv.T)
+    if block > 1:
+        Ww = (W * np.tile(weights, N)[:, None]).reshape(N, n, p)
+        B = -(-N // block)
+        pad = B * block - N
+        g = np.einsum("kjp,kj->kp", Ww, rw)
+        g = np.concatenate([g, np.zeros((pad, p))]).reshape(B, block, p).sum(axis=1)
+        meat = (B / max(B - 1, 1)) * (g.T @ g)
+        cov = (Rinv @ Rinv.T) @ meat @ (Rinv @ Rinv.T)
+        cov = 0.5 * (cov + cov.T)
     return theta, cov, R, sigma_j, s2, cond
 
 
 def identify(robot, data: Measurements, *, method: str = "wls", held_out: float = 0.2,
-             base: BaseParameters | None = None) -> Identification:
-    """Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
+             base: BaseParameters | None = None, friction: bool = False,
+             refuse_inconsistent: bool = True,
+             mass_band: float | None = None) -> Identification:
+    r"""Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
+
+    Every sample enters the fit (none within half a derivative-filter window of either end of
+    the log, where the filter extrapolates). When derivatives were estimated, the torques get
+    the same zero-phase filter (parallel filtering, :func:`filter_like`) and the covariance is
+    the block sandwich of :func:`least_squares` over blocks of one filter window, which counts
+    the correlation the filter puts between neighbouring residuals.
 
     Parameters
     ----------
@@ -829,16 +1144,34 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         ``[0, 0.9]``.
     base : BaseParameters, optional
         Default :func:`base_parameters` of ``robot``.
+    friction : bool, default False
+        Identify, with the base parameters, each joint's viscous and Coulomb friction and a
+        torque offset (:func:`friction_regressor`):
+        ``tau = Y_b theta_b + fv qd + fc sign(qd) + off``.
+    refuse_inconsistent : bool, default True
+        Refuse an estimate with no physically consistent arm inside its 99.9 % region
+        (:func:`consistent_parameters`); ``False`` keeps the nearest with a warning.
+    mass_band : float, optional
+        Bound every body's mass to ``[m0 / f, f m0]`` of the nominal's
+        (:func:`consistent_parameters`).
 
     Returns
     -------
     Identification
 
+    Warns
+    -----
+    UserWarning
+        The residual of a joint correlates with ``qd`` or ``sign(qd)`` (``|r| > 0.3``, named
+        joints): a friction term is missing from the model (``friction=False``) or not of the
+        form modelled. The intervals then do not cover the model error.
+
     Raises
     ------
     IdentificationError
         Joints that differ from the URDF's; too few samples for the base parameters; a
-        trajectory that does not excite every base parameter (naming them); an infeasible
+        trajectory that does not excite every base parameter (naming them; with ``friction``,
+        a joint the data never move in both directions names its ``fc``); an infeasible
         consistency problem (:func:`consistent_parameters`).
     ValueError
         ``method`` or ``held_out`` out of range.
@@ -856,67 +1189,242 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     n, p = robot.nq, base.p
     N = data.N
     n_fit = N - int(round(held_out * N))
-    # Estimated derivatives: the torques get the same zero-phase filter (parallel filtering)
-    # and the fit keeps one sample per filter window (decimation), so that its residuals,
-    # coloured by the filter, are about independent, as the covariance assumes. The half
-    # windows at both ends of the data, where the filter extrapolates, are left out.
-    step = int(data.derived.get("window_samples", 1)) if data.derived else 1
-    edge = step // 2
-    fit = np.arange(edge, n_fit, step)
+    block = int(data.derived.get("window_samples", 1)) if data.derived else 1
+    edge = block // 2
+    fit = np.arange(edge, min(n_fit, N - edge))
     m = len(fit)
-    if m * n < 2 * p or m * n - p < n:
+    names = list(base.names) + (friction_names(robot) if friction else [])
+    P = len(names)
+    if m * n < 2 * P or m * n - P < n:
         raise IdentificationError(
             f"too few samples: {m} samples for the fit give {m * n} equations for "
-            f"{p} base parameters of {robot.name!r}; need at least {math.ceil(2 * p / n)} "
+            f"{P} {'base and friction ' if friction else 'base '}parameters of "
+            f"{robot.name!r}; need at least {math.ceil(2 * P / n)} "
             f"samples (twice as many equations as parameters) after the held-out "
-            f"{held_out:.0%}" + (f" and one sample per derivative-filter window of {step}"
-                                 if step > 1 else ""))
-    tau_fit = data.tau
-    if step > 1:
-        from scipy.signal import savgol_filter
+            f"{held_out:.0%}" + (f" and half a derivative-filter window ({edge} samples) "
+                                 f"at each end" if edge else ""))
+    tau_f = filter_like(data, data.tau) if block > 1 else data.tau
+    if friction:  # linear in f: filtered exactly as the torques (sign(qd) jumps included)
+        Yf = friction_regressor(data.qd).reshape(N, n * 3 * n)
+        Yf = (filter_like(data, Yf) if block > 1 else Yf).reshape(N * n, 3 * n)
 
-        tau_fit = savgol_filter(data.tau, step, data.derived["polyorder"], axis=0)
-    W1 = base.reduce(regressor(robot, data.q[fit], data.qd[fit], data.qdd[fit]))
-    y1 = tau_fit[fit].reshape(-1)
-    theta, cov, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method)
-    r = (y1 - W1 @ theta).reshape(m, n)
+    def design(sl):
+        W = base.reduce(regressor(robot, data.q[sl], data.qd[sl], data.qdd[sl]))
+        if not friction:
+            return W
+        rows_ = np.arange(N)[sl]
+        return np.hstack([W, Yf.reshape(N, n, 3 * n)[rows_].reshape(-1, 3 * n)])
+
+    W1 = design(fit)
+    y1 = tau_f[fit].reshape(-1)
+    x, cov_x, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method, names=names,
+                                                   block=block)
+    r = (y1 - W1 @ x).reshape(m, n)
     rows = m * n
-    A = R / math.sqrt(rows)
+    theta, cov = x[:p], cov_x[:p, :p]
+    # The consistency metric from the base parameters' marginal covariance: A^T A = s2 cov^-1
+    # / rows, which is R^T R / rows of the (weighted) regressor when there are no friction
+    # columns and the residuals are independent.
+    A = np.linalg.cholesky(np.linalg.inv(cov)).T * math.sqrt(s2 / rows)
     phi0 = standard_parameters(robot)
-    phi, consistency = consistent_parameters(base, theta, A, phi0,
-                                             sigma=math.sqrt(s2 / rows))
+    phi, consistency = consistent_parameters(base, theta, A, phi0, sigma=math.sqrt(s2 / rows),
+                                             refuse=refuse_inconsistent, mass_band=mass_band)
     from .dynamics import robot_from_xml
 
-    urdf = urdf_with_parameters(robot.urdf, body_links(robot), phi)
+    fr = None
+    if friction:
+        f, fs = x[p:].reshape(n, 3), np.sqrt(np.diag(cov_x))[p:].reshape(n, 3)
+        fr = {j: {"viscous_Nms_rad": float(f[i, 0]), "coulomb_Nm": float(f[i, 1]),
+                  "offset_Nm": float(f[i, 2]), "std": {"viscous_Nms_rad": float(fs[i, 0]),
+                                                       "coulomb_Nm": float(fs[i, 1]),
+                                                       "offset_Nm": float(fs[i, 2])}}
+              for i, j in enumerate(robot.joint_names)}
+    urdf = urdf_with_parameters(robot.urdf, body_links(robot), phi,
+                                moving=robot.joint_names, friction=fr)
     identified = robot_from_xml(urdf, name=f"{robot.name}_identified",
-                                gravity=robot.gravity, label="identified URDF")
+                                gravity=robot.gravity, label="identified URDF",
+                                lock=dict(robot.locked) or None)
+    suspect = friction_suspects(robot, data.qd[fit], r, tau_f[fit])
+    if fr:  # friction dissipates: a coefficient below zero by 3 standard deviations contradicts
+        wrong = [f"{j} {k} {v[k]:.3g} +- {v['std'][k]:.2g}" for j, v in fr.items()
+                 for k in ("viscous_Nms_rad", "coulomb_Nm") if v[k] < -3.0 * v["std"][k]]
+        if wrong:
+            suspect = "; ".join(filter(None, [suspect, (
+                "friction of the wrong sign (it would feed energy in): " + ", ".join(wrong)
+                + ": check the torque sign convention, or a term the model lacks "
+                  "(Stribeck, position-dependent friction, a coupling)")]))
     summary = {
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
         "links": body_links(robot), "gravity_m_s2": robot.gravity,
+        "locked": dict(robot.locked),
         "kinematics": _kinematics(robot), "data": data.source, "samples": N,
-        "samples_fit": m, "fit_decimation": step, "torque_filter": "savgol (as q)" if step > 1
-        else None, "held_out_fraction": held_out, "derivatives": data.derived or
+        "samples_fit": m, "fit_decimation": 1,
+        "covariance": ("block sandwich over blocks of one derivative-filter window "
+                       f"({block} samples): the filter correlates neighbouring residuals"
+                       if block > 1 else "s2 (W^T W)^-1 (independent residuals)"),
+        "torque_filter": "savgol (as q)" if block > 1 else None,
+        "held_out_fraction": held_out, "derivatives": data.derived or
         {"filter": None, "estimated": []}, "method": method, "base_count": p,
         "condition_number": cond,
         "noise_std_Nm": _per_joint(robot, sigma_j.tolist()),
         "residual_rms_Nm": _per_joint(robot, np.sqrt(np.mean(r * r, axis=0)).tolist()),
+        "residual_r2": _per_joint(robot, _r2(tau_f[fit], tau_f[fit] - r)),
         "sigma2_weighted": s2, "consistency": consistency,
+        "friction_model": "viscous + coulomb + offset" if friction else None,
+        "friction": fr, "model_error_warning": suspect or None,
+        "intervals_cover": "noise only: a model error (unmodelled friction, delays, "
+                           "flexibility) is not in the standard deviations",
     }
+    if suspect:
+        import warnings
+
+        warnings.warn(suspect, stacklevel=2)
     if n_fit < N - edge:
         sl = slice(n_fit, N - edge)
-        W2 = base.reduce(regressor(robot, data.q[sl], data.qd[sl], data.qdd[sl]))
-        e_est = data.tau[sl] - (W2 @ theta).reshape(-1, n)
-        e_urdf = data.tau[sl] - np.array([identified.inverse_dynamics(
-            data.q[k], data.qd[k], data.qdd[k], check=False) for k in range(n_fit, N - edge)])
-        rms = np.sqrt(np.mean(data.tau[sl] ** 2, axis=0))
+        tau2 = tau_f[sl]
+        e_est = tau2 - (design(sl) @ x).reshape(-1, n)
+        pred = predict_torques(identified, data, fr)[sl]
+        e_urdf = tau2 - pred
+        rms = np.sqrt(np.mean(tau2 ** 2, axis=0))
         summary["held_out"] = {
             "samples": N - edge - n_fit, "first_sample": n_fit, "last_sample": N - edge - 1,
             "rms_error_estimate_Nm": _per_joint(robot, np.sqrt(np.mean(e_est ** 2, axis=0))),
             "rms_error_urdf_Nm": _per_joint(robot, np.sqrt(np.mean(e_urdf ** 2, axis=0))),
+            "r2_urdf": _per_joint(robot, _r2(tau2, pred)),
             "rms_torque_Nm": _per_joint(robot, rms.tolist())}
     else:
         summary["held_out"] = None
-    return Identification(base, theta, cov, phi, urdf, summary)
+    return Identification(base, theta, cov, phi, urdf, summary, x[p:].copy(),
+                          cov_x)
+
+
+def _r2(tau, pred) -> np.ndarray:
+    """Per-column coefficient of determination ``1 - SS_res / SS_tot`` (shape (n,))."""
+    tau, pred = np.asarray(tau), np.asarray(pred)
+    ss = np.sum((tau - tau.mean(axis=0)) ** 2, axis=0)
+    return 1.0 - np.sum((tau - pred) ** 2, axis=0) / np.where(ss > 0.0, ss, np.nan)
+
+
+def friction_suspects(robot, qd, r, tau=None, threshold: float = 0.3) -> str:
+    """Return a warning naming the joints whose residual correlates with ``qd`` or its sign.
+
+    Parameters
+    ----------
+    qd, r : ndarray, shape (N, nq)
+        Velocities [rad/s] and torque residuals [N m] of the fit.
+    tau : ndarray, shape (N, nq), optional
+        The torques fitted [N m]: a joint whose residual RMS is below ``1e-9`` of their RMS
+        (round-off of exact data) is not named.
+    threshold : float, default 0.3
+        ``|corr|`` above which a joint is named.
+
+    Returns
+    -------
+    str
+        Empty when no joint is suspect.
+    """
+    bad = []
+    for j, name in enumerate(robot.joint_names):
+        rj = r[:, j] - r[:, j].mean()
+        if tau is not None and np.sqrt(np.mean(rj * rj)) <= 1e-9 * np.sqrt(
+                np.mean(tau[:, j] ** 2)):
+            continue
+        for what, x in (("sign(qd)", np.sign(qd[:, j])), ("qd", qd[:, j])):
+            x = x - x.mean()
+            den = float(np.linalg.norm(rj) * np.linalg.norm(x))
+            c = float(rj @ x) / den if den > 0.0 else 0.0
+            if abs(c) > threshold:
+                bad.append(f"{name} (corr with {what} {c:+.2f})")
+                break
+    if not bad:
+        return ""
+    return ("model error: the torque residual correlates with the joint velocity or its sign "
+            "at " + ", ".join(bad) + ": likely missing term: joint friction (viscous/Coulomb; "
+            "identify with --friction). The standard deviations cover the noise, not this "
+            "model error")
+
+
+def predict_torques(robot, data: Measurements, friction: dict | None = None) -> np.ndarray:
+    """Inverse dynamics of ``robot`` plus identified friction, as :func:`identify` fits them.
+
+    The friction torque gets the torques' filter when the data's derivatives were estimated
+    (:func:`filter_like`: parallel filtering, as in the fit), so the prediction is compared
+    with ``filter_like(data, data.tau)``.
+
+    Parameters
+    ----------
+    robot : rrr_pin.model.dynamics.Robot
+    data : Measurements
+    friction : dict, optional
+        ``{joint: {"viscous_Nms_rad", "coulomb_Nm", "offset_Nm"}}``
+        (``Identification.summary["friction"]``).
+
+    Returns
+    -------
+    ndarray, shape (N, nq)
+        Torques [N m].
+    """
+    q, qd, qdd = data.q, data.qd, data.qdd
+    tau = np.array([robot.inverse_dynamics(q[k], qd[k], qdd[k], check=False)
+                    for k in range(len(q))])
+    if friction:
+        f = np.array([[friction[j][k] for k in ("viscous_Nms_rad", "coulomb_Nm", "offset_Nm")]
+                      for j in robot.joint_names])
+        tf = (friction_regressor(qd) @ f.reshape(-1)).reshape(tau.shape)
+        tau = tau + filter_like(data, tf)
+    return tau
+
+
+#: Keys of ``identification.json`` that :class:`IdentifiedUncertainty` reads.
+RECORD_KEYS = ("joints", "links", "kinematics", "base", "base_count", "estimate", "cov",
+               "standard_consistent", "consistency")
+
+
+def check_identification_record(record: dict, path) -> None:
+    """Refuse an ``identification.json`` that :class:`IdentifiedUncertainty` cannot draw from.
+
+    Raises
+    ------
+    IdentificationError
+        Naming the file and the key: missing keys; base names, ``K`` rows, ``estimate`` and
+        ``base_count`` of different lengths; a covariance of the wrong shape, not finite, not
+        symmetric or not positive definite.
+    """
+    missing = [k for k in RECORD_KEYS if k not in record]
+    if not missing and isinstance(record["base"], dict):
+        missing = [f"base.{k}" for k in ("names", "expressions", "standard", "independent",
+                                         "K") if k not in record["base"]]
+    if not missing and "pseudo_inertia_margins" not in (record["consistency"] or {}):
+        missing = ["consistency.pseudo_inertia_margins"]
+    if missing:
+        raise IdentificationError(f"identification {str(path)!r}: missing keys {missing} (not "
+                                  f"written by `rrr-pin identify`, or edited)")
+    try:
+        p = int(record["base_count"])
+        K = np.asarray(record["base"]["K"], dtype=float)
+        est = np.asarray(record["estimate"], dtype=float)
+        cov = np.asarray(record["cov"], dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise IdentificationError(f"identification {str(path)!r}: not numbers: {exc}") from None
+    sizes = {"base_count": p, "base.names": len(record["base"]["names"]),
+             "base.K rows": K.shape[0] if K.ndim == 2 else -1, "estimate": est.size}
+    if len(set(sizes.values())) != 1 or est.ndim != 1:
+        raise IdentificationError(f"identification {str(path)!r}: the number of base "
+                                  f"parameters disagrees: {sizes}")
+    if cov.shape != (p, p):
+        raise IdentificationError(f"identification {str(path)!r}: 'cov' has shape "
+                                  f"{cov.shape}, expected ({p}, {p}) for {p} base parameters")
+    if not np.all(np.isfinite(cov)) or not np.all(np.isfinite(est)):
+        raise IdentificationError(f"identification {str(path)!r}: 'cov' or 'estimate' holds a "
+                                  f"value that is not finite")
+    if not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
+        raise IdentificationError(f"identification {str(path)!r}: 'cov' is not symmetric")
+    try:
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        raise IdentificationError(f"identification {str(path)!r}: 'cov' is not positive "
+                                  f"definite (smallest eigenvalue "
+                                  f"{np.linalg.eigvalsh(cov).min():.3g})") from None
 
 
 # --- the uncertainty set of an identification -------------------------------------------------
@@ -969,6 +1477,7 @@ class IdentifiedUncertainty(UncertaintySet):
                 raise IdentificationError(f"{self.path!r} is not an identification.json of "
                                           f"`rrr-pin identify` (no format "
                                           f"'rrr-pin-identification')")
+            check_identification_record(record, self.path)
             object.__setattr__(self, "record", record)
             object.__setattr__(self, "sha256", hashlib.sha256(raw).hexdigest())
 
@@ -996,6 +1505,10 @@ class IdentifiedUncertainty(UncertaintySet):
                     f"{self.path}: joint {mine['joint']!r} of {robot.name!r} is not placed as "
                     f"in the identified arm (kinematics differ); use the URDF identified "
                     f"({rec.get('urdf', 'identified.urdf')}) or the one it was identified on")
+        if len(rec["base"]["K"][0]) != 10 * robot.nq:
+            raise IdentificationError(f"{self.path}: its base parameters combine "
+                                      f"{len(rec['base']['K'][0])} standard parameters; the "
+                                      f"robot {robot.name!r} has {10 * robot.nq} (10 per body)")
         if body_links(robot) != rec["links"]:
             raise IdentificationError(f"{self.path}: body links {rec['links']} are not the "
                                       f"robot's {body_links(robot)}")
