@@ -116,3 +116,52 @@ def test_truncated_csv_row_is_refused(tmp_path):
     path.write_text(text[:text.rfind(",")] + "\n")  # drop the last value of the last row
     with pytest.raises(TrajectoryFileError, match=str(path.name)):
         Trajectory.load(path)
+
+
+def _reordered(order):
+    """``_by_hand()`` with its rows taken in ``order`` (time and every array alike)."""
+    traj = _by_hand()
+    return Trajectory(**{k: getattr(traj, k)[order] for k in ARRAYS},
+                      controller=traj.controller, plant=traj.plant, info=traj.info,
+                      joint_names=traj.joint_names, joint_units=traj.joint_units)
+
+
+@pytest.mark.parametrize("suffix", FORMATS, ids=[s[1:] for s in FORMATS])
+@pytest.mark.parametrize("order, why", [
+    (np.arange(9)[::-1], r"runs backwards at rows 0 and 1"),
+    (np.array([0, 1, 2, 4, 3, 5, 6, 7, 8]), r"decreases \(rows out of order\?\) at rows 3 and 4"),
+    (np.array([0, 1, 2, 3, 3, 5, 6, 7, 8]), r"repeats at rows 3 and 4"),
+], ids=["backwards", "swapped", "repeated"])
+def test_time_out_of_order_is_refused(tmp_path, suffix, order, why):
+    path = _reordered(order).save(tmp_path / f"run{suffix}")
+    with pytest.raises(TrajectoryFileError, match=rf"run\{suffix}: time t {why}"):
+        Trajectory.load(path)
+
+
+def test_non_finite_time_is_refused(tmp_path):
+    traj = _by_hand()
+    traj.t = traj.t.copy()
+    traj.t[2] = np.nan
+    path = traj.save(tmp_path / "run.npz")
+    with pytest.raises(TrajectoryFileError, match=r"run\.npz: t\[2\] = nan s is not finite"):
+        Trajectory.load(path)
+
+
+@pytest.mark.parametrize("suffix", FORMATS, ids=[s[1:] for s in FORMATS])
+def test_damaged_files_are_refused_by_name(tmp_path, suffix):
+    binary = tmp_path / f"binary{suffix}"
+    binary.write_bytes(bytes(range(256)) * 4)  # not UTF-8, not a zip, not Parquet
+    with pytest.raises(TrajectoryFileError, match=rf"binary\{suffix}: not a"):
+        Trajectory.load(binary)
+    whole = _by_hand().save(tmp_path / f"whole{suffix}").read_bytes()
+    cut = tmp_path / f"cut{suffix}"
+    cut.write_bytes(whole[:len(whole) // 2])
+    damaged = {".csv": r"cut\.csv, line \d+: [1-8] values, the header has 9 \(a truncated",
+               ".npz": r"cut\.npz: a truncated or damaged \.npz archive",
+               ".parquet": r"cut\.parquet: not a readable Parquet file \(truncated"}[suffix]
+    with pytest.raises(TrajectoryFileError, match=damaged):
+        Trajectory.load(cut)
+    folder = tmp_path / f"folder{suffix}"
+    folder.mkdir()
+    with pytest.raises(TrajectoryFileError, match=rf"folder\{suffix}: is a directory"):
+        Trajectory.load(folder)

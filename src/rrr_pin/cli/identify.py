@@ -203,12 +203,12 @@ def _predict(args) -> int:
     with as_options():
         data = read_measurements(args.data, robot, window=args.window)
     pred = predict_torques(robot, data, rec.get("friction"))
-    from ..model.identification import _r2, filter_like
+    from ..model.identification import filter_like, r_squared
 
     tau = filter_like(data, data.tau)
     e = tau - pred
     rms = np.sqrt(np.mean(e ** 2, axis=0))
-    r2 = _r2(tau, pred)
+    r2 = r_squared(tau, pred)
     out = claim_out(args, "identify")
     csv_path, js = out / "prediction.csv", out / "prediction.json"
     header = "t," + ",".join(f"tau_{j}" for j in robot.joint_names)

@@ -782,10 +782,23 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
         lmis = lmis + [phi[0::10] >= m0 / mass_band, phi[0::10] <= m0 * mass_band]
     p1 = cp.Problem(cp.Minimize(cp.norm(resid)), lmis)
     status = _solve(p1, "nearest consistent base parameters")
-    if status != "optimal":
+    # An inaccurate end is kept only when its point checks: every pseudo-inertia positive
+    # semi-definite (then t* is the measured distance of a consistent arm, an upper bound on
+    # the optimum); the status is recorded in info["stage1"].
+    if status == "optimal_inaccurate" and phi.value is not None and all(
+            np.linalg.eigvalsh(pseudo_inertia(np.asarray(phi.value, float)[10 * b:10 * b + 10]
+                                              )).min() >= 0.0 for b in range(nb)):
+        status1 = "optimal_inaccurate: kept, every pseudo-inertia checked positive semi-definite"
+        p1_value = float(np.linalg.norm(A @ (base.K @ np.asarray(phi.value, float) - theta)))
+    elif status == "optimal":
+        status1 = "optimal"
+        p1_value = float(p1.value)
+    else:
+        status1 = status
+    if not status1.startswith("optimal"):
         raise IdentificationError(f"the consistency SDP (nearest consistent base parameters) "
                                   f"ended {status!r}: no physically consistent arm found")
-    t_star = float(p1.value)
+    t_star = p1_value
     scale = float(np.linalg.norm(A @ theta))
     mahal = None
     if sigma is not None and sigma > 0.0:
@@ -828,7 +841,7 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     out = np.asarray(phi.value, dtype=float) if status2 == "optimal" else phi1
     # Where the arm returned sits (stage 2 may move up to 1e-6 ||A theta|| beyond stage 1).
     final = float(np.linalg.norm(A @ (base.K @ out - theta)))
-    return out, {"stage2": status2 if status2 == "optimal" else
+    return out, {"stage1": status1, "stage2": status2 if status2 == "optimal" else
                  f"{status2}: kept the stage-1 arm",
         "distance_rms_Nm": t_star, "mahalanobis": mahal,
         "distance_returned_rms_Nm": final, "mass_band": mass_band,
@@ -1225,7 +1238,11 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     # The consistency metric from the base parameters' marginal covariance: A^T A = s2 cov^-1
     # / rows, which is R^T R / rows of the (weighted) regressor when there are no friction
     # columns and the residuals are independent.
-    A = np.linalg.cholesky(np.linalg.inv(cov)).T * math.sqrt(s2 / rows)
+    # A square root of cov^-1 by eigenvalues (cov can be numerically semi-definite on short
+    # logs, where Cholesky of its inverse fails): A^T A = cov^-1 on its range
+    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    w = np.maximum(w, 1e-15 * max(float(w.max()), 1e-300))
+    A = (V / np.sqrt(w)).T * math.sqrt(s2 / rows)
     phi0 = standard_parameters(robot)
     phi, consistency = consistent_parameters(base, theta, A, phi0, sigma=math.sqrt(s2 / rows),
                                              refuse=refuse_inconsistent, mass_band=mass_band)
@@ -1268,7 +1285,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "condition_number": cond,
         "noise_std_Nm": _per_joint(robot, sigma_j.tolist()),
         "residual_rms_Nm": _per_joint(robot, np.sqrt(np.mean(r * r, axis=0)).tolist()),
-        "residual_r2": _per_joint(robot, _r2(tau_f[fit], tau_f[fit] - r)),
+        "residual_r2": _per_joint(robot, r_squared(tau_f[fit], tau_f[fit] - r)),
         "sigma2_weighted": s2, "consistency": consistency,
         "friction_model": "viscous + coulomb + offset" if friction else None,
         "friction": fr, "model_error_warning": suspect or None,
@@ -1290,7 +1307,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
             "samples": N - edge - n_fit, "first_sample": n_fit, "last_sample": N - edge - 1,
             "rms_error_estimate_Nm": _per_joint(robot, np.sqrt(np.mean(e_est ** 2, axis=0))),
             "rms_error_urdf_Nm": _per_joint(robot, np.sqrt(np.mean(e_urdf ** 2, axis=0))),
-            "r2_urdf": _per_joint(robot, _r2(tau2, pred)),
+            "r2_urdf": _per_joint(robot, r_squared(tau2, pred)),
             "rms_torque_Nm": _per_joint(robot, rms.tolist())}
     else:
         summary["held_out"] = None
@@ -1298,7 +1315,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
                           cov_x)
 
 
-def _r2(tau, pred) -> np.ndarray:
+def r_squared(tau, pred) -> np.ndarray:
     """Per-column coefficient of determination ``1 - SS_res / SS_tot`` (shape (n,))."""
     tau, pred = np.asarray(tau), np.asarray(pred)
     ss = np.sum((tau - tau.mean(axis=0)) ** 2, axis=0)

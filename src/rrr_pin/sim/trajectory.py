@@ -188,25 +188,25 @@ class Trajectory:
         ValueError
             An unknown suffix.
         TrajectoryFileError (a ValueError)
-            The file is not an rrr-pin trajectory (no metadata, another format or version,
-            columns that do not match the joints), naming the file and what is wrong.
+            The file is not an rrr-pin trajectory (a folder, a CSV that is not UTF-8 text, an
+            NPZ or Parquet file that is truncated or not of that format, no metadata, another
+            format or version, columns that do not match the joints), or its times ``t`` are
+            not finite and strictly increasing (time running backwards, rows out of order or
+            repeated), naming the file and what is wrong.
         FileNotFoundError
             No such file.
         """
         path = Path(path)
         fmt = _format_of(path)
+        if path.is_dir():
+            raise TrajectoryFileError(f"{path}: is a directory, expected a trajectory file "
+                                      f"written by Trajectory.save")
         if not path.is_file():
             raise FileNotFoundError(f"trajectory file not found: {path}")
         if fmt == ".csv":
             meta, columns = _read_csv(path)
         elif fmt == ".npz":
-            with np.load(path, allow_pickle=False) as data:
-                if "metadata" not in data.files:
-                    raise TrajectoryFileError(f"{path}: no 'metadata' entry; not written by "
-                                              f"Trajectory.save")
-                meta = _check_metadata(path, data["metadata"].item())
-                arrays = {k: np.array(data[k]) for k in ("t", "q", "qd", "r", "tau")
-                          if k in data.files}
+            meta, arrays = _read_npz(path)
             n = len(meta["joint_names"]) or (arrays["q"].shape[1] if "q" in arrays else 0)
             return _trajectory(path, meta, arrays, n)
         else:
@@ -454,7 +454,12 @@ def _write_csv(path: Path, traj: Trajectory, meta: dict) -> None:
 
 
 def _read_csv(path: Path) -> tuple[dict, np.ndarray]:
-    text = path.read_text()
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise TrajectoryFileError(f"{path}: not a UTF-8 text file (byte {exc.start}: "
+                                  f"{exc.reason}); a .csv trajectory is the text that "
+                                  f"Trajectory.save writes") from None
     lines = text.splitlines()
     meta, k = {}, 0
     while k < len(lines) and lines[k].startswith("#"):
@@ -473,6 +478,11 @@ def _read_csv(path: Path) -> tuple[dict, np.ndarray]:
     body = lines[k + 1:]
     if not body:
         return meta, np.empty((0, len(header)))
+    for i, line in enumerate(body):
+        if line.count(",") != len(header) - 1:
+            raise TrajectoryFileError(
+                f"{path}, line {k + 2 + i}: {line.count(',') + 1} values, the header has "
+                f"{len(header)} (a truncated or edited file?)")
     try:
         table = np.loadtxt(io.StringIO("\n".join(body)), delimiter=",", ndmin=2)
     except ValueError as exc:
@@ -482,6 +492,32 @@ def _read_csv(path: Path) -> tuple[dict, np.ndarray]:
         raise TrajectoryFileError(f"{path}: {table.shape[1]} values per row, header has "
                                   f"{len(header)}")
     return meta, table
+
+
+def _read_npz(path: Path) -> tuple[dict, dict]:
+    """Metadata and arrays of an ``.npz`` trajectory; a damaged archive named as such."""
+    import zipfile
+    import zlib
+
+    with open(path, "rb") as f:
+        if f.read(4) != b"PK\x03\x04":
+            raise TrajectoryFileError(f"{path}: not an .npz archive (no zip signature at its "
+                                      f"start); write it with Trajectory.save")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if "metadata" not in data.files:
+                raise TrajectoryFileError(f"{path}: no 'metadata' entry; not written by "
+                                          f"Trajectory.save")
+            meta = _check_metadata(path, data["metadata"].item())
+            arrays = {k: np.array(data[k]) for k in ("t",) + _ARRAYS if k in data.files}
+    except TrajectoryFileError:
+        raise
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError) as exc:
+        # A truncated or damaged archive fails in zipfile (BadZipFile, EOFError, zlib.error),
+        # a damaged member in numpy's header parser (ValueError, OSError).
+        raise TrajectoryFileError(f"{path}: a truncated or damaged .npz archive "
+                                  f"({type(exc).__name__}: {exc})") from None
+    return meta, arrays
 
 
 def _write_parquet(path: Path, traj: Trajectory, meta: dict) -> None:
@@ -497,9 +533,14 @@ def _write_parquet(path: Path, traj: Trajectory, meta: dict) -> None:
 
 
 def _read_parquet(path: Path) -> tuple[dict, np.ndarray]:
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
-    table = pq.read_table(path)
+    try:
+        table = pq.read_table(path)
+    except (pa.ArrowException, OSError) as exc:
+        raise TrajectoryFileError(f"{path}: not a readable Parquet file (truncated, damaged "
+                                  f"or of another format: {exc})") from None
     raw = (table.schema.metadata or {}).get(b"rrr_pin")
     if raw is None:
         raise TrajectoryFileError(f"{path}: no b'rrr_pin' schema metadata; not written by "
@@ -529,7 +570,22 @@ def _trajectory(path: Path, meta: dict, arrays: dict, n: int) -> Trajectory:
     missing = [k for k in ("t",) + _ARRAYS if k not in arrays]
     if missing:
         raise TrajectoryFileError(f"{path}: arrays {missing} missing")
-    N = arrays["t"].shape[0]
+    t = arrays["t"]
+    if t.ndim != 1:
+        raise TrajectoryFileError(f"{path}: t has shape {t.shape}, expected (N,)")
+    N = t.shape[0]
+    if not np.isfinite(t).all():
+        k = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise TrajectoryFileError(f"{path}: t[{k}] = {float(t[k])!r} s is not finite")
+    step = np.diff(t)
+    if (step <= 0).any():
+        k = int(np.flatnonzero(step <= 0)[0])
+        why = ("repeats" if step[k] == 0 else
+               "runs backwards" if (step < 0).all() else
+               "decreases (rows out of order?)")
+        raise TrajectoryFileError(
+            f"{path}: time t {why} at rows {k} and {k + 1} (t = {float(t[k])!r} s then "
+            f"{float(t[k + 1])!r} s); a trajectory's t is strictly increasing")
     for key in _ARRAYS:
         if arrays[key].shape != (N, n):
             raise TrajectoryFileError(f"{path}: {key} has shape {arrays[key].shape}, expected "
