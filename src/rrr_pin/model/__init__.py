@@ -12,7 +12,8 @@ parameters from measured torques, a physically consistent URDF, the identified u
 :mod:`~rrr_pin.model.mechanisms` (parallel mechanisms as data: one module per kind, its
 parameters, MJCF, closed-form kinematics and task path, one registry) and
 :mod:`~rrr_pin.model.closed_chain` (``ClosedChain``: loop closure and the reduced dynamics in
-actuated coordinates). Only this layer knows the kinds of plant.
+actuated coordinates), with :mod:`~rrr_pin.model.mjcf_checks` (an MJCF's loops checked in Python
+before Pinocchio's parser reads the file). Only this layer knows the kinds of plant.
 
 Layer: the lowest. May import :mod:`rrr_pin.validation` only.
 """
