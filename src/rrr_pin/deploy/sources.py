@@ -102,6 +102,11 @@ def _matrix(name: str, M: np.ndarray) -> str:
     return f"static const double {name}[{M.shape[0]}][{M.shape[1]}] = {{\n{rows}\n}};\n"
 
 
+def _cmake_string(text: str) -> str:
+    """Quote ``text`` as a CMake string (quotes, backslashes and ``$`` escaped)."""
+    return '"' + text.replace("\\", "/").replace('"', '\\"').replace("$", "\\$") + '"'
+
+
 def _c_string(text: str) -> str:
     """Quote ASCII ``text`` (quotes and backslashes escaped)."""
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
@@ -475,26 +480,61 @@ extern "C" void ctrl_dyn_prepare(void)
 '''
 
 
-def cmakelists(*, pinocchio: bool, version: str) -> str:
-    """``CMakeLists.txt``: static library ``rrr_pin_ctrl``, shared ``rrr_pin_ctrl_shared``, main."""
+def cmakelists(*, pinocchio: bool, version: str, python: str = "") -> str:
+    """``CMakeLists.txt``: static library ``rrr_pin_ctrl``, shared ``rrr_pin_ctrl_shared``, main.
+
+    ``python`` is the interpreter that ran the export, the first one asked for the Pinocchio
+    CMake package (``python -m cmeel cmake``) when ``CMAKE_PREFIX_PATH`` does not give it.
+    """
     if pinocchio:
         langs, dyn = "C CXX", "dynamics.cpp"
         find = f'''
 # The model's dynamics call the Pinocchio C++ library of the `pin` wheel (libpinocchio, a cmeel
-# package): its CMake package lives under <site-packages>/cmeel.prefix. Give it with
-# -DCMAKE_PREFIX_PATH="$(python -m cmeel cmake)", or let the Python on PATH tell it here.
+# package, with the Eigen and urdfdom headers of cmeel-eigen and cmeel-urdfdom-headers, which
+# rrr-pin installs): its CMake package lives under <site-packages>/cmeel.prefix. Give it with
+# -DCMAKE_PREFIX_PATH="$(python -m cmeel cmake)", or -DRRR_PIN_PYTHON=/path/to/python (default:
+# the Python that ran the export), or let the Python on PATH tell it here.
 # FindBoost of an older CMake (3.25 here) predates Boost 1.90 and would warn per component.
 set(Boost_NO_WARN_NEW_VERSIONS ON)
+set(RRR_PIN_PYTHON {_cmake_string(python)} CACHE FILEPATH
+    "a Python with the pin wheel, asked for its cmeel prefix when pinocchio is not found")
 find_package(pinocchio {version} EXACT CONFIG QUIET)
 if(NOT pinocchio_FOUND)
-  find_package(Python3 COMPONENTS Interpreter)
-  if(Python3_FOUND)
-    execute_process(COMMAND "${{Python3_EXECUTABLE}}" -m cmeel cmake
-                    OUTPUT_VARIABLE CMEEL_PREFIX OUTPUT_STRIP_TRAILING_WHITESPACE ERROR_QUIET)
-    string(REPLACE ":" ";" CMEEL_PREFIX "${{CMEEL_PREFIX}}")
-    list(PREPEND CMAKE_PREFIX_PATH ${{CMEEL_PREFIX}})
+  set(_rrr_pin_pythons)
+  if(RRR_PIN_PYTHON AND EXISTS "${{RRR_PIN_PYTHON}}")
+    list(APPEND _rrr_pin_pythons "${{RRR_PIN_PYTHON}}")
   endif()
+  find_package(Python3 COMPONENTS Interpreter QUIET)
+  if(Python3_FOUND)
+    list(APPEND _rrr_pin_pythons "${{Python3_EXECUTABLE}}")
+  endif()
+  foreach(_rrr_pin_py IN LISTS _rrr_pin_pythons)
+    execute_process(COMMAND "${{_rrr_pin_py}}" -m cmeel cmake RESULT_VARIABLE _rrr_pin_rc
+                    OUTPUT_VARIABLE _rrr_pin_prefix OUTPUT_STRIP_TRAILING_WHITESPACE
+                    ERROR_QUIET)
+    if(_rrr_pin_rc EQUAL 0 AND NOT _rrr_pin_prefix STREQUAL "")
+      string(REPLACE ":" ";" _rrr_pin_prefix "${{_rrr_pin_prefix}}")
+      list(PREPEND CMAKE_PREFIX_PATH ${{_rrr_pin_prefix}})
+      message(STATUS "rrr_pin_ctrl: cmeel prefix of ${{_rrr_pin_py}}: ${{_rrr_pin_prefix}}")
+      break()
+    endif()
+  endforeach()
   find_package(pinocchio {version} EXACT CONFIG REQUIRED)
+endif()
+# Pulled in by add_subdirectory(): the targets find_package made here (pinocchio, and coal::coal,
+# Boost, Eigen3, urdfdom behind it) are visible in this directory only, and the parent that links
+# rrr_pin_ctrl would not find them ("Target coal::coal not found"): make them global.
+if(NOT CMAKE_SOURCE_DIR STREQUAL CMAKE_CURRENT_SOURCE_DIR)
+  if(CMAKE_VERSION VERSION_LESS 3.21)
+    message(FATAL_ERROR "rrr_pin_ctrl by add_subdirectory() needs CMake >= 3.21 (IMPORTED_TARGETS)")
+  endif()
+  get_property(_rrr_pin_imported DIRECTORY PROPERTY IMPORTED_TARGETS)
+  foreach(_rrr_pin_target IN LISTS _rrr_pin_imported)
+    get_target_property(_rrr_pin_global ${{_rrr_pin_target}} IMPORTED_GLOBAL)
+    if(NOT _rrr_pin_global)
+      set_target_properties(${{_rrr_pin_target}} PROPERTIES IMPORTED_GLOBAL TRUE)
+    endif()
+  endforeach()
 endif()
 set(CMAKE_CXX_STANDARD 17)
 set(CMAKE_CXX_STANDARD_REQUIRED ON)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -312,7 +313,8 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                                                               robot.name)
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
     files["CMakeLists.txt"] = sources.cmakelists(pinocchio=not use_generated,
-                                                 version=pin.__version__)
+                                                 version=pin.__version__,
+                                                 python=sys.executable)
     files["main.c"] = sources.main_c(q0=q0)
     files["ros2_controller.hpp"] = sources.ros2_controller_hpp()
     files["ros2_mock.hpp"] = sources.ros2_mock_hpp()
