@@ -10,6 +10,7 @@
 //   reason                    -> "reason TEXT"
 //   deactivate                -> "deactivate SUCCESS|ERROR TAU1..TAUn"
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -22,6 +23,14 @@
 
 namespace
 {
+// A number token, "nan" and "inf" included (operator>> would refuse them).
+double num(std::istream & in)
+{
+  std::string t;
+  in >> t;
+  return std::strtod(t.c_str(), nullptr);
+}
+
 const char * name_of(controller_interface::CallbackReturn r)
 {
   return r == controller_interface::CallbackReturn::SUCCESS ? "SUCCESS" : "ERROR";
@@ -48,9 +57,7 @@ int main()
       std::string name, kind;
       in >> name >> kind;
       if (kind == "d") {
-        double v;
-        in >> v;
-        overrides.emplace_back(name, rclcpp::ParameterValue(v));
+        overrides.emplace_back(name, rclcpp::ParameterValue(num(in)));
       } else if (kind == "s") {
         std::string v;
         in >> v;
@@ -59,7 +66,7 @@ int main()
         std::size_t k;
         in >> k;
         std::vector<double> v(k);
-        for (auto & x : v) in >> x;
+        for (auto & x : v) x = num(in);
         overrides.emplace_back(name, rclcpp::ParameterValue(v));
       } else {
         std::size_t k;
@@ -79,7 +86,7 @@ int main()
       }
       std::printf("configure %s\n", name_of(r));
     } else if (cmd == "activate") {
-      for (double & v : hw_state) in >> v;
+      for (double & v : hw_state) v = num(in);
       std::vector<hardware_interface::LoanedCommandInterface> command;
       std::vector<hardware_interface::LoanedStateInterface> st;
       const auto cc = c->command_interface_configuration();
@@ -94,13 +101,12 @@ int main()
         std::size_t k;
         in >> k;
         v->resize(k);
-        for (auto & x : *v) in >> x;
+        for (auto & x : *v) x = num(in);
       }
       sub->deliver(msg);
     } else if (cmd == "update") {
-      double period;
-      in >> period;
-      for (double & v : hw_state) in >> v;
+      const double period = num(in);
+      for (double & v : hw_state) v = num(in);
       const auto r = c->update(rclcpp::Time(0), rclcpp::Duration::from_nanoseconds(
                                                   static_cast<std::int64_t>(period * 1e9 + 0.5)));
       std::printf("update %s", r == controller_interface::return_type::OK ? "OK" : "ERROR");

@@ -11,7 +11,10 @@ as :mod:`rrr_pin.sim.python_engine` integrates. A torque written after the next 
 
 The same harness also runs the loop **offline** (one process, no clock): the same arithmetic,
 so with no missed deadline the real-time closed loop equals it bit for bit, and
-``max_error_vs_offline_rad`` measures what the misses cost. ``tests/test_hil.py`` pins the
+``max_error_vs_offline_rad`` measures what the misses cost. The offline loop is run a second
+time with the real-time run's missed deadlines replayed (the arm holding the previous torque on
+those cycles): it must then equal the real-time loop bit for bit (``max_error_vs_replay_rad``),
+which checks the exchange through shared memory whatever the misses. ``tests/test_hil.py`` pins the
 offline loop to :func:`rrr_pin.simulate` (Python engine) on the same reference.
 
 Figures (``hil.json``, exactly the keys of issue 35): ``cycles``, ``missed``, ``latency_us``
@@ -63,14 +66,16 @@ class HilResult:
         The content of ``hil.json``.
     run : dict
         The content of ``hil_run.json`` (the conditions and the secondary figures).
-    q_hil, q_offline : ndarray, shape (cycles, n)
-        The arm's joint angles [rad] at each tick, real-time and offline.
+    q_hil, q_offline, q_replay : ndarray, shape (cycles, n)
+        The arm's joint angles [rad] at each tick: real-time, offline, and offline with the
+        real-time run's missed deadlines replayed (equal to ``q_hil`` bit for bit).
     """
 
     summary: dict
     run: dict
     q_hil: np.ndarray
     q_offline: np.ndarray
+    q_replay: np.ndarray
 
 
 def _record(folder: Path) -> dict:
@@ -132,11 +137,13 @@ def _build(folder: Path, work: Path, pinocchio: bool) -> Path:
     return build / "rrr_pin_hil"
 
 
-def _run(exe: Path, mode: str, settings: Path, out: Path, n: int, cycles: int):
+def _run(exe: Path, mode: str, settings: Path, out: Path, n: int, cycles: int,
+         holds: Path | None = None):
     """Run the harness; return (q, tau, timing or None, header dict, wall seconds)."""
     start = time.perf_counter()
-    done = subprocess.run([str(exe), mode, str(settings), str(out)], capture_output=True,
-                          text=True, check=False)
+    extra = [str(holds)] if holds is not None else []
+    done = subprocess.run([str(exe), mode, str(settings), str(out), *extra],
+                          capture_output=True, text=True, check=False)
     wall = time.perf_counter() - start
     if done.returncode:
         raise RuntimeError(f"the {mode} harness failed ({done.returncode}): "
@@ -238,6 +245,14 @@ def hil(folder, cycles: int, out, *, rate: float | None = None,
         q_hil, tau_hil, timing, header, wall_hil = _run(exe, "hil", work / "settings.txt",
                                                         work / "hil.bin", n, cycles)
         load_after = _loadavg()
+        # the same offline loop with the torques the arm held replayed: equal bit for bit
+        missed = timing["done"] > round(1e9 / rate)
+        (work / "holds.bin").write_bytes(missed.astype(np.uint8).tobytes())
+        q_rep, _, _, rep_header, _ = _run(exe, "offline", work / "settings.txt",
+                                          work / "replay.bin", n, cycles, work / "holds.bin")
+        if rep_header["missed"] != header["missed"]:
+            raise RuntimeError(f"the harness counted {header['missed']} missed deadlines, its "
+                               f"timing {rep_header['missed']}")
         summary = _summary(cycles, header, timing, rate, q_hil, q_off)
         r = ref.sample(np.arange(cycles) / law_rate)[0]
         run = {
@@ -245,11 +260,14 @@ def hil(folder, cycles: int, out, *, rate: float | None = None,
             "law_rate_hz": law_rate, "clock_rate_hz": rate,
             "real_time_factor": rate / law_rate,
             "sched_fifo": bool(header.get("sched_fifo")), "mlockall": bool(header.get("mlockall")),
+            "plant_sched_fifo": bool(header.get("plant_sched_fifo")),
+            "plant_mlockall": bool(header.get("plant_mlockall")),
             "loadavg_before": load_before, "loadavg_after": load_after, "cpus": os.cpu_count(),
             "wall_s": wall_hil, "offline_wall_s": wall_off,
             "step_us": _percentiles(timing["step"]), "wake_us": _percentiles(timing["wake"]),
             "state_late": int(timing["late"].sum()),
             "torque_max_diff_vs_offline_Nm": float(np.max(np.abs(tau_hil - tau_off))),
+            "max_error_vs_replay_rad": float(np.max(np.abs(q_hil - q_rep))),
             "max_tracking_error_rad": {"hil": float(np.max(np.abs(q_hil - r))),
                                        "offline": float(np.max(np.abs(q_off - r)))},
             "reference": ref.to_dict(),
@@ -262,7 +280,7 @@ def hil(folder, cycles: int, out, *, rate: float | None = None,
             path = claimed.path / name
             with writing(path):
                 path.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
-    return HilResult(summary, run, q_hil.copy(), q_off.copy())
+    return HilResult(summary, run, q_hil.copy(), q_off.copy(), q_rep.copy())
 
 
 def _summary(cycles, header, timing, rate, q_hil, q_off) -> dict:

@@ -4,7 +4,7 @@
  * Hand-written: no kept library runs an exported C law against a simulated arm across two
  * processes with an absolute-deadline clock; this file is that loop and nothing more.
  *
- *   rrr_pin_hil hil|offline SETTINGS OUT
+ *   rrr_pin_hil hil|offline SETTINGS OUT [HOLDS]
  *
  * SETTINGS (text, one number per token): cycles, clock period [ns], law period Ts [s], then per
  * joint home, amp, freq [Hz], phase (the reference r = home + amp sin(2 pi freq t + phase)),
@@ -12,14 +12,18 @@
  * the torque applied on [k Ts, (k+1) Ts) tau[n], and in hil mode the int64 nanoseconds
  * wake - deadline, done - deadline (the torque written), step (ctrl_step alone), and the flags
  * missed (torque written after the next tick: the plant held the previous one) and plant_late
- * (the state was not there at the tick). A header line of text comes first on stdout.
+ * (the state was not there at the tick). A header line of text goes to stdout. HOLDS (offline
+ * only, one byte per cycle): the cycles whose torque the arm did not apply (the missed deadlines
+ * of a real-time run), replayed: the offline loop then equals that run bit for bit.
  *
  * The plant: the nominal model of the export (its dynamics.h: M(q), h(q, qd)), forward dynamics
  * qdd = M^-1 (tau - h) by Gaussian elimination with partial pivoting, one classical RK4 step of Ts
  * per cycle with the torque held (zero-order hold), as rrr_pin's Python engine integrates.
  * The controller: on each absolute deadline t0 + k * period (clock_nanosleep, CLOCK_MONOTONIC,
  * TIMER_ABSTIME) it reads the state, calls ctrl_step and writes the torque. SCHED_FIFO (priority
- * 80) and mlockall are asked for; whether they were granted is printed.
+ * 80 for the controller, 70 for the arm) and mlockall are asked for; whether they were granted
+ * is printed. Neither process spins for long: the arm sleeps until the tick, then both poll the
+ * other's counter with 5 us naps.
  */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -185,36 +189,54 @@ static int read_settings(const char *path, settings *s)
     return ok && s->cycles > 0 && s->period_ns > 0 && s->Ts > 0.0;
 }
 
-/* Spin, then yield, until *seq reaches k; 0 on a timeout of limit_ns. */
-static int wait_for(_Atomic long *seq, long k, int64_t limit_ns)
+/* Whether the other process is alive: the controller asks for its parent (the arm), the arm
+ * for its child (the controller). */
+static pid_t parent_pid, child_pid;
+
+static int peer_alive(void)
 {
-    int64_t start = 0;
+    if (child_pid > 0) {
+        return waitpid(child_pid, NULL, WNOHANG) == 0;
+    }
+    return getppid() == parent_pid;
+}
+
+/* Spin briefly, then nap 5 us at a time, until *seq reaches k; 0 if the other process died
+ * meanwhile (asked every 10 ms of naps: a stalled peer is waited for, a dead one is not). */
+static int wait_for(_Atomic long *seq, long k)
+{
+    const struct timespec nap = {0, 5000};
     long spins = 0;
     while (atomic_load_explicit(seq, memory_order_acquire) < k) {
-        if (++spins < 2000) {
+        if (++spins < 500) {
             continue;
         }
-        if (!start) {
-            start = now_ns();
-        } else if (now_ns() - start > limit_ns) {
+        if (spins % 2000 == 0 && !peer_alive()) {
             return 0;
         }
-        sched_yield();
+        nanosleep(&nap, NULL);
     }
     return 1;
 }
 
-static void controller(const settings *s, shared *sh, timing *tm)
+/* SCHED_FIFO at priority and every page locked, when permitted; bit 0: FIFO, bit 1: locked. */
+static int real_time(int priority)
 {
     struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sched_priority = priority;
+    return (sched_setscheduler(0, SCHED_FIFO, &sp) == 0)
+           | ((mlockall(MCL_CURRENT | MCL_FUTURE) == 0) << 1);
+}
+
+static void controller(const settings *s, shared *sh, timing *tm)
+{
     double q[N], qd[N], r[N], rd[N], rdd[N], tau[N];
     ctrl_state st;
     long k;
-    int i;
-    memset(&sp, 0, sizeof sp);
-    sp.sched_priority = 80;
-    sh->sched_fifo = sched_setscheduler(0, SCHED_FIFO, &sp) == 0;
-    sh->mlocked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+    int i, rt = real_time(80);
+    sh->sched_fifo = rt & 1;
+    sh->mlocked = (rt >> 1) & 1;
     ctrl_reset(&st); /* Pinocchio's workspace for this thread, before the loop */
     atomic_store(&sh->go, 1);
     for (k = 0; k < s->cycles; ++k) {
@@ -223,8 +245,8 @@ static void controller(const settings *s, shared *sh, timing *tm)
         sleep_until(deadline);
         wake = now_ns();
         late = atomic_load_explicit(&sh->state_seq, memory_order_acquire) < k;
-        if (late && !wait_for(&sh->state_seq, k, 2000000000LL)) {
-            sh->ctrl_rc = -2; /* the plant stopped */
+        if (late && !wait_for(&sh->state_seq, k)) {
+            sh->ctrl_rc = -2; /* the arm's process died */
             return;
         }
         for (i = 0; i < N; ++i) {
@@ -260,10 +282,12 @@ int main(int argc, char **argv)
     double *Q, *TAU, x[N], v[N], held[N];
     FILE *out;
     long k, missed = 0;
-    int i, offline, status = 0;
+    int i, offline, status = 0, plant_rt = 0;
     pid_t child = -1;
-    if (argc != 4 || (strcmp(argv[1], "hil") && strcmp(argv[1], "offline"))) {
-        fprintf(stderr, "usage: %s hil|offline SETTINGS OUT\n", argv[0]);
+    unsigned char *holds = NULL;
+    if (argc < 4 || argc > 5 || (strcmp(argv[1], "hil") && strcmp(argv[1], "offline"))
+        || (argc == 5 && strcmp(argv[1], "offline"))) {
+        fprintf(stderr, "usage: %s hil|offline SETTINGS OUT [HOLDS]\n", argv[0]);
         return 2;
     }
     offline = !strcmp(argv[1], "offline");
@@ -285,6 +309,15 @@ int main(int argc, char **argv)
     memset(Q, 0, sizeof(double) * N * (size_t)s.cycles);
     memset(TAU, 0, sizeof(double) * N * (size_t)s.cycles);
     memset(sh, 0, sizeof *sh);
+    if (argc == 5) {
+        FILE *f = fopen(argv[4], "rb");
+        holds = calloc((size_t)s.cycles, 1);
+        if (!f || !holds || fread(holds, 1, (size_t)s.cycles, f) != (size_t)s.cycles) {
+            fprintf(stderr, "%s: cannot read %ld hold flags\n", argv[4], s.cycles);
+            return 2;
+        }
+        fclose(f);
+    }
     for (i = 0; i < N; ++i) {
         x[i] = s.q0[i];
         v[i] = s.qd0[i];
@@ -302,14 +335,22 @@ int main(int argc, char **argv)
                 fprintf(stderr, "ctrl_step failed at cycle %ld\n", k);
                 return 4;
             }
+            if (holds && holds[k]) {
+                ++missed; /* replayed: the arm holds the previous torque */
+            } else {
+                for (i = 0; i < N; ++i) {
+                    held[i] = tau[i];
+                }
+            }
             for (i = 0; i < N; ++i) {
                 Q[k * N + i] = x[i];
-                TAU[k * N + i] = tau[i];
+                TAU[k * N + i] = held[i];
             }
-            rk4(x, v, tau, s.Ts);
+            rk4(x, v, held, s.Ts);
         }
     } else {
         sh->t0 = now_ns() + 100000000LL; /* first tick 100 ms from now */
+        parent_pid = getpid();
         child = fork();
         if (child < 0) {
             perror("fork");
@@ -319,6 +360,8 @@ int main(int argc, char **argv)
             controller(&s, sh, tm);
             _exit(sh->ctrl_rc == CTRL_OK ? 0 : 1);
         }
+        child_pid = child;
+        plant_rt = real_time(70); /* the arm: below the controller */
         for (k = 0; k < s.cycles; ++k) {
             const int64_t deadline = sh->t0 + k * s.period_ns;
             reference(&s, (double)k * s.Ts, sh->r, sh->rd, sh->rdd);
@@ -328,10 +371,12 @@ int main(int argc, char **argv)
                 Q[k * N + i] = x[i];
             }
             atomic_store_explicit(&sh->state_seq, k, memory_order_release);
-            if (!wait_for(&sh->tau_seq, k + 1, 2000000000LL + (deadline - now_ns()))) {
-                fprintf(stderr, "no torque from the controller for cycle %ld (rc %d)\n", k,
-                        sh->ctrl_rc);
+            sleep_until(deadline); /* no torque of cycle k before its tick */
+            if (!wait_for(&sh->tau_seq, k + 1)) {
+                fprintf(stderr, "the controller's process ended before the torque of cycle %ld "
+                        "(rc %d)\n", k, sh->ctrl_rc);
                 status = 5;
+                child = -1; /* already reaped */
                 break;
             }
             if (sh->ctrl_rc != CTRL_OK) {
@@ -352,10 +397,12 @@ int main(int argc, char **argv)
             }
             rk4(x, v, held, s.Ts);
         }
-        if (status) {
+        if (status && child > 0) {
             kill(child, SIGKILL);
         }
-        waitpid(child, NULL, 0);
+        if (child > 0) {
+            waitpid(child, NULL, 0);
+        }
         if (status) {
             return status;
         }
@@ -371,7 +418,8 @@ int main(int argc, char **argv)
         fwrite(tm, sizeof *tm, (size_t)s.cycles, out);
     }
     fclose(out);
-    printf("cycles %ld missed %ld sched_fifo %d mlockall %d\n", s.cycles, missed,
-           offline ? 0 : sh->sched_fifo, offline ? 0 : sh->mlocked);
+    printf("cycles %ld missed %ld sched_fifo %d mlockall %d plant_sched_fifo %d "
+           "plant_mlockall %d\n", s.cycles, missed, offline ? 0 : sh->sched_fifo,
+           offline ? 0 : sh->mlocked, plant_rt & 1, (plant_rt >> 1) & 1);
     return 0;
 }
