@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import shutil
 
-import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 

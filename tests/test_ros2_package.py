@@ -169,7 +169,8 @@ def test_jitter_inside_the_band_changes_only_the_period(package):
     runs = []
     for periods in (np.full(len(steps), TS), jitter):
         lines = [*_started(folder), ref]
-        lines += [f"update {float(p)!r} {_vec(q)} {_vec(qd)}" for p, (q, qd) in zip(periods, steps)]
+        lines += [f"update {float(p)!r} {_vec(q)} {_vec(qd)}"
+                  for p, (q, qd) in zip(periods, steps, strict=True)]
         runs.append(_updates(_drive(drivers["jazzy"], lines)[0]))
     (tau_a, fault_a, used_a), (tau_b, fault_b, used_b) = runs
     assert set(fault_a) == set(fault_b) == {NONE}

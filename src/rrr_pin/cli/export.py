@@ -17,8 +17,9 @@ def add(sub) -> None:
         "export", help="write a built-in controller as C code for a real-time loop",
         description="Writes --law on --robot, sampled at --rate, into --out: controller.h/.c "
                     "(C99, ctrl_reset/ctrl_step), the model's dynamics (generated C for the "
-                    "nominal RRR, Pinocchio C++ otherwise), CMakeLists.txt, main.c, "
-                    "ros2_controller.hpp and controller.json. Build with cmake -S DIR -B "
+                    "nominal RRR, Pinocchio C++ otherwise), CMakeLists.txt, main.c and "
+                    "controller.json (with --ros2, a ros2_control package in DIR/ros2). "
+                    "Build with cmake -S DIR -B "
                     "DIR/build && cmake --build DIR/build.")
     p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
                    help="arm: 'rrr' (default), an example-robot-data name (ur5, ...) or a URDF "

@@ -91,7 +91,7 @@ def _record(folder: Path) -> dict:
 
 
 def _robot(record: dict):
-    """The arm the export was made for, by its recorded name and checked by fingerprint."""
+    """Return the arm the export was made for, loaded by its recorded name, fingerprint checked."""
     from ..model.dynamics import load_robot
     from ..sim.codegen import fingerprint
 
