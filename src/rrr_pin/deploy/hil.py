@@ -178,7 +178,7 @@ def _loadavg() -> list[float] | None:
 
 def hil(folder, cycles: int, out, *, rate: float | None = None,
         overwrite: bool = False) -> HilResult:
-    """Run an exported, built-for-the-nominal-arm controller in real time; write ``hil.json``.
+    """Run an exported controller in real time against its nominal arm; write ``hil.json``.
 
     Parameters
     ----------

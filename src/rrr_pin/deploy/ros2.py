@@ -193,7 +193,7 @@ endforeach()
 
 # The exported law (static library rrr_pin_ctrl, position-independent), from the parent folder.
 get_filename_component(RRR_PIN_EXPORT "${{CMAKE_CURRENT_SOURCE_DIR}}/.." REALPATH)
-add_subdirectory("${{RRR_PIN_EXPORT}}" rrr_pin_ctrl)
+add_subdirectory("${{RRR_PIN_EXPORT}}" rrr_pin_ctrl EXCLUDE_FROM_ALL)
 
 add_library({PACKAGE} SHARED src/exported_law_controller.cpp)
 target_include_directories({PACKAGE} PUBLIC
