@@ -223,7 +223,7 @@ def _design_record(design) -> dict | None:
 
 
 def _model_parameters(robot) -> dict:
-    """The inertial parameters the exported dynamics carry (an identified model's travel here).
+    """Return the inertial parameters the exported dynamics carry (an identified model's too).
 
     Per joint, the 10 parameters of its body in Pinocchio's ``toDynamicParameters`` order
     (``m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz``, about the joint frame, SI),
