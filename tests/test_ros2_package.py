@@ -263,6 +263,13 @@ def test_bad_parameters_refused_at_configure(package, changes, message):
     assert message in err
 
 
+def test_controller_manager_at_another_rate_refused(package):
+    ex, robot, folder, _, drivers = package
+    out, err = _drive(drivers["jazzy"], [*_params(folder), "init 500", "configure"])
+    assert out == ["init SUCCESS", "configure ERROR"]
+    assert "updates this controller at 500 Hz; the law was discretized for 1000 Hz" in err
+
+
 def test_torque_limit_clips_and_counts(package):
     ex, robot, folder, _, drivers = package
     q = np.array([0.3, -0.5, 0.9])

@@ -2,7 +2,8 @@
 // package of `rrr-pin export --ros2`, against the stubs of this folder. Commands on stdin, one
 // per line; answers on stdout (numbers with %.17g):
 //   param NAME d VALUE | param NAME s TEXT | param NAME da K V1..VK | param NAME sa K S1..SK
-//   init                      -> "init SUCCESS|ERROR"  (the plugin made by its exported name)
+//   init [RATE]               -> "init SUCCESS|ERROR"  (the plugin made by its exported name;
+//                                the controller manager's update rate, default 1000 Hz)
 //   configure                 -> "configure SUCCESS|ERROR"
 //   activate Q1..Qn QD1..QDn  -> "activate SUCCESS|ERROR"
 //   ref NP P.. NV V.. NA A..  -> (the subscription's callback, as the executor would call it)
@@ -76,7 +77,9 @@ int main()
         overrides.emplace_back(name, rclcpp::ParameterValue(v));
       }
     } else if (cmd == "init") {
-      std::printf("init %s\n", name_of(c->init("rrr_pin_controller", overrides)));
+      std::string token;
+      const unsigned int rate = (in >> token) ? static_cast<unsigned int>(std::stoul(token)) : 1000u;
+      std::printf("init %s\n", name_of(c->init("rrr_pin_controller", overrides, rate)));
     } else if (cmd == "configure") {
       const auto r = c->on_configure(state);
       if (r == controller_interface::CallbackReturn::SUCCESS) {

@@ -16,8 +16,8 @@ ROS 2 user builds with colcon (``colcon build --paths <export>/ros2``):
 The controller's rules, stated once here and in the header:
 
 - **Parameters are checked at configure** (``on_configure``): ``joints`` must be the exported
-  joints in their order (a missing or extra joint is named), ``rate_hz`` the rate the law was
-  discretized for, the gains (``lam``; ``kp``/``kd`` of PD) those compiled in; otherwise the
+  joints in their order (a missing or extra joint is named), ``rate_hz`` and the controller
+  manager's update rate the rate the law was discretized for, the gains (``lam``; ``kp``/``kd`` of PD) those compiled in; otherwise the
   transition fails with the reason logged. Nothing else is computed than what was exported.
 - **The reference** comes from the topic ``~/reference`` (``trajectory_msgs/JointTrajectoryPoint``:
   positions, and velocities and accelerations or none for zeros) through a
@@ -499,6 +499,11 @@ CallbackReturn ExportedLawController::on_configure(const rclcpp_lifecycle::State
   if (rate_hz_ != CTRL_RATE_HZ) {{
     RCLCPP_ERROR(logger, "parameter rate_hz = %g Hz: the law was discretized for %g Hz; export "
                  "it again at that rate", rate_hz_, CTRL_RATE_HZ);
+    return CallbackReturn::ERROR;
+  }}
+  if (get_update_rate() != 0 && static_cast<double>(get_update_rate()) != rate_hz_) {{
+    RCLCPP_ERROR(logger, "the controller manager updates this controller at %u Hz; the law was "
+                 "discretized for %g Hz: set update_rate to it", get_update_rate(), rate_hz_);
     return CallbackReturn::ERROR;
   }}
   tolerance_ = node->get_parameter("period_tolerance").as_double();

@@ -48,6 +48,7 @@ public:
   virtual CallbackReturn on_init() = 0;
   virtual return_type update(const rclcpp::Time & time, const rclcpp::Duration & period) = 0;
   std::shared_ptr<rclcpp_lifecycle::LifecycleNode> get_node() { return node_; }
+  unsigned int get_update_rate() const { return update_rate_; }
   std::shared_ptr<const rclcpp_lifecycle::LifecycleNode> get_node() const { return node_; }
   template <typename ParameterT>
   auto auto_declare(const std::string & name, const ParameterT & default_value)
@@ -56,11 +57,12 @@ public:
     return node_->get_parameter(name).get_value<ParameterT>();
   }
   /// STUB of init(controller_name, urdf, cm_update_rate, namespace, node_options): makes the
-  /// node, with the YAML's values as overrides (set by the caller through the returned node
-  /// before on_init, here: `overrides`), then calls on_init().
+  /// node with the YAML's values as overrides, records the update rate, calls on_init().
   CallbackReturn init(const std::string & controller_name,
-                      const std::vector<std::pair<std::string, rclcpp::ParameterValue>> & overrides)
+                      const std::vector<std::pair<std::string, rclcpp::ParameterValue>> & overrides,
+                      unsigned int cm_update_rate)
   {
+    update_rate_ = cm_update_rate;
     node_ = std::make_shared<rclcpp_lifecycle::LifecycleNode>(controller_name);
     for (const auto & o : overrides) node_->set_override(o.first, o.second);
     return on_init();
@@ -72,6 +74,7 @@ protected:
 
 private:
   std::shared_ptr<rclcpp_lifecycle::LifecycleNode> node_;
+  unsigned int update_rate_ = 0;
 };
 
 class ControllerInterface : public ControllerInterfaceBase
