@@ -291,12 +291,11 @@ STUB_PACKAGES = ("ament_cmake", "controller_interface", "hardware_interface", "p
                  "rclcpp", "rclcpp_lifecycle", "realtime_tools", "trajectory_msgs")
 
 
-def test_package_cmake_builds_the_plugin_against_stub_packages(package, tmp_path):
-    """The package's own CMakeLists (add_subdirectory(..), pluginlib export, install) builds."""
+def _build_package(folder: Path, tmp_path: Path) -> Path:
+    """Configure and build ``folder/ros2`` with the stub packages; return the build folder."""
     cmake = shutil.which("cmake")
     if cmake is None:
         pytest.skip("no cmake")
-    _, _, folder, _, _ = package
     stubs = [f"-D{name}_DIR={STUBS / 'cmake'}" for name in STUB_PACKAGES]
     build = tmp_path / "build"
     log = subprocess.run([cmake, "-S", str(folder / "ros2"), "-B", str(build), *stubs,
@@ -308,6 +307,25 @@ def test_package_cmake_builds_the_plugin_against_stub_packages(package, tmp_path
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert (build / "librrr_pin_controller.so").is_file()
     assert not (build / "rrr_pin_ctrl" / "ctrl_main").exists()  # EXCLUDE_FROM_ALL: not built
+    return build
+
+
+def test_package_cmake_builds_the_plugin_against_stub_packages(package, tmp_path):
+    """The package's own CMakeLists (add_subdirectory(..), pluginlib export, install) builds."""
+    _build_package(package[2], tmp_path)
+
+
+@pytest.mark.slow
+def test_ur5_package_builds_with_pinocchio_dynamics(tmp_path):
+    """UR5: the law's Pinocchio C++ pulled in by add_subdirectory, linked into the plugin."""
+    robot = load_robot("ur5")
+    folder = tmp_path / "ur5"
+    ex = export_law("fl", robot, RATE, folder)
+    write_ros2_package(ex, robot, folder)
+    build = _build_package(folder, tmp_path)
+    needed = subprocess.run(["ldd", str(build / "librrr_pin_controller.so")],
+                            capture_output=True, text=True, check=True).stdout
+    assert "libpinocchio_default" in needed and "not found" not in needed
 
 
 def test_cli_export_ros2(tmp_path, capsys):
