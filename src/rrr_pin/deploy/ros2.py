@@ -18,7 +18,8 @@ The controller's rules, stated once here and in the header:
 - **Parameters are checked at configure** (``on_configure``): ``joints`` must be the exported
   joints in their order (a missing or extra joint is named), ``rate_hz`` and the controller
   manager's update rate the rate the law was discretized for, the gains (``lam``; ``kp``/``kd``
-  of PD) those compiled in; otherwise the transition fails with the reason logged. Nothing else is computed than what was exported.
+  of PD) those compiled in; otherwise the transition fails with the reason logged. Nothing
+  else is computed than what was exported.
 - **The reference** comes from the topic ``~/reference`` (``trajectory_msgs/JointTrajectoryPoint``:
   positions, and velocities and accelerations or none for zeros) through a
   ``realtime_tools::RealtimeBuffer`` (the subscriber writes, ``update`` reads without blocking).
