@@ -65,6 +65,7 @@ PARSE_ONLY = {
     "reproduce": "its figures take ~25 s even shrunk",
     "--data": "needs a measured log (scripts/identify_example.py writes one)",
     "--uncertainty": "needs an identification.json (rrr-pin identify writes one)",
+    "hil": "needs an exported folder, and runs for minutes; tests/test_hil.py runs it",
 }
 
 #: Python blocks (named by a line they hold) that are compiled, not run, and why.

@@ -13,13 +13,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import analysis, campaign, descriptions, design, export, identify, reproduce, stress
+from . import analysis, campaign, descriptions, design, export, hil, identify, reproduce, stress
 from .common import logging_to_stderr, negative_values
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: The command modules, in the order of ``rrr-pin --help``.
-COMMANDS = (descriptions, design, reproduce, campaign, stress, identify, analysis, export)
+COMMANDS = (descriptions, design, reproduce, campaign, stress, identify, analysis, export, hil)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -17,8 +17,9 @@ def add(sub) -> None:
         "export", help="write a built-in controller as C code for a real-time loop",
         description="Writes --law on --robot, sampled at --rate, into --out: controller.h/.c "
                     "(C99, ctrl_reset/ctrl_step), the model's dynamics (generated C for the "
-                    "nominal RRR, Pinocchio C++ otherwise), CMakeLists.txt, main.c, "
-                    "ros2_controller.hpp and controller.json. Build with cmake -S DIR -B "
+                    "nominal RRR, Pinocchio C++ otherwise), CMakeLists.txt, main.c and "
+                    "controller.json (with --ros2, a ros2_control package in DIR/ros2). "
+                    "Build with cmake -S DIR -B "
                     "DIR/build && cmake --build DIR/build.")
     p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
                    help="arm: 'rrr' (default), an example-robot-data name (ur5, ...) or a URDF "
@@ -40,6 +41,9 @@ def add(sub) -> None:
                    help="hinf: the full-order K instead of the reduced eq. (18)")
     p.add_argument("--out", default="controller", metavar="DIR",
                    help="output folder (controller/)")
+    p.add_argument("--ros2", action="store_true",
+                   help="also write DIR/ros2/, a ros2_control controller package (package.xml, "
+                        "plugin, parameters YAML); build it with colcon build --paths DIR/ros2")
     add_overwrite(p)
     p.set_defaults(func=run_export)
 
@@ -68,11 +72,18 @@ def run_export(args) -> int:
     if out is None:  # --overwrite: the previous export is removed now that the options hold
         out = claim_out(args, "export")
     prepared.write(out)
+    if args.ros2:
+        from ..deploy.ros2 import write_ros2_package
+
+        write_ros2_package(prepared, robot, out)
     print(f"{robot.name}: {prepared.law.name} ({prepared.form.kind}, {prepared.law.nx} states) "
           f"at {prepared.rate:g} Hz, {prepared.dynamics} dynamics")
     print(f"wrote {out}/: {', '.join(prepared.files)}")
     print(f"build: cmake -S {out} -B {out}/build && cmake --build {out}/build && "
           f"{out}/build/ctrl_main")
+    if args.ros2:
+        print(f"ros2_control package: {out}/ros2/ (colcon build --paths {out}/ros2; parameters "
+              f"in {out}/ros2/config/rrr_pin_controller.yaml)")
     return 0
 
 

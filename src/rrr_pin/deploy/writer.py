@@ -11,13 +11,15 @@ twin of the exported code, the :class:`~rrr_pin.control.laws.SampledLaw` it repr
 The folder (:data:`FILES`): ``controller.h``, ``controller.c`` (the law, C99), ``dynamics.h``
 and ``dynamics.c`` + ``codegen_rrr.c`` (the nominal RRR's generated dynamics) or
 ``dynamics.cpp`` (Pinocchio C++ on the embedded model), ``CMakeLists.txt``, ``main.c``,
-``ros2_controller.hpp`` + ``ros2_mock.hpp`` and ``controller.json``.
+and ``controller.json``; with ``rrr-pin export --ros2``, a ros2_control package in ``ros2/``
+(:mod:`rrr_pin.deploy.ros2`).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,8 +51,7 @@ VERSION = 1
 
 #: Every file an export may write (the dynamics files depend on the model).
 FILES = ("controller.h", "controller.c", "dynamics.h", "dynamics.c", "codegen_rrr.c",
-         "dynamics.cpp", "CMakeLists.txt", "main.c", "ros2_controller.hpp", "ros2_mock.hpp",
-         "controller.json")
+         "dynamics.cpp", "CMakeLists.txt", "main.c", "controller.json")
 
 #: Pinocchio joint types the C API (one ``q`` and one ``qd`` per joint) expresses.
 EXPRESSIBLE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ",
@@ -221,6 +222,25 @@ def _design_record(design) -> dict | None:
                                    "margin_db": float(design.robust_performance.margin_db)}}
 
 
+def _model_parameters(robot) -> dict:
+    """Return the inertial parameters the exported dynamics carry (an identified model's too).
+
+    Per joint, the 10 parameters of its body in Pinocchio's ``toDynamicParameters`` order
+    (``m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz``, about the joint frame, SI),
+    and the model's armature, damping and friction. The law compensates ``M(q)`` (armature
+    included) and ``h(q, qd)``; the URDF's damping and friction are recorded, not compensated.
+    """
+    model = robot.model
+    return {"parameters": {
+        "layout": "per joint: m, m*c_x, m*c_y, m*c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz "
+                  "(about the joint frame) [kg, kg m, kg m^2]",
+        "values": [model.inertias[i].toDynamicParameters().tolist()
+                   for i in range(1, model.njoints)],
+        "armature": model.armature.tolist(), "damping": model.damping.tolist(),
+        "friction": model.friction.tolist(),
+        "friction_compensated": False}}
+
+
 #: Why an export needs a URDF-described serial tree (the refusal's reason).
 _NEEDS = ("the exported C code holds a serial tree's dynamics (CRBA and RNEA, or its generated "
           "C) and no loop closure")
@@ -312,10 +332,9 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                                                               robot.name)
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
     files["CMakeLists.txt"] = sources.cmakelists(pinocchio=not use_generated,
-                                                 version=pin.__version__)
+                                                 version=pin.__version__,
+                                                 python=sys.executable)
     files["main.c"] = sources.main_c(q0=q0)
-    files["ros2_controller.hpp"] = sources.ros2_controller_hpp()
-    files["ros2_mock.hpp"] = sources.ros2_mock_hpp()
     if form.kind == "pd":
         law_record = {"kind": "pd", "Kp": form.Kp.tolist(), "Kd": form.Kd.tolist()}
     else:
@@ -340,7 +359,8 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         "law": {"name": twin.name, "label": twin.label or twin.name,
                 "class": f"{type(law).__module__}.{type(law).__qualname__}", **law_record},
         "rate_hz": rate, "nq": n, "nx": nx, "joints": list(robot.joint_names),
-        "model": {"name": robot.name, "fingerprint": fp, "dynamics": dynamics},
+        "model": {"name": robot.name, "fingerprint": fp, "dynamics": dynamics,
+                  **_model_parameters(robot)},
         "design": _design_record(design),
     }
     files["controller.json"] = json.dumps(record, indent=2, sort_keys=True) + "\n"
@@ -355,8 +375,9 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
     The folder holds ``controller.h``/``controller.c`` (C99: no allocation, no mutable global,
     re-entrant) with ``ctrl_reset``/``ctrl_step``, the nominal model's dynamics (the generated
     C of the nominal RRR, or a C++ file calling Pinocchio on the embedded model), a
-    ``CMakeLists.txt`` (static library ``rrr_pin_ctrl``), an example ``main.c``,
-    ``ros2_controller.hpp`` (with ``ros2_mock.hpp``) and ``controller.json``. The same
+    ``CMakeLists.txt`` (static library ``rrr_pin_ctrl``), an example ``main.c`` and
+    ``controller.json`` (:func:`rrr_pin.deploy.ros2.write_ros2_package` adds a ros2_control
+    package). The same
     arguments give byte-identical files.
 
     Parameters
