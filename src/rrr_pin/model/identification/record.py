@@ -67,6 +67,27 @@ def check_identification_record(record: dict, path) -> None:
         raise IdentificationError(f"identification {str(path)!r}: 'cov' is not positive "
                                   f"definite (smallest eigenvalue "
                                   f"{np.linalg.eigvalsh(cov).min():.3g})") from None
+    f = record.get("friction_estimate") or []
+    if f and record.get("cov_all") is not None:
+        try:
+            cov_all = np.asarray(record["cov_all"], dtype=float)
+            f = np.asarray(f, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise IdentificationError(f"identification {str(path)!r}: 'cov_all' or "
+                                      f"'friction_estimate' not numbers: {exc}") from None
+        P = p + f.size
+        if f.size != 3 * len(record["joints"]) or cov_all.shape != (P, P):
+            raise IdentificationError(
+                f"identification {str(path)!r}: 'friction_estimate' has {f.size} values "
+                f"(3 per joint of {len(record['joints'])}) and 'cov_all' shape "
+                f"{cov_all.shape}, expected ({P}, {P})")
+        try:
+            if not np.all(np.isfinite(cov_all)) or not np.all(np.isfinite(f)):
+                raise np.linalg.LinAlgError
+            np.linalg.cholesky(0.5 * (cov_all + cov_all.T))
+        except np.linalg.LinAlgError:
+            raise IdentificationError(f"identification {str(path)!r}: 'cov_all' is not "
+                                      f"finite and positive definite") from None
 
 
 # --- the uncertainty set of an identification -------------------------------------------------
@@ -87,6 +108,15 @@ class IdentifiedUncertainty(UncertaintySet):
     consistency (within the confidence region): where the estimate lies near the boundary of
     the consistent set (thin links), many draws are rejected, none is moved. The kinematics
     stay the nominal's. Each plant records how many draws were rejected.
+
+    When the identification has friction (``identify --friction``), base and friction
+    parameters are drawn together, from their joint covariance (``cov_all``) in its
+    ``confidence`` ellipsoid (of ``p + 3 nq`` dimensions), around the consistent base
+    parameters and the friction estimate; a draw with a negative viscous or Coulomb
+    coefficient (friction that would feed energy in) is rejected and redrawn like an
+    inconsistent one. Each plant's URDF carries its drawn friction as ``<dynamics damping
+    friction>`` (simulated with ``PlantEffects(viscous="urdf", coulomb="urdf")``, CLI
+    ``--friction urdf``); the offsets are drawn but neither simulated nor written.
 
     Parameters
     ----------
@@ -204,7 +234,7 @@ class IdentifiedUncertainty(UncertaintySet):
         return urdf, {"identified": drawn}
 
     def draw(self, urdf: str, rng: np.random.Generator) -> tuple[str, dict]:
-        """One plant: its URDF text and ``{"base", "standard", "rejected": {...}}``.
+        """One plant: its URDF text and ``{"base", "standard", "friction", "rejected": {...}}``.
 
         Raises
         ------
@@ -216,16 +246,33 @@ class IdentifiedUncertainty(UncertaintySet):
         rec = self.record
         mean = np.asarray(rec["base_consistent"], float)
         cov = np.asarray(rec["cov"], float)
+        p = len(mean)
+        f_mean = np.asarray(rec.get("friction_estimate") or [], float)
+        if f_mean.size and rec.get("cov_all") is not None:
+            mean = np.concatenate([mean, f_mean])
+            cov = np.asarray(rec["cov_all"], float)
+        else:
+            f_mean = np.zeros(0)
         L = np.linalg.cholesky(cov)
         limit = chi2.ppf(self.confidence, len(mean))
         problem, theta, phi = self._problem()
-        outside = inconsistent = 0
+        outside = inconsistent = negative = 0
         for _ in range(self.MAX_DRAWS):
             z = rng.standard_normal(len(mean))
             if z @ z > limit:
                 outside += 1
                 continue
-            theta.value = mean + L @ z
+            x = mean + L @ z
+            friction = None
+            if f_mean.size:
+                f = x[p:].reshape(-1, 3)
+                if np.any(f[:, :2] < 0.0):
+                    negative += 1
+                    continue
+                friction = {j: {"viscous_Nms_rad": float(fj[0]), "coulomb_Nm": float(fj[1]),
+                                "offset_Nm": float(fj[2])}
+                            for j, fj in zip(rec["joints"], f, strict=True)}
+            theta.value = x[:p]
             try:
                 problem.solve(solver="CLARABEL")
                 ok = problem.status == "optimal"
@@ -233,16 +280,20 @@ class IdentifiedUncertainty(UncertaintySet):
                 ok = False
             if ok:
                 try:
-                    text = urdf_with_parameters(urdf, rec["links"], phi.value)
+                    text = urdf_with_parameters(urdf, rec["links"], phi.value,
+                                                friction=friction)
                 except ValueError:  # not physical after all (round-off): rejected
                     ok = False
             if not ok:
                 inconsistent += 1
                 continue
+            rejected = {"outside_confidence": outside, "inconsistent": inconsistent}
+            if f_mean.size:
+                rejected["negative_friction"] = negative
             return text, {"base": theta.value.tolist(), "standard": phi.value.tolist(),
-                          "rejected": {"outside_confidence": outside,
-                                       "inconsistent": inconsistent}}
+                          "friction": friction, "rejected": rejected}
         raise IdentificationError(
             f"{self.path}: no physically consistent plant in {self.MAX_DRAWS} draws "
             f"({outside} outside the {self.confidence:.0%} region, {inconsistent} with no "
-            f"consistent arm); the identified covariance is too wide for this arm")
+            f"consistent arm, {negative} with negative friction); the identified covariance "
+            f"is too wide for this arm")
