@@ -77,7 +77,7 @@ def gaz_phi() -> np.ndarray:
 
 
 def gaz_friction(qd) -> np.ndarray:
-    """The published sigmoid friction [N m] at ``qd`` [rad/s], shape (N, 7)."""
+    """Return the published sigmoid friction [N m] at ``qd`` [rad/s], shape (N, 7)."""
     p1, p2, p3 = GAZ_FRICTION
     return p1 / (1.0 + np.exp(-p2 * (qd + p3))) - p1 / (1.0 + np.exp(-p2 * p3))
 
