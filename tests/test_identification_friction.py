@@ -439,4 +439,9 @@ def test_friction_of_the_wrong_sign_is_warned(rrr):
     fr = FRICTION * np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0]])
     data = _data(rrr, truth, np.arange(0.0, 10.0, 0.02), noise=0.05, friction=fr)
     with pytest.warns(UserWarning, match=r"friction of the wrong sign .*joint2 coulomb_Nm -4"):
-        idn.identify(rrr, data, held_out=0.0, friction=True, refuse_inconsistent=False)
+        res = idn.identify(rrr, data, held_out=0.0, friction=True, refuse_inconsistent=False)
+    # the URDF cannot hold it: written as 0 (not left at the nominal's), recorded as such
+    ident = robot_from_xml(res.urdf, name="identified")
+    assert ident.joint_friction()[1][1] == 0.0
+    assert res.summary["friction_urdf"]["joint2"]["friction"] == 0.0
+    assert res.summary["friction"]["joint2"]["coulomb_Nm"] < -3.0

@@ -254,8 +254,9 @@ def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -
     friction : dict, optional
         ``{joint: {"viscous_Nms_rad", "coulomb_Nm", ...}}``: written as each joint's
         ``<dynamics damping=... friction=...>`` (URDF's viscous and Coulomb coefficients; the
-        offset has no URDF field and stays in ``identification.json``; so does a negative
-        coefficient, which URDF readers refuse).
+        offset has no URDF field and stays in ``identification.json``; a negative coefficient,
+        which URDF readers refuse and which would feed energy in, is written as 0, the
+        nearest admissible value, and stays as estimated in the JSON, warned).
 
     Returns
     -------
@@ -300,10 +301,9 @@ def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -
         f = (friction or {}).get(joint.get("name"))
         if f is None:
             continue
-        values = {"damping": float(f["viscous_Nms_rad"]), "friction": float(f["coulomb_Nm"])}
-        values = {k: v for k, v in values.items() if v >= 0.0}  # URDF: >= 0 (a negative one
-        if not values:                                          # stays in the JSON, warned)
-            continue
+        # URDF: >= 0; a negative estimate is written as 0 (not left at the nominal's value)
+        values = {"damping": max(float(f["viscous_Nms_rad"]), 0.0),
+                  "friction": max(float(f["coulomb_Nm"]), 0.0)}
         el = joint.find("dynamics")
         if el is None:
             el = ET.SubElement(joint, "dynamics")

@@ -405,6 +405,11 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "sigma2_weighted": s2, "consistency": consistency,
         "friction_model": "viscous + coulomb + offset" if friction else None,
         "friction": fr, "model_error_warning": suspect or None,
+        "friction_urdf": None if not fr else {
+            j: {"damping": max(v["viscous_Nms_rad"], 0.0), "friction": max(v["coulomb_Nm"], 0.0)}
+            for j, v in fr.items()},
+        "friction_urdf_note": None if not fr else "each joint's <dynamics damping friction> "
+                              "in the identified URDF: the estimate, a negative one written as 0",
         "intervals_cover": "noise only: a model error (unmodelled friction, delays, "
                            "flexibility) is not in the standard deviations",
     }
