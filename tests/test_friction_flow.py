@@ -267,3 +267,41 @@ def test_montecarlo_on_drawn_plants_simulates_their_friction(friction_record, tm
     assert summary["summary"]["engines"]["fl"] == {"python": 2}  # compensation: Python only
     drawn = [json.loads(line) for line in (out / "samples.jsonl").read_text().splitlines()]
     assert all(d["parameters"]["identified"]["friction"] for d in drawn)
+
+
+def test_projected_draws_are_consistent_and_record_the_move(friction_record, rrr):
+    from rrr_pin.model import identification as idn
+    from rrr_pin.model.identification import IdentifiedUncertainty
+
+    path = str(friction_record / "identification.json")
+    with pytest.raises(ValueError, match="draws must be one of reject, project"):
+        IdentifiedUncertainty(path, draws="move")
+    tol = IdentifiedUncertainty(path, draws="project")
+    assert tol.to_dict()["draws"] == "project"
+    urdf = (friction_record / "identified.urdf").read_text()
+    # a base point no arm has (the first base parameter, a mass sum, made negative)
+    theta = np.asarray(tol.record["base_consistent"], float).copy()
+    theta[0] = -abs(theta[0])
+    text, phi, moved = tol._project(urdf, theta, None)
+    assert moved > 0.0
+    for b in range(3):  # physically consistent after the move
+        assert np.linalg.eigvalsh(idn.pseudo_inertia(phi[10 * b:10 * b + 10])).min() > 0.0
+    text, info = tol.draw(urdf, np.random.default_rng(2))
+    assert set(info["rejected"]) >= {"projected", "projected_mahalanobis", "friction_clipped"}
+
+
+def test_friction_too_stiff_for_the_substep_is_refused(rubbing):
+    """Fc / v_eps on a light arm is a damper faster than RK4's step: refused up front, with
+    the step that would hold it."""
+    law = fl_controller(rubbing)
+    with pytest.raises(EffectsError, match=r"too fast for the plant sub-step h = 0.001 s .*"
+                                           r"lower dt below"):
+        simulate(rubbing, law, _ref(rubbing), 0.01, rate=RATE,
+                 effects=PlantEffects(viscous=0.0, coulomb=500.0, coulomb_velocity=1e-4))
+
+
+def test_friction_spec_urdf_takes_a_smoothing_speed():
+    assert friction_spec("urdf,smooth=0.05", 3) == {"viscous": "urdf", "coulomb": "urdf",
+                                                    "coulomb_velocity": 0.05}
+    with pytest.raises(ValueError, match="urdf takes smooth=S"):
+        friction_spec("urdf,viscous=1", 3)

@@ -232,6 +232,78 @@ def test_a_band_no_body_meets_is_refused(rrr, band):
         idn.identify(rrr, data, held_out=0.0, mass_band=band)
 
 
+def _thick(robot, radius=0.05):
+    """The nominal RRR given links of ``radius`` (its pseudo-inertias positive definite)."""
+    phi = idn.standard_parameters(robot)
+    for b in range(robot.nq):
+        phi[10 * b + np.array([4, 6, 9])] += 0.5 * phi[10 * b] * radius**2
+    return robot_from_xml(idn.urdf_with_parameters(robot.urdf, idn.body_links(robot), phi),
+                          name="thick")
+
+
+def _inside_band(phi, phi0, f, tol):
+    """Smallest eigenvalue of J - J0 / f and of f J0 - J over the bodies (>= -tol: inside)."""
+    worst = np.inf
+    for b in range(len(phi) // 10):
+        J, J0 = (idn.pseudo_inertia(x[10 * b:10 * b + 10]) for x in (phi, phi0))
+        worst = min(worst, np.linalg.eigvalsh(J - J0 / f).min(),
+                    np.linalg.eigvalsh(f * J0 - J).min())
+    return worst >= -tol
+
+
+def _band_needed(phi, phi0) -> float:
+    """Smallest f with J0 / f <= J <= f J0 for every body (generalized eigenvalues)."""
+    f = 1.0
+    for b in range(len(phi) // 10):
+        J, J0 = (idn.pseudo_inertia(x[10 * b:10 * b + 10]) for x in (phi, phi0))
+        L = np.linalg.cholesky(J0)
+        w = np.linalg.eigvalsh(np.linalg.solve(L, np.linalg.solve(L, J).T))
+        f = max(f, w.max(), 1.0 / w.min())
+    return f
+
+
+def test_inertia_band_keeps_every_body_inside_and_the_base_parameters(rrr):
+    """The plausible-parameter stage with a band on whole bodies (issue 32 item 3): a band 20 %
+    wider than the truth needs around the thick nominal (computed first), so the bounded arm
+    has every body inside the band and PSD, and the base parameters of the unbounded fit (the
+    solver's tolerance, as for the mass band: 1e-5 of the largest)."""
+    nominal, truth = _thick(rrr), _truth(rrr)
+    phi0 = idn.standard_parameters(nominal)
+    f = 1.2 * _band_needed(idn.standard_parameters(truth), phi0)
+    assert _inside_band(idn.standard_parameters(truth), phi0, f, 0.0)  # the premise
+    data = _data(nominal, truth, np.arange(0.0, 10.0, 0.02), noise=0.05, friction=None)
+    free = idn.identify(nominal, data, held_out=0.0)
+    bounded = idn.identify(nominal, data, held_out=0.0, inertia_band=f)
+    scale = max(np.linalg.eigvalsh(idn.pseudo_inertia(phi0[10 * b:10 * b + 10])).max()
+                for b in range(3))
+    assert _inside_band(bounded.phi, phi0, f, 1e-7 * scale)  # the SDP's tolerance
+    assert f"pseudo-inertia between J0 / {f:g}" in bounded.summary["consistency"]["bounded"]
+    assert bounded.summary["standard_nominal"] == phi0.tolist()
+    ref = np.abs(free.base(free.phi)).max()
+    assert_allclose(bounded.base(bounded.phi), free.base(free.phi), rtol=0, atol=1e-5 * ref)
+
+
+def test_an_inertia_band_the_data_refute_is_refused(rrr, tmp_path, capsys):
+    """Bounds no consistent arm near the estimate meets (the thin-rod nominal, 1 % band):
+    refused by name, exit 2, no traceback."""
+    data = _data(rrr, _truth(rrr), np.arange(0.0, 10.0, 0.02), noise=0.05, friction=None)
+    csv = _write_csv(tmp_path / "log.csv", rrr, data, kinds=("q", "qd", "qdd", "tau"))
+    assert main(["identify", "--robot", str(_write_urdf(tmp_path, _thick(rrr))),
+                 "--data", str(csv), "--inertia-band", "1.01", "--out",
+                 str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "infeasible consistency problem" in err and "Traceback" not in err
+    assert main(["identify", "--data", str(csv), "--inertia-band", "1", "--out",
+                 str(tmp_path / "o")]) == 2
+    assert "--inertia-band must be a finite factor > 1" in capsys.readouterr().err
+
+
+def _write_urdf(folder, robot):
+    path = folder / f"{robot.name}.urdf"
+    path.write_text(robot.urdf)
+    return path
+
+
 # --- bad input (issue 31) ---------------------------------------------------------------------
 
 @pytest.fixture(scope="module")

@@ -80,11 +80,15 @@ def friction_spec(text, n: int) -> dict:
     if text is None:
         return {}
     text = text.strip()
-    if text == "urdf":
-        return {"viscous": "urdf", "coulomb": "urdf"}
+    items = [s.strip() for s in text.split(",") if s.strip()]
     keys = {"viscous": "viscous", "coulomb": "coulomb", "smooth": "coulomb_velocity"}
     out = {}
-    for item in (s.strip() for s in text.split(",") if s.strip()):
+    if items and items[0] == "urdf":
+        out = {"viscous": "urdf", "coulomb": "urdf"}
+        items = items[1:]
+        if any(not s.startswith("smooth=") for s in items):
+            raise ValueError(f"--friction urdf takes smooth=S [rad/s] only, got {text!r}")
+    for item in items:
         key, sep, value = item.partition("=")
         key = key.strip()
         if not sep or key not in keys or keys[key] in out:
@@ -154,7 +158,8 @@ def tolerances_from_args(args, plant):
 
     not_a_folder(uncertainty=args.uncertainty)
     with as_options():
-        tol = IdentifiedUncertainty(args.uncertainty, confidence=args.confidence)
+        tol = IdentifiedUncertainty(args.uncertainty, confidence=args.confidence,
+                                    draws=getattr(args, "uncertainty_draws", "reject"))
     tol.check_robot(plant)
     return tol
 
@@ -211,6 +216,14 @@ def rejections_line(entries) -> str | None:
     outside = sum(d["outside_confidence"] for d in drawn)
     inconsistent = sum(d["inconsistent"] for d in drawn)
     negative = sum(d.get("negative_friction", 0) for d in drawn)
+    if any("projected" in d for d in drawn):  # --uncertainty-draws project: moved, not redrawn
+        moved = [d["projected_mahalanobis"] for d in drawn if d["projected"]]
+        return (f"identified uncertainty: {len(drawn)} plants drawn; {outside} redrawn outside "
+                f"the confidence region; {len(moved)} moved to the nearest physically "
+                f"consistent arm" + (f" (by {min(moved):.3g} to {max(moved):.3g} standard "
+                                     f"deviations)" if moved else "")
+                + f"; {sum(d['friction_clipped'] for d in drawn)} with a negative friction "
+                  f"coefficient set to 0")
     return (f"identified uncertainty: {len(drawn)} plants drawn; rejected and redrawn: "
             f"{outside} outside the confidence region, {inconsistent} with no physically "
             f"consistent arm" + (f", {negative} with negative friction" if any(

@@ -46,6 +46,10 @@ def add(sub) -> None:
                    help="plausibility bound of the consistent arm: every body's mass within "
                         "[m0/F, F m0] of --robot's (default: pseudo-inertia positive definite "
                         "only)")
+    p.add_argument("--inertia-band", type=float, default=None, metavar="F",
+                   help="plausibility bound of the consistent arm: every body's pseudo-inertia "
+                        "(mass, first and second moments) between J0/F and F J0 of --robot's, "
+                        "in every direction (default: none)")
     p.add_argument("--keep-inconsistent", action="store_true",
                    help="keep the nearest consistent arm, with a warning, when it lies outside "
                         "the estimate's 99.9%% region (real logs, whose model error the noise "
@@ -96,9 +100,11 @@ def run_identify(args) -> int:
         if v < lo or (hi is not None and v > hi):
             raise ValueError(f"--{name} must be an integer >= {lo}"
                              + (f" and <= {hi}" if hi else "") + f", got {v!r}")
-    if args.mass_band is not None and not (math.isfinite(args.mass_band)
-                                           and args.mass_band > 1.0):
-        raise ValueError(f"--mass-band must be a finite factor > 1, got {args.mass_band!r}")
+    for name in ("mass_band", "inertia_band"):
+        v = getattr(args, name)
+        if v is not None and not (math.isfinite(v) and v > 1.0):
+            raise ValueError(f"--{name.replace('_', '-')} must be a finite factor > 1, got "
+                             f"{v!r}")
     for name in ("frequency", "csv_rate", "max_acceleration"):
         v = getattr(args, name)
         if not (math.isfinite(v) and v > 0.0):
@@ -146,6 +152,7 @@ def run_identify(args) -> int:
         data = read_measurements(args.data, robot, window=args.window)
         result = identify(robot, data, method=args.method, held_out=args.held_out,
                           friction=args.friction, mass_band=args.mass_band,
+                          inertia_band=args.inertia_band,
                           refuse_inconsistent=not args.keep_inconsistent)
     for w in caught:  # the model-error and consistency warnings, said once, without a path
         print(f"warning: {w.message}")

@@ -37,6 +37,7 @@ __all__ = [
     "pseudo_inertia",
     "pseudo_inertia_lmis",
     "parameter_weights",
+    "plausible_set",
     "consistent_parameters",
     "urdf_with_parameters",
 ]
@@ -99,9 +100,44 @@ def _solve(problem, what: str):
     return problem.status
 
 
+def plausible_set(phi_var, phi0, *, mass_band: float | None = None,
+                  inertia_band: float | None = None) -> list:
+    r"""Return the cvxpy constraints of the plausibility bands around nominal parameters.
+
+    ``mass_band = f``: ``m0_b / f <= m_b <= f m0_b``. ``inertia_band = f``:
+
+    .. math:: J_{0,b} / f \preceq J_b(\phi) \preceq f J_{0,b}
+
+    for every body (``J0_b`` the pseudo-inertia of ``phi0``'s body): the mass, the first
+    moments and the second moments (hence the inertia about any axis) stay within a factor
+    ``f`` of the nominal's, in every direction.
+
+    Raises
+    ------
+    rrr_pin.validation.FieldError
+        A band that is not a finite factor > 1.
+    """
+    out = []
+    for key, f in (("mass_band", mass_band), ("inertia_band", inertia_band)):
+        if f is not None and not (math.isfinite(f) and f > 1.0):
+            raise FieldError(key, "{name} must be a finite factor > 1 (within [x0 / f, f x0] "
+                             f"of the nominal), got {f!r}")
+    if mass_band is not None:
+        m0 = phi0[0::10]
+        out += [phi_var[0::10] >= m0 / mass_band, phi_var[0::10] <= m0 * mass_band]
+    if inertia_band is not None:
+        A = _pseudo_inertia_basis()
+        for b in range(len(phi0) // 10):
+            J = sum(phi_var[10 * b + i] * A[i] for i in range(10))
+            J = 0.5 * (J + J.T)
+            J0 = pseudo_inertia(phi0[10 * b:10 * b + 10])
+            out += [J - J0 / inertia_band >> 0, inertia_band * J0 - J >> 0]
+    return out
+
+
 def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float | None = None,
                           confidence: float = CONSISTENCY_CONFIDENCE, refuse: bool = True,
-                          mass_band: float | None = None):
+                          mass_band: float | None = None, inertia_band: float | None = None):
     r"""Find the standard parameters of a physically consistent arm nearest to estimated base ones.
 
     Stage 1: ``t* = min ||A (K phi - theta)||`` over ``phi`` with every pseudo-inertia
@@ -130,6 +166,10 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     mass_band : float, optional
         Plausibility bound ``f > 1``: every body's mass within ``[m0 / f, f m0]`` of the
         nominal's ``m0`` (both stages). Default: no bound beyond positive definiteness.
+    inertia_band : float, optional
+        Plausibility bound ``f > 1`` on the whole body: ``J0_b / f <= J_b <= f J0_b`` in the
+        Loewner order, ``J0_b`` the nominal's pseudo-inertia (both stages;
+        :func:`plausible_set`).
 
     Returns
     -------
@@ -154,12 +194,7 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     phi = cp.Variable(len(phi0))
     resid = A @ (base.K @ phi) - A @ theta
     lmis = pseudo_inertia_lmis(phi, nb, margins)
-    if mass_band is not None:
-        if not (math.isfinite(mass_band) and mass_band > 1.0):
-            raise FieldError("mass_band", "{name} must be a finite factor > 1 (masses within "
-                             f"[m0 / f, f m0]), got {mass_band!r}")
-        m0 = phi0[0::10]
-        lmis = lmis + [phi[0::10] >= m0 / mass_band, phi[0::10] <= m0 * mass_band]
+    lmis = lmis + plausible_set(phi, phi0, mass_band=mass_band, inertia_band=inertia_band)
     p1 = cp.Problem(cp.Minimize(cp.norm(resid)), lmis)
     status = _solve(p1, "nearest consistent base parameters")
     # An inaccurate end is kept only when its point checks: every pseudo-inertia positive
@@ -225,8 +260,13 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
                  f"{status2}: kept the stage-1 arm",
         "distance_rms_Nm": t_star, "mahalanobis": mahal,
         "distance_returned_rms_Nm": final, "mass_band": mass_band,
-        "bounded": (f"every body's mass in [m0 / {mass_band:g}, {mass_band:g} m0] of the "
-                    f"nominal URDF's" if mass_band else "pseudo-inertia only"),
+        "inertia_band": inertia_band,
+        "bounded": "; ".join(
+            ([f"every body's mass in [m0 / {mass_band:g}, {mass_band:g} m0] of the nominal "
+              f"URDF's"] if mass_band else [])
+            + ([f"every body's pseudo-inertia between J0 / {inertia_band:g} and "
+                f"{inertia_band:g} J0 of the nominal URDF's (mass, first and second moments)"]
+               if inertia_band else [])) or "pseudo-inertia only",
         "outside_confidence": bool(
             sigma is not None and sigma > 0.0 and mahal > math.sqrt(chi2.ppf(confidence, base.p))
             and t_star > 10.0 * PSEUDO_INERTIA_MARGIN * scale),

@@ -250,7 +250,8 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
 def identify(robot, data: Measurements, *, method: str = "wls", held_out: float = 0.2,
              base: BaseParameters | None = None, friction: bool = False,
              refuse_inconsistent: bool = True,
-             mass_band: float | None = None) -> Identification:
+             mass_band: float | None = None,
+             inertia_band: float | None = None) -> Identification:
     r"""Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
 
     Every sample enters the fit (none within half a derivative-filter window of either end of
@@ -283,6 +284,9 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     mass_band : float, optional
         Bound every body's mass to ``[m0 / f, f m0]`` of the nominal's
         (:func:`consistent_parameters`).
+    inertia_band : float, optional
+        Bound every body's pseudo-inertia to ``[J0 / f, f J0]`` of the nominal's (Loewner
+        order, :func:`~rrr_pin.model.identification.consistency.plausible_set`).
 
     Returns
     -------
@@ -361,7 +365,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     A = (V / np.sqrt(w)).T * math.sqrt(s2 / rows)
     phi0 = standard_parameters(robot)
     phi, consistency = consistent_parameters(base, theta, A, phi0, sigma=math.sqrt(s2 / rows),
-                                             refuse=refuse_inconsistent, mass_band=mass_band)
+                                             refuse=refuse_inconsistent, mass_band=mass_band,
+                                             inertia_band=inertia_band)
     from ..dynamics import robot_from_xml
 
     fr = None
@@ -403,6 +408,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "residual_rms_Nm": _per_joint(robot, np.sqrt(np.mean(r * r, axis=0)).tolist()),
         "residual_r2": _per_joint(robot, r_squared(tau_f[fit], tau_f[fit] - r)),
         "sigma2_weighted": s2, "consistency": consistency,
+        "standard_nominal": phi0.tolist(),
         "friction_model": "viscous + coulomb + offset" if friction else None,
         "friction": fr, "model_error_warning": suspect or None,
         "friction_urdf": None if not fr else {

@@ -11,7 +11,12 @@ import numpy as np
 
 from ...validation import check_probability
 from ..plant import UncertaintySet
-from .consistency import parameter_weights, pseudo_inertia_lmis, urdf_with_parameters
+from .consistency import (
+    parameter_weights,
+    plausible_set,
+    pseudo_inertia_lmis,
+    urdf_with_parameters,
+)
 from .regressor import BaseParameters, IdentificationError, body_links, joint_kinematics
 
 __all__ = ["RECORD_KEYS", "check_identification_record", "IdentifiedUncertainty"]
@@ -124,12 +129,22 @@ class IdentifiedUncertainty(UncertaintySet):
         The ``identification.json`` read (recorded with its SHA-256).
     confidence : float, default 0.95
         Of the ellipsoid the plants are drawn in, in (0, 1).
+    draws : {"reject", "project"}, default "reject"
+        ``"reject"``: the above (inconsistent draws redrawn, none moved). ``"project"``: a
+        draw with no consistent arm is moved to the nearest consistent one (in the metric of
+        the estimate's covariance, :func:`consistent_parameters` with the identification's
+        mass band), a negative friction coefficient to 0; each plant records how far it was
+        moved (``projected_mahalanobis``). For a real log whose estimate lies outside the
+        consistent set (``identify --keep-inconsistent``), where almost every draw is
+        inconsistent and rejection finds no plant.
     """
 
     MAX_DRAWS = 1000
+    DRAWS = ("reject", "project")
 
     path: str
     confidence: float = 0.95
+    draws: str = "reject"
     record: dict = field(default=None, repr=False, compare=False)
     sha256: str = field(default="", compare=True)
 
@@ -138,6 +153,9 @@ class IdentifiedUncertainty(UncertaintySet):
         if not 0.0 < c < 1.0:
             raise ValueError(f"confidence must be in (0, 1), got {c!r}")
         object.__setattr__(self, "confidence", c)
+        if self.draws not in self.DRAWS:
+            raise ValueError(f"draws must be one of {', '.join(self.DRAWS)}, got "
+                             f"{self.draws!r}")
         if self.record is None:
             try:
                 raw = Path(self.path).read_bytes()
@@ -188,13 +206,14 @@ class IdentifiedUncertainty(UncertaintySet):
     def describe(self) -> str:
         """One line for reports."""
         return (f"identified distribution ({Path(self.path).name}, {self.record['base_count']} "
-                f"base parameters, {self.confidence:.0%} confidence region)")
+                f"base parameters, {self.confidence:.0%} confidence region"
+                + (", inconsistent draws projected)" if self.draws == "project" else ")"))
 
     def to_dict(self) -> dict:
         """JSON-ready: what the plants are drawn from."""
         return {"kind": "identified", "identification": str(self.path),
                 "identification_sha256": self.sha256, "confidence": self.confidence,
-                "base_count": self.record["base_count"]}
+                "base_count": self.record["base_count"], "draws": self.draws}
 
     def _problem(self):
         cached = getattr(self, "_cache", None)
@@ -208,7 +227,8 @@ class IdentifiedUncertainty(UncertaintySet):
         margins = np.asarray(self.record["consistency"]["pseudo_inertia_margins"], float)
         problem = cp.Problem(
             cp.Minimize(cp.sum_squares(cp.multiply(parameter_weights(phi_id), phi - phi_id))),
-            [base.K @ phi == theta] + pseudo_inertia_lmis(phi, len(phi_id) // 10, margins))
+            [base.K @ phi == theta] + pseudo_inertia_lmis(phi, len(phi_id) // 10, margins)
+            + plausible_set(phi, self._phi0(), **self._bands()))
         cached = (problem, theta, phi)
         object.__setattr__(self, "_cache", cached)
         return cached
@@ -232,6 +252,36 @@ class IdentifiedUncertainty(UncertaintySet):
         text = str(source) if isinstance(source, str) else urdf_from_params(source)
         urdf, drawn = self.draw(text, rng)
         return urdf, {"identified": drawn}
+
+    def _bands(self) -> dict:
+        """Return the plausibility bands the identification applied (its record)."""
+        c = self.record.get("consistency") or {}
+        return {"mass_band": c.get("mass_band"), "inertia_band": c.get("inertia_band")}
+
+    def _phi0(self) -> np.ndarray:
+        """Return the nominal standard parameters the bands are around."""
+        return np.asarray(self.record.get("standard_nominal")
+                          or self.record["standard_consistent"], float)
+
+    def _project(self, urdf: str, theta, friction):
+        """Nearest consistent arm to base parameters ``theta``: ``(URDF, phi, distance)``.
+
+        The distance is the move's Mahalanobis norm in the estimate's covariance; ``(None,
+        None, None)`` when no consistent arm is found.
+        """
+        from .consistency import consistent_parameters
+
+        rec = self.record
+        cov = np.asarray(rec["cov"], float)
+        w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+        A = (V / np.sqrt(np.maximum(w, 1e-15 * w.max()))).T  # A^T A = cov^-1
+        try:
+            phi, info = consistent_parameters(self.base, theta, A, self._phi0(),
+                                              **self._bands())
+            text = urdf_with_parameters(urdf, rec["links"], phi, friction=friction)
+        except (IdentificationError, ValueError):
+            return None, None, None
+        return text, phi, float(info["distance_returned_rms_Nm"])
 
     def draw(self, urdf: str, rng: np.random.Generator) -> tuple[str, dict]:
         """One plant: its URDF text and ``{"base", "standard", "friction", "rejected": {...}}``.
@@ -268,7 +318,9 @@ class IdentifiedUncertainty(UncertaintySet):
                 f = x[p:].reshape(-1, 3)
                 if np.any(f[:, :2] < 0.0):
                     negative += 1
-                    continue
+                    if self.draws != "project":
+                        continue
+                    f = np.column_stack([np.maximum(f[:, :2], 0.0), f[:, 2]])
                 friction = {j: {"viscous_Nms_rad": float(fj[0]), "coulomb_Nm": float(fj[1]),
                                 "offset_Nm": float(fj[2])}
                             for j, fj in zip(rec["joints"], f, strict=True)}
@@ -284,13 +336,23 @@ class IdentifiedUncertainty(UncertaintySet):
                                                 friction=friction)
                 except ValueError:  # not physical after all (round-off): rejected
                     ok = False
+            moved = None
+            if not ok and self.draws == "project":
+                text, phi_value, moved = self._project(urdf, x[:p], friction)
+                ok = text is not None
+            else:
+                phi_value = phi.value
             if not ok:
                 inconsistent += 1
                 continue
             rejected = {"outside_confidence": outside, "inconsistent": inconsistent}
             if f_mean.size:
                 rejected["negative_friction"] = negative
-            return text, {"base": theta.value.tolist(), "standard": phi.value.tolist(),
+            if self.draws == "project":
+                rejected["projected"] = moved is not None
+                rejected["projected_mahalanobis"] = moved
+                rejected["friction_clipped"] = bool(negative)
+            return text, {"base": x[:p].tolist(), "standard": np.asarray(phi_value).tolist(),
                           "friction": friction, "rejected": rejected}
         raise IdentificationError(
             f"{self.path}: no physically consistent plant in {self.MAX_DRAWS} draws "
