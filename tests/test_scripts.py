@@ -21,6 +21,7 @@ RUNS = [
     ("uncertain_study.py", ["--samples", "2", "--duration", "0.2", "--jobs", "1",
                             "--controllers", "fl,pd", "--out", "{tmp}/uncertain.png"]),
     ("identify_example.py", ["--quick", "--out", "{tmp}"]),
+    ("identify_example.py", ["--quick", "--friction", "--out", "{tmp}"]),
 ]
 
 # issue 13's keys, and the keys the benchmark had before them (kept for the README's table).
