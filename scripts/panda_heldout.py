@@ -90,6 +90,9 @@ def main(argv=None):
                         help="final fraction of the log predicted (0.3)")
     parser.add_argument("--mass-band", type=float, default=2.0,
                         help="every body's mass within [m0/F, F m0] of the URDF's (2)")
+    parser.add_argument("--inertia-band", type=float, default=None,
+                        help="every body's pseudo-inertia within [J0/F, F J0] of the URDF's "
+                             "(default: none)")
     args = parser.parse_args(argv)
     robot = load_robot("panda")  # example-robot-data's, the fingers locked (logged)
     try:
@@ -106,7 +109,8 @@ def main(argv=None):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             res = idn.identify(robot, data, held_out=args.held_out, friction=friction,
-                               refuse_inconsistent=False, mass_band=args.mass_band)
+                               refuse_inconsistent=False, mass_band=args.mass_band,
+                               inertia_band=args.inertia_band)
         fits[name] = res
         arm = robot_from_xml(res.urdf, name=f"panda_{name}", lock=dict(robot.locked) or None)
         preds[name] = idn.predict_torques(arm, data, res.summary["friction"])
@@ -132,6 +136,7 @@ def main(argv=None):
     record = {"log": str(args.log), "samples": data.N, "held_out_fraction": args.held_out,
               "window": [float(data.t[k0]), float(data.t[k1 - 1])],
               "derivatives": data.derived, "mass_band": args.mass_band,
+              "inertia_band": args.inertia_band,
               "joints": robot.joint_names, "held_out": table, "masses_kg": masses,
               "friction_identified": fits["friction"].summary["friction"],
               "consistency": {k: fits[k].summary["consistency"] for k in fits}}

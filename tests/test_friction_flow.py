@@ -291,13 +291,13 @@ def test_projected_draws_are_consistent_and_record_the_move(friction_record, rrr
 
 
 def test_friction_too_stiff_for_the_substep_is_refused(rubbing):
-    """Fc / v_eps on a light arm is a damper faster than RK4's step: refused up front, with
-    the step that would hold it."""
+    """Viscous friction on a light arm is a damper faster than RK4's step: refused up front,
+    with the step that would hold it."""
     law = fl_controller(rubbing)
     with pytest.raises(EffectsError, match=r"too fast for the plant sub-step h = 0.001 s .*"
                                            r"lower dt below"):
         simulate(rubbing, law, _ref(rubbing), 0.01, rate=RATE,
-                 effects=PlantEffects(viscous=0.0, coulomb=500.0, coulomb_velocity=1e-4))
+                 effects=PlantEffects(viscous=1e5, coulomb=0.0))
 
 
 def test_friction_spec_urdf_takes_a_smoothing_speed():

@@ -517,3 +517,18 @@ def test_friction_of_the_wrong_sign_is_warned(rrr):
     assert ident.joint_friction()[1][1] == 0.0
     assert res.summary["friction_urdf"]["joint2"]["friction"] == 0.0
     assert res.summary["friction"]["joint2"]["coulomb_Nm"] < -3.0
+
+
+def test_contradicting_friction_signs_are_refused_on_the_cli(rrr, tmp_path, capsys):
+    """The same log on the command line: exit 2 naming the joint, no traceback; kept with a
+    warning under --keep-inconsistent."""
+    fr = FRICTION * np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0]])
+    data = _data(rrr, _truth(rrr), np.arange(0.0, 10.0, 0.02), noise=0.05, friction=fr)
+    csv = _write_csv(tmp_path / "log.csv", rrr, data, kinds=("q", "qd", "qdd", "tau"))
+    args = ["identify", "--data", str(csv), "--friction", "--out", str(tmp_path / "o")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "friction of the wrong sign" in err and "joint2 coulomb_Nm" in err
+    assert "Traceback" not in err
+    assert main(args + ["--keep-inconsistent"]) == 0
+    assert "warning: " in capsys.readouterr().out

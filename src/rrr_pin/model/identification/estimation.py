@@ -280,7 +280,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         ``tau = Y_b theta_b + fv qd + fc sign(qd) + off``.
     refuse_inconsistent : bool, default True
         Refuse an estimate with no physically consistent arm inside its 99.9 % region
-        (:func:`consistent_parameters`); ``False`` keeps the nearest with a warning.
+        (:func:`consistent_parameters`), or with a friction coefficient below zero by 3
+        standard deviations; ``False`` keeps them with a warning.
     mass_band : float, optional
         Bound every body's mass to ``[m0 / f, f m0]`` of the nominal's
         (:func:`consistent_parameters`).
@@ -387,10 +388,14 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         wrong = [f"{j} {k} {v[k]:.3g} +- {v['std'][k]:.2g}" for j, v in fr.items()
                  for k in ("viscous_Nms_rad", "coulomb_Nm") if v[k] < -3.0 * v["std"][k]]
         if wrong:
-            suspect = "; ".join(filter(None, [suspect, (
-                "friction of the wrong sign (it would feed energy in): " + ", ".join(wrong)
-                + ": check the torque sign convention, or a term the model lacks "
-                  "(Stribeck, position-dependent friction, a coupling)")]))
+            said = ("friction of the wrong sign (it would feed energy in): " + ", ".join(wrong)
+                    + ": check the torque sign convention, or a term the model lacks "
+                      "(Stribeck, position-dependent friction, a coupling)")
+            if refuse_inconsistent:  # contradicting signs: not a physical arm
+                raise IdentificationError(said + "; refused (keep it, warned, with "
+                                                 "refuse_inconsistent=False, CLI "
+                                                 "--keep-inconsistent)")
+            suspect = "; ".join(filter(None, [suspect, said]))
     summary = {
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
         "links": body_links(robot), "gravity_m_s2": robot.gravity,
