@@ -161,6 +161,42 @@ def test_irregular_time_stamps_and_given_velocities_match_the_uniform_log(rrr, t
     assert out[0].summary["covariance"].startswith("block sandwich")
 
 
+def test_several_runs_match_the_single_log(rrr, tmp_path, capsys):
+    """Two runs (the first 6 s and the last 4 s of one log; irregular stamps are the test
+    above's), each filtered on its own and fitted together: within the tolerance of the test above
+    (5e-2 of each parameter's scale) of the truth and of the single log's estimate; every
+    sample of each run enters the fit but its own filter ends; the CLI takes both files."""
+    truth = _truth(rrr)
+    t = np.arange(0.0, 10.0, 0.002)
+    whole = _data(rrr, truth, t)
+    cut = np.searchsorted(t, 6.0)
+    keep = slice(cut, len(t))
+    paths = [_write_csv(tmp_path / "whole.csv", rrr, whole, kinds=("q", "qd", "tau"))]
+    for name, rows in (("run1", slice(0, cut)), ("run2", keep)):
+        part = idn.Measurements(whole.t[rows], whole.q[rows], whole.qd[rows], whole.qdd[rows],
+                                whole.tau[rows], whole.joint_names)
+        paths.append(_write_csv(tmp_path / f"{name}.csv", rrr, part, kinds=("q", "qd", "tau")))
+    single = idn.identify(rrr, idn.read_measurements(paths[0], rrr), method="ols",
+                          held_out=0.0, friction=True)
+    runs = [idn.read_measurements(path, rrr) for path in paths[1:]]
+    both = idn.identify(rrr, runs, method="ols", held_out=0.0, friction=True)
+    a = np.concatenate([single.theta, single.friction])
+    b = np.concatenate([both.theta, both.friction])
+    truth_x = np.concatenate([single.base(idn.standard_parameters(truth)),
+                              FRICTION.reshape(-1)])
+    scale = np.maximum(np.abs(truth_x), 1.0)
+    assert np.all(np.abs(b - truth_x) <= 5e-2 * scale)
+    assert np.all(np.abs(b - a) <= 5e-2 * scale)
+    assert both.summary["runs"] == 2 and both.summary["samples"] == sum(d.N for d in runs)
+    edges = [2 * (d.derived["window_samples"] // 2) for d in runs]
+    assert both.summary["samples_fit"] == sum(d.N - e for d, e in zip(runs, edges, strict=True))
+    assert main(["identify", "--data", str(paths[1]), str(paths[2]), "--friction",
+                 "--held-out", "0.2", "--out", str(tmp_path / "o")]) == 0
+    rec = json.loads((tmp_path / "o" / "identification.json").read_text())
+    assert rec["runs"] == 2 and len(rec["held_out"]["runs"]) == 2
+    capsys.readouterr()
+
+
 def test_predict_another_run_with_the_identified_model(rrr, tmp_path, capsys):
     """Identify (noise-free, derivatives given, friction) through the CLI, then predict a
     second run: its torques come out as the truth's plus friction to 1e-4 of the peak torque

@@ -36,8 +36,9 @@ def add(sub) -> None:
     p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
                    help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
                         "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
-    p.add_argument("--data", metavar="FILE.csv", default=None,
-                   help="measurements (required unless --design-excitation)")
+    p.add_argument("--data", metavar="FILE.csv", nargs="+", default=None,
+                   help="measurements (required unless --design-excitation); several runs: "
+                        "several files, each filtered on its own, fitted together")
     p.add_argument("--friction", action="store_true",
                    help="identify each joint's viscous and Coulomb friction and torque offset "
                         "with the base parameters (written into identification.json and the "
@@ -89,7 +90,9 @@ def run_identify(args) -> int:
     from ..model.plant import URDF
     from ..outputs import writing
 
-    not_a_folder(robot=args.robot, data=args.data)
+    not_a_folder(robot=args.robot)
+    for path in args.data or []:
+        not_a_folder(data=path)
     if args.model is not None:
         return _predict(args)
     from ..model.excitation import MAX_HARMONICS
@@ -149,7 +152,7 @@ def run_identify(args) -> int:
 
     with as_options(), warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        data = read_measurements(args.data, robot, window=args.window)
+        data = [read_measurements(path, robot, window=args.window) for path in args.data]
         result = identify(robot, data, method=args.method, held_out=args.held_out,
                           friction=args.friction, mass_band=args.mass_band,
                           inertia_band=args.inertia_band,
@@ -190,8 +193,8 @@ def _predict(args) -> int:
     from ..model.identification import IdentificationError, predict_torques, read_measurements
     from ..outputs import writing
 
-    if args.data is None:
-        raise ValueError("--model DIR predicts --data FILE.csv: give --data")
+    if args.data is None or len(args.data) != 1:
+        raise ValueError("--model DIR predicts one --data FILE.csv: give one file")
     if args.design_excitation or args.friction:
         raise ValueError("--model DIR predicts with DIR's model: --design-excitation and "
                          "--friction are not read with it")
@@ -208,7 +211,7 @@ def _predict(args) -> int:
                            gravity=rec["gravity_m_s2"], label=f"--model {args.model}",
                            **({"lock": lock} if lock else {}))
     with as_options():
-        data = read_measurements(args.data, robot, window=args.window)
+        data = read_measurements(args.data[0], robot, window=args.window)
     pred = predict_torques(robot, data, rec.get("friction"))
     from ..model.identification import filter_like, r_squared
 

@@ -265,8 +265,11 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     robot : rrr_pin.model.dynamics.Robot
         The nominal arm: its kinematics are trusted, its inertials are the prior for the
         directions the data cannot see.
-    data : Measurements
-        From :func:`read_measurements` (joints in ``robot.joint_names`` order).
+    data : Measurements or sequence of Measurements
+        From :func:`read_measurements` (joints in ``robot.joint_names`` order); several runs
+        are concatenated: each filtered on its own (its ends left out), their rows stacked,
+        each run's final ``held_out`` fraction held out (the block sandwich's blocks run over
+        the stacked samples, so a block may join the end of one run to the next).
     method : {"wls", "ols"}
         Weighted (per-joint noise) or ordinary least squares.
     held_out : float, default 0.2
@@ -316,17 +319,27 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     if held_out > 0.9:
         raise FieldError("held_out", "{name} must be in [0, 0.9] (the fraction of the samples "
                          f"held out of the fit), got {held_out!r}")
-    if tuple(data.joint_names) != tuple(robot.joint_names):
-        raise IdentificationError(f"the data's joints {list(data.joint_names)} do not match the "
-                                  f"URDF {robot.name!r}'s joints {robot.joint_names}")
+    runs = [data] if isinstance(data, Measurements) else list(data)
+    if not runs:
+        raise IdentificationError("no measurements: give one run or several")
+    for d in runs:
+        if tuple(d.joint_names) != tuple(robot.joint_names):
+            raise IdentificationError(f"the data's joints {list(d.joint_names)} do not match "
+                                      f"the URDF {robot.name!r}'s joints {robot.joint_names}")
     base = base_parameters(robot) if base is None else base
     n, p = robot.nq, base.p
-    N = data.N
-    n_fit = N - int(round(held_out * N))
-    block = int(data.derived.get("window_samples", 1)) if data.derived else 1
+    # Per run: its filter window, the samples fitted (none within half a window of its ends)
+    # and its held-out tail; the runs' fitted rows are stacked (several runs concatenated).
+    parts = []
+    for d in runs:
+        b_i = int(d.derived.get("window_samples", 1)) if d.derived else 1
+        e_i, n_fit_i = b_i // 2, d.N - int(round(held_out * d.N))
+        parts.append({"data": d, "block": b_i, "edge": e_i, "n_fit": n_fit_i,
+                      "fit": np.arange(e_i, min(n_fit_i, d.N - e_i))})
+    block = max(part["block"] for part in parts)
     edge = block // 2
-    fit = np.arange(edge, min(n_fit, N - edge))
-    m = len(fit)
+    N = sum(d.N for d in runs)
+    m = sum(len(part["fit"]) for part in parts)
     names = list(base.names) + (friction_names(robot) if friction else [])
     P = len(names)
     if m * n < 2 * P or m * n - P < n:
@@ -337,20 +350,24 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
             f"samples (twice as many equations as parameters) after the held-out "
             f"{held_out:.0%}" + (f" and half a derivative-filter window ({edge} samples) "
                                  f"at each end" if edge else ""))
-    tau_f = filter_like(data, data.tau) if block > 1 else data.tau
-    if friction:  # linear in f: filtered exactly as the torques (sign(qd) jumps included)
-        Yf = friction_regressor(data.qd).reshape(N, n * 3 * n)
-        Yf = (filter_like(data, Yf) if block > 1 else Yf).reshape(N * n, 3 * n)
+    for part in parts:
+        d, b_i = part["data"], part["block"]
+        part["tau_f"] = filter_like(d, d.tau) if b_i > 1 else d.tau
+        if friction:  # linear in f: filtered exactly as the torques (sign(qd) jumps included)
+            Yf = friction_regressor(d.qd).reshape(d.N, n * 3 * n)
+            part["Yf"] = (filter_like(d, Yf) if b_i > 1 else Yf).reshape(d.N, n, 3 * n)
 
-    def design(sl):
-        W = base.reduce(regressor(robot, data.q[sl], data.qd[sl], data.qdd[sl]))
+    def design(part, rows_):
+        d = part["data"]
+        W = base.reduce(regressor(robot, d.q[rows_], d.qd[rows_], d.qdd[rows_]))
         if not friction:
             return W
-        rows_ = np.arange(N)[sl]
-        return np.hstack([W, Yf.reshape(N, n, 3 * n)[rows_].reshape(-1, 3 * n)])
+        return np.hstack([W, part["Yf"][rows_].reshape(-1, 3 * n)])
 
-    W1 = design(fit)
-    y1 = tau_f[fit].reshape(-1)
+    W1 = np.vstack([design(part, part["fit"]) for part in parts])
+    tau_fit = np.vstack([part["tau_f"][part["fit"]] for part in parts])
+    qd_fit = np.vstack([part["data"].qd[part["fit"]] for part in parts])
+    y1 = tau_fit.reshape(-1)
     x, cov_x, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method, names=names,
                                                    block=block)
     r = (y1 - W1 @ x).reshape(m, n)
@@ -383,7 +400,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     identified = robot_from_xml(urdf, name=f"{robot.name}_identified",
                                 gravity=robot.gravity, label="identified URDF",
                                 lock=dict(robot.locked) or None)
-    suspect = friction_suspects(robot, data.qd[fit], r, tau_f[fit])
+    suspect = friction_suspects(robot, qd_fit, r, tau_fit)
     if fr:  # friction dissipates: a coefficient below zero by 3 standard deviations contradicts
         wrong = [f"{j} {k} {v[k]:.3g} +- {v['std'][k]:.2g}" for j, v in fr.items()
                  for k in ("viscous_Nms_rad", "coulomb_Nm") if v[k] < -3.0 * v["std"][k]]
@@ -400,18 +417,21 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
         "links": body_links(robot), "gravity_m_s2": robot.gravity,
         "locked": dict(robot.locked),
-        "kinematics": joint_kinematics(robot), "data": data.source, "samples": N,
-        "samples_fit": m, "fit_decimation": 1,
+        "kinematics": joint_kinematics(robot),
+        "data": runs[0].source if len(runs) == 1 else [d.source for d in runs], "samples": N,
+        "runs": len(runs), "samples_fit": m, "fit_decimation": 1,
         "covariance": ("block sandwich over blocks of one derivative-filter window "
                        f"({block} samples): the filter correlates neighbouring residuals"
                        if block > 1 else "s2 (W^T W)^-1 (independent residuals)"),
         "torque_filter": "savgol (as q)" if block > 1 else None,
-        "held_out_fraction": held_out, "derivatives": data.derived or
-        {"filter": None, "estimated": []}, "method": method, "base_count": p,
+        "held_out_fraction": held_out, "derivatives": (runs[0].derived or {
+            "filter": None, "estimated": []}) if len(runs) == 1 else [
+            d.derived or {"filter": None, "estimated": []} for d in runs],
+        "method": method, "base_count": p,
         "condition_number": cond,
         "noise_std_Nm": _per_joint(robot, sigma_j.tolist()),
         "residual_rms_Nm": _per_joint(robot, np.sqrt(np.mean(r * r, axis=0)).tolist()),
-        "residual_r2": _per_joint(robot, r_squared(tau_f[fit], tau_f[fit] - r)),
+        "residual_r2": _per_joint(robot, r_squared(tau_fit, tau_fit - r)),
         "sigma2_weighted": s2, "consistency": consistency,
         "standard_nominal": phi0.tolist(),
         "friction_model": "viscous + coulomb + offset" if friction else None,
@@ -428,15 +448,21 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         import warnings
 
         warnings.warn(suspect, stacklevel=2)
-    if n_fit < N - edge:
-        sl = slice(n_fit, N - edge)
-        tau2 = tau_f[sl]
-        e_est = tau2 - (design(sl) @ x).reshape(-1, n)
-        pred = predict_torques(identified, data, fr)[sl]
+    held = [(part, np.arange(part["n_fit"], part["data"].N - part["edge"])) for part in parts]
+    held = [(part, rows_) for part, rows_ in held if rows_.size]
+    if held:
+        tau2 = np.vstack([part["tau_f"][rows_] for part, rows_ in held])
+        e_est = tau2 - np.vstack([(design(part, rows_) @ x).reshape(-1, n)
+                                  for part, rows_ in held])
+        pred = np.vstack([predict_torques(identified, part["data"], fr)[rows_]
+                          for part, rows_ in held])
         e_urdf = tau2 - pred
         rms = np.sqrt(np.mean(tau2 ** 2, axis=0))
+        last = held[-1][1]  # the (last) run's held-out samples, by index in that run
         summary["held_out"] = {
-            "samples": N - edge - n_fit, "first_sample": n_fit, "last_sample": N - edge - 1,
+            "samples": len(tau2), "first_sample": int(last[0]), "last_sample": int(last[-1]),
+            "runs": [{"source": part["data"].source, "first_sample": int(rows_[0]),
+                      "last_sample": int(rows_[-1])} for part, rows_ in held],
             "rms_error_estimate_Nm": _per_joint(robot, np.sqrt(np.mean(e_est ** 2, axis=0))),
             "rms_error_urdf_Nm": _per_joint(robot, np.sqrt(np.mean(e_urdf ** 2, axis=0))),
             "r2_urdf": _per_joint(robot, r_squared(tau2, pred)),
