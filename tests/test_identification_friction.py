@@ -5,6 +5,7 @@ Synthetic fixtures only: the hidden 'true' arm is the RRR with deformed bodies
 """
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -539,6 +540,39 @@ def test_friction_of_a_joint_that_never_reverses_is_not_identifiable(rrr):
     with pytest.raises(idn.IdentificationError, match=r"not identifiable: .*fc\[joint3\], "
                                                       r"off\[joint3\]"):
         idn.identify(rrr, moved, friction=True)
+
+
+def _never_moved(rrr, data):
+    """Joint 3 held still (its q, qd, qdd constant), torques of the truth with friction."""
+    q, qd, qdd = data.q.copy(), data.qd.copy(), data.qdd.copy()
+    q[:, 2], qd[:, 2], qdd[:, 2] = 0.3, 0.0, 0.0
+    return idn.Measurements(data.t, q, qd, qdd, _torques(_truth(rrr), q, qd, qdd),
+                            data.joint_names)
+
+
+@pytest.mark.parametrize("case, match", [
+    ("never-moved", r"not identifiable: .*fv\[joint3\]"),
+    ("time-back", r"time must be strictly increasing; row 12"),
+    ("too-short", r"too few samples"),
+], ids=lambda v: v if v in ("never-moved", "time-back", "too-short") else "")
+def test_cli_refuses_a_log_that_cannot_be_identified(case, match, rrr, tmp_path, capsys):
+    """Each refused by name on the command line, exit 2, no traceback (issue 32, bad input)."""
+    data = _data(rrr, _truth(rrr), np.arange(0.0, 4.0, 0.02))
+    if case == "never-moved":
+        data = _never_moved(rrr, data)
+    if case == "too-short":
+        data = idn.Measurements(*(x[:6] for x in (data.t, data.q, data.qd, data.qdd,
+                                                  data.tau)), data.joint_names)
+    t = data.t.copy()
+    if case == "time-back":
+        t[10] = t[8]
+    data = idn.Measurements(t, data.q, data.qd, data.qdd, data.tau, data.joint_names)
+    csv = _write_csv(tmp_path / "log.csv", rrr, data, kinds=("q", "qd", "qdd", "tau"))
+    assert main(["identify", "--data", str(csv), "--friction", "--out",
+                 str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(match, err), err
+    assert "Traceback" not in err and not (tmp_path / "o" / "identification.json").exists()
 
 
 def test_friction_of_the_wrong_sign_is_warned(rrr):
