@@ -421,6 +421,19 @@ def test_split_log_files_that_disagree_or_go_back_are_refused(rrr, tmp_path):
         idn.read_split_log(_split_log(tmp_path / "back", back), rrr)
 
 
+def test_cli_reads_a_split_log_folder_and_refuses_one_that_disagrees(rrr, tmp_path, capsys):
+    data = _data(rrr, _truth(rrr), np.arange(0.0, 4.0, 0.004))
+    good = _split_log(tmp_path / "good", data)
+    assert main(["identify", "--data", str(good), "--friction", "--out",
+                 str(tmp_path / "o")]) == 0
+    rec = json.loads((tmp_path / "o" / "identification.json").read_text())
+    assert rec["data"] == str(good) and rec["derivatives"]["estimated"] == ["qdd"]
+    short = _split_log(tmp_path / "short", data, {"positions.txt": 3 * len(data.t) - 1})
+    assert main(["identify", "--data", str(short), "--out", str(tmp_path / "o2")]) == 2
+    err = capsys.readouterr().err
+    assert "log files disagree in length" in err and "Traceback" not in err
+
+
 def test_identify_takes_lock_like_reproduce(tmp_path, capsys):
     """The Panda, fingers locked (mimic joints otherwise refused): identified through the CLI
     from noise-free data of its own nominal, friction included; the identified URDF loads with

@@ -36,9 +36,12 @@ def add(sub) -> None:
     p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
                    help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
                         "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
-    p.add_argument("--data", metavar="FILE.csv", nargs="+", default=None,
-                   help="measurements (required unless --design-excitation); several runs: "
-                        "several files, each filtered on its own, fitted together")
+    p.add_argument("--data", metavar="FILE.csv|DIR", nargs="+", default=None,
+                   help="measurements (required unless --design-excitation): a CSV, or a "
+                        "folder of per-quantity text files (time.txt, positions.txt, "
+                        "velocity.txt, torques.txt: one number per line, nq per sample, as "
+                        "Gaz et al.'s Panda logs); several runs: several, each filtered on "
+                        "its own, fitted together")
     p.add_argument("--friction", action="store_true",
                    help="identify each joint's viscous and Coulomb friction and torque offset "
                         "with the base parameters (written into identification.json and the "
@@ -91,8 +94,6 @@ def run_identify(args) -> int:
     from ..outputs import writing
 
     not_a_folder(robot=args.robot)
-    for path in args.data or []:
-        not_a_folder(data=path)
     if args.model is not None:
         return _predict(args)
     from ..model.excitation import MAX_HARMONICS
@@ -148,11 +149,11 @@ def run_identify(args) -> int:
         return 0
     import warnings
 
-    from ..model.identification import identify, read_measurements
+    from ..model.identification import identify
 
     with as_options(), warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        data = [read_measurements(path, robot, window=args.window) for path in args.data]
+        data = [_read(path, robot, args.window) for path in args.data]
         result = identify(robot, data, method=args.method, held_out=args.held_out,
                           friction=args.friction, mass_band=args.mass_band,
                           inertia_band=args.inertia_band,
@@ -190,7 +191,7 @@ def _predict(args) -> int:
     import numpy as np
 
     from ..model.dynamics import robot_from_xml
-    from ..model.identification import IdentificationError, predict_torques, read_measurements
+    from ..model.identification import IdentificationError, predict_torques
     from ..outputs import writing
 
     if args.data is None or len(args.data) != 1:
@@ -211,7 +212,7 @@ def _predict(args) -> int:
                            gravity=rec["gravity_m_s2"], label=f"--model {args.model}",
                            **({"lock": lock} if lock else {}))
     with as_options():
-        data = read_measurements(args.data[0], robot, window=args.window)
+        data = _read(args.data[0], robot, args.window)
     pred = predict_torques(robot, data, rec.get("friction"))
     from ..model.identification import filter_like, r_squared
 
@@ -238,3 +239,14 @@ def _predict(args) -> int:
     print("R^2: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["r2"].items()))
     print(f"wrote {csv_path} and {js}")
     return 0
+
+
+def _read(path, robot, window):
+    """Read a run of ``--data``: a CSV, or a folder of per-quantity text files (a split log)."""
+    from pathlib import Path
+
+    from ..model.identification import read_measurements, read_split_log
+
+    if Path(path).is_dir():
+        return read_split_log(path, robot, window=window)
+    return read_measurements(path, robot, window=window)
