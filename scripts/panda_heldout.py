@@ -1,5 +1,5 @@
 """Held-out torque prediction on a logged Franka Emika Panda: rigid, with friction, published.
-==========================================================================================
+===========================================================================================
 
 Reads a log split into per-quantity text files (``time.txt``, ``positions.txt``,
 ``velocity.txt``, ``torques.txt``; one number per line, 7 per sample: the layout of Gaz et al.

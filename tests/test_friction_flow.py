@@ -305,3 +305,26 @@ def test_friction_spec_urdf_takes_a_smoothing_speed():
                                                     "coulomb_velocity": 0.05}
     with pytest.raises(ValueError, match="urdf takes smooth=S"):
         friction_spec("urdf,viscous=1", 3)
+
+
+@pytest.mark.slow
+def test_exported_compensation_on_pinocchio_dynamics_equals_python(ur5, tmp_path, design_for):
+    """UR5 (the Pinocchio C++ dynamics of the export, a CMake build): H-inf + FL with friction
+    compensation, 1000 random states, C against Python (the export tests' 1e-12)."""
+    if shutil.which("cmake") is None:
+        pytest.skip("no cmake")
+    from rrr_pin.deploy.loaded import build
+
+    f = JointFriction((0.3,) * 6, (0.5,) * 6, 0.05)
+    ex = export_law(hinf_fl_controller(ur5, design_for(6).K_reduced, friction=f), ur5, RATE,
+                    tmp_path / "ur5")
+    assert ex.dynamics == "pinocchio"
+    c_law = exported_law(tmp_path / "ur5", build(tmp_path / "ur5"))
+    rng = np.random.default_rng(5)
+    for _ in range(1000):
+        q, qd, r, rd, rdd = (rng.uniform(-2.0, 2.0, 6) for _ in range(5))
+        x = rng.standard_normal(ex.law.nx)
+        tau_py, x_py = ex.law.step(0.0, q, qd, r, rd, rdd, x)
+        tau_c, x_c = c_law.step(0.0, q, qd, r, rd, rdd, x)
+        assert_allclose(tau_c, tau_py, rtol=1e-12, atol=0)
+        assert_allclose(x_c, x_py, rtol=1e-12, atol=1e-12)
