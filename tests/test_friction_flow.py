@@ -194,10 +194,13 @@ def test_cli_friction_options(tmp_path, capsys, rubbing):
         assert main([*base, *extra, "--out", str(tmp_path / "bad")]) == 2
         err = capsys.readouterr().err
         assert match in err and "Traceback" not in err
+    # the same options reach montecarlo's settings and laws (cli.build, shared): one run
+    # records what it applied and what the laws compensate (reproduce's figures cost ~8 s)
     out = tmp_path / "ok"
-    assert main([*base, "--rate", "1000", "--friction", "urdf", "--compensate-friction",
-                 "--out", str(out)]) == 0
-    res = json.loads((out / "results.json").read_text())
+    assert main(["montecarlo", "--robot", str(urdf), "--samples", "1", "--duration", "0.2",
+                 "--controllers", "fl", "--jobs", "1", "--no-progress", "--friction", "urdf",
+                 "--compensate-friction", "--out", str(out)]) == 0
+    res = json.loads((out / "summary.json").read_text())
     text = json.dumps(res)
     assert '"friction_compensation"' in text and '"viscous_Nms_rad": [2.0, 1.5, 0.5]' in text
     assert '"viscous_Nms": "urdf"' in text
