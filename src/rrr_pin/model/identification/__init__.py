@@ -19,7 +19,9 @@ One module per concept:
 - :mod:`rrr_pin.model.identification.estimation`: least squares, the block-sandwich
   covariance, :func:`identify`, the model-error warning, predictions;
 - :mod:`rrr_pin.model.identification.record`: ``identification.json``'s check and the
-  uncertain plants drawn from it (:class:`IdentifiedUncertainty`).
+  uncertain plants drawn from it (:class:`IdentifiedUncertainty`);
+- :mod:`rrr_pin.model.identification.sigmoid`: a nonlinear second stage, each joint's
+  friction refitted with a sigmoid Coulomb term (Gaz et al. 2019).
 
 Every public name is re-exported here (``rrr_pin.model.identification.identify``, ...).
 """
@@ -66,6 +68,7 @@ from .regressor import (
     standard_names,
     standard_parameters,
 )
+from .sigmoid import refine_sigmoid_friction, sigmoid_friction
 
 __all__ = [
     "STANDARD_NAMES",
@@ -106,4 +109,6 @@ __all__ = [
     "joint_kinematics",
     "parameter_weights",
     "pseudo_inertia_lmis",
+    "sigmoid_friction",
+    "refine_sigmoid_friction",
 ]
