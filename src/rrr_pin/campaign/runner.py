@@ -136,7 +136,7 @@ class RunSettings:
 
 
 def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
-              lam_hinf: float = 45.0, torque_limit=None) -> list:
+              lam_hinf: float = 45.0, torque_limit=None, friction=None) -> list:
     """Build built-in laws by name, in the order given, from the registry ``catalog.LAWS``.
 
     Each name goes to :func:`rrr_pin.control.catalog.make_law`.
@@ -154,6 +154,9 @@ def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
         Bandwidths [rad/s] of ``"fl"`` and ``"hinf"``.
     torque_limit : float or array-like, shape (n,), optional
         Actuator limits [N m] of the laws that know them (``"hinf_aw"``); None: the URDF's.
+    friction : rrr_pin.control.friction.JointFriction, optional
+        Friction every law compensates (``fl``, ``hinf``, ``hinf_aw``; another law given it
+        is refused by name). None: no compensation.
 
     Raises
     ------
@@ -167,7 +170,7 @@ def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
         raise ValueError(f"controllers: expected comma-separated names from "
                          f"{', '.join(BUILTIN_LAWS)}, got {names!r}")
     laws = [make_law(name, nominal, K=K, lam_fl=lam_fl, lam_hinf=lam_hinf,
-                     torque_limit=torque_limit) for name in names]
+                     torque_limit=torque_limit, friction=friction) for name in names]
     check_laws(laws, nominal.nq)
     for law in laws:
         logger.info("law %r built for %s: %s", law.name, nominal.name, law.label or law.name)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .build import load_plant
+from .build import compensation_from_args, load_plant
 from .common import as_options, check_out_early, claim_out
 from .options import add_overwrite
 
@@ -39,6 +39,14 @@ def add(sub) -> None:
                    help="Tustin prewarp frequency [rad/s], below pi * rate")
     p.add_argument("--full-order", action="store_true",
                    help="hinf: the full-order K instead of the reduced eq. (18)")
+    p.add_argument("--friction", metavar="urdf|viscous=V,coulomb=C[,smooth=S]", default=None,
+                   help="with --compensate-friction: the friction compensated (default and "
+                        "'urdf': the URDF's <dynamics damping friction>, e.g. an identified "
+                        "URDF's), Fv [N m s/rad], Fc [N m], S [rad/s] (0.01), one value or one "
+                        "per joint separated by '/'")
+    p.add_argument("--compensate-friction", action="store_true",
+                   help="fl, hinf: the exported law adds Fv qd + Fc tanh(qd / S) to its torque "
+                        "(recorded in controller.json: law.friction_compensation)")
     p.add_argument("--out", default="controller", metavar="DIR",
                    help="output folder (controller/)")
     p.add_argument("--ros2", action="store_true",
@@ -64,8 +72,13 @@ def run_export(args) -> int:
 
         d = design(lam=45.0, n=robot.nq)
         K = d.K_full if args.full_order else d.K_reduced
+    if args.friction is not None and not args.compensate_friction:
+        raise ValueError("--friction in export says which friction the law compensates: give "
+                         "--compensate-friction too (the exported code simulates no plant)")
+    friction = compensation_from_args(args, robot)
     with as_options():
-        law = make_law(args.law, robot, **({"K": K} if K is not None else {}))
+        law = make_law(args.law, robot, **({"K": K} if K is not None else {}),
+                       **({"friction": friction} if friction is not None else {}))
         prepared = prepare_export(law, robot, args.rate, method=args.method,
                                   prewarp=args.prewarp, design=d)
     check_sampled_loop(law, robot, prepared.rate)

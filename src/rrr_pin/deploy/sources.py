@@ -168,7 +168,11 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
 
 
 def controller_c(form, *, law: str, rate: float) -> str:
-    """``controller.c``: the law of ``form`` (FLForm, FLAWForm, PDForm; discrete at ``rate``)."""
+    """``controller.c``: the law of ``form`` (FLForm, FLFrictionForm, FLAWForm, PDForm).
+
+    Discrete at ``rate``. ``FLFrictionForm`` adds ``Fv qd + Fc tanh(qd / v_eps)`` to the
+    torque after ``Mhat taubar + hhat``, as the Python law does.
+    """
     head = _BANNER.format(what=f"Law {law!r}: C99, no allocation, no globals (constant tables "
                           f"only), re-entrant.") + '''#include <math.h>
 
@@ -289,6 +293,12 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         decl = ("    double e[CTRL_NQ], y[CTRL_NQ], taubar[CTRL_NQ], M[CTRL_NQ * CTRL_NQ], "
                 "h[CTRL_NQ];\n")
         what = "feedback linearization alone, eq. (20): y = 0"
+    friction = ""
+    if form.kind == "fl_friction":
+        tables += (_vector("FV", form.viscous) + _vector("FC", form.coulomb)
+                   + f"#define VEPS {_num(form.coulomb_velocity)}\n")
+        friction = "        tau[i] = tau[i] + (FV[i] * qd[i] + FC[i] * tanh(qd[i] / VEPS));\n"
+        what += "; friction compensation tau += Fv qd + Fc tanh(qd / v_eps)"
     clip = '''    for (i = 0; i < CTRL_NQ; ++i) {
         tau_u[i] = tau[i];
         if (tau[i] > TAU_MAX[i]) {
@@ -324,7 +334,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
             acc += M[i * CTRL_NQ + j] * taubar[j];
         }}
         tau[i] = acc + h[i];
-    }}
+{friction}    }}
     if (!all_finite(tau)) {{
         return CTRL_EOUTPUT;
     }}

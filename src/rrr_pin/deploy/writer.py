@@ -31,6 +31,7 @@ from ..control.laws import (
     DiscreteTrackingController,
     FLAWForm,
     FLForm,
+    FLFrictionForm,
     PDForm,
     SampledLaw,
     TrackingController,
@@ -61,10 +62,12 @@ EXPRESSIBLE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ",
 #: What a law must declare to be exported (the refusal's text).
 EXPORTABLE = ("an exportable law must declare, by compiled_form(), an FLForm (lam and the "
               "discrete A, B, C, D of its K), an FLAWForm (the same with the anti-windup gain "
-              "L and the torque limits) or a PDForm (Kp, Kd) that reproduces it exactly, "
+              "L and the torque limits), an FLFrictionForm (an FLForm with friction "
+              "compensation) or a PDForm (Kp, Kd) that reproduces it exactly, "
               "for its own class: the built-in laws fl, hinf, hinf_aw and pd do "
               "(fl_controller, hinf_fl_controller, hinf_aw_controller, pd_controller, and "
-              "their sampled versions); hinf2dof, a subclass or a law of your own does not")
+              "their sampled versions; fl and hinf with friction compensation too); hinf_aw "
+              "with friction compensation, hinf2dof, a subclass or a law of your own does not")
 
 
 class ExportError(ValueError):
@@ -167,7 +170,8 @@ def _discretize(law: TrackingController, rate: float, method: str, prewarp):
     A = np.asarray(Kd.A, dtype=float)
     if A.size:
         _check_stable_after(law, A, rate, method)
-    return DiscreteTrackingController(law.nominal, law.lam, Kd, name=law.name, label=law.label)
+    return DiscreteTrackingController(law.nominal, law.lam, Kd, name=law.name, label=law.label,
+                                      friction=law.friction)
 
 
 def _twin(law, rate, method: str, prewarp):
@@ -291,7 +295,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     fp = fingerprint(robot.model)
     twin, rate = _twin(law, rate, method, prewarp)
     form = twin.compiled_form()
-    if type(form) not in (FLForm, FLAWForm, PDForm):
+    if type(form) not in (FLForm, FLFrictionForm, FLAWForm, PDForm):
         raise ExportError(f"law {law.name!r} ({type(law).__name__}) cannot be exported: "
                           f"{EXPORTABLE}")
     law_fp = fingerprint(form.nominal.model)
@@ -349,6 +353,12 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                       "C": C.tolist(), "D": D.tolist(), "Ts": 1.0 / rate,
                       "method": None if isinstance(law, DiscreteTrackingController) or not nx
                       else method, "prewarp_rad_s": prewarp, "K_source": source}
+        if form.kind == "fl_friction":  # tau += Fv qd + Fc tanh(qd / v_eps)
+            law_record.update(kind="fl_friction", friction_compensation={
+                "viscous_Nms_rad": form.viscous.tolist(), "coulomb_Nm": form.coulomb.tolist(),
+                "coulomb_velocity_rad_s": form.coulomb_velocity,
+                "model": "tau += Fv qd + Fc tanh(qd / v_eps)",
+                "source": law.friction.source if law.friction is not None else ""})
         if form.kind == "fl_aw":  # Hanus: x+ = A x + B e + L (y_hat - y), tau clipped
             law_record.update(kind="fl_aw", L=form.L.tolist(),
                               torque_limit_Nm=form.limit.tolist(),

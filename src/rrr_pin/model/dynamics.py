@@ -39,6 +39,7 @@ from .dh import ArmParams, check_inertial
 from .plant import (
     EFFORT_LIMITS,
     FRAMES,
+    JOINT_FRICTION,
     JOINT_LIMITS,
     URDF,
     Plant,
@@ -107,7 +108,7 @@ class Robot(Plant):
     locked: dict = field(default_factory=dict)
     params: ArmParams | None = field(default=None, repr=False)
 
-    capabilities = frozenset({URDF, EFFORT_LIMITS, JOINT_LIMITS, FRAMES})
+    capabilities = frozenset({URDF, EFFORT_LIMITS, JOINT_FRICTION, JOINT_LIMITS, FRAMES})
 
     def __post_init__(self) -> None:
         self._shape = (self.model.nq,)
@@ -171,6 +172,15 @@ class Robot(Plant):
     def effort_limits(self) -> np.ndarray:
         """Return the URDF's ``<limit effort>`` per joint [N m], shape (nq,) (a new array)."""
         return np.asarray(self.model.effortLimit, dtype=float).copy()
+
+    def joint_friction(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the URDF's ``<dynamics damping friction>`` per joint, shape (nq,) each.
+
+        Viscous [N m s/rad] and Coulomb [N m] (Pinocchio's ``model.damping`` and
+        ``model.friction``; zero where the URDF gives none). New arrays.
+        """
+        return (np.asarray(self.model.damping, dtype=float).copy(),
+                np.asarray(self.model.friction, dtype=float).copy())
 
     def check_state(self, name: str, x) -> np.ndarray:
         """Return ``x`` as a finite float64 array of shape ``(nq,)``, or raise ``ValueError``.
