@@ -161,7 +161,9 @@ def test_exported_law_compensates_as_python(name, rrr, tmp_path, design_for):
     folder = tmp_path / name
     ex = export_law(law, rrr, RATE, folder)
     assert ex.form.kind == "fl_friction" and ex.dynamics == "generated"
-    rec = json.loads((folder / "controller.json").read_text())["law"]
+    whole = json.loads((folder / "controller.json").read_text())
+    rec = whole["law"]
+    assert whole["model"]["parameters"]["friction_compensated"] is True
     assert rec["friction_compensation"]["viscous_Nms_rad"] == list(FV)
     assert rec["friction_compensation"]["coulomb_velocity_rad_s"] == 0.05
     c_law = exported_law(folder, _compile_shared(folder))

@@ -226,13 +226,15 @@ def _design_record(design) -> dict | None:
                                    "margin_db": float(design.robust_performance.margin_db)}}
 
 
-def _model_parameters(robot) -> dict:
+def _model_parameters(robot, compensated: bool) -> dict:
     """Return the inertial parameters the exported dynamics carry (an identified model's too).
 
     Per joint, the 10 parameters of its body in Pinocchio's ``toDynamicParameters`` order
     (``m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz``, about the joint frame, SI),
     and the model's armature, damping and friction. The law compensates ``M(q)`` (armature
-    included) and ``h(q, qd)``; the URDF's damping and friction are recorded, not compensated.
+    included) and ``h(q, qd)``; the URDF's damping and friction are recorded, and compensated
+    only by a law exported with friction compensation (``compensated``; its values are
+    ``law.friction_compensation``'s, which may come from elsewhere than the URDF).
     """
     model = robot.model
     return {"parameters": {
@@ -242,7 +244,7 @@ def _model_parameters(robot) -> dict:
                    for i in range(1, model.njoints)],
         "armature": model.armature.tolist(), "damping": model.damping.tolist(),
         "friction": model.friction.tolist(),
-        "friction_compensated": False}}
+        "friction_compensated": bool(compensated)}}
 
 
 #: Why an export needs a URDF-described serial tree (the refusal's reason).
@@ -370,7 +372,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                 "class": f"{type(law).__module__}.{type(law).__qualname__}", **law_record},
         "rate_hz": rate, "nq": n, "nx": nx, "joints": list(robot.joint_names),
         "model": {"name": robot.name, "fingerprint": fp, "dynamics": dynamics,
-                  **_model_parameters(robot)},
+                  **_model_parameters(robot, form.kind == "fl_friction")},
         "design": _design_record(design),
     }
     files["controller.json"] = json.dumps(record, indent=2, sort_keys=True) + "\n"
