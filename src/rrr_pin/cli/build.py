@@ -72,12 +72,17 @@ def tolerances_from_args(args, plant):
     from ..model.uncertainty import Tolerances
 
     if args.uncertainty is None:
+        if args.confidence is not None:
+            raise ValueError(f"--confidence {args.confidence:g} applies to plants drawn from "
+                             f"an identification: give --uncertainty IDENTIFICATION.json too "
+                             f"(the paper's tolerances have no confidence region)")
         return Tolerances()
     from ..model.identification import IdentifiedUncertainty
 
     not_a_folder(uncertainty=args.uncertainty)
     with as_options():
-        tol = IdentifiedUncertainty(args.uncertainty, confidence=args.confidence)
+        tol = IdentifiedUncertainty(args.uncertainty, confidence=0.95 if args.confidence is None
+                                    else args.confidence)
     tol.check_robot(plant)
     return tol
 

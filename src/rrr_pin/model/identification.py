@@ -1529,6 +1529,11 @@ class IdentifiedUncertainty(UncertaintySet):
         if body_links(robot) != rec["links"]:
             raise IdentificationError(f"{self.path}: body links {rec['links']} are not the "
                                       f"robot's {body_links(robot)}")
+        own, theirs = list(base_parameters(robot).names), list(rec["base"]["names"])
+        if own != theirs:
+            raise IdentificationError(f"{self.path}: {len(theirs)} base parameters identified, "
+                                      f"the robot {robot.name!r} has {len(own)} (or named "
+                                      f"otherwise: {sorted(set(theirs) ^ set(own))[:4]})")
 
     def describe(self) -> str:
         """One line for reports."""
