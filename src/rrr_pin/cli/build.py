@@ -148,4 +148,11 @@ def frozen_configuration(args, plant):
     home = floats(args.home, "--home")
     if home is None:
         return np.clip(plant.neutral(), plant.lower, plant.upper)
-    return check_vector("--home", home, plant.nq)
+    home = check_vector("--home", home, plant.nq)
+    lower, upper = np.asarray(plant.lower), np.asarray(plant.upper)
+    out = np.flatnonzero((home < lower) | (home > upper))
+    if out.size:
+        j = int(out[0])
+        raise ValueError(f"--home {args.home}: {plant.joint_names[j]} = {home[j]:g} is outside "
+                         f"its joint limits [{lower[j]:.4g}, {upper[j]:.4g}] [rad or m]")
+    return home
