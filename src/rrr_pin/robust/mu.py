@@ -320,8 +320,8 @@ def _balance(M: np.ndarray, blocks) -> np.ndarray:
     norm of that matrix by coordinate descent, one group at a time: scaling group ``k`` by
     ``s`` multiplies its off-diagonal row norm squared ``R_k`` by ``s^2`` and its column norm
     squared ``C_k`` by ``s^-2``, so the exact minimizer is ``s^4 = C_k / R_k`` (E. E. Osborne,
-    "On pre-conditioning of matrices", J. ACM 7, 1960; Packard & Doyle [3]_ start the upper
-    bound from it). For a rank-one ``M = a b^H`` it is the upper bound's optimal ``D``.
+    "On pre-conditioning of matrices", J. ACM 7, 1960; Packard & Doyle [3]_ discuss it as a
+    fast D scaling). For a rank-one ``M = a b^H`` it is the upper bound's optimal ``D``.
     Hand-written: SciPy's ``matrix_balance`` balances single entries only, in powers of 2.
     """
     sizes = []  # the groups of rows that share one scalar
@@ -403,8 +403,8 @@ def _upper(M: np.ndarray, blocks, lo: float) -> float:
             else:
                 low = mid
         best = min(best, hi * s)
-        if cert is None:
-            break
+        if cert is None or best <= lo * (1.0 + _RTOL) * (1.0 + 1e-9):
+            break  # no better scaling found, or the bound meets the lower bound
         lam = np.linalg.eigvalsh(cert[0])
         if lam.max() < 0.1 * _DMAX * lam.min():
             break  # the scaling is inside the solve's bound: the optimum is not confined
