@@ -24,6 +24,7 @@ Usage::
 
 import argparse
 import json
+import re
 import subprocess
 import sys
 import tempfile
@@ -47,6 +48,7 @@ class Case:
     refuse: bool = True
     names: tuple = ()        # each must appear in the message of a clear refusal
     check: str = ""          # accepted cases: a snippet printing "OK" when the result is right
+    shows: str = ""          # accepted CLI cases: a regular expression the output must match
     needs: tuple = field(default=())
 
 
@@ -175,11 +177,14 @@ def cases() -> list[Case]:
         Case("options", "home-negative", _cli("margins", "--home", "-9,0,0"),
              names=("--home",)),
         # robot names
+        # the built-in arm, 7 joints, not the folder; the Panda's fingers locked, 7 joints
         Case("names", "folder-named-xarm7", _cli("margins", "--robot", "xarm7",
                                                  "--controllers", "fl"),
-             refuse=False, check="print('OK')", needs=("xarm7-folder",)),
+             refuse=False, shows=r"^xarm7 at q = \[(-?[\d.]+, ){6}-?[\d.]+\] rad",
+             needs=("xarm7-folder",)),
         Case("names", "panda-by-name", _cli("margins", "--robot", "panda", "--controllers",
-                                            "fl"), refuse=False, check="print('OK')"),
+                                            "fl"), refuse=False,
+             shows=r"^panda at q = \[(-?[\d.]+, ){6}-?[\d.]+\] rad"),
         # mu on a badly scaled matrix (SLICOT AB13MD's published bound 41.7475, scaled 1e6)
         Case("mu", "ab13md-scaled-1e6", code=textwrap.dedent("""
             import numpy as np
@@ -357,6 +362,10 @@ def classify(case: Case, rc, out: str, err: str, checked: str) -> tuple[str, str
         return "clear", message
     if rc != 0:
         return "unclear", f"refused a valid input (exit {rc}): {message}"
+    if case.shows:
+        if re.search(case.shows, out, re.M):
+            return "correct", f"output matches {case.shows!r}"
+        return "silent", f"accepted, but the output does not match {case.shows!r}"
     if checked.strip().endswith("OK") or out.strip().endswith("OK"):
         return "correct", "checked"
     return "silent", f"accepted but wrong: {(checked or out).strip()[-200:]}"
