@@ -240,6 +240,37 @@ def test_cli_export_and_refusals(tmp_path, capsys):
     assert "revolute and prismatic joints only" in capsys.readouterr().err
 
 
+def test_continuous_joint_exports_as_one_angle(tmp_path):
+    """A URDF ``continuous`` joint: Pinocchio's own parser gives it (cos, sin), nq 2 and nv 1;
+    the loader makes it an unbounded revolute (one angle), which the C API expresses. The
+    loaded model's M and h equal Pinocchio's native (cos, sin) model at random states
+    (round-off: 1e-12), and the exported C law steps as the Python law (1e-12)."""
+    if CC is None:
+        pytest.skip("no C compiler")
+    text = (Path(__file__).resolve().parents[1] / "urdf" / "rrr.urdf").read_text()
+    urdf = tmp_path / "rrr_continuous.urdf"
+    urdf.write_text(text.replace('type="revolute"', 'type="continuous"', 1))
+    robot = load_robot(str(urdf))
+    assert (robot.nq, robot.model.nv) == (3, 3) and np.isinf(robot.upper[0])
+    native = pin.buildModelFromXML(urdf.read_text())
+    assert (native.nq, native.nv) == (4, 3)  # JointModelRUBZ: (cos q1, sin q1)
+    native.gravity = robot.model.gravity  # the loader sets standard gravity, 9.80665
+    nd, rng = native.createData(), np.random.default_rng(31)
+    for _ in range(20):
+        q, qd = rng.uniform(-4.0, 4.0, 3), rng.uniform(-3.0, 3.0, 3)
+        qn = np.concatenate([[np.cos(q[0]), np.sin(q[0])], q[1:]])
+        M, h = robot.terms(q, qd)
+        assert_allclose(M, pin.crba(native, nd, qn), rtol=0, atol=1e-12)
+        assert_allclose(h, pin.rnea(native, nd, qn, qd, np.zeros(3)), rtol=0, atol=1e-12)
+    ex = export_law("fl", robot, RATE, tmp_path / "fl")
+    c_law = exported_law(tmp_path / "fl", _compile_shared(tmp_path / "fl"))
+    assert _random_steps(ex.law, c_law, 200, seed=31) <= 1e-12
+    # a model that keeps the (cos, sin) pair is refused by name, not exported
+    kept = Robot(native, native.createData(), "native", str(urdf), urdf.read_text())
+    with pytest.raises(ExportError, match="nq = 4 != nv = 3"):
+        prepare_export("pd", kept, RATE)
+
+
 # --- slow: CMake builds of every built-in law, RRR and UR5 ----------------------------------
 
 @pytest.mark.slow

@@ -532,6 +532,26 @@ def test_malformed_uncertainty_on_the_cli_exits_2(record_path, tmp_path, capsys)
     assert "missing keys ['kinematics']" in err and "Traceback" not in err
 
 
+def test_uncertainty_with_another_base_parameter_set_is_refused(record_path, tmp_path, capsys):
+    # Before (issue 31): a record consistent in itself but with 14 base parameters where the
+    # RRR has 15 ran a campaign. Now refused by name before any run.
+    record = json.loads(record_path.read_text())
+    for key in ("estimate", "std", "base_consistent"):
+        record[key] = record[key][:14]
+    record["cov"] = [row[:14] for row in record["cov"][:14]]
+    record["base_count"] = 14
+    for key in ("names", "expressions", "independent", "K"):
+        record["base"][key] = record["base"][key][:14]
+    path = tmp_path / "identification.json"
+    path.write_text(json.dumps(record))
+    assert main(["montecarlo", "--uncertainty", str(path), "--samples", "1", "--duration",
+                 "0.2", "--out", str(tmp_path / "mc")]) == 2
+    err = capsys.readouterr().err
+    assert "14 base parameters identified, the robot 'rrr' has 15" in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "mc").exists() or list((tmp_path / "mc").iterdir()) == []
+
+
 def test_design_excitation_bounds_the_harmonics_before_any_work(rrr):
     from rrr_pin.model.excitation import MAX_HARMONICS, design_excitation
 

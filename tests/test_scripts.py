@@ -39,7 +39,7 @@ def run_script(script, args, monkeypatch):
 def test_every_script_is_tested():
     assert {p.name for p in SCRIPTS.glob("*.py")} == {r[0] for r in RUNS} | {
         "bench.py", "codegen.py", "gen_dynamics.py", "report_screenshot.py",
-        "panda_heldout.py"}
+        "panda_heldout.py", "probe_inputs.py"}
 
 
 def test_report_screenshot_refuses_a_missing_report(tmp_path, monkeypatch, capsys):
@@ -80,6 +80,20 @@ def test_report_screenshot_draws_the_scene(tmp_path, monkeypatch, capsys):
     r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
     # the nominal arm is drawn in orange (MeshCat rendered the scene, not a blank page)
     assert np.count_nonzero((r > 180) & (g > 80) & (g < 180) & (b < 100)) > 200
+
+
+def test_probe_inputs_classifies_a_few_cases(tmp_path, monkeypatch, capsys):
+    # Two of its cases (the whole probe takes minutes, a few s per case): a CLI refusal and an
+    # accepted input checked right; the JSON holds the table per family.
+    out = tmp_path / "probe.json"
+    run_script("probe_inputs.py", ["--cases", "confidence-alone,mat-round-trip",
+                                   "--workdir", str(tmp_path / "w"), "--out", str(out)],
+               monkeypatch)
+    assert "wrote" in capsys.readouterr().out
+    report = json.loads(out.read_text())
+    assert {c["case"]: c["outcome"] for c in report["cases"]} == {
+        "confidence-alone": "clear", "mat-round-trip": "correct"}
+    assert report["table"]["all"]["clear"] == 1 and report["table"]["trajectory"]["correct"] == 1
 
 
 def test_codegen_check_runs(monkeypatch, capsys):

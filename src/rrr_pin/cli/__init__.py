@@ -58,12 +58,14 @@ def main(argv: list[str] | None = None) -> int:
             parser = build_parser()
             args = parser.parse_args(
                 negative_values(sys.argv[1:] if argv is None else list(argv)))
+            status = None
             try:
                 with logging_to_stderr(args.verbose):
-                    return int(args.func(args) or 0)
+                    status = int(args.func(args) or 0)
+                    return status
             finally:  # record the files written, also after an error or an interrupt
                 if getattr(args, "outputs", None) is not None:
-                    args.outputs.close()
+                    args.outputs.close(finished=status == 0)
     except (ValueError, FileNotFoundError, RuntimeError) as exc:
         print(f"rrr-pin {args.command}: error: {exc}", file=sys.stderr)
         return 2

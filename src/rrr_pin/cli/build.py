@@ -153,12 +153,17 @@ def tolerances_from_args(args, plant):
     from ..model.uncertainty import Tolerances
 
     if args.uncertainty is None:
+        if args.confidence is not None:
+            raise ValueError(f"--confidence {args.confidence:g} applies to plants drawn from "
+                             f"an identification: give --uncertainty IDENTIFICATION.json too "
+                             f"(the paper's tolerances have no confidence region)")
         return Tolerances()
     from ..model.identification import IdentifiedUncertainty
 
     not_a_folder(uncertainty=args.uncertainty)
     with as_options():
-        tol = IdentifiedUncertainty(args.uncertainty, confidence=args.confidence,
+        tol = IdentifiedUncertainty(args.uncertainty, confidence=0.95 if args.confidence is None
+                                    else args.confidence,
                                     draws=getattr(args, "uncertainty_draws", "reject"))
     tol.check_robot(plant)
     return tol
@@ -239,4 +244,11 @@ def frozen_configuration(args, plant):
     home = floats(args.home, "--home")
     if home is None:
         return np.clip(plant.neutral(), plant.lower, plant.upper)
-    return check_vector("--home", home, plant.nq)
+    home = check_vector("--home", home, plant.nq)
+    lower, upper = np.asarray(plant.lower), np.asarray(plant.upper)
+    out = np.flatnonzero((home < lower) | (home > upper))
+    if out.size:
+        j = int(out[0])
+        raise ValueError(f"--home {args.home}: {plant.joint_names[j]} = {home[j]:g} is outside "
+                         f"its joint limits [{lower[j]:.4g}, {upper[j]:.4g}] [rad or m]")
+    return home

@@ -79,8 +79,9 @@ def add_law_arguments(p, default_duration: float, default_rate) -> None:
                    help="draw the uncertain plants from an identification (rrr-pin identify) "
                         "instead of the paper's 20 %% inertia / 5 %% length tolerances; use "
                         "--robot DIR/identified.urdf as the nominal")
-    p.add_argument("--confidence", type=float, default=0.95,
-                   help="with --uncertainty: confidence region the plants are drawn in (0.95)")
+    p.add_argument("--confidence", type=float, default=None,
+                   help="with --uncertainty only: confidence region the plants are drawn in "
+                        "(0.95)")
     p.add_argument("--uncertainty-draws", choices=("reject", "project"), default="reject",
                    help="with --uncertainty: a draw with no physically consistent arm is "
                         "rejected and redrawn (reject, default), or moved to the nearest "

@@ -4,7 +4,7 @@
 (:func:`diverged_joint`, :data:`VELOCITY_LIMIT`: one definition for the Python and the compiled
 engines), and :class:`Run`, a validated run that :func:`rrr_pin.sim.simulation.simulate` hands
 to an engine; :meth:`Trajectory.save` and :meth:`Trajectory.load` write and read a trajectory
-as CSV, NPZ or Parquet (:data:`FORMATS`). Imports nothing of rrr_pin.
+as CSV, NPZ, Parquet or MATLAB ``.mat`` (:data:`FORMATS`). Imports nothing of rrr_pin.
 """
 
 from __future__ import annotations
@@ -94,6 +94,21 @@ class Trajectory:
     joint_names: list = field(default_factory=list)
     joint_units: list = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        """One-line summary (the arrays' sizes, not their values), as the HTML repr shows."""
+        t, q = np.asarray(self.t), np.asarray(self.q)
+        n = q.shape[1] if q.ndim == 2 else 0
+        span = f"{t[-1] - t[0]:.6g} s" if t.size else "empty"
+        parts = [f"plant={self.plant!r}", f"controller={self.controller!r}",
+                 f"{t.size} samples over {span}", f"{n} joints"]
+        if self.info.get("engine"):
+            parts.append(f"engine={self.info['engine']!r}")
+        if t.size and np.shape(self.r) == q.shape:
+            e = np.abs(np.asarray(self.r) - q)
+            parts.append(f"max |error| {np.max(e):.4g}" if np.isfinite(e).all()
+                         else "non-finite values")
+        return f"Trajectory({', '.join(parts)})"
+
     def _repr_html_(self) -> str:
         """Summary table for notebooks: plant, law, duration, rate, engine, RMS error, status."""
         import html
@@ -138,6 +153,9 @@ class Trajectory:
         * ``.parquet``: one column per CSV header entry (pyarrow), the JSON text in the
           schema metadata under ``b"rrr_pin"`` and each column's unit in its field metadata
           under ``b"unit"``.
+        * ``.mat``: MATLAB variables ``t`` (N x 1), ``q, qd, r, tau`` (N x n) and ``metadata``,
+          the JSON text (``jsondecode(metadata)`` in MATLAB), written by
+          :func:`scipy.io.savemat` (MAT 5, compressed).
 
         ``info`` is stored as JSON: tuples come back as lists, NumPy scalars as numbers.
 
@@ -165,6 +183,12 @@ class Trajectory:
             with open(path, "wb") as f:  # a file object: numpy would append .npz to a name
                 np.savez(f, t=self.t, q=self.q, qd=self.qd, r=self.r, tau=self.tau,
                          metadata=np.array(json.dumps(meta)))
+        elif fmt == ".mat":
+            import scipy.io
+
+            scipy.io.savemat(path, {"t": np.asarray(self.t, dtype=float), **{
+                k: np.asarray(getattr(self, k), dtype=float) for k in _ARRAYS},
+                "metadata": json.dumps(meta)}, oned_as="column", do_compression=True)
         else:
             _write_parquet(path, self, meta)
         return path
@@ -176,7 +200,7 @@ class Trajectory:
         Parameters
         ----------
         path : str or path-like
-            A ``.csv``, ``.npz`` or ``.parquet`` file written by :meth:`save`.
+            A ``.csv``, ``.npz``, ``.parquet`` or ``.mat`` file written by :meth:`save`.
 
         Returns
         -------
@@ -205,8 +229,8 @@ class Trajectory:
             raise FileNotFoundError(f"trajectory file not found: {path}")
         if fmt == ".csv":
             meta, columns = _read_csv(path)
-        elif fmt == ".npz":
-            meta, arrays = _read_npz(path)
+        elif fmt in (".npz", ".mat"):
+            meta, arrays = (_read_npz if fmt == ".npz" else _read_mat)(path)
             n = len(meta["joint_names"]) or (arrays["q"].shape[1] if "q" in arrays else 0)
             return _trajectory(path, meta, arrays, n)
         else:
@@ -381,7 +405,7 @@ def saturation(tau, limit, Ts: float) -> dict:
 # --- files: Trajectory.save / Trajectory.load -------------------------------------------------
 
 #: Suffixes :meth:`Trajectory.save` and :meth:`Trajectory.load` accept.
-FORMATS = (".csv", ".npz", ".parquet")
+FORMATS = (".csv", ".npz", ".parquet", ".mat")
 
 #: The joint-space arrays, in file order (after ``t``).
 _ARRAYS = ("q", "qd", "r", "tau")
@@ -517,6 +541,30 @@ def _read_npz(path: Path) -> tuple[dict, dict]:
         # a damaged member in numpy's header parser (ValueError, OSError).
         raise TrajectoryFileError(f"{path}: a truncated or damaged .npz archive "
                                   f"({type(exc).__name__}: {exc})") from None
+    return meta, arrays
+
+
+def _read_mat(path: Path) -> tuple[dict, dict]:
+    """Metadata and arrays of a ``.mat`` trajectory (``t`` back to shape (N,))."""
+    import zlib
+
+    import scipy.io
+
+    try:
+        data = scipy.io.loadmat(path)
+    except (ValueError, OSError, EOFError, zlib.error, TypeError) as exc:
+        # scipy.io names a foreign file in ValueError ("Unknown mat file type", "Mat 4 mopt
+        # wrong format") and a truncated one in OSError ("could not read bytes").
+        raise TrajectoryFileError(f"{path}: not a readable MAT file (truncated, damaged or "
+                                  f"of another format: {type(exc).__name__}: {exc})") from None
+    if "metadata" not in data or np.size(data["metadata"]) != 1:
+        raise TrajectoryFileError(f"{path}: no 'metadata' variable; not written by "
+                                  f"Trajectory.save")
+    meta = _check_metadata(path, str(np.ravel(data["metadata"])[0]))
+    arrays = {k: np.array(data[k], dtype=float) for k in ("t",) + _ARRAYS if k in data}
+    if "t" in arrays:
+        t = arrays["t"]
+        arrays["t"] = t.reshape(-1) if t.ndim == 2 and 1 in t.shape else t
     return meta, arrays
 
 

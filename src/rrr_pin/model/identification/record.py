@@ -17,7 +17,13 @@ from .consistency import (
     pseudo_inertia_lmis,
     urdf_with_parameters,
 )
-from .regressor import BaseParameters, IdentificationError, body_links, joint_kinematics
+from .regressor import (
+    BaseParameters,
+    IdentificationError,
+    base_parameters,
+    body_links,
+    joint_kinematics,
+)
 
 __all__ = ["RECORD_KEYS", "check_identification_record", "IdentifiedUncertainty"]
 
@@ -202,6 +208,11 @@ class IdentifiedUncertainty(UncertaintySet):
         if body_links(robot) != rec["links"]:
             raise IdentificationError(f"{self.path}: body links {rec['links']} are not the "
                                       f"robot's {body_links(robot)}")
+        own, theirs = list(base_parameters(robot).names), list(rec["base"]["names"])
+        if own != theirs:
+            raise IdentificationError(f"{self.path}: {len(theirs)} base parameters identified, "
+                                      f"the robot {robot.name!r} has {len(own)} (or named "
+                                      f"otherwise: {sorted(set(theirs) ^ set(own))[:4]})")
 
     def describe(self) -> str:
         """One line for reports."""
