@@ -214,3 +214,30 @@ def test_campaign_rows_equal_for_two_jobs_and_batch_sizes(rrr):
                                    run=RunSettings(duration=0.2, rate=RATE))
     one = mc.run_campaign(rrr, laws, settings, jobs=1, batch=1).rows
     assert mc.run_campaign(rrr, laws, settings, jobs=2, batch=16, chunk=2).rows == one
+
+
+def test_campaign_rows_equal_for_one_and_two_threads(rrr):
+    # Threads run batches of plants side by side; no operation crosses plants, so rows are
+    # identical (==, bit for bit) for every thread count and batch size.
+    laws = make_laws("fl,hinf", rrr)
+    settings = mc.CampaignSettings(samples=9, seed=4, tolerances=Tolerances(),
+                                   run=RunSettings(duration=0.1, rate=RATE))
+    one = mc.run_campaign(rrr, laws, settings, jobs=1, threads=1, batch=16).rows
+    assert mc.run_campaign(rrr, laws, settings, jobs=1, threads=2, batch=4).rows == one
+    assert mc.run_campaign(rrr, laws, settings, jobs=1, threads=2, batch=1, chunk=5).rows == one
+    with pytest.raises(ValueError, match="threads must be an integer in"):
+        mc.run_campaign(rrr, laws, settings, jobs=1, threads=0)
+
+
+def test_figures_equal_the_trajectorys_figures(rrr, ref, plants):
+    # figures=True reduces the batch arrays without making trajectories: the same numbers,
+    # bit for bit, as the trajectories' own figures (and as the campaign's run_metrics).
+    law = make_laws("hinf", rrr)[0]
+    trajs = simulate_batch(plants, law, ref, 0.2, rate=RATE, batch=4, threads=2)
+    figs = simulate_batch(plants, law, ref, 0.2, rate=RATE, batch=4, figures=True)
+    for t, f in zip(trajs, figs, strict=True):
+        assert f.figures() == t.figures()
+        assert f.info == t.info and f.info["engine"] == "codegen"
+    # every trajectory owns its reference samples, though the batch shared them
+    trajs[0].r[:] = 0.0
+    assert np.all(trajs[1].r[1:] != 0.0)

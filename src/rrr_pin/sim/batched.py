@@ -23,13 +23,14 @@ or continuous, on the ideal plant (no :mod:`~rrr_pin.control.effects`).
 
 from __future__ import annotations
 
-from dataclasses import fields
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import fields, replace
 
 import numpy as np
 
 from ..control.laws import FLForm, PDForm, check_law_output
 from ..model.dh import INERTIA_RTOL, check_inertial
-from ..validation import FieldError
+from ..validation import FieldError, check_count
 from . import dyngen
 from .codegen import CodegenModelMismatch
 from .engine_names import AUTO, CODEGEN, COMPILED
@@ -38,15 +39,17 @@ from .trajectory import (
     LAW_TORQUE,
     REASONS,
     VELOCITY_LIMIT,
+    RunFigures,
     SimulationDiverged,
     divergence,
     law_divergence,
     make_trajectory,
+    tracking_figures,
 )
 
 __all__ = ["GENERATED", "BATCH_LAWS", "BATCH_MAX", "StructureMismatch", "generated_structure",
            "plant_parameters", "batchable", "why_not", "run_batch", "raise_or_return",
-           "floor_ms"]
+           "floor_ms", "MAX_THREADS", "thread_pool"]
 
 #: The generated structures: name -> (robot source of :func:`rrr_pin.model.dynamics.load_robot`,
 #: joints locked) the generator reads the structure from (``scripts/gen_dynamics.py``).
@@ -222,11 +225,13 @@ def _law(form):
 
 def _same(runs, key: str) -> None:
     first = getattr(runs[0], key)
-    if any(not np.array_equal(getattr(r, key), first) for r in runs[1:]):
+    if any(getattr(r, key) is not first and not np.array_equal(getattr(r, key), first)
+           for r in runs[1:]):
         raise ValueError(f"a batch shares {key}: its runs differ in it")
 
 
-def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
+def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
+              figures: bool = False) -> list:
     """Run validated simulations of one law on many plants, ``batch`` plants per C++ call.
 
     Parameters
@@ -238,11 +243,21 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
         ``runs[0].law.compiled_form()``, of a type in :data:`BATCH_LAWS`.
     batch : int, default 16
         Plants per call, 1 to :data:`BATCH_MAX`; results do not depend on it.
+    threads : int, default 1
+        Threads that run the calls (a lane group of ``batch`` plants each, the GIL released
+        in C++), 1 to :data:`MAX_THREADS`; results do not depend on it (no operation crosses
+        plants).
+    figures : bool, default False
+        Return each run reduced to its figures (:class:`~rrr_pin.sim.trajectory.RunFigures`,
+        what a campaign's row needs) instead of its trajectory: the same numbers,
+        :func:`~rrr_pin.sim.trajectory.tracking_figures` of the same arrays, without building
+        a trajectory per plant.
 
     Returns
     -------
     list
-        Per run, in order: its :class:`~rrr_pin.sim.trajectory.Trajectory`, or the
+        Per run, in order: its :class:`~rrr_pin.sim.trajectory.Trajectory` (or
+        :class:`~rrr_pin.sim.trajectory.RunFigures`), or the
         :class:`~rrr_pin.sim.trajectory.SimulationDiverged` it ended with (same test and
         message as the other engines).
 
@@ -265,6 +280,7 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
                          f"the batched engine (known: {known}); use engine={COMPILED!r}")
     if not 1 <= int(batch) <= BATCH_MAX:
         raise ValueError(f"batch must be an integer in [1, {BATCH_MAX}], got {batch!r}")
+    check_count("threads", threads, 1, MAX_THREADS)
     if not runs:
         return []
     if any(r.effects is not None for r in runs):
@@ -294,21 +310,53 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
     lower = np.stack([r.lower for r in runs])
     upper = np.stack([r.upper for r in runs])
     n1, n = len(run0.t), run0.plant.nq
+    slices = [slice(s, s + int(batch)) for s in range(0, len(runs), int(batch))]
+
+    def call(sl):
+        return EXTENSION.batch_rollout(name, P[sl], nominal, law, inputs, lower[sl], upper[sl])
+
     out = []
-    for s in range(0, len(runs), int(batch)):
-        sl = slice(s, s + int(batch))
-        Q, QD, TAU, steps, joints, reasons = EXTENSION.batch_rollout(
-            name, P[sl], nominal, law, inputs, lower[sl], upper[sl])
+    for sl, (Q, QD, TAU, steps, joints, reasons) in zip(
+            slices, _map(call, slices, int(threads)), strict=True):
         B = len(steps)
         Q, QD, TAU = (a.reshape(B, n1, n) for a in (Q, QD, TAU))
         for b, run in enumerate(runs[sl]):
             out.append(_result(run, Q[b], QD[b], TAU[b], int(steps[b]), int(joints[b]),
-                               int(reasons[b])))
+                               int(reasons[b]), figures))
     return out
 
 
-def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int):
-    """Return a plant's Trajectory or its SimulationDiverged (as in compiled.run_compiled)."""
+#: Most threads :func:`run_batch` takes (a bound on a typo, not on the machine).
+MAX_THREADS = 256
+
+_POOLS: dict = {}
+
+
+def thread_pool(threads: int) -> ThreadPoolExecutor:
+    """Return the process's pool of ``threads`` threads for batched rollouts (made at first use).
+
+    The C++ batched loop releases the GIL, so work submitted here runs on separate cores.
+    """
+    pool = _POOLS.get(threads)
+    if pool is None:
+        pool = _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="rrr-pin-batch")
+    return pool
+
+
+def _map(fn, items, threads: int):
+    """``map(fn, items)``, on ``threads`` threads when there is more than one item."""
+    if threads == 1 or len(items) < 2:
+        return map(fn, items)
+    return thread_pool(threads).map(fn, items)
+
+
+def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int,
+            figures: bool = False):
+    """Return a plant's Trajectory (or RunFigures) or its SimulationDiverged.
+
+    As in compiled.run_compiled. The run's reference arrays may be shared with other runs
+    (:func:`rrr_pin.sim.simulation.simulate_batch`): a trajectory gets its own copy.
+    """
     law_failed = bad_step >= 0 and reason == LAW_TORQUE
     if law_failed and bad_step == 0 and not np.isfinite(TAU[0]).all():
         check_law_output(run.law, "step() torque" if run.sampled else "torque()", TAU[0],
@@ -318,8 +366,14 @@ def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int):
     if bad_step >= 0:
         return divergence(run.plant, float(run.t[bad_step]), Q[bad_step], QD[bad_step],
                           bad_joint, REASONS[reason])
-    return make_trajectory(run, np.ascontiguousarray(Q), np.ascontiguousarray(QD),
-                           np.ascontiguousarray(TAU))
+    if figures:
+        R = run.R if run.sampled else run.R[::2]
+        plant = run.plant
+        return RunFigures(run.law.name, plant.name,
+                          tracking_figures(R - Q, TAU, plant.joint_names, run.info),
+                          dict(run.info))
+    return make_trajectory(replace(run, R=run.R.copy()), np.ascontiguousarray(Q),
+                           np.ascontiguousarray(QD), np.ascontiguousarray(TAU))
 
 
 def raise_or_return(result):

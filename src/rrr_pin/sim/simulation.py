@@ -52,7 +52,7 @@ from __future__ import annotations
 import logging
 import math
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -358,7 +358,8 @@ def _execute(run: Run, engine: str) -> Trajectory:
 
 
 def simulate_batch(plants, law, reference: Reference, duration: float, *, batch: int = 16,
-                   engine: str = "auto", **kwargs) -> list:
+                   engine: str = "auto", threads: int = 1, figures: bool = False,
+                   **kwargs) -> list:
     """Simulate one law on many plants; diverged runs are returned, not raised.
 
     With ``engine="auto"`` the plants run ``batch`` at a time on the generated dynamics
@@ -378,6 +379,14 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
     batch : int, default 16
         Plants per batched call, 1 to :data:`rrr_pin.sim.batched.BATCH_MAX`.
     engine : {"auto", "python", "compiled", "codegen"}, default "auto"
+    threads : int, default 1
+        Threads of the batched engine (a batch per thread, the GIL released;
+        :func:`rrr_pin.sim.batched.run_batch`); changes no number.
+    figures : bool, default False
+        Where the batched engine runs, return each run reduced to its figures
+        (:class:`~rrr_pin.sim.trajectory.RunFigures`, what a campaign's row needs) instead of
+        its trajectory; runs on another engine still return trajectories. Both have
+        ``figures(joint_names)`` and ``info``.
     **kwargs
         The other keywords of :func:`simulate` (``dt``, ``rate``, ``method``, ``q0``,
         ``qd0``, ``limit_margin``, ``effects``, ``check``, ``force``).
@@ -399,9 +408,10 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
 
     def prepared(plant):
         # A plant's own failures (a closed chain whose loop will not close at q0) are its
-        # result, as in the run; every other error propagates.
+        # result, as in the run; every other error propagates. The runs share the sampled
+        # reference (read-only); a run for another engine gets its own copies below.
         try:
-            return _prepare(plant, law, reference, duration, **options)
+            return _prepare(plant, law, reference, duration, share=True, **options)
         except (SimulationDiverged, *plant.failures) as exc:
             return exc
 
@@ -413,7 +423,7 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
         if engine == CODEGEN and runs:
             choose(runs[0], CODEGEN)  # the refusal of a run the batched engine cannot run
         if engine == CODEGEN or batchable(runs, form):
-            out = run_batch(runs, form, batch=int(batch))
+            out = run_batch(runs, form, batch=int(batch), threads=threads, figures=figures)
             note = (f"engine={CODEGEN!r} asked" if engine == CODEGEN else
                     f"{AUTO}: {CODEGEN} runs every plant of the batch exactly")
             for r in out:
@@ -425,6 +435,7 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
         if isinstance(run, Exception):
             out.append(run)
             continue
+        run = replace(run, R=run.R.copy(), RD=run.RD.copy(), RDD=run.RDD.copy())
         try:
             out.append(_execute(run, engine))
         except (SimulationDiverged, *run.plant.failures) as exc:
@@ -476,11 +487,14 @@ def _sampled_law(law, rate: float, method: str):
     return hit[1]
 
 
-def _sample_reference(reference, grid_key, grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _sample_reference(reference, grid_key, grid, share: bool = False
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return ``reference.sample(grid)`` as contiguous float arrays, checked (finite, (N, n)).
 
     Inside :func:`reuse_preparation`, sampled once per reference (by identity) and
-    ``grid_key`` (which determines ``grid``); each call gets its own copies.
+    ``grid_key`` (which determines ``grid``); each call gets its own copies, or with ``share``
+    the cached arrays themselves (read-only for the caller: the batched runs of
+    :func:`simulate_batch`, which copy them into a trajectory only when one is made).
     """
     if _REUSE is None:
         return checked_sample(reference, grid)
@@ -489,7 +503,7 @@ def _sample_reference(reference, grid_key, grid) -> tuple[np.ndarray, np.ndarray
     if hit is None or hit[0] is not reference:
         arrays = checked_sample(reference, grid)
         hit = _REUSE[key] = (reference, arrays)
-    return tuple(a.copy() for a in hit[1])
+    return hit[1] if share else tuple(a.copy() for a in hit[1])
 
 
 def _check_limits(reference, plant, duration: float) -> None:
@@ -521,11 +535,13 @@ def _trusted_grid(duration: float, dt: float | None, rate: float | None) -> Time
 
 
 def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
-             limit_margin, effects=None, check=True, force=False) -> Run:
+             limit_margin, effects=None, check=True, force=False, share=False) -> Run:
     """Validate every input once and sample the reference (the edge of the simulator).
 
     ``check=False`` trusts the scalar settings (``duration``, ``dt``, ``rate``,
     ``limit_margin``), validated by the caller; they are only converted to float.
+    ``share``: the run's reference arrays are those of the :func:`reuse_preparation` cache,
+    shared with other runs, not copies (:func:`_sample_reference`).
     """
     n = plant.nq
     check_law(law, n)
@@ -580,7 +596,7 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         info = {"method": "RK4 (continuous-time law)", "dt": dt}
     _check_limits(reference, plant, float(t[-1]))
     R, RD, RDD = _sample_reference(
-        reference, (rate is not None, Ts if rate is not None else dt, n_steps), grid)
+        reference, (rate is not None, Ts if rate is not None else dt, n_steps), grid, share)
     q0 = _state("q0", q0, R[0])
     qd0 = _state("qd0", qd0, RD[0])
     bad = diverged_joint(q0, qd0, lower, upper)
