@@ -659,13 +659,37 @@ def main(argv=None):
             "montecarlo_rollouts_per_s": {"1": 2 * args.mc_samples / one_job_s,
                                           "2": 2 * args.campaign_samples / campaign_s}})
 
-    # 4c. Campaigns against the batched engine's own floor (issue 33): RRR and Panda.
+    # 4c. Campaigns against the batched engine's own floor (issue 33): RRR, Panda, and arms
+    # whose structure is not compiled in (generated, built and cached at first use, timed in
+    # an empty cache).
     if run("4c"):
+        import tempfile
+
+        from rrr_pin.sim import dyncache, dyngen
+        from rrr_pin.sim.batched import generated_structure
+
         panda = rrr_pin.load_robot("panda", lock=dict(GENERATED["panda"][1]))
         result["campaign_at_floor"] = [
             campaign_at_floor(arm, "fl,hinf", count, args.duration, args.rate)
             for arm, count in ((robot, args.campaign_samples),
                                (panda, args.panda_samples)) if count]
+        first = []
+        with tempfile.TemporaryDirectory() as cache:
+            os.environ["RRR_PIN_CACHE"] = cache
+            for name in ("xarm7", "z1"):
+                arm = rrr_pin.load_robot(name)
+                t0 = time.perf_counter()
+                dyn = generated_structure(arm.model)
+                build_s = time.perf_counter() - t0
+                row = {"robot": name, "structure": dyngen.structure(arm.model),
+                       "generated": dyn, "build_s": build_s,
+                       "note": dyncache.failure(dyngen.structure(arm.model))}
+                if args.panda_samples:
+                    row.update(campaign_at_floor(arm, "fl,hinf", args.panda_samples,
+                                                 args.duration, args.rate))
+                first.append(row)
+            del os.environ["RRR_PIN_CACHE"]
+        result["first_use"] = first
 
     # 5. Start-up in fresh processes.
     if run("5"):
@@ -801,6 +825,15 @@ def report(res, args):
                   f"{goal:g} s: {'met' if scaled <= goal else 'NOT MET'}); ratio to the floor "
                   f"{ratio:.2f} ({verdict(ratio, GOALS['campaign_floor'])}); engines "
                   f"{', '.join(r['engines'])}")
+        for r in res["first_use"]:
+            print(f"  {r['robot']} ({r['structure']}): generated dynamics {r['generated']}, "
+                  f"{r['build_s']:.1f} s to have them at first use (an empty cache)"
+                  + (f"; NOT generated: {r['note']}" if r["note"] else ""))
+            if "floor_1core_s" in r:
+                print(f"    {r['samples']} plants x (FL, H-inf + FL): floor "
+                      f"{r['floor_1core_s']:.2f} s, 1 process {r['one_process_s']:.2f} s, "
+                      f"jobs 2 {r['jobs2_s']:.2f} s, "
+                      f"threads 2 {r['threads2_s']:.2f} s, engines {', '.join(r['engines'])}")
     if "4b" in args.sections:
         cp, cf = res["closed_chain_rollout_ms"], res["constraint_dynamics_floor_ms"]
         cc, ck = res["closed_chain_compiled_ms"], res["closed_chain_kkt_floor_ms"]

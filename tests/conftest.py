@@ -29,6 +29,7 @@ import contextlib
 import functools
 import io
 import json
+import os
 from pathlib import Path
 from typing import NamedTuple
 
@@ -36,6 +37,11 @@ import matplotlib
 import pytest
 
 matplotlib.use("Agg")
+
+# Generated dynamics built at first use (rrr_pin.sim.dyncache) go to the repository's build/
+# folder during the tests, never to the user's cache.
+os.environ.setdefault("RRR_PIN_CACHE", str(Path(__file__).resolve().parents[1] / "build"
+                                           / "test-dyncache"))
 
 # Load the compiled extension once, before any test captures sys.stdout: in an editable
 # development install its import may first rebuild it in a subprocess, which needs real file

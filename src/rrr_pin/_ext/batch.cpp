@@ -3,7 +3,9 @@
 
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <limits>
+#include <mutex>
 #include <stdexcept>
 #include <vector>
 
@@ -483,10 +485,65 @@ namespace rrr_pin
     }
   } // namespace
 
+  namespace
+  {
+    /// Structures loaded at run time (dyn_register), with the strings their entries point to.
+    /// A deque never moves its elements, so a reference handed out stays valid.
+    struct Loaded
+    {
+      std::mutex lock;
+      std::deque<std::string> strings;
+      std::deque<DynFunctions> table;
+    };
+
+    Loaded & loaded()
+    {
+      static Loaded l;
+      return l;
+    }
+  } // namespace
+
   const DynFunctions * dyn_table(int & count)
   {
     count = static_cast<int>(sizeof(kTable) / sizeof(kTable[0]));
     return kTable;
+  }
+
+  std::vector<DynFunctions> dyn_all()
+  {
+    std::vector<DynFunctions> out(std::begin(kTable), std::end(kTable));
+    Loaded & l = loaded();
+    std::lock_guard<std::mutex> guard(l.lock);
+    out.insert(out.end(), l.table.begin(), l.table.end());
+    return out;
+  }
+
+  void dyn_register(const std::string & name, const std::string & structure, int nq, int np,
+                    std::uintptr_t crba, std::uintptr_t nle, std::uintptr_t gravity,
+                    std::uintptr_t fd)
+  {
+    if (nq < 1 || np != 3 + 23 * nq || !crba || !nle || !gravity || !fd)
+      throw std::invalid_argument("dyn_register: nq >= 1, np = 3 + 23 nq and four functions");
+    Loaded & l = loaded();
+    std::lock_guard<std::mutex> guard(l.lock);
+    for (const DynFunctions & f : kTable)
+      if (name == f.name)
+        throw std::invalid_argument("dyn_register: '" + name + "' is compiled in");
+    for (const DynFunctions & f : l.table)
+      if (name == f.name)
+        throw std::invalid_argument("dyn_register: '" + name + "' is registered already");
+    l.strings.push_back(name);
+    const char * n = l.strings.back().c_str();
+    l.strings.push_back(structure);
+    const char * st = l.strings.back().c_str();
+    l.table.push_back(DynFunctions{
+      n, st, nq, np,
+      reinterpret_cast<void (*)(int, const double *, const double *, double *)>(crba),
+      reinterpret_cast<void (*)(int, const double *, const double *, const double *, double *)>(
+        nle),
+      reinterpret_cast<void (*)(int, const double *, const double *, double *)>(gravity),
+      reinterpret_cast<void (*)(int, const double *, const double *, const double *,
+                                const double *, double *)>(fd)});
   }
 
   const DynFunctions & dyn_by_name(const std::string & name)
@@ -497,6 +554,14 @@ namespace rrr_pin
       if (name == f.name)
         return f;
       known += (known.empty() ? "" : ", ") + std::string(f.name);
+    }
+    Loaded & l = loaded();
+    std::lock_guard<std::mutex> guard(l.lock);
+    for (const DynFunctions & f : l.table)
+    {
+      if (name == f.name)
+        return f;
+      known += ", " + std::string(f.name);
     }
     throw std::invalid_argument("no generated dynamics named '" + name + "' (known: " + known
                                 + ")");

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <string>
 #include <tuple>
+#include <vector>
 
 #include "law.hpp"
 #include "rollout.hpp"
@@ -32,6 +33,13 @@ namespace rrr_pin
 
   /// The generated structures compiled in, and their count.
   const DynFunctions * dyn_table(int & count);
+  /// Every generated structure: compiled in, then those registered at run time.
+  std::vector<DynFunctions> dyn_all();
+  /// Register a structure's functions loaded at run time (rrr_pin.sim.dyncache: a shared
+  /// object compiled from the generator's C), by address; names are unique.
+  void dyn_register(const std::string & name, const std::string & structure, int nq, int np,
+                    std::uintptr_t crba, std::uintptr_t nle, std::uintptr_t gravity,
+                    std::uintptr_t fd);
   /// The generated structure named `name` (throws std::invalid_argument naming the known ones).
   const DynFunctions & dyn_by_name(const std::string & name);
 

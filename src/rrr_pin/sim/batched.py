@@ -31,7 +31,7 @@ import numpy as np
 from ..control.laws import FLForm, PDForm, check_law_output
 from ..model.dh import INERTIA_RTOL, check_inertial
 from ..validation import FieldError, check_count
-from . import dyngen
+from . import dyncache, dyngen
 from .codegen import CodegenModelMismatch
 from .engine_names import AUTO, CODEGEN, COMPILED
 from .extension import EXTENSION, available, cannot_start, require
@@ -75,28 +75,51 @@ class StructureMismatch(CodegenModelMismatch):
 
 def _structures() -> dict:
     """``structure string -> (name, np)`` of the generated dynamics compiled in."""
-    return {st: (name, npar) for name, (st, _, npar) in EXTENSION.batch_models().items()}
+    return {st: (name, npar) for models in (EXTENSION.batch_models(), EXTENSION.batch_loaded())
+            for name, (st, _, npar) in models.items()}
 
 
 def generated_structure(model) -> str | None:
     """Name of the generated dynamics for a ``pinocchio.Model``'s structure, or None.
 
     The structure is :func:`rrr_pin.sim.dyngen.structure` (joint types and parents) with a
-    gravity that has no angular part.
+    gravity that has no angular part. A structure the extension does not compile in but the
+    generator handles is generated, built and cached at first use
+    (:func:`rrr_pin.sim.dyncache.load`); None if that fails (the reason:
+    :func:`rrr_pin.sim.dyncache.failure`).
     """
     if not available() or np.any(model.gravity.angular != 0.0):
         return None
-    hit = _structures().get(dyngen.structure(model))
-    return hit[0] if hit is not None else None
+    st = dyngen.structure(model)
+    hit = _KNOWN.get(st) or _structures().get(st)
+    if hit is not None:
+        _KNOWN[st] = hit
+        return hit[0]
+    if not dyncache.generatable(model):
+        return None
+    try:
+        name = dyncache.load(model)
+    except dyncache.CacheError:
+        return None
+    return name
+
+
+# structure -> (name, np) of the generated dynamics found so far (compiled in or registered).
+_KNOWN: dict = {}
 
 
 def _refusal(robot, role: str) -> StructureMismatch:
     known = ", ".join(f"{name} ({st})" for st, (name, _) in _structures().items())
+    st = dyngen.structure(robot.model)
+    why = dyncache.failure(st)
+    why = (f"; generating them at first use failed: {why}" if why is not None else
+           "" if dyncache.generatable(robot.model) else
+           "; the generator handles revolute joints about x, y or z only")
     return StructureMismatch(
         f"engine={CODEGEN!r}: the {role} model {robot.name!r} has the structure "
-        f"{dyngen.structure(robot.model)!r} (joint types @ parent), for which no dynamics are "
-        f"generated (known: {known}); use engine={COMPILED!r} (or {AUTO!r}, which falls back to "
-        f"it)")
+        f"{st!r} (joint types @ parent), for which no dynamics are "
+        f"generated (known: {known}){why}; use engine={COMPILED!r} (or {AUTO!r}, which falls "
+        f"back to it)")
 
 
 def plant_parameters(robot, role: str = "plant") -> np.ndarray:

@@ -430,6 +430,13 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
                 if not isinstance(r, SimulationDiverged):
                     r.info["engine"], r.info["engine_note"] = CODEGEN, note
             return out
+    # Why not the batched engine, said in each run's engine note (e.g. a structure whose
+    # dynamics could not be generated at first use: rrr_pin.sim.dyncache).
+    why = None
+    if engine == AUTO and ready and ready[0].law.compiled_form() is not None:
+        from .batched import why_not
+
+        why = why_not(ready[0], ready[0].law.compiled_form())
     out = []
     for run in runs:
         if isinstance(run, Exception):
@@ -437,9 +444,13 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
             continue
         run = replace(run, R=run.R.copy(), RD=run.RD.copy(), RDD=run.RDD.copy())
         try:
-            out.append(_execute(run, engine))
+            traj = _execute(run, engine)
         except (SimulationDiverged, *run.plant.failures) as exc:
             out.append(exc)
+            continue
+        if why is not None:
+            traj.info["engine_note"] += f"; not {CODEGEN} for the batch: {why}"
+        out.append(traj)
     return out
 
 
