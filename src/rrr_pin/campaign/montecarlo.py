@@ -32,7 +32,8 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from ..control.references import Reference, study_reference
-from ..sim.batched import BATCH_MAX, MAX_THREADS, thread_pool
+from ..sim.batched import BATCH_MAX, MAX_THREADS, thread_pool, warm
+from ..sim.engine_names import AUTO, CODEGEN
 from ..sim.simulation import reuse_preparation
 from ..validation import check_count
 from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
@@ -382,6 +383,8 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
     laws, reference = check_campaign(nominal, laws, settings, reference=reference)
     batch = check_count("batch", batch, 1, BATCH_MAX)
     threads = check_count("threads", threads, 1, MAX_THREADS)
+    if settings.run.engine in (AUTO, CODEGEN):
+        warm(nominal)  # a structure met for the first time is built once, before the workers
     job = CampaignJob(settings=settings, laws=tuple(laws), reference=reference,
                       nominal=nominal, certificate=certificate, batch=batch, threads=threads)
     samples = int(settings.samples)

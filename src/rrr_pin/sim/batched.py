@@ -49,7 +49,7 @@ from .trajectory import (
 
 __all__ = ["GENERATED", "BATCH_LAWS", "BATCH_MAX", "StructureMismatch", "generated_structure",
            "plant_parameters", "batchable", "why_not", "run_batch", "raise_or_return",
-           "floor_ms", "MAX_THREADS", "thread_pool"]
+           "floor_ms", "MAX_THREADS", "thread_pool", "warm"]
 
 #: The generated structures: name -> (robot source of :func:`rrr_pin.model.dynamics.load_robot`,
 #: joints locked) the generator reads the structure from (``scripts/gen_dynamics.py``).
@@ -102,6 +102,17 @@ def generated_structure(model) -> str | None:
     except dyncache.CacheError:
         return None
     return name
+
+
+def warm(plant) -> str | None:
+    """Have ``plant``'s generated dynamics ready (built at first use, cached); their name or None.
+
+    A campaign calls it once before its workers start, so that a structure met for the first
+    time is built once, here, and the workers find it in the cache.
+    """
+    if plant.loop_closures:
+        return None
+    return generated_structure(plant.model)
 
 
 # structure -> (name, np) of the generated dynamics found so far (compiled in or registered).

@@ -31,6 +31,7 @@ import json
 import logging
 import os
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -54,6 +55,7 @@ _FUNCTIONS = ("crba", "nle", "gravity", "fd")
 
 # structure -> registered name, or the CacheError of its first attempt (this process).
 _LOADED: dict = {}
+_LOCK = threading.Lock()
 # Shared objects kept loaded for the life of the process (their functions are registered).
 _LIBS: list = []
 
@@ -112,19 +114,20 @@ def load(model, *, source: str = "a model") -> str:
         A structure the generator does not handle.
     """
     st = dyngen.structure(model)
-    hit = _LOADED.get(st)
-    if isinstance(hit, CacheError):
-        raise hit
-    if hit is not None:
-        return hit
-    try:
-        name = _load(model, st, source)
-    except CacheError as exc:
-        _LOADED[st] = exc
-        logger.warning("%s", exc)
-        raise
-    _LOADED[st] = name
-    return name
+    with _LOCK:  # one build per structure, also when a campaign's threads meet it at once
+        hit = _LOADED.get(st)
+        if isinstance(hit, CacheError):
+            raise hit
+        if hit is not None:
+            return hit
+        try:
+            name = _load(model, st, source)
+        except CacheError as exc:
+            _LOADED[st] = exc
+            logger.warning("%s", exc)
+            raise
+        _LOADED[st] = name
+        return name
 
 
 def _load(model, st: str, source: str) -> str:

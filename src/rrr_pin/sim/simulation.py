@@ -494,7 +494,14 @@ def _sampled_law(law, rate: float, method: str):
     key = ("law", id(law), rate, method)
     hit = _REUSE.get(key)
     if hit is None or hit[0] is not law:
-        hit = _REUSE[key] = (law, law.sampled(rate, method))
+        # setdefault: threads preparing runs at once (a campaign's --threads) all get the
+        # first form stored, so the runs of a batch share one law object; a stale entry (an
+        # object of the same id) is replaced.
+        made = (law, law.sampled(rate, method))
+        if hit is None:
+            hit = _REUSE.setdefault(key, made)
+        else:
+            hit = _REUSE[key] = made
     return hit[1]
 
 
@@ -512,8 +519,11 @@ def _sample_reference(reference, grid_key, grid, share: bool = False
     key = ("reference", id(reference), grid_key)
     hit = _REUSE.get(key)
     if hit is None or hit[0] is not reference:
-        arrays = checked_sample(reference, grid)
-        hit = _REUSE[key] = (reference, arrays)
+        made = (reference, checked_sample(reference, grid))
+        if hit is None:
+            hit = _REUSE.setdefault(key, made)  # threads: the first stored is everyone's
+        else:
+            hit = _REUSE[key] = made
     return hit[1] if share else tuple(a.copy() for a in hit[1])
 
 
