@@ -44,7 +44,7 @@ from .trajectory import (
     divergence,
     law_divergence,
     make_trajectory,
-    tracking_figures,
+    tracking_figures_batch,
 )
 
 __all__ = ["GENERATED", "BATCH_LAWS", "BATCH_MAX", "StructureMismatch", "generated_structure",
@@ -354,9 +354,13 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
             slices, _map(call, slices, int(threads)), strict=True):
         B = len(steps)
         Q, QD, TAU = (a.reshape(B, n1, n) for a in (Q, QD, TAU))
+        # The runs share R (checked above): each plant's figures, the batch at once.
+        values = (tracking_figures_batch((run0.R if run0.sampled else run0.R[::2]) - Q, TAU,
+                                         [r.plant.joint_names for r in runs[sl]])
+                  if figures else [None] * B)
         for b, run in enumerate(runs[sl]):
             out.append(_result(run, Q[b], QD[b], TAU[b], int(steps[b]), int(joints[b]),
-                               int(reasons[b]), figures))
+                               int(reasons[b]), values[b]))
     return out
 
 
@@ -385,8 +389,8 @@ def _map(fn, items, threads: int):
 
 
 def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int,
-            figures: bool = False):
-    """Return a plant's Trajectory (or RunFigures) or its SimulationDiverged.
+            figures: dict | None = None):
+    """Return a plant's Trajectory (or RunFigures of ``figures``) or its SimulationDiverged.
 
     As in compiled.run_compiled. The run's reference arrays may be shared with other runs
     (:func:`rrr_pin.sim.simulation.simulate_batch`): a trajectory gets its own copy.
@@ -400,12 +404,8 @@ def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int,
     if bad_step >= 0:
         return divergence(run.plant, float(run.t[bad_step]), Q[bad_step], QD[bad_step],
                           bad_joint, REASONS[reason])
-    if figures:
-        R = run.R if run.sampled else run.R[::2]
-        plant = run.plant
-        return RunFigures(run.law.name, plant.name,
-                          tracking_figures(R - Q, TAU, plant.joint_names, run.info),
-                          dict(run.info))
+    if figures is not None:
+        return RunFigures(run.law.name, run.plant.name, figures, dict(run.info))
     return make_trajectory(replace(run, R=run.R.copy()), np.ascontiguousarray(Q),
                            np.ascontiguousarray(QD), np.ascontiguousarray(TAU))
 

@@ -21,6 +21,7 @@ __all__ = [
     "Trajectory",
     "RunFigures",
     "tracking_figures",
+    "tracking_figures_batch",
     "SimulationDiverged",
     "Run",
     "metrics",
@@ -282,6 +283,43 @@ def tracking_figures(e, tau, joint_names, info=None) -> dict:
         out["drift"] = float(info["drift_m"])
     for name, v in zip(joint_names, np.sqrt(np.mean(e2, axis=0)), strict=True):
         out[f"rms_error_{name}"] = float(v)
+    return out
+
+
+def tracking_figures_batch(E, TAU, joint_names) -> list[dict]:
+    """Return :func:`tracking_figures` of B runs at once: the same numbers, bit for bit.
+
+    Each reduction runs over one run's own block in the same order as for that run alone
+    (numpy's pairwise sum over a contiguous row; a sequential sum over the samples per joint),
+    so a run's figures do not depend on the batch (``tests/test_batched.py`` compares).
+
+    Parameters
+    ----------
+    E : ndarray, shape (B, N, n)
+        Tracking errors ``r - q`` [rad], C-contiguous.
+    TAU : ndarray, shape (B, N, n)
+        Applied torques [N m], C-contiguous.
+    joint_names : sequence of B sequences of str, each of length n
+        Each run's joint names.
+
+    Returns
+    -------
+    list of dict
+        Per run, :func:`tracking_figures` (no ``drift``: a batch holds serial arms).
+    """
+    B = E.shape[0]
+    E2 = E * E
+    rms = np.sqrt(np.mean(E2.reshape(B, -1), axis=1))
+    peak = np.max(np.abs(E).reshape(B, -1), axis=1)
+    torque = np.sqrt(np.mean((TAU * TAU).reshape(B, -1), axis=1))
+    per_joint = np.sqrt(np.mean(E2, axis=1))
+    out = []
+    for b, names in zip(range(B), joint_names, strict=True):
+        row = {"rms_error": float(rms[b]), "max_error": float(peak[b]),
+               "rms_torque": float(torque[b])}
+        row.update(zip((f"rms_error_{name}" for name in names), per_joint[b].tolist(),
+                       strict=True))
+        out.append(row)
     return out
 
 
