@@ -23,6 +23,11 @@ asserted:
 - section 4b: a closed chain (issue 22): a 10 s, 1 kHz FL run of the 5-bar on the Python and the
   compiled engines, against the ``pin.constraintDynamics`` calls the Python engine makes, alone
   (4 per RK4 step), and the compiled engine's exact-KKT calls alone in C++;
+- section 4c (issue 33): the campaign (N plants x (FL, H-inf + FL)) against the batched engine's
+  own floor, the C++ loop alone on the same plants (the time inside ``batch_rollout``), in one
+  process, with ``jobs=2`` and with ``threads=2``, its CPU share outside that loop, on the RRR
+  and the Panda (``--panda-samples``), and the xArm7 and the z1 at first use in an empty cache
+  (the one-time build time; not under ``--quick``);
 - section 5: start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
 - section 6: ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant
   (:func:`loopsyn_3x3_s`);
@@ -42,6 +47,7 @@ Usage::
     python scripts/bench.py --campaign-samples 1000   # the campaign of issue 13's table
     python scripts/bench.py --quick          # seconds, to check that it runs
     python scripts/bench.py --sections 2,2b,2c,4b   # the engines' sections alone
+    python scripts/bench.py --sections 4c --campaign-samples 1000 --panda-samples 1000
     python scripts/bench.py --export         # also section 9 (builds three exports)
 """
 
@@ -485,7 +491,7 @@ def main(argv=None):
     if args.quick:
         args.duration, args.repeat, args.calls = 0.05, 1, 20
         args.campaign_samples, args.mc_samples, args.startup_repeat = 2, 2, 1
-        args.panda_samples = 2
+        args.panda_samples = 0  # section 4c on the RRR alone, no first-use build
     run = args.sections.__contains__
 
     robot = rrr_pin.load_robot("rrr")
@@ -675,8 +681,9 @@ def main(argv=None):
                                (panda, args.panda_samples)) if count]
         first = []
         with tempfile.TemporaryDirectory() as cache:
+            names = () if args.quick else ("xarm7", "z1")  # a build takes ~20 s: not quick
             os.environ["RRR_PIN_CACHE"] = cache
-            for name in ("xarm7", "z1"):
+            for name in names:
                 arm = rrr_pin.load_robot(name)
                 t0 = time.perf_counter()
                 dyn = generated_structure(arm.model)

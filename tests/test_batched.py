@@ -39,41 +39,9 @@ def _robot(name):
     return load_robot(source, lock=dict(lock))
 
 
-def _random_model(model, rng):
-    """A copy of ``model`` with random physical parameters: placements, inertias, armature."""
-    m = model.copy()
-    for i in range(1, m.njoints):
-        R = pin.exp3(rng.normal(size=3))
-        m.jointPlacements[i] = pin.SE3(R, rng.uniform(-0.5, 0.5, 3))
-        # I = tr(S) 1 - S for a random positive definite S: a rigid body's inertia.
-        A = rng.normal(size=(3, 3))
-        S = 0.05 * (A @ A.T + 0.1 * np.eye(3))
-        m.inertias[i] = pin.Inertia(rng.uniform(0.5, 5.0), rng.uniform(-0.2, 0.2, 3),
-                                    np.trace(S) * np.eye(3) - S)
-    m.armature[:] = rng.uniform(0.0, 0.1, m.nv)
-    m.gravity = pin.Motion(np.r_[rng.normal(size=3), 0.0, 0.0, 0.0])
-    return m
-
-
 @pytest.mark.parametrize("name", list(GENERATED))
-def test_generated_equals_pinocchio_on_random_parameters(name):
-    model = _robot(name).model
-    rng = np.random.default_rng(23)
-    B, n = 8, model.nq
-    models = [_random_model(model, rng) for _ in range(B)]
-    P = np.stack([dyngen.parameters(m) for m in models])
-    q, v, tau = (rng.uniform(-3.0, 3.0, (B, n)) for _ in range(3))
-    M, nle, g, qdd = EXTENSION.batch_dynamics(name, P, q, v, tau)
-    for b, m in enumerate(models):
-        d = m.createData()
-        Mp = pin.crba(m, d, q[b])
-        Mp = np.triu(Mp) + np.triu(Mp, 1).T
-        # 1e-12 relative (issue 23): both are exact algorithms in double; measured ~1e-15.
-        for got, want in ((M[b].reshape(n, n), Mp),
-                          (nle[b], pin.nonLinearEffects(m, d, q[b], v[b])),
-                          (g[b], pin.computeGeneralizedGravity(m, d, q[b])),
-                          (qdd[b], pin.aba(m, d, q[b], v[b], tau[b]))):
-            assert_allclose(got, want, rtol=0.0, atol=1e-12 * np.abs(want).max())
+def test_generated_equals_pinocchio_on_random_parameters(name, generated_matches_pinocchio):
+    generated_matches_pinocchio(name, _robot(name).model, 23, 8)
 
 
 def test_committed_c_is_the_generators_output():

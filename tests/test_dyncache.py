@@ -8,10 +8,7 @@ same loop) for the campaign rows.
 import json
 import re
 
-import numpy as np
-import pinocchio as pin
 import pytest
-from numpy.testing import assert_allclose
 
 from rrr_pin.campaign import montecarlo as mc
 from rrr_pin.campaign.runner import RunSettings, make_laws
@@ -58,47 +55,18 @@ GOOD = _arm("xy", "arm_xy")
 BAD = _arm("yz", "arm_yz")
 
 
-def _random_model(model, rng):
-    """A copy of ``model`` with random placements, inertias, armature and gravity."""
-    m = model.copy()
-    for i in range(1, m.njoints):
-        m.jointPlacements[i] = pin.SE3(pin.exp3(rng.normal(size=3)), rng.uniform(-0.5, 0.5, 3))
-        A = rng.normal(size=(3, 3))
-        S = 0.05 * (A @ A.T + 0.1 * np.eye(3))  # I = tr(S) 1 - S: a rigid body's inertia
-        m.inertias[i] = pin.Inertia(rng.uniform(0.5, 5.0), rng.uniform(-0.2, 0.2, 3),
-                                    np.trace(S) * np.eye(3) - S)
-    m.armature[:] = rng.uniform(0.0, 0.1, m.nv)
-    m.gravity = pin.Motion(np.r_[rng.normal(size=3), 0.0, 0.0, 0.0])
-    return m
-
-
-def test_structure_generated_at_first_use_equals_pinocchio(cache):
+def test_structure_generated_at_first_use_equals_pinocchio(cache, generated_matches_pinocchio):
     robot = robot_from_xml(GOOD)
     st = dyngen.structure(robot.model)
     assert st not in {s for s, _, _ in EXTENSION.batch_models().values()}  # not compiled in
-    name = batched.generated_structure(robot.model)
-    assert name is not None and name in EXTENSION.batch_loaded()
+    name = dyncache.load(robot.model)  # built into this test's empty cache
+    assert name in EXTENSION.batch_loaded()
+    assert batched.generated_structure(robot.model) is not None  # what the engine finds
     folder, _ = dyncache.entry(st)
     meta = json.loads((folder / "entry.json").read_text())
     assert meta["structure"] == st and meta["generator_version"] == dyncache.GENERATOR_VERSION
     assert meta["build_s"] > 0.0
-    rng = np.random.default_rng(33)
-    B, n = 6, robot.nq
-    models = [_random_model(robot.model, rng) for _ in range(B)]
-    P = np.stack([dyngen.parameters(m) for m in models])
-    q, v, tau = (rng.uniform(-3.0, 3.0, (B, n)) for _ in range(3))
-    M, nle, g, qdd = EXTENSION.batch_dynamics(name, P, q, v, tau)
-    for b, m in enumerate(models):
-        d = m.createData()
-        Mp = pin.crba(m, d, q[b])
-        Mp = np.triu(Mp) + np.triu(Mp, 1).T
-        # 1e-12 relative (issue 23's bound for the compiled-in structures): both are exact
-        # algorithms in double precision.
-        for got, want in ((M[b].reshape(n, n), Mp),
-                          (nle[b], pin.nonLinearEffects(m, d, q[b], v[b])),
-                          (g[b], pin.computeGeneralizedGravity(m, d, q[b])),
-                          (qdd[b], pin.aba(m, d, q[b], v[b], tau[b]))):
-            assert_allclose(got, want, rtol=0.0, atol=1e-12 * np.abs(want).max())
+    generated_matches_pinocchio(name, robot.model, 33, 6)
 
 
 def test_campaign_on_a_structure_generated_at_first_use_equals_compiled(cache):
