@@ -206,6 +206,10 @@ def test_campaign_rows_equal_for_one_and_two_threads(rrr):
     one = mc.run_campaign(rrr, laws, settings, jobs=1, threads=1, batch=16).rows
     assert mc.run_campaign(rrr, laws, settings, jobs=1, threads=2, batch=4).rows == one
     assert mc.run_campaign(rrr, laws, settings, jobs=1, threads=2, batch=1, chunk=5).rows == one
+    # threads change nothing for the one-plant engines either (they run one at a time)
+    compiled = replace(settings, run=RunSettings(duration=0.1, rate=RATE, engine="compiled"))
+    assert (mc.run_campaign(rrr, laws, compiled, jobs=1, threads=2).rows
+            == mc.run_campaign(rrr, laws, compiled, jobs=1, threads=1).rows)
     with pytest.raises(ValueError, match="threads must be an integer in"):
         mc.run_campaign(rrr, laws, settings, jobs=1, threads=0)
 

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
@@ -444,7 +445,10 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
             continue
         run = replace(run, R=run.R.copy(), RD=run.RD.copy(), RDD=run.RDD.copy())
         try:
-            traj = _execute(run, engine)
+            # One run at a time in the process: a law object is shared by the runs (and a
+            # campaign's threads), and the one-plant engines may keep state in it.
+            with _ONE_AT_A_TIME:
+                traj = _execute(run, engine)
         except (SimulationDiverged, *run.plant.failures) as exc:
             out.append(exc)
             continue
@@ -453,6 +457,8 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
         out.append(traj)
     return out
 
+
+_ONE_AT_A_TIME = threading.Lock()
 
 #: Reuse of the law-side work of :func:`_prepare` across runs, active only inside
 #: :func:`reuse_preparation` (``None`` outside): the reference sampled on a grid, and the
