@@ -121,6 +121,11 @@ def test_a_diverging_plant_leaves_its_batch_unchanged(rrr, ref, plants):
     for a, b in zip(out[:2] + out[3:], clean, strict=True):
         np.testing.assert_array_equal(a.q, b.q)
         np.testing.assert_array_equal(a.tau, b.tau)
+    # Reduced to figures (a campaign's path): the same divergence, the same neighbours.
+    figs = simulate_batch(mixed, law, ref, 0.3, rate=RATE, figures=True)
+    assert str(figs[2]) == str(compiled.value)
+    for f, b in zip(figs[:2] + figs[3:], clean, strict=True):
+        assert f.figures() == b.figures()
 
 
 def test_a_structure_without_generated_code(rrr, ref):
