@@ -171,10 +171,15 @@ def _read_meta(path: Path) -> dict | None:
 
 def _build(model, st, name, folder: Path, cc, flags, source) -> dict:
     try:
+        header = _HEADER.read_text()
+    except OSError as exc:
+        raise CacheError(f"the generated dynamics' header {str(_HEADER)!r} is not installed "
+                         f"with rrr_pin ({exc}); reinstall the package") from None
+    try:
         folder.mkdir(parents=True, exist_ok=True)
         (folder / "entry.json").unlink(missing_ok=True)
         (folder / "dyn.c").write_text(dyngen.generate(name, model, source=source))
-        (folder / "dyn_common.h").write_text(_HEADER.read_text())
+        (folder / "dyn_common.h").write_text(header)
     except OSError as exc:
         raise CacheError(f"the generated-dynamics cache folder {str(folder)!r} cannot be "
                          f"written ({exc}); set RRR_PIN_CACHE to a writable folder") from None
