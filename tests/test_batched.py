@@ -231,3 +231,21 @@ def test_figures_equal_the_trajectorys_figures(rrr, ref, plants):
     # every trajectory owns its reference samples, though the batch shared them
     trajs[0].r[:] = 0.0
     assert np.all(trajs[1].r[1:] != 0.0)
+
+
+@pytest.mark.parametrize("rate", [RATE, None], ids=["sampled", "continuous"])
+def test_batched_hinf_aw_equals_compiled(rrr, ref, plants, rate):
+    # The anti-windup form (FLAWForm) on the batched engine, its clip active: pinned to the
+    # compiled engine (Pinocchio's dynamics, Eigen's LU on the law's M), plant by plant.
+    free = simulate(rrr, make_laws("hinf", rrr)[0], ref, 0.3, rate=rate, engine="compiled")
+    limit = 0.9 * np.abs(free.tau).max(axis=0)  # [N m]: below the peaks, so the clip acts
+    law = make_laws("hinf_aw", rrr, torque_limit=limit)[0]
+    batch = simulate_batch(plants, law, ref, 0.3, rate=rate, batch=4)
+    for a, plant in zip(batch, plants, strict=True):
+        assert a.info["engine"] == "codegen"
+        c = simulate(plant, law, ref, 0.3, rate=rate, engine="compiled")
+        assert np.any(np.abs(c.tau) >= limit)  # clipped somewhere
+        # 1e-12 rad / 1e-11 rad/s, the batched engine's pinned tolerances (above)
+        assert_allclose(a.q, c.q, rtol=0.0, atol=1e-12)
+        assert_allclose(a.qd, c.qd, rtol=0.0, atol=1e-11)
+        assert_allclose(a.tau, c.tau, rtol=1e-12, atol=1e-9)

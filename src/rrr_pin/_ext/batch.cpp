@@ -1,6 +1,9 @@
 // Batched rollouts on generated dynamics (see batch.hpp).
 #include "batch.hpp"
 
+#include <Eigen/LU>
+
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <deque>
@@ -143,6 +146,87 @@ namespace rrr_pin
       {
         md.f.crba(md.B, md.nominal.data(), q, M);
         md.f.nle(md.B, md.nominal.data(), q, qd, tau);
+      }
+    };
+
+    /// FLLaw's torque clipped to the limits, K conditioned on the clip (FLAWLaw, Hanus), per
+    /// plant as FLAWLaw::Eval does: the correction only for plants where a joint clipped.
+    template<>
+    struct BatchLaw<FLAWLaw>
+    {
+      BatchLaw<FLLaw> fl;
+      const FLAWLaw & p;
+      int B, n, m;
+      Lanes tau, dy;
+      std::vector<char> clipped;
+      Mat Mb;
+      Vec rhs;
+
+      BatchLaw(const FLAWLaw & law, const Models & models)
+      : fl(law, models)
+      , p(law)
+      , B(models.B)
+      , n(models.n)
+      , m(static_cast<int>(law.nx()))
+      , tau(n * B)
+      , dy(n * B)
+      , clipped(B, 0)
+      , Mb(n, n)
+      , rhs(n)
+      {
+      }
+
+      const Lanes & torque(
+        const double * q, const double * qd, const double * r, const double * rd,
+        const double * rdd, const double * x)
+      {
+        const Lanes & raw = fl.torque(q, qd, r, rd, rdd, x);
+        const double lam2 = p.lam * p.lam;
+        for (int b = 0; b < B; ++b)
+        {
+          bool c = false;
+          for (int j = 0; j < n; ++j)
+          {
+            const int i = j * B + b;
+            // Eigen's cwiseMax(-limit).cwiseMin(limit): std::max, then std::min.
+            tau[i] = std::min(std::max(raw[i], -p.limit[j]), p.limit[j]);
+            c = c || tau[i] != raw[i];
+          }
+          clipped[b] = c;
+          if (!c)
+            continue;
+          for (int r_ = 0; r_ < n; ++r_)
+          {
+            rhs[r_] = tau[r_ * B + b] - raw[r_ * B + b];
+            for (int k = 0; k < n; ++k)
+              Mb(r_, k) = fl.M[(r_ * n + k) * B + b];
+          }
+          const Vec sol = Mb.partialPivLu().solve(rhs) / lam2;
+          for (int j = 0; j < n; ++j)
+            dy[j * B + b] = sol[j];
+        }
+        return tau;
+      }
+
+      /// FLLaw's state map, plus L dy for the plants whose last torque() clipped.
+      void state_map(const double * x, double * out) const
+      {
+        fl.state_map(x, out);
+        for (int b = 0; b < B; ++b)
+          if (clipped[b])
+            for (int l = 0; l < m; ++l)
+            {
+              double s = 0.0;
+              for (int k = 0; k < n; ++k)
+                s += p.L(l, k) * dy[k * B + b];
+              out[l * B + b] += s;
+            }
+      }
+
+      static void model_calls(const Models & md, const double * q, const double * qd,
+                              double * M, double * tau)
+      {
+        BatchLaw<FLLaw>::model_calls(md, q, qd, M, tau);
       }
     };
 
@@ -619,6 +703,11 @@ namespace rrr_pin
   template BatchResult batch_rollout<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
     const RowMat &, const RowMat &);
+  template BatchResult batch_rollout<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &);
+  template double batch_floor_timing<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   template BatchResult batch_rollout<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
     const RowMat &, const RowMat &);

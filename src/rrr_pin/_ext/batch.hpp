@@ -68,6 +68,11 @@ namespace rrr_pin
   extern template BatchResult batch_rollout<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
     const RowMat &, const RowMat &);
+  extern template BatchResult batch_rollout<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &);
+  extern template double batch_floor_timing<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   extern template BatchResult batch_rollout<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
     const RowMat &, const RowMat &);

@@ -43,6 +43,7 @@ namespace rrr_pin
   void bind_batch(nb::module_ & mod)
   {
     def_batch_law<FLLaw>(mod);
+    def_batch_law<FLAWLaw>(mod);
     def_batch_law<PDLaw>(mod);
     mod.def("batch_models", []() {
       nb::dict d;

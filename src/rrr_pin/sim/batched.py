@@ -17,8 +17,10 @@ Pinocchio's calls), so trajectories equal the compiled engine's to round-off
 (``tests/test_batched.py``). No operation crosses plants and the C is compiled without fused
 multiply-adds, so a plant's numbers are the same whatever batch it runs in.
 
-Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``PDForm``: FL, H-infinity + FL, PD), sampled
-or continuous, on the ideal plant (no :mod:`~rrr_pin.control.effects`).
+Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``FLAWForm``, ``PDForm``: FL, H-infinity +
+FL, its anti-windup form ``hinf_aw``, PD), sampled or continuous, on the ideal plant (no
+:mod:`~rrr_pin.control.effects`); anything else is refused by name (:func:`why_not`) and runs
+on the compiled engine under ``engine="auto"``, which records why.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from dataclasses import fields, replace
 
 import numpy as np
 
-from ..control.laws import FLForm, PDForm, check_law_output
+from ..control.laws import FLAWForm, FLForm, PDForm, check_law_output
 from ..model.dh import INERTIA_RTOL, check_inertial
 from ..validation import FieldError, check_count
 from . import dyncache, dyngen
@@ -60,7 +62,7 @@ GENERATED = {
 }
 
 #: The compiled forms the batched loop implements, by exact type, and their C++ law.
-BATCH_LAWS = {FLForm: "FLLaw", PDForm: "PDLaw"}
+BATCH_LAWS = {FLForm: "FLLaw", FLAWForm: "FLAWLaw", PDForm: "PDLaw"}
 
 #: Most plants in one batch (``RRR_DYN_BMAX`` of ``generated/dyn_common.h``).
 BATCH_MAX = 16
@@ -434,7 +436,7 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
         Control (or RK4) steps, >= 0.
     substeps, repeat : int
         As for :func:`rrr_pin.sim.compiled.floor_ms`.
-    kind : {"fl", "pd"}
+    kind : {"fl", "fl_aw", "pd"}
     sampled : bool, default True
     batch : int, default 1
         Plants per call, 1 to :data:`BATCH_MAX`.
