@@ -18,8 +18,6 @@ import logging
 import math
 from dataclasses import asdict, dataclass
 
-import numpy as np
-
 from ..control.catalog import BUILTIN_LAWS, make_law
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import check_law
@@ -246,19 +244,23 @@ def failure_text(exc: Exception) -> str:
     return str(exc) if isinstance(exc, SimulationDiverged) else f"{type(exc).__name__}: {exc}"
 
 
-def run_laws_batch(plants, laws, reference, settings: RunSettings, *, batch: int = 16) -> list:
+def run_laws_batch(plants, laws, reference, settings: RunSettings, *, batch: int = 16,
+                   threads: int = 1, figures: bool = False) -> list:
     """Simulate every law on every plant, many plants per call where the engine allows.
 
     Each law runs on all ``plants`` through :func:`rrr_pin.sim.simulation.simulate_batch`:
     under ``engine="auto"`` on the batched generated dynamics when the plants' structure has
     them (:mod:`rrr_pin.sim.batched`), otherwise one plant at a time as :func:`run_laws`.
-    ``batch`` changes no number.
+    ``batch`` and ``threads`` (threads of the batched engine) change no number; with
+    ``figures`` a batched run comes back as its figures
+    (:class:`~rrr_pin.sim.trajectory.RunFigures`, for :func:`run_metrics`), not its
+    trajectory.
 
     Returns
     -------
     list of dict
-        Per plant, in order, as :func:`run_laws`: by law name, its Trajectory or the
-        SimulationDiverged it ended with.
+        Per plant, in order, as :func:`run_laws`: by law name, its Trajectory (or
+        RunFigures) or the SimulationDiverged it ended with.
     """
     plants = list(plants)
     out: list[dict] = [{} for _ in plants]
@@ -266,28 +268,26 @@ def run_laws_batch(plants, laws, reference, settings: RunSettings, *, batch: int
     with reuse_preparation():
         for law in laws:
             results = simulate_batch(plants, law, reference, settings.duration, batch=batch,
-                                     check=False, **kwargs)
+                                     threads=threads, figures=figures, check=False,
+                                     **kwargs)
             for row, result in zip(out, results, strict=True):
                 row[law.name] = result
     return out
 
 
 def run_metrics(traj: Trajectory, joint_names) -> dict:
-    """Scalar figures of a run.
+    """Scalar figures of a run: its ``figures(joint_names)``.
+
+    ``traj`` is a :class:`~rrr_pin.sim.trajectory.Trajectory` or the
+    :class:`~rrr_pin.sim.trajectory.RunFigures` of a run reduced without its time series
+    (:func:`run_laws_batch` with ``figures=True``); both give
+    :func:`rrr_pin.sim.trajectory.tracking_figures`:
 
     ``rms_error``, ``max_error`` [rad], ``rms_torque`` [N m] (over all joints and samples),
     ``drift`` [m] for a plant that records its loop drift (a closed chain,
     ``info["drift_m"]``) and ``rms_error_<joint>`` [rad] per joint.
     """
-    e, tau = traj.error, traj.tau
-    out = {"rms_error": float(np.sqrt(np.mean(e * e))),
-           "max_error": float(np.max(np.abs(e))),
-           "rms_torque": float(np.sqrt(np.mean(tau * tau)))}
-    if "drift_m" in traj.info:
-        out["drift"] = float(traj.info["drift_m"])
-    for name, v in zip(joint_names, np.sqrt(np.mean(e * e, axis=0)), strict=True):
-        out[f"rms_error_{name}"] = float(v)
-    return out
+    return traj.figures(joint_names)
 
 
 def ratio(num: float, den: float) -> float | None:

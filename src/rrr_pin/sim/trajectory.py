@@ -19,6 +19,9 @@ import numpy as np
 
 __all__ = [
     "Trajectory",
+    "RunFigures",
+    "tracking_figures",
+    "tracking_figures_batch",
     "SimulationDiverged",
     "Run",
     "metrics",
@@ -133,6 +136,11 @@ class Trajectory:
     def error(self) -> np.ndarray:
         """Tracking error ``e = r - q`` [rad], shape (N, n)."""
         return self.r - self.q
+
+    def figures(self, joint_names=None) -> dict:
+        """Scalar figures of the run (:func:`tracking_figures`; default its own joint names)."""
+        names = self.joint_names if joint_names is None else joint_names
+        return tracking_figures(self.error, self.tau, names, self.info)
 
     def save(self, path) -> Path:
         """Write the time series and their metadata to ``path``; the suffix picks the format.
@@ -270,6 +278,107 @@ def metrics(traj: Trajectory) -> dict:
     if "drift_m" in traj.info:  # a plant that records its loop drift (a closed chain)
         out["drift_m"] = float(traj.info["drift_m"])
     return out
+
+
+def tracking_figures(e, tau, joint_names, info=None) -> dict:
+    """Return the scalar figures of a run that a campaign's row holds (one definition).
+
+    Parameters
+    ----------
+    e : ndarray, shape (N, n)
+        Tracking error ``r - q`` [rad], C-contiguous.
+    tau : ndarray, shape (N, n)
+        Applied torques [N m].
+    joint_names : sequence of str, length n
+    info : dict, optional
+        The run's ``info``; its ``drift_m`` (a closed chain's loop drift) gives ``drift`` [m].
+
+    Returns
+    -------
+    dict
+        ``rms_error``, ``max_error`` [rad], ``rms_torque`` [N m] (over all joints and samples),
+        ``drift`` [m] when recorded, and ``rms_error_<joint>`` [rad] per joint, in that order.
+    """
+    e2 = e * e
+    out = {"rms_error": float(np.sqrt(np.mean(e2))),
+           "max_error": float(np.max(np.abs(e))),
+           "rms_torque": float(np.sqrt(np.mean(tau * tau)))}
+    if info is not None and "drift_m" in info:
+        out["drift"] = float(info["drift_m"])
+    for name, v in zip(joint_names, np.sqrt(np.mean(e2, axis=0)), strict=True):
+        out[f"rms_error_{name}"] = float(v)
+    return out
+
+
+def tracking_figures_batch(E, TAU, joint_names) -> list[dict]:
+    """Return :func:`tracking_figures` of B runs at once: the same numbers, bit for bit.
+
+    Each reduction runs over one run's own block in the same order as for that run alone
+    (numpy's pairwise sum over a contiguous row; a sequential sum over the samples per joint),
+    so a run's figures do not depend on the batch (``tests/test_batched.py`` compares).
+
+    Parameters
+    ----------
+    E : ndarray, shape (B, N, n)
+        Tracking errors ``r - q`` [rad], C-contiguous.
+    TAU : ndarray, shape (B, N, n)
+        Applied torques [N m], C-contiguous.
+    joint_names : sequence of B sequences of str, each of length n
+        Each run's joint names.
+
+    Returns
+    -------
+    list of dict
+        Per run, :func:`tracking_figures` (no ``drift``: a batch holds serial arms).
+    """
+    B = E.shape[0]
+    E2 = E * E
+    rms = np.sqrt(np.mean(E2.reshape(B, -1), axis=1))
+    peak = np.max(np.abs(E).reshape(B, -1), axis=1)
+    torque = np.sqrt(np.mean((TAU * TAU).reshape(B, -1), axis=1))
+    per_joint = np.sqrt(np.mean(E2, axis=1))
+    out = []
+    for b, names in zip(range(B), joint_names, strict=True):
+        row = {"rms_error": float(rms[b]), "max_error": float(peak[b]),
+               "rms_torque": float(torque[b])}
+        row.update(zip((f"rms_error_{name}" for name in names), per_joint[b].tolist(),
+                       strict=True))
+        out.append(row)
+    return out
+
+
+@dataclass(frozen=True)
+class RunFigures:
+    """A finished run reduced to its figures, without its time series.
+
+    What a campaign's batched runs return (:func:`rrr_pin.sim.batched.run_batch` with
+    ``figures=True``) when no trajectory is asked for: the numbers
+    :meth:`Trajectory.figures` gives for the same run, bit for bit (the same arrays reduced
+    by :func:`tracking_figures`).
+
+    Attributes
+    ----------
+    controller, plant : str
+        The law's name and the plant's name.
+    values : dict
+        :func:`tracking_figures` keyed by the plant's joint names.
+    info : dict
+        As :attr:`Trajectory.info` (``engine``, integration settings).
+    """
+
+    controller: str
+    plant: str
+    values: dict
+    info: dict = field(default_factory=dict)
+
+    def figures(self, joint_names=None) -> dict:
+        """:func:`tracking_figures` of the run (``joint_names``: rename the per-joint keys)."""
+        if joint_names is None:
+            return dict(self.values)
+        per = [v for k, v in self.values.items() if k.startswith("rms_error_")]
+        out = {k: v for k, v in self.values.items() if not k.startswith("rms_error_")}
+        out.update({f"rms_error_{j}": v for j, v in zip(joint_names, per, strict=True)})
+        return out
 
 
 def diverged_joint(q, qd, lower, upper) -> tuple[int, str] | None:
