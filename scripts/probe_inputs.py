@@ -1,5 +1,5 @@
 """Hostile inputs through the command line and the public API, each outcome classified.
-=====================================================================================
+====================================================================================
 
 Reproduces the hostile-input probe of issue 31: every family of bad inputs the issue lists
 (identification logs and options, an identified uncertainty set, export, closed chains and MJCF
