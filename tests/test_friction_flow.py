@@ -151,6 +151,20 @@ def _compile_shared(folder):
     return lib
 
 
+def _assert_steps_equal(py_law, c_law, n, steps, seed):
+    """The C law's steps against the Python law's at ``steps`` random states (seeded)."""
+    rng = np.random.default_rng(seed)
+    for _ in range(steps):
+        q, qd, r, rd, rdd = (rng.uniform(-2.0, 2.0, n) for _ in range(5))
+        x = rng.standard_normal(py_law.nx)
+        tau_py, x_py = py_law.step(0.0, q, qd, r, rd, rdd, x)
+        tau_c, x_c = c_law.step(0.0, q, qd, r, rd, rdd, x)
+        # the same operations in the same order; M and h by Pinocchio against the generated
+        # C (or Pinocchio's C++): round-off, inside 1e-12 of each torque (test_export's bound)
+        assert_allclose(tau_c, tau_py, rtol=1e-12, atol=0)
+        assert_allclose(x_c, x_py, rtol=1e-12, atol=1e-12)
+
+
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 @pytest.mark.parametrize("name", ["fl", "hinf"])
 def test_exported_law_compensates_as_python(name, rrr, tmp_path, design_for):
@@ -167,16 +181,7 @@ def test_exported_law_compensates_as_python(name, rrr, tmp_path, design_for):
     assert rec["friction_compensation"]["viscous_Nms_rad"] == list(FV)
     assert rec["friction_compensation"]["coulomb_velocity_rad_s"] == 0.05
     c_law = exported_law(folder, _compile_shared(folder))
-    rng = np.random.default_rng(11)
-    for _ in range(500):
-        q, qd, r, rd, rdd = (rng.uniform(-2.0, 2.0, 3) for _ in range(5))
-        x = rng.standard_normal(ex.law.nx)
-        tau_py, x_py = ex.law.step(0.0, q, qd, r, rd, rdd, x)
-        tau_c, x_c = c_law.step(0.0, q, qd, r, rd, rdd, x)
-        # the same operations in the same order; CRBA/NLE by Pinocchio against the generated
-        # C: round-off, inside 1e-12 of each torque (test_export's bound)
-        assert_allclose(tau_c, tau_py, rtol=1e-12, atol=0)
-        assert_allclose(x_c, x_py, rtol=1e-12, atol=1e-12)
+    _assert_steps_equal(ex.law, c_law, 3, 500, seed=11)
     without = export_law(fl_controller(rrr) if name == "fl" else
                          hinf_fl_controller(rrr, design_for(3).K_reduced), rrr, RATE,
                          tmp_path / f"{name}_plain")
@@ -325,11 +330,4 @@ def test_exported_compensation_on_pinocchio_dynamics_equals_python(ur5, tmp_path
                     tmp_path / "ur5")
     assert ex.dynamics == "pinocchio"
     c_law = exported_law(tmp_path / "ur5", build(tmp_path / "ur5"))
-    rng = np.random.default_rng(5)
-    for _ in range(1000):
-        q, qd, r, rd, rdd = (rng.uniform(-2.0, 2.0, 6) for _ in range(5))
-        x = rng.standard_normal(ex.law.nx)
-        tau_py, x_py = ex.law.step(0.0, q, qd, r, rd, rdd, x)
-        tau_c, x_c = c_law.step(0.0, q, qd, r, rd, rdd, x)
-        assert_allclose(tau_c, tau_py, rtol=1e-12, atol=0)
-        assert_allclose(x_c, x_py, rtol=1e-12, atol=1e-12)
+    _assert_steps_equal(ex.law, c_law, 6, 1000, seed=5)

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..outputs import OutputDir, writing
 from ..validation import FieldError, check_count, check_rate
-from .writer import FORMAT
+from .writer import read_record
 
 __all__ = ["HilResult", "hil", "MAX_CYCLES", "HARNESS"]
 
@@ -76,18 +76,6 @@ class HilResult:
     q_hil: np.ndarray
     q_offline: np.ndarray
     q_replay: np.ndarray
-
-
-def _record(folder: Path) -> dict:
-    path = folder / "controller.json"
-    if not path.is_file():
-        raise FileNotFoundError(f"{folder} holds no controller.json: not a folder written by "
-                                f"rrr-pin export")
-    record = json.loads(path.read_text())
-    if record.get("format") != FORMAT:
-        raise ValueError(f"{path} is not a {FORMAT!r} record (format = "
-                         f"{record.get('format')!r})")
-    return record
 
 
 def _robot(record: dict):
@@ -213,7 +201,7 @@ def hil(folder, cycles: int, out, *, rate: float | None = None,
     """
     folder = Path(folder)
     cycles = check_count("cycles", cycles, 1, MAX_CYCLES)
-    record = _record(folder)
+    record = read_record(folder)
     law_rate = float(record["rate_hz"])
     rate = law_rate if rate is None else check_rate("rate", rate)
     robot = _robot(record)

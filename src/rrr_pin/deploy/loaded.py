@@ -10,7 +10,6 @@ the loop, against the plant it is given (nominal or uncertain), on the Python en
 from __future__ import annotations
 
 import ctypes
-import json
 import shutil
 import subprocess
 import sys
@@ -19,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..control.laws import SampledLaw
-from .writer import FORMAT
+from .writer import read_record
 
 __all__ = ["ExportedLaw", "exported_law", "build", "library_name"]
 
@@ -105,15 +104,7 @@ class ExportedLaw(SampledLaw):
 
     def __init__(self, folder, library=None):
         self.folder = Path(folder)
-        path = self.folder / "controller.json"
-        if not path.is_file():
-            raise FileNotFoundError(f"{self.folder} holds no controller.json: not a folder "
-                                    f"written by rrr_pin.export")
-        record = json.loads(path.read_text())
-        if record.get("format") != FORMAT:
-            raise ValueError(f"{path} is not a {FORMAT!r} record (format = "
-                             f"{record.get('format')!r})")
-        self.record = record
+        self.record = record = read_record(self.folder)
         self.library = (Path(library) if library is not None
                         else self.folder / "build" / library_name())
         if not self.library.is_file():

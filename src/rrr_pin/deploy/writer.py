@@ -43,12 +43,34 @@ from ..validation import FieldError, check_positive, check_rate
 from . import sources
 
 __all__ = ["Export", "ExportError", "export", "prepare_export", "check_exportable", "FILES",
-           "FORMAT",
+           "FORMAT", "read_record",
            "EXPRESSIBLE_JOINTS", "generated_rrr_source"]
 
 #: ``controller.json``'s format name; its version is ``VERSION``.
 FORMAT = "rrr-pin-controller"
 VERSION = 1
+
+def read_record(folder) -> dict:
+    """Return the ``controller.json`` of an exported folder, its format checked.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``folder`` holds no ``controller.json``.
+    ValueError
+        The record is not of :data:`FORMAT`.
+    """
+    folder = Path(folder)
+    path = folder / "controller.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{folder} holds no controller.json: not a folder written by "
+                                f"rrr-pin export (rrr_pin.export)")
+    record = json.loads(path.read_text())
+    if record.get("format") != FORMAT:
+        raise ValueError(f"{path} is not a {FORMAT!r} record (format = "
+                         f"{record.get('format')!r})")
+    return record
+
 
 #: Every file an export may write (the dynamics files depend on the model).
 FILES = ("controller.h", "controller.c", "dynamics.h", "dynamics.c", "codegen_rrr.c",
