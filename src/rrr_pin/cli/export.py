@@ -69,6 +69,10 @@ def run_export(args) -> int:
         prepared = prepare_export(law, robot, args.rate, method=args.method,
                                   prewarp=args.prewarp, design=d)
     check_sampled_loop(law, robot, prepared.rate)
+    if args.ros2:
+        from ..deploy.ros2 import check_ros2
+
+        check_ros2(prepared)  # before any file is written
     if out is None:  # --overwrite: the previous export is removed now that the options hold
         out = claim_out(args, "export")
     prepared.write(out)

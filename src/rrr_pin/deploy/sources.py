@@ -449,13 +449,17 @@ static void lu_solve(int n, const double *a, const int *piv, double *b)
 
 def step_dt_text(form, continuous=None, *, method: str | None = None,
                  prewarp: float | None = None) -> str:
-    """What ``ctrl_step_dt`` does with its period (``CTRL_STEP_DT`` of ``controller.h``)."""
+    """What ``ctrl_step_dt`` does with its period (``CTRL_STEP_DT`` of ``controller.h``).
+
+    ``method`` None with no ``continuous``: a discrete ``K`` exported as given.
+    """
     if form.kind == "pd" or not form.A.shape[0]:
         return "period-free: the law holds no discrete-time state; dt is checked, not used"
     if continuous is None:
-        return ("nominal period only: K has no continuous realization here (discrete as "
-                "given, or a method other than " + ", ".join(GBT_ALPHA) + "); dt other "
-                "than CTRL_PERIOD is CTRL_EPERIOD")
+        why = ("K is discrete as given" if method is None else
+               f"method {method!r} is not one the C discretizes per period ("
+               + ", ".join(GBT_ALPHA) + ")")
+        return f"nominal period only: {why}; dt other than CTRL_PERIOD is CTRL_EPERIOD"
     warp = f", prewarped at {prewarp!r} rad/s" if prewarp is not None else ""
     return (f"K discretized at dt by {method} (generalized bilinear, alpha = "
             f"{GBT_ALPHA[method]!r}{warp}) from its continuous realization")
@@ -486,7 +490,7 @@ def controller_step_dt_c(form, continuous=None, *, method: str | None = None,
         return (f"\n/* {step_dt_text(form)}. */" + _DT_HEAD + check
                 + "    return ctrl_step(s, q, qd, r, rd, rdd, tau);\n}\n")
     if continuous is None:
-        return (f"\n/* {step_dt_text(form)}. */" + _DT_HEAD + check + nominal
+        return (f"\n/* {step_dt_text(form, method=method)}. */" + _DT_HEAD + check + nominal
                 + "    return CTRL_EPERIOD;\n}\n")
     A, B, C, D = (np.asarray(M, dtype=float) for M in continuous)
     alpha = GBT_ALPHA[method]

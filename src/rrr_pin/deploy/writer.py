@@ -331,7 +331,8 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
 
     n, nx = robot.nq, twin.nx
     continuous = _continuous_k(law, method)
-    step_dt = sources.step_dt_text(form, continuous, method=method, prewarp=prewarp)
+    k_method = None if isinstance(law, SampledLaw) else method  # None: K discrete as given
+    step_dt = sources.step_dt_text(form, continuous, method=k_method, prewarp=prewarp)
     where = ("generated plain C of the nominal RRR (codegen_rrr.c)" if use_generated
              else "Pinocchio C++ on the embedded model (dynamics.cpp)")
     files = {
@@ -340,7 +341,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                                              fingerprint=fp, dynamics=where,
                                              step_dt=step_dt),
         "controller.c": sources.controller_c(form, law=twin.name, rate=rate)
-        + sources.controller_step_dt_c(form, continuous, method=method, prewarp=prewarp),
+        + sources.controller_step_dt_c(form, continuous, method=k_method, prewarp=prewarp),
         "dynamics.h": sources.dynamics_h(where),
     }
     if use_generated:
