@@ -179,3 +179,85 @@ def test_controller_json_records_the_continuous_k(laws):
     header = (c_law.folder / "controller.h").read_text()
     assert "#define CTRL_STEP_DT \"K discretized at dt by tustin" in header
     assert "int ctrl_step_dt(" in header
+
+
+# --- the rate the arm's export cannot meet (export refuses, naming the figure) -------------
+
+
+def _fl_threshold_rate(lam: float) -> float:
+    """The slowest rate [Hz] at which FL alone's sampled loop is stable, in closed form.
+
+    Per joint FL leaves ``qdd = u``, ``u = -lam^2 q - 2 lam qd`` held over ``T``: the exact
+    zero-order-hold step of the double integrator, ``Phi = [[1, T], [0, 1]]``,
+    ``Gamma = [T^2 / 2, T]``, closed by the gain; bisection on ``T`` for ``rho = 1``
+    (independent of the loop the export builds, which is any arm's n-joint matrix).
+    """
+    def rho(T):
+        Phi = np.array([[1.0, T], [0.0, 1.0]])
+        Gamma = np.array([[T * T / 2.0], [T]])
+        return np.max(np.abs(np.linalg.eigvals(Phi - Gamma @ np.array([[lam * lam, 2 * lam]]))))
+
+    lo, hi = 1e-6, 1.0  # stable, unstable
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if rho(mid) < 1.0 else (lo, mid)
+    return 1.0 / lo
+
+
+@pytest.mark.parametrize("robot", ["rrr", "ur5", "panda"])
+def test_export_ros2_refuses_a_rate_unstable_inside_the_period_band(robot, tmp_path, capsys):
+    """--ros2 accepts periods up to 1.2 / rate and computes with each: the loop must hold there.
+
+    FL alone (lam = 100 rad/s) decouples any arm into the same double integrators: the slowest
+    stable rate is the closed form's, on the RRR, UR5 and the Panda alike; over the band
+    +-20 %, 1.2 times it.
+    """
+    from rrr_pin.cli import main
+    from rrr_pin.deploy.ros2 import PERIOD_TOLERANCE
+
+    f0 = _fl_threshold_rate(100.0)  # 100.0 Hz
+    rate = 1.1 * f0  # stable at 1/rate, unstable at the band's slow edge 1.2/rate
+    out = tmp_path / "e"
+    args = ["export", "--robot", robot, "--law", "fl", "--rate", f"{rate:.6g}", "--out",
+            str(out)]
+    assert main([*args, "--ros2"]) == 2
+    err = capsys.readouterr().err
+    slow = rate / (1.0 + PERIOD_TOLERANCE)
+    assert (f"with --ros2: the controller accepts update periods within +-20 % of 1/rate and "
+            f"computes with each, and the sampled loop of 'fl' is unstable at a period of "
+            f"{1e3 / slow:.4g} ms") in err
+    stated = float(err.split("stable over the whole band from about ")[1].split(" Hz")[0])
+    # the search stops within 0.1 % above the threshold; printed to 4 digits
+    assert_allclose(stated, f0 * (1.0 + PERIOD_TOLERANCE), rtol=2e-3)
+    assert not (out / "controller.c").exists()
+    # the same rate without --ros2 (one period, 1/rate) is stable: exported
+    assert main(args) == 0
+    assert (out / "controller.c").is_file()
+
+
+def test_export_checks_the_loop_with_the_method_exported(tmp_path, capsys):
+    """The loop is checked with K discretized by --method (before: always Tustin's).
+
+    At 150 Hz the paper's K by Tustin holds the loop, by backward differences it does not
+    (spectral radius 1.09): before, both were exported. Independent of the linear loop, the
+    exported law's Python twin on the nonlinear nominal arm diverges, and Tustin's tracks.
+    """
+    from rrr_pin.cli import main
+    from rrr_pin.control.references import study_reference
+    from rrr_pin.deploy.writer import prepare_export
+    from rrr_pin.sim.simulation import simulate
+    from rrr_pin.sim.trajectory import SimulationDiverged
+
+    args = ["export", "--law", "hinf", "--rate", "150", "--out", str(tmp_path / "e")]
+    assert main([*args, "--method", "tustin"]) == 0
+    capsys.readouterr()
+    assert main([*args, "--method", "backward_diff", "--overwrite"]) == 2
+    assert "--rate 150 Hz: the sampled loop of 'hinf' is unstable" in capsys.readouterr().err
+    rrr = load_robot("rrr")
+    law = hinf_fl_controller(rrr, design(lam=45.0, n=3).K_reduced)
+    ref = study_reference(rrr, 3.0)
+    twins = {m: prepare_export(law, rrr, 150.0, method=m).law
+             for m in ("tustin", "backward_diff")}
+    with pytest.raises(SimulationDiverged):
+        simulate(rrr, twins["backward_diff"], ref, 3.0, engine="python")
+    assert np.max(np.abs(simulate(rrr, twins["tustin"], ref, 3.0, engine="python").error)) < 0.1

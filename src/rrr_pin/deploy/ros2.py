@@ -288,8 +288,9 @@ constexpr double kPositionUpper[] = {{@UPPER@}};
 
 _HPP = f"""// {_BANNER}
 // ExportedLawController: a controller_interface::ControllerInterface running ctrl_step_dt of
-// the exported law (../../controller.h) once per update, over the period measured. Its rules (parameters checked at
-// configure, the period band, the fault torque) are stated in the class comment.
+// the exported law (../../controller.h) once per update, over the period measured. Its rules
+// (parameters checked at configure, the period band, the fault torque) are stated in the
+// class comment.
 #pragma once
 
 #include <array>
@@ -333,10 +334,10 @@ struct Reference
 /// torque_limit [N m], position_lower/upper [rad], fault_torque ("gravity" or "zero"), the
 /// compiled-in gains (lam; kp, kd for PD), reference_topic.
 /// update(): a period outside the band, a bad state or reference, or ctrl_step_dt refusing
-/// latch a fault; the command is then the safe torque (gravity compensation Ghat(q), or zero when q is
-/// not finite or fault_torque is "zero") every period until deactivation. Inside the band the
-/// law runs over the period measured (ctrl_step_dt: K discretized at it, CTRL_STEP_DT), the
-/// first update after activation over 1 / rate_hz.
+/// latch a fault; the command is then the safe torque (gravity compensation Ghat(q), or zero
+/// when q is not finite or fault_torque is "zero") every period until deactivation. Inside
+/// the band the law runs over the period measured (ctrl_step_dt: K discretized at it,
+/// CTRL_STEP_DT), the first update after activation over 1 / rate_hz.
 class ExportedLawController : public controller_interface::ControllerInterface
 {{
 public:

@@ -337,9 +337,11 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
 }}
 '''
     else:
-        signature = ('''int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
-              const double r[CTRL_NQ], const double rd[CTRL_NQ], const double rdd[CTRL_NQ],
-              double tau[CTRL_NQ])''')
+        signature = ("int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], "
+                     "const double qd[CTRL_NQ],\n"
+                     "              const double r[CTRL_NQ], const double rd[CTRL_NQ], "
+                     "const double rdd[CTRL_NQ],\n"
+                     "              double tau[CTRL_NQ])")
         wrapper = ""
     return head + tables + f'''
 /* {what};
@@ -449,7 +451,7 @@ static void lu_solve(int n, const double *a, const int *piv, double *b)
 
 def step_dt_text(form, continuous=None, *, method: str | None = None,
                  prewarp: float | None = None) -> str:
-    """What ``ctrl_step_dt`` does with its period (``CTRL_STEP_DT`` of ``controller.h``).
+    """Return what ``ctrl_step_dt`` does with its period (``CTRL_STEP_DT`` of controller.h).
 
     ``method`` None with no ``continuous``: a discrete ``K`` exported as given.
     """
@@ -467,7 +469,7 @@ def step_dt_text(form, continuous=None, *, method: str | None = None,
 
 def controller_step_dt_c(form, continuous=None, *, method: str | None = None,
                          prewarp: float | None = None) -> str:
-    r"""The text of ``ctrl_step_dt`` (appended to ``controller.c``).
+    r"""Return the text of ``ctrl_step_dt`` (appended to ``controller.c``).
 
     ``continuous`` is K's continuous ``(A, B, C, D)`` (shapes (m, m), (m, n), (n, m), (n, n))
     when ``method`` is one of :data:`GBT_ALPHA`: then each period ``dt`` gets scipy's
@@ -521,14 +523,16 @@ def controller_step_dt_c(form, continuous=None, *, method: str | None = None,
         }}
     }}
 """ if aw else ""
-    return f"\n/* {step_dt_text(form, continuous, method=method, prewarp=prewarp)}. */\n" + (
-        tables + _LU + _DT_HEAD + f"""    double Ad[{m}][{m}], Bd[{m}][CTRL_NQ], Cd[CTRL_NQ][{m}], Dd[CTRL_NQ][CTRL_NQ];
-    double ima[{m} * {m}], imt[{m} * {m}], z[{m} > CTRL_NQ ? {m} : CTRL_NQ];
-    int piv[{m}], pivt[{m}];
-""" + (f"    double Ld[{m}][CTRL_NQ], ddt[CTRL_NQ * CTRL_NQ];\n    int pivn[CTRL_NQ];\n"
-       if aw else "") + """    double T;
-    int i, j, k;
-""" + check + nominal + T + f"""    /* ima = I - alpha T A, and its transpose (factored apart, as scipy solves with each) */
+    decl = (f"    double Ad[{m}][{m}], Bd[{m}][CTRL_NQ], Cd[CTRL_NQ][{m}], "
+            f"Dd[CTRL_NQ][CTRL_NQ];\n"
+            f"    double ima[{m} * {m}], imt[{m} * {m}], z[{m} > CTRL_NQ ? {m} : CTRL_NQ];\n"
+            f"    int piv[{m}], pivt[{m}];\n")
+    if aw:
+        decl += f"    double Ld[{m}][CTRL_NQ], ddt[CTRL_NQ * CTRL_NQ];\n    int pivn[CTRL_NQ];\n"
+    decl += "    double T;\n    int i, j, k;\n"
+    what = step_dt_text(form, continuous, method=method, prewarp=prewarp)
+    return f"\n/* {what}. */\n" + tables + _LU + _DT_HEAD + decl + check + nominal + T + (
+        f"""    /* ima = I - alpha T A, and its transpose (factored apart, as scipy solves each) */
     for (i = 0; i < {m}; ++i) {{
         for (j = 0; j < {m}; ++j) {{
             ima[i * {m} + j] = (i == j ? 1.0 : 0.0) - DT_ALPHA * T * CT_A[i][j];
