@@ -211,8 +211,8 @@ def _gravity(robot, q):
     return pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
 
 
-@pytest.mark.parametrize("period", [1.25e-3, 0.75e-3, 10e-3, 0.0],
-                         ids=["25% long", "25% short", "10x", "zero"])
+@pytest.mark.parametrize("period", [1.25e-3, 0.75e-3, 10e-3, 0.0, -1e-3],
+                         ids=["25% long", "25% short", "10x", "zero", "negative"])
 def test_period_outside_the_band_is_a_reported_fault(package, period):
     ex, robot, folder, _, drivers = package
     q = np.array([0.3, -0.5, 0.9])
@@ -240,17 +240,29 @@ def test_fault_torque_zero(package):
     assert fault == [NONE, PERIOD] and np.all(tau[1] == 0.0)
 
 
-def test_reference_of_the_wrong_size_is_a_reported_fault(package):
+@pytest.mark.parametrize("ref, sizes", [
+    ("ref 2 0.1 0.2 0 0", "positions 2, velocities 0, accelerations 0"),
+    ("ref 4 0.1 0.2 0.3 0.4 0 0", "positions 4, velocities 0, accelerations 0"),
+    ("ref 3 0.1 0.2 0.3 2 0 0 0", "positions 3, velocities 2, accelerations 0"),
+    ("ref 3 0.1 0.2 0.3 3 0 0 0 1 0", "positions 3, velocities 3, accelerations 1"),
+], ids=["2 positions", "4 positions", "2 velocities", "1 acceleration"])
+def test_reference_of_the_wrong_size_is_a_reported_fault(package, ref, sizes):
     ex, robot, folder, _, drivers = package
     q = np.array([0.3, -0.5, 0.9])
-    out, _ = _drive(drivers["jazzy"], [*_started(folder), f"update {TS!r} {_vec(q)} 0 0 0",
-                                       "ref 2 0.1 0.2 0 0", f"update {TS!r} {_vec(q)} 0 0 0",
-                                       "reason"])
+    out, err = _drive(drivers["jazzy"], [*_started(folder), "ref 3 0.6 0.1 0.2 0 0",
+                                         f"update {TS!r} {_vec(q)} 0 0 0", ref,
+                                         f"update {TS!r} {_vec(q)} 0 0 0", "reason",
+                                         "ref 3 0.6 0.1 0.2 0 0",
+                                         f"update {TS!r} {_vec(q)} 0 0 0"])
     tau, fault, _ = _updates(out)
-    assert fault == [NONE, REF_SIZE]
+    assert fault == [NONE, REF_SIZE, REF_SIZE]  # latched: a good reference does not clear it
+    # the safe torque (gravity compensation, by Pinocchio), not the last torque held
     assert_allclose(tau[1], _gravity(robot, q), rtol=1e-12)
-    assert ("reason reference of the wrong size: positions 2, velocities 0, accelerations 0; "
-            "expected 3 each") in out[-1]
+    assert_allclose(tau[2], _gravity(robot, q), rtol=1e-12)
+    assert np.max(np.abs(tau[0] - tau[1])) > 1.0  # [N m]
+    reason = next(line for line in out if line.startswith("reason "))
+    assert f"reason reference of the wrong size: {sizes}; expected 3 each" in reason
+    assert "fault, safe torque (gravity compensation)" in err
 
 
 def test_reference_and_state_not_finite(package):
