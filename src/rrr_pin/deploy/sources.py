@@ -14,6 +14,9 @@ The law (``controller.c``) is the C transcription of the built-in law's compiled
           \tau = \hat M(q)\bar\tau + \hat h(q, \dot q),\quad x^+ = A x + B e
 
 (FL alone: no ``x``, ``y = 0``) or ``tau = Kp e + Kd (rd - qd) + Ghat(q)`` (PD + gravity).
+``ctrl_step_dt`` is the same law over a period ``dt`` it is given: ``K`` discretized at ``dt``
+from its continuous realization (:func:`controller_step_dt_c`), ``ctrl_step`` itself at the
+nominal period.
 The dynamics sit behind three C functions declared in ``dynamics.h``
 (``ctrl_dyn_crba``, ``ctrl_dyn_nle``, ``ctrl_dyn_gravity``), implemented either by the
 generated plain C of the nominal RRR (``codegen_rrr.c``, :mod:`rrr_pin.sim.codegen`) or by a

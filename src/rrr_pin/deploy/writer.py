@@ -398,7 +398,8 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
     """Write ``law`` on ``robot`` at ``rate`` as a self-contained C folder ``out``.
 
     The folder holds ``controller.h``/``controller.c`` (C99: no allocation, no mutable global,
-    re-entrant) with ``ctrl_reset``/``ctrl_step``, the nominal model's dynamics (the generated
+    re-entrant) with ``ctrl_reset``/``ctrl_step`` (and ``ctrl_step_dt``, the law over a measured
+    period), the nominal model's dynamics (the generated
     C of the nominal RRR, or a C++ file calling Pinocchio on the embedded model), a
     ``CMakeLists.txt`` (static library ``rrr_pin_ctrl``), an example ``main.c`` and
     ``controller.json`` (:func:`rrr_pin.deploy.ros2.write_ros2_package` adds a ros2_control
