@@ -261,3 +261,28 @@ def test_export_checks_the_loop_with_the_method_exported(tmp_path, capsys):
     with pytest.raises(SimulationDiverged):
         simulate(rrr, twins["backward_diff"], ref, 3.0, engine="python")
     assert np.max(np.abs(simulate(rrr, twins["tustin"], ref, 3.0, engine="python").error)) < 0.1
+
+
+@pytest.mark.slow
+def test_ur5_ctrl_step_dt_equals_sample_system_step_by_step(tmp_path):
+    """UR5 (Pinocchio C++ dynamics, CMake build): jittered periods as python-control's K."""
+    if shutil.which("cmake") is None:
+        pytest.skip("no cmake")
+    from rrr_pin.deploy.loaded import build
+
+    ur5 = load_robot("ur5")
+    law = hinf_fl_controller(ur5, design(lam=45.0, n=6).K_reduced)
+    ex = export_law(law, ur5, RATE, tmp_path / "ur5")
+    c_law = exported_law(tmp_path / "ur5", build(tmp_path / "ur5"))
+    rng = np.random.default_rng(5)
+    x_c = x_py = c_law.initial_state()
+    for dt in TS * (1.0 + rng.uniform(-0.2, 0.2, 100)):
+        q, qd, r, rd, rdd = _inputs(rng, 6)
+        tau_c, x_c, rc = c_law.step_dt(q, qd, r, rd, rdd, x_c, dt)
+        assert rc == OK
+        tau_py, x_py = _python_step(law, ex, dt, "tustin", None).step(0.0, q, qd, r, rd, rdd,
+                                                                       x_py)
+        # both on Pinocchio (C++ and Python bindings), K by hand-written LU and by LAPACK;
+        # atol 1e-9 N m for a torque entry near zero, which carries the others' round-off
+        assert_allclose(tau_c, tau_py, rtol=1e-12, atol=1e-9)
+        assert_allclose(x_c, x_py, rtol=0, atol=1e-12 * np.abs(x_py).max())
