@@ -101,7 +101,7 @@ class Export:
     dynamics: str
     files: dict = field(repr=False)
     record: dict = field(repr=False)
-    continuous: tuple | None = field(default=None, repr=False)
+    continuous: tuple | None = field(default=None, repr=False, compare=False)
 
     def write(self, folder) -> list[Path]:
         """Write the files into ``folder`` (which must exist); return their paths."""
