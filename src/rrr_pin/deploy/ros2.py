@@ -30,7 +30,7 @@ The controller's rules, stated once here and in the header:
   depend on it), and the period used is recorded (``last_period()``). The first update after
   activation has no period measured: it computes with ``1 / rate_hz``. A law whose K the
   exported C cannot discretize per period (a discrete K as given, a method other than those of
-  :data:`~rrr_pin.deploy.sources.GBT_ALPHA`) is refused by :func:`check_ros2`.
+  :data:`~rrr_pin.deploy.period.GBT_ALPHA`) is refused by :func:`check_ros2`.
 - **Faults** (a period outside the band; a non-finite or out-of-limit state; a reference of the
   wrong size or non-finite; ``ctrl_step_dt`` refusing): the command becomes the **safe torque**,
   gravity compensation ``Ghat(q)`` of the nominal model (``fault_torque: gravity``, default) or
@@ -71,7 +71,7 @@ def check_ros2(prepared) -> None:
 
     The controller computes with the period it measures (``ctrl_step_dt``); a law with ``K``
     needs K's continuous realization and a method the C discretizes per period
-    (:data:`~rrr_pin.deploy.sources.GBT_ALPHA`).
+    (:data:`~rrr_pin.deploy.period.GBT_ALPHA`).
 
     Raises
     ------

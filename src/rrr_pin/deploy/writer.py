@@ -39,7 +39,7 @@ from ..control.laws import (
 from ..outputs import OutputDir, writing
 from ..sim.codegen import fingerprint
 from ..validation import FieldError, check_positive, check_rate
-from . import sources
+from . import period, sources
 
 __all__ = ["Export", "ExportError", "export", "prepare_export", "check_exportable", "FILES",
            "FORMAT",
@@ -92,7 +92,7 @@ class Export:
     continuous : tuple or None
         ``K``'s continuous ``(A, B, C, D)`` that ``ctrl_step_dt`` discretizes at each measured
         period (None: a law without ``K``, a discrete ``K`` as given, or a method other than
-        those of :data:`rrr_pin.deploy.sources.GBT_ALPHA`).
+        those of :data:`rrr_pin.deploy.period.GBT_ALPHA`).
     """
 
     law: object
@@ -206,7 +206,7 @@ def _twin(law, rate, method: str, prewarp):
 
 def _continuous_k(law, method: str):
     """K's continuous ``(A, B, C, D)`` when ``ctrl_step_dt`` can discretize it per period."""
-    if isinstance(law, SampledLaw) or method not in sources.GBT_ALPHA or not law.nx:
+    if isinstance(law, SampledLaw) or method not in period.GBT_ALPHA or not law.nx:
         return None
     form = law.compiled_form()  # TrackingController, AntiWindupTracking: K continuous
     if type(form) not in (FLForm, FLAWForm):
@@ -332,7 +332,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     n, nx = robot.nq, twin.nx
     continuous = _continuous_k(law, method)
     k_method = None if isinstance(law, SampledLaw) else method  # None: K discrete as given
-    step_dt = sources.step_dt_text(form, continuous, method=k_method, prewarp=prewarp)
+    step_dt = period.step_dt_text(form, continuous, method=k_method, prewarp=prewarp)
     where = ("generated plain C of the nominal RRR (codegen_rrr.c)" if use_generated
              else "Pinocchio C++ on the embedded model (dynamics.cpp)")
     files = {
@@ -341,7 +341,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                                              fingerprint=fp, dynamics=where,
                                              step_dt=step_dt),
         "controller.c": sources.controller_c(form, law=twin.name, rate=rate)
-        + sources.controller_step_dt_c(form, continuous, method=k_method, prewarp=prewarp),
+        + period.controller_step_dt_c(form, continuous, method=k_method, prewarp=prewarp),
         "dynamics.h": sources.dynamics_h(where),
     }
     if use_generated:
@@ -382,7 +382,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         "ctrl_step_dt": {"period": step_dt, "K_continuous": None if continuous is None else
                          dict(zip("ABCD", (M.tolist() for M in continuous), strict=True)),
                          "method": None if continuous is None else method,
-                         "alpha": None if continuous is None else sources.GBT_ALPHA[method],
+                         "alpha": None if continuous is None else period.GBT_ALPHA[method],
                          "prewarp_rad_s": None if continuous is None else prewarp},
         "model": {"name": robot.name, "fingerprint": fp, "dynamics": dynamics,
                   **_model_parameters(robot)},
