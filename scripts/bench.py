@@ -38,7 +38,8 @@ asserted:
 - section 9: with ``--export`` (CMake builds, minutes): one ``ctrl_step`` of the exported H-inf + FL
   law (:func:`rrr_pin.export`) for the RRR (generated dynamics) and UR5 (Pinocchio C++), against the
   same Pinocchio calls alone (``ctrl_dyn_crba`` + ``ctrl_dyn_nle`` of a Pinocchio export of the same
-  arm: CRBA and NLE, M's triangle mirrored, nle copied out), in a C loop.
+  arm: CRBA and NLE, M's triangle mirrored, nle copied out), in a C loop; and ``ctrl_step_dt`` at
+  periods off the nominal one (K discretized at each call).
 
 Usage::
 
@@ -120,14 +121,15 @@ static double now(void)
     clock_gettime(CLOCK_MONOTONIC, &t);
     return t.tv_sec + 1e-9 * t.tv_nsec;
 }
-/* argv[1] calls per round; prints the fastest round of ctrl_step and of the dynamics calls
- * alone [us per call], the rounds interleaved so that a shared machine's load falls on both */
+/* argv[1] calls per round; prints the fastest round of ctrl_step, of the dynamics calls
+ * alone and of ctrl_step_dt at periods inside +-10 % (never the nominal one: K discretized at
+ * each) [us per call], the rounds interleaved so that a shared machine's load falls on all */
 int main(int argc, char **argv)
 {
     long calls = argc > 1 ? atol(argv[1]) : 100000, k;
     static double q[NS][CTRL_NQ], qd[NS][CTRL_NQ], r[NS][CTRL_NQ], tau[CTRL_NQ];
     static double M[CTRL_NQ * CTRL_NQ], h[CTRL_NQ];
-    double sink = 0.0, t0, best[2] = {1e9, 1e9};
+    double sink = 0.0, t0, best[3] = {1e9, 1e9, 1e9};
     unsigned s = 12345u;
     ctrl_state st;
     int i, j, rep, mode;
@@ -142,12 +144,16 @@ int main(int argc, char **argv)
     }
     ctrl_reset(&st);
     for (rep = 0; rep < 10; ++rep) {
-        for (mode = 0; mode < 2; ++mode) {
+        for (mode = 0; mode < 3; ++mode) {
             t0 = now();
             for (k = 0; k < calls; ++k) {
                 i = (int)(k % NS);
                 if (mode == 0) {
                     ctrl_step(&st, q[i], qd[i], r[i], qd[i], qd[i], tau);
+                    sink += tau[0];
+                } else if (mode == 2) {
+                    ctrl_step_dt(&st, q[i], qd[i], r[i], qd[i], qd[i], tau,
+                                 CTRL_PERIOD * (0.9 + 0.2 * (double)(k % 7) / 7.0));
                     sink += tau[0];
                 } else {
                     ctrl_dyn_crba(q[i], M);
@@ -159,7 +165,7 @@ int main(int argc, char **argv)
             if (t0 < best[mode]) best[mode] = t0;
         }
     }
-    printf("%.6f %.6f %g\n", 1e6 * best[0], 1e6 * best[1], sink);
+    printf("%.6f %.6f %.6f %g\n", 1e6 * best[0], 1e6 * best[1], 1e6 * best[2], sink);
     return 0;
 }
 """
@@ -184,7 +190,7 @@ def export_step_us(calls: int, out: Path) -> dict:
                         f"-Wl,-rpath,{lib}", "-o", str(exe)], check=True)
         done = subprocess.run([str(exe), str(calls)], check=True, capture_output=True,
                               text=True)
-        return tuple(float(v) for v in done.stdout.split()[:2])
+        return tuple(float(v) for v in done.stdout.split()[:3])
 
     rows = {}
     for arm, dynamics in (("rrr", "generated"), ("rrr", "pinocchio"), ("ur5", "pinocchio")):
@@ -192,9 +198,12 @@ def export_step_us(calls: int, out: Path) -> dict:
         folder = out / f"{arm}_{dynamics}"
         if not (folder / "build" / "bench_ctrl").exists():  # a previous run's build is reused
             rrr_pin.export("hinf", robot, 1000.0, folder, dynamics=dynamics, overwrite=True)
-        step_us, calls_us = timed(folder)
-        rows[f"{arm}_{dynamics}"] = {"ctrl_step_us": step_us, "dynamics_calls_us": calls_us}
+        step_us, calls_us, step_dt_us = timed(folder)
+        rows[f"{arm}_{dynamics}"] = {"ctrl_step_us": step_us, "dynamics_calls_us": calls_us,
+                                     "ctrl_step_dt_us": step_dt_us}
     return {"rrr_ctrl_step_us": rows["rrr_generated"]["ctrl_step_us"],
+            "rrr_ctrl_step_dt_us": rows["rrr_generated"]["ctrl_step_dt_us"],
+            "ur5_ctrl_step_dt_us": rows["ur5_pinocchio"]["ctrl_step_dt_us"],
             "rrr_pinocchio_calls_us": rows["rrr_pinocchio"]["dynamics_calls_us"],
             "ur5_ctrl_step_us": rows["ur5_pinocchio"]["ctrl_step_us"],
             "ur5_pinocchio_calls_us": rows["ur5_pinocchio"]["dynamics_calls_us"],
@@ -882,6 +891,9 @@ def report(res, args):
         print(f"  UR5, Pinocchio C++:      {e['ur5_ctrl_step_us']:8.3f} us, its Pinocchio calls "
               f"alone {e['ur5_pinocchio_calls_us']:.3f} us; ratio {e['ur5_ratio']:.2f}   "
               f"{verdict(e['ur5_ratio'], GOALS['export_ur5'])}")
+        if "rrr_ctrl_step_dt_us" in e:
+            print(f"  ctrl_step_dt off the nominal period (K discretized each call): RRR "
+                  f"{e['rrr_ctrl_step_dt_us']:.3f} us, UR5 {e['ur5_ctrl_step_dt_us']:.3f} us")
 
 
 def identification_bench(duration: float) -> dict:

@@ -159,25 +159,51 @@ def test_update_equals_the_c_and_python_law(package, api, count):
         assert_allclose(tau[k], tau_py, rtol=1e-12, atol=0)
 
 
-def test_jitter_inside_the_band_changes_only_the_period(package):
-    ex, robot, folder, _, drivers = package
+def test_jitter_inside_the_band_computes_with_the_period(package):
+    """Periods inside +-20 %: the law runs over each period measured, nothing else changes.
+
+    Each update equals ctrl_step_dt at the measured period (bit for bit) and the Python law
+    with K discretized at that period by python-control's sample_system (1e-12), on the state
+    chained from the previous periods; the first update after activation uses 1 / rate_hz.
+    """
+    import control
+
+    from rrr_pin.control.laws import DiscreteTrackingController
+
+    ex, robot, folder, lib, drivers = package
+    c_law = exported_law(folder, lib)
     rng = np.random.default_rng(7)
     steps = [(rng.uniform(-1.0, 1.0, 3), rng.uniform(-1.0, 1.0, 3)) for _ in range(300)]
-    ref = "ref 3 0.2 -0.3 0.5 3 0.1 0.0 -0.1 0 0 0"
+    r, rd, rdd = np.array([0.2, -0.3, 0.5]), np.array([0.1, 0.0, -0.1]), np.zeros(3)
+    ref = f"ref 3 {_vec(r)} 3 {_vec(rd)} 3 {_vec(rdd)}"
     jitter = TS * (1.0 + rng.uniform(-0.199, 0.199, len(steps)))  # +-19.9 %: inside +-20 %
     jitter[5] = TS * 1.0011  # the period the previous class refused (1 us tolerance)
+    jitter = np.round(jitter * 1e9) * 1e-9  # what a Duration holds (whole nanoseconds)
     runs = []
     for periods in (np.full(len(steps), TS), jitter):
-        lines = [*_started(folder), ref]
+        lines = [*_started(folder, torque_limit=[1e12] * 3), ref]  # no clip: the law's torque
         lines += [f"update {float(p)!r} {_vec(q)} {_vec(qd)}"
                   for p, (q, qd) in zip(periods, steps, strict=True)]
         runs.append(_updates(_drive(drivers["jazzy"], lines)[0]))
     (tau_a, fault_a, used_a), (tau_b, fault_b, used_b) = runs
     assert set(fault_a) == set(fault_b) == {NONE}
-    assert_allclose(tau_b, tau_a, rtol=0, atol=0)  # the law is the same, bit for bit
-    # the period used is the one measured (to the nanosecond the Duration holds)
-    assert_allclose(used_b, jitter, rtol=0, atol=1e-9)
-    assert_allclose(used_a, TS, rtol=0, atol=1e-12)
+    # the period used: the one measured (to the nanosecond a Duration holds), but the first
+    assert_allclose(used_b[1:], jitter[1:], rtol=0, atol=1e-15)
+    assert used_b[0] == TS and np.all(used_a == TS)
+    A, B, C, D = ex.continuous
+    x_c = x_py = c_law.initial_state()
+    for k, (q, qd) in enumerate(steps):
+        tau_c, x_c, rc = c_law.step_dt(q, qd, r, rd, rdd, x_c, used_b[k])
+        assert rc == 0
+        assert_allclose(tau_b[k], tau_c, rtol=0, atol=0)  # the same compiled ctrl_step_dt
+        Kd = control.sample_system(control.ss(A, B, C, D), used_b[k], method="tustin")
+        law_k = DiscreteTrackingController(ex.law.nominal, ex.form.lam, Kd)
+        tau_py, x_py = law_k.step(0.0, q, qd, r, rd, rdd, x_py)
+        assert_allclose(tau_b[k], tau_py, rtol=1e-12, atol=0)
+    # at the nominal period it is ctrl_step (the bit-for-bit test above); the first update
+    # (nominal period, initial state) is the same in both runs, the later ones are not
+    assert_allclose(tau_b[0], tau_a[0], rtol=0, atol=0)
+    assert np.max(np.abs(tau_b[1:] - tau_a[1:])) > 1e-3  # [N m]: the period is used
 
 
 def _gravity(robot, q):
@@ -185,8 +211,8 @@ def _gravity(robot, q):
     return pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
 
 
-@pytest.mark.parametrize("period", [1.25e-3, 0.75e-3, 10e-3, 0.0],
-                         ids=["25% long", "25% short", "10x", "zero"])
+@pytest.mark.parametrize("period", [1.25e-3, 0.75e-3, 10e-3, 0.0, -1e-3],
+                         ids=["25% long", "25% short", "10x", "zero", "negative"])
 def test_period_outside_the_band_is_a_reported_fault(package, period):
     ex, robot, folder, _, drivers = package
     q = np.array([0.3, -0.5, 0.9])
@@ -214,17 +240,29 @@ def test_fault_torque_zero(package):
     assert fault == [NONE, PERIOD] and np.all(tau[1] == 0.0)
 
 
-def test_reference_of_the_wrong_size_is_a_reported_fault(package):
+@pytest.mark.parametrize("ref, sizes", [
+    ("ref 2 0.1 0.2 0 0", "positions 2, velocities 0, accelerations 0"),
+    ("ref 4 0.1 0.2 0.3 0.4 0 0", "positions 4, velocities 0, accelerations 0"),
+    ("ref 3 0.1 0.2 0.3 2 0 0 0", "positions 3, velocities 2, accelerations 0"),
+    ("ref 3 0.1 0.2 0.3 3 0 0 0 1 0", "positions 3, velocities 3, accelerations 1"),
+], ids=["2 positions", "4 positions", "2 velocities", "1 acceleration"])
+def test_reference_of_the_wrong_size_is_a_reported_fault(package, ref, sizes):
     ex, robot, folder, _, drivers = package
     q = np.array([0.3, -0.5, 0.9])
-    out, _ = _drive(drivers["jazzy"], [*_started(folder), f"update {TS!r} {_vec(q)} 0 0 0",
-                                       "ref 2 0.1 0.2 0 0", f"update {TS!r} {_vec(q)} 0 0 0",
-                                       "reason"])
+    out, err = _drive(drivers["jazzy"], [*_started(folder), "ref 3 0.6 0.1 0.2 0 0",
+                                         f"update {TS!r} {_vec(q)} 0 0 0", ref,
+                                         f"update {TS!r} {_vec(q)} 0 0 0", "reason",
+                                         "ref 3 0.6 0.1 0.2 0 0",
+                                         f"update {TS!r} {_vec(q)} 0 0 0"])
     tau, fault, _ = _updates(out)
-    assert fault == [NONE, REF_SIZE]
+    assert fault == [NONE, REF_SIZE, REF_SIZE]  # latched: a good reference does not clear it
+    # the safe torque (gravity compensation, by Pinocchio), not the last torque held
     assert_allclose(tau[1], _gravity(robot, q), rtol=1e-12)
-    assert ("reason reference of the wrong size: positions 2, velocities 0, accelerations 0; "
-            "expected 3 each") in out[-1]
+    assert_allclose(tau[2], _gravity(robot, q), rtol=1e-12)
+    assert np.max(np.abs(tau[0] - tau[1])) > 1.0  # [N m]
+    reason = next(line for line in out if line.startswith("reason "))
+    assert f"reason reference of the wrong size: {sizes}; expected 3 each" in reason
+    assert "fault, safe torque (gravity compensation)" in err
 
 
 def test_reference_and_state_not_finite(package):
@@ -335,3 +373,25 @@ def test_cli_export_ros2(tmp_path, capsys):
     doc = yaml.safe_load((out / "ros2" / "config" / "rrr_pin_controller.yaml").read_text())
     p = doc["rrr_pin_controller"]["ros__parameters"]
     assert p["rate_hz"] == 500.0 and len(p["kp"]) == 9 and "lam" not in p
+
+
+def test_a_law_that_cannot_run_over_a_measured_period_is_refused(tmp_path, capsys):
+    """zoh (a matrix exponential per period) or a discrete K as given: refused before writing."""
+    import control
+
+    from rrr_pin.control.laws import DiscreteTrackingController
+    from rrr_pin.deploy.ros2 import ros2_package
+    from rrr_pin.deploy.writer import ExportError, prepare_export
+
+    out = tmp_path / "z"
+    assert main(["export", "--law", "hinf", "--rate", "1000", "--method", "zoh", "--out",
+                 str(out), "--ros2"]) == 2
+    err = capsys.readouterr().err
+    assert "--ros2: law 'hinf' can run its K at 1/rate only" in err
+    assert "method 'zoh' is not one the C discretizes per period" in err
+    assert not (out / "controller.c").exists()
+    robot = load_robot("rrr")
+    Kd = control.sample_system(control.ss(-10.0, 1.0, 5.0, 2.0), TS, method="tustin")
+    prepared = prepare_export(DiscreteTrackingController(robot, 45.0, Kd), robot)
+    with pytest.raises(ExportError, match=r"K is discrete as given; dt other than CTRL_PERIOD"):
+        ros2_package(prepared, robot)

@@ -10,6 +10,7 @@
 //   update PERIOD Q.. QD..    -> "update OK|ERROR TAU1..TAUn fault CODE PERIOD_USED CLIPPED"
 //   reason                    -> "reason TEXT"
 //   deactivate                -> "deactivate SUCCESS|ERROR TAU1..TAUn"
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -111,7 +112,7 @@ int main()
       const double period = num(in);
       for (double & v : hw_state) v = num(in);
       const auto r = c->update(rclcpp::Time(0), rclcpp::Duration::from_nanoseconds(
-                                                  static_cast<std::int64_t>(period * 1e9 + 0.5)));
+                                                  std::llround(period * 1e9)));
       std::printf("update %s", r == controller_interface::return_type::OK ? "OK" : "ERROR");
       for (double v : hw_command) std::printf(" %.17g", v);
       std::printf(" fault %d %.17g %llu\n", static_cast<int>(c->fault()), c->last_period(),

@@ -81,7 +81,16 @@ def run_export(args) -> int:
                        **({"friction": friction} if friction is not None else {}))
         prepared = prepare_export(law, robot, args.rate, method=args.method,
                                   prewarp=args.prewarp, design=d)
-    check_sampled_loop(law, robot, prepared.rate)
+    band = 0.0
+    if args.ros2:
+        from ..deploy.ros2 import PERIOD_TOLERANCE, check_ros2
+
+        band = PERIOD_TOLERANCE
+    check_sampled_loop(law, robot, prepared.rate, method=args.method, prewarp=args.prewarp,
+                       band=band)
+    if args.ros2:
+
+        check_ros2(prepared)  # before any file is written
     if out is None:  # --overwrite: the previous export is removed now that the options hold
         out = claim_out(args, "export")
     prepared.write(out)
@@ -100,26 +109,70 @@ def run_export(args) -> int:
     return 0
 
 
-def check_sampled_loop(law, robot, rate: float) -> None:
+class _AsExported:
+    """``law`` whose linear model discretizes K as the export does (``method``, ``prewarp``)."""
+
+    def __init__(self, law, method: str, prewarp):
+        self.law, self.name, self.method, self.prewarp = law, law.name, method, prewarp
+
+    def linear_model(self):
+        import dataclasses
+
+        import control
+        import numpy as np
+
+        from ..control.laws import FLLinearModel
+
+        model = self.law.linear_model()
+        if type(model) is not FLLinearModel or not model.K[0].size:
+            return model  # no K: nothing discretized
+        kwargs = {} if self.prewarp is None else {"prewarp_frequency": self.prewarp}
+
+        def discretize(rate):
+            Kd = control.sample_system(control.ss(*model.K), 1.0 / rate, method=self.method,
+                                       **kwargs)
+            return tuple(np.asarray(M, dtype=float) for M in (Kd.A, Kd.B, Kd.C, Kd.D))
+
+        return dataclasses.replace(model, discretize=discretize)
+
+
+def check_sampled_loop(law, robot, rate: float, *, method: str = "tustin", prewarp=None,
+                       band: float = 0.0) -> None:
     """Refuse a rate at which the law's linear digital loop is unstable, naming the figure.
 
     The loop of :func:`rrr_pin.campaign.stress.spectral_radius` (the law's zero-order-hold
-    output on its linear plant, at the neutral configuration): before, ``--law fl --rate 1``
-    was exported without a word while its Python twin diverged at once.
+    output on its linear plant, at the neutral configuration), with K discretized as the export
+    does (``method``, ``prewarp``): before, ``--law fl --rate 1`` was exported without a word
+    while its Python twin diverged at once. With ``band`` (``--ros2``: the controller accepts
+    update periods within ``(1 +- band) / rate`` and computes with each), the loop must also be
+    stable at both edges of the band, each period held (a frozen-period criterion).
     """
     from ..campaign.stress import spectral_radius
 
     home = robot.neutral()
-    rho = spectral_radius(law, rate, home)
+    model = _AsExported(law, method, prewarp)
+    factors = (1.0, 1.0 / (1.0 + band), 1.0 / (1.0 - band)) if band else (1.0,)
+
+    def worst(r):  # (spectral radius, rate [Hz]) of the least stable period checked
+        return max((spectral_radius(model, r * f, home), r * f) for f in factors)
+
+    rho, at = worst(rate)
     if rho < 1.0:
         return
     lo, hi = rate, rate
-    while spectral_radius(law, hi, home) >= 1.0 and hi < 1e6:
+    while worst(hi)[0] >= 1.0 and hi < 1e6:
         lo, hi = hi, 2.0 * hi
     while hi / lo - 1.0 > 1e-3:  # the smallest stable rate, to 0.1 %
         mid = (lo * hi) ** 0.5
-        lo, hi = (lo, mid) if spectral_radius(law, mid, home) < 1.0 else (mid, hi)
-    raise ValueError(f"--rate {rate:g} Hz: the sampled loop of {law.name!r} is unstable there "
-                     f"(spectral radius {rho:.4g} >= 1 of its linear digital loop at the neutral "
-                     f"configuration); it is stable from about {hi:.4g} Hz: give a faster rate")
-
+        lo, hi = (lo, mid) if worst(mid)[0] < 1.0 else (mid, hi)
+    if at == rate:
+        raise ValueError(f"--rate {rate:g} Hz: the sampled loop of {law.name!r} is unstable "
+                         f"there (spectral radius {rho:.4g} >= 1 of its linear digital loop at "
+                         f"the neutral configuration); it is stable from about {hi:.4g} Hz"
+                         f"{' over the --ros2 period band' if band else ''}: give a faster rate")
+    raise ValueError(f"--rate {rate:g} Hz with --ros2: the controller accepts update periods "
+                     f"within +-{100 * band:g} % of 1/rate and computes with each, and the "
+                     f"sampled loop of {law.name!r} is unstable at a period of "
+                     f"{1e3 / at:.4g} ms ({at:.4g} Hz; spectral radius {rho:.4g} >= 1 of its "
+                     f"linear digital loop at the neutral configuration); it is stable over "
+                     f"the whole band from about {hi:.4g} Hz: give a faster rate")

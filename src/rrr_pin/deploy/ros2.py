@@ -25,11 +25,14 @@ The controller's rules, stated once here and in the header:
   ``realtime_tools::RealtimeBuffer`` (the subscriber writes, ``update`` reads without blocking).
   On activation the reference is the measured position, held.
 - **The period** of each ``update`` must lie within ``period_tolerance`` (default 0.2: +-20 %)
-  of ``1 / rate_hz``; inside the band it is accepted and recorded (``last_period()``). The law's
-  K is discrete at ``Ts = 1 / rate_hz`` (that is what was exported), so a period inside the band
-  changes nothing but the period recorded.
+  of ``1 / rate_hz``; inside the band the law computes with it: ``ctrl_step_dt`` discretizes
+  K's continuous realization at that period by the export's method (a law without K does not
+  depend on it), and the period used is recorded (``last_period()``). The first update after
+  activation has no period measured: it computes with ``1 / rate_hz``. A law whose K the
+  exported C cannot discretize per period (a discrete K as given, a method other than those of
+  :data:`~rrr_pin.deploy.period.GBT_ALPHA`) is refused by :func:`check_ros2`.
 - **Faults** (a period outside the band; a non-finite or out-of-limit state; a reference of the
-  wrong size or non-finite; ``ctrl_step`` refusing): the command becomes the **safe torque**,
+  wrong size or non-finite; ``ctrl_step_dt`` refusing): the command becomes the **safe torque**,
   gravity compensation ``Ghat(q)`` of the nominal model (``fault_torque: gravity``, default) or
   zero (``fault_torque: zero``, also used when ``q`` itself is not finite); the fault is
   latched until the next activation, logged with its reason, and readable (``fault()``,
@@ -48,8 +51,9 @@ import numpy as np
 
 from ..outputs import writing
 from .sources import _num
+from .writer import ExportError
 
-__all__ = ["ros2_package", "write_ros2_package", "PACKAGE", "PERIOD_TOLERANCE"]
+__all__ = ["ros2_package", "write_ros2_package", "check_ros2", "PACKAGE", "PERIOD_TOLERANCE"]
 
 #: The package's name (and the plugin's namespace).
 PACKAGE = "rrr_pin_controller"
@@ -60,6 +64,27 @@ PERIOD_TOLERANCE = 0.2
 
 def _yaml_list(values) -> str:
     return "[" + ", ".join(values) + "]"
+
+
+def check_ros2(prepared) -> None:
+    """Refuse an export whose law the controller cannot run over a measured period.
+
+    The controller computes with the period it measures (``ctrl_step_dt``); a law with ``K``
+    needs K's continuous realization and a method the C discretizes per period
+    (:data:`~rrr_pin.deploy.period.GBT_ALPHA`).
+
+    Raises
+    ------
+    ExportError
+        A discrete ``K`` given as such, or a method (``zoh``, ...) that needs a matrix
+        exponential per period; the message says what would do.
+    """
+    if prepared.form.kind == "pd" or not prepared.law.nx or prepared.continuous is not None:
+        return
+    raise ExportError(
+        f"--ros2: law {prepared.law.name!r} can run its K at 1/rate only "
+        f"({prepared.record['ctrl_step_dt']['period']}); the ros2_control controller computes "
+        f"with the period it measures: export a continuous K with method tustin (the default)")
 
 
 def ros2_package(prepared, robot) -> dict[str, str]:
@@ -76,7 +101,13 @@ def ros2_package(prepared, robot) -> dict[str, str]:
     -------
     dict
         ``"ros2/package.xml"``, ... -> text (ASCII), in a fixed order.
+
+    Raises
+    ------
+    ExportError
+        As :func:`check_ros2`.
     """
+    check_ros2(prepared)
     form = prepared.form
     n = robot.nq
     joints = list(robot.joint_names)
@@ -175,7 +206,7 @@ _PLUGIN_XML = f"""<!-- {_BANNER} -->
 
 _CMAKE = f"""# {_BANNER}
 # The ros2_control controller plugin {PACKAGE}/ExportedLawController around the exported law
-# of the parent folder (controller.h, ctrl_step). Build: colcon build --paths <export>/ros2
+# of the parent folder (controller.h, ctrl_step_dt). Build: colcon build --paths <export>/ros2
 cmake_minimum_required(VERSION 3.21)
 project({PACKAGE} LANGUAGES C CXX)
 
@@ -256,9 +287,10 @@ constexpr double kPositionUpper[] = {{@UPPER@}};
 """
 
 _HPP = f"""// {_BANNER}
-// ExportedLawController: a controller_interface::ControllerInterface running ctrl_step of the
-// exported law (../../controller.h) once per update. Its rules (parameters checked at
-// configure, the period band, the fault torque) are stated in the class comment.
+// ExportedLawController: a controller_interface::ControllerInterface running ctrl_step_dt of
+// the exported law (../../controller.h) once per update, over the period measured. Its rules
+// (parameters checked at configure, the period band, the fault torque) are stated in the
+// class comment.
 #pragma once
 
 #include <array>
@@ -284,7 +316,7 @@ enum class Fault : std::uint8_t
   STATE,            ///< a measured position or velocity not finite, or a position out of limits
   REFERENCE_SIZE,   ///< a reference message with the wrong number of joints
   REFERENCE_VALUE,  ///< a reference message with a value not finite
-  LAW               ///< ctrl_step refused its inputs or produced a torque not finite
+  LAW               ///< ctrl_step_dt refused its inputs or produced a torque not finite
 }};
 
 /// A reference point written by the subscriber (non-real-time) and read by update().
@@ -301,10 +333,11 @@ struct Reference
 /// exported ones, in order), rate_hz (the law's), period_tolerance (0.2 = +-20 %),
 /// torque_limit [N m], position_lower/upper [rad], fault_torque ("gravity" or "zero"), the
 /// compiled-in gains (lam; kp, kd for PD), reference_topic.
-/// update(): a period outside the band, a bad state or reference, or ctrl_step refusing latch a
-/// fault; the command is then the safe torque (gravity compensation Ghat(q), or zero when q is
-/// not finite or fault_torque is "zero") every period until deactivation. Inside the band the
-/// period is accepted and recorded; the law's K is discrete at 1 / rate_hz.
+/// update(): a period outside the band, a bad state or reference, or ctrl_step_dt refusing
+/// latch a fault; the command is then the safe torque (gravity compensation Ghat(q), or zero
+/// when q is not finite or fault_torque is "zero") every period until deactivation. Inside
+/// the band the law runs over the period measured (ctrl_step_dt: K discretized at it,
+/// CTRL_STEP_DT), the first update after activation over 1 / rate_hz.
 class ExportedLawController : public controller_interface::ControllerInterface
 {{
 public:
@@ -328,7 +361,7 @@ public:
   Fault fault() const {{ return fault_; }}
   /// The latched fault's reason (empty when none).
   std::string fault_reason() const {{ return std::string(reason_); }}
-  /// The period [s] of the last update (the one checked and recorded).
+  /// The period [s] the last update computed with (measured; nominal on the first update).
   double last_period() const {{ return last_period_; }}
   std::uint64_t clipped_periods() const {{ return clipped_; }}
 
@@ -659,9 +692,10 @@ controller_interface::return_type ExportedLawController::update(
     q[i] = read_value(state_interfaces_[i], 0);
     qd[i] = read_value(state_interfaces_[CTRL_NQ + i], 0);
   }}
-  const double Ts = 1.0 / rate_hz_;
-  const double dt = period.seconds();
-  // the first update after activation has no previous one to measure a period from
+  const double Ts = 1.0 / rate_hz_;  // == CTRL_PERIOD (rate_hz checked at configure)
+  // the first update after activation has no previous one to measure a period from: it
+  // computes with the nominal period; every later one with the period measured
+  const double dt = first_update_ ? Ts : period.seconds();
   if (!first_update_ && !(std::fabs(dt - Ts) <= tolerance_ * Ts)) {{
     latch(Fault::PERIOD, "update period %.6g s outside the band %.6g s +- %.3g %%", dt, Ts,
           100.0 * tolerance_);
@@ -686,10 +720,12 @@ controller_interface::return_type ExportedLawController::update(
     latch(Fault::REFERENCE_VALUE, "reference with a value not finite");
   }}
   if (fault_ == Fault::NONE) {{
-    const int rc = ctrl_step(&state_, q, qd, ref->r.data(), ref->rd.data(), ref->rdd.data(), tau);
+    // the law over the period measured (CTRL_STEP_DT: K discretized at dt)
+    const int rc = ctrl_step_dt(&state_, q, qd, ref->r.data(), ref->rd.data(), ref->rdd.data(),
+                                tau, dt);
     if (rc != CTRL_OK) {{
-      latch(Fault::LAW, "ctrl_step returned %d (1: an input not finite, 2: a torque not "
-            "finite)", rc);
+      latch(Fault::LAW, "ctrl_step_dt returned %d (1: an input not finite, 2: a torque not "
+            "finite, 3: a period it cannot run)", rc);
     }}
   }}
   if (fault_ != Fault::NONE) {{

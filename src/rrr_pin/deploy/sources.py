@@ -14,6 +14,9 @@ The law (``controller.c``) is the C transcription of the built-in law's compiled
           \tau = \hat M(q)\bar\tau + \hat h(q, \dot q),\quad x^+ = A x + B e
 
 (FL alone: no ``x``, ``y = 0``) or ``tau = Kp e + Kd (rd - qd) + Ghat(q)`` (PD + gravity).
+``ctrl_step_dt`` is the same law over a period ``dt`` it is given: ``K`` discretized at ``dt``
+from its continuous realization (:mod:`rrr_pin.deploy.period`), ``ctrl_step`` itself at the
+nominal period.
 The dynamics sit behind three C functions declared in ``dynamics.h``
 (``ctrl_dyn_crba``, ``ctrl_dyn_nle``, ``ctrl_dyn_gravity``), implemented either by the
 generated plain C of the nominal RRR (``codegen_rrr.c``, :mod:`rrr_pin.sim.codegen`) or by a
@@ -112,7 +115,7 @@ def _c_string(text: str) -> str:
 
 
 def controller_h(*, n: int, nx: int, rate: float, law: str, kind: str, joints, fingerprint: str,
-                 dynamics: str) -> str:
+                 dynamics: str, step_dt: str = "") -> str:
     """``controller.h``: the API, ``CTRL_NQ``, ``CTRL_RATE_HZ``, the joint names, the state."""
     names = ", ".join(_c_string(j) for j in joints)
     return _BANNER.format(what=f"Law {law!r} ({kind}), {n} joints, {rate!r} Hz; dynamics: "
@@ -141,6 +144,12 @@ extern "C" {{
 #define CTRL_OK 0
 #define CTRL_EINPUT 1  /* an input is NaN or inf: tau and the state are left untouched */
 #define CTRL_EOUTPUT 2 /* the torque came out NaN or inf: tau written, state not advanced */
+#define CTRL_EPERIOD 3 /* ctrl_step_dt: a period dt it cannot run: tau and the state untouched */
+
+/* The nominal period [s], 1 / CTRL_RATE_HZ: the one ctrl_step's K is discrete at. */
+#define CTRL_PERIOD (1.0 / CTRL_RATE_HZ)
+/* What ctrl_step_dt does with its measured period dt. */
+#define CTRL_STEP_DT {_c_string(step_dt)}
 
 /* The law's whole state: fixed-size arrays only (no pointer, no allocation). */
 typedef struct ctrl_state {{
@@ -158,6 +167,14 @@ void ctrl_reset(ctrl_state *s);
 int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
               const double r[CTRL_NQ], const double rd[CTRL_NQ], const double rdd[CTRL_NQ],
               double tau[CTRL_NQ]);
+
+/* ctrl_step over a period of measured length dt [s] (CTRL_STEP_DT): the law with K discretized
+ * at dt by the export's method, from K's continuous realization (carried in controller.c). At
+ * dt == CTRL_PERIOD exactly it is ctrl_step, bit for bit. Returns CTRL_EPERIOD (nothing
+ * written) for dt not finite or <= 0, or a dt the law cannot be discretized at. */
+int ctrl_step_dt(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
+                 const double r[CTRL_NQ], const double rd[CTRL_NQ], const double rdd[CTRL_NQ],
+                 double tau[CTRL_NQ], double dt);
 
 #ifdef __cplusplus
 }}
@@ -237,8 +254,10 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
     m = form.A.shape[0]
     lam = form.lam
     if m:
-        tables = (_matrix("KA", form.A) + _matrix("KB", form.B) + _matrix("KC", form.C)
-                  + _matrix("KD", form.D))
+        # the tables at CTRL_PERIOD; law_step takes K's matrices as arguments (ctrl_step_dt
+        # passes them discretized at its dt)
+        tables = (_matrix("TS_A", form.A) + _matrix("TS_B", form.B) + _matrix("TS_C", form.C)
+                  + _matrix("TS_D", form.D))
         y = f'''        double cx = 0.0, de = 0.0;
         for (j = 0; j < {m}; ++j) {{
             cx += KC[i][j] * s->x[j];
@@ -268,7 +287,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
                f"h[CTRL_NQ], xn[{m}];\n"
         what = "H-infinity + FL, eq. (8)-(10): y = C x + D e, x+ = A x + B e (K discrete)"
         if form.kind == "fl_aw":
-            tables += _matrix("KL", form.L) + _vector("TAU_MAX", form.limit) + _SOLVE
+            tables += _matrix("TS_L", form.L) + _vector("TAU_MAX", form.limit) + _SOLVE
             decl += "    double tau_u[CTRL_NQ], dy[CTRL_NQ];\n    int clipped = 0;\n"
             update = advance + f'''    if (clipped) {{
         /* Hanus: y_hat - y = Mhat^-1 (tau_s - tau) / lam^2, x+ += L (y_hat - y), L = B D^-1 */
@@ -310,14 +329,38 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         }
     }
 ''' if form.kind == "fl_aw" else ""
+    if m:
+        aw = form.kind == "fl_aw"
+        signature = ("static int law_step(ctrl_state *s, const double q[CTRL_NQ], "
+                     "const double qd[CTRL_NQ],\n"
+                     "              const double r[CTRL_NQ], const double rd[CTRL_NQ], "
+                     "const double rdd[CTRL_NQ],\n"
+                     f"              double tau[CTRL_NQ], const double KA[{m}][{m}], "
+                     f"const double KB[{m}][CTRL_NQ],\n"
+                     f"              const double KC[CTRL_NQ][{m}], "
+                     f"const double KD[CTRL_NQ][CTRL_NQ]"
+                     + (f",\n              const double KL[{m}][CTRL_NQ])" if aw else ")"))
+        wrapper = f'''
+int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
+              const double r[CTRL_NQ], const double rd[CTRL_NQ], const double rdd[CTRL_NQ],
+              double tau[CTRL_NQ])
+{{
+    return law_step(s, q, qd, r, rd, rdd, tau, TS_A, TS_B, TS_C, TS_D{", TS_L" if aw else ""});
+}}
+'''
+    else:
+        signature = ("int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], "
+                     "const double qd[CTRL_NQ],\n"
+                     "              const double r[CTRL_NQ], const double rd[CTRL_NQ], "
+                     "const double rdd[CTRL_NQ],\n"
+                     "              double tau[CTRL_NQ])")
+        wrapper = ""
     return head + tables + f'''
 /* {what};
  * taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), tau = Mhat(q) taubar + hhat(q, qd). */
 #define LAM {_num(lam)}
 
-int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
-              const double r[CTRL_NQ], const double rd[CTRL_NQ], const double rdd[CTRL_NQ],
-              double tau[CTRL_NQ])
+{signature}
 {{
 {decl}    int i, j;
 {"    (void)s;" + chr(10) if not m else ""}{check}    for (i = 0; i < CTRL_NQ; ++i) {{
@@ -340,7 +383,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
     }}
 {clip}{update}    return CTRL_OK;
 }}
-'''
+''' + wrapper
 
 
 def dynamics_h(source: str) -> str:

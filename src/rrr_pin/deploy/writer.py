@@ -40,7 +40,7 @@ from ..control.laws import (
 from ..outputs import OutputDir, writing
 from ..sim.codegen import fingerprint
 from ..validation import FieldError, check_positive, check_rate
-from . import sources
+from . import period, sources
 
 __all__ = ["Export", "ExportError", "export", "prepare_export", "check_exportable", "FILES",
            "FORMAT", "read_record",
@@ -114,6 +114,10 @@ class Export:
         File name -> text, in :data:`FILES` order.
     record : dict
         The content of ``controller.json``.
+    continuous : tuple or None
+        ``K``'s continuous ``(A, B, C, D)`` that ``ctrl_step_dt`` discretizes at each measured
+        period (None: a law without ``K``, a discrete ``K`` as given, or a method other than
+        those of :data:`rrr_pin.deploy.period.GBT_ALPHA`).
     """
 
     law: object
@@ -122,6 +126,7 @@ class Export:
     dynamics: str
     files: dict = field(repr=False)
     record: dict = field(repr=False)
+    continuous: tuple | None = field(default=None, repr=False, compare=False)
 
     def write(self, folder) -> list[Path]:
         """Write the files into ``folder`` (which must exist); return their paths."""
@@ -223,6 +228,16 @@ def _twin(law, rate, method: str, prewarp):
     if isinstance(law, AntiWindupTracking) and twin.nx:
         _check_stable_after(law, twin.compiled_form().A, rate, method)
     return twin, rate
+
+
+def _continuous_k(law, method: str):
+    """K's continuous ``(A, B, C, D)`` when ``ctrl_step_dt`` can discretize it per period."""
+    if isinstance(law, SampledLaw) or method not in period.GBT_ALPHA or not law.nx:
+        return None
+    form = law.compiled_form()  # TrackingController, AntiWindupTracking: K continuous
+    if type(form) not in (FLForm, FLAWForm):
+        return None
+    return tuple(np.asarray(M, dtype=float) for M in (form.A, form.B, form.C, form.D))
 
 
 def _check_stable_after(law, A, rate: float, method: str) -> None:
@@ -343,13 +358,18 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     from .. import __version__
 
     n, nx = robot.nq, twin.nx
+    continuous = _continuous_k(law, method)
+    k_method = None if isinstance(law, SampledLaw) else method  # None: K discrete as given
+    step_dt = period.step_dt_text(form, continuous, method=k_method, prewarp=prewarp)
     where = ("generated plain C of the nominal RRR (codegen_rrr.c)" if use_generated
              else "Pinocchio C++ on the embedded model (dynamics.cpp)")
     files = {
         "controller.h": sources.controller_h(n=n, nx=nx, rate=rate, law=twin.name,
                                              kind=form.kind, joints=robot.joint_names,
-                                             fingerprint=fp, dynamics=where),
-        "controller.c": sources.controller_c(form, law=twin.name, rate=rate),
+                                             fingerprint=fp, dynamics=where,
+                                             step_dt=step_dt),
+        "controller.c": sources.controller_c(form, law=twin.name, rate=rate)
+        + period.controller_step_dt_c(form, continuous, method=k_method, prewarp=prewarp),
         "dynamics.h": sources.dynamics_h(where),
     }
     if use_generated:
@@ -393,12 +413,17 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         "law": {"name": twin.name, "label": twin.label or twin.name,
                 "class": f"{type(law).__module__}.{type(law).__qualname__}", **law_record},
         "rate_hz": rate, "nq": n, "nx": nx, "joints": list(robot.joint_names),
+        "ctrl_step_dt": {"period": step_dt, "K_continuous": None if continuous is None else
+                         dict(zip("ABCD", (M.tolist() for M in continuous), strict=True)),
+                         "method": None if continuous is None else method,
+                         "alpha": None if continuous is None else period.GBT_ALPHA[method],
+                         "prewarp_rad_s": None if continuous is None else prewarp},
         "model": {"name": robot.name, "fingerprint": fp, "dynamics": dynamics,
                   **_model_parameters(robot, form.kind == "fl_friction")},
         "design": _design_record(design),
     }
     files["controller.json"] = json.dumps(record, indent=2, sort_keys=True) + "\n"
-    return Export(twin, form, rate, dynamics, files, record)
+    return Export(twin, form, rate, dynamics, files, record, continuous)
 
 
 def export(law, robot, rate: float | None = None, out="controller", *, method: str = "tustin",
@@ -407,7 +432,8 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
     """Write ``law`` on ``robot`` at ``rate`` as a self-contained C folder ``out``.
 
     The folder holds ``controller.h``/``controller.c`` (C99: no allocation, no mutable global,
-    re-entrant) with ``ctrl_reset``/``ctrl_step``, the nominal model's dynamics (the generated
+    re-entrant) with ``ctrl_reset``/``ctrl_step`` (and ``ctrl_step_dt``, the law over a measured
+    period), the nominal model's dynamics (the generated
     C of the nominal RRR, or a C++ file calling Pinocchio on the embedded model), a
     ``CMakeLists.txt`` (static library ``rrr_pin_ctrl``), an example ``main.c`` and
     ``controller.json`` (:func:`rrr_pin.deploy.ros2.write_ros2_package` adds a ros2_control
