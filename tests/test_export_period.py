@@ -22,6 +22,7 @@ from numpy.testing import assert_allclose
 
 from rrr_pin import export as export_law
 from rrr_pin import exported_law, hinf_fl_controller, load_robot, ncfsyn
+from rrr_pin.control.friction import JointFriction
 from rrr_pin.control.laws import DiscreteTrackingController, hinf_aw_controller
 from rrr_pin.control.laws.antiwindup import SampledAntiWindup, hanus_gain
 from rrr_pin.robust.loopshaping import design, fl_plant, lag_weight
@@ -61,6 +62,9 @@ def laws(tmp_path_factory):
         "hinf_prewarp": (hinf_fl_controller(rrr, quick), {"prewarp": 300.0}),
         "hinf_backward": (hinf_fl_controller(rrr, quick), {"method": "backward_diff"}),
         "hinf_aw": (hinf_aw_controller(rrr, K, torque_limit=AW_LIMIT), {}),
+        # friction compensation (issue 32) rides in the same law body
+        "hinf_friction": (hinf_fl_controller(rrr, K, friction=JointFriction(
+            (2.0, 1.5, 0.5), (1.0, 0.8, 0.3), 0.05, source="test")), {}),
         "hinf_zoh": (hinf_fl_controller(rrr, quick), {"method": "zoh"}),
         "fl": ("fl", {}),
         "pd": ("pd", {}),
@@ -77,7 +81,8 @@ def _inputs(rng, n=3):
     return [rng.uniform(-1.5, 1.5, n) for _ in range(5)]
 
 
-@pytest.mark.parametrize("name", ["hinf", "hinf_prewarp", "hinf_aw", "hinf_zoh", "fl", "pd"])
+@pytest.mark.parametrize("name", ["hinf", "hinf_prewarp", "hinf_aw", "hinf_zoh", "hinf_friction",
+                                  "fl", "pd"])
 def test_nominal_period_is_ctrl_step_bit_for_bit(laws, name):
     _, ex, c_law = laws[name]
     rng = np.random.default_rng(1)
@@ -100,13 +105,16 @@ def _python_step(law, ex, dt, method, prewarp):
         mats = tuple(np.asarray(M, dtype=float) for M in (Kd.A, Kd.B, Kd.C, Kd.D))
         gain = hanus_gain(law.name, "Dd", *mats, discrete=True)
         return SampledAntiWindup(law, 1.0 / dt, method, mats, gain)
-    return DiscreteTrackingController(law.nominal, law.lam, Kd, name=law.name)
+    return DiscreteTrackingController(law.nominal, law.lam, Kd, name=law.name,
+                                      friction=law.friction)
 
 
 @pytest.mark.parametrize("name, method, prewarp", [
     ("hinf", "tustin", None), ("hinf_prewarp", "tustin", 300.0),
-    ("hinf_backward", "backward_diff", None), ("hinf_aw", "tustin", None)],
-    ids=["tustin", "tustin prewarped", "backward_diff", "hinf_aw tustin"])
+    ("hinf_backward", "backward_diff", None), ("hinf_aw", "tustin", None),
+    ("hinf_friction", "tustin", None)],
+    ids=["tustin", "tustin prewarped", "backward_diff", "hinf_aw tustin",
+         "friction compensated tustin"])
 def test_jittered_periods_equal_sample_system_step_by_step(laws, name, method, prewarp):
     """A seeded sequence of periods inside +-20 %: each step is python-control's K at dt_k."""
     law, ex, c_law = laws[name]

@@ -235,7 +235,7 @@ def _continuous_k(law, method: str):
     if isinstance(law, SampledLaw) or method not in period.GBT_ALPHA or not law.nx:
         return None
     form = law.compiled_form()  # TrackingController, AntiWindupTracking: K continuous
-    if type(form) not in (FLForm, FLAWForm):
+    if type(form) not in (FLForm, FLFrictionForm, FLAWForm):
         return None
     return tuple(np.asarray(M, dtype=float) for M in (form.A, form.B, form.C, form.D))
 
