@@ -19,7 +19,7 @@ Built in (:data:`REQUIREMENTS`, the CLI's ``--require NAME=VALUE``): ``delay_mar
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import ClassVar
 
 import numpy as np
@@ -29,6 +29,11 @@ from ..validation import FieldError, check_positive
 __all__ = ["Requirement", "DelayMargin", "DiskMargin", "ActuatorBandwidth", "Bandwidth",
            "PeakTorque", "ErrorRatio", "REQUIREMENTS", "make_requirement", "disk_margin_grid",
            "bandwidth_grid"]
+
+
+#: Largest delay, in samples of the law, that :meth:`DelayMargin.verify` builds an exact
+#: discrete loop for (each sample adds ``n`` states to the eigenvalue problem).
+MAX_DELAY_SAMPLES = 200
 
 
 def _sens(L: np.ndarray) -> np.ndarray:
@@ -117,26 +122,45 @@ class Requirement:
         return self.estimate(ctx, ev), "frequency grid"
 
     def to_dict(self) -> dict:
-        """JSON-ready record."""
+        """JSON-ready record (with the fields a subclass adds)."""
+        extra = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "target"}
         return {"name": self.name, "target": self.target, "unit": self.unit,
-                "sense": "at least" if self.sense == "min" else "at most"}
+                "sense": "at least" if self.sense == "min" else "at most", **extra}
 
 
 @dataclass(frozen=True)
 class DelayMargin(Requirement):
-    """Common transport delay on every actuator the loop tolerates [s], worst plant."""
+    """Common transport delay on every actuator the loop tolerates [s], worst plant.
 
+    Parameters
+    ----------
+    actuator : float, optional
+        A first-order actuator [rad/s] present while the delay grows (CLI:
+        ``delay_margin=0.003,actuator=300``); default the fixed effects' (or none).
+    """
+
+    actuator: float | None = None
     name: ClassVar[str] = "delay_margin"
     unit: ClassVar[str] = "s"
+
+    def _wa(self, ctx):
+        return self.actuator or ctx.fixed.get("actuator")
 
     def estimate(self, ctx, ev):
         from ..control.sampled_loops import delay_margin_from_response
 
-        return float(np.min(delay_margin_from_response(None, ctx.loops.omega,
-                                                       ev.eigs("actuator"))))
+        wa = self._wa(ctx)
+        L = ev.L if wa is None else ev.L * (wa / (1j * ctx.loops.omega + wa))[None, :, None,
+                                                                                None]
+        eigs = ev.eigs("actuator") if self.actuator is None else None
+        return float(np.min(delay_margin_from_response(L, ctx.loops.omega, eigs)))
 
     def verify(self, ctx, ev):
-        wa = ctx.fixed.get("actuator")
+        wa = self._wa(ctx)
+        est = self.estimate(ctx, ev)
+        if est * ctx.loops.rate > MAX_DELAY_SAMPLES:
+            return est, (f"frequency grid (the exact loop would hold over "
+                         f"{MAX_DELAY_SAMPLES} delayed samples)")
 
         def stable(tau):
             return bool(np.all(ctx.loops.spectral_radius(ev.law, tau, wa) < 1.0))
@@ -166,14 +190,25 @@ class DiskMargin(Requirement):
 
 @dataclass(frozen=True)
 class ActuatorBandwidth(Requirement):
-    """Slowest first-order actuator ``wa/(s + wa)`` the loop tolerates [rad/s], worst plant."""
+    """Slowest first-order actuator ``wa/(s + wa)`` the loop tolerates [rad/s], worst plant.
 
+    Parameters
+    ----------
+    delay : float, optional
+        A transport delay [s] present with the actuator (CLI:
+        ``actuator_bandwidth=300,delay=0.002``); default the fixed effects' (or none).
+    """
+
+    delay: float | None = None
     name: ClassVar[str] = "actuator_bandwidth"
     unit: ClassVar[str] = "rad/s"
     sense: ClassVar[str] = "max"
 
+    def _delay(self, ctx):
+        return self.delay if self.delay is not None else ctx.fixed.get("delay", 0.0)
+
     def _smallest(self, ctx, ev, rtol):
-        delay = ctx.fixed.get("delay", 0.0)
+        delay = self._delay(ctx)
 
         def stable(wa):
             return bool(np.all(ctx.loops.spectral_radius(ev.law, delay, wa) < 1.0))
@@ -182,8 +217,11 @@ class ActuatorBandwidth(Requirement):
     def estimate(self, ctx, ev):
         from ..control.sampled_loops import actuator_margin_from_response
 
-        return float(np.max(actuator_margin_from_response(None, ctx.loops.omega,
-                                                          ev.eigs("delay"))))
+        if self.delay is None:
+            return float(np.max(actuator_margin_from_response(None, ctx.loops.omega,
+                                                              ev.eigs("delay"))))
+        L = ev.L * np.exp(-1j * ctx.loops.omega * self.delay)[None, :, None, None]
+        return float(np.max(actuator_margin_from_response(L, ctx.loops.omega)))
 
     def verify(self, ctx, ev):
         return self._smallest(ctx, ev, 1e-4), "exact discrete eigenvalues, bisection"
@@ -271,7 +309,7 @@ class PeakTorque(Requirement):
             "nonlinear simulation on every plant, peak |tau| over the limit"
 
     def to_dict(self):
-        return {**super().to_dict(), "joint": self.joint,
+        return {**super().to_dict(),
                 "note": "achieved and verified are peak |tau| over the limit (<= 1 met)"}
 
 
@@ -341,6 +379,19 @@ def make_requirement(text: str) -> Requirement:
         raise FieldError("require", f"{{name}}: expected NAME=VALUE with NAME one of "
                                     f"{', '.join(REQUIREMENTS)}, got {text!r}")
     cls = REQUIREMENTS[name]
+    value, *rest = value.split(",")
+    extras = {}
+    allowed = {"delay_margin": "actuator", "actuator_bandwidth": "delay"}.get(name)
+    for item in rest:
+        key, eq, size = item.partition("=")
+        try:
+            extras[key.strip()] = float(size) if eq and key.strip() == allowed else None
+        except ValueError:
+            extras[key.strip()] = None
+        if extras[key.strip()] is None:
+            raise FieldError("require", f"{{name}}: {name} takes "
+                                        f"{f'{allowed}=SIZE' if allowed else 'no option'} "
+                                        f"after its value, got {item!r} in {text!r}")
     if joint and cls is not PeakTorque:
         raise FieldError("require", f"{{name}}: a joint (@{joint}) applies to peak_torque "
                                     f"only, got {text!r}")
@@ -353,7 +404,8 @@ def make_requirement(text: str) -> Requirement:
                                     f"{' or urdf' if cls is PeakTorque else ''}, got "
                                     f"{value!r}") from None
     try:
-        return cls(number, joint=joint or None) if cls is PeakTorque else cls(number)
+        return cls(number, joint=joint or None) if cls is PeakTorque else cls(number,
+                                                                              **extras)
     except FieldError as exc:
         raise FieldError("require", "{name}: " + str(exc).replace("{", "{{")
                          .replace("}", "}}")) from None

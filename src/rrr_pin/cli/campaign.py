@@ -13,6 +13,7 @@ from .build import (
     tolerances_from_args,
 )
 from .options import add_law_arguments, add_plant_arguments
+from .options import add_design_argument
 
 __all__ = ["add", "run_montecarlo"]
 
@@ -49,6 +50,7 @@ def add(sub) -> None:
                       help="start afresh in a non-empty --out (its previous campaign is "
                            "deleted)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_design_argument(p)
     p.set_defaults(func=run_montecarlo)
 
 
