@@ -65,6 +65,8 @@ PARSE_ONLY = {
     "reproduce": "its figures take ~25 s even shrunk",
     "--data": "needs a measured log (scripts/identify_example.py writes one)",
     "--uncertainty": "needs an identification.json (rrr-pin identify writes one)",
+    "--tune-lam": "a tuning against three requirements on 21 plants with its simulations "
+                  "takes minutes; tests/test_tuning.py runs rrr-pin design small",
 }
 
 #: Python blocks (named by a line they hold) that are compiled, not run, and why.

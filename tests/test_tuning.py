@@ -248,3 +248,62 @@ def test_fl_alone_loop_is_the_stress_models(rrr):
     ev = _Eval(ctx, LAM, None)
     assert_allclose(DelayMargin(0.001).verify(ctx, ev)[0],
                     linear_boundary(fl_controller(rrr), "delay", 1000.0), rtol=2e-3)
+
+
+# --- the command line ---------------------------------------------------------------------------
+
+DESIGN = ["design", "--structure", "gain", "--samples", "1", "--starts", "1", "--no-simulate",
+          "--require", "delay_margin=0.004", "--require", "disk_margin=0.4"]
+
+
+@pytest.mark.parametrize("robot", ["rrr", pytest.param("ur5", marks=pytest.mark.slow)])
+def test_cli_design_writes_the_arms_own_design(robot, tmp_path):
+    from conftest import run_cli
+
+    run = run_cli([*DESIGN, "--robot", robot], tmp_path / robot)
+    assert run.code == 0, run.stderr
+    data = load_design(tmp_path / robot / "design.json")
+    assert data["robot"] == robot and data["law"] == "tuned"
+    assert [row["name"] for row in data["requirements"]] == ["delay_margin", "disk_margin"]
+    assert "delay_margin" in run.stdout and "verified" in run.stdout
+
+
+@pytest.mark.slow
+def test_cli_reproduce_runs_the_design_as_tuned(tmp_path):
+    from conftest import REPRODUCE, run_cli
+
+    assert run_cli([*DESIGN, "--robot", "rrr"], tmp_path / "d").code == 0
+    run = run_cli([*REPRODUCE, "--robot", "rrr", "--controllers", "fl,tuned", "--design",
+                   str(tmp_path / "d" / "design.json")], tmp_path / "r")
+    assert run.code == 0, run.stderr
+    data = json.loads((tmp_path / "r" / "results.json").read_text())
+    assert "tuned" in data["controllers"] or "tuned" in json.dumps(data["controllers"])
+    assert data["design"]["tuned"]["requirements"][0]["name"] == "delay_margin"
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["design", "--robot", "rrr", "--require", "speed=3"], "expected NAME=VALUE"),
+    (["design", "--robot", "rrr", "--structure", "fl", "--require", "delay_margin=0.003"],
+     "no free parameter"),
+], ids=["unknown-requirement", "no-parameter"])
+def test_cli_design_bad_input_exits_2(argv, match, tmp_path):
+    from conftest import run_cli
+
+    run = run_cli(argv, tmp_path / "x")
+    assert run.code == 2 and match in run.stderr and "Traceback" not in run.stderr
+
+
+def test_cli_tuned_without_design_is_refused(tmp_path):
+    from conftest import REPRODUCE, run_cli
+
+    run = run_cli([*REPRODUCE, "--robot", "rrr", "--controllers", "fl,tuned"], tmp_path / "r")
+    assert run.code == 2 and "--controllers tuned needs --design" in run.stderr
+
+
+def test_cli_design_for_another_arm_is_refused(tmp_path):
+    from conftest import REPRODUCE, run_cli
+
+    assert run_cli([*DESIGN, "--robot", "rrr"], tmp_path / "d").code == 0
+    run = run_cli([*REPRODUCE, "--robot", "ur5", "--controllers", "fl,tuned", "--design",
+                   str(tmp_path / "d" / "design.json")], tmp_path / "r")
+    assert run.code == 2 and "tuned for 'rrr'" in run.stderr

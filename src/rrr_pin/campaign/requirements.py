@@ -147,6 +147,7 @@ class DelayMargin(Requirement):
         return self.actuator or ctx.fixed.get("actuator")
 
     def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
         from ..control.sampled_loops import delay_margin_from_response
 
         wa = self._wa(ctx)
@@ -156,6 +157,7 @@ class DelayMargin(Requirement):
         return float(np.min(delay_margin_from_response(L, ctx.loops.omega, eigs)))
 
     def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
         wa = self._wa(ctx)
         est = self.estimate(ctx, ev)
         if est * ctx.loops.rate > MAX_DELAY_SAMPLES:
@@ -176,9 +178,11 @@ class DiskMargin(Requirement):
     unit: ClassVar[str] = "-"
 
     def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
         return float(np.min(disk_margin_grid(ev.L, ev.S())))
 
     def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
         import control
 
         out = []
@@ -215,6 +219,7 @@ class ActuatorBandwidth(Requirement):
         return _bisect_down(stable, self.target, rtol)
 
     def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
         from ..control.sampled_loops import actuator_margin_from_response
 
         if self.delay is None:
@@ -224,6 +229,7 @@ class ActuatorBandwidth(Requirement):
         return float(np.max(actuator_margin_from_response(L, ctx.loops.omega)))
 
     def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
         return self._smallest(ctx, ev, 1e-4), "exact discrete eigenvalues, bisection"
 
 
@@ -235,9 +241,11 @@ class Bandwidth(Requirement):
     unit: ClassVar[str] = "rad/s"
 
     def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
         return float(np.min(bandwidth_grid(ev.L, ctx.loops.omega, ev.S())))
 
     def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
         from scipy.optimize import brentq
 
         lvl = 1.0 / math.sqrt(2.0)
@@ -292,6 +300,7 @@ class PeakTorque(Requirement):
         return [ctx.joint_index(self.joint)] if self.joint else list(range(ctx.loops.n))
 
     def normalized(self, achieved) -> float:
+        """Return the achieved ratio itself (<= 1 met)."""
         return float(achieved)
 
     def estimate(self, ctx, ev):
@@ -303,12 +312,14 @@ class PeakTorque(Requirement):
         return float(np.max(ctx.id_peak[:, j] / self.limits(ctx)[j]))
 
     def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
         j = self._joints(ctx)
         peak = ctx.simulated(ev)["peak_torque"]
         return float(np.max(peak[:, j] / self.limits(ctx)[j])), \
             "nonlinear simulation on every plant, peak |tau| over the limit"
 
     def to_dict(self):
+        """Return the JSON-ready record."""
         return {**super().to_dict(),
                 "note": "achieved and verified are peak |tau| over the limit (<= 1 met)"}
 
@@ -321,9 +332,11 @@ class ErrorRatio(Requirement):
     unit: ClassVar[str] = "-"
 
     def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
         return ctx.error_ratio_estimate(ev)
 
     def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
         return ctx.simulated(ev)["error_ratio"], \
             "nonlinear simulation on every plant, against FL alone (lam 100 rad/s)"
 

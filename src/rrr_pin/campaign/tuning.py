@@ -106,10 +106,10 @@ class _Eval:
         """Plant ``i``'s discrete loop at the torque input as a ``control.StateSpace``."""
         import control
 
-        from ..control.sampled_loops import _zoh
+        from ..control.sampled_loops import zoh
 
         loops = ctx.loops
-        Phi, Gam = _zoh(loops.A[i], loops.B[i], loops.T)
+        Phi, Gam = zoh(loops.A[i], loops.B[i], loops.T)
         P = control.ss(Phi, Gam, np.eye(Phi.shape[0]), 0, loops.T)
         Ac, Bc, Cc, Dc = self.law.law
         C = control.ss(Ac, Bc, Cc, Dc, loops.T) if Ac.size else control.ss([], [], [], Dc,
@@ -250,11 +250,11 @@ class TuneResult:
     info: dict = field(default_factory=dict)
 
     def law(self, nominal, name: str = "tuned"):
-        """The tuned law on ``nominal`` (a continuous TrackingController; run it at ``rate``)."""
+        """Return the tuned law on ``nominal`` (continuous; run it sampled at ``rate``)."""
         return _law(nominal, self.lam, self.K, name)
 
     def to_dict(self) -> dict:
-        """The ``design.json`` record."""
+        """Return the ``design.json`` record."""
         K = None if self.K is None else {
             "num": np.asarray(self.K.num[0][0], float).ravel().tolist(),
             "den": np.asarray(self.K.den[0][0], float).ravel().tolist()}
@@ -265,7 +265,7 @@ class TuneResult:
                 **self.info}
 
     def lines(self) -> list[str]:
-        """A printable summary: the law and the requirement table."""
+        """Return a printable summary: the law and the requirement table."""
         out = [f"tuned {self.structure.kind} on {self.info.get('robot')}: lam = "
                f"{self.lam:.4g} rad/s, {_k_text(self.K)}, at {self.rate:g} Hz; status "
                f"{self.status} (worst normalized {self.objective:.3g})"]
@@ -503,7 +503,7 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
 
 
 def _stress_row(ctx, ev, req, settings) -> dict:
-    """Simulated breaking point on the nominal plant and its exact linear prediction there."""
+    """Return the simulated breaking point on the nominal plant and its exact prediction."""
     from .stress import StressSettings, breaking_point
 
     effect = "delay" if isinstance(req, DelayMargin) else "actuator"

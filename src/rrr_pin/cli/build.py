@@ -11,7 +11,8 @@ from __future__ import annotations
 from .common import as_options, floats, not_a_folder, option, parse_lock
 
 __all__ = ["load_plant", "reference_from_args", "settings_from_args", "tolerances_from_args",
-           "laws_from_args", "tuned_from_args", "design_record", "torque_limit_from_args", "with_torque_limit", "rejections_line",
+           "laws_from_args", "tuned_from_args", "design_record", "torque_limit_from_args",
+           "with_torque_limit", "rejections_line",
            "frozen_configuration"]
 
 
@@ -102,7 +103,7 @@ def laws_from_args(args, plant, K=None, torque_limit=None, extra=()):
 
 
 def tuned_from_args(args, plant, names):
-    """The law ``tuned`` of ``--design DIR/design.json`` when ``--controllers`` names it.
+    """Return the law ``tuned`` of ``--design DIR/design.json`` when ``--controllers`` names it.
 
     Raises
     ------
@@ -122,7 +123,7 @@ def tuned_from_args(args, plant, names):
 
 
 def design_record(args) -> dict | None:
-    """What results record of ``--design``: its path, law and requirement table (or None)."""
+    """Return what results record of ``--design``: its path, law and requirement table (or None)."""
     path = getattr(args, "design", None)
     if path is None:
         return None

@@ -12,8 +12,7 @@ from .build import (
     settings_from_args,
     tolerances_from_args,
 )
-from .options import add_law_arguments, add_plant_arguments
-from .options import add_design_argument
+from .options import add_design_argument, add_law_arguments, add_plant_arguments
 
 __all__ = ["add", "run_montecarlo"]
 

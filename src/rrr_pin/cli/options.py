@@ -7,7 +7,8 @@ and reference kinds from :mod:`rrr_pin.control.catalog`.
 
 from __future__ import annotations
 
-__all__ = ["add_design_argument", "add_overwrite", "add_plant_arguments", "add_law_arguments", "add_force_argument",
+__all__ = ["add_design_argument", "add_overwrite", "add_plant_arguments", "add_law_arguments",
+           "add_force_argument",
            "add_reference_arguments"]
 
 _PLANT_HELP = ("plant: 'rrr' (the paper's arm, default), an example-robot-data arm (ur5, ur3, "

@@ -6,8 +6,7 @@ import time
 
 from .build import load_plant
 from .common import as_options, claim_out, option
-from .options import add_force_argument, add_overwrite, add_plant_arguments
-from .options import add_design_argument
+from .options import add_design_argument, add_force_argument, add_overwrite, add_plant_arguments
 
 __all__ = ["add", "run_stress", "parse_with"]
 

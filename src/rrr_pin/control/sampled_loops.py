@@ -37,7 +37,7 @@ import scipy.linalg
 
 from ..validation import check_rate, check_vector
 
-__all__ = ["LoopSet", "LawResponse", "tustin_response", "delay_margin_from_response",
+__all__ = ["zoh", "LoopSet", "LawResponse", "tustin_response", "delay_margin_from_response",
            "actuator_margin_from_response"]
 
 
@@ -118,7 +118,7 @@ class LoopSet:
         z = np.exp(1j * np.asarray(omega) * self.T)
         out = []
         for A, B in zip(self.A, self.B, strict=True):
-            Phi, Gam = _zoh(A, B, self.T)
+            Phi, Gam = zoh(A, B, self.T)
             eye = np.eye(A.shape[0])
             M = z[:, None, None] * eye - Phi
             out.append(np.linalg.solve(M, np.broadcast_to(Gam, (z.size, *Gam.shape))))
@@ -184,8 +184,8 @@ class LoopSet:
             frac = 0.0
         key = (i, frac, bandwidth)
         if key not in self._zohs:     # the plant's discretization, shared by every law
-            E0, G0 = _zoh(A, B, T - frac)
-            E1, G1i = _zoh(A, B, frac) if frac else (None, np.zeros_like(B))
+            E0, G0 = zoh(A, B, T - frac)
+            E1, G1i = zoh(A, B, frac) if frac else (None, np.zeros_like(B))
             if len(self._zohs) > 10000:
                 self._zohs.clear()
             self._zohs[key] = (E0, G0, E0 @ E1 if frac else E0, E0 @ G1i)
@@ -225,8 +225,8 @@ class LoopSet:
             self.closed_loop(i, law, delay, bandwidth)))) for i in idx])
 
 
-def _zoh(A, B, t):
-    """``(e^{A t}, int_0^t e^{A s} ds B)``."""
+def zoh(A, B, t):
+    """Return ``(e^{A t}, int_0^t e^{A s} ds B)``: the zero-order hold over ``t`` [s]."""
     n, m = A.shape[0], B.shape[1]
     blk = np.zeros((n + m, n + m))
     blk[:n, :n], blk[:n, n:] = A, B

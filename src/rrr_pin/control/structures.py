@@ -69,7 +69,7 @@ class Structure:
         return []
 
     def outer_initial(self) -> list[float]:
-        """A starting point of the outer controller's parameters."""
+        """Return a starting point of the outer controller's parameters."""
         return []
 
     def K(self, values) -> object:
@@ -87,7 +87,7 @@ class Structure:
         return ([self.lam_bounds] if self.lam is None else []) + list(self.outer_bounds())
 
     def initial(self) -> np.ndarray:
-        """A starting point inside the bounds, shape (len(names),)."""
+        """Return a starting point inside the bounds, shape (len(names),)."""
         lam0 = [float(np.sqrt(self.lam_bounds[0] * self.lam_bounds[1]))] if self.lam is None \
             else []
         return np.array(lam0 + list(self.outer_initial()), dtype=float)
@@ -140,9 +140,11 @@ class Gain(Structure):
     outer_names: ClassVar[tuple] = ("k",)
 
     def outer_bounds(self):
+        """Return the search bounds of the outer parameters."""
         return [tuple(self.k_bounds)]
 
     def outer_initial(self):
+        """Return the starting point of the outer parameters."""
         return [1.0]
 
     def K(self, values):
@@ -163,9 +165,11 @@ class PID(Structure):
     outer_names: ClassVar[tuple] = ("kp", "ki", "kd", "tf")
 
     def outer_bounds(self):
+        """Return the search bounds of the outer parameters."""
         return [(1e-3, 1e3), (1e-3, 1e4), (1e-6, 10.0), (1e-4, 1.0)]
 
     def outer_initial(self):
+        """Return the starting point of the outer parameters."""
         return [1.0, 1.0, 1e-3, 1e-2]
 
     def K(self, values):
@@ -189,9 +193,11 @@ class LeadLag(Structure):
     outer_names: ClassVar[tuple] = ("k", "z", "p")
 
     def outer_bounds(self):
+        """Return the search bounds of the outer parameters."""
         return [(1e-3, 1e4), (1e-2, 1e4), (1e-2, 1e4)]
 
     def outer_initial(self):
+        """Return the starting point of the outer parameters."""
         return [1.0, 10.0, 100.0]
 
     def K(self, values):
@@ -224,6 +230,7 @@ class FixedOrder(Structure):
 
     @property
     def outer_names(self) -> tuple:
+        """Return the outer parameters' names."""
         names = ["g"]
         for i in range(self.order // 2):
             names += [f"b{i}1", f"b{i}0", f"a{i}1", f"a{i}0"]
@@ -232,15 +239,17 @@ class FixedOrder(Structure):
         return tuple(names)
 
     def outer_bounds(self):
+        """Return the search bounds of the outer parameters."""
         return [(1e-3, 1e4)] + [(1e-3, 1e6)] * (len(self.outer_names) - 1)
 
     def outer_initial(self):
+        """Return the starting point of the outer parameters."""
         # sections (s + 10)^2 / (s + 10)^2: K = g, a static gain to start from
         return [1.0] + [20.0, 100.0, 20.0, 100.0] * (self.order // 2) + \
             [10.0, 10.0] * (self.order % 2)
 
     def K(self, values):
-        """The product of the sections times ``g``."""
+        """Return the product of the sections times ``g``."""
         g, rest = values[0], list(values[1:])
         num, den = np.array([g]), np.array([1.0])
         for _ in range(self.order // 2):
@@ -253,6 +262,7 @@ class FixedOrder(Structure):
         return _tf(num, den)
 
     def to_dict(self, values=None) -> dict:
+        """Return the JSON-ready record."""
         return {**super().to_dict(values), "order": self.order}
 
 
