@@ -307,3 +307,17 @@ def test_cli_design_for_another_arm_is_refused(tmp_path):
     run = run_cli([*REPRODUCE, "--robot", "ur5", "--controllers", "fl,tuned", "--design",
                    str(tmp_path / "d" / "design.json")], tmp_path / "r")
     assert run.code == 2 and "tuned for 'rrr'" in run.stderr
+
+
+def test_cli_export_writes_the_tuned_law_and_its_design(tmp_path):
+    from conftest import run_cli
+
+    assert run_cli([*DESIGN, "--robot", "rrr"], tmp_path / "d").code == 0
+    run = run_cli(["export", "--law", "tuned", "--design", str(tmp_path / "d" / "design.json"),
+                   "--rate", "1000"], tmp_path / "c")
+    assert run.code == 0, run.stderr
+    controller = json.loads((tmp_path / "c" / "controller.json").read_text())
+    design = json.loads((tmp_path / "d" / "design.json").read_text())
+    assert "tuned" in json.dumps(controller)
+    record = json.loads((tmp_path / "c" / "design.json").read_text())
+    assert record["lam_rad_s"] == design["lam_rad_s"] and record["requirements"]

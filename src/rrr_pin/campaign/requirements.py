@@ -7,7 +7,7 @@ linearized at the reference's mean configuration), with the effects held fixed (
 
 * :meth:`Requirement.estimate`, the fast value the tuner minimizes over (a frequency grid, or
   a linear prediction), worst over the plants;
-* :meth:`Requirement.verify`, the exact value (Hamiltonian-free exact discrete eigenvalues,
+* :meth:`Requirement.verify`, the exact value (eigenvalues of the exact discrete closed loop,
   python-control's ``disk_margins`` with SLICOT's ``AB13MD``, nonlinear simulation);
 * :meth:`Requirement.normalized`, the value over the target (<= 1: met), the tuner's measure.
 

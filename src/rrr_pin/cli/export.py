@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from .build import load_plant
+from .build import design_record, load_plant, tuned_from_args
 from .common import as_options, check_out_early, claim_out
-from .options import add_overwrite
+from .options import add_design_argument, add_overwrite
 
 __all__ = ["add", "run_export"]
 
@@ -27,7 +27,8 @@ def add(sub) -> None:
                    help="lock a joint at a position [rad or m] (repeatable)")
     p.add_argument("--law", default="hinf", metavar="NAME",
                    help="built-in controller: " + "; ".join(
-                       f"{k} = {v}" for k, v in BUILTIN_LAWS.items()) + " (default: hinf)")
+                       f"{k} = {v}" for k, v in BUILTIN_LAWS.items()) + "; tuned = the law "
+                        "of --design (default: hinf)")
     p.add_argument("--rate", type=float, default=None, metavar="HZ",
                    help="sampling rate of the exported code [Hz] (required: the built-in "
                         "laws are continuous-time)")
@@ -41,6 +42,7 @@ def add(sub) -> None:
     p.add_argument("--out", default="controller", metavar="DIR",
                    help="output folder (controller/)")
     add_overwrite(p)
+    add_design_argument(p)
     p.set_defaults(func=run_export)
 
 
@@ -50,7 +52,7 @@ def run_export(args) -> int:
     from ..deploy.writer import check_exportable, prepare_export
 
     out = check_out_early(args, "export")  # a file, no permission, another tool's run
-    if args.law not in LAWS:
+    if args.law not in LAWS and args.law != "tuned":
         raise ValueError(f"--law {args.law!r} is not a built-in controller ({', '.join(LAWS)})")
     robot = load_plant(args)
     check_exportable(robot)
@@ -61,13 +63,19 @@ def run_export(args) -> int:
         d = design(lam=45.0, n=robot.nq)
         K = d.K_full if args.full_order else d.K_reduced
     with as_options():
-        law = make_law(args.law, robot, **({"K": K} if K is not None else {}))
+        law = tuned_from_args(args, robot, [args.law]) or \
+            make_law(args.law, robot, **({"K": K} if K is not None else {}))
         prepared = prepare_export(law, robot, args.rate, method=args.method,
                                   prewarp=args.prewarp, design=d)
     check_sampled_loop(law, robot, prepared.rate)
     if out is None:  # --overwrite: the previous export is removed now that the options hold
         out = claim_out(args, "export")
     prepared.write(out)
+    if design_record(args) is not None:  # which design ran, with its requirement table
+        import json
+
+        (out / "design.json").write_text(json.dumps(design_record(args), indent=1,
+                                                    default=str))
     print(f"{robot.name}: {prepared.law.name} ({prepared.form.kind}, {prepared.law.nx} states) "
           f"at {prepared.rate:g} Hz, {prepared.dynamics} dynamics")
     print(f"wrote {out}/: {', '.join(prepared.files)}")
