@@ -334,3 +334,17 @@ def test_verified_margins_are_what_stress_simulates(rrr):
         assert_allclose(row["simulated"], row["predicted_nominal"], rtol=0.1)
         # one plant: the verified value is that prediction
         assert_allclose(row["verified"], row["predicted_nominal"], rtol=1e-3)
+
+
+def test_noise_gain_grid_agrees_with_slicot(rrr, paper):
+    from rrr_pin.campaign.requirements import NoiseGain
+
+    ctx = _ctx(rrr, 1000.0, [rrr, rrr.perturbed(np.random.default_rng([0, 1]),
+                                                __import__("rrr_pin").Tolerances())[0]])
+    for lam, K in ((LAM, None), (45.0, paper.K_reduced)):
+        ev = _Eval(ctx, lam, K)
+        grid = NoiseGain(1.0).estimate(ctx, ev)
+        exact, method = NoiseGain(1.0).verify(ctx, ev)
+        assert "AB13DD" in method
+        # the grid stops at 0.999 of the Nyquist frequency and samples 200 points: 2 %
+        assert_allclose(grid, exact, rtol=2e-2)

@@ -13,7 +13,7 @@ linearized at the reference's mean configuration), with the effects held fixed (
 
 Built in (:data:`REQUIREMENTS`, the CLI's ``--require NAME=VALUE``): ``delay_margin`` [s],
 ``disk_margin`` [-], ``actuator_bandwidth`` [rad/s], ``bandwidth`` [rad/s], ``peak_torque``
-[N m or ``urdf``], ``error_ratio`` [-]. Write your own by subclassing :class:`Requirement`.
+[N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad]. Write your own by subclassing :class:`Requirement`.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import numpy as np
 from ..validation import FieldError, check_positive
 
 __all__ = ["Requirement", "DelayMargin", "DiskMargin", "ActuatorBandwidth", "Bandwidth",
-           "PeakTorque", "ErrorRatio", "REQUIREMENTS", "make_requirement", "disk_margin_grid",
+           "PeakTorque", "ErrorRatio", "NoiseGain", "REQUIREMENTS", "make_requirement", "disk_margin_grid",
            "bandwidth_grid"]
 
 
@@ -269,6 +269,38 @@ class Bandwidth(Requirement):
 
 
 @dataclass(frozen=True)
+class NoiseGain(Requirement):
+    r"""Noise amplification: peak gain from position-sensor noise to torque [N m/rad].
+
+    .. math:: \max_\omega \bar\sigma\big(S(e^{j\omega T})\, C_q(e^{j\omega T})\big)
+
+    with ``S = (I + L)^-1`` at the torque input and ``C_q`` the law's response to ``q``:
+    the H-infinity norm of noise on ``q`` to torque, worst plant.
+    """
+
+    name: ClassVar[str] = "noise_gain"
+    unit: ClassVar[str] = "N m/rad"
+    sense: ClassVar[str] = "max"
+
+    def estimate(self, ctx, ev):
+        """Return the grid peak, worst over the plants."""
+        n = ctx.loops.n
+        T = ev.S() @ ev.law.C[None, :, :, :n]
+        return float(np.linalg.svd(T, compute_uv=False)[..., 0].max())
+
+    def verify(self, ctx, ev):
+        """Return the H-infinity norm of each plant's discrete loop (SLICOT AB13DD), worst."""
+        import control
+
+        out = []
+        for i in range(len(ctx.loops.plants)):
+            T = ev.noise_ss(ctx, i)
+            out.append(float(control.linfnorm(T)[0]))
+        return max(out), "H-infinity norm of the discrete loop (python-control linfnorm, " \
+                         "SLICOT AB13DD)"
+
+
+@dataclass(frozen=True)
 class PeakTorque(Requirement):
     """Peak ``|tau_j|`` on the reference within the limits [N m] (a number, or the URDF's).
 
@@ -374,7 +406,7 @@ def _bisect_down(stable, start, rtol):
 
 #: Built-in requirements by CLI name.
 REQUIREMENTS = {cls.name: cls for cls in (DelayMargin, DiskMargin, ActuatorBandwidth,
-                                          Bandwidth, PeakTorque, ErrorRatio)}
+                                          Bandwidth, PeakTorque, ErrorRatio, NoiseGain)}
 
 
 def make_requirement(text: str) -> Requirement:

@@ -116,6 +116,23 @@ class _Eval:
                                                                              loops.T)
         return -C * P
 
+    def noise_ss(self, ctx, i):
+        """Plant ``i``'s discrete loop from noise on ``q`` to the law's torque."""
+        import control
+
+        from ..control.sampled_loops import zoh
+
+        loops = ctx.loops
+        n = loops.n
+        Phi, Gam = zoh(loops.A[i], loops.B[i], loops.T)
+        P = control.ss(Phi, Gam, np.eye(Phi.shape[0]), 0, loops.T)
+        Ac, Bc, Cc, Dc = self.law.law
+        C = control.ss(Ac, Bc, Cc, Dc, loops.T) if Ac.size else control.ss([], [], [], Dc,
+                                                                             loops.T)
+        E = np.vstack([np.eye(n), np.zeros((n, n))])
+        eye = control.ss([], [], [], np.eye(n), loops.T)
+        return control.feedback(eye, C * P, sign=1) * C * control.ss([], [], [], E, loops.T)
+
 
 @dataclass
 class _Context:
