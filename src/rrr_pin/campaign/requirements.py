@@ -13,7 +13,8 @@ linearized at the reference's mean configuration), with the effects held fixed (
 
 Built in (:data:`REQUIREMENTS`, the CLI's ``--require NAME=VALUE``): ``delay_margin`` [s],
 ``disk_margin`` [-], ``actuator_bandwidth`` [rad/s], ``bandwidth`` [rad/s], ``peak_torque``
-[N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad]. Write your own by subclassing :class:`Requirement`.
+[N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad]. Write your own by
+subclassing :class:`Requirement`.
 """
 
 from __future__ import annotations
@@ -27,8 +28,8 @@ import numpy as np
 from ..validation import FieldError, check_positive
 
 __all__ = ["Requirement", "DelayMargin", "DiskMargin", "ActuatorBandwidth", "Bandwidth",
-           "PeakTorque", "ErrorRatio", "NoiseGain", "REQUIREMENTS", "make_requirement", "disk_margin_grid",
-           "bandwidth_grid"]
+           "PeakTorque", "ErrorRatio", "NoiseGain", "REQUIREMENTS", "make_requirement",
+           "disk_margin_grid", "bandwidth_grid"]
 
 
 #: Largest delay, in samples of the law, that :meth:`DelayMargin.verify` builds an exact
