@@ -348,3 +348,15 @@ def test_noise_gain_grid_agrees_with_slicot(rrr, paper):
         assert "AB13DD" in method
         # the grid stops at 0.999 of the Nyquist frequency and samples 200 points: 2 %
         assert_allclose(grid, exact, rtol=2e-2)
+
+
+def test_cli_montecarlo_records_the_design(tmp_path):
+    from conftest import MONTECARLO, run_cli
+
+    assert run_cli([*DESIGN, "--robot", "rrr"], tmp_path / "d").code == 0
+    run = run_cli([*MONTECARLO, "--robot", "rrr", "--controllers", "fl,tuned", "--design",
+                   str(tmp_path / "d" / "design.json")], tmp_path / "m")
+    assert run.code == 0, run.stderr
+    summary = json.loads((tmp_path / "m" / "summary.json").read_text())
+    assert summary["design"]["requirements"][1]["name"] == "disk_margin"
+    assert "tuned" in run.stdout

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 from .build import (
+    design_record,
     laws_from_args,
     load_plant,
     reference_from_args,
@@ -116,6 +117,8 @@ def run_montecarlo(args) -> int:
         elapsed = time.perf_counter() - start
         s = write_campaign(campaign, args.out, store=store, certificate_b=None if
                            certificate is None else certificate.margin(plant.nq))
+        if design_record(args) is not None:  # which design ran, with its requirement table
+            _record_design(args)
         s["written"].append(str(write_campaign_report(campaign, s, args.out, store)))
     nl, ran = len(laws), total - done
     print(f"{plant.name}: {ran} plants x {nl} controllers x {run.duration:g} s in "
@@ -125,3 +128,16 @@ def run_montecarlo(args) -> int:
         print(rejections_line(campaign.rows))
     print("wrote " + ", ".join(s["written"]))
     return 0
+
+
+def _record_design(args) -> None:
+    """Add ``--design``'s record (path, law, requirement table) to ``summary.json``."""
+    import json
+    from pathlib import Path
+
+    from ..report.jsondata import dumps
+
+    path = Path(args.out) / "summary.json"
+    data = json.loads(path.read_text())
+    data["design"] = design_record(args)
+    path.write_text(dumps(data))
