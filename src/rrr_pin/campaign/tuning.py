@@ -475,7 +475,7 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     _, ev, estimates = evaluate(x)
     info = {"robot": robot.name, "joints": list(robot.joint_names), "plants": plant_info,
             "home_rad": home.tolist(), "fixed": fixed,
-            "reference": reference.to_dict() if hasattr(reference, "to_dict") else None,
+            "reference": reference.to_dict(),
             "grid_rad_s": [float(loops.omega[0]), float(loops.omega[-1]),
                            int(loops.omega.size)],
             "search": "scipy Nelder-Mead (bounded, log scale), seeded starts",
@@ -493,6 +493,9 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         row = {**r.to_dict(), "achieved": est, "verified": None, "method": None}
         if verify and (simulate or not isinstance(r, PeakTorque | ErrorRatio)):
             row["verified"], row["method"] = r.verify(ctx, ev)
+        else:
+            row["method"] = "not verified (" + ("verify" if not verify else "simulate") + \
+                "=False): met and normalized are the estimate's"
         value = row["verified"] if row["verified"] is not None else est
         row["normalized"] = r.normalized(value)
         row["met"] = bool(row["normalized"] <= 1.0 + 1e-9)
