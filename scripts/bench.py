@@ -23,6 +23,11 @@ asserted:
 - section 4b: a closed chain (issue 22): a 10 s, 1 kHz FL run of the 5-bar on the Python and the
   compiled engines, against the ``pin.constraintDynamics`` calls the Python engine makes, alone
   (4 per RK4 step), and the compiled engine's exact-KKT calls alone in C++;
+- section 4c (issue 33): the campaign (N plants x (FL, H-inf + FL)) against the batched engine's
+  own floor, the C++ loop alone on the same plants (the time inside ``batch_rollout``), in one
+  process, with ``jobs=2`` and with ``threads=2``, its CPU share outside that loop, on the RRR
+  and the Panda (``--panda-samples``), and the xArm7 and the z1 at first use in an empty cache
+  (the one-time build time; not under ``--quick``);
 - section 5: start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
 - section 6: ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant
   (:func:`loopsyn_3x3_s`);
@@ -33,7 +38,8 @@ asserted:
 - section 9: with ``--export`` (CMake builds, minutes): one ``ctrl_step`` of the exported H-inf + FL
   law (:func:`rrr_pin.export`) for the RRR (generated dynamics) and UR5 (Pinocchio C++), against the
   same Pinocchio calls alone (``ctrl_dyn_crba`` + ``ctrl_dyn_nle`` of a Pinocchio export of the same
-  arm: CRBA and NLE, M's triangle mirrored, nle copied out), in a C loop.
+  arm: CRBA and NLE, M's triangle mirrored, nle copied out), in a C loop; and ``ctrl_step_dt`` at
+  periods off the nominal one (K discretized at each call).
 
 Usage::
 
@@ -42,6 +48,7 @@ Usage::
     python scripts/bench.py --campaign-samples 1000   # the campaign of issue 13's table
     python scripts/bench.py --quick          # seconds, to check that it runs
     python scripts/bench.py --sections 2,2b,2c,4b   # the engines' sections alone
+    python scripts/bench.py --sections 4c --campaign-samples 1000 --panda-samples 1000
     python scripts/bench.py --export         # also section 9 (builds three exports)
 """
 
@@ -88,6 +95,9 @@ GOALS = {
     "batched_ur5": 5.0,  # the same for UR5: at least
     "campaign_batched": 1.2,  # campaign wall time / (2 N batched floor / 2 cores)
     "campaign_1000_s": 5.0,  # 1000-plant RRR campaign, 2 laws, 2 jobs [s]: under
+    "campaign_floor": 1.2,  # campaign wall time / (its own C++ loop time / 2 cores) (issue 33)
+    "campaign_1000_2cores_s": 4.0,  # 1000-plant RRR campaign on 2 cores [s] (issue 33)
+    "campaign_panda_1000_s": 15.0,  # the same on the Panda [s] (issue 33)
     "python": 1.5,  # Python engine / hand-written loop
     "robot_call": 2.0,  # Robot.M/V/G / bare pin call
     "cli_help_s": 0.3,
@@ -111,14 +121,15 @@ static double now(void)
     clock_gettime(CLOCK_MONOTONIC, &t);
     return t.tv_sec + 1e-9 * t.tv_nsec;
 }
-/* argv[1] calls per round; prints the fastest round of ctrl_step and of the dynamics calls
- * alone [us per call], the rounds interleaved so that a shared machine's load falls on both */
+/* argv[1] calls per round; prints the fastest round of ctrl_step, of the dynamics calls
+ * alone and of ctrl_step_dt at periods inside +-10 % (never the nominal one: K discretized at
+ * each) [us per call], the rounds interleaved so that a shared machine's load falls on all */
 int main(int argc, char **argv)
 {
     long calls = argc > 1 ? atol(argv[1]) : 100000, k;
     static double q[NS][CTRL_NQ], qd[NS][CTRL_NQ], r[NS][CTRL_NQ], tau[CTRL_NQ];
     static double M[CTRL_NQ * CTRL_NQ], h[CTRL_NQ];
-    double sink = 0.0, t0, best[2] = {1e9, 1e9};
+    double sink = 0.0, t0, best[3] = {1e9, 1e9, 1e9};
     unsigned s = 12345u;
     ctrl_state st;
     int i, j, rep, mode;
@@ -133,12 +144,16 @@ int main(int argc, char **argv)
     }
     ctrl_reset(&st);
     for (rep = 0; rep < 10; ++rep) {
-        for (mode = 0; mode < 2; ++mode) {
+        for (mode = 0; mode < 3; ++mode) {
             t0 = now();
             for (k = 0; k < calls; ++k) {
                 i = (int)(k % NS);
                 if (mode == 0) {
                     ctrl_step(&st, q[i], qd[i], r[i], qd[i], qd[i], tau);
+                    sink += tau[0];
+                } else if (mode == 2) {
+                    ctrl_step_dt(&st, q[i], qd[i], r[i], qd[i], qd[i], tau,
+                                 CTRL_PERIOD * (0.9 + 0.2 * (double)(k % 7) / 7.0));
                     sink += tau[0];
                 } else {
                     ctrl_dyn_crba(q[i], M);
@@ -150,7 +165,7 @@ int main(int argc, char **argv)
             if (t0 < best[mode]) best[mode] = t0;
         }
     }
-    printf("%.6f %.6f %g\n", 1e6 * best[0], 1e6 * best[1], sink);
+    printf("%.6f %.6f %.6f %g\n", 1e6 * best[0], 1e6 * best[1], 1e6 * best[2], sink);
     return 0;
 }
 """
@@ -175,7 +190,7 @@ def export_step_us(calls: int, out: Path) -> dict:
                         f"-Wl,-rpath,{lib}", "-o", str(exe)], check=True)
         done = subprocess.run([str(exe), str(calls)], check=True, capture_output=True,
                               text=True)
-        return tuple(float(v) for v in done.stdout.split()[:2])
+        return tuple(float(v) for v in done.stdout.split()[:3])
 
     rows = {}
     for arm, dynamics in (("rrr", "generated"), ("rrr", "pinocchio"), ("ur5", "pinocchio")):
@@ -183,9 +198,12 @@ def export_step_us(calls: int, out: Path) -> dict:
         folder = out / f"{arm}_{dynamics}"
         if not (folder / "build" / "bench_ctrl").exists():  # a previous run's build is reused
             rrr_pin.export("hinf", robot, 1000.0, folder, dynamics=dynamics, overwrite=True)
-        step_us, calls_us = timed(folder)
-        rows[f"{arm}_{dynamics}"] = {"ctrl_step_us": step_us, "dynamics_calls_us": calls_us}
+        step_us, calls_us, step_dt_us = timed(folder)
+        rows[f"{arm}_{dynamics}"] = {"ctrl_step_us": step_us, "dynamics_calls_us": calls_us,
+                                     "ctrl_step_dt_us": step_dt_us}
     return {"rrr_ctrl_step_us": rows["rrr_generated"]["ctrl_step_us"],
+            "rrr_ctrl_step_dt_us": rows["rrr_generated"]["ctrl_step_dt_us"],
+            "ur5_ctrl_step_dt_us": rows["ur5_pinocchio"]["ctrl_step_dt_us"],
             "rrr_pinocchio_calls_us": rows["rrr_pinocchio"]["dynamics_calls_us"],
             "ur5_ctrl_step_us": rows["ur5_pinocchio"]["ctrl_step_us"],
             "ur5_pinocchio_calls_us": rows["ur5_pinocchio"]["dynamics_calls_us"],
@@ -371,6 +389,58 @@ def batch_row(arm, args, n_steps):
             "max_diff_rad": float(np.abs(a.q - b.q).max())}
 
 
+def campaign_at_floor(robot, names, samples, duration, rate) -> dict:
+    """Section 4c (issue 33): a campaign against the batched engine's own C++ loop on its plants.
+
+    The floor is the wall time spent inside the batched C++ rollouts (``batch_rollout``, the
+    GIL released) during a one-process, one-thread campaign on the same plants: the loop alone,
+    without drawing plants, preparing runs or making rows. The campaign then runs with 2
+    processes (``jobs=2``) and with 1 process of 2 threads (``threads=2``); each ratio is its
+    wall time over ``floor / 2 cores``.
+    """
+    from rrr_pin.sim.extension import EXTENSION
+
+    laws = make_laws(names, robot)
+    settings = CampaignSettings(samples=samples, seed=0, baseline=laws[0].name,
+                                run=RunSettings(duration=duration, rate=rate))
+    inner = {"s": 0.0, "cpu": 0.0}
+    original = EXTENSION.batch_rollout
+
+    def timed(*a, **k):
+        t0, c0 = time.perf_counter(), time.thread_time()
+        try:
+            return original(*a, **k)
+        finally:
+            inner["s"] += time.perf_counter() - t0
+            inner["cpu"] += time.thread_time() - c0
+
+    def wall(**kw):
+        t0 = time.perf_counter()
+        rows = run_campaign(robot, laws, settings, **kw).rows
+        return time.perf_counter() - t0, rows
+
+    load = [os.getloadavg()[0]]
+    EXTENSION.batch_rollout = timed
+    c0 = time.process_time()
+    try:
+        one_s, rows1 = wall(jobs=1, threads=1)
+    finally:
+        EXTENSION.batch_rollout = original
+    one_cpu = time.process_time() - c0
+    floor_s = inner["s"]
+    jobs2_s, rows2 = wall(jobs=2, threads=1)
+    threads2_s, rows3 = wall(jobs=1, threads=2)
+    load.append(os.getloadavg()[0])
+    engines = sorted({r.get(f"{law.name}_engine", "-") for r in rows1 for law in laws})
+    return {"robot": robot.name, "samples": samples, "floor_1core_s": floor_s,
+            "one_process_s": one_s, "jobs2_s": jobs2_s, "threads2_s": threads2_s,
+            "ratio_jobs2": jobs2_s / (floor_s / 2), "ratio_threads2": threads2_s / (floor_s / 2),
+            "ratio_one_process": one_s / floor_s, "rows_identical": rows1 == rows2 == rows3,
+            "floor_cpu_s": inner["cpu"], "one_process_cpu_s": one_cpu,
+            "ratio_one_process_cpu": one_cpu / inner["cpu"],
+            "engines": engines, "load_avg": load}
+
+
 def verdict(ratio, goal):
     return f"goal <= {goal:g}: {'met' if ratio <= goal else 'NOT MET'}"
 
@@ -394,7 +464,7 @@ def loopsyn_3x3_s(repeat: int = 1) -> float:
 
 
 #: The sections, in order (``--sections``); 9 only with ``--export``.
-SECTIONS = ("1", "2", "2b", "2c", "3", "4", "4b", "5", "6", "7", "8", "10")
+SECTIONS = ("1", "2", "2b", "2c", "3", "4", "4b", "4c", "5", "6", "7", "8", "10")
 
 
 def main(argv=None):
@@ -409,6 +479,8 @@ def main(argv=None):
     parser.add_argument("--calls", type=int, default=20000, help="calls per per-call timing")
     parser.add_argument("--campaign-samples", type=int, default=100,
                         help="plants of the 2-job campaign (100; issue 13's table: 1000)")
+    parser.add_argument("--panda-samples", type=int, default=100,
+                        help="Panda plants of section 4c (100; 0 skips; issue 33: 1000)")
     parser.add_argument("--mc-samples", type=int, default=20,
                         help="plants of the 1-job throughput run (20)")
     parser.add_argument("--startup-repeat", type=int, default=5,
@@ -428,6 +500,7 @@ def main(argv=None):
     if args.quick:
         args.duration, args.repeat, args.calls = 0.05, 1, 20
         args.campaign_samples, args.mc_samples, args.startup_repeat = 2, 2, 1
+        args.panda_samples = 0  # section 4c on the RRR alone, no first-use build
     run = args.sections.__contains__
 
     robot = rrr_pin.load_robot("rrr")
@@ -601,6 +674,39 @@ def main(argv=None):
             "montecarlo_rollouts_per_s": {"1": 2 * args.mc_samples / one_job_s,
                                           "2": 2 * args.campaign_samples / campaign_s}})
 
+    # 4c. Campaigns against the batched engine's own floor (issue 33): RRR, Panda, and arms
+    # whose structure is not compiled in (generated, built and cached at first use, timed in
+    # an empty cache).
+    if run("4c"):
+        import tempfile
+
+        from rrr_pin.sim import dyncache, dyngen
+        from rrr_pin.sim.batched import generated_structure
+
+        panda = rrr_pin.load_robot("panda", lock=dict(GENERATED["panda"][1]))
+        result["campaign_at_floor"] = [
+            campaign_at_floor(arm, "fl,hinf", count, args.duration, args.rate)
+            for arm, count in ((robot, args.campaign_samples),
+                               (panda, args.panda_samples)) if count]
+        first = []
+        with tempfile.TemporaryDirectory() as cache:
+            names = () if args.quick else ("xarm7", "z1")  # a build takes ~20 s: not quick
+            os.environ["RRR_PIN_CACHE"] = cache
+            for name in names:
+                arm = rrr_pin.load_robot(name)
+                t0 = time.perf_counter()
+                dyn = generated_structure(arm.model)
+                build_s = time.perf_counter() - t0
+                row = {"robot": name, "structure": dyngen.structure(arm.model),
+                       "generated": dyn, "build_s": build_s,
+                       "note": dyncache.failure(dyngen.structure(arm.model))}
+                if args.panda_samples:
+                    row.update(campaign_at_floor(arm, "fl,hinf", args.panda_samples,
+                                                 args.duration, args.rate))
+                first.append(row)
+            del os.environ["RRR_PIN_CACHE"]
+        result["first_use"] = first
+
     # 5. Start-up in fresh processes.
     if run("5"):
         exe = shutil.which("rrr-pin", path=str(Path(sys.executable).parent)) or "rrr-pin"
@@ -716,6 +822,39 @@ def report(res, args):
         print("  throughput: " + ", ".join(
             f"{r:.1f} rollouts/s with {j} job{'s' if j != '1' else ''}"
             for j, r in res["montecarlo_rollouts_per_s"].items()))
+    if "4c" in args.sections:
+        print(f"\n4c. campaigns at the batched engine's floor (issue 33): N plants x (FL, "
+              f"H-inf + FL), {args.duration:g} s at {args.rate:g} Hz; floor = the batched C++ "
+              f"loop alone on the same plants (1 core)")
+        print(f"  {'robot':7}{'N':>6}{'floor':>9}{'1 proc':>9}{'jobs 2':>9}{'threads 2':>11}"
+              f"{'jobs2/(floor/2)':>17}{'thr2/(floor/2)':>16}  rows equal  load")
+        for r in res["campaign_at_floor"]:
+            print(f"  {r['robot']:7}{r['samples']:6d}{r['floor_1core_s']:9.2f}"
+                  f"{r['one_process_s']:9.2f}{r['jobs2_s']:9.2f}{r['threads2_s']:11.2f}"
+                  f"{r['ratio_jobs2']:17.2f}{r['ratio_threads2']:16.2f}  "
+                  f"{str(r['rows_identical']):10}  {r['load_avg'][0]:.1f} -> "
+                  f"{r['load_avg'][1]:.1f}")
+            best = min(r["jobs2_s"], r["threads2_s"])
+            goal = (GOALS["campaign_1000_2cores_s"] if r["robot"] == "rrr"
+                    else GOALS["campaign_panda_1000_s"])
+            ratio = min(r["ratio_jobs2"], r["ratio_threads2"])
+            scaled = best * 1000 / r["samples"]
+            print(f"    CPU time of the 1-process campaign {r['one_process_cpu_s']:.2f} s over its "
+                  f"C++ loop's {r['floor_cpu_s']:.2f} s: {r['ratio_one_process_cpu']:.3f} "
+                  f"(the Python share, independent of the load)")
+            print(f"    [s]; best on 2 cores {best:.2f} s ({scaled:.1f} s per 1000 plants, goal "
+                  f"{goal:g} s: {'met' if scaled <= goal else 'NOT MET'}); ratio to the floor "
+                  f"{ratio:.2f} ({verdict(ratio, GOALS['campaign_floor'])}); engines "
+                  f"{', '.join(r['engines'])}")
+        for r in res["first_use"]:
+            print(f"  {r['robot']} ({r['structure']}): generated dynamics {r['generated']}, "
+                  f"{r['build_s']:.1f} s to have them at first use (an empty cache)"
+                  + (f"; NOT generated: {r['note']}" if r["note"] else ""))
+            if "floor_1core_s" in r:
+                print(f"    {r['samples']} plants x (FL, H-inf + FL): floor "
+                      f"{r['floor_1core_s']:.2f} s, 1 process {r['one_process_s']:.2f} s, "
+                      f"jobs 2 {r['jobs2_s']:.2f} s, "
+                      f"threads 2 {r['threads2_s']:.2f} s, engines {', '.join(r['engines'])}")
     if "4b" in args.sections:
         cp, cf = res["closed_chain_rollout_ms"], res["constraint_dynamics_floor_ms"]
         cc, ck = res["closed_chain_compiled_ms"], res["closed_chain_kkt_floor_ms"]
@@ -757,6 +896,9 @@ def report(res, args):
         print(f"  UR5, Pinocchio C++:      {e['ur5_ctrl_step_us']:8.3f} us, its Pinocchio calls "
               f"alone {e['ur5_pinocchio_calls_us']:.3f} us; ratio {e['ur5_ratio']:.2f}   "
               f"{verdict(e['ur5_ratio'], GOALS['export_ur5'])}")
+        if "rrr_ctrl_step_dt_us" in e:
+            print(f"  ctrl_step_dt off the nominal period (K discretized each call): RRR "
+                  f"{e['rrr_ctrl_step_dt_us']:.3f} us, UR5 {e['ur5_ctrl_step_dt_us']:.3f} us")
 
 
 def identification_bench(duration: float) -> dict:

@@ -29,6 +29,7 @@ import contextlib
 import functools
 import io
 import json
+import os
 from pathlib import Path
 from typing import NamedTuple
 
@@ -36,6 +37,11 @@ import matplotlib
 import pytest
 
 matplotlib.use("Agg")
+
+# Generated dynamics built at first use (rrr_pin.sim.dyncache) go to the repository's build/
+# folder during the tests, never to the user's cache.
+os.environ.setdefault("RRR_PIN_CACHE", str(Path(__file__).resolve().parents[1] / "build"
+                                           / "test-dyncache"))
 
 # Load the compiled extension once, before any test captures sys.stdout: in an editable
 # development install its import may first rebuild it in a subprocess, which needs real file
@@ -217,3 +223,58 @@ def montecarlo_run(request, shared_runs):
 def stress_run(request, shared_runs):
     """``rrr-pin stress --effect delay --json -v`` of FL alone, of a plant kind (default rrr)."""
     return shared_runs(STRESS, getattr(request, "param", "rrr"))
+
+
+def _random_model(model, rng):
+    """A copy of ``model`` with random physical parameters: placements, inertias, armature."""
+    import numpy as np
+    import pinocchio as pin
+
+    m = model.copy()
+    for i in range(1, m.njoints):
+        R = pin.exp3(rng.normal(size=3))
+        m.jointPlacements[i] = pin.SE3(R, rng.uniform(-0.5, 0.5, 3))
+        # I = tr(S) 1 - S for a random positive definite S: a rigid body's inertia.
+        A = rng.normal(size=(3, 3))
+        S = 0.05 * (A @ A.T + 0.1 * np.eye(3))
+        m.inertias[i] = pin.Inertia(rng.uniform(0.5, 5.0), rng.uniform(-0.2, 0.2, 3),
+                                    np.trace(S) * np.eye(3) - S)
+    m.armature[:] = rng.uniform(0.0, 0.1, m.nv)
+    m.gravity = pin.Motion(np.r_[rng.normal(size=3), 0.0, 0.0, 0.0])
+    return m
+
+
+@pytest.fixture(scope="session")
+def generated_matches_pinocchio():
+    """``check(name, model, seed, B)``: generated dynamics ``name`` == Pinocchio's, random models.
+
+    B copies of ``model`` with random placements, inertias, armature and gravity, at random
+    states: the generated M, nonLinearEffects, G and forward dynamics against Pinocchio's CRBA,
+    nonLinearEffects, computeGeneralizedGravity and ABA (an independent implementation).
+    """
+    import numpy as np
+    import pinocchio as pin
+    from numpy.testing import assert_allclose
+
+    from rrr_pin.sim import dyngen
+    from rrr_pin.sim.extension import EXTENSION
+
+    def check(name, model, seed, B):
+        rng = np.random.default_rng(seed)
+        n = model.nq
+        models = [_random_model(model, rng) for _ in range(B)]
+        P = np.stack([dyngen.parameters(m) for m in models])
+        q, v, tau = (rng.uniform(-3.0, 3.0, (B, n)) for _ in range(3))
+        M, nle, g, qdd = EXTENSION.batch_dynamics(name, P, q, v, tau)
+        for b, m in enumerate(models):
+            d = m.createData()
+            Mp = pin.crba(m, d, q[b])
+            Mp = np.triu(Mp) + np.triu(Mp, 1).T
+            # 1e-12 relative (issue 23): both are exact algorithms in double; measured ~1e-15.
+            for got, want in ((M[b].reshape(n, n), Mp),
+                              (nle[b], pin.nonLinearEffects(m, d, q[b], v[b])),
+                              (g[b], pin.computeGeneralizedGravity(m, d, q[b])),
+                              (qdd[b], pin.aba(m, d, q[b], v[b], tau[b]))):
+                assert_allclose(got, want, rtol=0.0, atol=1e-12 * np.abs(want).max())
+
+    return check

@@ -260,6 +260,18 @@ def test_cli_margins_refuses_a_configuration_outside_the_workspace(capsys):
     assert "the loop does not close at q_a = [3. 0.] rad" in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize("command, home, joint", [
+    ("margins", "9,0,0", "joint1 = 9"), ("margins", "-9,0,0", "joint1 = -9"),
+    ("robstab", "0,4,0", "joint2 = 4")], ids=["margins-9", "margins-minus-9", "robstab"])
+def test_cli_refuses_a_home_outside_the_joint_limits(command, home, joint, capsys):
+    # Before (issue 31): `margins --home 9,0,0` gave margins at a configuration the RRR's
+    # limits [-pi, pi] exclude.
+    assert cli.main([command, "--controllers", "fl", "--home", home]) == 2
+    err = capsys.readouterr().err
+    assert f"--home {home}: {joint} is outside its joint limits [-3.142, 3.142]" in err
+    assert "Traceback" not in err
+
+
 def test_loop_at_input_refuses_bad_inputs(rrr):
     law = fl_controller(rrr)
     with pytest.raises(ValueError, match="q"):

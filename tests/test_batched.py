@@ -19,7 +19,7 @@ from rrr_pin.campaign import montecarlo as mc
 from rrr_pin.campaign.runner import RunSettings, make_laws
 from rrr_pin.control.laws import fl_controller, hinf_fl_controller, pd_controller
 from rrr_pin.control.references import SineReference
-from rrr_pin.model.dynamics import load_robot
+from rrr_pin.model.dynamics import load_robot, robot_from_xml
 from rrr_pin.model.uncertainty import Tolerances
 from rrr_pin.sim import dyngen
 from rrr_pin.sim.batched import GENERATED, StructureMismatch, plant_parameters
@@ -39,41 +39,9 @@ def _robot(name):
     return load_robot(source, lock=dict(lock))
 
 
-def _random_model(model, rng):
-    """A copy of ``model`` with random physical parameters: placements, inertias, armature."""
-    m = model.copy()
-    for i in range(1, m.njoints):
-        R = pin.exp3(rng.normal(size=3))
-        m.jointPlacements[i] = pin.SE3(R, rng.uniform(-0.5, 0.5, 3))
-        # I = tr(S) 1 - S for a random positive definite S: a rigid body's inertia.
-        A = rng.normal(size=(3, 3))
-        S = 0.05 * (A @ A.T + 0.1 * np.eye(3))
-        m.inertias[i] = pin.Inertia(rng.uniform(0.5, 5.0), rng.uniform(-0.2, 0.2, 3),
-                                    np.trace(S) * np.eye(3) - S)
-    m.armature[:] = rng.uniform(0.0, 0.1, m.nv)
-    m.gravity = pin.Motion(np.r_[rng.normal(size=3), 0.0, 0.0, 0.0])
-    return m
-
-
 @pytest.mark.parametrize("name", list(GENERATED))
-def test_generated_equals_pinocchio_on_random_parameters(name):
-    model = _robot(name).model
-    rng = np.random.default_rng(23)
-    B, n = 8, model.nq
-    models = [_random_model(model, rng) for _ in range(B)]
-    P = np.stack([dyngen.parameters(m) for m in models])
-    q, v, tau = (rng.uniform(-3.0, 3.0, (B, n)) for _ in range(3))
-    M, nle, g, qdd = EXTENSION.batch_dynamics(name, P, q, v, tau)
-    for b, m in enumerate(models):
-        d = m.createData()
-        Mp = pin.crba(m, d, q[b])
-        Mp = np.triu(Mp) + np.triu(Mp, 1).T
-        # 1e-12 relative (issue 23): both are exact algorithms in double; measured ~1e-15.
-        for got, want in ((M[b].reshape(n, n), Mp),
-                          (nle[b], pin.nonLinearEffects(m, d, q[b], v[b])),
-                          (g[b], pin.computeGeneralizedGravity(m, d, q[b])),
-                          (qdd[b], pin.aba(m, d, q[b], v[b], tau[b]))):
-            assert_allclose(got, want, rtol=0.0, atol=1e-12 * np.abs(want).max())
+def test_generated_equals_pinocchio_on_random_parameters(name, generated_matches_pinocchio):
+    generated_matches_pinocchio(name, _robot(name).model, 23, 8)
 
 
 def test_committed_c_is_the_generators_output():
@@ -153,12 +121,30 @@ def test_a_diverging_plant_leaves_its_batch_unchanged(rrr, ref, plants):
     for a, b in zip(out[:2] + out[3:], clean, strict=True):
         np.testing.assert_array_equal(a.q, b.q)
         np.testing.assert_array_equal(a.tau, b.tau)
+    # Reduced to figures (a campaign's path): the same divergence, the same neighbours.
+    figs = simulate_batch(mixed, law, ref, 0.3, rate=RATE, figures=True)
+    assert str(figs[2]) == str(compiled.value)
+    for f, b in zip(figs[:2] + figs[3:], clean, strict=True):
+        assert f.figures() == b.figures()
 
 
 def test_a_structure_without_generated_code(rrr, ref):
-    two = load_robot("rrr", lock={rrr.joint_names[2]: 0.0})
+    # A prismatic joint: no generated dynamics, not even at first use (the generator handles
+    # revolute joints about x, y or z; tests/test_dyncache.py covers the structures it
+    # generates and the builds that fail).
+    two = robot_from_xml(
+        '<robot name="pr"><link name="base"/><joint name="slide" type="prismatic">'
+        '<parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="100" velocity="1"/></joint><link name="l1">'
+        '<inertial><mass value="2"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" '
+        'izz="0.1"/></inertial></link><joint name="turn" type="revolute"><parent link="l1"/>'
+        '<child link="l2"/><origin xyz="0 0 0.3"/><axis xyz="1 0 0"/>'
+        '<limit lower="-3" upper="3" effort="100" velocity="10"/></joint><link name="l2">'
+        '<inertial><origin xyz="0 0 0.2"/><mass value="1"/><inertia ixx="0.05" ixy="0" '
+        'ixz="0" iyy="0.05" iyz="0" izz="0.02"/></inertial></link></robot>')
     ref2 = SineReference(home=[0.1, -0.2], amp=[0.1, 0.1], freq=[1.0, 1.0], phase=[0.0, 0.0])
-    with pytest.raises(StructureMismatch, match=r"structure 'RZ@0,RZ@1'.*engine='compiled'"):
+    with pytest.raises(StructureMismatch, match=r"structure 'JointModelPZ@0,RX@1'.*revolute "
+                                                r"joints about x, y or z.*engine='compiled'"):
         simulate(two, fl_controller(two), ref2, 0.05, rate=RATE, engine="codegen")
     # auto: the compiled engine, one plant at a time, recorded.
     (traj,) = simulate_batch([two], fl_controller(two), ref2, 0.05, rate=RATE)
@@ -214,3 +200,52 @@ def test_campaign_rows_equal_for_two_jobs_and_batch_sizes(rrr):
                                    run=RunSettings(duration=0.2, rate=RATE))
     one = mc.run_campaign(rrr, laws, settings, jobs=1, batch=1).rows
     assert mc.run_campaign(rrr, laws, settings, jobs=2, batch=16, chunk=2).rows == one
+
+
+def test_campaign_rows_equal_for_one_and_two_threads(rrr):
+    # Threads run batches of plants side by side; no operation crosses plants, so rows are
+    # identical (==, bit for bit) for every thread count and batch size.
+    laws = make_laws("fl,hinf", rrr)
+    settings = mc.CampaignSettings(samples=9, seed=4, tolerances=Tolerances(),
+                                   run=RunSettings(duration=0.1, rate=RATE))
+    one = mc.run_campaign(rrr, laws, settings, jobs=1, threads=1, batch=16).rows
+    assert mc.run_campaign(rrr, laws, settings, jobs=1, threads=2, batch=4).rows == one
+    assert mc.run_campaign(rrr, laws, settings, jobs=1, threads=2, batch=1, chunk=5).rows == one
+    # threads change nothing for the one-plant engines either (they run one at a time)
+    compiled = replace(settings, run=RunSettings(duration=0.1, rate=RATE, engine="compiled"))
+    assert (mc.run_campaign(rrr, laws, compiled, jobs=1, threads=2).rows
+            == mc.run_campaign(rrr, laws, compiled, jobs=1, threads=1).rows)
+    with pytest.raises(ValueError, match="threads must be an integer in"):
+        mc.run_campaign(rrr, laws, settings, jobs=1, threads=0)
+
+
+def test_figures_equal_the_trajectorys_figures(rrr, ref, plants):
+    # figures=True reduces the batch arrays without making trajectories: the same numbers,
+    # bit for bit, as the trajectories' own figures (and as the campaign's run_metrics).
+    law = make_laws("hinf", rrr)[0]
+    trajs = simulate_batch(plants, law, ref, 0.2, rate=RATE, batch=4, threads=2)
+    figs = simulate_batch(plants, law, ref, 0.2, rate=RATE, batch=4, figures=True)
+    for t, f in zip(trajs, figs, strict=True):
+        assert f.figures() == t.figures()
+        assert f.info == t.info and f.info["engine"] == "codegen"
+    # every trajectory owns its reference samples, though the batch shared them
+    trajs[0].r[:] = 0.0
+    assert np.all(trajs[1].r[1:] != 0.0)
+
+
+@pytest.mark.parametrize("rate", [RATE, None], ids=["sampled", "continuous"])
+def test_batched_hinf_aw_equals_compiled(rrr, ref, plants, rate):
+    # The anti-windup form (FLAWForm) on the batched engine, its clip active: pinned to the
+    # compiled engine (Pinocchio's dynamics, Eigen's LU on the law's M), plant by plant.
+    free = simulate(rrr, make_laws("hinf", rrr)[0], ref, 0.3, rate=rate, engine="compiled")
+    limit = 0.9 * np.abs(free.tau).max(axis=0)  # [N m]: below the peaks, so the clip acts
+    law = make_laws("hinf_aw", rrr, torque_limit=limit)[0]
+    batch = simulate_batch(plants, law, ref, 0.3, rate=rate, batch=4)
+    for a, plant in zip(batch, plants, strict=True):
+        assert a.info["engine"] == "codegen"
+        c = simulate(plant, law, ref, 0.3, rate=rate, engine="compiled")
+        assert np.any(np.abs(c.tau) >= limit)  # clipped somewhere
+        # 1e-12 rad / 1e-11 rad/s, the batched engine's pinned tolerances (above)
+        assert_allclose(a.q, c.q, rtol=0.0, atol=1e-12)
+        assert_allclose(a.qd, c.qd, rtol=0.0, atol=1e-11)
+        assert_allclose(a.tau, c.tau, rtol=1e-12, atol=1e-9)

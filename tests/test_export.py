@@ -128,73 +128,6 @@ def test_rrr_closed_loop_equals_python(hinf_rrr, rrr):
         assert_allclose(b.q, a.q, rtol=0, atol=1e-12)
 
 
-def test_ros_shaped_class_against_its_mock(hinf_rrr, tmp_path):
-    """ros2_controller.hpp on ros2_mock.hpp: ctrl_step's torques, a wrong period refused."""
-    if CXX is None:
-        pytest.skip("no C++ compiler")
-    ex, folder, lib = hinf_rrr
-    (tmp_path / "test_ros.cpp").write_text(ROS_TEST)
-    exe = tmp_path / "test_ros"
-    objs = [str(folder / (f + ".o")) for f in ("controller.c", "dynamics.c", "codegen_rrr.c")]
-    subprocess.run([CXX, "-std=c++17", *WARN, "-O0", f"-I{folder}", str(tmp_path / "test_ros.cpp"),
-                    *objs, "-o", str(exe), "-lm"], check=True, capture_output=True, text=True)
-    q = np.array([0.1, -0.4, 0.7])
-    qd = np.array([0.2, 0.0, -0.3])
-    r = np.array([0.3, -0.2, 0.5])
-    rd, rdd = np.array([0.1, 0.2, 0.3]), np.array([1.0, -1.0, 0.5])
-    args = [repr(float(v)) for v in np.concatenate([q, qd, r, rd, rdd])]
-    lines = subprocess.run([str(exe), *args], check=True, capture_output=True,
-                           text=True).stdout.split("\n")
-    assert lines[0] == "wrong period: ERROR"
-    # three periods from the state on_activate reset: the Python law's steps
-    c_law = exported_law(folder, lib)
-    x = c_law.initial_state()
-    for k in range(3):
-        tau, x = ex.law.step(k / RATE, q, qd, r, rd, rdd, x)
-        got = np.array([float(v) for v in lines[1 + k].split()])
-        assert_allclose(got, tau, rtol=1e-12)  # the same C code, printed with %.17g
-
-
-ROS_TEST = r"""
-#include <cstdio>
-#include <cstdlib>
-#include <vector>
-#define RRR_PIN_ROS2_MOCK
-#include "ros2_controller.hpp"
-
-int main(int argc, char ** argv)
-{
-  if (argc != 1 + 5 * CTRL_NQ) return 2;
-  double v[5 * CTRL_NQ];
-  for (int i = 0; i < 5 * CTRL_NQ; ++i) v[i] = std::strtod(argv[1 + i], nullptr);
-  double state[2 * CTRL_NQ], command[CTRL_NQ] = {0.0};
-  for (int i = 0; i < 2 * CTRL_NQ; ++i) state[i] = v[i];
-  rrr_pin::ExportedController c;
-  c.on_init();
-  std::vector<hardware_interface::LoanedCommandInterface> cmd;
-  std::vector<hardware_interface::LoanedStateInterface> st;
-  auto cc = c.command_interface_configuration();
-  auto sc = c.state_interface_configuration();
-  for (int i = 0; i < CTRL_NQ; ++i) cmd.emplace_back(cc.names[i], &command[i]);
-  for (int i = 0; i < 2 * CTRL_NQ; ++i) st.emplace_back(sc.names[i], &state[i]);
-  c.assign_interfaces(cmd, st);
-  if (c.on_activate(rclcpp_lifecycle::State{}) != controller_interface::CallbackReturn::SUCCESS)
-    return 3;
-  c.set_reference(v + 2 * CTRL_NQ, v + 3 * CTRL_NQ, v + 4 * CTRL_NQ);
-  rclcpp::Duration wrong{2.0 / CTRL_RATE_HZ}, right{1.0 / CTRL_RATE_HZ};
-  bool refused = c.update(rclcpp::Time{}, wrong) == controller_interface::return_type::ERROR;
-  std::printf("wrong period: %s\n", refused ? "ERROR" : "OK");
-  for (int k = 0; k < 3; ++k)
-  {
-    if (c.update(rclcpp::Time{}, right) != controller_interface::return_type::OK) return 4;
-    for (int i = 0; i < CTRL_NQ; ++i) std::printf("%.17g ", command[i]);
-    std::printf("\n");
-  }
-  return 0;
-}
-"""
-
-
 def test_export_is_deterministic(rrr, tmp_path):
     a = export_law("fl", rrr, RATE, tmp_path / "a")
     b = export_law("fl", rrr, RATE, tmp_path / "b")
@@ -305,6 +238,37 @@ def test_cli_export_and_refusals(tmp_path, capsys):
     assert main(["export", "--robot", str(urdf), "--law", "pd", "--rate", "500", "--out",
                  str(tmp_path / "d")]) == 2
     assert "revolute and prismatic joints only" in capsys.readouterr().err
+
+
+def test_continuous_joint_exports_as_one_angle(tmp_path):
+    """A URDF ``continuous`` joint: Pinocchio's own parser gives it (cos, sin), nq 2 and nv 1;
+    the loader makes it an unbounded revolute (one angle), which the C API expresses. The
+    loaded model's M and h equal Pinocchio's native (cos, sin) model at random states
+    (round-off: 1e-12), and the exported C law steps as the Python law (1e-12)."""
+    if CC is None:
+        pytest.skip("no C compiler")
+    text = (Path(__file__).resolve().parents[1] / "urdf" / "rrr.urdf").read_text()
+    urdf = tmp_path / "rrr_continuous.urdf"
+    urdf.write_text(text.replace('type="revolute"', 'type="continuous"', 1))
+    robot = load_robot(str(urdf))
+    assert (robot.nq, robot.model.nv) == (3, 3) and np.isinf(robot.upper[0])
+    native = pin.buildModelFromXML(urdf.read_text())
+    assert (native.nq, native.nv) == (4, 3)  # JointModelRUBZ: (cos q1, sin q1)
+    native.gravity = robot.model.gravity  # the loader sets standard gravity, 9.80665
+    nd, rng = native.createData(), np.random.default_rng(31)
+    for _ in range(20):
+        q, qd = rng.uniform(-4.0, 4.0, 3), rng.uniform(-3.0, 3.0, 3)
+        qn = np.concatenate([[np.cos(q[0]), np.sin(q[0])], q[1:]])
+        M, h = robot.terms(q, qd)
+        assert_allclose(M, pin.crba(native, nd, qn), rtol=0, atol=1e-12)
+        assert_allclose(h, pin.rnea(native, nd, qn, qd, np.zeros(3)), rtol=0, atol=1e-12)
+    ex = export_law("fl", robot, RATE, tmp_path / "fl")
+    c_law = exported_law(tmp_path / "fl", _compile_shared(tmp_path / "fl"))
+    assert _random_steps(ex.law, c_law, 200, seed=31) <= 1e-12
+    # a model that keeps the (cos, sin) pair is refused by name, not exported
+    kept = Robot(native, native.createData(), "native", str(urdf), urdf.read_text())
+    with pytest.raises(ExportError, match="nq = 4 != nv = 3"):
+        prepare_export("pd", kept, RATE)
 
 
 # --- slow: CMake builds of every built-in law, RRR and UR5 ----------------------------------

@@ -311,6 +311,8 @@ def test_design_interface(paper):
     assert d.robust_stability.ok and not d.robust_performance.ok
     with pytest.raises(WeightError, match="diagonal copy"):
         design(W1=static(np.diag([1.0, 2.0, 3.0])))
+    with pytest.raises(WeightError, match=r"W1 must be biproper .*D = \[\[0.0\]\]"):
+        design(W1=control.tf(1.0, [1.0, 1.0]))
 
 
 # --- CLI --------------------------------------------------------------------------------------
@@ -452,6 +454,27 @@ def test_loopsyn_refusals():
     rank1 = control.tf([[[1.0], [1.0]], [[1.0], [1.0]]], [[[1.0, 1.0]] * 2] * 2)
     with pytest.raises(ValueError, match="G loses rank"):
         loopsyn(rank1, control.tf(1.0, [1.0, 0.0]))
+    with pytest.raises(ValueError, match="Gd loses rank"):
+        loopsyn(fl_plant(45.0, 2), rank1)
+
+
+def test_loopsyn_target_with_a_singular_d():
+    # Gd = 8/s I + J, J the 2 x 2 ones: its D = J is singular, Gd(jw) is not (eigenvalues 8/jw
+    # and 8/jw + 2), so Gd^-1 grows like jw/8 along (1, -1). gamma against numpy's
+    # sup sigma_max([Gd S; Gd^-1 T]) on a 2000-point grid of the band (loopsyn: 60 a decade)
+    G = fl_plant(45.0, 2)
+    J = np.ones((2, 2))
+    r = loopsyn(G, control.ss(np.zeros((2, 2)), 8.0 * np.eye(2), np.eye(2), J))
+    L = control.ss(G * r.K)
+    lo, hi = r.band
+    worst = 0.0
+    for w in np.logspace(np.log10(lo), np.log10(hi), 2000):
+        S = np.linalg.inv(np.eye(2) + np.asarray(L(1j * w)))
+        gd = 8.0 / (1j * w) * np.eye(2) + J
+        stack = np.vstack([gd @ S, np.linalg.solve(gd, np.eye(2) - S)])
+        worst = max(worst, np.linalg.svd(stack, compute_uv=False)[0])
+    assert_allclose(r.gamma, worst, rtol=2e-3)
+    assert np.all(control.feedback(G * r.K, np.eye(2)).poles().real < 0)
 
 
 # --- design(): diagonal, fast for many joints, reduction guarantees ---------------------------

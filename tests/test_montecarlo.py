@@ -352,7 +352,8 @@ def test_resume_with_other_settings_is_refused(montecarlo_run, tmp_path, capsys)
     (["--controllers", "fl,nosuch"], "unknown controller 'nosuch'"),
     (["--baseline", "pd"], "--baseline 'pd' is not among --controllers (fl,hinf)"),
     (["--duration", "0.0505"], "--duration = 0.0505 s is not a whole number of control periods"),
-], ids=["codegen", "circle", "lock", "unknown", "baseline", "off-grid"])
+    (["--confidence", "0.9"], "--confidence 0.9 applies to plants drawn from an identification"),
+], ids=["codegen", "circle", "lock", "unknown", "baseline", "off-grid", "confidence"])
 def test_cli_on_a_chain_refuses_what_it_cannot_run(extra, message, tmp_path, capsys):
     out = tmp_path / "x"
     argv = ["montecarlo", "--robot", "fivebar", "--samples", "2", "--duration", "0.05",
@@ -362,6 +363,17 @@ def test_cli_on_a_chain_refuses_what_it_cannot_run(extra, message, tmp_path, cap
     assert message in err and "Traceback" not in err
     # nothing written: before, an engine's refusal came after the store was opened and left
     # campaign.json and an empty parts.jsonl behind
+    assert not out.exists() or list(out.iterdir()) == []
+
+
+def test_cli_confidence_without_uncertainty_is_refused(tmp_path, capsys):
+    # Before (issue 31): --confidence 7 without --uncertainty ran the campaign and ignored it.
+    out = tmp_path / "x"
+    assert cli.main(["montecarlo", "--confidence", "7", "--samples", "1", "--duration", "0.05",
+                     "--no-progress", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--confidence 7 applies to plants drawn from an identification: give " \
+           "--uncertainty" in err and "Traceback" not in err
     assert not out.exists() or list(out.iterdir()) == []
 
 

@@ -88,6 +88,106 @@ def test_mixed_real_and_complex_bracket_the_vertex_sweep():
     assert np.min(np.abs(poles.real)) < 1e-5
 
 
+# The SLICOT AB13MD example (SLICOT-Reference examples/AB13MD.dat, read by rows): two real
+# scalars, a full complex 2x2 block and two complex scalars. Its published D,G upper bound is
+# 0.4174753408D+02 (examples/AB13MD.res; Slycot's test_ab13md.py checks the same figure).
+_AB13MD = np.array([[-1 + 6j, 2 - 3j, 3 + 8j, 3 + 8j, -5 - 9j, -6 + 2j],
+                    [4 + 2j, -2 + 5j, -6 - 7j, -4 + 11j, 8 - 7j, 12 - 1j],
+                    [5 - 4j, -4 - 8j, 1 - 3j, -6 + 14j, 2 - 5j, 4 + 16j]] * 2)
+_AB13MD_BLOCKS = [("real", 1), ("real", 1), ("complex", 2), ("complex", 1), ("complex", 1)]
+_AB13MD_MU = 41.74753408
+
+
+def _similar(M, d):
+    """``diag(d) M diag(d)^-1``: the same mu when ``diag(d)`` commutes with the structure."""
+    d = np.asarray(d, dtype=float)
+    return (d[:, None] * M) / d[None, :]
+
+
+@pytest.mark.parametrize("spread", [1.0, 1e6], ids=["as-published", "scaled-1e6"])
+def test_published_ab13md_bound_holds_on_a_badly_scaled_copy(spread):
+    # mu is invariant under D M D^-1 for D commuting with Delta (Packard & Doyle 1993, sec. 6),
+    # so the published bound holds for the scaled copy, whose sigma_max is 1.5e11 at 1e6.
+    # Before the balancing, the scaled copy's upper bound was 1.49e11. 1 %: the issue's
+    # requirement (the bisection stops within 5e-3 of the LMI optimum).
+    d = [1.0, spread, 1 / spread, 1 / spread, np.sqrt(spread), 1 / np.sqrt(spread)]
+    upper, lower = mussv(_similar(_AB13MD, d), _AB13MD_BLOCKS, lower=spread > 1)
+    assert_allclose(upper, _AB13MD_MU, rtol=1e-2)
+    if spread > 1:
+        assert_allclose(lower, _AB13MD_MU, rtol=1e-2)
+        assert lower[0] <= upper[0]
+
+
+@pytest.mark.parametrize("spread", [1e-6, 1e6], ids=["1e-6", "1e6"])
+def test_skogestad_example_8_5_on_badly_scaled_copies(spread):
+    # Skogestad & Postlethwaite (2005), Example 8.5: M = [[2, 2], [-1, -1]] with two complex
+    # scalars has mu = 3 (sigma_max = 3.162). Scaled by diag(1, spread): sigma_max 2e6; before
+    # the balancing the upper bound was 1.0e4 at spread 1e6.
+    M = _similar(np.array([[2.0, 2.0], [-1.0, -1.0]]), [1.0, spread])
+    upper, lower = mussv(M, [("complex", 1), ("complex", 1)])
+    assert_allclose(upper, 3.0, rtol=1e-2)
+    assert_allclose(lower, 3.0, rtol=1e-6)  # the lower bound is a checked singular Delta
+
+
+def test_rank_one_with_three_complex_scalars_is_the_sum_of_products():
+    # For M = a b^H and scalar complex blocks, mu = sum |a_i| |b_i|, and it equals the D-scaled
+    # bound (Packard & Doyle 1993, rank-one M; Cauchy-Schwarz: inf_D |D a| |D^-1 b| with
+    # d_i^2 = |b_i| / |a_i|). Here the optimal D spreads 1e-8 to 1e8 (sigma_max(M) = 1e8).
+    a = np.array([1.0, 1e-6, 1e3 + 1e3j])
+    b = np.array([1.0, 1e5, 1e-4])
+    exact = float(np.sum(np.abs(a) * np.abs(b)))  # 1 + 0.1 + 0.1414
+    upper, lower = mussv(np.outer(a, b.conj()), [("complex", 1)] * 3)
+    assert_allclose(upper, exact, rtol=1e-2)
+    assert_allclose(lower, exact, rtol=1e-6)
+
+
+def test_scaling_inside_a_repeated_real_block_changes_nothing():
+    # Any diagonal inside a repeated real scalar delta I commutes with it: the bounds of the
+    # scaled copy (spread 1e9 inside the block) equal the unscaled ones, computed separately
+    # (2 x the bisection's 5e-3 apart at most).
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((4, 4)) + 1j * rng.standard_normal((4, 4))
+    blocks = [("real", 3), ("complex", 1)]
+    up0, lo0 = mussv(M, blocks)
+    up1, lo1 = mussv(_similar(M, [1.0, 1e9, 1e-9, 1.0]), blocks)
+    assert_allclose(up1, up0, rtol=2 * UPPER_RTOL)
+    assert_allclose(lo1, lo0, rtol=1e-6)
+    assert lo0[0] <= up0[0]
+
+
+def test_upper_bound_is_not_confined_by_one_solves_scaling_bound(monkeypatch):
+    # A similarity T inside a repeated real block (a rotated diag(1, 100): any T commutes with
+    # delta I) leaves mu alone, but the balancing (diagonal) cannot undo it: the optimal D
+    # spreads 1e4. One LMI solve confines D to a spread of mu._DMAX; re-scaling by the D
+    # found lets the optimum go further. With that spread cut to 10 the bound still equals
+    # the untransformed matrix's, computed separately (without the re-scaling: 4.56 vs 2.02).
+    import rrr_pin.robust.mu as mu
+
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((3, 3)) + 1j * rng.standard_normal((3, 3))
+    blocks = [("real", 2), ("complex", 1)]
+    reference, _ = mussv(M, blocks, lower=False)
+    c, s = np.cos(0.6), np.sin(0.6)
+    R = np.array([[c, -s], [s, c]])
+    T = np.eye(3, dtype=complex)
+    T[:2, :2] = R @ np.diag([1.0, 100.0]) @ R.T
+    monkeypatch.setattr(mu, "_DMAX", 10.0)
+    upper, _ = mussv(T @ M @ np.linalg.inv(T), blocks, lower=False)
+    assert_allclose(upper, reference, rtol=2 * UPPER_RTOL)
+
+
+def test_robstab_guaranteed_margin_on_a_badly_scaled_loop():
+    # M(s) = M0 / (s + 1) with M0 Skogestad & Postlethwaite's Example 8.5 matrix scaled by
+    # diag(1, 1e6): mu peaks at w = 0 at 3, so the margin is 1/3. Before the balancing
+    # robstab's guaranteed margin was 4.99e-5 (the upper bound 2.0e4 at w = 0).
+    M0 = _similar(np.array([[2.0, 2.0], [-1.0, -1.0]]), [1.0, 1e6])
+    M = control.ss(-np.eye(2), np.eye(2), M0, np.zeros((2, 2)))
+    r = robstab(M, [("complex", 1), ("complex", 1)], [0.0, 0.3, 1.0, 3.0])
+    assert_allclose(r.margin_lower, 1 / 3, rtol=1e-2)
+    assert_allclose(r.margin_upper, 1 / 3, rtol=1e-6)
+    assert r.margin_lower <= r.margin_upper
+
+
 @pytest.mark.parametrize("blocks, match", [
     ([], "at least one block"),
     ([("real", 0)], "blocks\\[0\\] size"),

@@ -389,3 +389,16 @@ def test_ncfsyn_2dof_refuses_a_bad_reference_model():
         ncfsyn_2dof(_P_JL, control.tf(1, [1, 1]), 0.0, _W1_JL)
     with pytest.raises(FieldError, match="factor.*> 1"):
         ncfsyn_2dof(_P_JL, control.tf(1, [1, 1]), 1.1, _W1_JL, factor=1.0)
+
+
+def test_ncfsyn_2dof_refuses_a_w2_with_a_singular_d():
+    # Before (issue 31): numpy's "Singular matrix" from the dc prefilter, which inverts W2. A
+    # strictly proper W1 (1/s) is the published case above and stays accepted; without the
+    # prefilter, W2 is not inverted and a strictly proper W2 stays accepted too.
+    from rrr_pin.robust.ncf import WeightError, ncfsyn_2dof
+
+    Tref, W2 = control.tf(1, [1, 1]), control.tf(1, [1, 1])
+    with pytest.raises(WeightError, match=r"W2 must be biproper .*D = \[\[0.0\]\].*match_dc"):
+        ncfsyn_2dof(_P_JL, Tref, 1.1, _W1_JL, W2)
+    res = ncfsyn_2dof(_P_JL, Tref, 1.1, _W1_JL, W2, match_dc=False)
+    assert np.all(res.CL.poles().real < 0)

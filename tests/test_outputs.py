@@ -298,3 +298,23 @@ def test_a_bad_option_under_overwrite_keeps_the_previous_run(tmp_path, capsys):
     assert "--samples" in capsys.readouterr().err
     assert (tmp_path / "a.png").read_text() == "a.png"
     assert (tmp_path / "sub" / "b.urdf").exists()
+
+
+def test_manifest_says_whether_the_command_finished(tmp_path, monkeypatch, capsys):
+    # Issue 31: `reproduce --robot xarm7` exited 2 after writing its results, and its manifest
+    # said "complete": true with nothing saying the run had failed. `finished` now records it.
+    from rrr_pin.cli import main
+    from rrr_pin.deploy.writer import Export
+
+    assert main(["export", "--law", "pd", "--rate", "500", "--out", str(tmp_path / "ok")]) == 0
+    assert _manifest(tmp_path / "ok")["finished"] is True
+
+    def write_then_fail(self, folder):
+        (Path(folder) / "partial.txt").write_text("x")
+        raise ValueError("failed after writing")
+
+    monkeypatch.setattr(Export, "write", write_then_fail)
+    assert main(["export", "--law", "pd", "--rate", "500", "--out", str(tmp_path / "bad")]) == 2
+    assert "failed after writing" in capsys.readouterr().err
+    m = _manifest(tmp_path / "bad")
+    assert m["complete"] and m["outputs"] == ["partial.txt"] and m["finished"] is False

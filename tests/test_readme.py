@@ -65,6 +65,7 @@ PARSE_ONLY = {
     "reproduce": "its figures take ~25 s even shrunk",
     "--data": "needs a measured log (scripts/identify_example.py writes one)",
     "--uncertainty": "needs an identification.json (rrr-pin identify writes one)",
+    "hil": "needs an exported folder, and runs for minutes; tests/test_hil.py runs it",
     "--tune-lam": "a tuning against three requirements on 21 plants with its simulations "
                   "takes minutes; tests/test_tuning.py runs rrr-pin design small",
 }

@@ -23,7 +23,7 @@ from rrr_pin.model.dh import forward_kinematics, paper_params
 from rrr_pin.model.dynamics import load_robot
 from rrr_pin.outputs import OutputNotWritable, check_writable
 from rrr_pin.report.html import REPORT_MAX_BYTES, report_html, write_report_html
-from rrr_pin.report.viewer import CAMERA_FOV, Scene, Track, ViewerSizeError, camera_view
+from rrr_pin.report.viewer import CAMERA_FOV, Scene, Track, camera_view
 
 TABLE_MD = """| Controller | RMS error [rad] |
 |---|---|
@@ -133,8 +133,11 @@ def test_size_bound_two_controllers_eleven_arms(rrr, figure):
     # a tighter budget decimates frames and is kept too
     small = report_html(title="t", scenes=scenes, max_bytes=4_000_000)
     assert len(small.encode("utf-8")) <= 4_000_000
-    with pytest.raises(ViewerSizeError):
-        report_html(title="t", scenes=scenes, max_bytes=1_500_000)
+    # a budget no scene fits (the viewer script alone is 0.85 MB): the page is still made,
+    # and says which scenes are not drawn (before issue 31: ViewerSizeError after the study)
+    tiny = report_html(title="t", scenes=scenes, max_bytes=1_500_000)
+    assert tiny.count("not drawn, as even one arm exceeds the page's size budget") == 2
+    assert len(tiny.encode("utf-8")) <= 1_500_000
 
 
 # ---------------------------------------------------------------------------------------------

@@ -21,6 +21,7 @@ RUNS = [
     ("uncertain_study.py", ["--samples", "2", "--duration", "0.2", "--jobs", "1",
                             "--controllers", "fl,pd", "--out", "{tmp}/uncertain.png"]),
     ("identify_example.py", ["--quick", "--out", "{tmp}"]),
+    ("identify_example.py", ["--quick", "--friction", "--out", "{tmp}"]),
 ]
 
 # issue 13's keys, and the keys the benchmark had before them (kept for the README's table).
@@ -37,7 +38,8 @@ def run_script(script, args, monkeypatch):
 
 def test_every_script_is_tested():
     assert {p.name for p in SCRIPTS.glob("*.py")} == {r[0] for r in RUNS} | {
-        "bench.py", "codegen.py", "gen_dynamics.py", "report_screenshot.py"}
+        "bench.py", "codegen.py", "gen_dynamics.py", "report_screenshot.py",
+        "panda_heldout.py", "probe_inputs.py"}
 
 
 def test_report_screenshot_refuses_a_missing_report(tmp_path, monkeypatch, capsys):
@@ -80,6 +82,20 @@ def test_report_screenshot_draws_the_scene(tmp_path, monkeypatch, capsys):
     assert np.count_nonzero((r > 180) & (g > 80) & (g < 180) & (b < 100)) > 200
 
 
+def test_probe_inputs_classifies_a_few_cases(tmp_path, monkeypatch, capsys):
+    # Two of its cases (the whole probe takes minutes, a few s per case): a CLI refusal and an
+    # accepted input checked right; the JSON holds the table per family.
+    out = tmp_path / "probe.json"
+    run_script("probe_inputs.py", ["--cases", "confidence-alone,mat-round-trip",
+                                   "--workdir", str(tmp_path / "w"), "--out", str(out)],
+               monkeypatch)
+    assert "wrote" in capsys.readouterr().out
+    report = json.loads(out.read_text())
+    assert {c["case"]: c["outcome"] for c in report["cases"]} == {
+        "confidence-alone": "clear", "mat-round-trip": "correct"}
+    assert report["table"]["all"]["clear"] == 1 and report["table"]["trajectory"]["correct"] == 1
+
+
 def test_codegen_check_runs(monkeypatch, capsys):
     # --check only: regenerating needs the hand-built generator (docs/codegen.md).
     with pytest.raises(SystemExit) as exc:
@@ -115,3 +131,40 @@ def test_script_runs(script, args, tmp_path, monkeypatch, capsys):
     run_script(script, [a.format(tmp=tmp_path) for a in args], monkeypatch)
     assert "wrote" in capsys.readouterr().out
     assert list(tmp_path.glob("*.png"))
+
+
+def test_panda_heldout_on_a_synthetic_split_log(tmp_path, monkeypatch, capsys):
+    """A 3 s synthetic Panda log in the per-quantity layout (no real log in the tests): the
+    script identifies, predicts, writes its figure and JSON. The log is made by the published
+    model itself (Gaz et al.'s bodies and friction), so that model predicts it exactly."""
+    import numpy as np
+
+    from rrr_pin.model.dynamics import load_robot, robot_from_xml
+    from rrr_pin.model.excitation import FourierTrajectory
+    from rrr_pin.model.identification import body_links, urdf_with_parameters
+
+    heldout = runpy.run_path(str(SCRIPTS / "panda_heldout.py"))
+    panda = load_robot("panda")  # fingers locked (logged)
+    truth = robot_from_xml(urdf_with_parameters(panda.urdf, body_links(panda),
+                                                heldout["gaz_phi"](), moving=panda.joint_names),
+                           lock=dict(panda.locked))
+    rng = np.random.default_rng(0)
+    q0 = 0.5 * (panda.lower + panda.upper)
+    traj = FourierTrajectory(0.5, 0.15 * rng.standard_normal((7, 3)),
+                             0.15 * rng.standard_normal((7, 3)), q0, 1)
+    t = np.arange(0.0, 3.0, 0.005)
+    q, qd, qdd = traj.sample(t)
+    tau = np.array([truth.inverse_dynamics(*x) for x in zip(q, qd, qdd, strict=True)])
+    tau += heldout["gaz_friction"](qd)
+    for name, x in (("time", t), ("positions", q), ("velocity", qd), ("torques", tau)):
+        np.savetxt(tmp_path / f"{name}.txt", x.reshape(-1), fmt="%.17g")
+    run_script("panda_heldout.py", [str(tmp_path), "--out", str(tmp_path / "out")],
+               monkeypatch)
+    assert "wrote" in capsys.readouterr().out
+    rec = json.loads((tmp_path / "out" / "panda_heldout.json").read_text())
+    # the published model made the log: it predicts the held-out window to the filter's error
+    # (the Savitzky-Golay accelerations of a smooth log): far below the torques' size
+    assert max(rec["held_out"]["published"]["rms_Nm"]) < 0.05
+    assert set(rec["masses_kg"]) == {"identified_friction", "identified_rigid",
+                                     "published_gaz2019", "example_robot_data"}
+    assert (tmp_path / "out" / "panda_heldout.png").stat().st_size > 10_000

@@ -325,6 +325,8 @@ def test_cli_bad_input_names_the_option(argv, match, capsys, tmp_path):
     ("stiffness", PlantEffects(stiffness=0.003, motor_inertia=0.01)),
     ("torque", PlantEffects(torque_limit=0.003)),
     ("noise", PlantEffects(noise_q=0.003, noise_qd=0.3, seed=7)),
+    ("viscous", PlantEffects(viscous=0.003)),
+    ("coulomb", PlantEffects(coulomb=0.003)),
 ], ids=lambda v: v if isinstance(v, str) else "")
 def test_each_searchable_effect_is_one_catalog_entry(effect, expected):
     # the catalog entry alone says which PlantEffects fields a stress size sets (the search,
@@ -332,7 +334,8 @@ def test_each_searchable_effect_is_one_catalog_entry(effect, expected):
     from rrr_pin.control.catalog import EFFECTS
 
     assert effects_of(effect, 0.003, seed=7) == expected
-    assert set(EFFECTS) == {"delay", "actuator", "stiffness", "torque", "noise"}
+    assert set(EFFECTS) == {"delay", "actuator", "stiffness", "torque", "noise", "viscous",
+                            "coulomb"}
 
 
 def test_delays_are_searched_on_whole_sub_steps(rrr):

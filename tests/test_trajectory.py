@@ -158,10 +158,35 @@ def test_damaged_files_are_refused_by_name(tmp_path, suffix):
     cut.write_bytes(whole[:len(whole) // 2])
     damaged = {".csv": r"cut\.csv, line \d+: [1-8] values, the header has 9 \(a truncated",
                ".npz": r"cut\.npz: a truncated or damaged \.npz archive",
-               ".parquet": r"cut\.parquet: not a readable Parquet file \(truncated"}[suffix]
+               ".parquet": r"cut\.parquet: not a readable Parquet file \(truncated",
+               ".mat": r"cut\.mat: not a readable MAT file \(truncated"}[suffix]
     with pytest.raises(TrajectoryFileError, match=damaged):
         Trajectory.load(cut)
     folder = tmp_path / f"folder{suffix}"
     folder.mkdir()
     with pytest.raises(TrajectoryFileError, match=rf"folder\{suffix}: is a directory"):
         Trajectory.load(folder)
+
+
+def test_mat_file_holds_matlab_variables(tmp_path):
+    # What a MATLAB user gets from load('run.mat'): t as a column, q..tau as N x n, the
+    # metadata as JSON text; read here with scipy.io.loadmat directly, not Trajectory.load.
+    import scipy.io
+
+    traj = _by_hand()
+    data = scipy.io.loadmat(traj.save(tmp_path / "run.mat"))
+    assert data["t"].shape == (9, 1)
+    assert_allclose(data["t"][:, 0], traj.t, rtol=0, atol=0)
+    for key in ("q", "qd", "r", "tau"):
+        assert_allclose(data[key], getattr(traj, key), rtol=0, atol=0)
+    meta = json.loads(str(data["metadata"][0]))
+    assert meta["joint_names"] == ["shoulder, left", "slide z"]
+    assert meta["units"]["tau"] == ["N m", "N"]
+
+
+def test_repr_is_a_summary_not_the_arrays(simulated):
+    text = repr(simulated)
+    assert text.startswith("Trajectory(plant='rrr', controller='fl', ")
+    assert f"{len(simulated.t)} samples over 0.05 s, 3 joints" in text
+    assert f"max |error| {np.max(np.abs(simulated.error)):.4g}" in text
+    assert "\n" not in text and "array(" not in text and len(text) < 200

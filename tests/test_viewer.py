@@ -19,6 +19,7 @@ from rrr_pin.report.viewer import (
     _geometry_models,
     _record,
     scene_document,
+    scene_html,
     write_scene_html,
 )
 
@@ -145,8 +146,23 @@ def test_decimation_keeps_the_budget(rrr):
     assert len(doc.encode()) <= budget
     cmd = _animation(_commands(doc))
     assert cmd["animations"][0]["clip"]["fps"] < 30.0
-    with pytest.raises(ViewerSizeError, match="max_bytes=1000000"):
-        scene_document(scene, max_bytes=1_000_000)  # the viewer script alone is 0.85 MB
+    # 1 MB holds the viewer script (0.85 MB) and the first arm only: the ghosts are left out
+    assert len(scene_document(scene, max_bytes=1_000_000).encode()) <= 1_000_000
+    with pytest.raises(ViewerSizeError, match="max_bytes=800000: the geometry of its first"):
+        scene_document(scene, max_bytes=800_000)  # below the viewer script alone
+
+
+def test_a_scene_too_heavy_for_its_budget_draws_its_first_arms_and_says_so(ur5):
+    # Issue 31: reproduce --robot xarm7 failed after the whole study ("scene ... does not fit
+    # max_bytes"), the geometry of 11 arms alone exceeding the page's share. UR5's visual
+    # meshes take about 8.9 MB per arm: 4 arms cannot fit 23 MB (0.9 of it for the document,
+    # the rest for the escaping), the first 2 can.
+    scene = _scene(ur5, ghosts=3, duration=1.0)
+    fragment = scene_html(scene, max_bytes=23_000_000, geometry="visual")
+    assert len(fragment.encode()) <= 23_000_000
+    assert "the first 2 of the 4 arms drawn" in fragment
+    legend = fragment[fragment.rindex("<figcaption>"):]
+    assert "nominal" in legend and "plant 0" in legend and "plant 1" not in legend
 
 
 def _commands(doc):

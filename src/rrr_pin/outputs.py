@@ -25,12 +25,14 @@ The manifest ``out/rrr-pin-run.json`` (``out/rrr-pin-run-<part>.json`` for a par
 
     {"format": "rrr-pin-run", "version": 1, "tool": "reproduce", "part": null,
      "settings": {...},
-     "complete": true, "outputs": ["fig2.png", "plants/rrr_0.urdf", ...],
+     "complete": true, "finished": true, "outputs": ["fig2.png", "plants/rrr_0.urdf", ...],
      "kept": ["notes.txt"]}
 
 It is written when the folder is claimed (``complete`` false, no outputs) and rewritten by
 :meth:`OutputDir.close` with every file created or changed since the claim (``complete``
-true). ``kept`` lists the files that were there before the claim. If a run dies before
+true). ``finished`` says whether the command ended without an error (false: refused or
+failed after writing the files listed, which are then partial). ``kept`` lists the files that
+were there before the claim. If a run dies before
 :meth:`OutputDir.close` (killed, power lost), its manifest stays incomplete, and the next
 ``overwrite`` removes every file not in ``kept`` nor listed by another run: the dead run's,
 which it never listed.
@@ -449,8 +451,10 @@ class OutputDir:
                       if self._before.get(n) != st and n not in self._owned
                       and not _MANIFEST_RE.match(n))
 
-    def close(self) -> list[str]:
+    def close(self, finished: bool = True) -> list[str]:
         """Record the files this run wrote in the manifest and mark it complete.
+
+        ``finished`` (recorded as such) is false for a command that ended on an error.
 
         A run that wrote nothing (refused on a bad input after the claim) leaves no trace: its
         manifest is removed, and the folder too if the claim created it and it is empty.
@@ -465,18 +469,20 @@ class OutputDir:
             return written
         self._closed = True
         if written:
-            self._write_manifest(written, complete=True)
+            self._write_manifest(written, complete=True, finished=finished)
             return written
         self.manifest.unlink(missing_ok=True)
         if self._created and not any(self.path.iterdir()):
             self.path.rmdir()
         return written
 
-    def _write_manifest(self, outputs: list[str], complete: bool) -> None:
+    def _write_manifest(self, outputs: list[str], complete: bool,
+                        finished: bool = False) -> None:
         kept = sorted(n for n in self._before if n != self.manifest.name)
         _write_json(self.manifest, {
             "format": _FORMAT, "version": _VERSION, "tool": self.tool, "part": self.part,
-            "settings": self.settings, "complete": complete, "outputs": outputs, "kept": kept})
+            "settings": self.settings, "complete": complete, "finished": finished,
+            "outputs": outputs, "kept": kept})
 
     def __enter__(self) -> OutputDir:
         return self

@@ -1,9 +1,14 @@
 // Batched rollouts on generated dynamics (see batch.hpp).
 #include "batch.hpp"
 
+#include <Eigen/LU>
+
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <limits>
+#include <mutex>
 #include <stdexcept>
 #include <vector>
 
@@ -141,6 +146,87 @@ namespace rrr_pin
       {
         md.f.crba(md.B, md.nominal.data(), q, M);
         md.f.nle(md.B, md.nominal.data(), q, qd, tau);
+      }
+    };
+
+    /// FLLaw's torque clipped to the limits, K conditioned on the clip (FLAWLaw, Hanus), per
+    /// plant as FLAWLaw::Eval does: the correction only for plants where a joint clipped.
+    template<>
+    struct BatchLaw<FLAWLaw>
+    {
+      BatchLaw<FLLaw> fl;
+      const FLAWLaw & p;
+      int B, n, m;
+      Lanes tau, dy;
+      std::vector<char> clipped;
+      Mat Mb;
+      Vec rhs;
+
+      BatchLaw(const FLAWLaw & law, const Models & models)
+      : fl(law, models)
+      , p(law)
+      , B(models.B)
+      , n(models.n)
+      , m(static_cast<int>(law.nx()))
+      , tau(n * B)
+      , dy(n * B)
+      , clipped(B, 0)
+      , Mb(n, n)
+      , rhs(n)
+      {
+      }
+
+      const Lanes & torque(
+        const double * q, const double * qd, const double * r, const double * rd,
+        const double * rdd, const double * x)
+      {
+        const Lanes & raw = fl.torque(q, qd, r, rd, rdd, x);
+        const double lam2 = p.lam * p.lam;
+        for (int b = 0; b < B; ++b)
+        {
+          bool c = false;
+          for (int j = 0; j < n; ++j)
+          {
+            const int i = j * B + b;
+            // Eigen's cwiseMax(-limit).cwiseMin(limit): std::max, then std::min.
+            tau[i] = std::min(std::max(raw[i], -p.limit[j]), p.limit[j]);
+            c = c || tau[i] != raw[i];
+          }
+          clipped[b] = c;
+          if (!c)
+            continue;
+          for (int r_ = 0; r_ < n; ++r_)
+          {
+            rhs[r_] = tau[r_ * B + b] - raw[r_ * B + b];
+            for (int k = 0; k < n; ++k)
+              Mb(r_, k) = fl.M[(r_ * n + k) * B + b];
+          }
+          const Vec sol = Mb.partialPivLu().solve(rhs) / lam2;
+          for (int j = 0; j < n; ++j)
+            dy[j * B + b] = sol[j];
+        }
+        return tau;
+      }
+
+      /// FLLaw's state map, plus L dy for the plants whose last torque() clipped.
+      void state_map(const double * x, double * out) const
+      {
+        fl.state_map(x, out);
+        for (int b = 0; b < B; ++b)
+          if (clipped[b])
+            for (int l = 0; l < m; ++l)
+            {
+              double s = 0.0;
+              for (int k = 0; k < n; ++k)
+                s += p.L(l, k) * dy[k * B + b];
+              out[l * B + b] += s;
+            }
+      }
+
+      static void model_calls(const Models & md, const double * q, const double * qd,
+                              double * M, double * tau)
+      {
+        BatchLaw<FLLaw>::model_calls(md, q, qd, M, tau);
       }
     };
 
@@ -483,10 +569,65 @@ namespace rrr_pin
     }
   } // namespace
 
+  namespace
+  {
+    /// Structures loaded at run time (dyn_register), with the strings their entries point to.
+    /// A deque never moves its elements, so a reference handed out stays valid.
+    struct Loaded
+    {
+      std::mutex lock;
+      std::deque<std::string> strings;
+      std::deque<DynFunctions> table;
+    };
+
+    Loaded & loaded()
+    {
+      static Loaded l;
+      return l;
+    }
+  } // namespace
+
   const DynFunctions * dyn_table(int & count)
   {
     count = static_cast<int>(sizeof(kTable) / sizeof(kTable[0]));
     return kTable;
+  }
+
+  std::vector<DynFunctions> dyn_all()
+  {
+    std::vector<DynFunctions> out(std::begin(kTable), std::end(kTable));
+    Loaded & l = loaded();
+    std::lock_guard<std::mutex> guard(l.lock);
+    out.insert(out.end(), l.table.begin(), l.table.end());
+    return out;
+  }
+
+  void dyn_register(const std::string & name, const std::string & structure, int nq, int np,
+                    std::uintptr_t crba, std::uintptr_t nle, std::uintptr_t gravity,
+                    std::uintptr_t fd)
+  {
+    if (nq < 1 || np != 3 + 23 * nq || !crba || !nle || !gravity || !fd)
+      throw std::invalid_argument("dyn_register: nq >= 1, np = 3 + 23 nq and four functions");
+    Loaded & l = loaded();
+    std::lock_guard<std::mutex> guard(l.lock);
+    for (const DynFunctions & f : kTable)
+      if (name == f.name)
+        throw std::invalid_argument("dyn_register: '" + name + "' is compiled in");
+    for (const DynFunctions & f : l.table)
+      if (name == f.name)
+        throw std::invalid_argument("dyn_register: '" + name + "' is registered already");
+    l.strings.push_back(name);
+    const char * n = l.strings.back().c_str();
+    l.strings.push_back(structure);
+    const char * st = l.strings.back().c_str();
+    l.table.push_back(DynFunctions{
+      n, st, nq, np,
+      reinterpret_cast<void (*)(int, const double *, const double *, double *)>(crba),
+      reinterpret_cast<void (*)(int, const double *, const double *, const double *, double *)>(
+        nle),
+      reinterpret_cast<void (*)(int, const double *, const double *, double *)>(gravity),
+      reinterpret_cast<void (*)(int, const double *, const double *, const double *,
+                                const double *, double *)>(fd)});
   }
 
   const DynFunctions & dyn_by_name(const std::string & name)
@@ -497,6 +638,14 @@ namespace rrr_pin
       if (name == f.name)
         return f;
       known += (known.empty() ? "" : ", ") + std::string(f.name);
+    }
+    Loaded & l = loaded();
+    std::lock_guard<std::mutex> guard(l.lock);
+    for (const DynFunctions & f : l.table)
+    {
+      if (name == f.name)
+        return f;
+      known += ", " + std::string(f.name);
     }
     throw std::invalid_argument("no generated dynamics named '" + name + "' (known: " + known
                                 + ")");
@@ -554,6 +703,11 @@ namespace rrr_pin
   template BatchResult batch_rollout<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
     const RowMat &, const RowMat &);
+  template BatchResult batch_rollout<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &);
+  template double batch_floor_timing<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   template BatchResult batch_rollout<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
     const RowMat &, const RowMat &);

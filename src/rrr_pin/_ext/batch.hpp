@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <string>
 #include <tuple>
+#include <vector>
 
 #include "law.hpp"
 #include "rollout.hpp"
@@ -32,6 +33,13 @@ namespace rrr_pin
 
   /// The generated structures compiled in, and their count.
   const DynFunctions * dyn_table(int & count);
+  /// Every generated structure: compiled in, then those registered at run time.
+  std::vector<DynFunctions> dyn_all();
+  /// Register a structure's functions loaded at run time (rrr_pin.sim.dyncache: a shared
+  /// object compiled from the generator's C), by address; names are unique.
+  void dyn_register(const std::string & name, const std::string & structure, int nq, int np,
+                    std::uintptr_t crba, std::uintptr_t nle, std::uintptr_t gravity,
+                    std::uintptr_t fd);
   /// The generated structure named `name` (throws std::invalid_argument naming the known ones).
   const DynFunctions & dyn_by_name(const std::string & name);
 
@@ -60,6 +68,11 @@ namespace rrr_pin
   extern template BatchResult batch_rollout<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
     const RowMat &, const RowMat &);
+  extern template BatchResult batch_rollout<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &);
+  extern template double batch_floor_timing<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   extern template BatchResult batch_rollout<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
     const RowMat &, const RowMat &);

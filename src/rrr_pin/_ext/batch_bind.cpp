@@ -9,6 +9,8 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 
+#include <vector>
+
 #include "batch.hpp"
 
 namespace nb = nanobind;
@@ -41,6 +43,7 @@ namespace rrr_pin
   void bind_batch(nb::module_ & mod)
   {
     def_batch_law<FLLaw>(mod);
+    def_batch_law<FLAWLaw>(mod);
     def_batch_law<PDLaw>(mod);
     mod.def("batch_models", []() {
       nb::dict d;
@@ -50,7 +53,24 @@ namespace rrr_pin
         d[table[i].name] = nb::make_tuple(std::string(table[i].structure), table[i].nq,
                                           table[i].np);
       return d;
-    }, "Generated structures: name -> (structure, nq, number of parameters).");
+    }, "Generated structures compiled in: name -> (structure, nq, number of parameters).");
+    mod.def("batch_loaded", []() {
+      nb::dict d;
+      int count = 0;
+      dyn_table(count);
+      const std::vector<DynFunctions> all = dyn_all();
+      for (std::size_t i = static_cast<std::size_t>(count); i < all.size(); ++i)
+        d[all[i].name] = nb::make_tuple(std::string(all[i].structure), all[i].nq, all[i].np);
+      return d;
+    }, "Generated structures registered at run time: name -> (structure, nq, np).");
+    mod.def("batch_register", &dyn_register, nb::arg("name"), nb::arg("structure"),
+            nb::arg("nq"), nb::arg("np"), nb::arg("crba"), nb::arg("nle"), nb::arg("gravity"),
+            nb::arg("fd"),
+            "Register generated functions loaded at run time, by address (rrr_pin.sim.dyncache).");
+    mod.def("c_compiler", []() { return std::string(RRR_C_COMPILER); },
+            "The C compiler that built the extension's generated dynamics (CMAKE_C_COMPILER).");
+    mod.def("c_flags", []() { return std::string(RRR_C_FLAGS); },
+            "Its flags for the generated dynamics.");
     mod.def("batch_max", []() { return kBatchMax; });
     mod.def(
       "batch_dynamics",

@@ -32,7 +32,8 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from ..control.references import Reference, study_reference
-from ..sim.batched import BATCH_MAX
+from ..sim.batched import BATCH_MAX, MAX_THREADS, thread_pool, warm
+from ..sim.engine_names import AUTO, CODEGEN
 from ..sim.simulation import reuse_preparation
 from ..validation import check_count
 from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
@@ -107,6 +108,9 @@ class CampaignJob:
     batch : int
         Plants per batched rollout (:func:`rrr_pin.campaign.runner.run_laws_batch`); changes
         no number, so it is not recorded.
+    threads : int
+        Threads of the batched engine in each worker (a batch per thread); changes no number,
+        so it is not recorded.
     """
 
     settings: Settings
@@ -115,6 +119,7 @@ class CampaignJob:
     nominal: object
     certificate: CertificateSpec | None = None
     batch: int = 16
+    threads: int = 1
 
     def rows(self, indices) -> list[dict]:
         """Simulate samples ``indices``, in order, and return their rows (:func:`run_chunk`).
@@ -125,10 +130,24 @@ class CampaignJob:
         """
         # One reference and one set of laws for every sample: sample the reference and
         # discretize the laws once per chunk (bit-identical to doing it per run).
+        indices = tuple(indices)
         with reuse_preparation():
-            made = [_sample(self, k) for k in indices]
-            runs = run_laws_batch([plant for _, plant in made], self.laws, self.reference,
-                                  self.settings.run, batch=self.batch)
+            if self.threads == 1:
+                made = [_sample(self, k) for k in indices]
+                runs = run_laws_batch([plant for _, plant in made], self.laws, self.reference,
+                                      self.settings.run, batch=self.batch, figures=True)
+            else:
+                # Threads: each batch of plants runs on the pool (its C++ loop without the
+                # GIL) while this thread draws the next batch's plants.
+                made, futures = [], []
+                pool = thread_pool(self.threads)
+                for s in range(0, len(indices), self.batch):
+                    group = [_sample(self, k) for k in indices[s:s + self.batch]]
+                    made += group
+                    futures.append(pool.submit(
+                        run_laws_batch, [plant for _, plant in group], self.laws,
+                        self.reference, self.settings.run, batch=self.batch, figures=True))
+                runs = [r for f in futures for r in f.result()]
             return [_row(self, k, parameters, plant, r)
                     for k, (parameters, plant), r in zip(indices, made, runs, strict=True)]
 
@@ -302,7 +321,7 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
                  reference: Reference | None = None, jobs: int | None = None,
                  scheduler: str | None = None, executor: Executor | None = None,
                  chunk: int | None = None, progress=None, store: CampaignStore | None = None,
-                 certificate=None, batch: int = 16) -> Campaign:
+                 certificate=None, batch: int = 16, threads: int = 1) -> Campaign:
     """Run every law on the nominal plant and ``settings.samples`` seeded uncertain plants.
 
     Parameters
@@ -329,6 +348,10 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
         Plants per batched rollout, 1 to 16 (:mod:`rrr_pin.sim.batched`, used under
         ``engine="auto"`` when the plant's structure has generated dynamics); rows are the same
         for every batch size, number of workers and chunk size.
+    threads : int, default 1
+        Threads of the batched engine in each worker process (one batch of plants per thread,
+        the GIL released), 1 to :data:`rrr_pin.sim.batched.MAX_THREADS`: one process
+        (``jobs=1``) can use every core; rows are the same for every thread count.
     progress : callable, optional
         ``progress(done, total)`` after each finished chunk (``total = samples + 1``, the
         nominal plant counted).
@@ -359,12 +382,17 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
     """
     laws, reference = check_campaign(nominal, laws, settings, reference=reference)
     batch = check_count("batch", batch, 1, BATCH_MAX)
+    threads = check_count("threads", threads, 1, MAX_THREADS)
+    if settings.run.engine in (AUTO, CODEGEN):
+        warm(nominal)  # a structure met for the first time is built once, before the workers
     job = CampaignJob(settings=settings, laws=tuple(laws), reference=reference,
-                      nominal=nominal, certificate=certificate, batch=batch)
+                      nominal=nominal, certificate=certificate, batch=batch, threads=threads)
     samples = int(settings.samples)
     rows = run_samples(job, [NOMINAL_INDEX, *range(samples)], total=samples + 1,
                        name=nominal.name, jobs=jobs, scheduler=scheduler, executor=executor,
-                       chunk=chunk, store=store, progress=progress, max_chunk=32)
+                       chunk=chunk, store=store, progress=progress,
+                       max_chunk=max(32, 4 * batch * threads),
+                       min_chunk=1 if threads == 1 else 4 * batch * threads)
     per_law = ("drift",) if any(f"{law.name}_drift" in r for r in rows for law in laws) else ()
     per_law += ("engine",)
     return Campaign(robot=nominal.name, joint_names=list(nominal.joint_names),
@@ -378,7 +406,7 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
 def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
                 scheduler: str | None = None, executor: Executor | None = None,
                 chunk: int | None = None, store: CampaignStore | None = None, progress=None,
-                max_chunk: int = 32) -> list[dict]:
+                max_chunk: int = 32, min_chunk: int = 1) -> list[dict]:
     """Run the samples ``indices`` of ``job`` in chunks on the executor; return every row.
 
     The machinery every campaign shares: chunks of samples (:class:`CampaignChunk`) go to
@@ -400,6 +428,8 @@ def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
         As in :func:`run_campaign`.
     max_chunk : int, default 32
         Largest default chunk (a chunk's cost should stay well below a second).
+    min_chunk : int, default 1
+        Smallest default chunk (a job's threads need a batch of plants each).
 
     Returns
     -------
@@ -411,7 +441,8 @@ def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
     # About 8 tasks per worker, at most max_chunk samples (32 for the RRR: two batches of 16,
     # ~0.5 s at 10 s, 1 kHz on the batched engine): a task costs ~3 ms of set-up, while the
     # last task of one worker leaves the other idle.
-    size = chunk or max(1, min(max_chunk, math.ceil(min(total, 10**6) / (8 * workers))))
+    size = chunk or max(min_chunk, min(max_chunk,
+                                       math.ceil(min(total, 10**6) / (8 * workers))))
     done = store.done() if store is not None else set()
     todo = (k for k in indices if k not in done)
     tasks = (CampaignChunk(job, block)

@@ -18,8 +18,6 @@ import logging
 import math
 from dataclasses import asdict, dataclass
 
-import numpy as np
-
 from ..control.catalog import BUILTIN_LAWS, make_law
 from ..control.effects import PlantEffects, check_effects
 from ..control.laws import check_law
@@ -136,7 +134,7 @@ class RunSettings:
 
 
 def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
-              lam_hinf: float = 45.0, torque_limit=None) -> list:
+              lam_hinf: float = 45.0, torque_limit=None, friction=None) -> list:
     """Build built-in laws by name, in the order given, from the registry ``catalog.LAWS``.
 
     Each name goes to :func:`rrr_pin.control.catalog.make_law`.
@@ -154,6 +152,9 @@ def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
         Bandwidths [rad/s] of ``"fl"`` and ``"hinf"``.
     torque_limit : float or array-like, shape (n,), optional
         Actuator limits [N m] of the laws that know them (``"hinf_aw"``); None: the URDF's.
+    friction : rrr_pin.control.friction.JointFriction, optional
+        Friction every law compensates (``fl``, ``hinf``, ``hinf_aw``; another law given it
+        is refused by name). None: no compensation.
 
     Raises
     ------
@@ -167,7 +168,7 @@ def make_laws(names, nominal, *, K=None, lam_fl: float = 100.0,
         raise ValueError(f"controllers: expected comma-separated names from "
                          f"{', '.join(BUILTIN_LAWS)}, got {names!r}")
     laws = [make_law(name, nominal, K=K, lam_fl=lam_fl, lam_hinf=lam_hinf,
-                     torque_limit=torque_limit) for name in names]
+                     torque_limit=torque_limit, friction=friction) for name in names]
     check_laws(laws, nominal.nq)
     for law in laws:
         logger.info("law %r built for %s: %s", law.name, nominal.name, law.label or law.name)
@@ -243,19 +244,23 @@ def failure_text(exc: Exception) -> str:
     return str(exc) if isinstance(exc, SimulationDiverged) else f"{type(exc).__name__}: {exc}"
 
 
-def run_laws_batch(plants, laws, reference, settings: RunSettings, *, batch: int = 16) -> list:
+def run_laws_batch(plants, laws, reference, settings: RunSettings, *, batch: int = 16,
+                   threads: int = 1, figures: bool = False) -> list:
     """Simulate every law on every plant, many plants per call where the engine allows.
 
     Each law runs on all ``plants`` through :func:`rrr_pin.sim.simulation.simulate_batch`:
     under ``engine="auto"`` on the batched generated dynamics when the plants' structure has
     them (:mod:`rrr_pin.sim.batched`), otherwise one plant at a time as :func:`run_laws`.
-    ``batch`` changes no number.
+    ``batch`` and ``threads`` (threads of the batched engine) change no number; with
+    ``figures`` a batched run comes back as its figures
+    (:class:`~rrr_pin.sim.trajectory.RunFigures`, for :func:`run_metrics`), not its
+    trajectory.
 
     Returns
     -------
     list of dict
-        Per plant, in order, as :func:`run_laws`: by law name, its Trajectory or the
-        SimulationDiverged it ended with.
+        Per plant, in order, as :func:`run_laws`: by law name, its Trajectory (or
+        RunFigures) or the SimulationDiverged it ended with.
     """
     plants = list(plants)
     out: list[dict] = [{} for _ in plants]
@@ -263,28 +268,26 @@ def run_laws_batch(plants, laws, reference, settings: RunSettings, *, batch: int
     with reuse_preparation():
         for law in laws:
             results = simulate_batch(plants, law, reference, settings.duration, batch=batch,
-                                     check=False, **kwargs)
+                                     threads=threads, figures=figures, check=False,
+                                     **kwargs)
             for row, result in zip(out, results, strict=True):
                 row[law.name] = result
     return out
 
 
 def run_metrics(traj: Trajectory, joint_names) -> dict:
-    """Scalar figures of a run.
+    """Scalar figures of a run: its ``figures(joint_names)``.
+
+    ``traj`` is a :class:`~rrr_pin.sim.trajectory.Trajectory` or the
+    :class:`~rrr_pin.sim.trajectory.RunFigures` of a run reduced without its time series
+    (:func:`run_laws_batch` with ``figures=True``); both give
+    :func:`rrr_pin.sim.trajectory.tracking_figures`:
 
     ``rms_error``, ``max_error`` [rad], ``rms_torque`` [N m] (over all joints and samples),
     ``drift`` [m] for a plant that records its loop drift (a closed chain,
     ``info["drift_m"]``) and ``rms_error_<joint>`` [rad] per joint.
     """
-    e, tau = traj.error, traj.tau
-    out = {"rms_error": float(np.sqrt(np.mean(e * e))),
-           "max_error": float(np.max(np.abs(e))),
-           "rms_torque": float(np.sqrt(np.mean(tau * tau)))}
-    if "drift_m" in traj.info:
-        out["drift"] = float(traj.info["drift_m"])
-    for name, v in zip(joint_names, np.sqrt(np.mean(e * e, axis=0)), strict=True):
-        out[f"rms_error_{name}"] = float(v)
-    return out
+    return traj.figures(joint_names)
 
 
 def ratio(num: float, den: float) -> float | None:

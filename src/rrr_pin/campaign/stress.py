@@ -568,7 +568,7 @@ def breaking_point(plant, law, reference, effect: str, settings: StressSettings 
         return passed
 
     default = {"delay": 5e-3, "actuator": 100.0, "stiffness": 1e3, "torque": 50.0,
-               "noise": 1e-3}[effect]
+               "noise": 1e-3, "viscous": 5.0, "coulomb": 5.0}[effect]
     def snap(x, up):
         """``x``, or for a delay the multiple of ``h`` (>= h) below it (above it if ``up``)."""
         if h is None:

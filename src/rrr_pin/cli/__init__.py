@@ -13,13 +13,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import analysis, campaign, descriptions, design, export, identify, reproduce, stress
+from . import analysis, campaign, descriptions, design, export, hil, identify, reproduce, stress
 from .common import logging_to_stderr, negative_values
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: The command modules, in the order of ``rrr-pin --help``.
-COMMANDS = (descriptions, design, reproduce, campaign, stress, identify, analysis, export)
+COMMANDS = (descriptions, design, reproduce, campaign, stress, identify, analysis, export, hil)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -58,12 +58,14 @@ def main(argv: list[str] | None = None) -> int:
             parser = build_parser()
             args = parser.parse_args(
                 negative_values(sys.argv[1:] if argv is None else list(argv)))
+            status = None
             try:
                 with logging_to_stderr(args.verbose):
-                    return int(args.func(args) or 0)
+                    status = int(args.func(args) or 0)
+                    return status
             finally:  # record the files written, also after an error or an interrupt
                 if getattr(args, "outputs", None) is not None:
-                    args.outputs.close()
+                    args.outputs.close(finished=status == 0)
     except (ValueError, FileNotFoundError, RuntimeError) as exc:
         print(f"rrr-pin {args.command}: error: {exc}", file=sys.stderr)
         return 2

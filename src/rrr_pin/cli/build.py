@@ -11,6 +11,7 @@ from __future__ import annotations
 from .common import as_options, floats, not_a_folder, option, parse_lock
 
 __all__ = ["load_plant", "reference_from_args", "settings_from_args", "tolerances_from_args",
+           "friction_spec", "compensation_from_args",
            "laws_from_args", "tuned_from_args", "design_record", "torque_limit_from_args",
            "with_torque_limit", "rejections_line",
            "frozen_configuration"]
@@ -54,12 +55,14 @@ def settings_from_args(args, n: int):
         if getattr(args, name) is not None:
             check_positive(option(name), getattr(args, name), allow_zero=name == "delay")
     effects = None
-    if args.delay or args.actuator_bandwidth is not None:
+    friction = friction_spec(getattr(args, "friction", None), n)
+    if args.delay or args.actuator_bandwidth is not None or friction:
         if args.rate is None:
-            raise ValueError("--delay and --actuator-bandwidth act on sampled controllers: "
-                             "give --rate HZ too")
+            raise ValueError("--delay, --actuator-bandwidth and --friction act on sampled "
+                             "controllers: give --rate HZ too")
         with as_options():
-            effects = PlantEffects(delay=args.delay or 0.0, bandwidth=args.actuator_bandwidth)
+            effects = PlantEffects(delay=args.delay or 0.0, bandwidth=args.actuator_bandwidth,
+                                   **friction)
     q0, qd0 = (None if text is None else tuple(check_vector(name, floats(text, name), n))
                for text, name in ((args.q0, "--q0"), (args.qd0, "--qd0")))
     with as_options():
@@ -68,31 +71,120 @@ def settings_from_args(args, n: int):
                            force=args.force)
 
 
+def friction_spec(text, n: int) -> dict:
+    """``--friction``'s :class:`~rrr_pin.control.effects.PlantEffects` fields ({} without it).
+
+    ``urdf`` -> ``viscous="urdf", coulomb="urdf"``; ``viscous=V,coulomb=C[,smooth=S]`` (each
+    key at most once, ``V`` and ``C`` one number or ``n`` separated by ``/``; a key left out
+    is 0) -> ``viscous, coulomb, coulomb_velocity``. Signs and counts are checked here, by name.
+    """
+    if text is None:
+        return {}
+    text = text.strip()
+    items = [s.strip() for s in text.split(",") if s.strip()]
+    keys = {"viscous": "viscous", "coulomb": "coulomb", "smooth": "coulomb_velocity"}
+    out = {}
+    if items and items[0] == "urdf":
+        out = {"viscous": "urdf", "coulomb": "urdf"}
+        items = items[1:]
+        if any(not s.startswith("smooth=") for s in items):
+            raise ValueError(f"--friction urdf takes smooth=S [rad/s] only, got {text!r}")
+    for item in items:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or key not in keys or keys[key] in out:
+            raise ValueError(f"--friction expects 'urdf' or viscous=V,coulomb=C[,smooth=S] "
+                             f"(each key once; V [N m s/rad], C [N m], S [rad/s]), got "
+                             f"{text!r}")
+        try:
+            vals = [float(v) for v in value.split("/")]
+        except ValueError:
+            raise ValueError(f"--friction {key}={value!r}: not a number (one, or one per "
+                             f"joint separated by '/')") from None
+        if key == "smooth":
+            if len(vals) != 1 or not vals[0] > 0.0:
+                raise ValueError(f"--friction smooth={value}: expected one speed > 0 [rad/s]")
+            out[keys[key]] = vals[0]
+            continue
+        if len(vals) not in (1, n):
+            raise ValueError(f"--friction {key}={value}: {len(vals)} values; give one, or "
+                             f"one per joint ({n})")
+        if not all(v >= 0.0 and v != float("inf") for v in vals):
+            raise ValueError(f"--friction {key}={value}: expected finite values >= 0 "
+                             f"(friction opposes the motion)")
+        out[keys[key]] = vals[0] if len(vals) == 1 else tuple(vals)
+    if "viscous" not in out and "coulomb" not in out:
+        raise ValueError(f"--friction {text!r}: give viscous=V and/or coulomb=C, or 'urdf'")
+    return out
+
+
+def compensation_from_args(args, nominal):
+    """``--compensate-friction``'s :class:`~rrr_pin.control.friction.JointFriction`, or None.
+
+    The friction of the laws' nominal model: ``--friction``'s values, or (``--friction urdf``
+    or no ``--friction``) the nominal URDF's ``<dynamics>``; all zero is refused by name.
+    """
+    if not getattr(args, "compensate_friction", False):
+        return None
+    from ..control.friction import DEFAULT_COULOMB_VELOCITY, JointFriction
+    from ..model.plant import JOINT_FRICTION
+
+    spec = friction_spec(getattr(args, "friction", None), nominal.nq)
+    veps = spec.get("coulomb_velocity", DEFAULT_COULOMB_VELOCITY)
+    if spec and spec.get("viscous") != "urdf":
+        f = JointFriction(spec.get("viscous", 0.0), spec.get("coulomb", 0.0), veps,
+                          source="--friction").check_joints(nominal.nq)
+    else:
+        if not nominal.has(JOINT_FRICTION):
+            raise ValueError(f"--compensate-friction: the nominal {nominal.name!r} has no "
+                             f"joint friction in its description; give --friction "
+                             f"viscous=V,coulomb=C")
+        fv, fc = nominal.joint_friction()
+        with as_options():
+            f = JointFriction(fv, fc, veps, source=f"URDF <dynamics> of {nominal.name!r}")
+    if not f.active:
+        raise ValueError(f"--compensate-friction: the friction of {f.source} is zero on every "
+                         f"joint; nothing to compensate (identify with --friction, or give "
+                         f"--friction viscous=V,coulomb=C)")
+    return f
+
+
 def tolerances_from_args(args, plant):
     """Return the paper's tolerances, or ``--uncertainty``'s identified distribution."""
     from ..model.uncertainty import Tolerances
 
     if args.uncertainty is None:
+        if args.confidence is not None:
+            raise ValueError(f"--confidence {args.confidence:g} applies to plants drawn from "
+                             f"an identification: give --uncertainty IDENTIFICATION.json too "
+                             f"(the paper's tolerances have no confidence region)")
         return Tolerances()
     from ..model.identification import IdentifiedUncertainty
 
     not_a_folder(uncertainty=args.uncertainty)
     with as_options():
-        tol = IdentifiedUncertainty(args.uncertainty, confidence=args.confidence)
+        tol = IdentifiedUncertainty(args.uncertainty, confidence=0.95 if args.confidence is None
+                                    else args.confidence,
+                                    draws=getattr(args, "uncertainty_draws", "reject"))
     tol.check_robot(plant)
     return tol
 
 
 def laws_from_args(args, plant, K=None, torque_limit=None, extra=()):
-    """Return the ``--controllers`` (plus ``extra`` names) on ``plant``, and the baseline."""
+    """Return the ``--controllers`` (plus ``extra`` names) on ``plant``, and the baseline.
+
+    With ``--compensate-friction``, the laws compensate :func:`compensation_from_args`.
+    """
     from ..campaign.runner import make_laws
 
     names = [s.strip() for s in args.controllers.split(",")]
     names += [name for name in extra if name not in names]
+    friction = compensation_from_args(args, plant)
     tuned = tuned_from_args(args, plant, names)
     with as_options():
-        laws = make_laws([n for n in names if n != "tuned"] or [], plant, K=K,
-                         torque_limit=torque_limit) if set(names) - {"tuned"} else []
+        laws = make_laws([n for n in names if n != "tuned"], plant, K=K,
+                         torque_limit=torque_limit, friction=friction) \
+            if set(names) - {"tuned"} else []
     if tuned is not None:
         laws.insert(names.index("tuned"), tuned)
     baseline = args.baseline or laws[0].name
@@ -167,9 +259,19 @@ def rejections_line(entries) -> str | None:
         return None
     outside = sum(d["outside_confidence"] for d in drawn)
     inconsistent = sum(d["inconsistent"] for d in drawn)
+    negative = sum(d.get("negative_friction", 0) for d in drawn)
+    if any("projected" in d for d in drawn):  # --uncertainty-draws project: moved, not redrawn
+        moved = [d["projected_mahalanobis"] for d in drawn if d["projected"]]
+        return (f"identified uncertainty: {len(drawn)} plants drawn; {outside} redrawn outside "
+                f"the confidence region; {len(moved)} moved to the nearest physically "
+                f"consistent arm" + (f" (by {min(moved):.3g} to {max(moved):.3g} standard "
+                                     f"deviations)" if moved else "")
+                + f"; {sum(d['friction_clipped'] for d in drawn)} with a negative friction "
+                  f"coefficient set to 0")
     return (f"identified uncertainty: {len(drawn)} plants drawn; rejected and redrawn: "
             f"{outside} outside the confidence region, {inconsistent} with no physically "
-            f"consistent arm")
+            f"consistent arm" + (f", {negative} with negative friction" if any(
+                "negative_friction" in d for d in drawn) else ""))
 
 
 def frozen_configuration(args, plant):
@@ -181,4 +283,11 @@ def frozen_configuration(args, plant):
     home = floats(args.home, "--home")
     if home is None:
         return np.clip(plant.neutral(), plant.lower, plant.upper)
-    return check_vector("--home", home, plant.nq)
+    home = check_vector("--home", home, plant.nq)
+    lower, upper = np.asarray(plant.lower), np.asarray(plant.upper)
+    out = np.flatnonzero((home < lower) | (home > upper))
+    if out.size:
+        j = int(out[0])
+        raise ValueError(f"--home {args.home}: {plant.joint_names[j]} = {home[j]:g} is outside "
+                         f"its joint limits [{lower[j]:.4g}, {upper[j]:.4g}] [rad or m]")
+    return home

@@ -31,6 +31,10 @@ def add(sub) -> None:
     add_plant_arguments(p)
     add_law_arguments(p, 10.0, 1000.0)
     p.add_argument("--samples", type=int, required=True, help="number of uncertain plants")
+    p.add_argument("--threads", type=int, default=1,
+                   help="threads of the batched engine in each worker process (default 1): "
+                        "--jobs 1 --threads 2 uses two cores in one process; rows are "
+                        "identical whatever --threads")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="Dask distributed scheduler address (e.g. tcp://10.0.0.5:8786); the "
                         "same tasks run on that cluster")
@@ -69,9 +73,11 @@ def run_montecarlo(args) -> int:
     )
     from ..outputs import check_writable
     from ..report.campaign import summary_lines, write_campaign, write_campaign_report
+    from ..sim.batched import MAX_THREADS
     from ..validation import check_count
 
     check_count("--samples", args.samples, 1)
+    check_count("--threads", args.threads, 1, MAX_THREADS)
     check_writable(args.out)
     args.write_hint = (f"; the samples finished so far are kept in {args.out}/parts.jsonl: "
                        "free space, then rerun with --resume")
@@ -107,7 +113,8 @@ def run_montecarlo(args) -> int:
             campaign = run_campaign(plant, laws, settings, reference=reference, jobs=args.jobs,
                                     scheduler=args.scheduler,
                                     progress=lambda d, total: bar.update(d - bar.n),
-                                    store=store, certificate=certificate)
+                                    store=store, certificate=certificate,
+                                    threads=args.threads)
         except CampaignInterrupted as exc:
             bar.close()
             print(f"rrr-pin montecarlo: {exc}", file=sys.stderr)

@@ -36,8 +36,12 @@ def add(sub) -> None:
     p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
                    help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
                         "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
-    p.add_argument("--data", metavar="FILE.csv", default=None,
-                   help="measurements (required unless --design-excitation)")
+    p.add_argument("--data", metavar="FILE.csv|DIR", nargs="+", default=None,
+                   help="measurements (required unless --design-excitation): a CSV, or a "
+                        "folder of per-quantity text files (time.txt, positions.txt, "
+                        "velocity.txt, torques.txt: one number per line, nq per sample, as "
+                        "Gaz et al.'s Panda logs); several runs: several, each filtered on "
+                        "its own, fitted together")
     p.add_argument("--friction", action="store_true",
                    help="identify each joint's viscous and Coulomb friction and torque offset "
                         "with the base parameters (written into identification.json and the "
@@ -46,6 +50,10 @@ def add(sub) -> None:
                    help="plausibility bound of the consistent arm: every body's mass within "
                         "[m0/F, F m0] of --robot's (default: pseudo-inertia positive definite "
                         "only)")
+    p.add_argument("--inertia-band", type=float, default=None, metavar="F",
+                   help="plausibility bound of the consistent arm: every body's pseudo-inertia "
+                        "(mass, first and second moments) between J0/F and F J0 of --robot's, "
+                        "in every direction (default: none)")
     p.add_argument("--keep-inconsistent", action="store_true",
                    help="keep the nearest consistent arm, with a warning, when it lies outside "
                         "the estimate's 99.9%% region (real logs, whose model error the noise "
@@ -85,7 +93,7 @@ def run_identify(args) -> int:
     from ..model.plant import URDF
     from ..outputs import writing
 
-    not_a_folder(robot=args.robot, data=args.data)
+    not_a_folder(robot=args.robot)
     if args.model is not None:
         return _predict(args)
     from ..model.excitation import MAX_HARMONICS
@@ -96,9 +104,11 @@ def run_identify(args) -> int:
         if v < lo or (hi is not None and v > hi):
             raise ValueError(f"--{name} must be an integer >= {lo}"
                              + (f" and <= {hi}" if hi else "") + f", got {v!r}")
-    if args.mass_band is not None and not (math.isfinite(args.mass_band)
-                                           and args.mass_band > 1.0):
-        raise ValueError(f"--mass-band must be a finite factor > 1, got {args.mass_band!r}")
+    for name in ("mass_band", "inertia_band"):
+        v = getattr(args, name)
+        if v is not None and not (math.isfinite(v) and v > 1.0):
+            raise ValueError(f"--{name.replace('_', '-')} must be a finite factor > 1, got "
+                             f"{v!r}")
     for name in ("frequency", "csv_rate", "max_acceleration"):
         v = getattr(args, name)
         if not (math.isfinite(v) and v > 0.0):
@@ -139,13 +149,14 @@ def run_identify(args) -> int:
         return 0
     import warnings
 
-    from ..model.identification import identify, read_measurements
+    from ..model.identification import identify
 
     with as_options(), warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        data = read_measurements(args.data, robot, window=args.window)
+        data = [_read(path, robot, args.window) for path in args.data]
         result = identify(robot, data, method=args.method, held_out=args.held_out,
                           friction=args.friction, mass_band=args.mass_band,
+                          inertia_band=args.inertia_band,
                           refuse_inconsistent=not args.keep_inconsistent)
     for w in caught:  # the model-error and consistency warnings, said once, without a path
         print(f"warning: {w.message}")
@@ -180,11 +191,11 @@ def _predict(args) -> int:
     import numpy as np
 
     from ..model.dynamics import robot_from_xml
-    from ..model.identification import IdentificationError, predict_torques, read_measurements
+    from ..model.identification import IdentificationError, predict_torques
     from ..outputs import writing
 
-    if args.data is None:
-        raise ValueError("--model DIR predicts --data FILE.csv: give --data")
+    if args.data is None or len(args.data) != 1:
+        raise ValueError("--model DIR predicts one --data FILE.csv: give one file")
     if args.design_excitation or args.friction:
         raise ValueError("--model DIR predicts with DIR's model: --design-excitation and "
                          "--friction are not read with it")
@@ -201,7 +212,7 @@ def _predict(args) -> int:
                            gravity=rec["gravity_m_s2"], label=f"--model {args.model}",
                            **({"lock": lock} if lock else {}))
     with as_options():
-        data = read_measurements(args.data, robot, window=args.window)
+        data = _read(args.data[0], robot, args.window)
     pred = predict_torques(robot, data, rec.get("friction"))
     from ..model.identification import filter_like, r_squared
 
@@ -228,3 +239,14 @@ def _predict(args) -> int:
     print("R^2: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["r2"].items()))
     print(f"wrote {csv_path} and {js}")
     return 0
+
+
+def _read(path, robot, window):
+    """Read a run of ``--data``: a CSV, or a folder of per-quantity text files (a split log)."""
+    from pathlib import Path
+
+    from ..model.identification import read_measurements, read_split_log
+
+    if Path(path).is_dir():
+        return read_split_log(path, robot, window=window)
+    return read_measurements(path, robot, window=window)

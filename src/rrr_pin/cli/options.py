@@ -89,14 +89,32 @@ def add_law_arguments(p, default_duration: float, default_rate) -> None:
                    help="draw the uncertain plants from an identification (rrr-pin identify) "
                         "instead of the paper's 20 %% inertia / 5 %% length tolerances; use "
                         "--robot DIR/identified.urdf as the nominal")
-    p.add_argument("--confidence", type=float, default=0.95,
-                   help="with --uncertainty: confidence region the plants are drawn in (0.95)")
+    p.add_argument("--confidence", type=float, default=None,
+                   help="with --uncertainty only: confidence region the plants are drawn in "
+                        "(0.95)")
+    p.add_argument("--uncertainty-draws", choices=("reject", "project"), default="reject",
+                   help="with --uncertainty: a draw with no physically consistent arm is "
+                        "rejected and redrawn (reject, default), or moved to the nearest "
+                        "consistent arm, its distance recorded (project: for an estimate "
+                        "outside the consistent set, identify --keep-inconsistent)")
     p.add_argument("--delay", type=float, default=None, metavar="S",
                    help="plant effect: actuator transport delay [s] (sampled controllers; "
                         "a whole number of plant sub-steps --dt, others are refused)")
     p.add_argument("--actuator-bandwidth", type=float, default=None, metavar="RAD_S",
                    help="plant effect: first-order actuator wa/(s + wa), wa [rad/s] "
                         "(sampled controllers)")
+    p.add_argument("--friction", metavar="urdf|viscous=V,coulomb=C[,smooth=S]", default=None,
+                   help="plant effect: joint friction Fv qd + Fc tanh(qd / S) opposing the "
+                        "motion (sampled controllers): 'urdf[,smooth=S]' = each plant's URDF "
+                        "<dynamics damping friction> (an identified URDF's; with --uncertainty, "
+                        "each drawn plant's); or Fv [N m s/rad], Fc [N m] and S [rad/s] "
+                        "(0.01), one value for every joint or one per joint separated by '/', e.g. "
+                        "viscous=0.5/0.5/0.2,coulomb=1")
+    p.add_argument("--compensate-friction", action="store_true",
+                   help="the laws fl, hinf and hinf_aw add the friction of their nominal model "
+                        "to their torque (that of --friction, or with --friction urdf or "
+                        "without it the nominal URDF's <dynamics>); recorded in results.json "
+                        "(laws.<name>.friction_compensation)")
     p.add_argument("--jobs", type=int, default=None,
                    help="worker processes (default: min(2, CPUs))")
     add_force_argument(p)

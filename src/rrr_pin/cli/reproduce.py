@@ -48,10 +48,10 @@ def add(sub) -> None:
     p.add_argument("--out", default="results", metavar="DIR", help="output folder (results/)")
     add_overwrite(p)
     p.add_argument("--save-trajectories", nargs="?", const="npz", default=None,
-                   choices=("npz", "csv", "parquet"), metavar="FORMAT",
+                   choices=("npz", "csv", "parquet", "mat"), metavar="FORMAT",
                    help="also write every run's time series (t, q, qd, r, tau with units) as "
                         "DIR/trajectories/<nominal|sampleNNN>_<controller>.FORMAT; FORMAT npz "
-                        "(default), csv or parquet; read with Trajectory.load")
+                        "(default), csv, parquet or mat (MATLAB); read with Trajectory.load")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run_reproduce)
 

@@ -6,7 +6,9 @@ registry of built-in laws by name, importable without numerical libraries),
 :mod:`~rrr_pin.control.references` (the ``Reference`` protocol and the built-in references),
 :mod:`~rrr_pin.control.paths` (task-space paths placed from the start),
 :mod:`~rrr_pin.control.specs` (a built-in reference named by kind and options),
-:mod:`~rrr_pin.control.effects` (``PlantEffects``) and :mod:`~rrr_pin.control.analysis`
+:mod:`~rrr_pin.control.effects` (``PlantEffects``),
+:mod:`~rrr_pin.control.friction` (``JointFriction``: the friction a plant effect applies and a
+law compensates) and :mod:`~rrr_pin.control.analysis`
 (``loop_at_input``, its margins, and the real-parametric robust stability of the
 feedback-linearized loop at frozen configurations), :mod:`~rrr_pin.control.structures` (the
 tunable structures of the FL law) and :mod:`~rrr_pin.control.sampled_loops` (the digital FL

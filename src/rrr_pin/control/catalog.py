@@ -12,20 +12,31 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import NamedTuple
 
-__all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "make_law", "StressEffect", "EFFECTS",
-           "DEFAULT_BUDGET", "REFERENCES"]
+__all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "FRICTION_LAWS", "make_law", "StressEffect",
+           "EFFECTS", "DEFAULT_BUDGET", "REFERENCES"]
+
+
+#: The built-in laws that can compensate joint friction (``friction=``).
+FRICTION_LAWS = ("fl", "hinf", "hinf_aw")
+
+
+def _no_friction(name: str, friction) -> None:
+    """Refuse friction compensation for a law that does not implement it, by name."""
+    if friction is not None:
+        raise ValueError(f"controller {name!r} does not compensate friction; friction "
+                         f"compensation applies to {', '.join(FRICTION_LAWS)}")
 
 
 def _fl(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
-        torque_limit=None):
-    """Feedback linearization alone at ``lam_fl`` [rad/s] (the other options unused)."""
+        torque_limit=None, friction=None):
+    """Feedback linearization alone at ``lam_fl`` [rad/s], compensating ``friction`` if given."""
     from .laws import fl_controller
 
-    return fl_controller(nominal, lam_fl)
+    return fl_controller(nominal, lam_fl, friction=friction)
 
 
 def _hinf(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
-          torque_limit=None):
+          torque_limit=None, friction=None):
     """H-infinity + FL at ``lam_hinf`` [rad/s]; ``K`` default: the paper's design for ``nq``."""
     from .laws import hinf_fl_controller
 
@@ -33,11 +44,11 @@ def _hinf(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
         from ..robust.loopshaping import design
 
         K = design(lam=lam_hinf, n=nominal.nq).K_reduced
-    return hinf_fl_controller(nominal, K, lam_hinf)
+    return hinf_fl_controller(nominal, K, lam_hinf, friction=friction)
 
 
 def _hinf_aw(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
-             torque_limit=None):
+             torque_limit=None, friction=None):
     """``_hinf``'s law told ``torque_limit`` [N m] (None: the URDF's), ``K`` self-conditioned.
 
     A plant without effort limits in its description (a closed chain's MJCF) needs
@@ -50,22 +61,25 @@ def _hinf_aw(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
 
         K = design(lam=lam_hinf, n=nominal.nq).K_reduced
     return hinf_aw_controller(nominal, K, lam_hinf,
-                              torque_limit="urdf" if torque_limit is None else torque_limit)
+                              torque_limit="urdf" if torque_limit is None else torque_limit,
+                              friction=friction)
 
 
 def _pd(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
-        torque_limit=None):
+        torque_limit=None, friction=None):
     """PD + gravity with the default gains (the options are unused)."""
     from .laws import pd_controller
 
+    _no_friction("pd", friction)
     return pd_controller(nominal)
 
 
 def _hinf2dof(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
-              torque_limit=None):
+              torque_limit=None, friction=None):
     """2-DOF H-infinity + FL at ``lam_hinf`` [rad/s], its own design (other options unused)."""
     from .laws import hinf_2dof_controller
 
+    _no_friction("hinf2dof", friction)
     return hinf_2dof_controller(nominal, lam_hinf)
 
 
@@ -106,7 +120,9 @@ BUILTIN_LAWS = {name: law.description for name, law in LAWS.items()}
 def make_law(name: str, nominal, **options):
     """Build the built-in law ``name`` on ``nominal``, any plant (a serial arm, a closed chain).
 
-    Options: ``K``, ``lam_fl``, ``lam_hinf``, ``torque_limit`` (:class:`BuiltinLaw`).
+    Options: ``K``, ``lam_fl``, ``lam_hinf``, ``torque_limit``, ``friction`` (the
+    :class:`~rrr_pin.control.friction.JointFriction` compensated; only the laws of
+    :data:`FRICTION_LAWS`, the others refuse it by name) (:class:`BuiltinLaw`).
 
     Raises
     ------
@@ -155,6 +171,10 @@ EFFECTS = {
     "noise": StressEffect("rad", "up", "std of the Gaussian noise on q (and 100x on qd, in rad/s)",
                           lambda size, seed: {"noise_q": size, "noise_qd": 100.0 * size,
                                               "seed": seed}),
+    "viscous": StressEffect("N m s/rad", "up", "viscous joint friction Fv, every joint",
+                            lambda size, seed: {"viscous": size}),
+    "coulomb": StressEffect("N m", "up", "Coulomb joint friction Fc tanh(qd / 0.01 rad/s), "
+                            "every joint", lambda size, seed: {"coulomb": size}),
 }
 
 #: RMS tracking error [rad] above which a stress run counts as broken.

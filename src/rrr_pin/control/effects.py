@@ -56,7 +56,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..model.plant import EFFORT_LIMITS
+from ..model.plant import EFFORT_LIMITS, JOINT_FRICTION
 from ..validation import FieldError, check_multiple
 from .references import checked_sample
 
@@ -92,10 +92,13 @@ class PlantEffects:
     bandwidth : float, optional
         First-order actuator bandwidth ``wa`` [rad/s] > 0: applied = ``wa/(s + wa)`` times the
         commanded torque. None: ideal actuator.
-    viscous : float or sequence, shape (n,), default 0
-        Viscous friction ``Fv`` [N m s/rad] >= 0 per joint.
-    coulomb : float or sequence, shape (n,), default 0
-        Coulomb friction level ``Fc`` [N m] >= 0 per joint (smooth: ``Fc tanh(qd / v_eps)``).
+    viscous : "urdf", float or sequence, shape (n,), default 0
+        Viscous friction ``Fv`` [N m s/rad] >= 0 per joint; ``"urdf"``: each plant's own
+        (its URDF's ``<dynamics damping>``, :meth:`rrr_pin.model.plant.Plant.joint_friction`:
+        an identified URDF's, or a plant drawn from an identification's).
+    coulomb : "urdf", float or sequence, shape (n,), default 0
+        Coulomb friction level ``Fc`` [N m] >= 0 per joint (smooth: ``Fc tanh(qd / v_eps)``);
+        ``"urdf"``: each plant's ``<dynamics friction>`` (``viscous`` must be ``"urdf"`` too).
     coulomb_velocity : float, default 0.01
         Smoothing speed ``v_eps`` [rad/s] > 0 of the Coulomb friction.
     torque_limit : "urdf", float or sequence, shape (n,), optional
@@ -151,7 +154,7 @@ class PlantEffects:
         }
         for key, (low, zero_ok, unit) in specs.items():
             v = getattr(self, key)
-            if v is None or (key == "torque_limit" and v == "urdf"):
+            if v is None or (key in ("torque_limit", "viscous", "coulomb") and v == "urdf"):
                 continue
             if isinstance(v, str) or isinstance(v, bool):
                 errors.append(f"{key} = {v!r}: expected a number [{unit}]")
@@ -162,6 +165,9 @@ class PlantEffects:
             if not ok:
                 want = ">= 0" if zero_ok else "> 0"
                 errors.append(f"{key} = {v!r}: expected finite {want} [{unit}]")
+        if (self.viscous == "urdf") != (self.coulomb == "urdf"):
+            errors.append(f"viscous = {self.viscous!r}, coulomb = {self.coulomb!r}: the "
+                          f"plant's own friction ('urdf') is both coefficients or neither")
         c = self.encoder_counts
         if c is not None and (isinstance(c, bool) or not isinstance(c, (int, np.integer))
                               or c < 1):
@@ -181,7 +187,9 @@ class PlantEffects:
 
     @property
     def friction(self) -> bool:
-        """Whether any friction coefficient is nonzero."""
+        """Whether any friction coefficient is nonzero, or read from each plant (``"urdf"``)."""
+        if self.viscous == "urdf":
+            return True
         return any(np.any(np.asarray(v) > 0) for v in (self.viscous, self.coulomb))
 
     @property
@@ -264,15 +272,43 @@ class PlantEffects:
                                    f"sqrt(K/B) h < 2.5): lower dt")
         Fv = Fc = None
         veps = 1.0
-        if self.friction:
+        if self.viscous == "urdf":
+            if not plant.has(JOINT_FRICTION):
+                raise EffectsError(f"friction 'urdf': {plant.describe_kind()} {plant.name!r} "
+                                   f"has no joint friction in its description; give the "
+                                   f"coefficients per joint ({', '.join(plant.joint_names)})")
+            Fv, Fc = plant.joint_friction()
+            bad = [f"{j}: viscous {v:g}, coulomb {c:g}" for j, v, c in
+                   zip(plant.joint_names, Fv, Fc, strict=True) if not (v >= 0.0 and c >= 0.0)]
+            if bad:
+                raise EffectsError(f"friction 'urdf' of {plant.name!r}: negative coefficients "
+                                   f"({'; '.join(bad)}); friction opposes the motion")
+            veps = float(self.coulomb_velocity)
+        elif self.friction:
             Fv, Fc = vec("viscous", self.viscous), vec("coulomb", self.coulomb)
             veps = float(self.coulomb_velocity)
+        if Fv is not None and np.any(Fv > 0):
+            # Viscous friction is a damper Fv on the joint's inertia: RK4's stability on the
+            # negative real axis needs h times the fastest rate of M(q)^-1 diag(Fv) below 2.5
+            # (checked at the neutral configuration). The smooth Coulomb term is as stiff only
+            # for |qd| < v_eps and bounded beyond: a chatter of that size, not a blow-up.
+            M = plant.terms(np.clip(plant.neutral(), plant.lower, plant.upper),
+                            np.zeros(n))[0]
+            rate = float(np.max(np.abs(np.linalg.eigvals(np.linalg.solve(M, np.diag(Fv))))))
+            if rate * h > 2.5:
+                raise EffectsError(
+                    f"viscous friction damps {plant.name!r} at {rate:.4g} 1/s (M^-1 Fv at the "
+                    f"neutral configuration), too fast for the plant sub-step h = {h:g} s "
+                    f"(RK4 needs rate h < 2.5): lower dt below {2.5 / rate:.3g} s")
         rng = np.random.default_rng(self.seed)
         sq, sqd = vec("noise_q", self.noise_q), vec("noise_qd", self.noise_qd)
         nq = rng.standard_normal((n_steps, n)) * sq if np.any(sq > 0) else None
         nqd = rng.standard_normal((n_steps, n)) * sqd if np.any(sqd > 0) else None
         quantum = 2.0 * math.pi / self.encoder_counts if self.encoder_counts else 0.0
         info = {**self.to_dict(), "delay_s": d * h, "delay_substeps": d}
+        if self.viscous == "urdf":  # the values this plant's description gave
+            info.update(viscous_Nms=Fv.tolist(), coulomb_Nm=Fc.tolist(),
+                        friction_source=f"URDF <dynamics> of {plant.name!r}")
         return Resolved(delay_steps=d, wa=wa, limit=limit, Fv=Fv, Fc=Fc, veps=veps, noise_q=nq,
                         noise_qd=nqd, quantum=quantum, Bm=Bm, Kf=Kf, Df=Df, info=info)
 

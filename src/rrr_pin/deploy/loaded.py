@@ -10,7 +10,6 @@ the loop, against the plant it is given (nominal or uncertain), on the Python en
 from __future__ import annotations
 
 import ctypes
-import json
 import shutil
 import subprocess
 import sys
@@ -19,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..control.laws import SampledLaw
-from .writer import FORMAT
+from .writer import read_record
 
 __all__ = ["ExportedLaw", "exported_law", "build", "library_name"]
 
@@ -105,15 +104,7 @@ class ExportedLaw(SampledLaw):
 
     def __init__(self, folder, library=None):
         self.folder = Path(folder)
-        path = self.folder / "controller.json"
-        if not path.is_file():
-            raise FileNotFoundError(f"{self.folder} holds no controller.json: not a folder "
-                                    f"written by rrr_pin.export")
-        record = json.loads(path.read_text())
-        if record.get("format") != FORMAT:
-            raise ValueError(f"{path} is not a {FORMAT!r} record (format = "
-                             f"{record.get('format')!r})")
-        self.record = record
+        self.record = record = read_record(self.folder)
         self.library = (Path(library) if library is not None
                         else self.folder / "build" / library_name())
         if not self.library.is_file():
@@ -129,6 +120,7 @@ class ExportedLaw(SampledLaw):
         self.label = f"{record['law']['label']} (exported C)"
         self.n, self.nx, self.rate = int(record["nq"]), int(record["nx"]), float(record["rate_hz"])
         self._size = max(self.nx, 1)
+        self._step_dt = None  # ctrl_step_dt, bound at its first use
         # ctrl_reset: the initial state, and Pinocchio's workspace for this thread
         s = np.zeros(self._size)
         self._lib.ctrl_reset.argtypes = [_DOUBLES]
@@ -150,6 +142,24 @@ class ExportedLaw(SampledLaw):
         if rc == 1:  # CTRL_EINPUT: nothing computed
             tau[:] = np.nan
         return tau, s[:self.nx].copy()
+
+    def step_dt(self, q, qd, r, rd, rdd, x, dt: float):
+        """One ``ctrl_step_dt`` over a period of ``dt`` [s]: ``(tau, x_next, rc)``.
+
+        ``rc`` is its return code (0 ``CTRL_OK``, 3 ``CTRL_EPERIOD``: nothing written, ``tau``
+        NaN and ``x_next`` the state given).
+        """
+        if self._step_dt is None:
+            self._step_dt = self._lib.ctrl_step_dt
+            self._step_dt.restype = ctypes.c_int
+            self._step_dt.argtypes = [_DOUBLES] * 7 + [ctypes.c_double]
+        s = np.zeros(self._size)
+        s[:self.nx] = x
+        tau = np.full(self.n, np.nan)
+        args = [np.ascontiguousarray(v, dtype=float) for v in (q, qd, r, rd, rdd)]
+        rc = self._step_dt(s.ctypes.data_as(_DOUBLES), *(a.ctypes.data_as(_DOUBLES) for a in args),
+                           tau.ctypes.data_as(_DOUBLES), float(dt))
+        return tau, s[:self.nx].copy(), int(rc)
 
     def __reduce__(self):
         return (ExportedLaw, (self.folder, self.library))

@@ -11,13 +11,15 @@ twin of the exported code, the :class:`~rrr_pin.control.laws.SampledLaw` it repr
 The folder (:data:`FILES`): ``controller.h``, ``controller.c`` (the law, C99), ``dynamics.h``
 and ``dynamics.c`` + ``codegen_rrr.c`` (the nominal RRR's generated dynamics) or
 ``dynamics.cpp`` (Pinocchio C++ on the embedded model), ``CMakeLists.txt``, ``main.c``,
-``ros2_controller.hpp`` + ``ros2_mock.hpp`` and ``controller.json``.
+and ``controller.json``; with ``rrr-pin export --ros2``, a ros2_control package in ``ros2/``
+(:mod:`rrr_pin.deploy.ros2`).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +31,7 @@ from ..control.laws import (
     DiscreteTrackingController,
     FLAWForm,
     FLForm,
+    FLFrictionForm,
     PDForm,
     SampledLaw,
     TrackingController,
@@ -37,20 +40,41 @@ from ..control.laws import (
 from ..outputs import OutputDir, writing
 from ..sim.codegen import fingerprint
 from ..validation import FieldError, check_positive, check_rate
-from . import sources
+from . import period, sources
 
 __all__ = ["Export", "ExportError", "export", "prepare_export", "check_exportable", "FILES",
-           "FORMAT",
+           "FORMAT", "read_record",
            "EXPRESSIBLE_JOINTS", "generated_rrr_source"]
 
 #: ``controller.json``'s format name; its version is ``VERSION``.
 FORMAT = "rrr-pin-controller"
 VERSION = 1
 
+def read_record(folder) -> dict:
+    """Return the ``controller.json`` of an exported folder, its format checked.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``folder`` holds no ``controller.json``.
+    ValueError
+        The record is not of :data:`FORMAT`.
+    """
+    folder = Path(folder)
+    path = folder / "controller.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{folder} holds no controller.json: not a folder written by "
+                                f"rrr-pin export (rrr_pin.export)")
+    record = json.loads(path.read_text())
+    if record.get("format") != FORMAT:
+        raise ValueError(f"{path} is not a {FORMAT!r} record (format = "
+                         f"{record.get('format')!r})")
+    return record
+
+
 #: Every file an export may write (the dynamics files depend on the model).
 FILES = ("controller.h", "controller.c", "dynamics.h", "dynamics.c", "codegen_rrr.c",
-         "dynamics.cpp", "CMakeLists.txt", "main.c", "ros2_controller.hpp", "ros2_mock.hpp",
-         "controller.json")
+         "dynamics.cpp", "CMakeLists.txt", "main.c", "controller.json")
 
 #: Pinocchio joint types the C API (one ``q`` and one ``qd`` per joint) expresses.
 EXPRESSIBLE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ",
@@ -60,10 +84,12 @@ EXPRESSIBLE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ",
 #: What a law must declare to be exported (the refusal's text).
 EXPORTABLE = ("an exportable law must declare, by compiled_form(), an FLForm (lam and the "
               "discrete A, B, C, D of its K), an FLAWForm (the same with the anti-windup gain "
-              "L and the torque limits) or a PDForm (Kp, Kd) that reproduces it exactly, "
+              "L and the torque limits), an FLFrictionForm (an FLForm with friction "
+              "compensation) or a PDForm (Kp, Kd) that reproduces it exactly, "
               "for its own class: the built-in laws fl, hinf, hinf_aw and pd do "
               "(fl_controller, hinf_fl_controller, hinf_aw_controller, pd_controller, and "
-              "their sampled versions); hinf2dof, a subclass or a law of your own does not")
+              "their sampled versions; fl and hinf with friction compensation too); hinf_aw "
+              "with friction compensation, hinf2dof, a subclass or a law of your own does not")
 
 
 class ExportError(ValueError):
@@ -88,6 +114,10 @@ class Export:
         File name -> text, in :data:`FILES` order.
     record : dict
         The content of ``controller.json``.
+    continuous : tuple or None
+        ``K``'s continuous ``(A, B, C, D)`` that ``ctrl_step_dt`` discretizes at each measured
+        period (None: a law without ``K``, a discrete ``K`` as given, or a method other than
+        those of :data:`rrr_pin.deploy.period.GBT_ALPHA`).
     """
 
     law: object
@@ -96,6 +126,7 @@ class Export:
     dynamics: str
     files: dict = field(repr=False)
     record: dict = field(repr=False)
+    continuous: tuple | None = field(default=None, repr=False, compare=False)
 
     def write(self, folder) -> list[Path]:
         """Write the files into ``folder`` (which must exist); return their paths."""
@@ -166,7 +197,8 @@ def _discretize(law: TrackingController, rate: float, method: str, prewarp):
     A = np.asarray(Kd.A, dtype=float)
     if A.size:
         _check_stable_after(law, A, rate, method)
-    return DiscreteTrackingController(law.nominal, law.lam, Kd, name=law.name, label=law.label)
+    return DiscreteTrackingController(law.nominal, law.lam, Kd, name=law.name, label=law.label,
+                                      friction=law.friction)
 
 
 def _twin(law, rate, method: str, prewarp):
@@ -198,6 +230,16 @@ def _twin(law, rate, method: str, prewarp):
     return twin, rate
 
 
+def _continuous_k(law, method: str):
+    """K's continuous ``(A, B, C, D)`` when ``ctrl_step_dt`` can discretize it per period."""
+    if isinstance(law, SampledLaw) or method not in period.GBT_ALPHA or not law.nx:
+        return None
+    form = law.compiled_form()  # TrackingController, AntiWindupTracking: K continuous
+    if type(form) not in (FLForm, FLAWForm):
+        return None
+    return tuple(np.asarray(M, dtype=float) for M in (form.A, form.B, form.C, form.D))
+
+
 def _check_stable_after(law, A, rate: float, method: str) -> None:
     """Refuse a K that ``method`` at ``rate`` made unstable (``A`` its discrete matrix)."""
     rho = float(np.max(np.abs(np.linalg.eigvals(A))))
@@ -219,6 +261,27 @@ def _design_record(design) -> dict | None:
                                  "margin_db": float(design.robust_stability.margin_db)},
             "robust_performance": {"ok": bool(design.robust_performance.ok),
                                    "margin_db": float(design.robust_performance.margin_db)}}
+
+
+def _model_parameters(robot, compensated: bool) -> dict:
+    """Return the inertial parameters the exported dynamics carry (an identified model's too).
+
+    Per joint, the 10 parameters of its body in Pinocchio's ``toDynamicParameters`` order
+    (``m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz``, about the joint frame, SI),
+    and the model's armature, damping and friction. The law compensates ``M(q)`` (armature
+    included) and ``h(q, qd)``; the URDF's damping and friction are recorded, and compensated
+    only by a law exported with friction compensation (``compensated``; its values are
+    ``law.friction_compensation``'s, which may come from elsewhere than the URDF).
+    """
+    model = robot.model
+    return {"parameters": {
+        "layout": "per joint: m, m*c_x, m*c_y, m*c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz "
+                  "(about the joint frame) [kg, kg m, kg m^2]",
+        "values": [model.inertias[i].toDynamicParameters().tolist()
+                   for i in range(1, model.njoints)],
+        "armature": model.armature.tolist(), "damping": model.damping.tolist(),
+        "friction": model.friction.tolist(),
+        "friction_compensated": bool(compensated)}}
 
 
 #: Why an export needs a URDF-described serial tree (the refusal's reason).
@@ -271,7 +334,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     fp = fingerprint(robot.model)
     twin, rate = _twin(law, rate, method, prewarp)
     form = twin.compiled_form()
-    if type(form) not in (FLForm, FLAWForm, PDForm):
+    if type(form) not in (FLForm, FLFrictionForm, FLAWForm, PDForm):
         raise ExportError(f"law {law.name!r} ({type(law).__name__}) cannot be exported: "
                           f"{EXPORTABLE}")
     law_fp = fingerprint(form.nominal.model)
@@ -295,13 +358,18 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     from .. import __version__
 
     n, nx = robot.nq, twin.nx
+    continuous = _continuous_k(law, method)
+    k_method = None if isinstance(law, SampledLaw) else method  # None: K discrete as given
+    step_dt = period.step_dt_text(form, continuous, method=k_method, prewarp=prewarp)
     where = ("generated plain C of the nominal RRR (codegen_rrr.c)" if use_generated
              else "Pinocchio C++ on the embedded model (dynamics.cpp)")
     files = {
         "controller.h": sources.controller_h(n=n, nx=nx, rate=rate, law=twin.name,
                                              kind=form.kind, joints=robot.joint_names,
-                                             fingerprint=fp, dynamics=where),
-        "controller.c": sources.controller_c(form, law=twin.name, rate=rate),
+                                             fingerprint=fp, dynamics=where,
+                                             step_dt=step_dt),
+        "controller.c": sources.controller_c(form, law=twin.name, rate=rate)
+        + period.controller_step_dt_c(form, continuous, method=k_method, prewarp=prewarp),
         "dynamics.h": sources.dynamics_h(where),
     }
     if use_generated:
@@ -312,10 +380,9 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                                                               robot.name)
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
     files["CMakeLists.txt"] = sources.cmakelists(pinocchio=not use_generated,
-                                                 version=pin.__version__)
+                                                 version=pin.__version__,
+                                                 python=sys.executable)
     files["main.c"] = sources.main_c(q0=q0)
-    files["ros2_controller.hpp"] = sources.ros2_controller_hpp()
-    files["ros2_mock.hpp"] = sources.ros2_mock_hpp()
     if form.kind == "pd":
         law_record = {"kind": "pd", "Kp": form.Kp.tolist(), "Kd": form.Kd.tolist()}
     else:
@@ -330,6 +397,12 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                       "C": C.tolist(), "D": D.tolist(), "Ts": 1.0 / rate,
                       "method": None if isinstance(law, DiscreteTrackingController) or not nx
                       else method, "prewarp_rad_s": prewarp, "K_source": source}
+        if form.kind == "fl_friction":  # tau += Fv qd + Fc tanh(qd / v_eps)
+            law_record.update(kind="fl_friction", friction_compensation={
+                "viscous_Nms_rad": form.viscous.tolist(), "coulomb_Nm": form.coulomb.tolist(),
+                "coulomb_velocity_rad_s": form.coulomb_velocity,
+                "model": "tau += Fv qd + Fc tanh(qd / v_eps)",
+                "source": law.friction.source if law.friction is not None else ""})
         if form.kind == "fl_aw":  # Hanus: x+ = A x + B e + L (y_hat - y), tau clipped
             law_record.update(kind="fl_aw", L=form.L.tolist(),
                               torque_limit_Nm=form.limit.tolist(),
@@ -340,11 +413,17 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         "law": {"name": twin.name, "label": twin.label or twin.name,
                 "class": f"{type(law).__module__}.{type(law).__qualname__}", **law_record},
         "rate_hz": rate, "nq": n, "nx": nx, "joints": list(robot.joint_names),
-        "model": {"name": robot.name, "fingerprint": fp, "dynamics": dynamics},
+        "ctrl_step_dt": {"period": step_dt, "K_continuous": None if continuous is None else
+                         dict(zip("ABCD", (M.tolist() for M in continuous), strict=True)),
+                         "method": None if continuous is None else method,
+                         "alpha": None if continuous is None else period.GBT_ALPHA[method],
+                         "prewarp_rad_s": None if continuous is None else prewarp},
+        "model": {"name": robot.name, "fingerprint": fp, "dynamics": dynamics,
+                  **_model_parameters(robot, form.kind == "fl_friction")},
         "design": _design_record(design),
     }
     files["controller.json"] = json.dumps(record, indent=2, sort_keys=True) + "\n"
-    return Export(twin, form, rate, dynamics, files, record)
+    return Export(twin, form, rate, dynamics, files, record, continuous)
 
 
 def export(law, robot, rate: float | None = None, out="controller", *, method: str = "tustin",
@@ -353,10 +432,12 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
     """Write ``law`` on ``robot`` at ``rate`` as a self-contained C folder ``out``.
 
     The folder holds ``controller.h``/``controller.c`` (C99: no allocation, no mutable global,
-    re-entrant) with ``ctrl_reset``/``ctrl_step``, the nominal model's dynamics (the generated
+    re-entrant) with ``ctrl_reset``/``ctrl_step`` (and ``ctrl_step_dt``, the law over a measured
+    period), the nominal model's dynamics (the generated
     C of the nominal RRR, or a C++ file calling Pinocchio on the embedded model), a
-    ``CMakeLists.txt`` (static library ``rrr_pin_ctrl``), an example ``main.c``,
-    ``ros2_controller.hpp`` (with ``ros2_mock.hpp``) and ``controller.json``. The same
+    ``CMakeLists.txt`` (static library ``rrr_pin_ctrl``), an example ``main.c`` and
+    ``controller.json`` (:func:`rrr_pin.deploy.ros2.write_ros2_package` adds a ros2_control
+    package). The same
     arguments give byte-identical files.
 
     Parameters

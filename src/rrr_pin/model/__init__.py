@@ -6,13 +6,15 @@ capabilities, the ``UncertaintySet`` base), :mod:`~rrr_pin.model.dh` (the paper'
 comes from: the paper's RRR, an example-robot-data name or a URDF path),
 :mod:`~rrr_pin.model.dynamics` (``Robot``, ``load_robot``: M, V, G through Pinocchio),
 :mod:`~rrr_pin.model.closed_form` (the corrected eq. (2)-(7)), :mod:`~rrr_pin.model.uncertainty`
-(seeded uncertain plants as URDF), :mod:`~rrr_pin.model.identification` (base inertial
-parameters from measured torques, a physically consistent URDF, the identified uncertainty),
+(seeded uncertain plants as URDF), :mod:`~rrr_pin.model.identification` (a subpackage, one
+module per concept: base inertial parameters and friction from measured torques, logs, a
+physically consistent URDF, the identified uncertainty),
 :mod:`~rrr_pin.model.excitation` (Fourier excitation trajectories for it),
 :mod:`~rrr_pin.model.mechanisms` (parallel mechanisms as data: one module per kind, its
 parameters, MJCF, closed-form kinematics and task path, one registry) and
 :mod:`~rrr_pin.model.closed_chain` (``ClosedChain``: loop closure and the reduced dynamics in
-actuated coordinates). Only this layer knows the kinds of plant.
+actuated coordinates), with :mod:`~rrr_pin.model.mjcf_checks` (an MJCF's loops checked in Python
+before Pinocchio's parser reads the file). Only this layer knows the kinds of plant.
 
 Layer: the lowest. May import :mod:`rrr_pin.validation` only.
 """

@@ -60,6 +60,7 @@ from .mechanisms import (
     mechanism_of,
     mjcf_from_params,
 )
+from .mjcf_checks import check_home_closes, check_mjcf_tree
 from .plant import Plant, Settler, TreeDescription, UncertaintySet, central_jacobian
 
 __all__ = ["ClosedChain", "load_closed_chain", "is_closed_chain_source", "SingularConfiguration",
@@ -820,140 +821,13 @@ def load_closed_chain(source, *, gravity: float = 9.8) -> ClosedChain:
     return _from_mjcf(text, name, label, params, gravity)
 
 
-#: Largest gap [m] of a ``<connect>`` at the ``home`` keyframe that loading closes by Newton
-#: (a keyframe written with rounded digits); a wider gap is an open loop and is refused.
-HOME_GAP_LIMIT = 1e-3
-
-
-def _check_mjcf(root, label: str) -> None:
-    """Refuse, in Python, an MJCF that Pinocchio's parser would misread or crash on.
-
-    Pinocchio 4.1's ``buildModelAndLegacyConstraintsFromMJCF`` segfaults (measured: 4 to 6 of
-    10 runs) on a ``<connect>`` naming a site that does not exist, and otherwise reports it as
-    a singularity or an invalid parent joint. Checked here: a ``<worldbody>`` with a body; every
-    ``<connect>`` names two existing, different sites (``site1``/``site2``) or bodies
-    (``body1``, ``body2`` or the world, with an ``anchor``) inside the first top-level body,
-    the only one the parser keeps; every ``<inertial>`` has a finite mass > 0 and finite
-    principal moments > 0; the ``home`` keyframe has one number per joint.
-    """
-    world = root.find("worldbody")
-    if root.tag != "mujoco" or world is None:
-        raise MechanismError(f"{label}: not an MJCF model (no <mujoco><worldbody>)")
-    tops = world.findall("body")
-    if not tops:
-        raise MechanismError(f"{label}: <worldbody> has no <body>")
-    kept = tops[0]
-    sites = {s.get("name") for s in world.findall("site")} | \
-        {s.get("name") for s in kept.iter("site")}
-    bodies = {"world"} | {b.get("name") for b in kept.iter("body")}
-    dropped = {}
-    for top in tops[1:]:
-        for el in top.iter():
-            if el.tag in ("site", "body") and el.get("name"):
-                dropped[(el.tag, el.get("name"))] = top.get("name") or "(unnamed)"
-    names = set()
-
-    def where(kind: str, key: str, value: str) -> str:
-        top = dropped.get((kind, value))
-        if top is not None:
-            return (f"{key}={value!r} is in the top-level body {top!r}, which the parser drops "
-                    f"(only the first top-level body of <worldbody>, {kept.get('name')!r}, is "
-                    f"read): put every body under one top-level body")
-        known = sorted(n for n in (sites if kind == "site" else bodies) if n)
-        return f"{key}={value!r}: no such {kind} (the {kind}s are {', '.join(known) or 'none'})"
-
-    for i, c in enumerate(root.iter("connect")):
-        tag = f"{label}: <connect {c.get('name') or f'#{i + 1}'}>"
-        if c.get("name"):
-            if c.get("name") in names:
-                raise MechanismError(f"{tag}: the name is used twice")
-            names.add(c.get("name"))
-        given = {k: c.get(k) for k in ("site1", "site2", "body1", "body2") if c.get(k)}
-        if "site1" in given or "site2" in given:
-            if set(given) != {"site1", "site2"}:
-                raise MechanismError(f"{tag}: a site connection names site1 and site2 (and no "
-                                     f"body), got {sorted(given)}")
-            a, b = given["site1"], given["site2"]
-            for key, value in (("site1", a), ("site2", b)):
-                if value not in sites:
-                    raise MechanismError(f"{tag}: {where('site', key, value)}")
-        elif "body1" in given:
-            a, b = given["body1"], given.get("body2", "world")
-            for key, value in (("body1", a), ("body2", b)):
-                if value not in bodies:
-                    raise MechanismError(f"{tag}: {where('body', key, value)}")
-            if not c.get("anchor"):
-                raise MechanismError(f"{tag}: a body connection needs an anchor (the point in "
-                                     f"body1's frame [m])")
-            try:
-                anchor = [float(v) for v in c.get("anchor").split()]
-            except ValueError:
-                anchor = []
-            if len(anchor) != 3 or not all(map(math.isfinite, anchor)):
-                raise MechanismError(f"{tag}: anchor={c.get('anchor')!r}: expected 3 finite "
-                                     f"numbers [m]")
-        else:
-            raise MechanismError(f"{tag}: names no target: give site1 and site2, or body1 (and "
-                                 f"body2) with an anchor")
-        if a == b:
-            raise MechanismError(f"{tag}: connects {a!r} to itself: a loop closure joins two "
-                                 f"different points")
-    for body in kept.iter("body"):
-        inertial = body.find("inertial")
-        if inertial is None:
-            continue
-        where = f"{label}: <body {body.get('name') or '(unnamed)'}> <inertial>"
-        try:
-            mass = float(inertial.get("mass", "nan"))
-        except ValueError:
-            mass = math.nan
-        if not (math.isfinite(mass) and mass > 0):
-            raise MechanismError(f"{where}: mass={inertial.get('mass')!r}: expected a finite "
-                                 f"mass > 0 [kg]")
-        if inertial.get("diaginertia") is not None:
-            try:
-                diag = [float(v) for v in inertial.get("diaginertia").split()]
-            except ValueError:
-                diag = []
-            if len(diag) != 3 or not all(math.isfinite(v) and v > 0 for v in diag):
-                raise MechanismError(f"{where}: diaginertia={inertial.get('diaginertia')!r}: "
-                                     f"expected 3 finite moments > 0 [kg m^2]")
-    joints = list(world.iter("joint"))
-    for key in root.iter("key"):
-        if key.get("name") == "home" and key.get("qpos"):
-            try:
-                qpos = [float(v) for v in key.get("qpos").split()]
-            except ValueError:
-                qpos = None
-            if qpos is None or len(qpos) != len(joints) or not all(map(math.isfinite, qpos)):
-                raise MechanismError(f"{label}: <key name='home'> qpos must be {len(joints)} "
-                                     f"finite numbers [rad, m] (one per joint), got "
-                                     f"{key.get('qpos')!r}")
-
-
-def _check_home_closes(model, constraints, home: np.ndarray, label: str) -> None:
-    """Refuse a ``home`` keyframe at which a loop is open by more than :data:`HOME_GAP_LIMIT`."""
-    data = model.createData()
-    pin.forwardKinematics(model, data, home)
-    for c in constraints:
-        p1 = data.oMi[c.joint1_id].act(c.joint1_placement).translation
-        p2 = data.oMi[c.joint2_id].act(c.joint2_placement).translation
-        gap = float(np.linalg.norm(p1 - p2))
-        if not gap <= HOME_GAP_LIMIT:
-            raise MechanismError(
-                f"{label}: <connect {c.name or '(unnamed)'}> is open by {gap:.4g} m at the home "
-                f"keyframe (points at {np.round(p1, 4).tolist()} and {np.round(p2, 4).tolist()} "
-                f"m; at most {HOME_GAP_LIMIT:g} m is closed on loading): give a <key "
-                f"name='home'> where every loop closes")
-
-
 def _from_mjcf(text: str, name: str, label: str, params, gravity: float) -> ClosedChain:
     """Build a ClosedChain from MJCF text (:func:`load_closed_chain`, and unpickling)."""
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
         raise MechanismError(f"{label}: not well-formed XML: {exc}") from None
-    _check_mjcf(root, label)
+    check_mjcf_tree(root, label)
     joints = [j.get("name") for j in root.find("worldbody").iter("joint")]
     motors = [m.get("joint") for m in root.iter("motor")]
     fd, tmp = tempfile.mkstemp(suffix=".xml")
@@ -984,7 +858,7 @@ def _from_mjcf(text: str, name: str, label: str, params, gravity: float) -> Clos
         home = np.asarray(mechanism_of(params).home(params), dtype=float)
     actuated = tuple(sorted(joints.index(m) for m in motors))
     passive = tuple(i for i in range(model.nv) if i not in actuated)
-    _check_home_closes(model, constraints, home, label)
+    check_home_closes(model, constraints, home, label)
     probe = ClosedChain(model=model, data=model.createData(), constraints=constraints,
                         name=name, source=label, mjcf=text, actuated=actuated, passive=passive,
                         dof_names=tuple(joints), rows=np.arange(3 * len(constraints)),

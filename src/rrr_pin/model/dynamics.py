@@ -39,6 +39,7 @@ from .dh import ArmParams, check_inertial
 from .plant import (
     EFFORT_LIMITS,
     FRAMES,
+    JOINT_FRICTION,
     JOINT_LIMITS,
     URDF,
     Plant,
@@ -107,7 +108,7 @@ class Robot(Plant):
     locked: dict = field(default_factory=dict)
     params: ArmParams | None = field(default=None, repr=False)
 
-    capabilities = frozenset({URDF, EFFORT_LIMITS, JOINT_LIMITS, FRAMES})
+    capabilities = frozenset({URDF, EFFORT_LIMITS, JOINT_FRICTION, JOINT_LIMITS, FRAMES})
 
     def __post_init__(self) -> None:
         self._shape = (self.model.nq,)
@@ -171,6 +172,15 @@ class Robot(Plant):
     def effort_limits(self) -> np.ndarray:
         """Return the URDF's ``<limit effort>`` per joint [N m], shape (nq,) (a new array)."""
         return np.asarray(self.model.effortLimit, dtype=float).copy()
+
+    def joint_friction(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the URDF's ``<dynamics damping friction>`` per joint, shape (nq,) each.
+
+        Viscous [N m s/rad] and Coulomb [N m] (Pinocchio's ``model.damping`` and
+        ``model.friction``; zero where the URDF gives none). New arrays.
+        """
+        return (np.asarray(self.model.damping, dtype=float).copy(),
+                np.asarray(self.model.friction, dtype=float).copy())
 
     def check_state(self, name: str, x) -> np.ndarray:
         """Return ``x`` as a finite float64 array of shape ``(nq,)``, or raise ``ValueError``.
@@ -546,12 +556,18 @@ def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
     return _unbound_continuous(root)
 
 
-def _unbound_continuous(root: ET.Element) -> tuple[str, str]:
+def _unbound_continuous(root: ET.Element, raw: str | None = None) -> tuple[str, str]:
     """Rewrite continuous joints as revolute joints with unbounded limits (no checks).
 
-    Returns the URDF text for urdfdom and the ``<robot name>``.
+    Returns the URDF text for urdfdom and the ``<robot name>``: ``raw`` (the text ``root``
+    was parsed from, when given) as it is if no joint is continuous, which saves writing the
+    same elements and attributes out again (0.3 ms of a campaign's 3-joint plant).
     """
-    for joint in root.findall("joint"):
+    name = root.get("name") or "robot"
+    joints = root.findall("joint")
+    if raw is not None and all(j.get("type") != "continuous" for j in joints):
+        return raw, name
+    for joint in joints:
         if joint.get("type") == "continuous":
             joint.set("type", "revolute")
             limit = joint.find("limit")
@@ -559,7 +575,7 @@ def _unbound_continuous(root: ET.Element) -> tuple[str, str]:
                 limit = ET.SubElement(joint, "limit", {"effort": "1e6", "velocity": "1e6"})
             limit.set("lower", repr(-_UNBOUNDED))
             limit.set("upper", repr(_UNBOUNDED))
-    return ET.tostring(root, encoding="unicode"), root.get("name") or "robot"
+    return ET.tostring(root, encoding="unicode"), name
 
 
 def _check_subtree_mass(masses, children, locked) -> None:
@@ -732,7 +748,7 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
     raw = urdf
     try:
         urdf, urdf_name = (_prepare_urdf(raw, set(lock)) if check
-                           else _unbound_continuous(_parse(raw)))
+                           else _unbound_continuous(_parse(raw), raw))
     except RobotModelError as exc:
         raise RobotModelError(f"{label}: {exc}") from None
     try:

@@ -44,7 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Plant", "Settler", "UncertaintySet", "TreeDescription", "CapabilityError",
-           "CAPABILITIES", "URDF", "EFFORT_LIMITS", "JOINT_LIMITS", "FRAMES", "CLOSED_FORM",
+           "CAPABILITIES", "URDF", "EFFORT_LIMITS", "JOINT_FRICTION", "JOINT_LIMITS", "FRAMES",
+           "CLOSED_FORM",
            "central_jacobian"]
 
 #: The plant is a serial tree described by a URDF: its regressor can be identified, its
@@ -53,6 +54,9 @@ URDF = "urdf"
 #: Its description carries the actuators' effort limits (``--torque-limit auto``,
 #: ``torque_limit="urdf"``).
 EFFORT_LIMITS = "effort_limits"
+#: Its description carries each joint's viscous and Coulomb friction (URDF ``<dynamics
+#: damping friction>``; ``--friction urdf``, ``viscous="urdf"``).
+JOINT_FRICTION = "joint_friction"
 #: Its actuated joints have position limits a run can leave (``limit_margin``).
 JOINT_LIMITS = "joint_limits"
 #: Named frames reachable from the actuated coordinates by forward kinematics
@@ -65,6 +69,7 @@ CLOSED_FORM = "closed_form"
 CAPABILITIES = {
     URDF: "a serial tree described by a URDF (identification, C export of its dynamics)",
     EFFORT_LIMITS: "actuator effort limits in its description",
+    JOINT_FRICTION: "joint friction in its description (URDF <dynamics damping friction>)",
     JOINT_LIMITS: "position limits on its actuated joints",
     FRAMES: "named frames placed by forward kinematics of the actuated joints",
     CLOSED_FORM: "the paper's closed-form dynamics, eq. (2)-(7)",
@@ -293,6 +298,14 @@ class Plant:
         Only for a plant with :data:`EFFORT_LIMITS` (:class:`CapabilityError` otherwise).
         """
         self.require(EFFORT_LIMITS, "effort limits")
+        raise NotImplementedError
+
+    def joint_friction(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the description's viscous [N m s/rad] and Coulomb [N m] friction, (nq,) each.
+
+        Only for a plant with :data:`JOINT_FRICTION` (:class:`CapabilityError` otherwise).
+        """
+        self.require(JOINT_FRICTION, "joint friction")
         raise NotImplementedError
 
     def has(self, capability: str) -> bool:

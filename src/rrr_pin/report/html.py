@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..outputs import OutputNotWritable, check_writable
-from .viewer import Scene, scene_html
+from .viewer import Scene, ViewerSizeError, scene_html
 
 __all__ = ["write_report_html", "report_html", "REPORT_MAX_BYTES"]
 
@@ -197,8 +197,17 @@ def report_html(*, title: str, tables: Sequence[tuple[str, str]] = (),
                 "ghosts. Open Controls &gt; Animations: play, pause, reset and a time slider; "
                 "drag to orbit, right-drag to pan, scroll to zoom.</p>")
         sections.append(("scenes", "3D animation", note + "".join(
-            scene_html(scene, fps=fps, max_bytes=per_scene) for scene in scenes)))
+            _scene_or_note(scene, fps, per_scene) for scene in scenes)))
     return _page(title, sections)
+
+
+def _scene_or_note(scene: Scene, fps: float, max_bytes: int) -> str:
+    """Return the scene's fragment, or a paragraph saying why it is not drawn."""
+    try:
+        return scene_html(scene, fps=fps, max_bytes=max_bytes)
+    except ViewerSizeError as exc:
+        return (f"<p><b>{html.escape(scene.title)}</b>: not drawn, as even one arm exceeds "
+                f"the page's size budget ({html.escape(str(exc))}).</p>")
 
 
 def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (),
@@ -228,7 +237,8 @@ def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (
     scenes : sequence of rrr_pin.report.viewer.Scene
         3D animations, e.g. one per controller; each is rendered with
         :func:`rrr_pin.report.viewer.scene_html`, the byte budget left by the rest of the page
-        shared equally between them.
+        shared equally between them. A scene too large for its share draws its first tracks
+        only, or none, and says so on the page: the page is always written.
     max_bytes : int, default :data:`REPORT_MAX_BYTES`
         Byte budget of the file [bytes]; the scenes' frames are decimated to fit.
     fps : float, default 30
@@ -249,8 +259,6 @@ def write_report_html(path, *, title: str, tables: Sequence[tuple[str, str]] = (
     ------
     FileNotFoundError
         A figure file is missing.
-    rrr_pin.report.viewer.ViewerSizeError (a ValueError)
-        A scene that does not fit its share of ``max_bytes``.
     OutputNotWritable (a ValueError)
         The file cannot be written.
     """

@@ -326,10 +326,13 @@ def plant_effects_phrase(effects, lead: str = "") -> str:
         parts.append(f"delay {effects.delay * 1e3:g} ms")
     if effects.bandwidth is not None:
         parts.append(f"actuator bandwidth {effects.bandwidth:g} rad/s")
-    if np.any(np.asarray(effects.viscous) > 0):
-        parts.append(f"viscous friction {val(effects.viscous)} N m s")
-    if np.any(np.asarray(effects.coulomb) > 0):
-        parts.append(f"Coulomb friction {val(effects.coulomb)} N m")
+    if effects.viscous == "urdf":
+        parts.append("friction of each plant's URDF")
+    else:
+        if np.any(np.asarray(effects.viscous) > 0):
+            parts.append(f"viscous friction {val(effects.viscous)} N m s")
+        if np.any(np.asarray(effects.coulomb) > 0):
+            parts.append(f"Coulomb friction {val(effects.coulomb)} N m")
     if effects.torque_limit is not None:
         limit = effects.torque_limit
         parts.append(f"torque limit {limit if isinstance(limit, str) else val(limit) + ' N m'}")

@@ -33,6 +33,7 @@ Conventions: SI units (s, rad, m); the world frame is the robot's root frame, ``
 from __future__ import annotations
 
 import base64
+import dataclasses
 import html
 import math
 import os
@@ -756,7 +757,9 @@ def scene_document(scene: Scene, *, fps: float = 30.0, max_bytes: int = MAX_SCEN
     Raises
     ------
     ViewerSizeError (a ValueError)
-        When even ``2`` frames per second do not fit ``max_bytes``.
+        When even the first track alone at ``2`` frames per second does not fit
+        ``max_bytes``. (With several tracks, the last ones are left out until the rest fits;
+        the legend of :func:`scene_html` says how many were drawn.)
     ValueError
         For ``fps <= 0``, ``max_bytes <= 0`` or an unknown ``geometry``.
     """
@@ -779,6 +782,33 @@ def _scene_document(scene, *, fps, max_bytes, geometry, play):
         raise TypeError(f"scene must be a Scene, got {type(scene).__name__}")
     js = _meshcat_js()
     cache: dict = {}
+    tracks = scene.tracks
+    while True:
+        drawn = scene if len(tracks) == len(scene.tracks) else dataclasses.replace(
+            scene, tracks=tracks)
+        doc, facts = _fit(drawn, fps, max_bytes, geometry, play, js, cache)
+        if doc is not None:
+            break
+        if len(tracks) == 1:
+            raise ViewerSizeError(
+                f"scene {scene.title!r} does not fit max_bytes={max_bytes}: the geometry of "
+                f"its first arm alone takes {facts['fixed']} bytes and {facts['frames']} "
+                f"frames take {facts['total']} bytes even at {_MIN_FPS:g} frames/s")
+        # Each arm drawn carries its own shapes: keep the first arms (the nominal first), as
+        # many as the budget holds at the bytes per arm measured, at least one fewer than now.
+        share = max_bytes / max(facts["total"], 1)
+        tracks = tracks[:max(1, min(len(tracks) - 1, int(len(tracks) * share)))]
+    facts["tracks_drawn"] = len(tracks)
+    facts["tracks_total"] = len(scene.tracks)
+    return doc, facts
+
+
+def _fit(scene, fps, max_bytes, geometry, play, js, cache):
+    """Return ``(document, facts)`` of ``scene``, its frames decimated to fit ``max_bytes``.
+
+    ``(None, facts)``, with ``facts["fixed"]`` (the geometry's bytes) and ``facts["total"]``,
+    when even :data:`_MIN_FPS` frames per second do not fit.
+    """
 
     def size(commands):
         return len(_document(scene.title, commands, js).encode("utf-8"))
@@ -797,10 +827,7 @@ def _scene_document(scene, *, fps, max_bytes, geometry, play):
         wanted = (fit - 1.0) / facts["duration"] if facts["duration"] > 0.0 else 0.0
         stride = max(stride + 1, math.ceil(fps / wanted) if wanted > 0.0 else math.inf)
         if not fps / stride >= _MIN_FPS:
-            raise ViewerSizeError(
-                f"scene {scene.title!r} does not fit max_bytes={max_bytes}: its geometry "
-                f"takes {fixed} bytes and {facts['frames']} frames take {total} bytes even "
-                f"at the lowest rate tried; raise max_bytes or draw fewer tracks")
+            return None, {**facts, "fixed": fixed, "total": total}
         static, anim, facts = _record(scene, fps / stride, facts["geometry"], play, cache)
         total = size(static + anim)
     facts["bytes"] = total
@@ -811,7 +838,7 @@ def _scene_document(scene, *, fps, max_bytes, geometry, play):
 def _legend(scene: Scene, facts: dict) -> str:
     items = []
     k = 0
-    for track in scene.tracks:
+    for track in scene.tracks[:facts["tracks_drawn"]]:
         rgb = track.color if track.color is not None else (
             _GHOST_COLORS[k % len(_GHOST_COLORS)] if track.opacity < 1.0 else None)
         k += track.opacity < 1.0 and track.color is None
@@ -831,6 +858,10 @@ def _legend(scene: Scene, facts: dict) -> str:
             f"{facts['duration']:.3g} s; {shapes}")
     if facts["missing_meshes"]:
         note += f"; meshes not found, drawn as simple shapes: {len(facts['missing_meshes'])}"
+    if facts["tracks_drawn"] < facts["tracks_total"]:
+        note += (f"; the first {facts['tracks_drawn']} of the {facts['tracks_total']} arms "
+                 f"drawn (the others' shapes exceed the page's size budget; every plant is in "
+                 f"the tables and figures)")
     if scene.path is not None:
         items.append(f'<span style="white-space:nowrap"><span style="display:inline-block;'
                      f'width:1.4em;height:0;border-top:2px solid #555;vertical-align:middle">'

@@ -197,11 +197,12 @@ def zpk_data(K) -> tuple[float, np.ndarray, np.ndarray]:
 
 # --- the paper's design (sec. 4) --------------------------------------------------------------
 
-def _inv(sys: control.StateSpace) -> control.StateSpace:
+def _inv(sys: control.StateSpace, name: str) -> control.StateSpace:
     A, B, C, D = sys.A, sys.B, sys.C, sys.D
     if np.linalg.cond(D) > 1e12:
-        raise WeightError("the weights must be biproper (invertible D) to evaluate the "
-                          "reduced controller on the shaped plant")
+        raise WeightError(f"{name} must be biproper (an invertible D), got D = "
+                          f"{np.asarray(D).tolist()}: the reduced controller is evaluated on "
+                          f"the shaped plant through {name}^-1")
     Di = np.linalg.inv(D)
     return control.ss(A - B @ Di @ C, B @ Di, -Di @ C, Di)
 
@@ -719,7 +720,8 @@ class Design:
     @property
     def Ks_reduced(self) -> control.StateSpace:
         """SISO reduced controller of the shaped plant, ``W1^-1 K_reduced W2^-1``."""
-        return control.ss(_inv(_siso(self.W1)) * self.K_reduced * _inv(_siso(self.W2)))
+        return control.ss(_inv(_siso(self.W1), "W1") * self.K_reduced
+                          * _inv(_siso(self.W2), "W2"))
 
     @property
     def ncfmargin(self) -> float:
@@ -795,7 +797,8 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
                                   f"controller has ({siso.K.nstates}): give at most "
                                   f"{siso.K.nstates}")
     K_reduced = reduce_controller(siso.K, order)
-    reduction_shaped = reduction_guarantee(siso.Gs, siso.Ks, _inv(w1) * K_reduced * _inv(w2))
+    reduction_shaped = reduction_guarantee(siso.Gs, siso.Ks,
+                                           _inv(w1, "W1") * K_reduced * _inv(w2, "W2"))
     b_reduced = reduction_shaped.b_reduced                  # b = 1 / gamma, 0 if unstable
     gamma_reduced = 1.0 / b_reduced if b_reduced > 0.0 else float("inf")
     if not gamma_reduced <= 1.05 * siso.gamma:

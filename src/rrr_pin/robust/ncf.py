@@ -696,6 +696,16 @@ class NCF2DOFResult:
         return iter((self.K1, self.K2, self.gamma, self))
 
 
+def _check_biproper(name: str, W: control.StateSpace) -> None:
+    """WeightError unless ``W``'s ``D`` is invertible (``cond(D) <= 1e12``)."""
+    D = np.asarray(W.D, dtype=float)
+    cond = float(np.linalg.cond(D)) if D.size else np.inf
+    if not cond <= 1e12:
+        raise WeightError(f"{name} must be biproper (an invertible D), got D = {D.tolist()} "
+                          f"(cond {cond:.3g}): ncfsyn_2dof's steady-state prefilter "
+                          f"(match_dc) inverts it; give match_dc=False or a biproper {name}")
+
+
 def _inv_lti(W: control.StateSpace) -> control.StateSpace:
     A, B, C, D = (np.asarray(M, float) for M in (W.A, W.B, W.C, W.D))
     Di = np.linalg.inv(D)
@@ -751,9 +761,11 @@ def ncfsyn_2dof(G, Tref, rho: float = 1.1, W1=None, W2=None, *, factor: float = 
     rho : float, default 1.1
         Model-matching weight, > 0 (S&P: usually ``1 < rho < 3``).
     W1 : control.LTI, optional
-        Pre-compensator, ``m x m`` or SISO, with an invertible ``D``; default identity.
+        Pre-compensator, ``m x m`` or SISO (may be strictly proper, as ``1/s``); default
+        identity.
     W2 : control.LTI, optional
-        Post-compensator, ``p x p`` or SISO, invertible ``D``; default identity.
+        Post-compensator, ``p x p`` or SISO; default identity. With ``match_dc``, biproper
+        (an invertible ``D``: the prefilter inverts it).
     factor : float, default 1.1
         ``gamma / gamma_opt``, > 1 (as RobustAndOptimalControl.jl's ``gamma = 1.1``).
     match_dc : bool, default True
@@ -771,7 +783,8 @@ def ncfsyn_2dof(G, Tref, rho: float = 1.1, W1=None, W2=None, *, factor: float = 
         ``Tref`` improper (an :class:`ImproperSystemError` from the LTI checks), unstable,
         discrete or with the wrong number of outputs; ``rho`` not > 0; ``factor`` not > 1.
     NonFiniteSystemError, ImproperSystemError, TimebaseMismatchError, WeightError
-        The checks of :func:`ncfsyn` on ``G``, ``W1``, ``W2``.
+        The checks of :func:`ncfsyn` on ``G``, ``W1``, ``W2``; with ``match_dc``, a ``W2``
+        whose ``D`` is singular (``WeightError``).
     SynthesisError
         No stabilizing controller found (SLICOT failure), or the loop is not stable.
 
@@ -790,6 +803,8 @@ def ncfsyn_2dof(G, Tref, rho: float = 1.1, W1=None, W2=None, *, factor: float = 
     G, W1, W2, dt = _plant_and_weights(G, W1, W2)
     if _is_discrete(dt):
         raise FieldError("G", "{name} must be continuous time (ncfsyn_2dof is continuous only)")
+    if match_dc:
+        _check_biproper("W2", W2)
     Tref = _check_reference_model(Tref, G.noutputs)
     Gs = _series(W2, G, W1)
     _check_hidden_modes(Gs)

@@ -7,7 +7,9 @@ divergence test), :mod:`~rrr_pin.sim.simulation` (``simulate``: validation, then
 Python reference engine, any plant), :mod:`~rrr_pin.sim.extension` (the C++ extension
 ``_rollout``), :mod:`~rrr_pin.sim.compiled` (the compiled engine: serial arms and closed chains
 in one C++ loop), :mod:`~rrr_pin.sim.codegen` (the fingerprint of the fixed-model generated C),
-:mod:`~rrr_pin.sim.dyngen` (the generator of parameter-input dynamics per structure) and
+:mod:`~rrr_pin.sim.dyngen` (the generator of parameter-input dynamics per structure),
+:mod:`~rrr_pin.sim.dyncache` (any structure's generated dynamics, built at first use and
+cached) and
 :mod:`~rrr_pin.sim.batched` (engine ``"codegen"``: batched rollouts of many plants on them).
 
 Layer: above :mod:`rrr_pin.control`. May import :mod:`rrr_pin.validation`,

@@ -17,20 +17,23 @@ Pinocchio's calls), so trajectories equal the compiled engine's to round-off
 (``tests/test_batched.py``). No operation crosses plants and the C is compiled without fused
 multiply-adds, so a plant's numbers are the same whatever batch it runs in.
 
-Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``PDForm``: FL, H-infinity + FL, PD), sampled
-or continuous, on the ideal plant (no :mod:`~rrr_pin.control.effects`).
+Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``FLAWForm``, ``PDForm``: FL, H-infinity +
+FL, its anti-windup form ``hinf_aw``, PD), sampled or continuous, on the ideal plant (no
+:mod:`~rrr_pin.control.effects`); anything else is refused by name (:func:`why_not`) and runs
+on the compiled engine under ``engine="auto"``, which records why.
 """
 
 from __future__ import annotations
 
-from dataclasses import fields
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import fields, replace
 
 import numpy as np
 
-from ..control.laws import FLForm, PDForm, check_law_output
+from ..control.laws import FLAWForm, FLForm, PDForm, check_law_output
 from ..model.dh import INERTIA_RTOL, check_inertial
-from ..validation import FieldError
-from . import dyngen
+from ..validation import FieldError, check_count
+from . import dyncache, dyngen
 from .codegen import CodegenModelMismatch
 from .engine_names import AUTO, CODEGEN, COMPILED
 from .extension import EXTENSION, available, cannot_start, require
@@ -38,15 +41,17 @@ from .trajectory import (
     LAW_TORQUE,
     REASONS,
     VELOCITY_LIMIT,
+    RunFigures,
     SimulationDiverged,
     divergence,
     law_divergence,
     make_trajectory,
+    tracking_figures_batch,
 )
 
 __all__ = ["GENERATED", "BATCH_LAWS", "BATCH_MAX", "StructureMismatch", "generated_structure",
            "plant_parameters", "batchable", "why_not", "run_batch", "raise_or_return",
-           "floor_ms"]
+           "floor_ms", "MAX_THREADS", "thread_pool", "warm"]
 
 #: The generated structures: name -> (robot source of :func:`rrr_pin.model.dynamics.load_robot`,
 #: joints locked) the generator reads the structure from (``scripts/gen_dynamics.py``).
@@ -57,7 +62,7 @@ GENERATED = {
 }
 
 #: The compiled forms the batched loop implements, by exact type, and their C++ law.
-BATCH_LAWS = {FLForm: "FLLaw", PDForm: "PDLaw"}
+BATCH_LAWS = {FLForm: "FLLaw", FLAWForm: "FLAWLaw", PDForm: "PDLaw"}
 
 #: Most plants in one batch (``RRR_DYN_BMAX`` of ``generated/dyn_common.h``).
 BATCH_MAX = 16
@@ -72,28 +77,62 @@ class StructureMismatch(CodegenModelMismatch):
 
 def _structures() -> dict:
     """``structure string -> (name, np)`` of the generated dynamics compiled in."""
-    return {st: (name, npar) for name, (st, _, npar) in EXTENSION.batch_models().items()}
+    return {st: (name, npar) for models in (EXTENSION.batch_models(), EXTENSION.batch_loaded())
+            for name, (st, _, npar) in models.items()}
 
 
 def generated_structure(model) -> str | None:
     """Name of the generated dynamics for a ``pinocchio.Model``'s structure, or None.
 
     The structure is :func:`rrr_pin.sim.dyngen.structure` (joint types and parents) with a
-    gravity that has no angular part.
+    gravity that has no angular part. A structure the extension does not compile in but the
+    generator handles is generated, built and cached at first use
+    (:func:`rrr_pin.sim.dyncache.load`); None if that fails (the reason:
+    :func:`rrr_pin.sim.dyncache.failure`).
     """
     if not available() or np.any(model.gravity.angular != 0.0):
         return None
-    hit = _structures().get(dyngen.structure(model))
-    return hit[0] if hit is not None else None
+    st = dyngen.structure(model)
+    hit = _KNOWN.get(st) or _structures().get(st)
+    if hit is not None:
+        _KNOWN[st] = hit
+        return hit[0]
+    if not dyncache.generatable(model):
+        return None
+    try:
+        name = dyncache.load(model)
+    except dyncache.CacheError:
+        return None
+    return name
+
+
+def warm(plant) -> str | None:
+    """Have ``plant``'s generated dynamics ready (built at first use, cached); their name or None.
+
+    A campaign calls it once before its workers start, so that a structure met for the first
+    time is built once, here, and the workers find it in the cache.
+    """
+    if plant.loop_closures:
+        return None
+    return generated_structure(plant.model)
+
+
+# structure -> (name, np) of the generated dynamics found so far (compiled in or registered).
+_KNOWN: dict = {}
 
 
 def _refusal(robot, role: str) -> StructureMismatch:
     known = ", ".join(f"{name} ({st})" for st, (name, _) in _structures().items())
+    st = dyngen.structure(robot.model)
+    why = dyncache.failure(st)
+    why = (f"; generating them at first use failed: {why}" if why is not None else
+           "" if dyncache.generatable(robot.model) else
+           "; the generator handles revolute joints about x, y or z only")
     return StructureMismatch(
         f"engine={CODEGEN!r}: the {role} model {robot.name!r} has the structure "
-        f"{dyngen.structure(robot.model)!r} (joint types @ parent), for which no dynamics are "
-        f"generated (known: {known}); use engine={COMPILED!r} (or {AUTO!r}, which falls back to "
-        f"it)")
+        f"{st!r} (joint types @ parent), for which no dynamics are "
+        f"generated (known: {known}){why}; use engine={COMPILED!r} (or {AUTO!r}, which falls "
+        f"back to it)")
 
 
 def plant_parameters(robot, role: str = "plant") -> np.ndarray:
@@ -222,11 +261,13 @@ def _law(form):
 
 def _same(runs, key: str) -> None:
     first = getattr(runs[0], key)
-    if any(not np.array_equal(getattr(r, key), first) for r in runs[1:]):
+    if any(getattr(r, key) is not first and not np.array_equal(getattr(r, key), first)
+           for r in runs[1:]):
         raise ValueError(f"a batch shares {key}: its runs differ in it")
 
 
-def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
+def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
+              figures: bool = False) -> list:
     """Run validated simulations of one law on many plants, ``batch`` plants per C++ call.
 
     Parameters
@@ -238,11 +279,21 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
         ``runs[0].law.compiled_form()``, of a type in :data:`BATCH_LAWS`.
     batch : int, default 16
         Plants per call, 1 to :data:`BATCH_MAX`; results do not depend on it.
+    threads : int, default 1
+        Threads that run the calls (a lane group of ``batch`` plants each, the GIL released
+        in C++), 1 to :data:`MAX_THREADS`; results do not depend on it (no operation crosses
+        plants).
+    figures : bool, default False
+        Return each run reduced to its figures (:class:`~rrr_pin.sim.trajectory.RunFigures`,
+        what a campaign's row needs) instead of its trajectory: the same numbers,
+        :func:`~rrr_pin.sim.trajectory.tracking_figures` of the same arrays, without building
+        a trajectory per plant.
 
     Returns
     -------
     list
-        Per run, in order: its :class:`~rrr_pin.sim.trajectory.Trajectory`, or the
+        Per run, in order: its :class:`~rrr_pin.sim.trajectory.Trajectory` (or
+        :class:`~rrr_pin.sim.trajectory.RunFigures`), or the
         :class:`~rrr_pin.sim.trajectory.SimulationDiverged` it ended with (same test and
         message as the other engines).
 
@@ -265,6 +316,7 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
                          f"the batched engine (known: {known}); use engine={COMPILED!r}")
     if not 1 <= int(batch) <= BATCH_MAX:
         raise ValueError(f"batch must be an integer in [1, {BATCH_MAX}], got {batch!r}")
+    check_count("threads", threads, 1, MAX_THREADS)
     if not runs:
         return []
     if any(r.effects is not None for r in runs):
@@ -294,21 +346,57 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX) -> list:
     lower = np.stack([r.lower for r in runs])
     upper = np.stack([r.upper for r in runs])
     n1, n = len(run0.t), run0.plant.nq
+    slices = [slice(s, s + int(batch)) for s in range(0, len(runs), int(batch))]
+
+    def call(sl):
+        return EXTENSION.batch_rollout(name, P[sl], nominal, law, inputs, lower[sl], upper[sl])
+
     out = []
-    for s in range(0, len(runs), int(batch)):
-        sl = slice(s, s + int(batch))
-        Q, QD, TAU, steps, joints, reasons = EXTENSION.batch_rollout(
-            name, P[sl], nominal, law, inputs, lower[sl], upper[sl])
+    for sl, (Q, QD, TAU, steps, joints, reasons) in zip(
+            slices, _map(call, slices, int(threads)), strict=True):
         B = len(steps)
         Q, QD, TAU = (a.reshape(B, n1, n) for a in (Q, QD, TAU))
+        # The runs share R (checked above): each plant's figures, the batch at once.
+        values = (tracking_figures_batch((run0.R if run0.sampled else run0.R[::2]) - Q, TAU,
+                                         [r.plant.joint_names for r in runs[sl]])
+                  if figures else [None] * B)
         for b, run in enumerate(runs[sl]):
             out.append(_result(run, Q[b], QD[b], TAU[b], int(steps[b]), int(joints[b]),
-                               int(reasons[b])))
+                               int(reasons[b]), values[b]))
     return out
 
 
-def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int):
-    """Return a plant's Trajectory or its SimulationDiverged (as in compiled.run_compiled)."""
+#: Most threads :func:`run_batch` takes (a bound on a typo, not on the machine).
+MAX_THREADS = 256
+
+_POOLS: dict = {}
+
+
+def thread_pool(threads: int) -> ThreadPoolExecutor:
+    """Return the process's pool of ``threads`` threads for batched rollouts (made at first use).
+
+    The C++ batched loop releases the GIL, so work submitted here runs on separate cores.
+    """
+    pool = _POOLS.get(threads)
+    if pool is None:
+        pool = _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="rrr-pin-batch")
+    return pool
+
+
+def _map(fn, items, threads: int):
+    """``map(fn, items)``, on ``threads`` threads when there is more than one item."""
+    if threads == 1 or len(items) < 2:
+        return map(fn, items)
+    return thread_pool(threads).map(fn, items)
+
+
+def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int,
+            figures: dict | None = None):
+    """Return a plant's Trajectory (or RunFigures of ``figures``) or its SimulationDiverged.
+
+    As in compiled.run_compiled. The run's reference arrays may be shared with other runs
+    (:func:`rrr_pin.sim.simulation.simulate_batch`): a trajectory gets its own copy.
+    """
     law_failed = bad_step >= 0 and reason == LAW_TORQUE
     if law_failed and bad_step == 0 and not np.isfinite(TAU[0]).all():
         check_law_output(run.law, "step() torque" if run.sampled else "torque()", TAU[0],
@@ -318,8 +406,10 @@ def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int):
     if bad_step >= 0:
         return divergence(run.plant, float(run.t[bad_step]), Q[bad_step], QD[bad_step],
                           bad_joint, REASONS[reason])
-    return make_trajectory(run, np.ascontiguousarray(Q), np.ascontiguousarray(QD),
-                           np.ascontiguousarray(TAU))
+    if figures is not None:
+        return RunFigures(run.law.name, run.plant.name, figures, dict(run.info))
+    return make_trajectory(replace(run, R=run.R.copy()), np.ascontiguousarray(Q),
+                           np.ascontiguousarray(QD), np.ascontiguousarray(TAU))
 
 
 def raise_or_return(result):
@@ -346,7 +436,7 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
         Control (or RK4) steps, >= 0.
     substeps, repeat : int
         As for :func:`rrr_pin.sim.compiled.floor_ms`.
-    kind : {"fl", "pd"}
+    kind : {"fl", "fl_aw", "pd"}
     sampled : bool, default True
     batch : int, default 1
         Plants per call, 1 to :data:`BATCH_MAX`.

@@ -51,8 +51,9 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -358,7 +359,8 @@ def _execute(run: Run, engine: str) -> Trajectory:
 
 
 def simulate_batch(plants, law, reference: Reference, duration: float, *, batch: int = 16,
-                   engine: str = "auto", **kwargs) -> list:
+                   engine: str = "auto", threads: int = 1, figures: bool = False,
+                   **kwargs) -> list:
     """Simulate one law on many plants; diverged runs are returned, not raised.
 
     With ``engine="auto"`` the plants run ``batch`` at a time on the generated dynamics
@@ -378,6 +380,14 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
     batch : int, default 16
         Plants per batched call, 1 to :data:`rrr_pin.sim.batched.BATCH_MAX`.
     engine : {"auto", "python", "compiled", "codegen"}, default "auto"
+    threads : int, default 1
+        Threads of the batched engine (a batch per thread, the GIL released;
+        :func:`rrr_pin.sim.batched.run_batch`); changes no number.
+    figures : bool, default False
+        Where the batched engine runs, return each run reduced to its figures
+        (:class:`~rrr_pin.sim.trajectory.RunFigures`, what a campaign's row needs) instead of
+        its trajectory; runs on another engine still return trajectories. Both have
+        ``figures(joint_names)`` and ``info``.
     **kwargs
         The other keywords of :func:`simulate` (``dt``, ``rate``, ``method``, ``q0``,
         ``qd0``, ``limit_margin``, ``effects``, ``check``, ``force``).
@@ -399,9 +409,10 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
 
     def prepared(plant):
         # A plant's own failures (a closed chain whose loop will not close at q0) are its
-        # result, as in the run; every other error propagates.
+        # result, as in the run; every other error propagates. The runs share the sampled
+        # reference (read-only); a run for another engine gets its own copies below.
         try:
-            return _prepare(plant, law, reference, duration, **options)
+            return _prepare(plant, law, reference, duration, share=True, **options)
         except (SimulationDiverged, *plant.failures) as exc:
             return exc
 
@@ -413,24 +424,41 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
         if engine == CODEGEN and runs:
             choose(runs[0], CODEGEN)  # the refusal of a run the batched engine cannot run
         if engine == CODEGEN or batchable(runs, form):
-            out = run_batch(runs, form, batch=int(batch))
+            out = run_batch(runs, form, batch=int(batch), threads=threads, figures=figures)
             note = (f"engine={CODEGEN!r} asked" if engine == CODEGEN else
                     f"{AUTO}: {CODEGEN} runs every plant of the batch exactly")
             for r in out:
                 if not isinstance(r, SimulationDiverged):
                     r.info["engine"], r.info["engine_note"] = CODEGEN, note
             return out
+    # Why not the batched engine, said in each run's engine note (e.g. a structure whose
+    # dynamics could not be generated at first use: rrr_pin.sim.dyncache).
+    why = None
+    if engine == AUTO and ready and ready[0].law.compiled_form() is not None:
+        from .batched import why_not
+
+        why = why_not(ready[0], ready[0].law.compiled_form())
     out = []
     for run in runs:
         if isinstance(run, Exception):
             out.append(run)
             continue
+        run = replace(run, R=run.R.copy(), RD=run.RD.copy(), RDD=run.RDD.copy())
         try:
-            out.append(_execute(run, engine))
+            # One run at a time in the process: a law object is shared by the runs (and a
+            # campaign's threads), and the one-plant engines may keep state in it.
+            with _ONE_AT_A_TIME:
+                traj = _execute(run, engine)
         except (SimulationDiverged, *run.plant.failures) as exc:
             out.append(exc)
+            continue
+        if why is not None:
+            traj.info["engine_note"] += f"; not {CODEGEN} for the batch: {why}"
+        out.append(traj)
     return out
 
+
+_ONE_AT_A_TIME = threading.Lock()
 
 #: Reuse of the law-side work of :func:`_prepare` across runs, active only inside
 #: :func:`reuse_preparation` (``None`` outside): the reference sampled on a grid, and the
@@ -472,24 +500,37 @@ def _sampled_law(law, rate: float, method: str):
     key = ("law", id(law), rate, method)
     hit = _REUSE.get(key)
     if hit is None or hit[0] is not law:
-        hit = _REUSE[key] = (law, law.sampled(rate, method))
+        # setdefault: threads preparing runs at once (a campaign's --threads) all get the
+        # first form stored, so the runs of a batch share one law object; a stale entry (an
+        # object of the same id) is replaced.
+        made = (law, law.sampled(rate, method))
+        if hit is None:
+            hit = _REUSE.setdefault(key, made)
+        else:
+            hit = _REUSE[key] = made
     return hit[1]
 
 
-def _sample_reference(reference, grid_key, grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _sample_reference(reference, grid_key, grid, share: bool = False
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return ``reference.sample(grid)`` as contiguous float arrays, checked (finite, (N, n)).
 
     Inside :func:`reuse_preparation`, sampled once per reference (by identity) and
-    ``grid_key`` (which determines ``grid``); each call gets its own copies.
+    ``grid_key`` (which determines ``grid``); each call gets its own copies, or with ``share``
+    the cached arrays themselves (read-only for the caller: the batched runs of
+    :func:`simulate_batch`, which copy them into a trajectory only when one is made).
     """
     if _REUSE is None:
         return checked_sample(reference, grid)
     key = ("reference", id(reference), grid_key)
     hit = _REUSE.get(key)
     if hit is None or hit[0] is not reference:
-        arrays = checked_sample(reference, grid)
-        hit = _REUSE[key] = (reference, arrays)
-    return tuple(a.copy() for a in hit[1])
+        made = (reference, checked_sample(reference, grid))
+        if hit is None:
+            hit = _REUSE.setdefault(key, made)  # threads: the first stored is everyone's
+        else:
+            hit = _REUSE[key] = made
+    return hit[1] if share else tuple(a.copy() for a in hit[1])
 
 
 def _check_limits(reference, plant, duration: float) -> None:
@@ -521,11 +562,13 @@ def _trusted_grid(duration: float, dt: float | None, rate: float | None) -> Time
 
 
 def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
-             limit_margin, effects=None, check=True, force=False) -> Run:
+             limit_margin, effects=None, check=True, force=False, share=False) -> Run:
     """Validate every input once and sample the reference (the edge of the simulator).
 
     ``check=False`` trusts the scalar settings (``duration``, ``dt``, ``rate``,
     ``limit_margin``), validated by the caller; they are only converted to float.
+    ``share``: the run's reference arrays are those of the :func:`reuse_preparation` cache,
+    shared with other runs, not copies (:func:`_sample_reference`).
     """
     n = plant.nq
     check_law(law, n)
@@ -580,7 +623,7 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         info = {"method": "RK4 (continuous-time law)", "dt": dt}
     _check_limits(reference, plant, float(t[-1]))
     R, RD, RDD = _sample_reference(
-        reference, (rate is not None, Ts if rate is not None else dt, n_steps), grid)
+        reference, (rate is not None, Ts if rate is not None else dt, n_steps), grid, share)
     q0 = _state("q0", q0, R[0])
     qd0 = _state("qd0", qd0, RD[0])
     bad = diverged_joint(q0, qd0, lower, upper)

@@ -4,7 +4,7 @@
 (:func:`diverged_joint`, :data:`VELOCITY_LIMIT`: one definition for the Python and the compiled
 engines), and :class:`Run`, a validated run that :func:`rrr_pin.sim.simulation.simulate` hands
 to an engine; :meth:`Trajectory.save` and :meth:`Trajectory.load` write and read a trajectory
-as CSV, NPZ or Parquet (:data:`FORMATS`). Imports nothing of rrr_pin.
+as CSV, NPZ, Parquet or MATLAB ``.mat`` (:data:`FORMATS`). Imports nothing of rrr_pin.
 """
 
 from __future__ import annotations
@@ -19,6 +19,9 @@ import numpy as np
 
 __all__ = [
     "Trajectory",
+    "RunFigures",
+    "tracking_figures",
+    "tracking_figures_batch",
     "SimulationDiverged",
     "Run",
     "metrics",
@@ -94,6 +97,21 @@ class Trajectory:
     joint_names: list = field(default_factory=list)
     joint_units: list = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        """One-line summary (the arrays' sizes, not their values), as the HTML repr shows."""
+        t, q = np.asarray(self.t), np.asarray(self.q)
+        n = q.shape[1] if q.ndim == 2 else 0
+        span = f"{t[-1] - t[0]:.6g} s" if t.size else "empty"
+        parts = [f"plant={self.plant!r}", f"controller={self.controller!r}",
+                 f"{t.size} samples over {span}", f"{n} joints"]
+        if self.info.get("engine"):
+            parts.append(f"engine={self.info['engine']!r}")
+        if t.size and np.shape(self.r) == q.shape:
+            e = np.abs(np.asarray(self.r) - q)
+            parts.append(f"max |error| {np.max(e):.4g}" if np.isfinite(e).all()
+                         else "non-finite values")
+        return f"Trajectory({', '.join(parts)})"
+
     def _repr_html_(self) -> str:
         """Summary table for notebooks: plant, law, duration, rate, engine, RMS error, status."""
         import html
@@ -119,6 +137,11 @@ class Trajectory:
         """Tracking error ``e = r - q`` [rad], shape (N, n)."""
         return self.r - self.q
 
+    def figures(self, joint_names=None) -> dict:
+        """Scalar figures of the run (:func:`tracking_figures`; default its own joint names)."""
+        names = self.joint_names if joint_names is None else joint_names
+        return tracking_figures(self.error, self.tau, names, self.info)
+
     def save(self, path) -> Path:
         """Write the time series and their metadata to ``path``; the suffix picks the format.
 
@@ -138,6 +161,9 @@ class Trajectory:
         * ``.parquet``: one column per CSV header entry (pyarrow), the JSON text in the
           schema metadata under ``b"rrr_pin"`` and each column's unit in its field metadata
           under ``b"unit"``.
+        * ``.mat``: MATLAB variables ``t`` (N x 1), ``q, qd, r, tau`` (N x n) and ``metadata``,
+          the JSON text (``jsondecode(metadata)`` in MATLAB), written by
+          :func:`scipy.io.savemat` (MAT 5, compressed).
 
         ``info`` is stored as JSON: tuples come back as lists, NumPy scalars as numbers.
 
@@ -165,6 +191,12 @@ class Trajectory:
             with open(path, "wb") as f:  # a file object: numpy would append .npz to a name
                 np.savez(f, t=self.t, q=self.q, qd=self.qd, r=self.r, tau=self.tau,
                          metadata=np.array(json.dumps(meta)))
+        elif fmt == ".mat":
+            import scipy.io
+
+            scipy.io.savemat(path, {"t": np.asarray(self.t, dtype=float), **{
+                k: np.asarray(getattr(self, k), dtype=float) for k in _ARRAYS},
+                "metadata": json.dumps(meta)}, oned_as="column", do_compression=True)
         else:
             _write_parquet(path, self, meta)
         return path
@@ -176,7 +208,7 @@ class Trajectory:
         Parameters
         ----------
         path : str or path-like
-            A ``.csv``, ``.npz`` or ``.parquet`` file written by :meth:`save`.
+            A ``.csv``, ``.npz``, ``.parquet`` or ``.mat`` file written by :meth:`save`.
 
         Returns
         -------
@@ -205,8 +237,8 @@ class Trajectory:
             raise FileNotFoundError(f"trajectory file not found: {path}")
         if fmt == ".csv":
             meta, columns = _read_csv(path)
-        elif fmt == ".npz":
-            meta, arrays = _read_npz(path)
+        elif fmt in (".npz", ".mat"):
+            meta, arrays = (_read_npz if fmt == ".npz" else _read_mat)(path)
             n = len(meta["joint_names"]) or (arrays["q"].shape[1] if "q" in arrays else 0)
             return _trajectory(path, meta, arrays, n)
         else:
@@ -246,6 +278,107 @@ def metrics(traj: Trajectory) -> dict:
     if "drift_m" in traj.info:  # a plant that records its loop drift (a closed chain)
         out["drift_m"] = float(traj.info["drift_m"])
     return out
+
+
+def tracking_figures(e, tau, joint_names, info=None) -> dict:
+    """Return the scalar figures of a run that a campaign's row holds (one definition).
+
+    Parameters
+    ----------
+    e : ndarray, shape (N, n)
+        Tracking error ``r - q`` [rad], C-contiguous.
+    tau : ndarray, shape (N, n)
+        Applied torques [N m].
+    joint_names : sequence of str, length n
+    info : dict, optional
+        The run's ``info``; its ``drift_m`` (a closed chain's loop drift) gives ``drift`` [m].
+
+    Returns
+    -------
+    dict
+        ``rms_error``, ``max_error`` [rad], ``rms_torque`` [N m] (over all joints and samples),
+        ``drift`` [m] when recorded, and ``rms_error_<joint>`` [rad] per joint, in that order.
+    """
+    e2 = e * e
+    out = {"rms_error": float(np.sqrt(np.mean(e2))),
+           "max_error": float(np.max(np.abs(e))),
+           "rms_torque": float(np.sqrt(np.mean(tau * tau)))}
+    if info is not None and "drift_m" in info:
+        out["drift"] = float(info["drift_m"])
+    for name, v in zip(joint_names, np.sqrt(np.mean(e2, axis=0)), strict=True):
+        out[f"rms_error_{name}"] = float(v)
+    return out
+
+
+def tracking_figures_batch(E, TAU, joint_names) -> list[dict]:
+    """Return :func:`tracking_figures` of B runs at once: the same numbers, bit for bit.
+
+    Each reduction runs over one run's own block in the same order as for that run alone
+    (numpy's pairwise sum over a contiguous row; a sequential sum over the samples per joint),
+    so a run's figures do not depend on the batch (``tests/test_batched.py`` compares).
+
+    Parameters
+    ----------
+    E : ndarray, shape (B, N, n)
+        Tracking errors ``r - q`` [rad], C-contiguous.
+    TAU : ndarray, shape (B, N, n)
+        Applied torques [N m], C-contiguous.
+    joint_names : sequence of B sequences of str, each of length n
+        Each run's joint names.
+
+    Returns
+    -------
+    list of dict
+        Per run, :func:`tracking_figures` (no ``drift``: a batch holds serial arms).
+    """
+    B = E.shape[0]
+    E2 = E * E
+    rms = np.sqrt(np.mean(E2.reshape(B, -1), axis=1))
+    peak = np.max(np.abs(E).reshape(B, -1), axis=1)
+    torque = np.sqrt(np.mean((TAU * TAU).reshape(B, -1), axis=1))
+    per_joint = np.sqrt(np.mean(E2, axis=1))
+    out = []
+    for b, names in zip(range(B), joint_names, strict=True):
+        row = {"rms_error": float(rms[b]), "max_error": float(peak[b]),
+               "rms_torque": float(torque[b])}
+        row.update(zip((f"rms_error_{name}" for name in names), per_joint[b].tolist(),
+                       strict=True))
+        out.append(row)
+    return out
+
+
+@dataclass(frozen=True)
+class RunFigures:
+    """A finished run reduced to its figures, without its time series.
+
+    What a campaign's batched runs return (:func:`rrr_pin.sim.batched.run_batch` with
+    ``figures=True``) when no trajectory is asked for: the numbers
+    :meth:`Trajectory.figures` gives for the same run, bit for bit (the same arrays reduced
+    by :func:`tracking_figures`).
+
+    Attributes
+    ----------
+    controller, plant : str
+        The law's name and the plant's name.
+    values : dict
+        :func:`tracking_figures` keyed by the plant's joint names.
+    info : dict
+        As :attr:`Trajectory.info` (``engine``, integration settings).
+    """
+
+    controller: str
+    plant: str
+    values: dict
+    info: dict = field(default_factory=dict)
+
+    def figures(self, joint_names=None) -> dict:
+        """:func:`tracking_figures` of the run (``joint_names``: rename the per-joint keys)."""
+        if joint_names is None:
+            return dict(self.values)
+        per = [v for k, v in self.values.items() if k.startswith("rms_error_")]
+        out = {k: v for k, v in self.values.items() if not k.startswith("rms_error_")}
+        out.update({f"rms_error_{j}": v for j, v in zip(joint_names, per, strict=True)})
+        return out
 
 
 def diverged_joint(q, qd, lower, upper) -> tuple[int, str] | None:
@@ -381,7 +514,7 @@ def saturation(tau, limit, Ts: float) -> dict:
 # --- files: Trajectory.save / Trajectory.load -------------------------------------------------
 
 #: Suffixes :meth:`Trajectory.save` and :meth:`Trajectory.load` accept.
-FORMATS = (".csv", ".npz", ".parquet")
+FORMATS = (".csv", ".npz", ".parquet", ".mat")
 
 #: The joint-space arrays, in file order (after ``t``).
 _ARRAYS = ("q", "qd", "r", "tau")
@@ -517,6 +650,30 @@ def _read_npz(path: Path) -> tuple[dict, dict]:
         # a damaged member in numpy's header parser (ValueError, OSError).
         raise TrajectoryFileError(f"{path}: a truncated or damaged .npz archive "
                                   f"({type(exc).__name__}: {exc})") from None
+    return meta, arrays
+
+
+def _read_mat(path: Path) -> tuple[dict, dict]:
+    """Metadata and arrays of a ``.mat`` trajectory (``t`` back to shape (N,))."""
+    import zlib
+
+    import scipy.io
+
+    try:
+        data = scipy.io.loadmat(path)
+    except (ValueError, OSError, EOFError, zlib.error, TypeError) as exc:
+        # scipy.io names a foreign file in ValueError ("Unknown mat file type", "Mat 4 mopt
+        # wrong format") and a truncated one in OSError ("could not read bytes").
+        raise TrajectoryFileError(f"{path}: not a readable MAT file (truncated, damaged or "
+                                  f"of another format: {type(exc).__name__}: {exc})") from None
+    if "metadata" not in data or np.size(data["metadata"]) != 1:
+        raise TrajectoryFileError(f"{path}: no 'metadata' variable; not written by "
+                                  f"Trajectory.save")
+    meta = _check_metadata(path, str(np.ravel(data["metadata"])[0]))
+    arrays = {k: np.array(data[k], dtype=float) for k in ("t",) + _ARRAYS if k in data}
+    if "t" in arrays:
+        t = arrays["t"]
+        arrays["t"] = t.reshape(-1) if t.ndim == 2 and 1 in t.shape else t
     return meta, arrays
 
 

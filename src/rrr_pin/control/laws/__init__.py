@@ -67,7 +67,7 @@ References
 """
 
 from .antiwindup import AntiWindupTracking, hinf_aw_controller
-from .forms import CompiledForm, FLAWForm, FLForm, PDForm
+from .forms import CompiledForm, FLAWForm, FLForm, FLFrictionForm, PDForm
 from .pd import PD_BANDWIDTH, PDGravity, PDLinearModel, pd_controller
 from .protocol import (
     DEFAULT_RATE,
@@ -92,6 +92,7 @@ __all__ = [
     "SampledLaw",
     "CompiledForm",
     "FLForm",
+    "FLFrictionForm",
     "FLAWForm",
     "PDForm",
     "LinearModel",

@@ -93,6 +93,8 @@ class AntiWindupTracking(TrackingController):
         taubar = rdd + 2.0 * lam * (rd - qd) + lam * lam * ((r - q) + y)
         M, h = self.nominal.terms(q, qd)
         tau = M @ taubar + h
+        if self.friction is not None:  # friction compensation, before the clip
+            tau = tau + self.friction.torque(qd)
         lim = self._limit
         sat = np.minimum(np.maximum(tau, -lim), lim)
         if np.array_equal(sat, tau):
@@ -136,8 +138,8 @@ class AntiWindupTracking(TrackingController):
 
     def compiled_form(self) -> FLAWForm | None:
         """Return the :class:`FLAWForm` with ``K``'s continuous matrices (this exact class only)."""
-        if type(self) is not AntiWindupTracking:
-            return None
+        if type(self) is not AntiWindupTracking or self.friction is not None:
+            return None  # with friction compensation: the Python engine only (no C++ form)
         A, B, C, D = self._mats
         return FLAWForm(self.nominal, self.lam, A, B, C, D, self._gain, self._limit)
 
@@ -189,7 +191,7 @@ class SampledAntiWindup(SampledForm):
 
     def compiled_form(self):
         """Return the :class:`FLAWForm` with the discrete matrices and ``Bd Dd^-1``."""
-        if type(self.law) is not AntiWindupTracking:
+        if type(self.law) is not AntiWindupTracking or self.law.friction is not None:
             return None
         Ad, Bd, Cd, Dd = self.mats
         return FLAWForm(self.law.nominal, self.law.lam, Ad, Bd, Cd, Dd, self.gain,
@@ -206,7 +208,7 @@ class SampledAntiWindup(SampledForm):
 
 
 def hinf_aw_controller(nominal, K, lam: float = 45.0, *, torque_limit="urdf",
-                       name: str = "hinf_aw") -> AntiWindupTracking:
+                       name: str = "hinf_aw", friction=None) -> AntiWindupTracking:
     """H-infinity + FL with anti-windup: :class:`AntiWindupTracking` (default ``lam = 45``).
 
     Parameters
@@ -219,6 +221,10 @@ def hinf_aw_controller(nominal, K, lam: float = 45.0, *, torque_limit="urdf",
         FL bandwidth [rad/s].
     torque_limit : "urdf", float or array-like, shape (n,), default "urdf"
         Actuator limits [N m] the law knows; ``"urdf"``: the nominal URDF's effort limits.
+    friction : rrr_pin.control.friction.JointFriction, optional
+        Friction compensated (added before the clip); the law then runs on the Python engine
+        only (it declares no compiled form).
     """
     return AntiWindupTracking(nominal=nominal, lam=lam, K=K, name=name,
-                              label="H-infinity + FL, anti-windup", torque_limit=torque_limit)
+                              label="H-infinity + FL, anti-windup", torque_limit=torque_limit,
+                              friction=friction)

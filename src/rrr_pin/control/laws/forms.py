@@ -16,7 +16,7 @@ import numpy as np
 
 from ...validation import check_matrix, check_positive, check_vector
 
-__all__ = ["CompiledForm", "FLForm", "FLAWForm", "PDForm"]
+__all__ = ["CompiledForm", "FLForm", "FLFrictionForm", "FLAWForm", "PDForm"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +86,51 @@ class FLForm(CompiledForm):
 
     def __post_init__(self) -> None:
         _check_controller(self)
+
+
+@dataclass(frozen=True, eq=False)
+class FLFrictionForm(CompiledForm):
+    r"""The law of :class:`FLForm` with friction compensation.
+
+    .. math:: \tau = \hat M(q)\,\bar\tau + \hat V(q, \dot q) + \hat G(q)
+              + F_v \dot q + F_c \tanh(\dot q / v_\varepsilon)
+
+    (:class:`~rrr_pin.control.friction.JointFriction`). Its own type, so that an engine that
+    implements :class:`FLForm` only refuses it by name instead of running it without the
+    compensation; the exported C law implements it (:mod:`rrr_pin.deploy.sources`).
+
+    Attributes
+    ----------
+    nominal, lam, A, B, C, D
+        As :class:`FLForm`.
+    viscous : ndarray, shape (n,)
+        ``Fv`` [N m s/rad] >= 0.
+    coulomb : ndarray, shape (n,)
+        ``Fc`` [N m] >= 0.
+    coulomb_velocity : float
+        ``v_eps`` [rad/s] > 0.
+    """
+
+    lam: float
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    viscous: np.ndarray
+    coulomb: np.ndarray
+    coulomb_velocity: float
+    kind: ClassVar[str] = "fl_friction"
+
+    def __post_init__(self) -> None:
+        _check_controller(self)
+        n = self.nominal.nq
+        for key in ("viscous", "coulomb"):
+            value = check_vector(key, getattr(self, key), n, readonly=True)
+            if not np.all(value >= 0.0):
+                raise ValueError(f"{key} must be >= 0 per joint, got {value.tolist()}")
+            object.__setattr__(self, key, value)
+        object.__setattr__(self, "coulomb_velocity", check_positive(
+            "coulomb_velocity", self.coulomb_velocity, unit="rad/s"))
 
 
 @dataclass(frozen=True, eq=False)

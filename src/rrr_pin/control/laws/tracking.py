@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from ...validation import check_rate
-from .forms import FLForm
+from .forms import FLForm, FLFrictionForm
 from .protocol import (
     DEFAULT_RATE,
     ControlLaw,
@@ -154,6 +154,9 @@ class TrackingController(ModelLaw, ControlLaw):
         Key in results and on the CLI.
     label : str
         Name in figures and tables.
+    friction : rrr_pin.control.friction.JointFriction, optional
+        Friction compensation: ``tau_f(qd) = Fv qd + Fc tanh(qd / v_eps)`` at the measured
+        ``qd`` added to the torque (the nominal's friction, e.g. identified). None: none.
     """
 
     nominal: object
@@ -161,6 +164,7 @@ class TrackingController(ModelLaw, ControlLaw):
     K: object = None
     name: str = "fl"
     label: str = ""
+    friction: object = None
     _mats: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -176,6 +180,9 @@ class TrackingController(ModelLaw, ControlLaw):
         else:
             mats = (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((n, 0)), np.zeros((n, n)))
         object.__setattr__(self, "_mats", mats)
+        if self.friction is not None:
+            object.__setattr__(self, "friction", self.friction.check_joints(
+                n, f"the nominal {self.nominal.name!r}"))
         check_law(self)
 
     def continuous_matrices(self):
@@ -211,6 +218,8 @@ class TrackingController(ModelLaw, ControlLaw):
         lam = self.lam
         taubar = rdd + 2.0 * lam * (rd - qd) + lam * lam * ((r - q) + y)
         M, h = self.nominal.terms(q, qd)  # the plant protocol: eq. (1)'s M and V + G
+        if self.friction is not None:  # friction compensation, after eq. (8)'s terms
+            return M @ taubar + h + self.friction.torque(qd)
         return M @ taubar + h
 
     def torque(self, t, q, qd, r, rd, rdd, x) -> np.ndarray:
@@ -255,8 +264,7 @@ class TrackingController(ModelLaw, ControlLaw):
         """
         if type(self) is not TrackingController:
             return None
-        A, B, C, D = self._mats
-        return FLForm(self.nominal, self.lam, A, B, C, D)
+        return _fl_form(self, *self._mats)
 
     def __reduce__(self):
         # control.StateSpace does not pickle (it holds a lambda): travel as matrices, rebuilt
@@ -266,9 +274,19 @@ class TrackingController(ModelLaw, ControlLaw):
         return (rebuild_tracking, (type(self), state))
 
     def describe(self) -> dict:
-        """Name, class, bandwidth and ``K``'s order."""
+        """Name, class, bandwidth, ``K``'s order and the friction compensated (or None)."""
         return {**super().describe(), "lam_rad_s": self.lam, "K_states": self.nx,
-                "nominal": self.nominal.name}
+                "nominal": self.nominal.name, "friction_compensation":
+                None if self.friction is None else self.friction.to_dict()}
+
+
+def _fl_form(law, A, B, C, D):
+    """:class:`FLForm` of a tracking law, or :class:`FLFrictionForm` when it compensates."""
+    f = law.friction
+    if f is None:
+        return FLForm(law.nominal, law.lam, A, B, C, D)
+    return FLFrictionForm(law.nominal, law.lam, A, B, C, D, np.asarray(f.viscous),
+                          np.asarray(f.coulomb), f.coulomb_velocity)
 
 
 def rebuild_tracking(cls, state):
@@ -299,8 +317,7 @@ class SampledTracking(SampledForm):
         """Return the :class:`FLForm` with the discrete matrices (None for a subclassed law)."""
         if type(self.law) is not TrackingController:
             return None
-        Ad, Bd, Cd, Dd = self.mats
-        return FLForm(self.law.nominal, self.law.lam, Ad, Bd, Cd, Dd)
+        return _fl_form(self.law, *self.mats)
 
     def describe(self):
         """Describe the continuous law, sampled."""
@@ -332,6 +349,8 @@ class DiscreteTrackingController(ModelLaw, SampledLaw):
         ``e = r - q`` (negative feedback) with sampling time ``K.dt > 0`` [s].
     name, label : str
         Key and display name.
+    friction : rrr_pin.control.friction.JointFriction, optional
+        Friction compensation, as :class:`TrackingController`'s.
     """
 
     nominal: object
@@ -339,15 +358,18 @@ class DiscreteTrackingController(ModelLaw, SampledLaw):
     K: object
     name: str = "hinf"
     label: str = ""
+    friction: object = None
     _mats: tuple = field(init=False, repr=False, compare=False)
     _fl: object = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        fl = TrackingController(self.nominal, self.lam, None, name=self.name)
+        fl = TrackingController(self.nominal, self.lam, None, name=self.name,
+                                friction=self.friction)
         K = controller_ss(self.K, self.nominal.nq, discrete=True)
         object.__setattr__(self, "lam", fl.lam)
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "_fl", fl)
+        object.__setattr__(self, "friction", fl.friction)
         object.__setattr__(self, "_mats",
                            tuple(np.asarray(x, dtype=float) for x in (K.A, K.B, K.C, K.D)))
         check_law(self)
@@ -372,7 +394,7 @@ class DiscreteTrackingController(ModelLaw, SampledLaw):
         """Return the :class:`FLForm` with the discrete matrices, for this exact class only."""
         if type(self) is not DiscreteTrackingController:
             return None
-        return FLForm(self.nominal, self.lam, *self._mats)
+        return _fl_form(self, *self._mats)
 
     def __reduce__(self):
         # control.StateSpace does not pickle: travel as matrices and dt.
@@ -383,19 +405,25 @@ class DiscreteTrackingController(ModelLaw, SampledLaw):
     def describe(self) -> dict:
         """Name, class, rate, bandwidth and ``K``'s order."""
         return {**super().describe(), "lam_rad_s": self.lam, "K_states": self.nx,
-                "K_dt_s": float(self.K.dt), "nominal": self.nominal.name}
+                "K_dt_s": float(self.K.dt), "nominal": self.nominal.name,
+                "friction_compensation":
+                None if self.friction is None else self.friction.to_dict()}
 
 
-def fl_controller(nominal, lam: float = 100.0, *, name: str = "fl") -> TrackingController:
+def fl_controller(nominal, lam: float = 100.0, *, name: str = "fl",
+                  friction=None) -> TrackingController:
     r"""Feedback linearization alone, eq. (20) with feed-forward (default ``lam = 100`` rad/s).
 
     .. math:: \bar\tau = \ddot r + 2\lambda(\dot r - \dot q) + \lambda^2 (r - q)
+
+    ``friction`` (:class:`~rrr_pin.control.friction.JointFriction`): compensated, or None.
     """
-    return TrackingController(nominal=nominal, lam=lam, K=None, name=name, label="FL alone")
+    return TrackingController(nominal=nominal, lam=lam, K=None, name=name, label="FL alone",
+                              friction=friction)
 
 
-def hinf_fl_controller(nominal, K, lam: float = 45.0, *,
-                       name: str = "hinf") -> TrackingController | DiscreteTrackingController:
+def hinf_fl_controller(nominal, K, lam: float = 45.0, *, name: str = "hinf",
+                       friction=None) -> TrackingController | DiscreteTrackingController:
     """H-infinity + feedback linearization, eq. (8)-(10), (18)-(19) (default ``lam = 45`` rad/s).
 
     Parameters
@@ -410,11 +438,13 @@ def hinf_fl_controller(nominal, K, lam: float = 45.0, *,
         at ``1 / K.dt`` Hz.
     lam : float, default 45
         FL bandwidth the design assumed [rad/s].
+    friction : rrr_pin.control.friction.JointFriction, optional
+        Friction compensated by the law (None: none).
     """
     import control
 
     if isinstance(K, control.LTI) and K.isdtime(strict=True):
         return DiscreteTrackingController(nominal=nominal, lam=lam, K=K, name=name,
-                                          label="H-infinity + FL")
+                                          label="H-infinity + FL", friction=friction)
     return TrackingController(nominal=nominal, lam=lam, K=K, name=name,
-                              label="H-infinity + FL")
+                              label="H-infinity + FL", friction=friction)

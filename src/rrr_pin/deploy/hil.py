@@ -1,0 +1,280 @@
+r"""The exported controller in a real-time loop against a simulated arm: :func:`hil`.
+
+Two processes share one memory mapping (``hil_harness.c``, built with CMake against the exported
+folder by ``add_subdirectory``): the **controller** wakes on absolute deadlines ``t0 + k T``
+(``clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)``, ``T = 1 / rate``), reads the arm's state,
+calls ``ctrl_step`` and writes the torque; SCHED_FIFO (priority 80) and ``mlockall`` are asked
+for and recorded as granted or not. The **arm** is the export's nominal model (its
+``dynamics.h``), advanced one law period ``Ts`` per cycle by classical RK4 with the torque held,
+as :mod:`rrr_pin.sim.python_engine` integrates. A torque written after the next tick is a
+**missed deadline**: the arm holds the previous torque for that period, as a drive does.
+
+The same harness also runs the loop **offline** (one process, no clock): the same arithmetic,
+so with no missed deadline the real-time closed loop equals it bit for bit, and
+``max_error_vs_offline_rad`` measures what the misses cost. The offline loop is run a second
+time with the real-time run's missed deadlines replayed (the arm holding the previous torque on
+those cycles): it must then equal the real-time loop bit for bit (``max_error_vs_replay_rad``),
+which checks the exchange through shared memory whatever the misses. ``tests/test_hil.py`` pins the
+offline loop to :func:`rrr_pin.simulate` (Python engine) on the same reference.
+
+Figures (``hil.json``, exactly the keys of issue 35): ``cycles``, ``missed``, ``latency_us``
+(tick to torque written: wake-up latency + waiting for the state + ``ctrl_step``; percentiles
+``p50``, ``p99``, ``p999`` (99.9 %), ``p9999`` (99.99 %) and ``max``), ``jitter_us`` (the
+largest deviation of a wake-to-wake interval from ``T``) and ``max_error_vs_offline_rad``.
+``hil_run.json`` records the conditions: the clock rate, the law's rate, SCHED_FIFO and
+mlockall granted or not, the load average, ``ctrl_step`` alone, the wake-up latency, the cycles
+whose state was late, the tracking error of both loops.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..outputs import OutputDir, writing
+from ..validation import FieldError, check_count, check_rate
+from .writer import read_record
+
+__all__ = ["HilResult", "hil", "MAX_CYCLES", "HARNESS"]
+
+#: Largest ``cycles``: the harness keeps every cycle's state, torque and timing in memory
+#: (``(2 n + 4) x 8`` bytes a cycle; 20 million cycles of a 7-joint arm: 2.9 GB).
+MAX_CYCLES = 20_000_000
+
+#: The harness's C source, beside this module.
+HARNESS = Path(__file__).resolve().parent / "hil_harness.c"
+
+_PERCENTILES = {"p50": 50.0, "p99": 99.0, "p999": 99.9, "p9999": 99.99}
+
+
+@dataclass(frozen=True)
+class HilResult:
+    """What :func:`hil` measured.
+
+    Attributes
+    ----------
+    summary : dict
+        The content of ``hil.json``.
+    run : dict
+        The content of ``hil_run.json`` (the conditions and the secondary figures).
+    q_hil, q_offline, q_replay : ndarray, shape (cycles, n)
+        The arm's joint angles [rad] at each tick: real-time, offline, and offline with the
+        real-time run's missed deadlines replayed (equal to ``q_hil`` bit for bit).
+    """
+
+    summary: dict
+    run: dict
+    q_hil: np.ndarray
+    q_offline: np.ndarray
+    q_replay: np.ndarray
+
+
+def _robot(record: dict):
+    """Return the arm the export was made for, loaded by its recorded name, fingerprint checked."""
+    from ..model.dynamics import load_robot
+    from ..sim.codegen import fingerprint
+
+    name = record["model"]["name"]
+    try:
+        robot = load_robot(name)
+    except (ValueError, FileNotFoundError) as exc:
+        raise ValueError(f"the export's model {name!r} cannot be loaded by name ({exc}); hil "
+                         f"simulates the arm the export was made for") from None
+    if fingerprint(robot.model) != record["model"]["fingerprint"]:
+        raise ValueError(f"load_robot({name!r}) is not the model the export was made for "
+                         f"(fingerprints differ): export again, or run hil on that model")
+    return robot
+
+
+def _build(folder: Path, work: Path, pinocchio: bool) -> Path:
+    """Build ``hil_harness.c`` against ``folder`` (add_subdirectory); return the executable."""
+    cmake = shutil.which("cmake")
+    if cmake is None:
+        raise FileNotFoundError("cmake is not on PATH (install CMake >= 3.21 and a C compiler)")
+    src = work / "harness"
+    src.mkdir()
+    shutil.copyfile(HARNESS, src / "hil_harness.c")
+    langs = "C CXX" if pinocchio else "C"
+    link = ("set_target_properties(rrr_pin_hil PROPERTIES LINKER_LANGUAGE CXX)\n"
+            if pinocchio else "")
+    (src / "CMakeLists.txt").write_text(
+        "cmake_minimum_required(VERSION 3.21)\n"
+        f"project(rrr_pin_hil LANGUAGES {langs})\n"
+        f"add_subdirectory(\"{folder.resolve().as_posix()}\" ctrl)\n"
+        "add_executable(rrr_pin_hil hil_harness.c)\n"
+        "set_target_properties(rrr_pin_hil PROPERTIES C_STANDARD 11 C_EXTENSIONS ON)\n"
+        "target_compile_options(rrr_pin_hil PRIVATE -Wall -Wextra -Werror)\n"
+        "target_link_libraries(rrr_pin_hil PRIVATE rrr_pin_ctrl)\n" + link)
+    build = work / "build"
+    configure = [cmake, "-S", str(src), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
+                 f"-DRRR_PIN_PYTHON={sys.executable}"]
+    for cmd in (configure, [cmake, "--build", str(build), "--target", "rrr_pin_hil"]):
+        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if done.returncode:
+            raise RuntimeError(f"{' '.join(cmd)} failed ({done.returncode}):\n"
+                               f"{done.stdout[-3000:]}{done.stderr[-3000:]}")
+    return build / "rrr_pin_hil"
+
+
+def _run(exe: Path, mode: str, settings: Path, out: Path, n: int, cycles: int,
+         holds: Path | None = None):
+    """Run the harness; return (q, tau, timing or None, header dict, wall seconds)."""
+    start = time.perf_counter()
+    extra = [str(holds)] if holds is not None else []
+    done = subprocess.run([str(exe), mode, str(settings), str(out), *extra],
+                          capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - start
+    if done.returncode:
+        raise RuntimeError(f"the {mode} harness failed ({done.returncode}): "
+                           f"{done.stderr.strip() or done.stdout.strip()}")
+    words = done.stdout.split()
+    header = {words[i]: int(words[i + 1]) for i in range(0, len(words) - 1, 2)}
+    raw = out.read_bytes()
+    size = n * cycles * 8
+    q = np.frombuffer(raw[:size], dtype=float).reshape(cycles, n)
+    tau = np.frombuffer(raw[size:2 * size], dtype=float).reshape(cycles, n)
+    timing = None
+    if mode == "hil":
+        timing = np.frombuffer(raw[2 * size:], dtype=[("wake", "<i8"), ("done", "<i8"),
+                                                       ("step", "<i8"), ("late", "<i4"),
+                                                       ("pad", "<i4")])
+    return q, tau, timing, header, wall
+
+
+def _percentiles(ns: np.ndarray) -> dict:
+    us = ns.astype(float) / 1e3
+    out = {k: float(np.percentile(us, p)) for k, p in _PERCENTILES.items()}
+    out["max"] = float(us.max())
+    return out
+
+
+def _loadavg() -> list[float] | None:
+    try:
+        return [float(v) for v in Path("/proc/loadavg").read_text().split()[:3]]
+    except OSError:
+        return None
+
+
+def hil(folder, cycles: int, out, *, rate: float | None = None,
+        overwrite: bool = False) -> HilResult:
+    """Run an exported controller in real time against its nominal arm; write ``hil.json``.
+
+    Parameters
+    ----------
+    folder : path-like
+        A folder written by :func:`rrr_pin.export` (built here again, with the harness).
+    cycles : int
+        Control periods to run, 1 to :data:`MAX_CYCLES`.
+    out : path-like
+        Output folder, claimed as :mod:`rrr_pin.outputs` says: ``hil.json`` and
+        ``hil_run.json``.
+    rate : float, optional
+        The harness's clock [Hz]; default the law's own rate (``rate_hz`` of
+        ``controller.json``). The arm always advances one law period ``Ts`` a cycle: a faster
+        clock runs the same closed loop faster than real time (recorded in ``hil_run.json``).
+    overwrite : bool, default False
+        Replace a previous ``hil`` run in ``out``.
+
+    Returns
+    -------
+    HilResult
+
+    Raises
+    ------
+    FileNotFoundError
+        Not an exported folder; no ``cmake``.
+    ValueError
+        ``cycles`` or ``rate`` out of range; a clock period shorter than one offline cycle of
+        the law and the arm (the loop could meet no deadline: refused before the real-time run,
+        naming both figures); a model that cannot be loaded by its recorded name.
+    RuntimeError
+        The build or the harness failed.
+    """
+    folder = Path(folder)
+    cycles = check_count("cycles", cycles, 1, MAX_CYCLES)
+    record = read_record(folder)
+    law_rate = float(record["rate_hz"])
+    rate = law_rate if rate is None else check_rate("rate", rate)
+    robot = _robot(record)
+    from ..control.references import default_reference
+
+    ref = default_reference(robot)
+    r0, rd0, _ = ref(0.0)
+    n = int(record["nq"])
+    lines = [f"{cycles} {round(1e9 / rate)} {1.0 / law_rate!r}"]
+    for j in range(n):
+        lines.append(" ".join(repr(float(v)) for v in (ref.home[j], ref.amp[j], ref.freq[j],
+                                                       ref.phase[j], r0[j], rd0[j])))
+    settings = {"folder": str(folder), "cycles": cycles, "rate": rate, "law_rate": law_rate}
+    with OutputDir.claim(out, "hil", overwrite=overwrite, settings=settings,
+                         option="out") as claimed, \
+            tempfile.TemporaryDirectory(prefix="rrr-pin-hil-") as tmp:
+        work = Path(tmp)
+        exe = _build(folder, work, record["model"]["dynamics"] == "pinocchio")
+        (work / "settings.txt").write_text("\n".join(lines) + "\n")
+        q_off, tau_off, _, _, wall_off = _run(exe, "offline", work / "settings.txt",
+                                              work / "offline.bin", n, cycles)
+        per_cycle = wall_off / cycles
+        if per_cycle > 1.0 / rate:
+            raise FieldError("rate", f"{{name}} = {rate:g} Hz: one cycle of the law and the "
+                                     f"simulated arm took {per_cycle * 1e6:.1f} us offline, "
+                                     f"longer than the period {1e6 / rate:.1f} us; no deadline "
+                                     f"could be met: give a slower rate")
+        load_before = _loadavg()
+        q_hil, tau_hil, timing, header, wall_hil = _run(exe, "hil", work / "settings.txt",
+                                                        work / "hil.bin", n, cycles)
+        load_after = _loadavg()
+        # the same offline loop with the torques the arm held replayed: equal bit for bit
+        missed = timing["done"] > round(1e9 / rate)
+        (work / "holds.bin").write_bytes(missed.astype(np.uint8).tobytes())
+        q_rep, _, _, rep_header, _ = _run(exe, "offline", work / "settings.txt",
+                                          work / "replay.bin", n, cycles, work / "holds.bin")
+        if rep_header["missed"] != header["missed"]:
+            raise RuntimeError(f"the harness counted {header['missed']} missed deadlines, its "
+                               f"timing {rep_header['missed']}")
+        summary = _summary(cycles, header, timing, rate, q_hil, q_off)
+        r = ref.sample(np.arange(cycles) / law_rate)[0]
+        run = {
+            "folder": str(folder), "law": record["law"]["name"], "model": robot.name,
+            "law_rate_hz": law_rate, "clock_rate_hz": rate,
+            "real_time_factor": rate / law_rate,
+            "sched_fifo": bool(header.get("sched_fifo")), "mlockall": bool(header.get("mlockall")),
+            "plant_sched_fifo": bool(header.get("plant_sched_fifo")),
+            "plant_mlockall": bool(header.get("plant_mlockall")),
+            "loadavg_before": load_before, "loadavg_after": load_after, "cpus": os.cpu_count(),
+            "wall_s": wall_hil, "offline_wall_s": wall_off,
+            "step_us": _percentiles(timing["step"]), "wake_us": _percentiles(timing["wake"]),
+            "state_late": int(timing["late"].sum()),
+            "torque_max_diff_vs_offline_Nm": float(np.max(np.abs(tau_hil - tau_off))),
+            "max_error_vs_replay_rad": float(np.max(np.abs(q_hil - q_rep))),
+            "max_tracking_error_rad": {"hil": float(np.max(np.abs(q_hil - r))),
+                                       "offline": float(np.max(np.abs(q_off - r)))},
+            "reference": ref.to_dict(),
+            "plant": "the export's nominal model (dynamics.h), RK4 of Ts per cycle, torque "
+                     "held; a torque written after the next tick is not applied (the "
+                     "previous one is held)",
+            "offline": "the same harness and arithmetic in one process, no clock",
+        }
+        for name, data in (("hil.json", summary), ("hil_run.json", run)):
+            path = claimed.path / name
+            with writing(path):
+                path.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
+    return HilResult(summary, run, q_hil.copy(), q_off.copy(), q_rep.copy())
+
+
+def _summary(cycles, header, timing, rate, q_hil, q_off) -> dict:
+    """``hil.json``: exactly ``cycles``, ``missed``, ``latency_us``, ``jitter_us``, the error."""
+    wake = timing["wake"].astype(float)
+    jitter = float(np.max(np.abs(np.diff(wake)))) / 1e3 if cycles > 1 else 0.0
+    return {"cycles": cycles, "missed": int(header["missed"]),
+            "latency_us": _percentiles(timing["done"]), "jitter_us": jitter,
+            "max_error_vs_offline_rad": float(np.max(np.abs(q_hil - q_off)))}

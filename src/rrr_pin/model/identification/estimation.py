@@ -1,0 +1,552 @@
+r"""Least squares for base and friction parameters: covariance, held-out check, warnings.
+
+From measured ``q, qd, qdd, tau`` (a CSV, :func:`read_measurements`), ordinary least squares
+(``ols``), or weighted least squares (``wls``, the default: each joint's rows divided by its noise
+standard deviation from the OLS residuals, Gautier & Poignet 2001), with the covariance
+
+.. math:: \operatorname{cov}(\hat\theta_b) = \sigma^2 (W^T W)^{-1}
+
+of the (weighted) base regressor ``W`` over the training samples, ``sigma^2`` the residual sum of
+squares over ``rows - p``. A final fraction of the samples (in time) is held out and predicted.
+When the log has no velocities or accelerations, they come from a Savitzky-Golay filter
+(:func:`estimate_derivatives`), the torques get the same filter (parallel filtering, so both
+sides of the equation see one frequency response); every sample enters the fit (none within
+half a window of either end of the log), and since the filter colours the residuals the
+covariance is then the block sandwich of :func:`least_squares` (blocks of one window) instead of
+the formula above, which assumes them independent. Friction (viscous, Coulomb, offset per joint,
+:func:`friction_regressor`) is identified with the base parameters on request. The intervals
+cover the noise; a model error (unmodelled friction, a torque delayed against the positions)
+is not in them.
+
+References
+----------
+.. [1] M. Gautier and P. Poignet, "Extended Kalman filtering and weighted least squares dynamic
+   identification of robot", Control Engineering Practice 9, 2001.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ...validation import FieldError, check_probability
+from .consistency import consistent_parameters, urdf_with_parameters
+from .friction import friction_names, friction_regressor
+from .measurements import Measurements, filter_like
+from .regressor import (
+    BaseParameters,
+    IdentificationError,
+    base_parameters,
+    body_links,
+    joint_kinematics,
+    regressor,
+    standard_parameters,
+)
+
+__all__ = [
+    "Identification",
+    "least_squares",
+    "identify",
+    "r_squared",
+    "friction_suspects",
+    "predict_torques",
+]
+
+
+
+@dataclass
+class Identification:
+    """The result of :func:`identify` (see :meth:`to_dict` for the JSON written).
+
+    Attributes
+    ----------
+    base : BaseParameters
+    theta : ndarray, shape (p,)
+        Estimated base parameters [SI].
+    cov : ndarray, shape (p, p)
+        Their covariance.
+    phi : ndarray, shape (10 nq,)
+        Standard parameters of the consistent arm (:func:`consistent_parameters`).
+    urdf : str
+        The identified URDF (the nominal's kinematics, inertials from ``phi``).
+    summary : dict
+        Method, noise, condition number, residuals, held-out errors, consistency record,
+        identified friction (``summary["friction"]``, per joint, with standard deviations).
+    friction : ndarray, shape (3 nq,) or (0,)
+        ``fv, fc, off`` per joint (:func:`friction_regressor`), empty without friction.
+    cov_all : ndarray, shape (p + 3 nq, p + 3 nq), optional
+        Covariance of base and friction parameters together.
+    """
+
+    base: BaseParameters
+    theta: np.ndarray
+    cov: np.ndarray
+    phi: np.ndarray
+    urdf: str = field(repr=False)
+    summary: dict = field(default_factory=dict)
+    friction: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cov_all: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def std(self) -> np.ndarray:
+        """Standard deviations of :attr:`theta`, shape (p,)."""
+        return np.sqrt(np.diag(self.cov))
+
+    def to_dict(self) -> dict:
+        """JSON-ready record: what ``identification.json`` holds."""
+        return {"format": "rrr-pin-identification", "version": 1, **self.summary,
+                "base": self.base.to_dict(), "estimate": self.theta.tolist(),
+                "std": self.std.tolist(), "cov": self.cov.tolist(),
+                "base_consistent": self.base(self.phi).tolist(),
+                "standard_consistent": self.phi.tolist(),
+                "friction_estimate": self.friction.tolist(),
+                "cov_all": None if self.cov_all is None else self.cov_all.tolist()}
+
+    def write(self, folder, *, urdf_name: str = "identified.urdf") -> list[Path]:
+        """Write ``identified.urdf`` and ``identification.json`` into ``folder``."""
+        from ...outputs import writing
+
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        u, j = folder / urdf_name, folder / "identification.json"
+        with writing(u):
+            u.write_text(self.urdf)
+        record = {**self.to_dict(), "urdf": urdf_name,
+                  "urdf_sha256": hashlib.sha256(self.urdf.encode()).hexdigest()}
+        with writing(j):
+            j.write_text(json.dumps(record, indent=1) + "\n")
+        return [u, j]
+
+
+def _per_joint(robot, values) -> dict:
+    """``{joint: value}`` of an array of shape (nq,)."""
+    return {name: float(v) for name, v in zip(robot.joint_names, values, strict=True)}
+
+
+def _qr_solve(W: np.ndarray, y: np.ndarray):
+    """Least squares by one QR of ``[W y]``: ``theta`` (shape (p,)) and ``R`` (shape (p, p))."""
+    from scipy.linalg import qr, solve_triangular
+
+    p = W.shape[1]
+    Rf = qr(np.column_stack([W, y]), mode="r", check_finite=False)[0]
+    R = np.triu(Rf[:p, :p])
+    d = np.abs(np.diag(R))
+    if not np.all(d > 1e-300):
+        return np.full(p, np.nan), R
+    return solve_triangular(R, Rf[:p, p]), R
+
+
+def _unidentifiable(names, R: np.ndarray) -> list[str]:
+    """Names of the base parameters in the numerical null space of a regressor (its ``R``).
+
+    Columns scaled to unit norm; singular values below ``1e-8`` of the largest count as zero,
+    and a parameter with a component above 0.1 in such a direction is not identifiable.
+    """
+    norms = np.linalg.norm(R, axis=0)
+    zero = norms <= 1e-12 * max(norms.max(), 1e-300)
+    Rn = R / np.where(zero, 1.0, norms)
+    _, s, Vt = np.linalg.svd(Rn)
+    null = Vt[s <= 1e-8 * s[0]]
+    involved = zero | (np.abs(null) > 0.1).any(axis=0) if null.size else zero
+    return [names[i] for i in np.flatnonzero(involved)]
+
+
+def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
+                  method: str = "wls", *, names=None, block: int = 1):
+    r"""Estimate base parameters by ordinary or weighted least squares, with their covariance.
+
+    Parameters
+    ----------
+    base : BaseParameters
+        For the names of parameters that are not identifiable.
+    W : ndarray, shape (N n, p)
+        Base regressor, row ``k n + j`` = joint ``j`` at sample ``k``.
+    y : ndarray, shape (N n,)
+        Measured torques [N m], same rows.
+    n : int
+        Joints.
+    method : {"wls", "ols"}
+        ``wls``: the rows of joint ``j`` divided by its OLS residual standard deviation
+        ``sigma_j`` (``sigma_j^2 = ||r_j||^2 / (N - p / n)``), then solved again.
+    names : sequence of str, shape (p,), optional
+        Names of ``W``'s columns (default ``base.names``; with friction columns appended).
+    block : int, default 1
+        Consecutive samples whose residuals may be correlated (a derivative filter's window).
+        Above 1, the covariance is the cluster-robust sandwich over blocks of that many
+        samples (Newey & West 1987 with a flat kernel of that width; Cameron & Miller 2015),
+
+        .. math:: \operatorname{cov} = (W^T W)^{-1} \Big(\tfrac{B}{B-1} \sum_b W_b^T r_b
+                  r_b^T W_b\Big) (W^T W)^{-1},
+
+        so that every sample enters the fit and the correlation that the filter puts between
+        neighbours is counted, not assumed away.
+
+    Returns
+    -------
+    theta : ndarray, shape (p,)
+    cov : ndarray, shape (p, p)
+        ``s2 (W_w^T W_w)^{-1}`` with ``W_w`` the (weighted) regressor and ``s2`` its residual
+        sum of squares over ``N n - p``.
+    R : ndarray, shape (p, p)
+        Triangular factor of ``W_w`` (``R^T R = W_w^T W_w``).
+    sigma_j : ndarray, shape (n,)
+        Per-joint noise standard deviations [N m] of the final fit.
+    s2 : float
+    cond : float
+        Condition number of the unweighted ``W`` (2-norm).
+
+    Raises
+    ------
+    IdentificationError
+        ``W`` is rank deficient (names the parameters not identifiable), or a joint's residual
+        is exactly zero under ``wls``.
+    """
+    N = len(y) // n
+    p = W.shape[1]
+    theta, R = _qr_solve(W, y)
+    names = base.names if names is None else names
+    lost = _unidentifiable(names, R)
+    if lost:
+        raise IdentificationError(
+            f"the trajectory does not excite every base parameter (the regressor of its "
+            f"{N} samples is rank deficient): not identifiable: {', '.join(lost)}. "
+            f"Move every joint with varied velocity and acceleration, e.g. the trajectory "
+            f"of `rrr-pin identify --design-excitation`")
+    cond = float(np.linalg.cond(R))
+    r = (y - W @ theta).reshape(N, n)
+    dof_j = N - p / n
+    sigma_j = np.sqrt(np.sum(r * r, axis=0) / dof_j)
+    weights = np.ones(n)
+    if method == "wls":
+        if not np.all(sigma_j > 0.0):
+            raise IdentificationError(f"weighted least squares needs every joint's residual "
+                                      f"noise > 0, got {sigma_j.tolist()} N m; use ols")
+        weights = 1.0 / sigma_j
+        Dw = np.tile(weights, N)
+        theta, R = _qr_solve(W * Dw[:, None], y * Dw)
+        r = (y - W @ theta).reshape(N, n)
+        sigma_j = np.sqrt(np.sum(r * r, axis=0) / dof_j)
+    rw = r * weights
+    s2 = float(np.sum(rw * rw)) / (N * n - p)
+    Rinv = np.linalg.inv(R)
+    cov = s2 * (Rinv @ Rinv.T)
+    if block > 1:
+        Ww = (W * np.tile(weights, N)[:, None]).reshape(N, n, p)
+        B = -(-N // block)
+        pad = B * block - N
+        g = np.einsum("kjp,kj->kp", Ww, rw)
+        g = np.concatenate([g, np.zeros((pad, p))]).reshape(B, block, p).sum(axis=1)
+        meat = (B / max(B - 1, 1)) * (g.T @ g)
+        cov = (Rinv @ Rinv.T) @ meat @ (Rinv @ Rinv.T)
+        cov = 0.5 * (cov + cov.T)
+    return theta, cov, R, sigma_j, s2, cond
+
+
+def identify(robot, data: Measurements, *, method: str = "wls", held_out: float = 0.2,
+             base: BaseParameters | None = None, friction: bool = False,
+             refuse_inconsistent: bool = True,
+             mass_band: float | None = None,
+             inertia_band: float | None = None) -> Identification:
+    r"""Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
+
+    Every sample enters the fit (none within half a derivative-filter window of either end of
+    the log, where the filter extrapolates). When derivatives were estimated, the torques get
+    the same zero-phase filter (parallel filtering, :func:`filter_like`) and the covariance is
+    the block sandwich of :func:`least_squares` over blocks of one filter window, which counts
+    the correlation the filter puts between neighbouring residuals.
+
+    Parameters
+    ----------
+    robot : rrr_pin.model.dynamics.Robot
+        The nominal arm: its kinematics are trusted, its inertials are the prior for the
+        directions the data cannot see.
+    data : Measurements or sequence of Measurements
+        From :func:`read_measurements` (joints in ``robot.joint_names`` order); several runs
+        are concatenated: each filtered on its own (its ends left out), their rows stacked,
+        each run's final ``held_out`` fraction held out (the block sandwich's blocks run over
+        the stacked samples, so a block may join the end of one run to the next).
+    method : {"wls", "ols"}
+        Weighted (per-joint noise) or ordinary least squares.
+    held_out : float, default 0.2
+        Final fraction of the samples, in time, left out of the fit and predicted; in
+        ``[0, 0.9]``.
+    base : BaseParameters, optional
+        Default :func:`base_parameters` of ``robot``.
+    friction : bool, default False
+        Identify, with the base parameters, each joint's viscous and Coulomb friction and a
+        torque offset (:func:`friction_regressor`):
+        ``tau = Y_b theta_b + fv qd + fc sign(qd) + off``.
+    refuse_inconsistent : bool, default True
+        Refuse an estimate with no physically consistent arm inside its 99.9 % region
+        (:func:`consistent_parameters`), or with a friction coefficient below zero by 3
+        standard deviations; ``False`` keeps them with a warning.
+    mass_band : float, optional
+        Bound every body's mass to ``[m0 / f, f m0]`` of the nominal's
+        (:func:`consistent_parameters`).
+    inertia_band : float, optional
+        Bound every body's pseudo-inertia to ``[J0 / f, f J0]`` of the nominal's (Loewner
+        order, :func:`~rrr_pin.model.identification.consistency.plausible_set`).
+
+    Returns
+    -------
+    Identification
+
+    Warns
+    -----
+    UserWarning
+        The residual of a joint correlates with ``qd`` or ``sign(qd)`` (``|r| > 0.3``, named
+        joints): a friction term is missing from the model (``friction=False``) or not of the
+        form modelled. The intervals then do not cover the model error.
+
+    Raises
+    ------
+    IdentificationError
+        Joints that differ from the URDF's; too few samples for the base parameters; a
+        trajectory that does not excite every base parameter (naming them; with ``friction``,
+        a joint the data never move in both directions names its ``fc``); an infeasible
+        consistency problem (:func:`consistent_parameters`).
+    ValueError
+        ``method`` or ``held_out`` out of range.
+    """
+    if method not in ("wls", "ols"):
+        raise ValueError(f"method must be 'wls' or 'ols', got {method!r}")
+    held_out = check_probability("held_out", held_out)
+    if held_out > 0.9:
+        raise FieldError("held_out", "{name} must be in [0, 0.9] (the fraction of the samples "
+                         f"held out of the fit), got {held_out!r}")
+    runs = [data] if isinstance(data, Measurements) else list(data)
+    if not runs:
+        raise IdentificationError("no measurements: give one run or several")
+    for d in runs:
+        if tuple(d.joint_names) != tuple(robot.joint_names):
+            raise IdentificationError(f"the data's joints {list(d.joint_names)} do not match "
+                                      f"the URDF {robot.name!r}'s joints {robot.joint_names}")
+    base = base_parameters(robot) if base is None else base
+    n, p = robot.nq, base.p
+    # Per run: its filter window, the samples fitted (none within half a window of its ends)
+    # and its held-out tail; the runs' fitted rows are stacked (several runs concatenated).
+    parts = []
+    for d in runs:
+        b_i = int(d.derived.get("window_samples", 1)) if d.derived else 1
+        e_i, n_fit_i = b_i // 2, d.N - int(round(held_out * d.N))
+        parts.append({"data": d, "block": b_i, "edge": e_i, "n_fit": n_fit_i,
+                      "fit": np.arange(e_i, min(n_fit_i, d.N - e_i))})
+    block = max(part["block"] for part in parts)
+    edge = block // 2
+    N = sum(d.N for d in runs)
+    m = sum(len(part["fit"]) for part in parts)
+    names = list(base.names) + (friction_names(robot) if friction else [])
+    P = len(names)
+    if m * n < 2 * P or m * n - P < n:
+        raise IdentificationError(
+            f"too few samples: {m} samples for the fit give {m * n} equations for "
+            f"{P} {'base and friction ' if friction else 'base '}parameters of "
+            f"{robot.name!r}; need at least {math.ceil(2 * P / n)} "
+            f"samples (twice as many equations as parameters) after the held-out "
+            f"{held_out:.0%}" + (f" and half a derivative-filter window ({edge} samples) "
+                                 f"at each end" if edge else ""))
+    for part in parts:
+        d, b_i = part["data"], part["block"]
+        part["tau_f"] = filter_like(d, d.tau) if b_i > 1 else d.tau
+        if friction:  # linear in f: filtered exactly as the torques (sign(qd) jumps included)
+            Yf = friction_regressor(d.qd).reshape(d.N, n * 3 * n)
+            part["Yf"] = (filter_like(d, Yf) if b_i > 1 else Yf).reshape(d.N, n, 3 * n)
+
+    def design(part, rows_):
+        d = part["data"]
+        W = base.reduce(regressor(robot, d.q[rows_], d.qd[rows_], d.qdd[rows_]))
+        if not friction:
+            return W
+        return np.hstack([W, part["Yf"][rows_].reshape(-1, 3 * n)])
+
+    W1 = np.vstack([design(part, part["fit"]) for part in parts])
+    tau_fit = np.vstack([part["tau_f"][part["fit"]] for part in parts])
+    qd_fit = np.vstack([part["data"].qd[part["fit"]] for part in parts])
+    y1 = tau_fit.reshape(-1)
+    x, cov_x, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method, names=names,
+                                                   block=block)
+    r = (y1 - W1 @ x).reshape(m, n)
+    rows = m * n
+    theta, cov = x[:p], cov_x[:p, :p]
+    # The consistency metric from the base parameters' marginal covariance: A^T A = s2 cov^-1
+    # / rows, which is R^T R / rows of the (weighted) regressor when there are no friction
+    # columns and the residuals are independent.
+    # A square root of cov^-1 by eigenvalues (cov can be numerically semi-definite on short
+    # logs, where Cholesky of its inverse fails): A^T A = cov^-1 on its range
+    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    w = np.maximum(w, 1e-15 * max(float(w.max()), 1e-300))
+    A = (V / np.sqrt(w)).T * math.sqrt(s2 / rows)
+    phi0 = standard_parameters(robot)
+    phi, consistency = consistent_parameters(base, theta, A, phi0, sigma=math.sqrt(s2 / rows),
+                                             refuse=refuse_inconsistent, mass_band=mass_band,
+                                             inertia_band=inertia_band)
+    from ..dynamics import robot_from_xml
+
+    fr = None
+    if friction:
+        f, fs = x[p:].reshape(n, 3), np.sqrt(np.diag(cov_x))[p:].reshape(n, 3)
+        fr = {j: {"viscous_Nms_rad": float(f[i, 0]), "coulomb_Nm": float(f[i, 1]),
+                  "offset_Nm": float(f[i, 2]), "std": {"viscous_Nms_rad": float(fs[i, 0]),
+                                                       "coulomb_Nm": float(fs[i, 1]),
+                                                       "offset_Nm": float(fs[i, 2])}}
+              for i, j in enumerate(robot.joint_names)}
+    urdf = urdf_with_parameters(robot.urdf, body_links(robot), phi,
+                                moving=robot.joint_names, friction=fr)
+    identified = robot_from_xml(urdf, name=f"{robot.name}_identified",
+                                gravity=robot.gravity, label="identified URDF",
+                                lock=dict(robot.locked) or None)
+    suspect = friction_suspects(robot, qd_fit, r, tau_fit)
+    if fr:  # friction dissipates: a coefficient below zero by 3 standard deviations contradicts
+        wrong = [f"{j} {k} {v[k]:.3g} +- {v['std'][k]:.2g}" for j, v in fr.items()
+                 for k in ("viscous_Nms_rad", "coulomb_Nm") if v[k] < -3.0 * v["std"][k]]
+        if wrong:
+            said = ("friction of the wrong sign (it would feed energy in): " + ", ".join(wrong)
+                    + ": check the torque sign convention, or a term the model lacks "
+                      "(Stribeck, position-dependent friction, a coupling)")
+            if refuse_inconsistent:  # contradicting signs: not a physical arm
+                raise IdentificationError(said + "; refused (keep it, warned, with "
+                                                 "refuse_inconsistent=False, CLI "
+                                                 "--keep-inconsistent)")
+            suspect = "; ".join(filter(None, [suspect, said]))
+    summary = {
+        "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
+        "links": body_links(robot), "gravity_m_s2": robot.gravity,
+        "locked": dict(robot.locked),
+        "kinematics": joint_kinematics(robot),
+        "data": runs[0].source if len(runs) == 1 else [d.source for d in runs], "samples": N,
+        "runs": len(runs), "samples_fit": m, "fit_decimation": 1,
+        "covariance": ("block sandwich over blocks of one derivative-filter window "
+                       f"({block} samples): the filter correlates neighbouring residuals"
+                       if block > 1 else "s2 (W^T W)^-1 (independent residuals)"),
+        "torque_filter": "savgol (as q)" if block > 1 else None,
+        "held_out_fraction": held_out, "derivatives": (runs[0].derived or {
+            "filter": None, "estimated": []}) if len(runs) == 1 else [
+            d.derived or {"filter": None, "estimated": []} for d in runs],
+        "method": method, "base_count": p,
+        "condition_number": cond,
+        "noise_std_Nm": _per_joint(robot, sigma_j.tolist()),
+        "residual_rms_Nm": _per_joint(robot, np.sqrt(np.mean(r * r, axis=0)).tolist()),
+        "residual_r2": _per_joint(robot, r_squared(tau_fit, tau_fit - r)),
+        "sigma2_weighted": s2, "consistency": consistency,
+        "standard_nominal": phi0.tolist(),
+        "friction_model": "viscous + coulomb + offset" if friction else None,
+        "friction": fr, "model_error_warning": suspect or None,
+        "friction_urdf": None if not fr else {
+            j: {"damping": max(v["viscous_Nms_rad"], 0.0), "friction": max(v["coulomb_Nm"], 0.0)}
+            for j, v in fr.items()},
+        "friction_urdf_note": None if not fr else "each joint's <dynamics damping friction> "
+                              "in the identified URDF: the estimate, a negative one written as 0",
+        "intervals_cover": "noise only: a model error (unmodelled friction, delays, "
+                           "flexibility) is not in the standard deviations",
+    }
+    if suspect:
+        import warnings
+
+        warnings.warn(suspect, stacklevel=2)
+    held = [(part, np.arange(part["n_fit"], part["data"].N - part["edge"])) for part in parts]
+    held = [(part, rows_) for part, rows_ in held if rows_.size]
+    if held:
+        tau2 = np.vstack([part["tau_f"][rows_] for part, rows_ in held])
+        e_est = tau2 - np.vstack([(design(part, rows_) @ x).reshape(-1, n)
+                                  for part, rows_ in held])
+        pred = np.vstack([predict_torques(identified, part["data"], fr)[rows_]
+                          for part, rows_ in held])
+        e_urdf = tau2 - pred
+        rms = np.sqrt(np.mean(tau2 ** 2, axis=0))
+        last = held[-1][1]  # the (last) run's held-out samples, by index in that run
+        summary["held_out"] = {
+            "samples": len(tau2), "first_sample": int(last[0]), "last_sample": int(last[-1]),
+            "runs": [{"source": part["data"].source, "first_sample": int(rows_[0]),
+                      "last_sample": int(rows_[-1])} for part, rows_ in held],
+            "rms_error_estimate_Nm": _per_joint(robot, np.sqrt(np.mean(e_est ** 2, axis=0))),
+            "rms_error_urdf_Nm": _per_joint(robot, np.sqrt(np.mean(e_urdf ** 2, axis=0))),
+            "r2_urdf": _per_joint(robot, r_squared(tau2, pred)),
+            "rms_torque_Nm": _per_joint(robot, rms.tolist())}
+    else:
+        summary["held_out"] = None
+    return Identification(base, theta, cov, phi, urdf, summary, x[p:].copy(),
+                          cov_x)
+
+
+def r_squared(tau, pred) -> np.ndarray:
+    """Per-column coefficient of determination ``1 - SS_res / SS_tot`` (shape (n,))."""
+    tau, pred = np.asarray(tau), np.asarray(pred)
+    ss = np.sum((tau - tau.mean(axis=0)) ** 2, axis=0)
+    return 1.0 - np.sum((tau - pred) ** 2, axis=0) / np.where(ss > 0.0, ss, np.nan)
+
+
+def friction_suspects(robot, qd, r, tau=None, threshold: float = 0.3) -> str:
+    """Return a warning naming the joints whose residual correlates with ``qd`` or its sign.
+
+    Parameters
+    ----------
+    qd, r : ndarray, shape (N, nq)
+        Velocities [rad/s] and torque residuals [N m] of the fit.
+    tau : ndarray, shape (N, nq), optional
+        The torques fitted [N m]: a joint whose residual RMS is below ``1e-9`` of their RMS
+        (round-off of exact data) is not named.
+    threshold : float, default 0.3
+        ``|corr|`` above which a joint is named.
+
+    Returns
+    -------
+    str
+        Empty when no joint is suspect.
+    """
+    bad = []
+    for j, name in enumerate(robot.joint_names):
+        rj = r[:, j] - r[:, j].mean()
+        if tau is not None and np.sqrt(np.mean(rj * rj)) <= 1e-9 * np.sqrt(
+                np.mean(tau[:, j] ** 2)):
+            continue
+        for what, x in (("sign(qd)", np.sign(qd[:, j])), ("qd", qd[:, j])):
+            x = x - x.mean()
+            den = float(np.linalg.norm(rj) * np.linalg.norm(x))
+            c = float(rj @ x) / den if den > 0.0 else 0.0
+            if abs(c) > threshold:
+                bad.append(f"{name} (corr with {what} {c:+.2f})")
+                break
+    if not bad:
+        return ""
+    return ("model error: the torque residual correlates with the joint velocity or its sign "
+            "at " + ", ".join(bad) + ": likely missing term: joint friction (viscous/Coulomb; "
+            "identify with --friction). The standard deviations cover the noise, not this "
+            "model error")
+
+
+def predict_torques(robot, data: Measurements, friction: dict | None = None) -> np.ndarray:
+    """Inverse dynamics of ``robot`` plus identified friction, as :func:`identify` fits them.
+
+    The friction torque gets the torques' filter when the data's derivatives were estimated
+    (:func:`filter_like`: parallel filtering, as in the fit), so the prediction is compared
+    with ``filter_like(data, data.tau)``.
+
+    Parameters
+    ----------
+    robot : rrr_pin.model.dynamics.Robot
+    data : Measurements
+    friction : dict, optional
+        ``{joint: {"viscous_Nms_rad", "coulomb_Nm", "offset_Nm"}}``
+        (``Identification.summary["friction"]``).
+
+    Returns
+    -------
+    ndarray, shape (N, nq)
+        Torques [N m].
+    """
+    q, qd, qdd = data.q, data.qd, data.qdd
+    tau = np.array([robot.inverse_dynamics(q[k], qd[k], qdd[k], check=False)
+                    for k in range(len(q))])
+    if friction:
+        f = np.array([[friction[j][k] for k in ("viscous_Nms_rad", "coulomb_Nm", "offset_Nm")]
+                      for j in robot.joint_names])
+        tf = (friction_regressor(qd) @ f.reshape(-1)).reshape(tau.shape)
+        tau = tau + filter_like(data, tf)
+    return tau
+
+
