@@ -325,7 +325,8 @@ def test_cli_export_writes_the_tuned_law_and_its_design(tmp_path):
 
 @pytest.mark.slow
 def test_verified_margins_are_what_stress_simulates(rrr):
-    res = tune(rrr, Gain(lam=45.0), [DelayMargin(0.004), ActuatorBandwidth(150.0)], plants=0,
+    res = tune(rrr, Gain(lam=45.0), [DelayMargin(0.004),
+                                     ActuatorBandwidth(150.0, delay=0.001)], plants=0,
                starts=1, maxfev=80)
     for row in res.table:
         # the nominal plant's exact digital prediction against the nonlinear bisection of
@@ -334,6 +335,7 @@ def test_verified_margins_are_what_stress_simulates(rrr):
         assert_allclose(row["simulated"], row["predicted_nominal"], rtol=0.1)
         # one plant: the verified value is that prediction
         assert_allclose(row["verified"], row["predicted_nominal"], rtol=1e-3)
+    assert res.table[1]["simulated_with"] == {"delay": 0.001}  # the requirement's own delay
 
 
 def test_noise_gain_grid_agrees_with_slicot(rrr, paper):

@@ -528,7 +528,15 @@ def _stress_row(ctx, ev, req, settings) -> dict:
 
     effect = "delay" if isinstance(req, DelayMargin) else "actuator"
     nominal_only = [0]
-    wa, delay = ctx.fixed.get("actuator"), ctx.fixed.get("delay", 0.0)
+    # the effects the requirement holds with it (its own, else the fixed ones), in the
+    # prediction and in the simulation alike
+    wa = req._wa(ctx) if effect == "delay" else None
+    delay = req._delay(ctx) if effect == "actuator" else 0.0
+    held = dict(ctx.fixed)
+    if wa:
+        held["actuator"] = wa
+    if delay:
+        held["delay"] = delay
     if effect == "delay":
         def stable(tau):
             return ctx.loops.spectral_radius(ev.law, tau, wa, plants=nominal_only)[0] < 1.0
@@ -541,9 +549,10 @@ def _stress_row(ctx, ev, req, settings) -> dict:
     law = _law(ctx.nominal, ev.lam, ev.K)
     found = breaking_point(ctx.nominal, law, ctx.reference, effect, settings,
                            guess=pred if math.isfinite(pred) and pred > 0 else None,
-                           fixed=ctx.fixed)
+                           fixed=held)
     return {"simulated": found["simulated"], "simulated_status": found["status"],
-            "simulated_bracket": found["bracket"], "predicted_nominal": pred}
+            "simulated_bracket": found["bracket"], "predicted_nominal": pred,
+            "simulated_with": held}
 
 
 def load_design(path) -> dict:
