@@ -464,7 +464,7 @@ def loopsyn_3x3_s(repeat: int = 1) -> float:
 
 
 #: The sections, in order (``--sections``); 9 only with ``--export``.
-SECTIONS = ("1", "2", "2b", "2c", "3", "4", "4b", "4c", "5", "6", "7", "8")
+SECTIONS = ("1", "2", "2b", "2c", "3", "4", "4b", "4c", "5", "6", "7", "8", "10")
 
 
 def main(argv=None):
@@ -730,6 +730,9 @@ def main(argv=None):
         result["identification"] = identification_bench(5.0 if args.quick else 10.0)
     if run("7"):
         result["mu"] = mu_upper_s(1 if args.quick else 10)
+    if run("10"):
+        result["tuning"] = tuning_bench(1 if args.quick else 19, 1 if args.quick else 4,
+                                        30 if args.quick else None)
     if args.export is not None:
         result["export"] = export_step_us(200 if args.quick else 200000, Path(args.export))
     if args.json:
@@ -738,6 +741,8 @@ def main(argv=None):
     report(result, args)
     if "8" in args.sections:
         report_identification(result["identification"])
+    if "10" in args.sections:
+        report_tuning(result["tuning"])
 
 
 def report(res, args):
@@ -964,5 +969,44 @@ def mu_upper_s(count: int) -> dict:
             "size": int(loop.M.ninputs)}
 
 
+
+def tuning_bench(samples: int, starts: int, maxfev: int | None = None) -> dict:
+    """Time ``rrr_pin.tune`` (issue 34): the RRR's order-2 law with ``lam``, five requirements,
+    the nominal and ``samples`` uncertain plants, ``starts`` starts, grid search only (the
+    exact verification and its simulations timed apart).
+    """
+    from rrr_pin import load_robot, tune
+    from rrr_pin.campaign.requirements import (
+        ActuatorBandwidth,
+        Bandwidth,
+        DelayMargin,
+        DiskMargin,
+        ErrorRatio,
+    )
+    from rrr_pin.control.structures import FixedOrder
+
+    robot = load_robot("rrr")
+    reqs = [DelayMargin(0.006), DiskMargin(0.5), ActuatorBandwidth(300.0, delay=0.002),
+            Bandwidth(20.0), ErrorRatio(10.0)]
+    t0 = time.perf_counter()
+    res = tune(robot, FixedOrder(lam=None, order=2), reqs, plants=samples, starts=starts,
+               maxfev=maxfev, verify=False)
+    search = time.perf_counter() - t0
+    evals = sum(s["evaluations"] for s in res.starts)
+    return {"plants": samples + 1, "starts": starts, "requirements": len(reqs),
+            "search_s": search, "evaluations": evals, "per_evaluation_ms": 1e3 * search / evals,
+            "objective": res.objective, "goal_s": 60.0}
+
+
+def report_tuning(r: dict) -> None:
+    """Print the tuning figure (issue 34)."""
+    print(f"\n10. tuning, RRR order-2 K + lam, {r['requirements']} requirements, {r['plants']} "
+          f"plants, {r['starts']} starts: {r['search_s']:.1f} s ({r['evaluations']} "
+          f"evaluations, {r['per_evaluation_ms']:.1f} ms each; worst normalized "
+          f"{r['objective']:.3g})   goal < {r['goal_s']:g} s: "
+          f"{'met' if r['search_s'] < r['goal_s'] else 'NOT MET'}")
+
+
 if __name__ == "__main__":
     main()
+

@@ -66,6 +66,8 @@ PARSE_ONLY = {
     "--data": "needs a measured log (scripts/identify_example.py writes one)",
     "--uncertainty": "needs an identification.json (rrr-pin identify writes one)",
     "hil": "needs an exported folder, and runs for minutes; tests/test_hil.py runs it",
+    "--tune-lam": "a tuning against three requirements on 21 plants with its simulations "
+                  "takes minutes; tests/test_tuning.py runs rrr-pin design small",
 }
 
 #: Python blocks (named by a line they hold) that are compiled, not run, and why.

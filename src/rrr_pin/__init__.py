@@ -87,6 +87,8 @@ _EXPORTS = {
     "Tolerances": "model.uncertainty",
     "TrackingController": "control.laws",
     "Trajectory": "sim.trajectory",
+    "tune": "campaign.tuning",
+    "TuneResult": "campaign.tuning",
 }
 
 __all__ = ["__version__", *sorted(_EXPORTS, key=str.lower)]

@@ -5,7 +5,8 @@ campaign), :mod:`~rrr_pin.campaign.runner` (``RunSettings``, ``run_laws``: any l
 :mod:`~rrr_pin.campaign.study` (the section-5 study), :mod:`~rrr_pin.campaign.montecarlo`
 (campaigns of seeded plants), :mod:`~rrr_pin.campaign.stress` (breaking points of plant
 effects), :mod:`~rrr_pin.campaign.store` (append-only storage, resume) and
-:mod:`~rrr_pin.campaign.executors` (local processes or Dask). Each takes any plant
+:mod:`~rrr_pin.campaign.executors` (local processes or Dask), :mod:`~rrr_pin.campaign.requirements`
+and :mod:`~rrr_pin.campaign.tuning` (design to requirements: ``tune``). Each takes any plant
 (:mod:`rrr_pin.model.plant`): a serial arm and a closed chain run the same code. The study and
 the campaign are siblings on the runner: neither imports the other.
 

@@ -12,7 +12,8 @@ from .common import as_options, floats, not_a_folder, option, parse_lock
 
 __all__ = ["load_plant", "reference_from_args", "settings_from_args", "tolerances_from_args",
            "friction_spec", "compensation_from_args",
-           "laws_from_args", "torque_limit_from_args", "with_torque_limit", "rejections_line",
+           "laws_from_args", "tuned_from_args", "design_record", "torque_limit_from_args",
+           "with_torque_limit", "rejections_line",
            "frozen_configuration"]
 
 
@@ -179,13 +180,51 @@ def laws_from_args(args, plant, K=None, torque_limit=None, extra=()):
     names = [s.strip() for s in args.controllers.split(",")]
     names += [name for name in extra if name not in names]
     friction = compensation_from_args(args, plant)
+    tuned = tuned_from_args(args, plant, names)
     with as_options():
-        laws = make_laws(names, plant, K=K, torque_limit=torque_limit, friction=friction)
+        laws = make_laws([n for n in names if n != "tuned"], plant, K=K,
+                         torque_limit=torque_limit, friction=friction) \
+            if set(names) - {"tuned"} else []
+    if tuned is not None:
+        laws.insert(names.index("tuned"), tuned)
     baseline = args.baseline or laws[0].name
     if baseline not in [law.name for law in laws]:
         raise ValueError(f"--baseline {baseline!r} is not among --controllers "
                          f"({args.controllers})")
     return laws, baseline
+
+
+def tuned_from_args(args, plant, names):
+    """Return the law ``tuned`` of ``--design DIR/design.json`` when ``--controllers`` names it.
+
+    Raises
+    ------
+    ValueError
+        ``tuned`` without ``--design``, or a design tuned for another arm.
+    """
+    path = getattr(args, "design", None)
+    if "tuned" not in names:
+        return None
+    if path is None:
+        raise ValueError("--controllers tuned needs --design DIR/design.json (write one with "
+                         "rrr-pin design --robot ARM --require NAME=VALUE --out DIR)")
+    from ..campaign.tuning import load_design, tuned_law
+
+    not_a_folder(design=path)
+    return tuned_law(load_design(path), plant)
+
+
+def design_record(args) -> dict | None:
+    """Return what results record of ``--design``: its path, law and requirement table (or None)."""
+    path = getattr(args, "design", None)
+    if path is None:
+        return None
+    from ..campaign.tuning import load_design
+
+    d = load_design(path)
+    return {"path": str(path), "robot": d.get("robot"), "lam_rad_s": d.get("lam_rad_s"),
+            "K": d.get("K"), "rate_hz": d.get("rate_hz"), "status": d.get("status"),
+            "structure": d.get("structure"), "requirements": d.get("requirements")}
 
 
 def torque_limit_from_args(args, plant, reference, settings):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 from .build import (
+    design_record,
     laws_from_args,
     load_plant,
     reference_from_args,
@@ -12,7 +13,7 @@ from .build import (
     settings_from_args,
     tolerances_from_args,
 )
-from .options import add_law_arguments, add_plant_arguments
+from .options import add_design_argument, add_law_arguments, add_plant_arguments
 
 __all__ = ["add", "run_montecarlo"]
 
@@ -53,6 +54,7 @@ def add(sub) -> None:
                       help="start afresh in a non-empty --out (its previous campaign is "
                            "deleted)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_design_argument(p)
     p.set_defaults(func=run_montecarlo)
 
 
@@ -122,6 +124,8 @@ def run_montecarlo(args) -> int:
         elapsed = time.perf_counter() - start
         s = write_campaign(campaign, args.out, store=store, certificate_b=None if
                            certificate is None else certificate.margin(plant.nq))
+        if design_record(args) is not None:  # which design ran, with its requirement table
+            _record_design(args)
         s["written"].append(str(write_campaign_report(campaign, s, args.out, store)))
     nl, ran = len(laws), total - done
     print(f"{plant.name}: {ran} plants x {nl} controllers x {run.duration:g} s in "
@@ -131,3 +135,16 @@ def run_montecarlo(args) -> int:
         print(rejections_line(campaign.rows))
     print("wrote " + ", ".join(s["written"]))
     return 0
+
+
+def _record_design(args) -> None:
+    """Add ``--design``'s record (path, law, requirement table) to ``summary.json``."""
+    import json
+    from pathlib import Path
+
+    from ..report.jsondata import dumps
+
+    path = Path(args.out) / "summary.json"
+    data = json.loads(path.read_text())
+    data["design"] = design_record(args)
+    path.write_text(dumps(data))

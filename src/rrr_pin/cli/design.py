@@ -5,7 +5,7 @@ from __future__ import annotations
 from .common import claim_out, control_ss, option
 from .options import add_overwrite
 
-__all__ = ["add", "run_design"]
+__all__ = ["add", "run_design", "run_tuned", "add_tuning_arguments", "DEFAULT_REQUIREMENTS"]
 
 
 def add(sub) -> None:
@@ -24,11 +24,88 @@ def add(sub) -> None:
                         "loop G K: singular values, Bode phase, Nyquist) into DIR")
     add_overwrite(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_tuning_arguments(p)
     p.set_defaults(func=run_design)
+
+
+def add_tuning_arguments(p) -> None:
+    """Declare the options of a design tuned to requirements (``--robot``, ``--require``)."""
+    g = p.add_argument_group(
+        "design to requirements (with --robot or --require: writes --out DIR/design.json)")
+    g.add_argument("--robot", default=None, metavar="NAME|PATH",
+                   help="tune a structured FL law for this arm (rrr, ur5, panda, a URDF, ...) "
+                        "over its uncertain plants")
+    g.add_argument("--lock", action="append", metavar="JOINT=VALUE",
+                   help="lock a joint of --robot at a position (repeatable)")
+    g.add_argument("--require", action="append", default=[], metavar="NAME=VALUE",
+                   help="a requirement (repeatable): delay_margin=S, disk_margin=ALPHA, "
+                        "actuator_bandwidth=RAD_S, bandwidth=RAD_S, peak_torque=N_M|urdf "
+                        "(peak_torque@JOINT=... for one joint), error_ratio=X (RMS error of "
+                        "FL alone over the tuned law's on the uncertain plants), "
+                        "noise_gain=N_M_PER_RAD (peak gain from position noise to torque); default "
+                        "delay_margin=0.003 disk_margin=0.5 error_ratio=10")
+    g.add_argument("--structure", default="order2", metavar="NAME",
+                   help="the outer controller K: fl (none), gain, pid, leadlag, orderN "
+                        "(a stable order-N transfer function; order2 is the paper's shape)")
+    g.add_argument("--tune-lam", action="store_true",
+                   help="tune the FL bandwidth lam too (else fixed at --lam)")
+    g.add_argument("--samples", type=int, default=20,
+                   help="uncertain plants the design must work on, with the nominal (20)")
+    g.add_argument("--seed", type=int, default=0, help="seed of the plants and starts (0)")
+    g.add_argument("--rate", type=float, default=1000.0, metavar="HZ",
+                   help="sampling rate of the tuned law [Hz] (1000)")
+    g.add_argument("--with", dest="fixed", action="append", default=[], metavar="EFFECT=SIZE",
+                   help="an effect present in every evaluation, delay=S or actuator=RAD_S")
+    g.add_argument("--starts", type=int, default=4, help="seeded starts of the search (4)")
+    g.add_argument("--no-simulate", action="store_true",
+                   help="verify without the simulations (peak torque, error ratio, stress "
+                        "breaking points)")
+
+
+#: Requirements of ``rrr-pin design --robot ARM`` without ``--require``.
+DEFAULT_REQUIREMENTS = ("delay_margin=0.003", "disk_margin=0.5", "error_ratio=10")
+
+
+def run_tuned(args) -> int:
+    """Tune, verify and write ``--out/design.json``; print the requirement table."""
+    import json
+
+    from ..campaign.requirements import make_requirement
+    from ..campaign.tuning import TuneError, tune
+    from ..control.structures import make_structure
+    from ..model.dynamics import load_robot
+    from ..report.jsondata import dumps
+    from .common import parse_lock
+    from .stress import parse_with
+
+    if args.out is None:
+        raise ValueError("design to requirements writes DIR/design.json: give --out DIR")
+    out = claim_out(args, "design")
+    reqs = [make_requirement(t) for t in (args.require or DEFAULT_REQUIREMENTS)]
+    structure = make_structure(args.structure, None if args.tune_lam else args.lam)
+    robot = load_robot(args.robot or "rrr", lock=parse_lock(args.lock))
+    fixed = parse_with(args.fixed, "")
+    try:
+        res = tune(robot, structure, reqs, plants=args.samples, seed=args.seed,
+                   rate=args.rate, fixed=fixed, starts=args.starts,
+                   simulate=not args.no_simulate)
+    except TuneError as exc:
+        if exc.result is not None:
+            (out / "design_refused.json").write_text(dumps(exc.result.to_dict()))
+        raise ValueError(str(exc)) from None
+    path = out / "design.json"
+    path.write_text(dumps(res.to_dict()))
+    if args.json:
+        print(json.dumps({"design": str(path), "status": res.status}))
+        return 0
+    print("\n".join(res.lines() + [f"wrote {path}"]))
+    return 0
 
 
 def run_design(args) -> int:
     """Design, print (or ``--json``) and optionally draw the loop-shaping controller."""
+    if args.robot is not None or args.require:
+        return run_tuned(args)
     if args.out is not None:  # before the design and its imports: --out /proc/x refused at once
         claim_out(args, "design")
     from ..report.design import design_lines, design_summary

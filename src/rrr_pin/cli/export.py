@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from .build import compensation_from_args, load_plant
+from .build import compensation_from_args, design_record, load_plant, tuned_from_args
 from .common import as_options, check_out_early, claim_out
-from .options import add_overwrite
+from .options import add_design_argument, add_overwrite
 
 __all__ = ["add", "run_export"]
 
@@ -28,7 +28,8 @@ def add(sub) -> None:
                    help="lock a joint at a position [rad or m] (repeatable)")
     p.add_argument("--law", default="hinf", metavar="NAME",
                    help="built-in controller: " + "; ".join(
-                       f"{k} = {v}" for k, v in BUILTIN_LAWS.items()) + " (default: hinf)")
+                       f"{k} = {v}" for k, v in BUILTIN_LAWS.items()) + "; tuned = the law "
+                        "of --design (default: hinf)")
     p.add_argument("--rate", type=float, default=None, metavar="HZ",
                    help="sampling rate of the exported code [Hz] (required: the built-in "
                         "laws are continuous-time)")
@@ -53,6 +54,7 @@ def add(sub) -> None:
                    help="also write DIR/ros2/, a ros2_control controller package (package.xml, "
                         "plugin, parameters YAML); build it with colcon build --paths DIR/ros2")
     add_overwrite(p)
+    add_design_argument(p)
     p.set_defaults(func=run_export)
 
 
@@ -62,7 +64,7 @@ def run_export(args) -> int:
     from ..deploy.writer import check_exportable, prepare_export
 
     out = check_out_early(args, "export")  # a file, no permission, another tool's run
-    if args.law not in LAWS:
+    if args.law not in LAWS and args.law != "tuned":
         raise ValueError(f"--law {args.law!r} is not a built-in controller ({', '.join(LAWS)})")
     robot = load_plant(args)
     check_exportable(robot)
@@ -77,8 +79,9 @@ def run_export(args) -> int:
                          "--compensate-friction too (the exported code simulates no plant)")
     friction = compensation_from_args(args, robot)
     with as_options():
-        law = make_law(args.law, robot, **({"K": K} if K is not None else {}),
-                       **({"friction": friction} if friction is not None else {}))
+        law = tuned_from_args(args, robot, [args.law]) or \
+            make_law(args.law, robot, **({"K": K} if K is not None else {}),
+                     **({"friction": friction} if friction is not None else {}))
         prepared = prepare_export(law, robot, args.rate, method=args.method,
                                   prewarp=args.prewarp, design=d)
     band = 0.0
@@ -98,6 +101,11 @@ def run_export(args) -> int:
         from ..deploy.ros2 import write_ros2_package
 
         write_ros2_package(prepared, robot, out)
+    if design_record(args) is not None:  # which design ran, with its requirement table
+        import json
+
+        (out / "design.json").write_text(json.dumps(design_record(args), indent=1,
+                                                    default=str))
     print(f"{robot.name}: {prepared.law.name} ({prepared.form.kind}, {prepared.law.nx} states) "
           f"at {prepared.rate:g} Hz, {prepared.dynamics} dynamics")
     print(f"wrote {out}/: {', '.join(prepared.files)}")

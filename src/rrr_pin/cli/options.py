@@ -7,7 +7,8 @@ and reference kinds from :mod:`rrr_pin.control.catalog`.
 
 from __future__ import annotations
 
-__all__ = ["add_overwrite", "add_plant_arguments", "add_law_arguments", "add_force_argument",
+__all__ = ["add_design_argument", "add_overwrite", "add_plant_arguments", "add_law_arguments",
+           "add_force_argument",
            "add_reference_arguments"]
 
 _PLANT_HELP = ("plant: 'rrr' (the paper's arm, default), an example-robot-data arm (ur5, ur3, "
@@ -20,6 +21,15 @@ def add_overwrite(p) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace the previous run of this command in a non-empty --out (only "
                         "the files its manifest rrr-pin-run*.json lists are removed)")
+
+
+def add_design_argument(p) -> None:
+    """``--design DIR/design.json``: the law ``tuned`` (``rrr-pin design --require ...``)."""
+    p.add_argument("--design", metavar="DIR/design.json", default=None,
+                   help="a design tuned to requirements (rrr-pin design --robot ARM --require "
+                        "NAME=VALUE --out DIR): its law runs as 'tuned' (name it in "
+                        "--controllers, e.g. fl,hinf,tuned); the results record the design and "
+                        "its requirement table")
 
 
 def add_plant_arguments(p, *, home: bool = True) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .build import (
+    design_record,
     laws_from_args,
     load_plant,
     reference_from_args,
@@ -13,7 +14,7 @@ from .build import (
     with_torque_limit,
 )
 from .common import check_out_early, claim_out, control_ss
-from .options import add_law_arguments, add_overwrite, add_plant_arguments
+from .options import add_design_argument, add_law_arguments, add_overwrite, add_plant_arguments
 
 __all__ = ["add", "run_reproduce"]
 
@@ -30,6 +31,7 @@ def add(sub) -> None:
                     "closed chain (its own task path is its reference by default).")
     add_plant_arguments(p)
     add_law_arguments(p, 4.0, None)
+    add_design_argument(p)
     p.add_argument("--samples", type=int, default=10, help="uncertain plants (10, the paper's)")
     p.add_argument("--torque-limit", default=None, metavar="auto|P%|T1,T2,...",
                    help="run the study under actuator limits |tau_j| <= T_j [N m] (sampled "
@@ -107,6 +109,8 @@ def run_reproduce(args) -> int:
         bar.close()
     result.torque_limit = limit_info
     design_info = study_design(d, full_order=args.full_order)
+    if design_record(args) is not None:
+        design_info = {**design_info, "tuned": design_record(args)}
     data = write_results(result, out, design=design_info)
     figures += save_study_figures(result, out, plant)
     report = write_study_report(result, out, figures, design_info, plant, data=data)

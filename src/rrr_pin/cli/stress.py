@@ -6,7 +6,7 @@ import time
 
 from .build import load_plant
 from .common import as_options, claim_out, option
-from .options import add_force_argument, add_overwrite, add_plant_arguments
+from .options import add_design_argument, add_force_argument, add_overwrite, add_plant_arguments
 
 __all__ = ["add", "run_stress", "parse_with"]
 
@@ -50,6 +50,7 @@ def add(sub) -> None:
                    help="folder for the figure and the JSON (results/stress)")
     add_overwrite(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_design_argument(p)
     p.set_defaults(func=run_stress)
 
 
@@ -111,8 +112,15 @@ def run_stress(args) -> int:
                          f"does not move (stress runs the study reference only)")
     reference = ReferenceSpec(kind="study", home=None if home is None else tuple(home)).build(
         plant, args.duration, label=option)
+    from .build import design_record, tuned_from_args
+
+    names = [n.strip() for n in args.controllers.split(",")]
+    tuned = tuned_from_args(args, plant, names)
     with as_options():
-        laws = make_laws(args.controllers, plant)
+        laws = make_laws([n for n in names if n != "tuned"], plant) \
+            if set(names) - {"tuned"} else []
+    if tuned is not None:
+        laws.insert(names.index("tuned"), tuned)
     start = time.perf_counter()
     bar = tqdm(total=len(laws), unit="law", desc=f"{plant.name}: stress {args.effect}",
                disable=args.no_progress)
@@ -122,6 +130,8 @@ def run_stress(args) -> int:
     result["elapsed_s"] = time.perf_counter() - start
     result["robot"] = plant.name
     result["stem"] = stem
+    if design_record(args) is not None:
+        result["design"] = design_record(args)
     fig = write_stress(result, args.out)
     if args.json:
         print(dumps(result))

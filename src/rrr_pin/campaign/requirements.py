@@ -1,0 +1,458 @@
+r"""Requirements of a tuned design: typed inputs, each estimated on a frequency grid and verified.
+
+A requirement states a target on the loop actually implemented: the law sampled at its rate,
+on every plant of the set (:class:`~rrr_pin.control.sampled_loops.LoopSet`, the plants
+linearized at the reference's mean configuration), with the effects held fixed (``fixed``:
+``{"delay": s, "actuator": rad/s}``) present. Each gives
+
+* :meth:`Requirement.estimate`, the fast value the tuner minimizes over (a frequency grid, or
+  a linear prediction), worst over the plants;
+* :meth:`Requirement.verify`, the exact value (eigenvalues of the exact discrete closed loop,
+  python-control's ``disk_margins`` with SLICOT's ``AB13MD``, nonlinear simulation);
+* :meth:`Requirement.normalized`, the value over the target (<= 1: met), the tuner's measure.
+
+Built in (:data:`REQUIREMENTS`, the CLI's ``--require NAME=VALUE``): ``delay_margin`` [s],
+``disk_margin`` [-], ``actuator_bandwidth`` [rad/s], ``bandwidth`` [rad/s], ``peak_torque``
+[N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad]. Write your own by
+subclassing :class:`Requirement`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import ClassVar
+
+import numpy as np
+
+from ..validation import FieldError, check_positive
+
+__all__ = ["Requirement", "DelayMargin", "DiskMargin", "ActuatorBandwidth", "Bandwidth",
+           "PeakTorque", "ErrorRatio", "NoiseGain", "REQUIREMENTS", "make_requirement",
+           "disk_margin_grid", "bandwidth_grid"]
+
+
+#: Largest delay, in samples of the law, that :meth:`DelayMargin.verify` builds an exact
+#: discrete loop for (each sample adds ``n`` states to the eigenvalue problem).
+MAX_DELAY_SAMPLES = 200
+
+
+def _sens(L: np.ndarray) -> np.ndarray:
+    """Input sensitivity ``S = (I + L)^-1``, same shape as ``L`` (..., n, n)."""
+    eye = np.eye(L.shape[-1])
+    return np.linalg.inv(eye + L)
+
+
+def disk_margin_grid(L: np.ndarray, S=None) -> np.ndarray:
+    r"""Balanced multiloop disk margin on a grid, per plant: ``1 / max_w sigma_max(S - I/2)``.
+
+    The unstructured bound (``sigma_max`` instead of SLICOT's ``mu`` upper bound of
+    python-control's ``disk_margins``), so never above it; equal for a SISO loop.
+
+    Parameters
+    ----------
+    L : ndarray, shape (np, nw, n, n)
+
+    Returns
+    -------
+    ndarray, shape (np,)
+    """
+    S = (_sens(L) if S is None else S) - 0.5 * np.eye(L.shape[-1])
+    sig = np.linalg.svd(S, compute_uv=False)[..., 0]
+    return 1.0 / sig.max(axis=1)
+
+
+def bandwidth_grid(L: np.ndarray, omega: np.ndarray, S=None) -> np.ndarray:
+    r"""Error bandwidth per plant: lowest ``w`` with ``sigma_max(S(jw)) >= 1/sqrt(2)`` [rad/s].
+
+    Interpolated linearly in ``log w`` between grid points; ``inf`` if never reached.
+    """
+    sig = np.linalg.svd(_sens(L) if S is None else S, compute_uv=False)[..., 0]  # (np, nw)
+    lvl = 1.0 / math.sqrt(2.0)
+    out = np.full(L.shape[0], np.inf)
+    for p in range(L.shape[0]):
+        above = np.nonzero(sig[p] >= lvl)[0]
+        if above.size == 0:
+            continue
+        i = above[0]
+        if i == 0:
+            out[p] = omega[0]
+            continue
+        f = (lvl - sig[p, i - 1]) / (sig[p, i] - sig[p, i - 1])
+        out[p] = math.exp(math.log(omega[i - 1]) + f * math.log(omega[i] / omega[i - 1]))
+    return out
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """Base of the requirements.
+
+    Parameters
+    ----------
+    target : float
+        The value to reach, in :attr:`unit`.
+
+    Class attributes: ``name`` (the CLI's), ``unit``, ``sense`` (``"min"``: at least the
+    target; ``"max"``: at most).
+    """
+
+    target: float
+    name: ClassVar[str] = ""
+    unit: ClassVar[str] = ""
+    sense: ClassVar[str] = "min"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "target", check_positive(self.name, self.target,
+                                                          unit=self.unit))
+
+    def normalized(self, achieved: float) -> float:
+        """``target / achieved`` (at least) or ``achieved / target`` (at most); <= 1 met."""
+        if self.sense == "min":
+            return self.target / achieved if achieved > 0 else math.inf
+        return achieved / self.target
+
+    def prepare(self, ctx) -> None:
+        """Precompute what :meth:`estimate` needs on the context (nothing by default)."""
+
+    def estimate(self, ctx, ev) -> float:
+        """Fast value of the evaluated law ``ev`` (worst over the plants)."""
+        raise NotImplementedError(f"{type(self).__name__} must implement estimate()")
+
+    def verify(self, ctx, ev) -> tuple[float, str]:
+        """Exact value and how it was computed (default: the estimate)."""
+        return self.estimate(ctx, ev), "frequency grid"
+
+    def to_dict(self) -> dict:
+        """JSON-ready record (with the fields a subclass adds)."""
+        extra = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "target"}
+        return {"name": self.name, "target": self.target, "unit": self.unit,
+                "sense": "at least" if self.sense == "min" else "at most", **extra}
+
+
+@dataclass(frozen=True)
+class DelayMargin(Requirement):
+    """Common transport delay on every actuator the loop tolerates [s], worst plant.
+
+    Parameters
+    ----------
+    actuator : float, optional
+        A first-order actuator [rad/s] present while the delay grows (CLI:
+        ``delay_margin=0.003,actuator=300``); default the fixed effects' (or none).
+    """
+
+    actuator: float | None = None
+    name: ClassVar[str] = "delay_margin"
+    unit: ClassVar[str] = "s"
+
+    def _wa(self, ctx):
+        return self.actuator or ctx.fixed.get("actuator")
+
+    def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
+        from ..control.sampled_loops import delay_margin_from_response
+
+        wa = self._wa(ctx)
+        L = ev.L if wa is None else ev.L * (wa / (1j * ctx.loops.omega + wa))[None, :, None,
+                                                                                None]
+        eigs = ev.eigs("actuator") if self.actuator is None else None
+        return float(np.min(delay_margin_from_response(L, ctx.loops.omega, eigs)))
+
+    def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
+        wa = self._wa(ctx)
+        est = self.estimate(ctx, ev)
+        if est * ctx.loops.rate > MAX_DELAY_SAMPLES:
+            return est, (f"frequency grid (the exact loop would hold over "
+                         f"{MAX_DELAY_SAMPLES} delayed samples)")
+
+        def stable(tau):
+            return bool(np.all(ctx.loops.spectral_radius(ev.law, tau, wa) < 1.0))
+        return _bisect_up(stable, max(self.target, 1e-4), 1e-4), \
+            "exact discrete eigenvalues (fractional delay), bisection"
+
+
+@dataclass(frozen=True)
+class DiskMargin(Requirement):
+    """Balanced multiloop disk margin ``alpha`` [-] at the torque input, worst plant."""
+
+    name: ClassVar[str] = "disk_margin"
+    unit: ClassVar[str] = "-"
+
+    def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
+        return float(np.min(disk_margin_grid(ev.L, ev.S())))
+
+    def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
+        import control
+
+        out = []
+        for i in range(len(ctx.loops.plants)):
+            L = ev.loop_ss(ctx, i)
+            out.append(float(control.disk_margins(L, ctx.loops.omega)[0]))
+        return min(out), "python-control disk_margins (SLICOT AB13MD mu bound)"
+
+
+@dataclass(frozen=True)
+class ActuatorBandwidth(Requirement):
+    """Slowest first-order actuator ``wa/(s + wa)`` the loop tolerates [rad/s], worst plant.
+
+    Parameters
+    ----------
+    delay : float, optional
+        A transport delay [s] present with the actuator (CLI:
+        ``actuator_bandwidth=300,delay=0.002``); default the fixed effects' (or none).
+    """
+
+    delay: float | None = None
+    name: ClassVar[str] = "actuator_bandwidth"
+    unit: ClassVar[str] = "rad/s"
+    sense: ClassVar[str] = "max"
+
+    def _delay(self, ctx):
+        return self.delay if self.delay is not None else ctx.fixed.get("delay", 0.0)
+
+    def _smallest(self, ctx, ev, rtol):
+        delay = self._delay(ctx)
+
+        def stable(wa):
+            return bool(np.all(ctx.loops.spectral_radius(ev.law, delay, wa) < 1.0))
+        return _bisect_down(stable, self.target, rtol)
+
+    def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
+        from ..control.sampled_loops import actuator_margin_from_response
+
+        if self.delay is None:
+            return float(np.max(actuator_margin_from_response(None, ctx.loops.omega,
+                                                              ev.eigs("delay"))))
+        L = ev.L * np.exp(-1j * ctx.loops.omega * self.delay)[None, :, None, None]
+        return float(np.max(actuator_margin_from_response(L, ctx.loops.omega)))
+
+    def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
+        return self._smallest(ctx, ev, 1e-4), "exact discrete eigenvalues, bisection"
+
+
+@dataclass(frozen=True)
+class Bandwidth(Requirement):
+    """Error bandwidth: lowest ``w`` where ``sigma_max(S)`` reaches -3 dB [rad/s], worst plant."""
+
+    name: ClassVar[str] = "bandwidth"
+    unit: ClassVar[str] = "rad/s"
+
+    def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
+        return float(np.min(bandwidth_grid(ev.L, ctx.loops.omega, ev.S())))
+
+    def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
+        from scipy.optimize import brentq
+
+        lvl = 1.0 / math.sqrt(2.0)
+        out = []
+        for i in range(len(ctx.loops.plants)):
+            def g(logw, i=i):
+                w = np.array([math.exp(logw)])
+                L = ev.loop_at(ctx, i, w)
+                return float(np.linalg.svd(_sens(L), compute_uv=False)[0, 0]) - lvl
+            w0 = float(bandwidth_grid(ev.L_fixed()[i:i + 1], ctx.loops.omega)[0])
+            if not math.isfinite(w0):
+                out.append(math.inf)
+                continue
+            lo, hi = math.log(w0) - 0.05, math.log(w0) + 0.05
+            while g(lo) > 0 and lo > math.log(ctx.loops.omega[0]):
+                lo -= 0.05
+            while g(hi) < 0:
+                hi += 0.05
+            out.append(math.exp(brentq(g, lo, hi, xtol=1e-10)))
+        return min(out), "exact frequency response, root of sigma_max(S) = -3 dB"
+
+
+@dataclass(frozen=True)
+class NoiseGain(Requirement):
+    r"""Noise amplification: peak gain from position-sensor noise to torque [N m/rad].
+
+    .. math:: \max_\omega \bar\sigma\big(S(e^{j\omega T})\, C_q(e^{j\omega T})\big)
+
+    with ``S = (I + L)^-1`` at the torque input and ``C_q`` the law's response to ``q``:
+    the H-infinity norm of noise on ``q`` to torque, worst plant.
+    """
+
+    name: ClassVar[str] = "noise_gain"
+    unit: ClassVar[str] = "N m/rad"
+    sense: ClassVar[str] = "max"
+
+    def estimate(self, ctx, ev):
+        """Return the grid peak, worst over the plants."""
+        n = ctx.loops.n
+        T = ev.S() @ ev.law.C[None, :, :, :n]
+        return float(np.linalg.svd(T, compute_uv=False)[..., 0].max())
+
+    def verify(self, ctx, ev):
+        """Return the H-infinity norm of each plant's discrete loop (SLICOT AB13DD), worst."""
+        import control
+
+        out = []
+        for i in range(len(ctx.loops.plants)):
+            T = ev.noise_ss(ctx, i)
+            out.append(float(control.linfnorm(T)[0]))
+        return max(out), "H-infinity norm of the discrete loop (python-control linfnorm, " \
+                         "SLICOT AB13DD)"
+
+
+@dataclass(frozen=True)
+class PeakTorque(Requirement):
+    """Peak ``|tau_j|`` on the reference within the limits [N m] (a number, or the URDF's).
+
+    Parameters
+    ----------
+    target : float or "urdf"
+        The limit of every joint [N m], or ``"urdf"``: each joint's effort limit.
+    joint : str, optional
+        Only this joint (by name).
+    """
+
+    target: object = "urdf"
+    joint: str | None = None
+    name: ClassVar[str] = "peak_torque"
+    unit: ClassVar[str] = "N m"
+    sense: ClassVar[str] = "max"
+
+    def __post_init__(self) -> None:
+        if self.target != "urdf":
+            super().__post_init__()
+
+    def limits(self, ctx) -> np.ndarray:
+        """Limit per joint [N m], shape (n,)."""
+        if self.target == "urdf":
+            return np.asarray(ctx.nominal.effort_limits(), dtype=float)
+        return np.full(ctx.loops.n, float(self.target))
+
+    def _joints(self, ctx):
+        return [ctx.joint_index(self.joint)] if self.joint else list(range(ctx.loops.n))
+
+    def normalized(self, achieved) -> float:
+        """Return the achieved ratio itself (<= 1 met)."""
+        return float(achieved)
+
+    def estimate(self, ctx, ev):
+        """Peak inverse-dynamics torque of the reference on the worst plant over the limit.
+
+        Independent of the controller (a law that tracks must deliver it): a floor.
+        """
+        j = self._joints(ctx)
+        return float(np.max(ctx.id_peak[:, j] / self.limits(ctx)[j]))
+
+    def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
+        j = self._joints(ctx)
+        peak = ctx.simulated(ev)["peak_torque"]
+        return float(np.max(peak[:, j] / self.limits(ctx)[j])), \
+            "nonlinear simulation on every plant, peak |tau| over the limit"
+
+    def to_dict(self):
+        """Return the JSON-ready record."""
+        return {**super().to_dict(),
+                "note": "achieved and verified are peak |tau| over the limit (<= 1 met)"}
+
+
+@dataclass(frozen=True)
+class ErrorRatio(Requirement):
+    """RMS tracking error of FL alone (lam 100 rad/s) over the law's, pooled over the plants."""
+
+    name: ClassVar[str] = "error_ratio"
+    unit: ClassVar[str] = "-"
+
+    def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
+        return ctx.error_ratio_estimate(ev)
+
+    def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
+        return ctx.simulated(ev)["error_ratio"], \
+            "nonlinear simulation on every plant, against FL alone (lam 100 rad/s)"
+
+
+def _bisect_up(stable, start, floor, rtol=1e-3):
+    """Largest size keeping ``stable`` (0 if even ``floor`` fails)."""
+    if not stable(floor):
+        return 0.0
+    lo, hi = floor, max(start, floor * 2)
+    while stable(hi):
+        lo, hi = hi, hi * 2
+        if hi > 1.0:
+            return math.inf
+    while hi / lo - 1 > rtol:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo
+
+
+def _bisect_down(stable, start, rtol):
+    """Smallest bandwidth keeping ``stable`` [rad/s] (``inf`` if 1e6 already fails)."""
+    hi = 1e6
+    if not stable(hi):
+        return math.inf
+    lo = min(start, hi / 2)
+    while stable(lo):
+        hi, lo = lo, lo / 2
+        if lo < 1e-3:
+            return 0.0
+    while hi / lo - 1 > rtol:
+        mid = math.sqrt(lo * hi)
+        hi, lo = (mid, lo) if stable(mid) else (hi, mid)
+    return hi
+
+
+#: Built-in requirements by CLI name.
+REQUIREMENTS = {cls.name: cls for cls in (DelayMargin, DiskMargin, ActuatorBandwidth,
+                                          Bandwidth, PeakTorque, ErrorRatio, NoiseGain)}
+
+
+def make_requirement(text: str) -> Requirement:
+    """Parse ``NAME=VALUE`` (``peak_torque=urdf``; ``peak_torque@JOINT=VALUE`` for one joint).
+
+    Raises
+    ------
+    FieldError
+        ``require``: not ``NAME=VALUE``, an unknown name (the message lists the built-in
+        ones), or a value that is not a positive number.
+    """
+    name, sep, value = str(text).partition("=")
+    name, _, joint = name.strip().partition("@")
+    if not sep or name not in REQUIREMENTS:
+        raise FieldError("require", f"{{name}}: expected NAME=VALUE with NAME one of "
+                                    f"{', '.join(REQUIREMENTS)}, got {text!r}")
+    cls = REQUIREMENTS[name]
+    value, *rest = value.split(",")
+    extras = {}
+    allowed = {"delay_margin": "actuator", "actuator_bandwidth": "delay"}.get(name)
+    for item in rest:
+        key, eq, size = item.partition("=")
+        try:
+            extras[key.strip()] = float(size) if eq and key.strip() == allowed else None
+        except ValueError:
+            extras[key.strip()] = None
+        if extras[key.strip()] is None:
+            raise FieldError("require", f"{{name}}: {name} takes "
+                                        f"{f'{allowed}=SIZE' if allowed else 'no option'} "
+                                        f"after its value, got {item!r} in {text!r}")
+    if joint and cls is not PeakTorque:
+        raise FieldError("require", f"{{name}}: a joint (@{joint}) applies to peak_torque "
+                                    f"only, got {text!r}")
+    if cls is PeakTorque and value.strip() == "urdf":
+        return PeakTorque("urdf", joint=joint or None)
+    try:
+        number = float(value)
+    except ValueError:
+        raise FieldError("require", f"{{name}}: {name} needs a number [{cls.unit}]"
+                                    f"{' or urdf' if cls is PeakTorque else ''}, got "
+                                    f"{value!r}") from None
+    try:
+        return cls(number, joint=joint or None) if cls is PeakTorque else cls(number,
+                                                                              **extras)
+    except FieldError as exc:
+        raise FieldError("require", "{name}: " + str(exc).replace("{", "{{")
+                         .replace("}", "}}")) from None
+

@@ -1,0 +1,597 @@
+r"""Design to requirements: tune a structured FL law over a plant set, then verify it exactly.
+
+:func:`tune` minimizes the worst normalized requirement (:mod:`rrr_pin.campaign.requirements`)
+
+.. math:: \min_\theta \max_r \frac{\text{target}_r}{\text{achieved}_r(\theta)}
+          \quad (\text{or achieved over target for an upper bound})
+
+over the free parameters ``theta`` of a :class:`~rrr_pin.control.structures.Structure`
+(searched on a log scale inside their bounds), every requirement evaluated on the digital loop
+of each plant of the set (:class:`~rrr_pin.control.sampled_loops.LoopSet`) on a frequency grid.
+A point whose exact discrete closed loop is unstable on any plant (with the fixed effects) is
+penalized by its spectral radius. The search is scipy's bounded Nelder-Mead (the objective is a
+maximum of non-smooth functions) from several seeded starts. The best point is then verified:
+each requirement's exact value (:meth:`Requirement.verify`) and, for the delay and the
+actuator, the breaking point that :func:`rrr_pin.campaign.stress.breaking_point` simulates on
+the nominal plant beside the exact linear prediction on that plant.
+
+The result (:class:`TuneResult`) is the tuned law (``name = "tuned"``), the table per
+requirement (target, achieved on the grid, verified), and the trade-off when the requirements
+cannot all be met (the best point found and which requirements bind there). It is written as
+``design.json`` (:meth:`TuneResult.to_dict`) and read back by :func:`tuned_law`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..validation import FieldError, check_count, check_rate
+from .requirements import (
+    ActuatorBandwidth,
+    DelayMargin,
+    ErrorRatio,
+    PeakTorque,
+    Requirement,
+    _bisect_down,
+    _bisect_up,
+)
+
+__all__ = ["tune", "TuneResult", "TuneError", "tuned_law", "load_design", "DESIGN_FORMAT"]
+
+#: ``format`` of a ``design.json``.
+DESIGN_FORMAT = "rrr-pin-design/1"
+
+#: Objective of a point unstable on some plant: this plus its largest spectral radius.
+_UNSTABLE = 1e3
+
+
+class TuneError(ValueError):
+    """Requirements or plants no point of the structure can satisfy; carries the best point.
+
+    Attributes
+    ----------
+    result : TuneResult or None
+        The best point found (None when refused before any search).
+    """
+
+    def __init__(self, message: str, result=None):
+        super().__init__(message)
+        self.result = result
+
+
+class _Eval:
+    """One law ``(lam, K)`` on the context: responses computed once, values cached."""
+
+    def __init__(self, ctx, lam, K):
+        self.ctx, self.lam, self.K = ctx, lam, K
+        self.law = ctx.loops.law(lam, K)
+        self.L = ctx.loops.loop_response(self.law)
+        self._sim = None
+        self._eigs, self._S = {}, None
+
+    def eigs(self, *keep):
+        """Eigenvalues of :meth:`L_fixed` ``(*keep)``, computed once, shape (np, nw, n)."""
+        if keep not in self._eigs:
+            self._eigs[keep] = np.linalg.eigvals(self.L_fixed(*keep))
+        return self._eigs[keep]
+
+    def S(self):
+        """Input sensitivity ``(I + L)^-1`` of the loop without effects, computed once."""
+        if self._S is None:
+            self._S = np.linalg.inv(np.eye(self.L.shape[-1]) + self.L)
+        return self._S
+
+    def L_fixed(self, *keep):
+        """``L`` times the frequency factors of the fixed effects named in ``keep``."""
+        L, w = self.L, self.ctx.loops.omega
+        if "delay" in keep and "delay" in self.ctx.fixed:
+            L = L * np.exp(-1j * w * self.ctx.fixed["delay"])[None, :, None, None]
+        if "actuator" in keep and "actuator" in self.ctx.fixed:
+            wa = self.ctx.fixed["actuator"]
+            L = L * (wa / (1j * w + wa))[None, :, None, None]
+        return L
+
+    def loop_at(self, ctx, i, w):
+        """Plant ``i``'s loop response at frequencies ``w``, shape (nw, n, n)."""
+        P = ctx.loops.plant_response(w)[i:i + 1]
+        return ctx.loops.loop_response(ctx.loops.law(self.lam, self.K, w, matrices=False),
+                                       P)[0]
+
+    def loop_ss(self, ctx, i):
+        """Plant ``i``'s discrete loop at the torque input as a ``control.StateSpace``."""
+        import control
+
+        from ..control.sampled_loops import zoh
+
+        loops = ctx.loops
+        Phi, Gam = zoh(loops.A[i], loops.B[i], loops.T)
+        P = control.ss(Phi, Gam, np.eye(Phi.shape[0]), 0, loops.T)
+        Ac, Bc, Cc, Dc = self.law.law
+        C = control.ss(Ac, Bc, Cc, Dc, loops.T) if Ac.size else control.ss([], [], [], Dc,
+                                                                             loops.T)
+        return -C * P
+
+    def noise_ss(self, ctx, i):
+        """Plant ``i``'s discrete loop from noise on ``q`` to the law's torque."""
+        import control
+
+        from ..control.sampled_loops import zoh
+
+        loops = ctx.loops
+        n = loops.n
+        Phi, Gam = zoh(loops.A[i], loops.B[i], loops.T)
+        P = control.ss(Phi, Gam, np.eye(Phi.shape[0]), 0, loops.T)
+        Ac, Bc, Cc, Dc = self.law.law
+        C = control.ss(Ac, Bc, Cc, Dc, loops.T) if Ac.size else control.ss([], [], [], Dc,
+                                                                             loops.T)
+        E = np.vstack([np.eye(n), np.zeros((n, n))])
+        eye = control.ss([], [], [], np.eye(n), loops.T)
+        return control.feedback(eye, C * P, sign=1) * C * control.ss([], [], [], E, loops.T)
+
+
+@dataclass
+class _Context:
+    nominal: object
+    loops: object
+    reference: object
+    fixed: dict
+    run: object
+    plants: list
+    id_peak: np.ndarray = None
+    harmonics: tuple = None
+    fl_energy: float = None
+
+    def joint_index(self, name):
+        return list(self.nominal.joint_names).index(name)
+
+    def prepare_tracking(self, duration: float, fs: float = 25.0, pad: int = 3):
+        """Peak inverse dynamics per plant, and the torque mismatch along ``r`` for the estimate.
+
+        The estimate of the tracking error is the linear response, from rest, of each plant's
+        loop to its torque mismatch ``w(t) = ID_plant(r) - ID_nominal(r)`` (what the law's
+        feed-forward misses): a linear convolution by FFT (the input zero-padded to ``pad``
+        times its length, so that the response is the one from rest, transient included).
+        """
+        t = np.arange(int(round(duration * fs))) / fs
+        r, rd, rdd = (np.asarray(x) for x in self.reference.sample(t))
+        ids = np.array([[p.inverse_dynamics(q, v, a) for q, v, a in zip(r, rd, rdd,
+                                                                          strict=True)]
+                        for p in self.plants])                     # (np, nt, n)
+        hat = np.array([self.nominal.inverse_dynamics(q, v, a)
+                        for q, v, a in zip(r, rd, rdd, strict=True)])
+        self.id_peak = np.abs(ids).max(axis=1)
+        nfft = pad * t.size
+        W = np.fft.rfft(ids - hat[None], n=nfft, axis=1)            # (np, nf, n)
+        w = 2.0 * np.pi * np.fft.rfftfreq(nfft, 1.0 / fs)
+        w[0] = 1e-3 * w[1]                                          # DC: the slowest bin
+        P = self.loops.plant_response(w)                            # (np, nf, 2n, n)
+        self.harmonics = (w, W, t.size, nfft, P)
+        self.fl_energy = self._energy(100.0, None)
+
+    def _energy(self, lam, K):
+        w, W, nt, nfft, P = self.harmonics
+        law = self.loops.law(lam, K, w, matrices=False)
+        L = self.loops.loop_response(law, P)
+        n = L.shape[-1]
+        S = np.linalg.inv(np.eye(n) + L)
+        E = np.einsum("pwij,pwjk,pwk->pwi", P[:, :, :n, :], S, W)
+        e = np.fft.irfft(E, n=nfft, axis=1)[:, :nt]
+        return float(np.sum(e * e))
+
+    def error_ratio_estimate(self, ev) -> float:
+        """Linear estimate of FL alone's RMS error over the law's, pooled over the plants."""
+        e = self._energy(ev.lam, ev.K)
+        return math.sqrt(self.fl_energy / e) if e > 0 else math.inf
+
+    def simulated(self, ev) -> dict:
+        """Simulate the law and FL alone on every plant (cached): peak torque, error ratio."""
+        if ev._sim is not None:
+            return ev._sim
+        from ..control.laws import fl_controller
+        from .runner import run_laws_batch
+
+        law = _law(self.nominal, ev.lam, ev.K)
+        fl = fl_controller(self.nominal, 100.0)
+        runs = run_laws_batch(self.plants, [law, fl], self.reference, self.run)
+        peak, err, err_fl = [], 0.0, 0.0
+        for row in runs:
+            t = row[law.name]
+            if isinstance(t, Exception):
+                peak.append(np.full(self.loops.n, np.inf))
+                err = math.inf
+                continue
+            peak.append(np.abs(t.tau).max(axis=0))
+            err += float(np.sum(t.error ** 2))
+            err_fl += float(np.sum(row[fl.name].error ** 2)) \
+                if not isinstance(row[fl.name], Exception) else math.inf
+        ev._sim = {"peak_torque": np.array(peak),
+                   "error_ratio": math.sqrt(err_fl / err) if err > 0 else math.inf}
+        return ev._sim
+
+
+def _law(nominal, lam, K, name="tuned"):
+    from ..control.laws import TrackingController
+
+    return TrackingController(nominal=nominal, lam=lam, K=K, name=name, label="tuned design")
+
+
+@dataclass
+class TuneResult:
+    """What :func:`tune` found and verified.
+
+    Attributes
+    ----------
+    structure : Structure
+    values : ndarray, shape (len(structure.names),)
+        The tuned parameters.
+    lam : float
+        FL bandwidth [rad/s].
+    K : control.TransferFunction or None
+        The outer controller (negative feedback on ``e``), SISO, copied on every joint.
+    rate : float
+        Sampling rate [Hz] the law was tuned and verified at (Tustin ``K``).
+    table : list of dict
+        Per requirement: ``name``, ``unit``, ``sense``, ``target``, ``achieved`` (the grid
+        value the tuner saw), ``verified`` (exact), ``method``, ``normalized`` (of the
+        verified value, <= 1 met), ``met``; the delay and the actuator add ``simulated`` (the
+        nominal plant's breaking point by :func:`~rrr_pin.campaign.stress.breaking_point`) and
+        ``predicted_nominal`` (the exact linear prediction on that plant).
+    objective : float
+        Worst normalized requirement on the grid at the best point.
+    status : str
+        ``"met"`` or ``"trade-off"`` (some requirement not met).
+    tradeoff : dict or None
+        At a trade-off: ``binding`` (the requirements whose normalized value is within 2 % of
+        the worst) and ``unmet``.
+    starts : list of dict
+        Per start: its initial point, best objective and evaluations.
+    info : dict
+        Robot, plant set, home, fixed effects, reference, seconds.
+    """
+
+    structure: object
+    values: np.ndarray
+    lam: float
+    K: object
+    rate: float
+    table: list
+    objective: float
+    status: str
+    tradeoff: dict | None
+    starts: list
+    info: dict = field(default_factory=dict)
+
+    def law(self, nominal, name: str = "tuned"):
+        """Return the tuned law on ``nominal`` (continuous; run it sampled at ``rate``)."""
+        return _law(nominal, self.lam, self.K, name)
+
+    def to_dict(self) -> dict:
+        """Return the ``design.json`` record."""
+        K = None if self.K is None else {
+            "num": np.asarray(self.K.num[0][0], float).ravel().tolist(),
+            "den": np.asarray(self.K.den[0][0], float).ravel().tolist()}
+        return {"format": DESIGN_FORMAT, "law": "tuned", "lam_rad_s": self.lam, "K": K,
+                "rate_hz": self.rate, "structure": self.structure.to_dict(self.values),
+                "requirements": self.table, "objective": self.objective,
+                "status": self.status, "tradeoff": self.tradeoff, "starts": self.starts,
+                **self.info}
+
+    def lines(self) -> list[str]:
+        """Return a printable summary: the law and the requirement table."""
+        out = [f"tuned {self.structure.kind} on {self.info.get('robot')}: lam = "
+               f"{self.lam:.4g} rad/s, {_k_text(self.K)}, at {self.rate:g} Hz; status "
+               f"{self.status} (worst normalized {self.objective:.3g})"]
+        out.append(f"{'requirement':<20}{'target':>12}{'achieved':>12}{'verified':>12}"
+                   f"{'simulated':>12}  met")
+        for row in self.table:
+            sim = row.get("simulated")
+            out.append(f"{row['name']:<20}{_num(row['target']):>12}{_num(row['achieved']):>12}"
+                       f"{_num(row['verified']):>12}{_num(sim):>12}  "
+                       f"{'yes' if row['met'] else 'NO'}")
+        if self.tradeoff:
+            out.append(f"trade-off: binding {', '.join(self.tradeoff['binding'])}; unmet "
+                       f"{', '.join(self.tradeoff['unmet']) or 'none'}")
+        return out
+
+
+def _num(x):
+    if x is None:
+        return "-"
+    if isinstance(x, str):
+        return x
+    return f"{x:.4g}"
+
+
+def _k_text(K):
+    if K is None:
+        return "K = 0"
+    num = np.asarray(K.num[0][0], float).ravel()
+    den = np.asarray(K.den[0][0], float).ravel()
+    return f"K = [{', '.join(f'{c:.5g}' for c in num)}] / [{', '.join(f'{c:.5g}' for c in den)}]"
+
+
+def _check_requirements(requirements, nominal, fixed) -> list:
+    reqs = list(requirements)
+    if not reqs:
+        raise FieldError("requirements", "{name}: give at least one requirement")
+    seen = set()
+    for r in reqs:
+        if not isinstance(r, Requirement):
+            raise TypeError(f"a requirement must subclass rrr_pin.campaign.requirements."
+                            f"Requirement, got {type(r).__name__}")
+        key = (r.name, getattr(r, "joint", None))
+        if key in seen:
+            raise FieldError("requirements", f"{{name}}: {r.name} given twice (two targets "
+                                             f"for one value contradict by construction)")
+        seen.add(key)
+        joint = getattr(r, "joint", None)
+        if joint is not None and joint not in nominal.joint_names:
+            raise FieldError("requirements", f"{{name}}: {r.name} on joint {joint!r}, which "
+                                             f"{nominal.name} does not have (joints: "
+                                             f"{', '.join(nominal.joint_names)})")
+        if isinstance(r, DelayMargin) and "delay" in fixed:
+            raise FieldError("requirements", "{name}: delay_margin with a delay held fixed "
+                                             "contradicts by construction")
+        if isinstance(r, ActuatorBandwidth) and "actuator" in fixed:
+            raise FieldError("requirements", "{name}: actuator_bandwidth with an actuator "
+                                             "held fixed contradicts by construction")
+    return reqs
+
+
+def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances=None,
+         reference=None, rate: float = 1000.0, fixed=None, starts: int = 4,
+         maxfev: int | None = None, verify: bool = True, simulate: bool = True,
+         duration: float = 4.0, stress_settings=None) -> TuneResult:
+    """Tune ``structure`` on ``robot`` against ``requirements`` over a plant set, and verify.
+
+    Parameters
+    ----------
+    robot : Plant
+        The nominal model (the law's), e.g. ``load_robot("ur5")``.
+    structure : Structure
+        What may change (:mod:`rrr_pin.control.structures`).
+    requirements : sequence of Requirement
+        Targets (:mod:`rrr_pin.campaign.requirements`).
+    plants : int or sequence of Plant
+        The plant set: a count of uncertain plants drawn as the study draws them
+        (``robot.perturbed(default_rng([seed, k]), tolerances)``), the nominal added first;
+        or the plants themselves.
+    seed : int
+        Seed of the drawn plants and of the random starts.
+    tolerances : UncertaintySet, optional
+        Default the paper's 20 % inertia / 5 % length.
+    reference : Reference, optional
+        The tracking reference (default: the study's sinusoid).
+    rate : float
+        Sampling rate of the law [Hz].
+    fixed : dict, optional
+        Effects held in every evaluation, ``{"delay": s, "actuator": rad/s}``.
+    starts : int
+        Number of starts (the structure's initial point, then log-uniform random points).
+    maxfev : int, optional
+        Evaluations per start (default ``150 * (number of parameters + 1)``).
+    verify, simulate : bool
+        Verify exactly; with ``simulate``, also the simulated values (peak torque, error
+        ratio, stress breaking points).
+    duration : float
+        Simulated time of the tracking runs [s].
+
+    Returns
+    -------
+    TuneResult
+
+    Raises
+    ------
+    FieldError
+        A structure with no free parameter, no requirement, a requirement twice, on a joint
+        the arm lacks, or contradicting a fixed effect.
+    TuneError
+        No point of the structure stabilizes every plant, or a requirement no controller can
+        meet (the peak torque the reference itself needs); ``.result`` is the best point.
+    """
+    from scipy.optimize import minimize
+
+    from ..control.references import default_reference
+    from ..control.sampled_loops import LoopSet
+    from ..model.uncertainty import Tolerances
+    from .runner import RunSettings
+    from .stress import check_fixed
+
+    t0 = time.perf_counter()
+    names = structure.names
+    if not names:
+        raise FieldError("structure", f"{{name}}: {type(structure).__name__} has no free "
+                                      f"parameter (lam fixed at {structure.lam} rad/s): "
+                                      f"nothing to tune")
+    rate = check_rate("rate", rate)
+    starts = check_count("starts", starts, 1)
+    fixed = check_fixed(fixed)
+    reqs = _check_requirements(requirements, robot, fixed)
+    if isinstance(plants, int | np.integer):
+        count = check_count("plants", plants)
+        tol = tolerances or Tolerances()
+        plant_list = [robot] + [robot.perturbed(np.random.default_rng([int(seed), k]), tol)[0]
+                                for k in range(count)]
+        plant_info = {"samples": count, "seed": int(seed), "tolerances": tol.to_dict(),
+                      "nominal_included": True}
+    else:
+        plant_list = list(plants)
+        plant_info = {"given": len(plant_list)}
+    reference = reference or default_reference(robot)
+    t = np.linspace(0.0, duration, 401)
+    home = np.asarray(reference.sample(t)[0], float).mean(axis=0)
+    loops = LoopSet(robot, plant_list, home, rate)
+    run = RunSettings(duration=duration, rate=rate)
+    ctx = _Context(robot, loops, reference, fixed, run, plant_list)
+    ctx.prepare_tracking(duration)
+    for r in reqs:
+        r.prepare(ctx)
+
+    bounds = np.log(np.array(structure.bounds(), dtype=float))
+    cache = {}
+
+    def evaluate(x):
+        key = tuple(np.round(x, 12))
+        if key in cache:
+            return cache[key]
+        values = np.exp(np.clip(x, bounds[:, 0], bounds[:, 1]))
+        lam, K = structure.split(values)
+        ev = _Eval(ctx, lam, K)
+        rho = max(float(np.max(loops.spectral_radius(ev.law))),
+                  float(np.max(loops.spectral_radius(ev.law, fixed.get("delay", 0.0),
+                                                     fixed.get("actuator"))))
+                  if fixed else 0.0)
+        if rho >= 1.0:
+            out = (_UNSTABLE + rho, ev, None)
+        else:
+            vals = [r.estimate(ctx, ev) for r in reqs]
+            norm = [r.normalized(v) for r, v in zip(reqs, vals, strict=True)]
+            out = (float(max(norm)), ev, vals)
+        cache[key] = out
+        return out
+
+    rng = np.random.default_rng([int(seed), 7919])
+    x0s = [np.clip(np.log(structure.initial()), bounds[:, 0], bounds[:, 1])]
+    x0s += [rng.uniform(bounds[:, 0], bounds[:, 1]) for _ in range(starts - 1)]
+    maxfev = maxfev or 150 * (len(names) + 1)
+    best, runs = None, []
+    for x0 in x0s:
+        res = minimize(lambda x: evaluate(x)[0], x0, method="Nelder-Mead",
+                       bounds=list(map(tuple, bounds)),
+                       options={"maxfev": maxfev, "xatol": 1e-4, "fatol": 1e-6,
+                                "adaptive": len(names) > 3})
+        runs.append({"initial": dict(zip(names, np.exp(x0).tolist(), strict=True)),
+                     "objective": float(res.fun), "evaluations": int(res.nfev)})
+        if best is None or res.fun < best[0]:
+            best = (float(res.fun), res.x)
+    objective, x = best
+    values = np.exp(np.clip(x, bounds[:, 0], bounds[:, 1]))
+    lam, K = structure.split(values)
+    _, ev, estimates = evaluate(x)
+    info = {"robot": robot.name, "joints": list(robot.joint_names), "plants": plant_info,
+            "home_rad": home.tolist(), "fixed": fixed,
+            "reference": reference.to_dict(),
+            "grid_rad_s": [float(loops.omega[0]), float(loops.omega[-1]),
+                           int(loops.omega.size)],
+            "search": "scipy Nelder-Mead (bounded, log scale), seeded starts",
+            "seconds_search": time.perf_counter() - t0}
+    if estimates is None:
+        result = TuneResult(structure, values, lam, K, rate, [], objective, "unstable",
+                            None, runs, info)
+        raise TuneError(f"no point of the {structure.kind} structure found stabilizes every "
+                        f"plant of the set (with {fixed or 'no fixed effects'}): best point "
+                        f"{dict(zip(names, values.round(6).tolist(), strict=True))}, largest "
+                        f"closed-loop spectral radius {objective - _UNSTABLE:.4g} (>= 1)",
+                        result)
+    table = []
+    for r, est in zip(reqs, estimates, strict=True):
+        row = {**r.to_dict(), "achieved": est, "verified": None, "method": None}
+        if verify and (simulate or not isinstance(r, PeakTorque | ErrorRatio)):
+            row["verified"], row["method"] = r.verify(ctx, ev)
+        else:
+            row["method"] = "not verified (" + ("verify" if not verify else "simulate") + \
+                "=False): met and normalized are the estimate's"
+        value = row["verified"] if row["verified"] is not None else est
+        row["normalized"] = r.normalized(value)
+        row["met"] = bool(row["normalized"] <= 1.0 + 1e-9)
+        if verify and simulate and isinstance(r, DelayMargin | ActuatorBandwidth):
+            row.update(_stress_row(ctx, ev, r, stress_settings))
+        table.append(row)
+    norms = [row["normalized"] for row in table]
+    worst = max(norms)
+    status = "met" if worst <= 1.0 + 1e-9 else "trade-off"
+    tradeoff = None if status == "met" else {
+        "binding": [row["name"] for row in table if row["normalized"] >= worst / 1.02],
+        "unmet": [row["name"] for row in table if not row["met"]],
+        "best_point": dict(zip(names, values.tolist(), strict=True))}
+    info["seconds"] = time.perf_counter() - t0
+    result = TuneResult(structure, values, lam, K, rate, table, objective, status, tradeoff,
+                        runs, info)
+    floor = [r for r in reqs if isinstance(r, PeakTorque)
+             and r.normalized(r.estimate(ctx, ev)) > 1.0]
+    if floor:
+        raise TuneError(f"peak_torque = {floor[0].target}: the reference itself needs "
+                        f"{floor[0].estimate(ctx, ev):.4g} times the limit on the worst plant "
+                        f"(inverse dynamics, whatever the controller); best point "
+                        f"{dict(zip(names, values.round(6).tolist(), strict=True))}", result)
+    return result
+
+
+def _stress_row(ctx, ev, req, settings) -> dict:
+    """Return the simulated breaking point on the nominal plant and its exact prediction."""
+    from .stress import StressSettings, breaking_point
+
+    effect = "delay" if isinstance(req, DelayMargin) else "actuator"
+    nominal_only = [0]
+    # the effects the requirement holds with it (its own, else the fixed ones), in the
+    # prediction and in the simulation alike
+    wa = req._wa(ctx) if effect == "delay" else None
+    delay = req._delay(ctx) if effect == "actuator" else 0.0
+    held = dict(ctx.fixed)
+    if wa:
+        held["actuator"] = wa
+    if delay:
+        held["delay"] = delay
+    if effect == "delay":
+        def stable(tau):
+            return ctx.loops.spectral_radius(ev.law, tau, wa, plants=nominal_only)[0] < 1.0
+        pred = _bisect_up(stable, req.target, 1e-4)
+    else:
+        def stable(w):
+            return ctx.loops.spectral_radius(ev.law, delay, w, plants=nominal_only)[0] < 1.0
+        pred = _bisect_down(stable, req.target, 1e-4)
+    settings = settings or StressSettings()
+    law = _law(ctx.nominal, ev.lam, ev.K)
+    found = breaking_point(ctx.nominal, law, ctx.reference, effect, settings,
+                           guess=pred if math.isfinite(pred) and pred > 0 else None,
+                           fixed=held)
+    return {"simulated": found["simulated"], "simulated_status": found["status"],
+            "simulated_bracket": found["bracket"], "predicted_nominal": pred,
+            "simulated_with": held}
+
+
+def load_design(path) -> dict:
+    """Read a ``design.json`` (:meth:`TuneResult.to_dict`), checking its format.
+
+    Raises
+    ------
+    ValueError
+        Not a design file (its ``format`` is not :data:`DESIGN_FORMAT`), or unreadable JSON.
+    """
+    try:
+        with open(path) as fh:
+            data = json.load(fh)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"--design {path}: not JSON ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != DESIGN_FORMAT:
+        raise ValueError(f"--design {path}: not an rrr-pin design (format "
+                         f"{data.get('format') if isinstance(data, dict) else None!r}, "
+                         f"expected {DESIGN_FORMAT!r}); write one with rrr-pin design "
+                         f"--require ...")
+    return data
+
+
+def tuned_law(design: dict, nominal, name: str = "tuned"):
+    """Build the tuned law of a ``design.json`` record on ``nominal``.
+
+    Raises
+    ------
+    ValueError
+        The design was tuned for another arm (its robot name or joints differ).
+    """
+    import control
+
+    if design.get("robot") != nominal.name or list(design.get("joints", [])) != \
+            list(nominal.joint_names):
+        raise ValueError(f"the design was tuned for {design.get('robot')!r} (joints "
+                         f"{design.get('joints')}), not for {nominal.name!r} (joints "
+                         f"{list(nominal.joint_names)}): tune one with rrr-pin design "
+                         f"--robot ...")
+    K = design.get("K")
+    K = None if K is None else control.tf(K["num"], K["den"])
+    return _law(nominal, float(design["lam_rad_s"]), K, name)

@@ -1,0 +1,309 @@
+r"""The digital FL loop on a set of plants: exact discrete closed loops and frequency responses.
+
+The law of eq. (8)-(10), sampled at ``rate`` [Hz] (Tustin ``K``, zero-order hold), acting on
+each plant of a set linearized at a frozen configuration ``home``; the loop is broken at the
+torque input, where delays and actuators act (:mod:`rrr_pin.campaign.stress`). With the law's
+nominal model ``(Mhat, hhat)`` and plant ``i``'s ``qdd = A_q q + A_v qd + B tau``
+(Pinocchio's ``computeABADerivatives``), regulation about ``home``:
+
+.. math:: \tau = \hat M \bar\tau + H_q q + H_v \dot q, \quad
+          \bar\tau = -\lambda^2 (q + y) - 2\lambda \dot q, \quad y = K_d(z) q
+
+with ``H_q, H_v`` the law's own ``dhhat/dq, dhhat/dqd`` (so on the nominal plant the loop is
+the double integrator of :class:`~rrr_pin.control.laws.FLLinearModel` exactly).
+
+* :class:`LoopSet` holds the plants' linearizations and their zero-order-hold frequency
+  responses, computed once; a law ``(lam, K)`` is then cheap to evaluate on all of them
+  (:meth:`LoopSet.loop_response`), which is what the tuner does at every step.
+* :meth:`LoopSet.spectral_radius` is the exact discrete closed loop of one plant with a
+  fractional transport delay [s] and a first-order actuator [rad/s] (exact discretization,
+  Franklin, Powell & Workman sec. 4.3.4, as :func:`rrr_pin.campaign.stress.spectral_radius`,
+  generalized here to a plant that is not the double integrator).
+
+References
+----------
+.. [1] The paper, eq. (8)-(11).
+.. [2] G. F. Franklin, J. D. Powell, M. Workman, *Digital Control of Dynamic Systems*, 3rd
+   ed., 1998, sec. 4.3.4.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from ..validation import check_rate, check_vector
+
+__all__ = ["zoh", "LoopSet", "LawResponse", "tustin_response", "delay_margin_from_response",
+           "actuator_margin_from_response"]
+
+
+def tustin_response(K, w: np.ndarray, rate: float) -> np.ndarray:
+    r"""``K_d(e^{j w T})`` of the Tustin discretization of a SISO ``K(s)``, shape (nw,).
+
+    Tustin maps ``z = e^{j w T}`` to ``s = j (2/T) tan(w T / 2)`` exactly, so the discrete
+    response is the continuous one at the warped frequency (no discretization needed).
+    """
+    import control
+
+    if K is None:
+        return np.zeros(w.shape, complex)
+    K = control.tf(K)
+    T = 1.0 / rate
+    s = 1j * (2.0 / T) * np.tan(w * T / 2.0)
+    num, den = (np.asarray(x, dtype=float).ravel() for x in (K.num[0][0], K.den[0][0]))
+    return np.polyval(num, s) / np.polyval(den, s)
+
+
+@dataclass(frozen=True)
+class LawResponse:
+    """A law ``(lam, K)`` on a :class:`LoopSet`: its torque response and its discrete matrices.
+
+    Attributes
+    ----------
+    C : ndarray, shape (nw, n, 2n), complex
+        ``tau = C(e^{jwT}) [q; qd]`` [N m per rad, N m per rad/s].
+    law : tuple of ndarray
+        ``(Ac, Bc, Cc, Dc)``: ``x+ = Ac x + Bc [q; qd]``, ``tau = Cc x + Dc [q; qd]``.
+    """
+
+    C: np.ndarray
+    law: tuple
+
+
+class LoopSet:
+    """A set of plants linearized at ``home`` under one nominal model, sampled at ``rate``.
+
+    Parameters
+    ----------
+    nominal : Plant
+        The law's model.
+    plants : sequence of Plant
+        The plants the loop must work on (the nominal one among them if it must).
+    home : array-like, shape (n,)
+        Frozen configuration [rad].
+    rate : float
+        Sampling rate of the law [Hz].
+    omega : array-like, optional
+        Frequencies [rad/s] of the responses; default 200 points from 0.1 rad/s to 0.999 of
+        the Nyquist frequency ``pi rate``.
+    """
+
+    def __init__(self, nominal, plants, home, rate: float, omega=None):
+        self.rate = check_rate("rate", rate)
+        self.T = 1.0 / self.rate
+        self.n = n = nominal.nq
+        self.home = q0 = check_vector("home", home, n)
+        self.plants = list(plants)
+        nyq = math.pi * self.rate
+        self.omega = (np.geomspace(0.1, 0.999 * nyq, 200) if omega is None
+                      else np.asarray(omega, dtype=float))
+        Mhat = np.asarray(nominal.M(q0))
+        dq0, dv0, _ = nominal.linearization(q0, nominal.G(q0))
+        self.Mhat = Mhat
+        self.Hq, self.Hv = -Mhat @ dq0, -Mhat @ dv0
+        self.A, self.B, self._zohs = [], [], {}
+        for p in self.plants:
+            dq, dv, dtau = p.linearization(q0, p.G(q0))
+            Z, eye = np.zeros((n, n)), np.eye(n)
+            self.A.append(np.block([[Z, eye], [dq, dv]]))
+            self.B.append(np.vstack([Z, dtau]))
+        self.P = self.plant_response(self.omega)
+
+    def plant_response(self, omega) -> np.ndarray:
+        """Zero-order-hold responses ``[q; qd](e^{jwT}) / tau``, shape (np, nw, 2n, n)."""
+        z = np.exp(1j * np.asarray(omega) * self.T)
+        out = []
+        for A, B in zip(self.A, self.B, strict=True):
+            Phi, Gam = zoh(A, B, self.T)
+            eye = np.eye(A.shape[0])
+            M = z[:, None, None] * eye - Phi
+            out.append(np.linalg.solve(M, np.broadcast_to(Gam, (z.size, *Gam.shape))))
+        return np.array(out)
+
+    def law(self, lam: float, K, omega=None, matrices: bool = True) -> LawResponse:
+        """Response and discrete matrices of the law ``(lam, K)`` (``K`` None: FL alone).
+
+        ``matrices=False`` skips the discrete matrices (``law`` is then None).
+        """
+        import control
+
+        n, Mhat = self.n, self.Mhat
+        w = self.omega if omega is None else np.asarray(omega)
+        kd = tustin_response(K, w, self.rate)
+        C = np.empty((w.size, n, 2 * n), complex)
+        C[:, :, :n] = -lam * lam * (1.0 + kd)[:, None, None] * Mhat + self.Hq
+        C[:, :, n:] = -2.0 * lam * Mhat + self.Hv
+        if not matrices:
+            return LawResponse(C, None)
+        if K is None:
+            Ad, Bd, Cd, Dd = np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), 0.0
+        else:
+            Kd = control.sample_system(control.ss(K), self.T, method="tustin")
+            Ad, Bd, Cd, Dd = (np.asarray(x, dtype=float) for x in (Kd.A, Kd.B, Kd.C, Kd.D))
+            Dd = float(Dd[0, 0])
+        eye = np.eye(n)
+        Ac = np.kron(eye, Ad)
+        Bc = np.hstack([-np.kron(eye, Bd), np.zeros((Ac.shape[0], n))])
+        Cc = lam * lam * Mhat @ np.kron(eye, Cd)
+        Dc = np.hstack([-lam * lam * (1.0 + Dd) * Mhat + self.Hq, -2.0 * lam * Mhat + self.Hv])
+        return LawResponse(C, (Ac, Bc, Cc, Dc))
+
+    def loop_response(self, law: LawResponse, P=None) -> np.ndarray:
+        """``L = -C P`` at the torque input for every plant, shape (np, nw, n, n)."""
+        P = self.P if P is None else P
+        return -np.einsum("wij,pwjk->pwik", law.C, P)
+
+    def closed_loop(self, i: int, law: LawResponse, delay: float = 0.0,
+                    bandwidth: float | None = None) -> np.ndarray:
+        """State matrix of plant ``i``'s exact discrete closed loop with a delay and actuator.
+
+        The plant (with ``a' = wa (u - a)`` when ``bandwidth`` is given) driven by the law's
+        zero-order-hold torque delayed by ``delay`` [s] is discretized exactly at ``T``; a
+        fractional delay splits the period (Franklin, Powell & Workman sec. 4.3.4).
+        """
+        n = self.n
+        A0, B0 = self.A[i], self.B[i]
+        if bandwidth:
+            nz = 3 * n
+            A = np.zeros((nz, nz))
+            A[:2 * n, :2 * n] = A0
+            A[:2 * n, 2 * n:] = B0
+            A[2 * n:, 2 * n:] = -bandwidth * np.eye(n)
+            B = np.vstack([np.zeros((2 * n, n)), bandwidth * np.eye(n)])
+        else:
+            nz, A, B = 2 * n, A0, B0
+        Ac, Bc, Cc, Dc = law.law
+        T = self.T
+        ell = int(math.floor(delay / T + 1e-12))
+        frac = delay - ell * T
+        if frac < 1e-15:
+            frac = 0.0
+        key = (i, frac, bandwidth)
+        if key not in self._zohs:     # the plant's discretization, shared by every law
+            E0, G0 = zoh(A, B, T - frac)
+            E1, G1i = zoh(A, B, frac) if frac else (None, np.zeros_like(B))
+            if len(self._zohs) > 10000:
+                self._zohs.clear()
+            self._zohs[key] = (E0, G0, E0 @ E1 if frac else E0, E0 @ G1i)
+        E0, G0, Phi, G1 = self._zohs[key]
+        L = ell + 1                                 # buffer w_i = u_{k-i}, i = 1..L
+        nx = Ac.shape[0]
+        N = nz + nx + L * n
+        Acl = np.zeros((N, N))
+        Cy = np.zeros((2 * n, nz))
+        Cy[:, :2 * n] = np.eye(2 * n)
+        Uz, Ux = Dc @ Cy, Cc
+        iz, ix, iw = slice(0, nz), slice(nz, nz + nx), nz + nx
+
+        def wslot(k):
+            return slice(iw + (k - 1) * n, iw + k * n)
+
+        Acl[iz, iz] = Phi
+        if ell == 0:
+            Acl[iz, iz] += G0 @ Uz
+            Acl[iz, ix] += G0 @ Ux
+        else:
+            Acl[iz, wslot(ell)] += G0
+        Acl[iz, wslot(ell + 1)] += G1
+        Acl[ix, ix] = Ac
+        Acl[ix, iz] = Bc @ Cy
+        Acl[wslot(1), iz] = Uz
+        Acl[wslot(1), ix] = Ux
+        for k in range(2, L + 1):
+            Acl[wslot(k), wslot(k - 1)] = np.eye(n)
+        return Acl
+
+    def spectral_radius(self, law: LawResponse, delay: float = 0.0,
+                        bandwidth: float | None = None, plants=None) -> np.ndarray:
+        """Largest ``|eigenvalue|`` of each plant's exact closed loop, shape (np,) (< 1: stable)."""
+        idx = range(len(self.plants)) if plants is None else plants
+        return np.array([np.max(np.abs(np.linalg.eigvals(
+            self.closed_loop(i, law, delay, bandwidth)))) for i in idx])
+
+
+def zoh(A, B, t):
+    """Return ``(e^{A t}, int_0^t e^{A s} ds B)``: the zero-order hold over ``t`` [s]."""
+    n, m = A.shape[0], B.shape[1]
+    blk = np.zeros((n + m, n + m))
+    blk[:n, :n], blk[:n, n:] = A, B
+    E = scipy.linalg.expm(blk * t)
+    return E[:n, :n], E[:n, n:]
+
+
+def _sorted_eigs(L, eigs):
+    lam = np.linalg.eigvals(L) if eigs is None else eigs
+    return np.take_along_axis(lam, np.argsort(np.abs(lam), axis=-1), axis=-1)
+
+
+def delay_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None) -> np.ndarray:
+    r"""Common-delay margin [s] of loops from their frequency responses, per plant.
+
+    A delay ``tau`` on every input turns ``L`` into ``e^{-j w tau} L``; the loop (stable
+    without it) first loses stability where an eigenvalue ``lambda_k(jw)`` of ``L`` with
+    ``|lambda_k| = 1`` is rotated onto ``-1``: ``tau = ((arg lambda_k + pi) mod 2 pi) / w``.
+    The crossings of ``|lambda| = 1`` are found on the grid (eigenvalues sorted by magnitude,
+    crossing and phase interpolated linearly in ``log w``).
+
+    Parameters
+    ----------
+    L : ndarray, shape (np, nw, n, n)
+        Loop responses.
+    omega : ndarray, shape (nw,)
+        Frequencies [rad/s].
+
+    Returns
+    -------
+    ndarray, shape (np,)
+        Delay margins [s] (``inf`` without a crossing).
+    """
+    lam = _sorted_eigs(L, eigs)                                 # (np, nw, n)
+    s = np.log(np.maximum(np.abs(lam), 1e-300))
+    lw = np.log(omega)
+    out = np.full(lam.shape[0], np.inf)
+    cross = (s[:, :-1] > 0) != (s[:, 1:] > 0)                   # (np, nw-1, n)
+    p, i, k = np.nonzero(cross)
+    if p.size:
+        f = s[p, i, k] / (s[p, i, k] - s[p, i + 1, k])
+        wc = np.exp(lw[i] + f * (lw[i + 1] - lw[i]))
+        step = np.angle(lam[p, i + 1, k] / lam[p, i, k])
+        phi = np.angle(lam[p, i, k]) + f * step
+        tau = np.mod(phi + np.pi, 2.0 * np.pi) / wc
+        np.minimum.at(out, p, tau)
+    return out
+
+
+def actuator_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None) -> np.ndarray:
+    r"""Slowest first-order actuator ``wa / (s + wa)`` each loop tolerates [rad/s], per plant.
+
+    The actuator turns an eigenvalue ``lambda`` of ``L`` into ``lambda cos(phi) e^{-j phi}``,
+    ``phi = atan(w / wa)``; it reaches ``-1`` where ``phi = (arg lambda + pi) mod 2 pi`` lies
+    in ``(0, pi/2)`` and ``|lambda| cos(phi) = 1``, i.e. for ``wa = w / tan(phi)``. The loop
+    (stable without an actuator) tolerates every ``wa`` above the largest such value. Grid
+    crossings of ``|lambda| cos(phi) = 1`` as in :func:`delay_margin_from_response` (a
+    continuous-time actuator on the sampled loop's response: an estimate, verified exactly by
+    :meth:`LoopSet.spectral_radius`).
+
+    Returns
+    -------
+    ndarray, shape (np,)
+        ``wa`` [rad/s] (0 without a crossing: any actuator).
+    """
+    lam = _sorted_eigs(L, eigs)
+    phi = np.mod(np.angle(lam) + np.pi, 2.0 * np.pi)
+    ok = (phi > 0.0) & (phi < np.pi / 2)
+    g = np.where(ok, np.log(np.maximum(np.abs(lam) * np.cos(phi), 1e-300)), np.nan)
+    out = np.zeros(lam.shape[0])
+    both = ok[:, :-1] & ok[:, 1:]
+    cross = both & ((g[:, :-1] > 0) != (g[:, 1:] > 0))
+    p, i, k = np.nonzero(cross)
+    if p.size:
+        f = g[p, i, k] / (g[p, i, k] - g[p, i + 1, k])
+        lw = np.log(omega)
+        wc = np.exp(lw[i] + f * (lw[i + 1] - lw[i]))
+        ph = phi[p, i, k] + f * (phi[p, i + 1, k] - phi[p, i, k])
+        np.maximum.at(out, p, wc / np.tan(ph))
+    return out

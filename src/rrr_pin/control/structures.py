@@ -1,0 +1,294 @@
+r"""Tunable structures of the feedback-linearizing law: what :func:`rrr_pin.tune` may change.
+
+A structure fixes the SHAPE of the law of eq. (8)-(10) and leaves some numbers free: the FL
+bandwidth ``lam`` and the parameters of the outer controller ``K(s)`` on ``e = r - q``
+(negative feedback, ``y = K e``). Per joint the law's loop is
+
+.. math:: L(s) = \frac{2\lambda s + \lambda^2 (1 + K(s))}{s^2},
+
+so ``K = 0`` is FL alone (eq. 20) and the paper's order-2 ``K`` (eq. 18) is one
+:class:`FixedOrder` point. ``K`` is shared by every joint (copied on the diagonal, as the
+paper's); ``lam`` is fixed (a number) or tuned (``lam=None``, inside ``lam_bounds``).
+
+Write your own structure by subclassing :class:`Structure`: give ``names``, ``bounds``,
+``initial`` and ``K(values)``; :func:`rrr_pin.tune` searches each parameter on a log scale
+between its bounds (all parameters are positive).
+
+Built in: :class:`FLOnly` (no ``K``), :class:`Gain`, :class:`PID` (derivative filter),
+:class:`LeadLag`, :class:`FixedOrder` (a strictly stable order-``m`` transfer function).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ..validation import FieldError, check_count, check_positive
+
+__all__ = ["Structure", "FLOnly", "Gain", "PID", "LeadLag", "FixedOrder", "STRUCTURES",
+           "make_structure", "LAM_BOUNDS"]
+
+#: Default search range of a tuned ``lam`` [rad/s].
+LAM_BOUNDS = (5.0, 500.0)
+
+
+@dataclass(frozen=True)
+class Structure:
+    """Base of the tunable structures: ``lam`` (fixed or tuned) and the outer ``K(s)``.
+
+    Parameters
+    ----------
+    lam : float or None
+        FL bandwidth [rad/s]; None: tuned inside ``lam_bounds``.
+    lam_bounds : (float, float)
+        Search range of a tuned ``lam`` [rad/s].
+
+    Subclasses define ``kind`` (the CLI's name), ``outer_names``, ``outer_bounds``,
+    ``outer_initial`` and :meth:`K`.
+    """
+
+    lam: float | None = 45.0
+    lam_bounds: tuple = LAM_BOUNDS
+    kind: ClassVar[str] = ""
+    outer_names: ClassVar[tuple] = ()
+
+    def __post_init__(self) -> None:
+        if self.lam is not None:
+            object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
+        lo, hi = (check_positive("lam_bounds", x, unit="rad/s") for x in self.lam_bounds)
+        if not lo <= hi:
+            raise FieldError("lam_bounds", f"{{name}} must be (low, high) with low <= high, "
+                                           f"got {self.lam_bounds!r}")
+        object.__setattr__(self, "lam_bounds", (lo, hi))
+
+    # -- what a subclass gives --------------------------------------------------------------
+    def outer_bounds(self) -> list[tuple[float, float]]:
+        """Bounds of the outer controller's parameters (positive), one pair per name."""
+        return []
+
+    def outer_initial(self) -> list[float]:
+        """Return a starting point of the outer controller's parameters."""
+        return []
+
+    def K(self, values) -> object:
+        """Return ``K(s)`` (``control.TransferFunction``, SISO, continuous) of the values."""
+        raise NotImplementedError(f"{type(self).__name__} must implement K(values)")
+
+    # -- derived -------------------------------------------------------------------------------
+    @property
+    def names(self) -> tuple:
+        """Names of the free parameters, ``"lam"`` first when tuned."""
+        return (("lam",) if self.lam is None else ()) + tuple(self.outer_names)
+
+    def bounds(self) -> list[tuple[float, float]]:
+        """Search bounds of the free parameters (units of each)."""
+        return ([self.lam_bounds] if self.lam is None else []) + list(self.outer_bounds())
+
+    def initial(self) -> np.ndarray:
+        """Return a starting point inside the bounds, shape (len(names),)."""
+        lam0 = [float(np.sqrt(self.lam_bounds[0] * self.lam_bounds[1]))] if self.lam is None \
+            else []
+        return np.array(lam0 + list(self.outer_initial()), dtype=float)
+
+    def split(self, values) -> tuple[float, object]:
+        """Return ``(lam, K)`` of the free parameters ``values`` (``K`` None: FL alone)."""
+        values = list(np.asarray(values, dtype=float))
+        lam = values.pop(0) if self.lam is None else self.lam
+        return float(lam), self.K(values)
+
+    def to_dict(self, values=None) -> dict:
+        """JSON-ready record: kind, fixed ``lam``, bounds and (given ``values``) the parameters."""
+        out = {"kind": self.kind, "class": f"{type(self).__module__}.{type(self).__qualname__}",
+               "lam_rad_s": self.lam, "lam_bounds_rad_s": list(self.lam_bounds),
+               "names": list(self.names), "bounds": [list(b) for b in self.bounds()]}
+        if values is not None:
+            out["values"] = {k: float(v) for k, v in zip(self.names, values, strict=True)}
+        return out
+
+
+def _tf(num, den):
+    import control
+
+    return control.tf(np.asarray(num, dtype=float), np.asarray(den, dtype=float))
+
+
+@dataclass(frozen=True)
+class FLOnly(Structure):
+    """Feedback linearization alone, ``K = 0`` (eq. 20): only ``lam`` can be tuned."""
+
+    kind: ClassVar[str] = "fl"
+
+    def K(self, values):
+        """No outer controller: None."""
+        return None
+
+
+@dataclass(frozen=True)
+class Gain(Structure):
+    r"""A static gain, ``K(s) = k``: the law is a PD on ``e`` with stiffness ``lam^2 (1 + k)``.
+
+    Parameters
+    ----------
+    k_bounds : (float, float)
+        Search range of ``k`` [-].
+    """
+
+    k_bounds: tuple = (1e-3, 1e3)
+    kind: ClassVar[str] = "gain"
+    outer_names: ClassVar[tuple] = ("k",)
+
+    def outer_bounds(self):
+        """Return the search bounds of the outer parameters."""
+        return [tuple(self.k_bounds)]
+
+    def outer_initial(self):
+        """Return the starting point of the outer parameters."""
+        return [1.0]
+
+    def K(self, values):
+        """``k``."""
+        return _tf([values[0]], [1.0])
+
+
+@dataclass(frozen=True)
+class PID(Structure):
+    r"""PID with a filtered derivative.
+
+    .. math:: K(s) = k_p + \frac{k_i}{s} + \frac{k_d s}{T_f s + 1}
+
+    ``k_p`` [-], ``k_i`` [1/s], ``k_d`` [s], ``T_f`` [s].
+    """
+
+    kind: ClassVar[str] = "pid"
+    outer_names: ClassVar[tuple] = ("kp", "ki", "kd", "tf")
+
+    def outer_bounds(self):
+        """Return the search bounds of the outer parameters."""
+        return [(1e-3, 1e3), (1e-3, 1e4), (1e-6, 10.0), (1e-4, 1.0)]
+
+    def outer_initial(self):
+        """Return the starting point of the outer parameters."""
+        return [1.0, 1.0, 1e-3, 1e-2]
+
+    def K(self, values):
+        """``kp + ki/s + kd s/(tf s + 1)`` as one transfer function."""
+        kp, ki, kd, tf = values
+        # (kp s (tf s + 1) + ki (tf s + 1) + kd s^2) / (s (tf s + 1))
+        return _tf([kp * tf + kd, kp + ki * tf, ki], [tf, 1.0, 0.0])
+
+
+@dataclass(frozen=True)
+class LeadLag(Structure):
+    r"""A lead or lag compensator with DC gain ``k``.
+
+    .. math:: K(s) = k \frac{s / z + 1}{s / p + 1}
+
+    ``k`` [-], corners ``z`` and ``p`` [rad/s] (``z < p``: lead; ``z > p``: lag, such as the
+    paper's weight eq. 16).
+    """
+
+    kind: ClassVar[str] = "leadlag"
+    outer_names: ClassVar[tuple] = ("k", "z", "p")
+
+    def outer_bounds(self):
+        """Return the search bounds of the outer parameters."""
+        return [(1e-3, 1e4), (1e-2, 1e4), (1e-2, 1e4)]
+
+    def outer_initial(self):
+        """Return the starting point of the outer parameters."""
+        return [1.0, 10.0, 100.0]
+
+    def K(self, values):
+        """``k (s/z + 1)/(s/p + 1)``."""
+        k, z, p = values
+        return _tf([k / z, k], [1.0 / p, 1.0])
+
+
+@dataclass(frozen=True)
+class FixedOrder(Structure):
+    r"""A biproper, strictly stable transfer function of order ``order`` (paper's eq. 18: 2).
+
+    In second-order sections (one first-order section for an odd order), every coefficient
+    positive, so every point of the search is stable and minimum phase:
+
+    .. math:: K(s) = g \prod_i \frac{s^2 + b_{i1} s + b_{i0}}{s^2 + a_{i1} s + a_{i0}}
+
+    Parameters
+    ----------
+    order : int
+        Number of states, >= 1.
+    """
+
+    order: int = 2
+    kind: ClassVar[str] = "order"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "order", check_count("order", self.order, 1, high=8))
+
+    @property
+    def outer_names(self) -> tuple:
+        """Return the outer parameters' names."""
+        names = ["g"]
+        for i in range(self.order // 2):
+            names += [f"b{i}1", f"b{i}0", f"a{i}1", f"a{i}0"]
+        if self.order % 2:
+            names += ["b0", "a0"]
+        return tuple(names)
+
+    def outer_bounds(self):
+        """Return the search bounds of the outer parameters."""
+        return [(1e-3, 1e4)] + [(1e-3, 1e6)] * (len(self.outer_names) - 1)
+
+    def outer_initial(self):
+        """Return the starting point of the outer parameters."""
+        # sections (s + 10)^2 / (s + 10)^2: K = g, a static gain to start from
+        return [1.0] + [20.0, 100.0, 20.0, 100.0] * (self.order // 2) + \
+            [10.0, 10.0] * (self.order % 2)
+
+    def K(self, values):
+        """Return the product of the sections times ``g``."""
+        g, rest = values[0], list(values[1:])
+        num, den = np.array([g]), np.array([1.0])
+        for _ in range(self.order // 2):
+            b1, b0, a1, a0 = rest[:4]
+            rest = rest[4:]
+            num, den = np.polymul(num, [1.0, b1, b0]), np.polymul(den, [1.0, a1, a0])
+        if self.order % 2:
+            b0, a0 = rest
+            num, den = np.polymul(num, [1.0, b0]), np.polymul(den, [1.0, a0])
+        return _tf(num, den)
+
+    def to_dict(self, values=None) -> dict:
+        """Return the JSON-ready record."""
+        return {**super().to_dict(values), "order": self.order}
+
+
+#: Built-in structures by CLI name (``order2`` and any ``orderN`` are :class:`FixedOrder`).
+STRUCTURES = {"fl": FLOnly, "gain": Gain, "pid": PID, "leadlag": LeadLag, "order": FixedOrder}
+
+
+def make_structure(name: str, lam: float | None = 45.0) -> Structure:
+    """Build a built-in structure by name: ``fl``, ``gain``, ``pid``, ``leadlag``, ``orderN``.
+
+    Parameters
+    ----------
+    name : str
+        The structure's name; ``orderN`` is a :class:`FixedOrder` of ``N`` states.
+    lam : float or None
+        Fixed FL bandwidth [rad/s], or None to tune it.
+
+    Raises
+    ------
+    FieldError
+        ``structure``: an unknown name (the message lists the built-in ones).
+    """
+    if isinstance(name, str) and name.startswith("order") and name[5:].isdigit():
+        return FixedOrder(lam=lam, order=int(name[5:]))
+    cls = STRUCTURES.get(name) if isinstance(name, str) and name != "order" else None
+    if cls is None:
+        raise FieldError("structure", f"{{name}}: unknown structure {name!r}; built-in: fl, "
+                                      f"gain, pid, leadlag, orderN (e.g. order2)")
+    return cls(lam=lam)
