@@ -9,7 +9,7 @@ so both are estimated by least squares, with their covariance; the standard para
 physically consistent arm are then retrieved from the base ones by two semidefinite programs.
 One module per concept:
 
-- :mod:`rrr_pin.model.identification.regressor`: standard parameters, Pinocchio's regressor,
+- :mod:`rrr_pin.model.identification.regressors`: standard parameters, Pinocchio's regressor,
   the base parameters (Gautier 1990), :class:`IdentificationError`;
 - :mod:`rrr_pin.model.identification.friction`: viscous, Coulomb and offset columns;
 - :mod:`rrr_pin.model.identification.measurements`: logs (a CSV, per-quantity text files),
@@ -54,7 +54,7 @@ from .measurements import (
     write_measurements,
 )
 from .record import RECORD_KEYS, IdentifiedUncertainty, check_identification_record
-from .regressor import (
+from .regressors import (
     RANK_RTOL,
     STANDARD_NAMES,
     BaseParameters,

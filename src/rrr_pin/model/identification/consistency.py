@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from ...validation import FieldError
-from .regressor import BaseParameters, IdentificationError
+from .regressors import BaseParameters, IdentificationError
 
 __all__ = [
     "PSEUDO_INERTIA_MARGIN",

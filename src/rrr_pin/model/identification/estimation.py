@@ -38,7 +38,7 @@ from ...validation import FieldError, check_probability
 from .consistency import consistent_parameters, urdf_with_parameters
 from .friction import friction_names, friction_regressor
 from .measurements import Measurements, filter_like
-from .regressor import (
+from .regressors import (
     BaseParameters,
     IdentificationError,
     base_parameters,

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ...validation import FieldError
-from .regressor import IdentificationError
+from .regressors import IdentificationError
 
 __all__ = [
     "Measurements",

@@ -17,7 +17,7 @@ from .consistency import (
     pseudo_inertia_lmis,
     urdf_with_parameters,
 )
-from .regressor import (
+from .regressors import (
     BaseParameters,
     IdentificationError,
     base_parameters,

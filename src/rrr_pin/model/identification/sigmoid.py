@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .measurements import Measurements, filter_like
-from .regressor import regressor
+from .regressors import regressor
 
 __all__ = ["sigmoid_friction", "refine_sigmoid_friction"]
 
