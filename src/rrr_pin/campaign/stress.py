@@ -60,10 +60,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 
 from ..control.catalog import DEFAULT_BUDGET, EFFECTS
 from ..control.effects import PlantEffects
+from ..control.sampled_loops import delayed_loop_matrix, split_delay, zoh
 from ..robust.barriers import model_error_bound, robust_stability_barrier
 from ..robust.lti import static_gain
 from ..robust.robustness import check_robust_stability
@@ -207,15 +207,6 @@ def _no_linear_model(law) -> TypeError:
                      f"TrackingController and PDGravity laws)")
 
 
-def _integrals(A, B, t):
-    """``(e^{A t}, int_0^t e^{A s} ds B)``."""
-    n, m = A.shape[0], B.shape[1]
-    blk = np.zeros((n + m, n + m))
-    blk[:n, :n], blk[:n, n:] = A, B
-    E = scipy.linalg.expm(blk * t)
-    return E[:n, :n], E[:n, n:]
-
-
 def spectral_radius(law, rate: float, home=None, *, delay: float = 0.0,
                     bandwidth: float | None = None) -> float:
     """Largest ``|eigenvalue|`` of the linear digital loop with a delay [s] and an actuator [rad/s].
@@ -237,41 +228,11 @@ def spectral_radius(law, rate: float, home=None, *, delay: float = 0.0,
         B[2 * n:] = bandwidth * np.eye(n)
     else:
         B[n:2 * n] = Minv
-    ell = int(math.floor(delay / Ts + 1e-12))
-    mfrac = delay - ell * Ts
-    if mfrac < 1e-15:
-        mfrac = 0.0
-    E0, G0 = _integrals(A, B, Ts - mfrac)
-    E1, G1i = _integrals(A, B, mfrac) if mfrac else (None, np.zeros_like(B))
+    ell, mfrac = split_delay(delay, Ts)
+    E0, G0 = zoh(A, B, Ts - mfrac)
+    E1, G1i = zoh(A, B, mfrac) if mfrac else (None, np.zeros_like(B))
     Phi = E0 @ E1 if mfrac else E0
-    G1 = E0 @ G1i
-    # u_{k-ell} applied over the end of the period, u_{k-ell-1} over its start.
-    L = ell + 1                           # buffer w_i = u_{k-i}, i = 1..L
-    nx = Ad.shape[0]
-    N = nz + nx + L * n
-    Acl = np.zeros((N, N))
-    Cy = np.zeros((2 * n, nz))
-    Cy[:, :2 * n] = np.eye(2 * n)
-    # u_k = Cc x + Dc Cy z
-    Uz, Ux = Dc @ Cy, Cc
-    iz, ix, iw = slice(0, nz), slice(nz, nz + nx), nz + nx
-
-    def w(i):
-        return slice(iw + (i - 1) * n, iw + i * n)
-
-    Acl[iz, iz] = Phi
-    if ell == 0:
-        Acl[iz, iz] += G0 @ Uz
-        Acl[iz, ix] += G0 @ Ux
-    else:
-        Acl[iz, w(ell)] += G0
-    Acl[iz, w(ell + 1)] += G1
-    Acl[ix, ix] = Ad
-    Acl[ix, iz] = Bc @ Cy
-    Acl[w(1), iz] = Uz
-    Acl[w(1), ix] = Ux
-    for i in range(2, L + 1):
-        Acl[w(i), w(i - 1)] = np.eye(n)
+    Acl = delayed_loop_matrix(Phi, G0, E0 @ G1i, ell, (Ad, Bc, Cc, Dc), n)
     return float(np.max(np.abs(np.linalg.eigvals(Acl))))
 
 

@@ -37,7 +37,8 @@ import scipy.linalg
 
 from ..validation import check_rate, check_vector
 
-__all__ = ["zoh", "LoopSet", "LawResponse", "tustin_response", "delay_margin_from_response",
+__all__ = ["zoh", "split_delay", "delayed_loop_matrix", "LoopSet", "LawResponse",
+           "tustin_response", "delay_margin_from_response",
            "actuator_margin_from_response"]
 
 
@@ -178,10 +179,7 @@ class LoopSet:
             nz, A, B = 2 * n, A0, B0
         Ac, Bc, Cc, Dc = law.law
         T = self.T
-        ell = int(math.floor(delay / T + 1e-12))
-        frac = delay - ell * T
-        if frac < 1e-15:
-            frac = 0.0
+        ell, frac = split_delay(delay, T)
         key = (i, frac, bandwidth)
         if key not in self._zohs:     # the plant's discretization, shared by every law
             E0, G0 = zoh(A, B, T - frac)
@@ -190,32 +188,7 @@ class LoopSet:
                 self._zohs.clear()
             self._zohs[key] = (E0, G0, E0 @ E1 if frac else E0, E0 @ G1i)
         E0, G0, Phi, G1 = self._zohs[key]
-        L = ell + 1                                 # buffer w_i = u_{k-i}, i = 1..L
-        nx = Ac.shape[0]
-        N = nz + nx + L * n
-        Acl = np.zeros((N, N))
-        Cy = np.zeros((2 * n, nz))
-        Cy[:, :2 * n] = np.eye(2 * n)
-        Uz, Ux = Dc @ Cy, Cc
-        iz, ix, iw = slice(0, nz), slice(nz, nz + nx), nz + nx
-
-        def wslot(k):
-            return slice(iw + (k - 1) * n, iw + k * n)
-
-        Acl[iz, iz] = Phi
-        if ell == 0:
-            Acl[iz, iz] += G0 @ Uz
-            Acl[iz, ix] += G0 @ Ux
-        else:
-            Acl[iz, wslot(ell)] += G0
-        Acl[iz, wslot(ell + 1)] += G1
-        Acl[ix, ix] = Ac
-        Acl[ix, iz] = Bc @ Cy
-        Acl[wslot(1), iz] = Uz
-        Acl[wslot(1), ix] = Ux
-        for k in range(2, L + 1):
-            Acl[wslot(k), wslot(k - 1)] = np.eye(n)
-        return Acl
+        return delayed_loop_matrix(Phi, G0, G1, ell, (Ac, Bc, Cc, Dc), n)
 
     def spectral_radius(self, law: LawResponse, delay: float = 0.0,
                         bandwidth: float | None = None, plants=None) -> np.ndarray:
@@ -232,6 +205,67 @@ def zoh(A, B, t):
     blk[:n, :n], blk[:n, n:] = A, B
     E = scipy.linalg.expm(blk * t)
     return E[:n, :n], E[:n, n:]
+
+
+def split_delay(delay: float, T: float) -> tuple[int, float]:
+    """Return ``(ell, frac)``: ``delay`` [s] as whole periods ``T`` and a fraction [s] (< T)."""
+    ell = int(math.floor(delay / T + 1e-12))
+    frac = delay - ell * T
+    return ell, 0.0 if frac < 1e-15 else frac
+
+
+def delayed_loop_matrix(Phi, G0, G1, ell: int, K, n: int) -> np.ndarray:
+    r"""State matrix of a sampled loop whose zero-order-hold input is delayed.
+
+    The plant ``z+ = Phi z + G0 u_{k-ell} + G1 u_{k-ell-1}`` (a delay of ``ell`` whole periods
+    plus a fraction: ``u_{k-ell}`` held over the end of the period, ``u_{k-ell-1}`` over its
+    start; Franklin, Powell & Workman sec. 4.3.4), measured as ``y = z[:2n]`` (``q``, ``qd``),
+    closed by the discrete law ``K = (A_k, B_k, C_k, D_k)``: ``x+ = A_k x + B_k y``,
+    ``u = C_k x + D_k y``. The state is ``(z, x, u_{k-1}, ..., u_{k-ell-1})``.
+
+    Parameters
+    ----------
+    Phi, G0, G1 : ndarray, shapes (nz, nz), (nz, n), (nz, n)
+        The plant over one period (:func:`zoh` of the two parts).
+    ell : int
+        Whole periods of delay (>= 0).
+    K : tuple of ndarray
+        The law's discrete ``(A_k, B_k, C_k, D_k)``, input ``y`` of size ``2n``.
+    n : int
+        Number of inputs (joints).
+
+    Returns
+    -------
+    ndarray, shape (nz + nx + (ell + 1) n, same)
+    """
+    Ak, Bk, Ck, Dk = K
+    nz = Phi.shape[0]
+    L = ell + 1                                 # buffer w_i = u_{k-i}, i = 1..L
+    nx = Ak.shape[0]
+    N = nz + nx + L * n
+    Acl = np.zeros((N, N))
+    Cy = np.zeros((2 * n, nz))
+    Cy[:, :2 * n] = np.eye(2 * n)
+    Uz, Ux = Dk @ Cy, Ck                        # u_k = C_k x + D_k Cy z
+    iz, ix, iw = slice(0, nz), slice(nz, nz + nx), nz + nx
+
+    def wslot(k):
+        return slice(iw + (k - 1) * n, iw + k * n)
+
+    Acl[iz, iz] = Phi
+    if ell == 0:
+        Acl[iz, iz] += G0 @ Uz
+        Acl[iz, ix] += G0 @ Ux
+    else:
+        Acl[iz, wslot(ell)] += G0
+    Acl[iz, wslot(ell + 1)] += G1
+    Acl[ix, ix] = Ak
+    Acl[ix, iz] = Bk @ Cy
+    Acl[wslot(1), iz] = Uz
+    Acl[wslot(1), ix] = Ux
+    for k in range(2, L + 1):
+        Acl[wslot(k), wslot(k - 1)] = np.eye(n)
+    return Acl
 
 
 def _sorted_eigs(L, eigs):
