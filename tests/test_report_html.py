@@ -353,8 +353,8 @@ def test_study_report_warns_of_missing_meshes_once(where, tmp_path):
     from rrr_pin.campaign.runner import RunSettings, make_laws
     from rrr_pin.campaign.study import StudyConfig, run_study
     from rrr_pin.model.robots import erd_urdf_path
+    from rrr_pin.report.geometry import MissingMeshWarning
     from rrr_pin.report.results import write_study_report
-    from rrr_pin.report.viewer import MissingMeshWarning
 
     source = "ur5"
     if where == "copied":

@@ -12,11 +12,11 @@ from numpy.testing import assert_allclose
 
 from rrr_pin.model.dh import forward_kinematics, paper_params
 from rrr_pin.model.dynamics import load_robot
+from rrr_pin.report.geometry import geometry_models
 from rrr_pin.report.viewer import (
     Scene,
     Track,
     ViewerSizeError,
-    _geometry_models,
     _record,
     scene_document,
     scene_html,
@@ -185,7 +185,7 @@ def test_missing_meshes_drawn_as_shapes_with_a_warning(tmp_path):
     urdf.write_text(text)
     robot = load_robot(urdf)
     with pytest.warns(UserWarning, match="missing_link2.stl"):
-        visual, _, missing = _geometry_models(robot, ())
+        visual, _, missing = geometry_models(robot, ())
     assert missing == ["package://nowhere/meshes/missing_link2.stl"]
     # link 2 gets a cylinder from its frame to joint 3's origin: length a2 = 1 m (Table 1)
     on_link2 = [g for g in visual.geometryObjects if g.parentJoint == 2]
@@ -201,7 +201,7 @@ def test_example_robot_data_meshes_found(ur5):
     robot = ur5
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no mesh may be missing
-        visual, collision, missing = _geometry_models(robot, ())
+        visual, collision, missing = geometry_models(robot, ())
     assert missing == []
     paths = [Path(g.meshPath) for g in visual.geometryObjects]
     assert len(paths) == 7 and all(p.is_file() and p.suffix == ".dae" for p in paths)

@@ -20,9 +20,10 @@ from ..campaign.study import StudyResult
 from ..control.laws import TrackingController
 from ..outputs import writing
 from .design import DESIGN_UNITS
+from .geometry import MissingMeshWarning
 from .html import write_report_html
 from .jsondata import dumps
-from .viewer import MissingMeshWarning, Scene, Track, task_path_points
+from .viewer import Scene, Track, task_path_points
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "study_captions",
            "summary_lines", "write_trajectories", "torque_limit_table", "PAPER_ERROR_RATIO",
@@ -344,7 +345,7 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
     move too (:func:`rrr_pin.report.viewer.full_configurations`), and a plant's task path is
     drawn as a grey line. An uncertain arm's mesh files are looked for where the nominal's
     are. Mesh files not found are drawn as simple shapes, with one
-    :class:`~rrr_pin.report.viewer.MissingMeshWarning` per distinct set of files.
+    :class:`~rrr_pin.report.geometry.MissingMeshWarning` per distinct set of files.
 
     Parameters
     ----------
