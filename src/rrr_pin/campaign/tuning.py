@@ -102,8 +102,8 @@ class _Eval:
         return ctx.loops.loop_response(ctx.loops.law(self.lam, self.K, w, matrices=False),
                                        P)[0]
 
-    def loop_ss(self, ctx, i):
-        """Plant ``i``'s discrete loop at the torque input as a ``control.StateSpace``."""
+    def _plant_and_law(self, ctx, i):
+        """Plant ``i`` (zero-order hold at ``T``, output its state) and the law, discrete."""
         import control
 
         from ..control.sampled_loops import zoh
@@ -114,21 +114,20 @@ class _Eval:
         Ac, Bc, Cc, Dc = self.law.law
         C = control.ss(Ac, Bc, Cc, Dc, loops.T) if Ac.size else control.ss([], [], [], Dc,
                                                                              loops.T)
+        return P, C
+
+    def loop_ss(self, ctx, i):
+        """Plant ``i``'s discrete loop at the torque input as a ``control.StateSpace``."""
+        P, C = self._plant_and_law(ctx, i)
         return -C * P
 
     def noise_ss(self, ctx, i):
         """Plant ``i``'s discrete loop from noise on ``q`` to the law's torque."""
         import control
 
-        from ..control.sampled_loops import zoh
-
         loops = ctx.loops
         n = loops.n
-        Phi, Gam = zoh(loops.A[i], loops.B[i], loops.T)
-        P = control.ss(Phi, Gam, np.eye(Phi.shape[0]), 0, loops.T)
-        Ac, Bc, Cc, Dc = self.law.law
-        C = control.ss(Ac, Bc, Cc, Dc, loops.T) if Ac.size else control.ss([], [], [], Dc,
-                                                                             loops.T)
+        P, C = self._plant_and_law(ctx, i)
         E = np.vstack([np.eye(n), np.zeros((n, n))])
         eye = control.ss([], [], [], np.eye(n), loops.T)
         return control.feedback(eye, C * P, sign=1) * C * control.ss([], [], [], E, loops.T)
