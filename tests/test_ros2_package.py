@@ -211,6 +211,19 @@ def _gravity(robot, q):
     return pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
 
 
+def _assert_latched_safe_torque(out, err, robot, q, code, reason):
+    """Updates good, faulty, good: the fault ``code`` latches, the safe torque (gravity
+    compensation, by Pinocchio) is written on the faulty update and after, the reason and the
+    log line say so. Returns the three torques."""
+    tau, fault, _ = _updates(out)
+    assert fault == [NONE, code, code]  # latched: a good update does not clear it
+    assert_allclose(tau[1], _gravity(robot, q), rtol=1e-12)
+    assert_allclose(tau[2], _gravity(robot, q), rtol=1e-12)
+    assert reason in next(line for line in out if line.startswith("reason "))
+    assert "fault, safe torque (gravity compensation)" in err
+    return tau
+
+
 @pytest.mark.parametrize("period", [1.25e-3, 0.75e-3, 10e-3, 0.0, -1e-3],
                          ids=["25% long", "25% short", "10x", "zero", "negative"])
 def test_period_outside_the_band_is_a_reported_fault(package, period):
@@ -219,15 +232,10 @@ def test_period_outside_the_band_is_a_reported_fault(package, period):
     lines = [*_started(folder), f"update {TS!r} {_vec(q)} 0 0 0",
              f"update {period!r} {_vec(q)} 0 0 0", "reason", f"update {TS!r} {_vec(q)} 0 0 0"]
     out, err = _drive(drivers["jazzy"], lines)
-    tau, fault, _ = _updates(out)
-    assert fault == [NONE, PERIOD, PERIOD]  # latched: a good period does not clear it
-    # the safe torque, gravity compensation, on the faulty period and after
-    assert_allclose(tau[1], _gravity(robot, q), rtol=1e-12)
-    assert_allclose(tau[2], _gravity(robot, q), rtol=1e-12)
+    tau = _assert_latched_safe_torque(out, err, robot, q, PERIOD,
+                                      f"update period {period:.6g} s outside the band 0.001 s "
+                                      f"+- 20 %")
     assert not np.allclose(tau[0], tau[1])  # not the previous torque held
-    reason = next(line for line in out if line.startswith("reason "))
-    assert f"update period {period:.6g} s outside the band 0.001 s +- 20 %" in reason
-    assert "fault, safe torque (gravity compensation)" in err
 
 
 def test_fault_torque_zero(package):
@@ -254,15 +262,10 @@ def test_reference_of_the_wrong_size_is_a_reported_fault(package, ref, sizes):
                                          f"update {TS!r} {_vec(q)} 0 0 0", "reason",
                                          "ref 3 0.6 0.1 0.2 0 0",
                                          f"update {TS!r} {_vec(q)} 0 0 0"])
-    tau, fault, _ = _updates(out)
-    assert fault == [NONE, REF_SIZE, REF_SIZE]  # latched: a good reference does not clear it
-    # the safe torque (gravity compensation, by Pinocchio), not the last torque held
-    assert_allclose(tau[1], _gravity(robot, q), rtol=1e-12)
-    assert_allclose(tau[2], _gravity(robot, q), rtol=1e-12)
-    assert np.max(np.abs(tau[0] - tau[1])) > 1.0  # [N m]
-    reason = next(line for line in out if line.startswith("reason "))
-    assert f"reason reference of the wrong size: {sizes}; expected 3 each" in reason
-    assert "fault, safe torque (gravity compensation)" in err
+    tau = _assert_latched_safe_torque(out, err, robot, q, REF_SIZE,
+                                      f"reason reference of the wrong size: {sizes}; expected "
+                                      f"3 each")
+    assert np.max(np.abs(tau[0] - tau[1])) > 1.0  # [N m]: not the last torque held
 
 
 def test_reference_and_state_not_finite(package):
