@@ -256,25 +256,41 @@ DESIGN = ["design", "--structure", "gain", "--samples", "1", "--starts", "1", "-
           "--require", "delay_margin=0.004", "--require", "disk_margin=0.4"]
 
 
-@pytest.mark.parametrize("robot", ["rrr", pytest.param("ur5", marks=pytest.mark.slow)])
-def test_cli_design_writes_the_arms_own_design(robot, tmp_path):
+@pytest.fixture(scope="module")
+def design_run(tmp_path_factory):
+    """``design_run(robot)``: one ``rrr-pin design`` (:data:`DESIGN`) run per arm, shared by
+    the command-line tests, which only read it."""
     from conftest import run_cli
 
-    run = run_cli([*DESIGN, "--robot", robot], tmp_path / robot)
+    runs = {}
+
+    def get(robot):
+        if robot not in runs:
+            runs[robot] = run_cli([*DESIGN, "--robot", robot],
+                                  tmp_path_factory.mktemp("design") / robot)
+        return runs[robot]
+
+    return get
+
+
+@pytest.mark.parametrize("robot", ["rrr", pytest.param("ur5", marks=pytest.mark.slow)])
+def test_cli_design_writes_the_arms_own_design(robot, design_run):
+    run = design_run(robot)
     assert run.code == 0, run.stderr
-    data = load_design(tmp_path / robot / "design.json")
+    data = load_design(run.out / "design.json")
     assert data["robot"] == robot and data["law"] == "tuned"
     assert [row["name"] for row in data["requirements"]] == ["delay_margin", "disk_margin"]
     assert "delay_margin" in run.stdout and "verified" in run.stdout
 
 
 @pytest.mark.slow
-def test_cli_reproduce_runs_the_design_as_tuned(tmp_path):
+def test_cli_reproduce_runs_the_design_as_tuned(tmp_path, design_run):
     from conftest import REPRODUCE, run_cli
 
-    assert run_cli([*DESIGN, "--robot", "rrr"], tmp_path / "d").code == 0
+    design = design_run("rrr")
+    assert design.code == 0
     run = run_cli([*REPRODUCE, "--robot", "rrr", "--controllers", "fl,tuned", "--design",
-                   str(tmp_path / "d" / "design.json")], tmp_path / "r")
+                   str(design.out / "design.json")], tmp_path / "r")
     assert run.code == 0, run.stderr
     data = json.loads((tmp_path / "r" / "results.json").read_text())
     assert "tuned" in data["controllers"] or "tuned" in json.dumps(data["controllers"])
@@ -352,12 +368,13 @@ def test_noise_gain_grid_agrees_with_slicot(rrr, paper):
         assert_allclose(grid, exact, rtol=2e-2)
 
 
-def test_cli_montecarlo_records_the_design(tmp_path):
+def test_cli_montecarlo_records_the_design(tmp_path, design_run):
     from conftest import MONTECARLO, run_cli
 
-    assert run_cli([*DESIGN, "--robot", "rrr"], tmp_path / "d").code == 0
+    design = design_run("rrr")
+    assert design.code == 0
     run = run_cli([*MONTECARLO, "--robot", "rrr", "--controllers", "fl,tuned", "--design",
-                   str(tmp_path / "d" / "design.json")], tmp_path / "m")
+                   str(design.out / "design.json")], tmp_path / "m")
     assert run.code == 0, run.stderr
     summary = json.loads((tmp_path / "m" / "summary.json").read_text())
     assert summary["design"]["requirements"][1]["name"] == "disk_margin"
