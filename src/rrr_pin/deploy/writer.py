@@ -72,6 +72,10 @@ def read_record(folder) -> dict:
     return record
 
 
+#: The compiled forms whose law carries a controller K (A, B, C, D) besides feedback
+#: linearization; PDForm has none. The exported C implements exactly these and PDForm.
+_K_FORMS = (FLForm, FLFrictionForm, FLAWForm)
+
 #: Every file an export may write (the dynamics files depend on the model).
 FILES = ("controller.h", "controller.c", "dynamics.h", "dynamics.c", "codegen_rrr.c",
          "dynamics.cpp", "CMakeLists.txt", "main.c", "controller.json")
@@ -235,7 +239,7 @@ def _continuous_k(law, method: str):
     if isinstance(law, SampledLaw) or method not in period.GBT_ALPHA or not law.nx:
         return None
     form = law.compiled_form()  # TrackingController, AntiWindupTracking: K continuous
-    if type(form) not in (FLForm, FLFrictionForm, FLAWForm):
+    if type(form) not in _K_FORMS:
         return None
     return tuple(np.asarray(M, dtype=float) for M in (form.A, form.B, form.C, form.D))
 
@@ -334,7 +338,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     fp = fingerprint(robot.model)
     twin, rate = _twin(law, rate, method, prewarp)
     form = twin.compiled_form()
-    if type(form) not in (FLForm, FLFrictionForm, FLAWForm, PDForm):
+    if type(form) not in (*_K_FORMS, PDForm):
         raise ExportError(f"law {law.name!r} ({type(law).__name__}) cannot be exported: "
                           f"{EXPORTABLE}")
     law_fp = fingerprint(form.nominal.model)
