@@ -249,7 +249,8 @@ def generated_matches_pinocchio():
     """``check(name, model, seed, B)``: generated dynamics ``name`` == Pinocchio's, random models.
 
     B copies of ``model`` with random placements, inertias, armature and gravity, at random
-    states: the generated M, nonLinearEffects, G and forward dynamics against Pinocchio's CRBA,
+    states: the generated M, nonLinearEffects, G and forward dynamics (both algorithms: the
+    chosen one and the other, CRBA + L D L^T and the generated ABA) against Pinocchio's CRBA,
     nonLinearEffects, computeGeneralizedGravity and ABA (an independent implementation).
     """
     import numpy as np
@@ -265,7 +266,7 @@ def generated_matches_pinocchio():
         models = [_random_model(model, rng) for _ in range(B)]
         P = np.stack([dyngen.parameters(m) for m in models])
         q, v, tau = (rng.uniform(-3.0, 3.0, (B, n)) for _ in range(3))
-        M, nle, g, qdd = EXTENSION.batch_dynamics(name, P, q, v, tau)
+        M, nle, g, qdd, qdd_other = EXTENSION.batch_dynamics(name, P, q, v, tau)
         for b, m in enumerate(models):
             d = m.createData()
             Mp = pin.crba(m, d, q[b])
@@ -274,7 +275,8 @@ def generated_matches_pinocchio():
             for got, want in ((M[b].reshape(n, n), Mp),
                               (nle[b], pin.nonLinearEffects(m, d, q[b], v[b])),
                               (g[b], pin.computeGeneralizedGravity(m, d, q[b])),
-                              (qdd[b], pin.aba(m, d, q[b], v[b], tau[b]))):
+                              (qdd[b], pin.aba(m, d, q[b], v[b], tau[b])),
+                              (qdd_other[b], pin.aba(m, d, q[b], v[b], tau[b]))):
                 assert_allclose(got, want, rtol=0.0, atol=1e-12 * np.abs(want).max())
 
     return check

@@ -17,12 +17,17 @@
 extern "C" {
 #define RRR_DYN_DECLARE(name)                                                                  \
   extern const char name##_dyn_structure[];                                                    \
+  extern const char name##_dyn_fd[];                                                           \
   extern const int name##_dyn_nq;                                                              \
   extern const int name##_dyn_np;                                                              \
+  extern const int name##_dyn_nd;                                                              \
+  void name##_pre(int, const double *, double *);                                              \
   void name##_crba(int, const double *, const double *, double *);                             \
   void name##_nle(int, const double *, const double *, const double *, double *);              \
   void name##_gravity(int, const double *, const double *, double *);                          \
-  void name##_fd(int, const double *, const double *, const double *, const double *, double *);
+  void name##_fd(int, const double *, const double *, const double *, const double *, double *); \
+  void name##_fd_other(int, const double *, const double *, const double *, const double *,    \
+                       double *);
 RRR_DYN_DECLARE(rrr)
 RRR_DYN_DECLARE(ur5)
 RRR_DYN_DECLARE(panda)
@@ -34,31 +39,36 @@ namespace rrr_pin
   namespace
   {
 #define RRR_DYN_ENTRY(name)                                                                    \
-  DynFunctions{#name,         name##_dyn_structure, name##_dyn_nq, name##_dyn_np, name##_crba, \
-               name##_nle,    name##_gravity,       name##_fd}
+  DynFunctions{#name,          name##_dyn_structure, name##_dyn_fd, name##_dyn_nq,              \
+               name##_dyn_np,  name##_dyn_nd,        name##_pre,    name##_crba,                \
+               name##_nle,     name##_gravity,       name##_fd,     name##_fd_other}
     const DynFunctions kTable[] = {RRR_DYN_ENTRY(rrr), RRR_DYN_ENTRY(ur5), RRR_DYN_ENTRY(panda)};
 #undef RRR_DYN_ENTRY
 
-    /// The law's nominal model and the plants' parameters, structure-of-arrays.
+    /// The law's nominal model and the plants, structure-of-arrays derived vectors: the
+    /// parameter-only expressions, computed once here (f.pre), not at every call.
     struct Models
     {
       const DynFunctions & f;
       int B, n;
-      Lanes plant, nominal;  // (np, B)
+      Lanes plant, nominal;  // (nd, B)
 
       Models(const DynFunctions & fns, const RowMat & P, const Vec & Pn)
       : f(fns)
       , B(static_cast<int>(P.rows()))
       , n(fns.nq)
-      , plant(static_cast<std::size_t>(fns.np) * B)
+      , plant(static_cast<std::size_t>(fns.nd) * B)
       , nominal(plant.size())
       {
+        Lanes p(static_cast<std::size_t>(fns.np) * B), pn(p.size());
         for (int k = 0; k < f.np; ++k)
           for (int b = 0; b < B; ++b)
           {
-            plant[k * B + b] = P(b, k);
-            nominal[k * B + b] = Pn[k];
+            p[k * B + b] = P(b, k);
+            pn[k * B + b] = Pn[k];
           }
+        f.pre(B, p.data(), plant.data());
+        f.pre(B, pn.data(), nominal.data());
       }
     };
 
@@ -602,12 +612,17 @@ namespace rrr_pin
     return out;
   }
 
-  void dyn_register(const std::string & name, const std::string & structure, int nq, int np,
+  void dyn_register(const std::string & name, const std::string & structure,
+                    const std::string & fd_algorithm, int nq, int np, int nd, std::uintptr_t pre,
                     std::uintptr_t crba, std::uintptr_t nle, std::uintptr_t gravity,
-                    std::uintptr_t fd)
+                    std::uintptr_t fd, std::uintptr_t fd_other)
   {
-    if (nq < 1 || np != 3 + 23 * nq || !crba || !nle || !gravity || !fd)
-      throw std::invalid_argument("dyn_register: nq >= 1, np = 3 + 23 nq and four functions");
+    if (nq < 1 || np != 3 + 23 * nq || nd < 1 || !pre || !crba || !nle || !gravity || !fd
+        || !fd_other)
+      throw std::invalid_argument(
+        "dyn_register: nq >= 1, np = 3 + 23 nq, nd >= 1 and six functions");
+    if (fd_algorithm != "ldlt" && fd_algorithm != "aba")
+      throw std::invalid_argument("dyn_register: fd_algorithm must be 'ldlt' or 'aba'");
     Loaded & l = loaded();
     std::lock_guard<std::mutex> guard(l.lock);
     for (const DynFunctions & f : kTable)
@@ -620,14 +635,17 @@ namespace rrr_pin
     const char * n = l.strings.back().c_str();
     l.strings.push_back(structure);
     const char * st = l.strings.back().c_str();
+    l.strings.push_back(fd_algorithm);
+    const char * alg = l.strings.back().c_str();
+    using Fd = void (*)(int, const double *, const double *, const double *, const double *,
+                        double *);
     l.table.push_back(DynFunctions{
-      n, st, nq, np,
+      n, st, alg, nq, np, nd, reinterpret_cast<void (*)(int, const double *, double *)>(pre),
       reinterpret_cast<void (*)(int, const double *, const double *, double *)>(crba),
       reinterpret_cast<void (*)(int, const double *, const double *, const double *, double *)>(
         nle),
       reinterpret_cast<void (*)(int, const double *, const double *, double *)>(gravity),
-      reinterpret_cast<void (*)(int, const double *, const double *, const double *,
-                                const double *, double *)>(fd)});
+      reinterpret_cast<Fd>(fd), reinterpret_cast<Fd>(fd_other)});
   }
 
   const DynFunctions & dyn_by_name(const std::string & name)

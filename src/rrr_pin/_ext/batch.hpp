@@ -19,16 +19,23 @@
 
 namespace rrr_pin
 {
-  /// Generated dynamics of one structure (a dyn_<name>.c file).
+  /// Generated dynamics of one structure (a dyn_<name>.c file). `pre` turns parameter vectors
+  /// (np entries) into derived vectors (nd entries: the parameter-only expressions, once per
+  /// plant); the other functions take derived vectors. `fd` is the forward-dynamics algorithm
+  /// of fewer operations (`fd_algorithm`, "ldlt" or "aba"), `fd_other` the other one.
   struct DynFunctions
   {
     const char * name;
     const char * structure;
-    int nq, np;
+    const char * fd_algorithm;
+    int nq, np, nd;
+    void (*pre)(int, const double *, double *);
     void (*crba)(int, const double *, const double *, double *);
     void (*nle)(int, const double *, const double *, const double *, double *);
     void (*gravity)(int, const double *, const double *, double *);
     void (*fd)(int, const double *, const double *, const double *, const double *, double *);
+    void (*fd_other)(int, const double *, const double *, const double *, const double *,
+                     double *);
   };
 
   /// The generated structures compiled in, and their count.
@@ -37,9 +44,10 @@ namespace rrr_pin
   std::vector<DynFunctions> dyn_all();
   /// Register a structure's functions loaded at run time (rrr_pin.sim.dyncache: a shared
   /// object compiled from the generator's C), by address; names are unique.
-  void dyn_register(const std::string & name, const std::string & structure, int nq, int np,
+  void dyn_register(const std::string & name, const std::string & structure,
+                    const std::string & fd_algorithm, int nq, int np, int nd, std::uintptr_t pre,
                     std::uintptr_t crba, std::uintptr_t nle, std::uintptr_t gravity,
-                    std::uintptr_t fd);
+                    std::uintptr_t fd, std::uintptr_t fd_other);
   /// The generated structure named `name` (throws std::invalid_argument naming the known ones).
   const DynFunctions & dyn_by_name(const std::string & name);
 

@@ -64,9 +64,15 @@ namespace rrr_pin
       return d;
     }, "Generated structures registered at run time: name -> (structure, nq, np).");
     mod.def("batch_register", &dyn_register, nb::arg("name"), nb::arg("structure"),
-            nb::arg("nq"), nb::arg("np"), nb::arg("crba"), nb::arg("nle"), nb::arg("gravity"),
-            nb::arg("fd"),
+            nb::arg("fd_algorithm"), nb::arg("nq"), nb::arg("np"), nb::arg("nd"),
+            nb::arg("pre"), nb::arg("crba"), nb::arg("nle"), nb::arg("gravity"), nb::arg("fd"),
+            nb::arg("fd_other"),
             "Register generated functions loaded at run time, by address (rrr_pin.sim.dyncache).");
+    mod.def(
+      "batch_fd_algorithm",
+      [](const std::string & name) { return std::string(dyn_by_name(name).fd_algorithm); },
+      nb::arg("name"),
+      "The forward-dynamics algorithm of a generated structure's fd: 'ldlt' or 'aba'.");
     mod.def("c_compiler", []() { return std::string(RRR_C_COMPILER); },
             "The C compiler that built the extension's generated dynamics (CMAKE_C_COMPILER).");
     mod.def("c_flags", []() { return std::string(RRR_C_FLAGS); },
@@ -86,15 +92,20 @@ namespace rrr_pin
         // Structure-of-arrays: transposed, row-major (entry k of plant b at [k * B + b]).
         const RowMat Ps = P.transpose(), qs = q.transpose(), vs = v.transpose(),
                      ts = tau.transpose();
-        RowMat M(n * n, B), nle(n, B), g(n, B), qdd(n, B);
-        f.crba(static_cast<int>(B), Ps.data(), qs.data(), M.data());
-        f.nle(static_cast<int>(B), Ps.data(), qs.data(), vs.data(), nle.data());
-        f.gravity(static_cast<int>(B), Ps.data(), qs.data(), g.data());
-        f.fd(static_cast<int>(B), Ps.data(), qs.data(), vs.data(), ts.data(), qdd.data());
+        RowMat Ds(f.nd, B), M(n * n, B), nle(n, B), g(n, B), qdd(n, B), qdd2(n, B);
+        const int b = static_cast<int>(B);
+        f.pre(b, Ps.data(), Ds.data());
+        f.crba(b, Ds.data(), qs.data(), M.data());
+        f.nle(b, Ds.data(), qs.data(), vs.data(), nle.data());
+        f.gravity(b, Ds.data(), qs.data(), g.data());
+        f.fd(b, Ds.data(), qs.data(), vs.data(), ts.data(), qdd.data());
+        f.fd_other(b, Ds.data(), qs.data(), vs.data(), ts.data(), qdd2.data());
         return nb::make_tuple(RowMat(M.transpose()), RowMat(nle.transpose()),
-                              RowMat(g.transpose()), RowMat(qdd.transpose()));
+                              RowMat(g.transpose()), RowMat(qdd.transpose()),
+                              RowMat(qdd2.transpose()));
       },
       nb::arg("name"), nb::arg("P"), nb::arg("q"), nb::arg("v"), nb::arg("tau"),
-      "Generated M (B, n n, row-major), nonLinearEffects, G and forward dynamics (B, n).");
+      "Generated M (B, n n, row-major), nonLinearEffects, G, forward dynamics (B, n) by the "
+      "chosen algorithm (batch_fd_algorithm) and by the other one.");
   }
 } // namespace rrr_pin

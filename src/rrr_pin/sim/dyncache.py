@@ -51,7 +51,7 @@ GENERATOR_VERSION = hashlib.sha256(inspect.getsource(dyngen).encode()).hexdigest
 COMPILER: str | None = None
 
 _HEADER = Path(__file__).resolve().parents[1] / "_ext" / "generated" / "dyn_common.h"
-_FUNCTIONS = ("crba", "nle", "gravity", "fd")
+_FUNCTIONS = ("pre", "crba", "nle", "gravity", "fd", "fd_other")
 
 # structure -> registered name, or the CacheError of its first attempt (this process).
 _LOADED: dict = {}
@@ -198,8 +198,11 @@ def _build(model, st, name, folder: Path, cc, flags, source) -> dict:
                          f"generated dynamics of {st!r} in {str(folder)!r}: "
                          f"{' | '.join(tail) or 'no message'}")
     build_s = time.perf_counter() - t0
+    counts = dyngen.operation_counts(model)
     meta = {"structure": st, "name": name, "generator_version": GENERATOR_VERSION,
-            "compiler": cc, "flags": flags, "build_s": build_s, "nq": model.nq}
+            "compiler": cc, "flags": flags, "build_s": build_s, "nq": model.nq,
+            "fd_algorithm": dyngen.fd_algorithm(counts),
+            "operations": {k: v["total"] for k, v in counts.items()}}
     try:
         os.replace(tmp, folder / "dyn.so")
         (folder / "entry.json").write_text(json.dumps(meta, indent=1))
@@ -215,10 +218,12 @@ def _register(so: Path, name: str, st: str, nq: int, folder: Path) -> str:
         return name
     try:
         lib = ctypes.CDLL(str(so))
-        found = ctypes.string_at(ctypes.addressof(
-            ctypes.c_char.in_dll(lib, f"{name}_dyn_structure"))).decode()
+        found, algorithm = (ctypes.string_at(ctypes.addressof(
+            ctypes.c_char.in_dll(lib, f"{name}_dyn_{key}"))).decode()
+            for key in ("structure", "fd"))
         counts = (ctypes.c_int.in_dll(lib, f"{name}_dyn_nq").value,
                   ctypes.c_int.in_dll(lib, f"{name}_dyn_np").value)
+        nd = ctypes.c_int.in_dll(lib, f"{name}_dyn_nd").value
         addresses = [ctypes.cast(getattr(lib, f"{name}_{fn}"), ctypes.c_void_p).value
                      for fn in _FUNCTIONS]
     except (OSError, ValueError, AttributeError) as exc:
@@ -229,6 +234,10 @@ def _register(so: Path, name: str, st: str, nq: int, folder: Path) -> str:
         raise CacheError(f"the generated-dynamics cache entry {str(folder)!r} is foreign: it "
                          f"holds the structure {found!r} ({counts[0]} joints), not {st!r}; "
                          f"delete the folder to rebuild it")
-    EXTENSION.batch_register(name, st, nq, npar, *addresses)
+    if algorithm not in dyngen.FD_ALGORITHMS or nd < 1:
+        raise CacheError(f"the generated-dynamics cache entry {str(folder)!r} is corrupted "
+                         f"(forward dynamics {algorithm!r}, {nd} derived entries); delete the "
+                         f"folder to rebuild it")
+    EXTENSION.batch_register(name, st, algorithm, nq, npar, nd, *addresses)
     _LIBS.append(lib)
     return name
