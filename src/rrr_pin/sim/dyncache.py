@@ -184,8 +184,9 @@ def _build(model, st, name, folder: Path, cc, flags, source) -> dict:
         raise CacheError(f"the generated-dynamics cache folder {str(folder)!r} cannot be "
                          f"written ({exc}); set RRR_PIN_CACHE to a writable folder") from None
     tmp = folder / f"dyn.so.{os.getpid()}.tmp"
+    libs = ["-lmvec"] if "-DRRR_DYN_LIBMVEC=1" in flags else []  # as the extension links
     cmd = [cc, *flags, "-fPIC", "-shared", "-I", str(folder), str(folder / "dyn.c"), "-o",
-           str(tmp), "-lm"]
+           str(tmp), *libs, "-lm"]
     t0 = time.perf_counter()
     try:
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=900)

@@ -477,11 +477,7 @@ _PROLOGUE = """\
 static inline void {name}_sincos(int B, const double * __restrict q, double * __restrict s,
                                  double * __restrict c)
 {{
-  for (int k = 0; k < {n} * B; ++k)
-  {{
-    s[k] = sin(q[k]);
-    c[k] = cos(q[k]);
-  }}
+  rrr_dyn_sincos({n} * B, q, s, c);
 }}
 """
 

@@ -26,11 +26,7 @@ const int panda_dyn_nd = 334;
 static inline void panda_sincos(int B, const double * __restrict q, double * __restrict s,
                                  double * __restrict c)
 {
-  for (int k = 0; k < 7 * B; ++k)
-  {
-    s[k] = sin(q[k]);
-    c[k] = cos(q[k]);
-  }
+  rrr_dyn_sincos(7 * B, q, s, c);
 }
 
 RRR_DYN_CLONES void panda_pre(int B, const double * __restrict P_, double * __restrict D_)

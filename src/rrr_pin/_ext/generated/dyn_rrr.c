@@ -26,11 +26,7 @@ const int rrr_dyn_nd = 154;
 static inline void rrr_sincos(int B, const double * __restrict q, double * __restrict s,
                                  double * __restrict c)
 {
-  for (int k = 0; k < 3 * B; ++k)
-  {
-    s[k] = sin(q[k]);
-    c[k] = cos(q[k]);
-  }
+  rrr_dyn_sincos(3 * B, q, s, c);
 }
 
 RRR_DYN_CLONES void rrr_pre(int B, const double * __restrict P_, double * __restrict D_)

@@ -26,11 +26,7 @@ const int ur5_dyn_nd = 289;
 static inline void ur5_sincos(int B, const double * __restrict q, double * __restrict s,
                                  double * __restrict c)
 {
-  for (int k = 0; k < 6 * B; ++k)
-  {
-    s[k] = sin(q[k]);
-    c[k] = cos(q[k]);
-  }
+  rrr_dyn_sincos(6 * B, q, s, c);
 }
 
 RRR_DYN_CLONES void ur5_pre(int B, const double * __restrict P_, double * __restrict D_)
