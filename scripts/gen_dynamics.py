@@ -10,6 +10,8 @@ Usage::
 
     scripts/gen_dynamics.py            # rewrite the files
     scripts/gen_dynamics.py --check    # exit 1 if a committed file differs from the generator
+    scripts/gen_dynamics.py --counts   # operations per call of each structure, next to
+                                       # Featherstone's count for the ABA
 
 A developer tool (pure Python, about 1 s); ``pip install .`` compiles the committed C.
 """
@@ -39,11 +41,42 @@ def expected() -> dict:
     return out
 
 
+def counts() -> list[dict]:
+    """Operations per plant and call of each generated structure (rrr_pin.sim.dyngen)."""
+    from rrr_pin.model.dynamics import load_robot
+    from rrr_pin.sim import dyngen
+    from rrr_pin.sim.batched import GENERATED
+
+    rows = []
+    for name, (source, lock) in GENERATED.items():
+        model = load_robot(source, lock=dict(lock)).model
+        now, before = dyngen.operation_counts(model), dyngen.operation_counts(model,
+                                                                              hoisted=False)
+        rows.append({"structure": name, "nq": model.nq, "fd": dyngen.fd_algorithm(now),
+                     "featherstone_aba": dyngen.featherstone_aba_operations(model.nq),
+                     **{f"{k}_unhoisted": v["total"] for k, v in before.items() if k != "pre"},
+                     **{k: v["total"] for k, v in now.items()}})
+    return rows
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true",
                         help="exit 1 if a committed file differs from the generator's output")
+    parser.add_argument("--counts", action="store_true",
+                        help="print the operations (+, -, *, /) per plant and call of each "
+                             "structure's functions, before and after hoisting, next to "
+                             "Featherstone's count for the ABA; write nothing")
     args = parser.parse_args(argv)
+    if args.counts:
+        print(f"{'structure':10}{'nq':>3}{'crba':>11}{'nle':>6}{'ldlt':>12}{'aba':>12}"
+              f"{'Featherstone ABA':>18}{'pre':>6}  fd")
+        for r in counts():
+            print(f"{r['structure']:10}{r['nq']:>3}{r['crba_unhoisted']:>5} -> {r['crba']:<4}"
+                  f"{r['nle']:>5} {r['ldlt_unhoisted']:>5} -> {r['ldlt']:<4}"
+                  f"{r['aba_unhoisted']:>5} -> {r['aba']:<4}{r['featherstone_aba']:>18}"
+                  f"{r['pre']:>6}  {r['fd']}")
+        return 0
     stale = []
     for path, text in expected().items():
         if args.check:

@@ -43,14 +43,25 @@ __all__ = ["GENERATOR_VERSION", "CacheError", "cache_dir", "generatable", "load"
 
 logger = logging.getLogger(__name__)
 
-#: The generator's version: a hash of :mod:`rrr_pin.sim.dyngen`'s source, so any change to it
-#: makes new cache entries.
-GENERATOR_VERSION = hashlib.sha256(inspect.getsource(dyngen).encode()).hexdigest()[:16]
-
 #: The C compiler to use; None: the one that built the extension (``EXTENSION.c_compiler()``).
 COMPILER: str | None = None
 
 _HEADER = Path(__file__).resolve().parents[1] / "_ext" / "generated" / "dyn_common.h"
+
+
+def _version() -> str:
+    text = inspect.getsource(dyngen)
+    try:
+        text += _HEADER.read_text()
+    except OSError:  # no header installed: _build names it
+        pass
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+#: The generator's version: a hash of :mod:`rrr_pin.sim.dyngen`'s source (whose ``VERSION``
+#: counts its releases) and of the header the generated C includes, so any change to either
+#: makes new cache entries.
+GENERATOR_VERSION = _version()
 _FUNCTIONS = ("pre", "crba", "nle", "gravity", "fd", "fd_other")
 
 # structure -> registered name, or the CacheError of its first attempt (this process).
