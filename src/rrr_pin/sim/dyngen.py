@@ -21,8 +21,9 @@ structure-of-arrays (input ``x[k * B + b]`` is entry ``k`` of plant ``b``):
   Featherstone's articulated-body algorithm; ``<name>_fd_other`` is the other one. Both are
   compared with Pinocchio's ``aba`` in ``tests/test_batched.py``.
 
-The functions after ``_pre`` take ``D``. Operations are counted on the expressions the outputs need (exact zeros and
-ones folded away, identical expressions named once), as the C compiler evaluates them:
+The functions after ``_pre`` take ``D``. Operations are counted on the expressions the outputs
+need (exact zeros and ones folded away, identical expressions named once), as the C compiler
+evaluates them:
 ``scripts/gen_dynamics.py --counts`` prints them next to Featherstone's count for the ABA.
 
 Conventions are Pinocchio's: spatial motion ``(linear, angular)``, joint frames after the joint,
@@ -515,7 +516,7 @@ _INPUT = re.compile(r"P\(\d+\)|\bh\d+\b")
 
 
 def _build(axes, parents, hoist):
-    """``{function: (emitter, [(output index, expression)])}`` of one structure."""
+    """Emit every function of one structure: ``{function: (emitter, [(index, expression)])}``."""
     n = len(axes)
     out = {}
     em = _Emitter(hoist)
@@ -603,7 +604,7 @@ def operation_counts(model, *, hoisted: bool = True) -> dict:
 
 
 def fd_algorithm(counts: dict) -> str:
-    """The forward-dynamics algorithm of fewer operations per call (ties: ``"ldlt"``)."""
+    """Return the forward-dynamics algorithm of fewer operations per call (ties: ``"ldlt"``)."""
     return "aba" if counts["aba"]["total"] < counts["ldlt"]["total"] else "ldlt"
 
 
