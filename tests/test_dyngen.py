@@ -98,3 +98,28 @@ def test_a_structure_whose_forward_dynamics_is_an_aba_equals_pinocchio(
     name = dyncache.load(model)
     assert EXTENSION.batch_fd_algorithm(name) == "aba"
     generated_matches_pinocchio(name, model, 5, 4)
+
+
+@pytest.mark.skipif(not available(), reason="compiled extension not built")
+def test_hoisting_changes_no_bit(tmp_path, monkeypatch):
+    # A 2-joint structure generated with and without hoisting (everything at every call, as
+    # generator version 1 did), each built into the cache under its own key: the same
+    # expressions in the same order, so the same bits.
+    monkeypatch.setenv("RRR_PIN_CACHE", str(tmp_path))
+    model = _chain(2, seed=3)
+    generate, names = dyngen.generate, {}
+    for hoisted in (True, False):
+        monkeypatch.setattr(dyncache, "_LOADED", {})
+        monkeypatch.setattr(dyncache, "GENERATOR_VERSION", f"test-hoisted-{hoisted}")
+        monkeypatch.setattr(dyngen, "generate",
+                            lambda *a, h=hoisted, **k: generate(*a, **k, hoisted=h))
+        names[hoisted] = dyncache.load(model)
+        text = (dyncache.entry(dyngen.structure(model))[0] / "dyn.c").read_text()
+        assert ("const double h" in text) == hoisted
+    rng = np.random.default_rng(7)
+    # Any numbers (the arithmetic is compared, not the physics).
+    P = np.stack([dyngen.parameters(model)] * 5) * rng.uniform(0.9, 1.1, (5, 49))
+    q, v, tau = (rng.uniform(-3.0, 3.0, (5, 2)) for _ in range(3))
+    for a, b in zip(EXTENSION.batch_dynamics(names[True], P, q, v, tau),
+                    EXTENSION.batch_dynamics(names[False], P, q, v, tau), strict=True):
+        np.testing.assert_array_equal(a, b)  # bit for bit

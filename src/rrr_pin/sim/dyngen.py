@@ -636,7 +636,7 @@ def _function(name: str, fn: str, args: str, em: _Emitter, outs, index: dict, n:
     return "\n".join(lines)
 
 
-def generate(name: str, model, *, source: str) -> str:
+def generate(name: str, model, *, source: str, hoisted: bool = True) -> str:
     """C source of the batched functions for the structure of ``model``.
 
     ``<name>_pre(B, P, D)`` turns parameter vectors into the derived vectors ``D`` (the
@@ -652,6 +652,10 @@ def generate(name: str, model, *, source: str) -> str:
         Only its structure (:func:`structure`) is used; no number of it enters the code.
     source : str
         Where the model came from, for the header.
+    hoisted : bool, default True
+        False: every expression at every call, ``<name>_pre`` only copying the parameters the
+        functions read (the previous generator's arithmetic; for tests and measurements). The
+        forward-dynamics algorithm is the hoisted code's choice either way.
 
     Raises
     ------
@@ -662,10 +666,10 @@ def generate(name: str, model, *, source: str) -> str:
     n = len(axes)
     npar = 3 + PER_JOINT * n
     st = structure(model)
-    hoist = _Hoist()
+    hoist = _Hoist() if hoisted else None
     built = _build(axes, parents, hoist)
-    counts = operation_counts(model)
-    chosen = fd_algorithm(counts)
+    counts = operation_counts(model, hoisted=hoisted)
+    chosen = fd_algorithm(operation_counts(model) if not hoisted else counts)
     other = "aba" if chosen == "ldlt" else "ldlt"
     order = [("crba", "crba"), ("nle", "nle"), ("gravity", "gravity"), ("fd", chosen),
              ("fd_other", other)]
@@ -678,9 +682,9 @@ def generate(name: str, model, *, source: str) -> str:
         for text in [temps[t] for t, _ in em.temps if t in live] + [e for _, e in outs]:
             for tok in _INPUT.findall(text):
                 index.setdefault(tok, len(index))
-    hl = dict(hoist.lines)
-    live = _live(hl, [t for t in index if t.startswith("h")])
-    pre = [f"      const double {t} = {e};" for t, e in hoist.lines if t in live]
+    lines = hoist.lines if hoist is not None else []
+    live = _live(dict(lines), [t for t in index if t.startswith("h")])
+    pre = [f"      const double {t} = {e};" for t, e in lines if t in live]
     pre += [f"      D({k}) = {tok};" for tok, k in index.items()]
     nd = len(index)
     summary = ", ".join(f"{fn} {counts[key]['total']}" for fn, key in order[:4])
