@@ -249,8 +249,9 @@ def generated_matches_pinocchio():
     """``check(name, model, seed, B)``: generated dynamics ``name`` == Pinocchio's, random models.
 
     B copies of ``model`` with random placements, inertias, armature and gravity, at random
-    states: the generated M, nonLinearEffects, G and forward dynamics (both algorithms: the
-    chosen one and the other, CRBA + L D L^T and the generated ABA) against Pinocchio's CRBA,
+    states: the generated M, nonLinearEffects, G and forward dynamics (both algorithms of the
+    structures compiled in: the chosen one and the other, CRBA + L D L^T and the generated ABA;
+    a structure built at first use holds the chosen one) against Pinocchio's CRBA,
     nonLinearEffects, computeGeneralizedGravity and ABA (an independent implementation).
     """
     import numpy as np

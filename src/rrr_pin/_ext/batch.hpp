@@ -22,7 +22,8 @@ namespace rrr_pin
   /// Generated dynamics of one structure (a dyn_<name>.c file). `pre` turns parameter vectors
   /// (np entries) into derived vectors (nd entries: the parameter-only expressions, once per
   /// plant); the other functions take derived vectors. `fd` is the forward-dynamics algorithm
-  /// of fewer operations (`fd_algorithm`, "ldlt" or "aba"), `fd_other` the other one.
+  /// of fewer operations (`fd_algorithm`, "ldlt" or "aba"), `fd_other` the other one (for the
+  /// structures compiled in; one registered at run time passes `fd` again).
   struct DynFunctions
   {
     const char * name;

@@ -106,6 +106,7 @@ namespace rrr_pin
       },
       nb::arg("name"), nb::arg("P"), nb::arg("q"), nb::arg("v"), nb::arg("tau"),
       "Generated M (B, n n, row-major), nonLinearEffects, G, forward dynamics (B, n) by the "
-      "chosen algorithm (batch_fd_algorithm) and by the other one.");
+      "chosen algorithm (batch_fd_algorithm) and by the other one (a structure built at first "
+      "use: the chosen one again).");
   }
 } // namespace rrr_pin

@@ -62,7 +62,7 @@ def _version() -> str:
 #: counts its releases) and of the header the generated C includes, so any change to either
 #: makes new cache entries.
 GENERATOR_VERSION = _version()
-_FUNCTIONS = ("pre", "crba", "nle", "gravity", "fd", "fd_other")
+_FUNCTIONS = ("pre", "crba", "nle", "gravity", "fd")
 
 # structure -> registered name, or the CacheError of its first attempt (this process).
 _LOADED: dict = {}
@@ -189,7 +189,8 @@ def _build(model, st, name, folder: Path, cc, flags, source) -> dict:
     try:
         folder.mkdir(parents=True, exist_ok=True)
         (folder / "entry.json").unlink(missing_ok=True)
-        (folder / "dyn.c").write_text(dyngen.generate(name, model, source=source))
+        # Without the forward dynamics not chosen: 60-90 % more compile time, never run.
+        (folder / "dyn.c").write_text(dyngen.generate(name, model, source=source, other=False))
         (folder / "dyn_common.h").write_text(header)
     except OSError as exc:
         raise CacheError(f"the generated-dynamics cache folder {str(folder)!r} cannot be "
@@ -250,6 +251,7 @@ def _register(so: Path, name: str, st: str, nq: int, folder: Path) -> str:
         raise CacheError(f"the generated-dynamics cache entry {str(folder)!r} is corrupted "
                          f"(forward dynamics {algorithm!r}, {nd} derived entries); delete the "
                          f"folder to rebuild it")
-    EXTENSION.batch_register(name, st, algorithm, nq, npar, nd, *addresses)
+    # fd_other: the chosen algorithm again (an entry holds one; see dyngen.generate).
+    EXTENSION.batch_register(name, st, algorithm, nq, npar, nd, *addresses, addresses[-1])
     _LIBS.append(lib)
     return name

@@ -18,8 +18,9 @@ structure-of-arrays (input ``x[k * B + b]`` is entry ``k`` of plant ``b``):
 * ``<name>_fd``: forward dynamics ``qdd = M(q)^{-1} (tau - nle(q, v))`` by the algorithm of
   fewer operations for the structure (:func:`operation_counts`, :func:`fd_algorithm`; named by
   ``<name>_dyn_fd``): the same CRBA and RNEA with an unrolled ``L D L^T`` solve, or
-  Featherstone's articulated-body algorithm; ``<name>_fd_other`` is the other one. Both are
-  compared with Pinocchio's ``aba`` in ``tests/test_batched.py``.
+  Featherstone's articulated-body algorithm; ``<name>_fd_other`` is the other one (in the
+  committed files; a structure built at first use has ``_fd`` alone). Both are compared with
+  Pinocchio's ``aba`` in ``tests/test_batched.py``.
 
 The functions after ``_pre`` take ``D``. Operations are counted on the expressions the outputs
 need (exact zeros and ones folded away, identical expressions named once), as the C compiler
@@ -636,13 +637,14 @@ def _function(name: str, fn: str, args: str, em: _Emitter, outs, index: dict, n:
     return "\n".join(lines)
 
 
-def generate(name: str, model, *, source: str, hoisted: bool = True) -> str:
+def generate(name: str, model, *, source: str, hoisted: bool = True, other: bool = True) -> str:
     """C source of the batched functions for the structure of ``model``.
 
     ``<name>_pre(B, P, D)`` turns parameter vectors into the derived vectors ``D`` (the
     parameter-only expressions, once per plant); ``<name>_crba``, ``_nle``, ``_gravity`` and
     ``_fd`` take ``D``. ``_fd`` is the forward-dynamics algorithm of fewer operations
-    (:func:`fd_algorithm`, named by ``<name>_dyn_fd``); ``_fd_other`` is the other one.
+    (:func:`fd_algorithm`, named by ``<name>_dyn_fd``); ``_fd_other`` is the other one (with
+    ``other``).
 
     Parameters
     ----------
@@ -656,6 +658,10 @@ def generate(name: str, model, *, source: str, hoisted: bool = True) -> str:
         False: every expression at every call, ``<name>_pre`` only copying the parameters the
         functions read (the previous generator's arithmetic; for tests and measurements). The
         forward-dynamics algorithm is the hoisted code's choice either way.
+    other : bool, default True
+        Also write ``<name>_fd_other``, the algorithm not chosen (the committed files, so that
+        tests compare both with Pinocchio). False for the structures built at first use: it
+        would add some 60-90 % to their compile time (measured, 7 joints) for no run-time use.
 
     Raises
     ------
@@ -670,9 +676,10 @@ def generate(name: str, model, *, source: str, hoisted: bool = True) -> str:
     built = _build(axes, parents, hoist)
     counts = operation_counts(model, hoisted=hoisted)
     chosen = fd_algorithm(operation_counts(model) if not hoisted else counts)
-    other = "aba" if chosen == "ldlt" else "ldlt"
-    order = [("crba", "crba"), ("nle", "nle"), ("gravity", "gravity"), ("fd", chosen),
-             ("fd_other", other)]
+    order = [("crba", "crba"), ("nle", "nle"), ("gravity", "gravity"), ("fd", chosen)]
+    unchosen = "aba" if chosen == "ldlt" else "ldlt"
+    if other:
+        order.append(("fd_other", unchosen))
     # The derived vector D: every parameter and hoisted expression a function reads.
     index = {}
     for _, key in order:
@@ -695,7 +702,7 @@ def generate(name: str, model, *, source: str, hoisted: bool = True) -> str:
  * {npar} entries (rrr_pin.sim.dyngen.parameter_layout), x[k * B + b] = entry k of plant b.
  * {name}_pre turns P into the derived vector D ({nd} entries: the parameter-only expressions,
  * once per plant); the other functions take D. Operations per plant and call (+, -, *, /):
- * {summary} ({chosen}; {other}: {counts[other]['total']}); pre {counts['pre']['total']}.
+ * {summary} ({chosen}; {unchosen}: {counts[unchosen]['total']}); pre {counts['pre']['total']}.
  */
 #include <math.h>
 
