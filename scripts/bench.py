@@ -432,7 +432,14 @@ def campaign_at_floor(robot, names, samples, duration, rate) -> dict:
     threads2_s, rows3 = wall(jobs=1, threads=2)
     load.append(os.getloadavg()[0])
     engines = sorted({r.get(f"{law.name}_engine", "-") for r in rows1 for law in laws})
+    from rrr_pin.sim import dyngen
+
+    ops = dyngen.operation_counts(robot.model)  # the generated code's arithmetic per call
+    dynamics = {"fd_algorithm": dyngen.fd_algorithm(ops),
+                "operations": {k: v["total"] for k, v in ops.items()},
+                "featherstone_aba": dyngen.featherstone_aba_operations(robot.model.nq)}
     return {"robot": robot.name, "samples": samples, "floor_1core_s": floor_s,
+            "dynamics": dynamics,
             "one_process_s": one_s, "jobs2_s": jobs2_s, "threads2_s": threads2_s,
             "ratio_jobs2": jobs2_s / (floor_s / 2), "ratio_threads2": threads2_s / (floor_s / 2),
             "ratio_one_process": one_s / floor_s, "rows_identical": rows1 == rows2 == rows3,
@@ -846,6 +853,12 @@ def report(res, args):
                   f"{goal:g} s: {'met' if scaled <= goal else 'NOT MET'}); ratio to the floor "
                   f"{ratio:.2f} ({verdict(ratio, GOALS['campaign_floor'])}); engines "
                   f"{', '.join(r['engines'])}")
+            d = r["dynamics"]
+            print(f"    generated forward dynamics by {d['fd_algorithm']}: "
+                  f"{d['operations'][d['fd_algorithm']]} operations per plant and call "
+                  f"(ldlt {d['operations']['ldlt']}, aba {d['operations']['aba']}; "
+                  f"Featherstone's ABA {d['featherstone_aba']}); "
+                  f"{d['operations']['pre']} once per plant")
         for r in res["first_use"]:
             print(f"  {r['robot']} ({r['structure']}): generated dynamics {r['generated']}, "
                   f"{r['build_s']:.1f} s to have them at first use (an empty cache)"
