@@ -184,6 +184,15 @@ def test_paper_K_recovered_from_the_paper_objective(ncf_result):
     assert_allclose(poles, [-513.37, -0.19], atol=0.005)
 
 
+@pytest.mark.slow
+def test_paper_K_recovered_from_random_starts():
+    P = ncf_plant(fl_plant(45.0, 1), lag_weight())
+    r = hinfstruct(P, [order2_block()], starts=4, seed=3)
+    assert all(run["start"] != PAPER_K for run in r.runs)
+    # every start, not only the best, reaches the paper's K's index
+    assert max(run["gamma"] for run in r.runs) <= paper_gamma()
+
+
 # --- the loop, the blocks and bad input ------------------------------------------------------
 
 def test_lft_loop_matches_feedback_for_each_builtin_block():

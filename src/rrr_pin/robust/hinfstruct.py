@@ -447,13 +447,7 @@ class _Plant:
         """``P(j omega)``, shape (N, nz + ny, nw + nu)."""
         missing = [w for w in omega if w not in self._cache]
         if missing:
-            w = np.asarray(missing)
-            n = self.A.shape[0]
-            H = np.broadcast_to(self.D, (w.size, *self.D.shape)).astype(complex)
-            if n:
-                s = 1j * w[:, None, None]
-                H = H + self.C[None] @ np.linalg.solve(s * np.eye(n)[None] - self.A[None],
-                                                       self.B[None])
+            H = _response((self.A, self.B, self.C, self.D), np.asarray(missing))
             self._cache.update(zip(missing, H, strict=True))
         return np.stack([self._cache[w] for w in omega])
 
@@ -501,7 +495,7 @@ class _Problem:
         poles = poles[poles > 0]
         lo, hi = (poles.min() / 100, poles.max() * 100) if poles.size else (1e-3, 1e3)
         grid = np.logspace(np.log10(lo), np.log10(hi), int(30 * np.log10(hi / lo)) + 2)
-        sv = self.sigma(z, grid, cl=cl)
+        sv = self.sigma(z, grid)
         k = np.flatnonzero((sv[1:-1] >= sv[:-2]) & (sv[1:-1] >= sv[2:])) + 1
         k = k[sv[k] >= 0.3 * sv.max()]
         peaks = grid[k]
@@ -512,7 +506,7 @@ class _Problem:
             peaks = np.append(peaks, 1e3 * hi)
         return float(g), float(wpk), peaks
 
-    def sigma(self, z, omega, cl=None):
+    def sigma(self, z, omega):
         """Largest singular value of the closed loop at ``omega``, shape (N,)."""
         T = self._T(z, omega)[0]
         return np.linalg.svd(T, compute_uv=False)[:, 0]
@@ -520,15 +514,8 @@ class _Problem:
     def _K(self, z, omega):
         """Return the controller's response, shape (N, nu, ny)."""
         Ks = [_response(p, omega) for p in self.parts(z)]
-        if len(Ks) == 1:
-            return Ks[0]
-        no, ni = sum(K.shape[1] for K in Ks), sum(K.shape[2] for K in Ks)
-        out = np.zeros((omega.size, no, ni), dtype=complex)
-        r = c = 0
-        for K in Ks:
-            out[:, r:r + K.shape[1], c:c + K.shape[2]] = K
-            r, c = r + K.shape[1], c + K.shape[2]
-        return out
+        return Ks[0] if len(Ks) == 1 else np.stack([block_diag(*[K[i] for K in Ks])
+                                                    for i in range(omega.size)])
 
     def _T(self, z, omega):
         p = self.plant
