@@ -221,6 +221,22 @@ def test_static_gain_closed_form_optimum():
     assert_allclose(r.gamma, 1 / np.sqrt(2), rtol=1e-8)
 
 
+def test_two_blocks_binding_together():
+    # two decoupled copies of the problem above, one gain each: the norm is the larger of the
+    # two channels' sqrt(1 + k^2)/(1 + k), least (1/sqrt(2)) only when both k = 1. At the
+    # optimum both peaks bind: the non-smooth case
+    G = control.tf([1.0], [1.0, 1.0])
+    one = control.ss(control.combine_tf([[G, -G], [0 * s, 1 + 0 * s], [G, -G]]))
+    both = control.append(one, one)           # inputs [w1 u1 w2 u2], outputs [z z y z z y]
+    rows, cols = [0, 1, 3, 4, 2, 5], [0, 2, 1, 3]
+    P = control.ss(both.A, both.B[:, cols], both.C[rows], both.D[np.ix_(rows, cols)])
+    r = hinfstruct(P, [TunableGain("k1", value=5.0, gain_bounds=(1e-3, 1e3)),
+                       TunableGain("k2", value=0.1, gain_bounds=(1e-3, 1e3))], starts=1)
+    # the norm is quadratic in k near its minimum: 1e-7 in the value is ~5e-4 in k
+    assert_allclose([r.values["k1"]["k"], r.values["k2"]["k"]], [1.0, 1.0], rtol=1e-3)
+    assert_allclose(r.gamma, 1 / np.sqrt(2), rtol=1e-7)
+
+
 def test_bad_input_is_named():
     P = doc_plant()
     with pytest.raises(FieldError, match="blocks"):
