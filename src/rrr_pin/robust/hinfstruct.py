@@ -656,8 +656,8 @@ class HinfstructResult:
     CL : control.StateSpace
         Tuned closed loop ``w -> z``.
     runs : tuple of dict
-        Per start: ``start`` (parameters), ``gamma`` (found; inf when not stabilized),
-        ``iterations``.
+        Per start: ``start`` (its parameters, after the stabilization when it needed one),
+        ``gamma`` (found; inf when not stabilized), ``iterations``.
     nfev : int
         Exact-norm evaluations over all starts.
     verified_by : str
