@@ -1,4 +1,7 @@
-"""Searches compared at equal evaluations: the README's two tables of fixed-structure tuning.
+"""Fixed-structure tuning: the searches compared at equal evaluations.
+===================================================================
+
+The README's two comparisons:
 
 1. The paper's loop-shaping index (NCF gamma of the shaped loop, lam = 45 rad/s, the paper's
    W1) over an order-2 ``K``: bounded Nelder-Mead on a log scale against
