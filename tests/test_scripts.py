@@ -22,7 +22,7 @@ RUNS = [
                             "--controllers", "fl,pd", "--out", "{tmp}/uncertain.png"]),
     ("identify_example.py", ["--quick", "--out", "{tmp}"]),
     ("identify_example.py", ["--quick", "--friction", "--out", "{tmp}"]),
-    ("compare_searches.py", ["--starts", "1", "--maxfev", "15", "--nm-maxfev", "20",
+    ("compare_searches.py", ["--starts", "1", "--maxfev", "8", "--nm-maxfev", "6",
                              "--plants", "0", "--out", "{tmp}/searches.png"]),
 ]
 
