@@ -22,6 +22,8 @@ RUNS = [
                             "--controllers", "fl,pd", "--out", "{tmp}/uncertain.png"]),
     ("identify_example.py", ["--quick", "--out", "{tmp}"]),
     ("identify_example.py", ["--quick", "--friction", "--out", "{tmp}"]),
+    ("compare_searches.py", ["--starts", "1", "--maxfev", "8", "--nm-maxfev", "6",
+                             "--plants", "0", "--out", "{tmp}/searches.png"]),
 ]
 
 # issue 13's keys, and the keys the benchmark had before them (kept for the README's table).

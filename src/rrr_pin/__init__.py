@@ -46,6 +46,8 @@ _EXPORTS = {
     "gapmetric": "robust.gap",
     "hinf_aw_controller": "control.laws",
     "hinf_fl_controller": "control.laws",
+    "hinfstruct": "robust.hinfstruct",
+    "HinfstructResult": "robust.hinfstruct",
     "IKError": "control.references",
     "LinearModel": "control.laws",
     "LinePath": "control.references",

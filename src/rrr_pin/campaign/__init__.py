@@ -6,7 +6,8 @@ campaign), :mod:`~rrr_pin.campaign.runner` (``RunSettings``, ``run_laws``: any l
 (campaigns of seeded plants), :mod:`~rrr_pin.campaign.stress` (breaking points of plant
 effects), :mod:`~rrr_pin.campaign.store` (append-only storage, resume) and
 :mod:`~rrr_pin.campaign.executors` (local processes or Dask), :mod:`~rrr_pin.campaign.requirements`
-and :mod:`~rrr_pin.campaign.tuning` (design to requirements: ``tune``). Each takes any plant
+and :mod:`~rrr_pin.campaign.tuning` (design to requirements: ``tune``, with the search of
+:mod:`~rrr_pin.campaign.minimax`). Each takes any plant
 (:mod:`rrr_pin.model.plant`): a serial arm and a closed chain run the same code. The study and
 the campaign are siblings on the runner: neither imports the other.
 

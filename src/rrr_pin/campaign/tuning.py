@@ -345,7 +345,8 @@ def _check_requirements(requirements, nominal, fixed) -> list:
 def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances=None,
          reference=None, rate: float = 1000.0, fixed=None, starts: int = 4,
          maxfev: int | None = None, verify: bool = True, simulate: bool = True,
-         duration: float = 4.0, stress_settings=None) -> TuneResult:
+         duration: float = 4.0, stress_settings=None,
+         search: str = "nelder-mead") -> TuneResult:
     """Tune ``structure`` on ``robot`` against ``requirements`` over a plant set, and verify.
 
     Parameters
@@ -379,6 +380,10 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         ratio, stress breaking points).
     duration : float
         Simulated time of the tracking runs [s].
+    search : {"nelder-mead", "minimax"}
+        The search per start: scipy's bounded Nelder-Mead on the worst normalized value, or
+        :func:`rrr_pin.campaign.minimax.minimax` (trust-region linear programs on the
+        requirements' linearizations, the max kept explicit); both get ``maxfev``.
 
     Returns
     -------
@@ -409,6 +414,9 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
                                       f"nothing to tune")
     rate = check_rate("rate", rate)
     starts = check_count("starts", starts, 1)
+    if search not in ("nelder-mead", "minimax"):
+        raise FieldError("search", f"{{name}} must be 'nelder-mead' or 'minimax', got "
+                                   f"{search!r}")
     fixed = check_fixed(fixed)
     reqs = _check_requirements(requirements, robot, fixed)
     if isinstance(plants, int | np.integer):
@@ -459,15 +467,26 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     x0s += [rng.uniform(bounds[:, 0], bounds[:, 1]) for _ in range(starts - 1)]
     maxfev = maxfev or 150 * (len(names) + 1)
     best, runs = None, []
+    def normalized(x):   # the vector whose max is the objective (minimax search)
+        f, _, vals = evaluate(x)
+        return np.full(len(reqs), f) if vals is None else \
+            np.array([r.normalized(v) for r, v in zip(reqs, vals, strict=True)])
+
     for x0 in x0s:
-        res = minimize(lambda x: evaluate(x)[0], x0, method="Nelder-Mead",
-                       bounds=list(map(tuple, bounds)),
-                       options={"maxfev": maxfev, "xatol": 1e-4, "fatol": 1e-6,
-                                "adaptive": len(names) > 3})
+        if search == "minimax":
+            from .minimax import minimax
+
+            xs, fun, nfev = minimax(normalized, x0, bounds, maxfev)
+        else:
+            res = minimize(lambda x: evaluate(x)[0], x0, method="Nelder-Mead",
+                           bounds=list(map(tuple, bounds)),
+                           options={"maxfev": maxfev, "xatol": 1e-4, "fatol": 1e-6,
+                                    "adaptive": len(names) > 3})
+            xs, fun, nfev = res.x, float(res.fun), int(res.nfev)
         runs.append({"initial": dict(zip(names, np.exp(x0).tolist(), strict=True)),
-                     "objective": float(res.fun), "evaluations": int(res.nfev)})
-        if best is None or res.fun < best[0]:
-            best = (float(res.fun), res.x)
+                     "objective": float(fun), "evaluations": int(nfev)})
+        if best is None or fun < best[0]:
+            best = (float(fun), xs)
     objective, x = best
     values = np.exp(np.clip(x, bounds[:, 0], bounds[:, 1]))
     lam, K = structure.split(values)
@@ -477,7 +496,9 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
             "reference": reference.to_dict(),
             "grid_rad_s": [float(loops.omega[0]), float(loops.omega[-1]),
                            int(loops.omega.size)],
-            "search": "scipy Nelder-Mead (bounded, log scale), seeded starts",
+            "search": ("minimax: trust-region linear programs (scipy HiGHS), log scale, "
+                       "seeded starts" if search == "minimax" else
+                       "scipy Nelder-Mead (bounded, log scale), seeded starts"),
             "seconds_search": time.perf_counter() - t0}
     if estimates is None:
         result = TuneResult(structure, values, lam, K, rate, [], objective, "unstable",

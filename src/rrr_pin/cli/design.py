@@ -57,6 +57,9 @@ def add_tuning_arguments(p) -> None:
     g.add_argument("--with", dest="fixed", action="append", default=[], metavar="EFFECT=SIZE",
                    help="an effect present in every evaluation, delay=S or actuator=RAD_S")
     g.add_argument("--starts", type=int, default=4, help="seeded starts of the search (4)")
+    g.add_argument("--search", choices=("nelder-mead", "minimax"), default="nelder-mead",
+                   help="search per start: bounded Nelder-Mead (default) or minimax "
+                        "(trust-region linear programs, the worst requirement explicit)")
     g.add_argument("--no-simulate", action="store_true",
                    help="verify without the simulations (peak torque, error ratio, stress "
                         "breaking points)")
@@ -88,7 +91,7 @@ def run_tuned(args) -> int:
     try:
         res = tune(robot, structure, reqs, plants=args.samples, seed=args.seed,
                    rate=args.rate, fixed=fixed, starts=args.starts,
-                   simulate=not args.no_simulate)
+                   simulate=not args.no_simulate, search=args.search)
     except TuneError as exc:
         if exc.result is not None:
             (out / "design_refused.json").write_text(dumps(exc.result.to_dict()))
