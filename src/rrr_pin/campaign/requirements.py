@@ -43,34 +43,53 @@ def _sens(L: np.ndarray) -> np.ndarray:
     return np.linalg.inv(eye + L)
 
 
-def disk_margin_grid(L: np.ndarray, S=None) -> np.ndarray:
+def disk_margin_grid(L: np.ndarray, S=None, screen: bool = True) -> np.ndarray:
     r"""Balanced multiloop disk margin on a grid, per plant: ``1 / max_w sigma_max(S - I/2)``.
 
     The unstructured bound (``sigma_max`` instead of SLICOT's ``mu`` upper bound of
-    python-control's ``disk_margins``), so never above it; equal for a SISO loop.
+    python-control's ``disk_margins``), so never above it; equal for a SISO loop. LAPACK
+    only where the peak can be (:func:`~rrr_pin.control.grid_bounds.peak_sigma`).
 
     Parameters
     ----------
     L : ndarray, shape (np, nw, n, n)
+    S : ndarray, same shape, optional
+        ``(I + L)^-1`` if known.
+    screen : bool
+        False: LAPACK at every point.
 
     Returns
     -------
     ndarray, shape (np,)
     """
+    from ..control.grid_bounds import peak_sigma
+
     S = (_sens(L) if S is None else S) - 0.5 * np.eye(L.shape[-1])
-    sig = np.linalg.svd(S, compute_uv=False)[..., 0]
-    return 1.0 / sig.max(axis=1)
+    return 1.0 / peak_sigma(S, screen)
 
 
-def bandwidth_grid(L: np.ndarray, omega: np.ndarray, S=None) -> np.ndarray:
+#: The error bandwidth's level of ``sigma_max(S)`` (-3 dB).
+BANDWIDTH_LEVEL = 1.0 / math.sqrt(2.0)
+
+
+def bandwidth_grid(L: np.ndarray, omega: np.ndarray, S=None,
+                   screen: bool = True) -> np.ndarray:
     r"""Error bandwidth per plant: lowest ``w`` with ``sigma_max(S(jw)) >= 1/sqrt(2)`` [rad/s].
 
     Interpolated linearly in ``log w`` between grid points; ``inf`` if never reached.
+    Singular values by LAPACK only where they decide it
+    (:func:`~rrr_pin.control.grid_bounds.level_sigmas`): the value is the full grid's.
     """
-    sig = np.linalg.svd(_sens(L) if S is None else S, compute_uv=False)[..., 0]  # (np, nw)
-    lvl = 1.0 / math.sqrt(2.0)
-    out = np.full(L.shape[0], np.inf)
-    for p in range(L.shape[0]):
+    from ..control.grid_bounds import level_sigmas
+
+    sig = level_sigmas(_sens(L) if S is None else S, BANDWIDTH_LEVEL, screen)  # (np, nw)
+    return _first_crossing(sig, omega, BANDWIDTH_LEVEL)
+
+
+def _first_crossing(sig, omega, lvl) -> np.ndarray:
+    """Lowest ``w`` where ``sig[p]`` reaches ``lvl``, interpolated in ``log w``, per plant."""
+    out = np.full(sig.shape[0], np.inf)
+    for p in range(sig.shape[0]):
         above = np.nonzero(sig[p] >= lvl)[0]
         if above.size == 0:
             continue
@@ -152,10 +171,9 @@ class DelayMargin(Requirement):
         from ..control.sampled_loops import delay_margin_from_response
 
         wa = self._wa(ctx)
-        L = ev.L if wa is None else ev.L * (wa / (1j * ctx.loops.omega + wa))[None, :, None,
-                                                                                None]
-        eigs = ev.eigs("actuator") if self.actuator is None else None
-        return float(np.min(delay_margin_from_response(L, ctx.loops.omega, eigs)))
+        f = None if wa is None else wa / (1j * ctx.loops.omega + wa)
+        eigs, iv = ev.scaled_eigs(f, "modulus")
+        return float(np.min(delay_margin_from_response(None, ctx.loops.omega, eigs, iv)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -180,7 +198,7 @@ class DiskMargin(Requirement):
 
     def estimate(self, ctx, ev):
         """Return the grid value, worst over the plants."""
-        return float(np.min(disk_margin_grid(ev.L, ev.S())))
+        return float(np.min(disk_margin_grid(ev.L, ev.S(), ctx.screen)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -223,11 +241,10 @@ class ActuatorBandwidth(Requirement):
         """Return the grid value, worst over the plants."""
         from ..control.sampled_loops import actuator_margin_from_response
 
-        if self.delay is None:
-            return float(np.max(actuator_margin_from_response(None, ctx.loops.omega,
-                                                              ev.eigs("delay"))))
-        L = ev.L * np.exp(-1j * ctx.loops.omega * self.delay)[None, :, None, None]
-        return float(np.max(actuator_margin_from_response(L, ctx.loops.omega)))
+        delay = self._delay(ctx)
+        f = np.exp(-1j * ctx.loops.omega * delay) if delay else None
+        eigs, iv = ev.scaled_eigs(f, "real")
+        return float(np.max(actuator_margin_from_response(None, ctx.loops.omega, eigs, iv)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -243,7 +260,7 @@ class Bandwidth(Requirement):
 
     def estimate(self, ctx, ev):
         """Return the grid value, worst over the plants."""
-        return float(np.min(bandwidth_grid(ev.L, ctx.loops.omega, ev.S())))
+        return float(np.min(bandwidth_grid(ev.L, ctx.loops.omega, ev.S(), ctx.screen)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -286,8 +303,10 @@ class NoiseGain(Requirement):
     def estimate(self, ctx, ev):
         """Return the grid peak, worst over the plants."""
         n = ctx.loops.n
+        from ..control.grid_bounds import peak_sigma
+
         T = ev.S() @ ev.law.C[None, :, :, :n]
-        return float(np.linalg.svd(T, compute_uv=False)[..., 0].max())
+        return float(peak_sigma(T, ctx.screen).max())
 
     def verify(self, ctx, ev):
         """Return the H-infinity norm of each plant's discrete loop (SLICOT AB13DD), worst."""

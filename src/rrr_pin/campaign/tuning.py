@@ -72,13 +72,44 @@ class _Eval:
         self.law = ctx.loops.law(lam, K)
         self.L = ctx.loops.loop_response(self.law)
         self._sim = None
-        self._eigs, self._S = {}, None
+        self._S, self._discs, self._lam, self._done = None, None, None, None
 
-    def eigs(self, *keep):
-        """Eigenvalues of :meth:`L_fixed` ``(*keep)``, computed once, shape (np, nw, n)."""
-        if keep not in self._eigs:
-            self._eigs[keep] = np.linalg.eigvals(self.L_fixed(*keep))
-        return self._eigs[keep]
+    def scaled_eigs(self, factor, kind):
+        """Eigenvalues of ``f(w) L`` where a margin may cross, and those intervals.
+
+        Eigenvalues of ``L`` are computed (LAPACK, once per grid point) only at the ends of
+        the intervals :func:`~rrr_pin.control.grid_bounds.crossing_intervals` cannot rule
+        out, then scaled by ``f`` (a scalar per frequency: ``eig(f L) = f eig(L)``); NaN
+        elsewhere. The margins searched on those intervals are the full grid's.
+
+        Parameters
+        ----------
+        factor : ndarray, shape (nw,), complex, or None
+        kind : {"modulus", "real"}
+
+        Returns
+        -------
+        eigs : ndarray, shape (np, nw, n), complex
+        intervals : ndarray of bool, shape (np, nw - 1)
+        """
+        from ..control.grid_bounds import crossing_intervals, gershgorin_discs
+
+        if self._discs is None:
+            self._discs = gershgorin_discs(self.L)
+            self._lam = np.full(self.L.shape[:-1], np.nan, complex)
+            self._done = np.zeros(self.L.shape[:2], bool)
+        iv = crossing_intervals(self._discs, factor, kind)
+        if not self.ctx.screen:
+            iv = np.ones_like(iv)
+        need = np.zeros_like(self._done)
+        need[:, :-1] |= iv
+        need[:, 1:] |= iv
+        need &= ~self._done
+        if need.any():
+            self._lam[need] = np.linalg.eigvals(self.L[need])
+            self._done |= need
+        lam = self._lam if factor is None else self._lam * factor[None, :, None]
+        return lam, iv
 
     def S(self):
         """Input sensitivity ``(I + L)^-1`` of the loop without effects, computed once."""
@@ -144,6 +175,8 @@ class _Context:
     id_peak: np.ndarray = None
     harmonics: tuple = None
     fl_energy: float = None
+    #: Screen the grid (:mod:`rrr_pin.control.grid_bounds`); False: LAPACK at every point.
+    screen: bool = True
 
     def joint_index(self, name):
         return list(self.nominal.joint_names).index(name)
@@ -169,16 +202,16 @@ class _Context:
         w = 2.0 * np.pi * np.fft.rfftfreq(nfft, 1.0 / fs)
         w[0] = 1e-3 * w[1]                                          # DC: the slowest bin
         P = self.loops.plant_response(w)                            # (np, nf, 2n, n)
-        self.harmonics = (w, W, t.size, nfft, P)
+        self.harmonics = (w, W, t.size, nfft, self.loops.parts(P))
         self.fl_energy = self._energy(100.0, None)
 
     def _energy(self, lam, K):
-        w, W, nt, nfft, P = self.harmonics
+        w, W, nt, nfft, parts = self.harmonics
         law = self.loops.law(lam, K, w, matrices=False)
-        L = self.loops.loop_response(law, P)
+        L = self.loops.loop_response(law, parts=parts)
         n = L.shape[-1]
-        S = np.linalg.inv(np.eye(n) + L)
-        E = np.einsum("pwij,pwjk,pwk->pwi", P[:, :, :n, :], S, W)
+        # e = P_q S w, S = (I + L)^-1 applied by a solve
+        E = (parts[0] @ np.linalg.solve(np.eye(n) + L, W[..., None]))[..., 0]
         e = np.fft.irfft(E, n=nfft, axis=1)[:, :nt]
         return float(np.sum(e * e))
 
@@ -211,6 +244,23 @@ class _Context:
         ev._sim = {"peak_torque": np.array(peak),
                    "error_ratio": math.sqrt(err_fl / err) if err > 0 else math.inf}
         return ev._sim
+
+
+def _context(robot, plants, reference, rate, fixed, duration) -> _Context:
+    """Build the tuner's context: the plants' digital loops and the tracking estimate's inputs.
+
+    The loops are linearized at the reference's mean configuration.
+    """
+    from ..control.sampled_loops import LoopSet
+    from .runner import RunSettings
+
+    t = np.linspace(0.0, duration, 401)
+    home = np.asarray(reference.sample(t)[0], float).mean(axis=0)
+    loops = LoopSet(robot, plants, home, rate)
+    ctx = _Context(robot, loops, reference, fixed, RunSettings(duration=duration, rate=rate),
+                   list(plants))
+    ctx.prepare_tracking(duration)
+    return ctx
 
 
 def _law(nominal, lam, K, name="tuned"):
@@ -396,9 +446,7 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     from scipy.optimize import minimize
 
     from ..control.references import default_reference
-    from ..control.sampled_loops import LoopSet
     from ..model.uncertainty import Tolerances
-    from .runner import RunSettings
     from .stress import check_fixed
 
     t0 = time.perf_counter()
@@ -422,12 +470,8 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         plant_list = list(plants)
         plant_info = {"given": len(plant_list)}
     reference = reference or default_reference(robot)
-    t = np.linspace(0.0, duration, 401)
-    home = np.asarray(reference.sample(t)[0], float).mean(axis=0)
-    loops = LoopSet(robot, plant_list, home, rate)
-    run = RunSettings(duration=duration, rate=rate)
-    ctx = _Context(robot, loops, reference, fixed, run, plant_list)
-    ctx.prepare_tracking(duration)
+    ctx = _context(robot, plant_list, reference, rate, fixed, duration)
+    loops, home = ctx.loops, ctx.loops.home
     for r in reqs:
         r.prepare(ctx)
 
