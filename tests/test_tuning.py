@@ -379,3 +379,153 @@ def test_cli_montecarlo_records_the_design(tmp_path, design_run):
     summary = json.loads((tmp_path / "m" / "summary.json").read_text())
     assert summary["design"]["requirements"][1]["name"] == "disk_margin"
     assert "tuned" in run.stdout
+
+
+# --- reference model, per-joint structures, plant sets (issue 34 items 1-2) ---------------------
+
+def test_reference_model_of_fl_alone_is_its_bandwidth(fast):
+    from rrr_pin.campaign.requirements import ReferenceModel
+
+    # on the nominal plant E = 1 / (s + lam)^2: 1/|E| - w^2/M = lam^2 + w^2 (1 - 1/M) >= lam^2,
+    # so the largest model bandwidth met is lam itself, for any M > 1
+    ev = _Eval(fast, LAM, None)
+    for M in (1.5, 2.0):
+        req = ReferenceModel(10.0, peak=M)
+        # the grid's lowest point is 0.1 rad/s: lam^2 + 0.01 (1 - 1/M), 1e-6 relative
+        assert_allclose(req.estimate(fast, ev), LAM, rtol=1e-5)
+        assert_allclose(req.verify(fast, ev)[0], LAM, rtol=1e-5)
+
+
+def test_reference_model_with_a_gain_matches_the_continuous_closed_form(fast):
+    from rrr_pin.campaign.requirements import ReferenceModel
+
+    lam, k, M = 60.0, 3.0, 2.0
+    ev = _Eval(fast, lam, control.tf([k], [1.0]))
+    # E = 1 / (s^2 + 2 lam s + lam^2 (1 + k)) on the nominal plant: the minimum of
+    # |lam^2 (1 + k) - w^2 + 2j lam w| - w^2 / M on a fine grid, by this independent formula
+    w = np.geomspace(0.01, 1e5, 400001)
+    g = np.abs(lam ** 2 * (1 + k) - w ** 2 + 2j * lam * w) - w ** 2 / M
+    want = math.sqrt(g.min())
+    req = ReferenceModel(10.0, peak=M)
+    # the minimum is a difference of two near-equal terms, so the sampled loop's 5 us hold
+    # moves it by 6e-4 (measured; 1e6 Hz gives 5e-5); the 200-point grid adds 3e-4
+    assert_allclose(req.verify(fast, ev)[0], want, rtol=1e-3)
+    assert_allclose(req.estimate(fast, ev), want, rtol=2e-3)
+    fast.screen = False
+    try:
+        unscreened = req.estimate(fast, ev)
+    finally:
+        fast.screen = True
+    assert_allclose(req.estimate(fast, ev), unscreened, rtol=1e-12)   # same LAPACK values
+
+
+def test_reference_model_against_delay_margin_is_the_closed_form_trade_off(rrr):
+    from rrr_pin.campaign.requirements import ReferenceModel
+
+    # FL alone, lam free: the model bandwidth met is lam (above), the delay margin c / lam;
+    # the best worst ratio max(W / lam, tau lam / c) is at lam^2 = W c / tau
+    c = math.atan(2 * math.sqrt(2 + math.sqrt(5))) / math.sqrt(2 + math.sqrt(5))
+    tau, W = 0.005, 300.0
+    res = tune(rrr, FLOnly(lam=None), [DelayMargin(tau), ReferenceModel(W)], plants=0,
+               rate=FAST, starts=2, verify=False)
+    lam = math.sqrt(W * c / tau)
+    assert_allclose(res.lam, lam, rtol=5e-3)   # the delay margin's grid interpolation
+    assert res.status == "trade-off"
+    assert set(res.tradeoff["binding"]) == {"delay_margin", "reference_model"}
+    assert_allclose(res.objective, math.sqrt(W * tau / c), rtol=5e-3)
+
+
+def test_reference_model_text_and_bad_peak():
+    from rrr_pin.campaign.requirements import ReferenceModel
+
+    r = make_requirement("reference_model=30,peak=1.5")
+    assert isinstance(r, ReferenceModel) and (r.target, r.peak) == (30.0, 1.5)
+    with pytest.raises(FieldError, match="peak of reference_model must be > 1"):
+        make_requirement("reference_model=30,peak=0.5")
+
+
+def test_per_joint_gains_give_each_joints_closed_form_delay_margin(fast, rrr):
+    from rrr_pin.control.structures import PerJoint
+
+    st = PerJoint(base=Gain(lam=LAM), joints=rrr.joint_names)
+    assert st.names == ("k@joint1", "k@joint2", "k@joint3")
+    ks = [0.5, 1.0, 2.0]
+    lam, K = st.split(ks)
+    ev = _Eval(fast, lam, K)
+    # on the nominal plant each joint is its own SISO loop (2 lam s + lam^2 (1 + k_j)) / s^2;
+    # python-control's margin gives each phase margin; the common delay margin is the least
+    taus = []
+    for k in ks:
+        s = control.tf("s")
+        _, pm, _, wc = control.margin((2 * LAM * s + LAM ** 2 * (1 + k)) / s ** 2)
+        taus.append(math.radians(pm) / wc)
+    assert_allclose(DelayMargin(0.001).estimate(fast, ev), min(taus), rtol=2e-3)  # as above
+    # the shared gain at the stiffest joint's value: the same worst joint
+    assert_allclose(DelayMargin(0.001).estimate(fast, _Eval(fast, LAM, control.tf([2.0],
+                                                                                   [1.0]))),
+                    min(taus), rtol=2e-3)
+
+
+def test_per_joint_design_round_trips_and_refuses_other_joints(rrr, tmp_path):
+    from rrr_pin.control.structures import PerJoint
+
+    st = make_structure("leadlag", lam=45.0, joints=rrr.joint_names, per_joint=True)
+    assert isinstance(st, PerJoint) and len(st.names) == 9
+    res = tune(rrr, st, [DelayMargin(0.004), DiskMargin(0.5)], plants=1, starts=1,
+               simulate=False, maxfev=40)
+    path = tmp_path / "design.json"
+    path.write_text(json.dumps(res.to_dict(), default=float))
+    data = load_design(path)
+    assert len(data["K"]["per_joint"]) == 3
+    law = tuned_law(data, rrr)
+    s = 7.0j
+    for j, Kj in enumerate(res.K):   # the law's K is diag(K_1, K_2, K_3)
+        assert_allclose(law.K(s)[j, j], Kj(s), rtol=1e-9)
+        assert_allclose(law.K(s)[j, (j + 1) % 3], 0.0, atol=1e-12)
+    with pytest.raises(FieldError, match="per-joint structure on joints"):
+        tune(rrr, PerJoint(base=Gain(), joints=("a", "b", "c")), [DelayMargin(0.003)],
+             plants=0)
+    with pytest.raises(FieldError, match="PerJoint of fl has no outer controller"):
+        PerJoint(base=FLOnly(), joints=rrr.joint_names)
+
+
+def test_vertex_plants_sit_on_the_corners_of_the_box(rrr):
+    from rrr_pin.model.uncertainty import ToleranceVertices
+
+    tol = ToleranceVertices()
+    _, info = rrr.perturbed(np.random.default_rng([0, 3]), tol)
+    factors = []
+    for link in info["factors"]["links"]:
+        factors += [link["mass"], *link["second_moments"], link["length"]]
+    f = np.array(factors)
+    inertia = np.array([True, True, True, True, False] * 3)
+    # every factor at an end of its interval, both ends present
+    assert_allclose(np.abs(f[inertia] - 1.0), tol.inertia, rtol=1e-12)
+    assert_allclose(np.abs(f[~inertia] - 1.0), tol.length, rtol=1e-12)
+    assert (f > 1).any() and (f < 1).any()
+    assert tol.as_settings()["draw"] == "vertices"
+
+
+def test_cli_design_per_joint_on_vertices(tmp_path):
+    from conftest import run_cli
+
+    run = run_cli(["design", "--robot", "rrr", "--structure", "gain", "--per-joint",
+                   "--plants", "vertices", "--samples", "1", "--starts", "1",
+                   "--no-simulate", "--require", "reference_model=20", "--require",
+                   "delay_margin=0.004"], tmp_path / "d")
+    assert run.code == 0, run.stderr
+    data = load_design(tmp_path / "d" / "design.json")
+    assert len(data["K"]["per_joint"]) == 3
+    assert data["plants"]["tolerances"]["draw"] == "vertices"
+    assert [row["name"] for row in data["requirements"]] == ["reference_model",
+                                                             "delay_margin"]
+
+
+def test_cli_design_vertices_of_an_identified_set_are_refused(tmp_path):
+    from conftest import run_cli
+
+    run = run_cli(["design", "--robot", "rrr", "--plants", "vertices", "--uncertainty",
+                   str(tmp_path / "identification.json"), "--require", "disk_margin=0.4"],
+                  tmp_path / "d")
+    assert run.code == 2 and "--plants vertices takes the corners" in run.stderr
+    assert "Traceback" not in run.stderr

@@ -13,8 +13,8 @@ linearized at the reference's mean configuration), with the effects held fixed (
 
 Built in (:data:`REQUIREMENTS`, the CLI's ``--require NAME=VALUE``): ``delay_margin`` [s],
 ``disk_margin`` [-], ``actuator_bandwidth`` [rad/s], ``bandwidth`` [rad/s], ``peak_torque``
-[N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad]. Write your own by
-subclassing :class:`Requirement`.
+[N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad], ``reference_model``
+[rad/s]. Write your own by subclassing :class:`Requirement`.
 """
 
 from __future__ import annotations
@@ -28,13 +28,19 @@ import numpy as np
 from ..validation import FieldError, check_positive
 
 __all__ = ["Requirement", "DelayMargin", "DiskMargin", "ActuatorBandwidth", "Bandwidth",
-           "PeakTorque", "ErrorRatio", "NoiseGain", "REQUIREMENTS", "make_requirement",
+           "PeakTorque", "ErrorRatio", "NoiseGain", "ReferenceModel", "REQUIREMENTS",
+           "make_requirement",
            "disk_margin_grid", "bandwidth_grid"]
 
 
 #: Largest delay, in samples of the law, that :meth:`DelayMargin.verify` builds an exact
 #: discrete loop for (each sample adds ``n`` states to the eigenvalue problem).
 MAX_DELAY_SAMPLES = 200
+
+
+def _sigma_max(A: np.ndarray) -> np.ndarray:
+    """Largest singular value of stacked matrices (LAPACK ``gesdd``), shape ``A.shape[:-2]``."""
+    return np.linalg.svd(A, compute_uv=False)[..., 0]
 
 
 def _sens(L: np.ndarray) -> np.ndarray:
@@ -287,6 +293,100 @@ class Bandwidth(Requirement):
 
 
 @dataclass(frozen=True)
+class ReferenceModel(Requirement):
+    r"""Tracking against a reference model: the error no larger than the model's [rad/s].
+
+    The tracking error the FL law leaves is driven by the acceleration its model misses
+    (``Mhat^-1`` times the torque mismatch, what :class:`ErrorRatio` simulates); per unit of
+    it the error is ``E = P_q S Mhat`` (``P_q``: plant torque to ``q``; ``S = (I + L)^-1``),
+    on the nominal plant ``1 / (s + lam)^2`` per joint (eq. 10's closed loop). The reference
+    model is that closed loop at bandwidth ``w_m``, with a high-frequency allowance ``M``
+    (above any inertia mismatch, where no controller acts):
+
+    .. math:: \bar\sigma\big(E(e^{j\omega T})\big) \le |E_m(j\omega)|
+              = \frac{1}{\omega^2 / M + w_m^2} \quad \forall \omega,
+              \qquad E_m(s) = \frac{1}{(s / \sqrt{M} + w_m)^2}
+
+    (Skogestad & Postlethwaite 2005, eq. 2.105, squared, as a bound on the error). The
+    achieved value is the largest ``w_m`` met,
+    ``w_m^* = \min_\omega \sqrt{1/\bar\sigma(E) - \omega^2 / M}`` (0 where negative), worst
+    plant; FL alone of bandwidth ``lam`` achieves ``lam`` on the nominal plant (``M > 1``: the
+    sampled loop's hold exceeds the continuous model near the Nyquist frequency).
+
+    Parameters
+    ----------
+    target : float
+        The model's bandwidth ``w_m`` the loop must reach [rad/s].
+    peak : float
+        ``M`` [-], the allowance at high frequency (CLI: ``reference_model=30,peak=1.5``;
+        default 2).
+    """
+
+    peak: float = 2.0
+    name: ClassVar[str] = "reference_model"
+    unit: ClassVar[str] = "rad/s"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "peak", check_positive("peak", self.peak))
+        if self.peak <= 1.0:
+            raise FieldError("peak", f"{{name}} of reference_model must be > 1 (1 is the FL "
+                                     f"double integrator's continuous closed loop, which its "
+                                     f"sampled loop exceeds near the Nyquist frequency), got "
+                                     f"{self.peak!r}")
+
+    def _g(self, w, sig):
+        """``1/sigma - w^2/M``: the model bandwidth squared each point allows."""
+        with np.errstate(divide="ignore"):
+            return 1.0 / sig - w * w / self.peak
+
+    @staticmethod
+    def _E(loops, S, Pq):
+        """``P_q S Mhat``, the error per unit of missed acceleration, shape of ``S``."""
+        return Pq @ S @ loops.Mhat
+
+    def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
+        from ..control.grid_bounds import peak_from_bounds, sigma_bounds
+
+        w = ctx.loops.omega
+        E = self._E(ctx.loops, ev.S(), ctx.loops.P[..., :ctx.loops.n, :])
+        if ctx.screen:
+            lo, hi = sigma_bounds(E)
+            # the largest -g: -g grows with sigma
+            neg = peak_from_bounds(-self._g(w, np.maximum(lo, 1e-300)), -self._g(w, hi),
+                                   lambda m: -self._g(np.broadcast_to(w, m.shape)[m],
+                                                      _sigma_max(E[m])))
+        else:
+            neg = (-self._g(w, _sigma_max(E))).max(axis=1)
+        return float(math.sqrt(max(float(np.min(-neg)), 0.0)))
+
+    def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
+        from scipy.optimize import minimize_scalar
+
+        loops, w, n = ctx.loops, ctx.loops.omega, ctx.loops.n
+
+        def g_at(i, x):
+            P = loops.plant_response(x)[i:i + 1]
+            L = loops.loop_response(loops.law(ev.lam, ev.K, x, matrices=False), P)
+            return self._g(x, _sigma_max(self._E(loops, _sens(L), P[..., :n, :]))[0])
+
+        out = []
+        for i in range(len(loops.plants)):
+            k = int(np.argmin(g_at(i, w)))
+            lo, hi = math.log(w[max(k - 1, 0)]), math.log(w[min(k + 1, w.size - 1)])
+            best = float(g_at(i, w[k:k + 1])[0])
+            if hi > lo:
+                res = minimize_scalar(
+                    lambda lw, i=i: float(g_at(i, np.array([math.exp(lw)]))[0]),
+                    bounds=(lo, hi), method="bounded", options={"xatol": 1e-10})
+                best = min(best, float(res.fun))
+            out.append(math.sqrt(max(best, 0.0)))
+        return min(out), "exact frequency response, minimum over w refined (scipy bounded)"
+
+
+@dataclass(frozen=True)
 class NoiseGain(Requirement):
     r"""Noise amplification: peak gain from position-sensor noise to torque [N m/rad].
 
@@ -426,7 +526,8 @@ def _bisect_down(stable, start, rtol):
 
 #: Built-in requirements by CLI name.
 REQUIREMENTS = {cls.name: cls for cls in (DelayMargin, DiskMargin, ActuatorBandwidth,
-                                          Bandwidth, PeakTorque, ErrorRatio, NoiseGain)}
+                                          Bandwidth, PeakTorque, ErrorRatio, NoiseGain,
+                                          ReferenceModel)}
 
 
 def make_requirement(text: str) -> Requirement:
@@ -446,7 +547,8 @@ def make_requirement(text: str) -> Requirement:
     cls = REQUIREMENTS[name]
     value, *rest = value.split(",")
     extras = {}
-    allowed = {"delay_margin": "actuator", "actuator_bandwidth": "delay"}.get(name)
+    allowed = {"delay_margin": "actuator", "actuator_bandwidth": "delay",
+               "reference_model": "peak"}.get(name)
     for item in rest:
         key, eq, size = item.partition("=")
         try:

@@ -263,10 +263,37 @@ def _context(robot, plants, reference, rate, fixed, duration) -> _Context:
     return ctx
 
 
+def _diagonal(Ks):
+    """``diag(K_1, ..., K_n)`` as one ``control.TransferFunction`` (None: 0 on that joint)."""
+    import control
+
+    from ..control.sampled_loops import siso_coefficients
+
+    n = len(Ks)
+    nd = [siso_coefficients(k) if k is not None else (np.zeros(1), np.ones(1)) for k in Ks]
+    num = [[nd[i][0] if i == j else [0.0] for j in range(n)] for i in range(n)]
+    den = [[nd[i][1] if i == j else [1.0] for j in range(n)] for i in range(n)]
+    return control.tf(num, den)
+
+
 def _law(nominal, lam, K, name="tuned"):
     from ..control.laws import TrackingController
 
+    if isinstance(K, list | tuple):
+        K = _diagonal(K)
     return TrackingController(nominal=nominal, lam=lam, K=K, name=name, label="tuned design")
+
+
+def _k_record(K):
+    """``design.json``'s ``K``: ``{num, den}``, or ``{"per_joint": [{num, den}, ...]}``."""
+    from ..control.sampled_loops import siso_coefficients
+
+    if K is None:
+        return None
+    if isinstance(K, list | tuple):
+        return {"per_joint": [_k_record(k) for k in K]}
+    num, den = siso_coefficients(K)
+    return {"num": num.tolist(), "den": den.tolist()}
 
 
 @dataclass
@@ -280,8 +307,9 @@ class TuneResult:
         The tuned parameters.
     lam : float
         FL bandwidth [rad/s].
-    K : control.TransferFunction or None
-        The outer controller (negative feedback on ``e``), SISO, copied on every joint.
+    K : control.TransferFunction, list of them, or None
+        The outer controller (negative feedback on ``e``): SISO, copied on every joint, or
+        one per joint (:class:`~rrr_pin.control.structures.PerJoint`).
     rate : float
         Sampling rate [Hz] the law was tuned and verified at (Tustin ``K``).
     table : list of dict
@@ -321,10 +349,8 @@ class TuneResult:
 
     def to_dict(self) -> dict:
         """Return the ``design.json`` record."""
-        K = None if self.K is None else {
-            "num": np.asarray(self.K.num[0][0], float).ravel().tolist(),
-            "den": np.asarray(self.K.den[0][0], float).ravel().tolist()}
-        return {"format": DESIGN_FORMAT, "law": "tuned", "lam_rad_s": self.lam, "K": K,
+        return {"format": DESIGN_FORMAT, "law": "tuned", "lam_rad_s": self.lam,
+                "K": _k_record(self.K),
                 "rate_hz": self.rate, "structure": self.structure.to_dict(self.values),
                 "requirements": self.table, "objective": self.objective,
                 "status": self.status, "tradeoff": self.tradeoff, "starts": self.starts,
@@ -359,6 +385,8 @@ def _num(x):
 def _k_text(K):
     if K is None:
         return "K = 0"
+    if isinstance(K, list | tuple):
+        return "; ".join(f"joint {j + 1}: {_k_text(k)}" for j, k in enumerate(K))
     num = np.asarray(K.num[0][0], float).ravel()
     den = np.asarray(K.den[0][0], float).ravel()
     return f"K = [{', '.join(f'{c:.5g}' for c in num)}] / [{', '.join(f'{c:.5g}' for c in den)}]"
@@ -459,12 +487,13 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     starts = check_count("starts", starts, 1)
     fixed = check_fixed(fixed)
     reqs = _check_requirements(requirements, robot, fixed)
+    structure.check_joints(robot.name, robot.joint_names)
     if isinstance(plants, int | np.integer):
         count = check_count("plants", plants)
         tol = tolerances or Tolerances()
         plant_list = [robot] + [robot.perturbed(np.random.default_rng([int(seed), k]), tol)[0]
                                 for k in range(count)]
-        plant_info = {"samples": count, "seed": int(seed), "tolerances": tol.to_dict(),
+        plant_info = {"samples": count, "seed": int(seed), "tolerances": tol.as_settings(),
                       "nominal_included": True}
     else:
         plant_list = list(plants)
@@ -636,5 +665,8 @@ def tuned_law(design: dict, nominal, name: str = "tuned"):
                          f"{list(nominal.joint_names)}): tune one with rrr-pin design "
                          f"--robot ...")
     K = design.get("K")
-    K = None if K is None else control.tf(K["num"], K["den"])
+    if K is not None and "per_joint" in K:
+        K = [None if k is None else control.tf(k["num"], k["den"]) for k in K["per_joint"]]
+    elif K is not None:
+        K = control.tf(K["num"], K["den"])
     return _law(nominal, float(design["lam_rad_s"]), K, name)

@@ -148,9 +148,9 @@ def peak_from_bounds(lo: np.ndarray, hi: np.ndarray, exact) -> np.ndarray:
     -------
     ndarray, shape (np,)
     """
-    hi, lo = hi * (1.0 + SLACK), lo * (1.0 - SLACK)
+    hi, lo = hi + SLACK * np.abs(hi), lo - SLACK * np.abs(lo)
     cand = hi >= lo.max(axis=1, keepdims=True)
-    out = np.zeros(lo.shape[0])
+    out = np.full(lo.shape[0], -np.inf)
     np.maximum.at(out, np.nonzero(cand)[0], exact(cand))
     return out
 
@@ -173,7 +173,7 @@ def level_from_bounds(lo: np.ndarray, hi: np.ndarray, level: float, exact) -> np
     -------
     ndarray, shape (np, nw)
     """
-    hi, lo = hi * (1.0 + SLACK), lo * (1.0 - SLACK)
+    hi, lo = hi + SLACK * np.abs(hi), lo - SLACK * np.abs(lo)
     sig = np.where(hi < level, hi, lo)
     done = (hi >= level) & (lo < level)
     sig[done] = exact(done)

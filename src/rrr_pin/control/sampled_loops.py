@@ -39,7 +39,7 @@ from ..validation import check_rate, check_vector
 
 __all__ = ["zoh", "split_delay", "delayed_loop_matrix", "LoopSet", "LawResponse",
            "tustin_response", "delay_margin_from_response",
-           "actuator_margin_from_response"]
+           "actuator_margin_from_response", "siso_coefficients"]
 
 
 def tustin_response(K, w: np.ndarray, rate: float) -> np.ndarray:
@@ -52,12 +52,18 @@ def tustin_response(K, w: np.ndarray, rate: float) -> np.ndarray:
         return np.zeros(w.shape, complex)
     T = 1.0 / rate
     s = 1j * (2.0 / T) * np.tan(w * T / 2.0)
-    num, den = _siso(K)
+    num, den = siso_coefficients(K)
     return np.polyval(num, s) / np.polyval(den, s)
 
 
-def _siso(K) -> tuple[np.ndarray, np.ndarray]:
-    """Numerator and denominator coefficients of a SISO ``K`` (a python-control LTI)."""
+def siso_coefficients(K) -> tuple[np.ndarray, np.ndarray]:
+    """Return the numerator and denominator coefficients of a SISO ``K`` (python-control LTI).
+
+    Returns
+    -------
+    num, den : ndarray, shape (m + 1,), (p + 1,)
+        Highest power first.
+    """
     import control
 
     if not isinstance(K, control.TransferFunction):
@@ -77,7 +83,7 @@ def _tustin_ss(K, T: float) -> tuple:
     """
     if K is None:
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), 0.0
-    num, den = _siso(K)
+    num, den = siso_coefficients(K)
     num = np.trim_zeros(num, "f")
     den = np.trim_zeros(den, "f")
     m = den.size - 1

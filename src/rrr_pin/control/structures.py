@@ -15,7 +15,9 @@ Write your own structure by subclassing :class:`Structure`: give ``names``, ``bo
 between its bounds (all parameters are positive).
 
 Built in: :class:`FLOnly` (no ``K``), :class:`Gain`, :class:`PID` (derivative filter),
-:class:`LeadLag`, :class:`FixedOrder` (a strictly stable order-``m`` transfer function).
+:class:`LeadLag`, :class:`FixedOrder` (a strictly stable order-``m`` transfer function), and
+:class:`PerJoint` (any of these once per joint: ``K`` diagonal, each joint its own
+parameters; ``lam`` stays shared, the law's one bandwidth).
 """
 
 from __future__ import annotations
@@ -27,8 +29,8 @@ import numpy as np
 
 from ..validation import FieldError, check_count, check_positive
 
-__all__ = ["Structure", "FLOnly", "Gain", "PID", "LeadLag", "FixedOrder", "STRUCTURES",
-           "make_structure", "LAM_BOUNDS"]
+__all__ = ["Structure", "FLOnly", "Gain", "PID", "LeadLag", "FixedOrder", "PerJoint",
+           "STRUCTURES", "make_structure", "LAM_BOUNDS"]
 
 #: Default search range of a tuned ``lam`` [rad/s].
 LAM_BOUNDS = (5.0, 500.0)
@@ -76,6 +78,9 @@ class Structure:
         """Return ``K(s)`` (``control.TransferFunction``, SISO, continuous) of the values."""
         raise NotImplementedError(f"{type(self).__name__} must implement K(values)")
 
+    def check_joints(self, robot: str, joint_names) -> None:
+        """Refuse an arm whose joints the structure does not fit (nothing by default)."""
+
     # -- derived -------------------------------------------------------------------------------
     @property
     def names(self) -> tuple:
@@ -93,7 +98,10 @@ class Structure:
         return np.array(lam0 + list(self.outer_initial()), dtype=float)
 
     def split(self, values) -> tuple[float, object]:
-        """Return ``(lam, K)`` of the free parameters ``values`` (``K`` None: FL alone)."""
+        """Return ``(lam, K)`` of the free parameters ``values``.
+
+        ``K`` None: FL alone; a list: one SISO ``K`` per joint.
+        """
         values = list(np.asarray(values, dtype=float))
         lam = values.pop(0) if self.lam is None else self.lam
         return float(lam), self.K(values)
@@ -266,11 +274,80 @@ class FixedOrder(Structure):
         return {**super().to_dict(values), "order": self.order}
 
 
+@dataclass(frozen=True)
+class PerJoint(Structure):
+    r"""One outer controller per joint, each of the shape of ``base``, ``lam`` shared.
+
+    ``K(s) = diag(K_1(s), ..., K_n(s))``, every ``K_j`` a ``base`` structure with its own
+    parameters (named ``<name>@<joint>``). ``lam`` is shared by every joint, fixed or tuned as
+    ``base``'s: the law (:class:`~rrr_pin.control.laws.TrackingController`, its compiled and
+    exported forms) takes one FL bandwidth, so a per-joint ``lam`` is refused by name.
+
+    Parameters
+    ----------
+    base : Structure
+        The shape of each joint's controller (its ``lam`` and ``lam_bounds`` are the law's).
+    joints : tuple of str
+        The arm's joint names, in order (``robot.joint_names``).
+    """
+
+    base: Structure = None
+    joints: tuple = ()
+    kind: ClassVar[str] = "perjoint"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.base, Structure) or isinstance(self.base, PerJoint):
+            raise FieldError("structure", f"{{name}}: PerJoint needs a base Structure (gain, "
+                                          f"pid, leadlag, orderN), got {self.base!r}")
+        if isinstance(self.base, FLOnly):
+            raise FieldError("structure", "{name}: PerJoint of fl has no outer controller to "
+                                          "give each joint")
+        joints = tuple(str(j) for j in self.joints)
+        if not joints or len(set(joints)) != len(joints):
+            raise FieldError("joints", f"{{name}} must be distinct joint names, got "
+                                       f"{self.joints!r}")
+        object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "lam", self.base.lam)
+        object.__setattr__(self, "lam_bounds", self.base.lam_bounds)
+        super().__post_init__()
+
+    @property
+    def outer_names(self) -> tuple:
+        """Return ``<name>@<joint>`` for each joint and each of ``base``'s parameters."""
+        return tuple(f"{k}@{j}" for j in self.joints for k in self.base.outer_names)
+
+    def outer_bounds(self):
+        """Return ``base``'s bounds, once per joint."""
+        return list(self.base.outer_bounds()) * len(self.joints)
+
+    def outer_initial(self):
+        """Return ``base``'s starting point, once per joint."""
+        return list(self.base.outer_initial()) * len(self.joints)
+
+    def K(self, values):
+        """Return the list of the joints' ``K_j`` (SISO, in joint order)."""
+        m = len(self.base.outer_names)
+        return [self.base.K(list(values[i * m:(i + 1) * m])) for i in range(len(self.joints))]
+
+    def check_joints(self, robot: str, joint_names) -> None:
+        """Refuse an arm with other joints (:class:`FieldError` ``structure``)."""
+        if tuple(joint_names) != self.joints:
+            raise FieldError("structure", f"{{name}}: per-joint structure on joints "
+                                          f"{list(self.joints)}, but {robot} has joints "
+                                          f"{list(joint_names)}")
+
+    def to_dict(self, values=None) -> dict:
+        """Return the JSON-ready record, with ``base``'s."""
+        return {**super().to_dict(values), "base": self.base.to_dict(),
+                "joints": list(self.joints)}
+
+
 #: Built-in structures by CLI name (``order2`` and any ``orderN`` are :class:`FixedOrder`).
 STRUCTURES = {"fl": FLOnly, "gain": Gain, "pid": PID, "leadlag": LeadLag, "order": FixedOrder}
 
 
-def make_structure(name: str, lam: float | None = 45.0) -> Structure:
+def make_structure(name: str, lam: float | None = 45.0, joints=None,
+                   per_joint: bool = False) -> Structure:
     """Build a built-in structure by name: ``fl``, ``gain``, ``pid``, ``leadlag``, ``orderN``.
 
     Parameters
@@ -279,12 +356,18 @@ def make_structure(name: str, lam: float | None = 45.0) -> Structure:
         The structure's name; ``orderN`` is a :class:`FixedOrder` of ``N`` states.
     lam : float or None
         Fixed FL bandwidth [rad/s], or None to tune it.
+    joints : sequence of str, optional
+        The arm's joint names (needed with ``per_joint``).
+    per_joint : bool
+        One controller per joint (:class:`PerJoint`) instead of one shared.
 
     Raises
     ------
     FieldError
         ``structure``: an unknown name (the message lists the built-in ones).
     """
+    if per_joint:
+        return PerJoint(base=make_structure(name, lam), joints=tuple(joints or ()))
     if isinstance(name, str) and name.startswith("order") and name[5:].isdigit():
         return FixedOrder(lam=lam, order=int(name[5:]))
     cls = STRUCTURES.get(name) if isinstance(name, str) and name != "order" else None
