@@ -204,7 +204,12 @@ class DiskMargin(Requirement):
 
     def estimate(self, ctx, ev):
         """Return the grid value, worst over the plants."""
-        return float(np.min(disk_margin_grid(ev.L, ev.S(), ctx.screen)))
+        if ctx.screen:   # two screens, then LAPACK where the peak can be
+            from ..control.grid_bounds import peak_from_bounds
+
+            lo, hi, exact, refine = ev.sensitivity_screen(0.5)
+            return float(np.min(1.0 / peak_from_bounds(lo, hi, exact, refine)))
+        return float(np.min(disk_margin_grid(ev.L, ev.S(), screen=False)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -266,7 +271,13 @@ class Bandwidth(Requirement):
 
     def estimate(self, ctx, ev):
         """Return the grid value, worst over the plants."""
-        return float(np.min(bandwidth_grid(ev.L, ctx.loops.omega, ev.S(), ctx.screen)))
+        if ctx.screen:   # two screens, then LAPACK where they cannot decide
+            from ..control.grid_bounds import level_from_bounds
+
+            lo, hi, exact, refine = ev.sensitivity_screen(0.0)
+            sig = level_from_bounds(lo, hi, BANDWIDTH_LEVEL, exact, refine)
+            return float(np.min(_first_crossing(sig, ctx.loops.omega, BANDWIDTH_LEVEL)))
+        return float(np.min(bandwidth_grid(ev.L, ctx.loops.omega, ev.S(), screen=False)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""

@@ -73,6 +73,7 @@ class _Eval:
         self.L = ctx.loops.loop_response(self.law)
         self._sim = None
         self._S, self._discs, self._lam, self._done = None, None, None, None
+        self._sb, self._Sp, self._Sdone = None, None, None
 
     def scaled_eigs(self, factor, kind):
         """Eigenvalues of ``f(w) L`` where a margin may cross, and those intervals.
@@ -116,6 +117,45 @@ class _Eval:
         if self._S is None:
             self._S = np.linalg.inv(np.eye(self.L.shape[-1]) + self.L)
         return self._S
+
+    def S_at(self, mask) -> np.ndarray:
+        """``(I + L)^-1`` at the points of ``mask`` (np, nw), inverted once each, (k, n, n)."""
+        if self._S is not None:
+            return self._S[mask]
+        if self._Sp is None:
+            self._Sp = np.full(self.L.shape, np.nan, complex)
+            self._Sdone = np.zeros(self.L.shape[:2], bool)
+        todo = mask & ~self._Sdone
+        if todo.any():
+            self._Sp[todo] = np.linalg.inv(np.eye(self.L.shape[-1]) + self.L[todo])
+            self._Sdone |= todo
+        return self._Sp[mask]
+
+    def sensitivity_screen(self, c: float) -> tuple:
+        """Screens of ``sigma_max(S - c I)`` for :mod:`~rrr_pin.control.grid_bounds`.
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (np, nw)
+            :func:`~rrr_pin.control.grid_bounds.sensitivity_bounds` (no inversion).
+        exact, refine : callable
+            On a mask: the singular value (LAPACK), and
+            :func:`~rrr_pin.control.grid_bounds.sigma_bounds` of ``S - c I`` there.
+        """
+        from ..control.grid_bounds import sensitivity_bounds, sigma_bounds
+
+        if self._sb is None:
+            self._sb = sensitivity_bounds(self.L)
+        inv_d, delta = self._sb
+        m = np.abs(inv_d - c).max(axis=-1)
+        eye = c * np.eye(self.L.shape[-1])
+
+        def exact(mask):
+            return np.linalg.svd(self.S_at(mask) - eye, compute_uv=False)[..., 0]
+
+        def refine(mask):
+            return sigma_bounds(self.S_at(mask) - eye)
+        return np.maximum(m - delta, 0.0), m + delta, exact, refine
 
     def L_fixed(self, *keep):
         """``L`` times the frequency factors of the fixed effects named in ``keep``."""

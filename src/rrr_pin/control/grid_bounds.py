@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["gershgorin_discs", "crossing_intervals", "sigma_bounds",
+__all__ = ["gershgorin_discs", "crossing_intervals", "sigma_bounds", "sensitivity_bounds",
            "peak_from_bounds", "level_from_bounds", "peak_sigma", "level_sigmas"]
 
 #: Relative slack of every bound against LAPACK's rounding.
@@ -135,7 +135,53 @@ def sigma_bounds(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lo, np.sqrt(np.minimum(_sum_last(r2), prod))
 
 
-def peak_from_bounds(lo: np.ndarray, hi: np.ndarray, exact) -> np.ndarray:
+def sensitivity_bounds(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r"""Diagonal part and error bound of ``S = (I + L)^-1``, without inverting.
+
+    With ``I + L = D + E`` (``D`` its diagonal) and ``F = E D^-1``, if
+    ``eta = sqrt(||F||_1 ||F||_inf) < 1`` then ``||S - D^-1||_2 <= ||D^-1||_2 eta / (1 - eta)``
+    (a Neumann series), so by Weyl's inequality ``sigma_max(S - c I)`` lies within that bound
+    of ``max_i |1 / D_ii - c|``. Looser than :func:`sigma_bounds` of ``S``: a first screen
+    that decides where ``S`` need not be inverted at all.
+
+    Parameters
+    ----------
+    L : ndarray, shape (..., n, n), complex
+
+    Returns
+    -------
+    inv_d : ndarray, shape (..., n), complex
+        ``1 / (1 + L_ii)``.
+    delta : ndarray, shape (...)
+        The bound on ``||S - diag(inv_d)||_2`` (``inf`` where ``eta >= 1``).
+    """
+    inv_d = 1.0 / (1.0 + np.diagonal(L, axis1=-2, axis2=-1))
+    a = np.abs(L)
+    a = a * (1.0 - np.eye(L.shape[-1]))              # |E|
+    ainv = np.abs(inv_d)
+    f_inf = _max_last(np.einsum("...ij,...j->...i", a, ainv))
+    f_1 = _max_last(np.einsum("...ij->...j", a) * ainv)
+    eta = np.sqrt(f_1 * f_inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta = np.where(eta < 1.0, _max_last(ainv) * eta / (1.0 - eta), np.inf)
+    return inv_d, delta
+
+
+def _slack(lo, hi):
+    return lo - SLACK * np.abs(lo), hi + SLACK * np.abs(hi)
+
+
+def _refined(lo, hi, mask, refine):
+    """``lo, hi`` tightened on ``mask`` by ``refine(mask) -> (lo2, hi2)`` (copies)."""
+    lo, hi = lo.copy(), hi.copy()
+    if mask.any():
+        lo2, hi2 = _slack(*refine(mask))
+        lo[mask] = np.maximum(lo[mask], lo2)
+        hi[mask] = np.minimum(hi[mask], hi2)
+    return lo, hi
+
+
+def peak_from_bounds(lo: np.ndarray, hi: np.ndarray, exact, refine=None) -> np.ndarray:
     r"""``max_w`` of a quantity per plant from bounds ``lo <= x <= hi``, exact where it can peak.
 
     Parameters
@@ -143,19 +189,26 @@ def peak_from_bounds(lo: np.ndarray, hi: np.ndarray, exact) -> np.ndarray:
     lo, hi : ndarray, shape (np, nw)
     exact : callable
         ``exact(mask)``: the quantity at the points of a boolean mask (np, nw), shape (k,).
+    refine : callable, optional
+        ``refine(mask) -> (lo, hi)``: tighter bounds at the points of a mask (a second, dearer
+        screen before ``exact``), each shape (k,).
 
     Returns
     -------
     ndarray, shape (np,)
     """
-    hi, lo = hi + SLACK * np.abs(hi), lo - SLACK * np.abs(lo)
+    lo, hi = _slack(lo, hi)
     cand = hi >= lo.max(axis=1, keepdims=True)
+    if refine is not None:
+        lo, hi = _refined(lo, hi, cand, refine)
+        cand &= hi >= lo.max(axis=1, keepdims=True)
     out = np.full(lo.shape[0], -np.inf)
     np.maximum.at(out, np.nonzero(cand)[0], exact(cand))
     return out
 
 
-def level_from_bounds(lo: np.ndarray, hi: np.ndarray, level: float, exact) -> np.ndarray:
+def level_from_bounds(lo: np.ndarray, hi: np.ndarray, level: float, exact,
+                      refine=None) -> np.ndarray:
     """Return the quantity wherever it decides its first crossing of ``level``, from bounds.
 
     Exact (``exact(mask)``) where the bounds cannot place a point against ``level``, and at
@@ -166,14 +219,16 @@ def level_from_bounds(lo: np.ndarray, hi: np.ndarray, level: float, exact) -> np
     ----------
     lo, hi : ndarray, shape (np, nw)
     level : float
-    exact : callable
+    exact, refine : callable
         As in :func:`peak_from_bounds`.
 
     Returns
     -------
     ndarray, shape (np, nw)
     """
-    hi, lo = hi + SLACK * np.abs(hi), lo - SLACK * np.abs(lo)
+    lo, hi = _slack(lo, hi)
+    if refine is not None:
+        lo, hi = _refined(lo, hi, (hi >= level) & (lo < level), refine)
     sig = np.where(hi < level, hi, lo)
     done = (hi >= level) & (lo < level)
     sig[done] = exact(done)
