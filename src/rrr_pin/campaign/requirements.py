@@ -305,37 +305,37 @@ class Bandwidth(Requirement):
 
 @dataclass(frozen=True)
 class ReferenceModel(Requirement):
-    r"""Tracking against a reference model: the error no larger than the model's [rad/s].
+    r"""Tracking against a reference model: the error no larger than the model's.
 
     The tracking error the FL law leaves is driven by the acceleration its model misses
     (``Mhat^-1`` times the torque mismatch, what :class:`ErrorRatio` simulates); per unit of
     it the error is ``E = P_q S Mhat`` (``P_q``: plant torque to ``q``; ``S = (I + L)^-1``),
     on the nominal plant ``1 / (s + lam)^2`` per joint (eq. 10's closed loop). The reference
-    model is that closed loop at bandwidth ``w_m``, with a high-frequency allowance ``M``
-    (above any inertia mismatch, where no controller acts):
+    model is that closed loop at the target bandwidth ``w_m``, with a high-frequency allowance
+    ``M`` (above any inertia mismatch, where no controller acts):
 
-    .. math:: \bar\sigma\big(E(e^{j\omega T})\big) \le |E_m(j\omega)|
-              = \frac{1}{\omega^2 / M + w_m^2} \quad \forall \omega,
-              \qquad E_m(s) = \frac{1}{(s / \sqrt{M} + w_m)^2}
+    .. math:: E_m(s) = \frac{1}{(s / \sqrt{M} + w_m)^2}, \qquad
+              \psi = \max_\omega \bar\sigma\big(E(e^{j\omega T})\big)
+              \Big(\frac{\omega^2}{M} + w_m^2\Big) \le 1,
 
-    (Skogestad & Postlethwaite 2005, eq. 2.105, squared, as a bound on the error). The
-    achieved value is the largest ``w_m`` met,
-    ``w_m^* = \min_\omega \sqrt{1/\bar\sigma(E) - \omega^2 / M}`` (0 where negative), worst
-    plant; FL alone of bandwidth ``lam`` achieves ``lam`` on the nominal plant (``M > 1``: the
-    sampled loop's hold exceeds the continuous model near the Nyquist frequency).
+    the H-infinity norm of ``E / E_m`` (Skogestad & Postlethwaite 2005, eq. 2.105, squared,
+    as a weight on the error), worst plant. ``achieved`` and ``verified`` are ``psi`` (<= 1:
+    met; a graded value the tuner can descend, as MATLAB's ``TuningGoal`` normalized values);
+    FL alone of bandwidth ``lam`` gives ``max(w_m^2 / lam^2, 1/M)`` on the nominal plant.
 
     Parameters
     ----------
     target : float
-        The model's bandwidth ``w_m`` the loop must reach [rad/s].
+        The model's bandwidth ``w_m`` [rad/s].
     peak : float
-        ``M`` [-], the allowance at high frequency (CLI: ``reference_model=30,peak=1.5``;
-        default 2).
+        ``M`` [-], the allowance at high frequency, > 1 (CLI:
+        ``reference_model=30,peak=1.5``; default 2).
     """
 
     peak: float = 2.0
     name: ClassVar[str] = "reference_model"
     unit: ClassVar[str] = "rad/s"
+    sense: ClassVar[str] = "max"
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -346,10 +346,13 @@ class ReferenceModel(Requirement):
                                      f"sampled loop exceeds near the Nyquist frequency), got "
                                      f"{self.peak!r}")
 
-    def _g(self, w, sig):
-        """``1/sigma - w^2/M``: the model bandwidth squared each point allows."""
-        with np.errstate(divide="ignore"):
-            return 1.0 / sig - w * w / self.peak
+    def normalized(self, achieved) -> float:
+        """Return ``psi`` itself (<= 1 met)."""
+        return float(achieved)
+
+    def _weight(self, w):
+        """``1 / |E_m(jw)| = w^2 / M + w_m^2``."""
+        return w * w / self.peak + self.target ** 2
 
     @staticmethod
     def _E(loops, S, Pq):
@@ -361,16 +364,14 @@ class ReferenceModel(Requirement):
         from ..control.grid_bounds import peak_from_bounds, sigma_bounds
 
         w = ctx.loops.omega
+        c = self._weight(w)
         E = self._E(ctx.loops, ev.S(), ctx.loops.P[..., :ctx.loops.n, :])
-        if ctx.screen:
-            lo, hi = sigma_bounds(E)
-            # the largest -g: -g grows with sigma
-            neg = peak_from_bounds(-self._g(w, np.maximum(lo, 1e-300)), -self._g(w, hi),
-                                   lambda m: -self._g(np.broadcast_to(w, m.shape)[m],
-                                                      _sigma_max(E[m])))
-        else:
-            neg = (-self._g(w, _sigma_max(E))).max(axis=1)
-        return float(math.sqrt(max(float(np.min(-neg)), 0.0)))
+        if not ctx.screen:
+            return float((_sigma_max(E) * c).max())
+        lo, hi = sigma_bounds(E)
+        cw = np.broadcast_to(c, lo.shape)
+        return float(peak_from_bounds(lo * c, hi * c,
+                                      lambda m: _sigma_max(E[m]) * cw[m]).max())
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -378,23 +379,28 @@ class ReferenceModel(Requirement):
 
         loops, w, n = ctx.loops, ctx.loops.omega, ctx.loops.n
 
-        def g_at(i, x):
+        def psi(i, x):
             P = loops.plant_response(x)[i:i + 1]
             L = loops.loop_response(loops.law(ev.lam, ev.K, x, matrices=False), P)
-            return self._g(x, _sigma_max(self._E(loops, _sens(L), P[..., :n, :]))[0])
+            return _sigma_max(self._E(loops, _sens(L), P[..., :n, :]))[0] * self._weight(x)
 
         out = []
         for i in range(len(loops.plants)):
-            k = int(np.argmin(g_at(i, w)))
+            k = int(np.argmax(psi(i, w)))
             lo, hi = math.log(w[max(k - 1, 0)]), math.log(w[min(k + 1, w.size - 1)])
-            best = float(g_at(i, w[k:k + 1])[0])
+            best = float(psi(i, w[k:k + 1])[0])
             if hi > lo:
                 res = minimize_scalar(
-                    lambda lw, i=i: float(g_at(i, np.array([math.exp(lw)]))[0]),
+                    lambda lw, i=i: -float(psi(i, np.array([math.exp(lw)]))[0]),
                     bounds=(lo, hi), method="bounded", options={"xatol": 1e-10})
-                best = min(best, float(res.fun))
-            out.append(math.sqrt(max(best, 0.0)))
-        return min(out), "exact frequency response, minimum over w refined (scipy bounded)"
+                best = max(best, -float(res.fun))
+            out.append(best)
+        return max(out), "exact frequency response, peak over w refined (scipy bounded)"
+
+    def to_dict(self):
+        """Return the JSON-ready record."""
+        return {**super().to_dict(),
+                "note": "achieved and verified are the peak of sigma_max(E) / |E_m| (<= 1 met)"}
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,10 @@ def add_tuning_arguments(p) -> None:
                         "actuator_bandwidth=RAD_S, bandwidth=RAD_S, peak_torque=N_M|urdf "
                         "(peak_torque@JOINT=... for one joint), error_ratio=X (RMS error of "
                         "FL alone over the tuned law's on the uncertain plants), "
-                        "noise_gain=N_M_PER_RAD (peak gain from position noise to torque); default "
+                        "noise_gain=N_M_PER_RAD (peak gain from position noise to torque), "
+                        "reference_model=RAD_S[,peak=M] (the tracking error no larger than "
+                        "the FL closed loop's of that bandwidth, M > 1 allowed at high "
+                        "frequency; default 2); default "
                         "delay_margin=0.003 disk_margin=0.5 error_ratio=10")
     g.add_argument("--structure", default="order2", metavar="NAME",
                    help="the outer controller K: fl (none), gain, pid, leadlag, orderN "
