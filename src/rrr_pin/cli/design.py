@@ -49,7 +49,9 @@ def add_tuning_arguments(p) -> None:
                         "delay_margin=0.003 disk_margin=0.5 error_ratio=10")
     g.add_argument("--structure", default="order2", metavar="NAME",
                    help="the outer controller K: fl (none), gain, pid, leadlag, orderN "
-                        "(a stable order-N transfer function; order2 is the paper's shape)")
+                        "(a stable order-N transfer function; order2 is the paper's shape), "
+                        "weight (the paper's loop-shaping synthesis, its weight W1's k, z, p "
+                        "tuned; minutes)")
     g.add_argument("--tune-lam", action="store_true",
                    help="tune the FL bandwidth lam too (else fixed at --lam)")
     g.add_argument("--per-joint", action="store_true",

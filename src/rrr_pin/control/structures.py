@@ -16,6 +16,7 @@ between its bounds (all parameters are positive).
 
 Built in: :class:`FLOnly` (no ``K``), :class:`Gain`, :class:`PID` (derivative filter),
 :class:`LeadLag`, :class:`FixedOrder` (a strictly stable order-``m`` transfer function), and
+:class:`LoopShapingWeight` (the paper's synthesis with its weight's ``k, z, p`` free), and
 :class:`PerJoint` (any of these once per joint: ``K`` diagonal, each joint its own
 parameters; ``lam`` stays shared, the law's one bandwidth).
 """
@@ -29,8 +30,8 @@ import numpy as np
 
 from ..validation import FieldError, check_count, check_positive
 
-__all__ = ["Structure", "FLOnly", "Gain", "PID", "LeadLag", "FixedOrder", "PerJoint",
-           "STRUCTURES", "make_structure", "LAM_BOUNDS"]
+__all__ = ["Structure", "FLOnly", "Gain", "PID", "LeadLag", "FixedOrder", "LoopShapingWeight",
+           "PerJoint", "STRUCTURES", "make_structure", "LAM_BOUNDS"]
 
 #: Default search range of a tuned ``lam`` [rad/s].
 LAM_BOUNDS = (5.0, 500.0)
@@ -275,6 +276,57 @@ class FixedOrder(Structure):
 
 
 @dataclass(frozen=True)
+class LoopShapingWeight(Structure):
+    r"""The paper's loop-shaping controller with its weight's parameters free.
+
+    ``K = W1 Ks`` of :func:`~rrr_pin.robust.ncf.ncfsyn` (optimal, ``factor = 1``) on the FL
+    plant ``lam^2 / (s + lam)^2`` (eq. 11) shaped by the lag weight (eq. 16)
+
+    .. math:: W_1(s) = \frac{k (s + z)}{s + p},
+
+    full order (the synthesis' own controller, as ``rrr_pin.design(...).K_full``); the paper's
+    point is ``k, z, p = 25, 11.5, 0.19`` at ``lam = 45``
+    (:data:`rrr_pin.robust.loopshaping.PAPER_W1`). Each evaluation
+    runs the synthesis (~30 ms), so a tuning of this structure takes minutes.
+    """
+
+    kind: ClassVar[str] = "weight"
+    outer_names: ClassVar[tuple] = ("k", "z", "p")
+
+    def outer_bounds(self):
+        """Return the search bounds: ``k`` [-], ``z`` and ``p`` [rad/s]."""
+        return [(0.1, 1e3), (0.01, 1e3), (1e-3, 100.0)]
+
+    def outer_initial(self):
+        """Return the paper's weight, eq. (16)."""
+        from ..robust.loopshaping import PAPER_W1
+
+        return list(PAPER_W1)
+
+    def split(self, values):
+        """Return ``(lam, K)``: the synthesis needs ``lam`` (its plant is eq. 11's)."""
+        values = list(np.asarray(values, dtype=float))
+        lam = values.pop(0) if self.lam is None else self.lam
+        return float(lam), self._K(float(lam), values)
+
+    def K(self, values):
+        """Return ``K`` at the fixed ``lam`` (tuned ``lam``: use :meth:`split`)."""
+        if self.lam is None:
+            raise ValueError("LoopShapingWeight with a tuned lam: K depends on it, use split")
+        return self._K(self.lam, values)
+
+    @staticmethod
+    def _K(lam, values):
+        import control
+
+        from ..robust.loopshaping import fl_plant, lag_weight
+        from ..robust.ncf import ncfsyn
+
+        k, z, p = values
+        return control.tf(ncfsyn(fl_plant(lam, 1), lag_weight(k, z, p), np.eye(1), 1.0).K)
+
+
+@dataclass(frozen=True)
 class PerJoint(Structure):
     r"""One outer controller per joint, each of the shape of ``base``, ``lam`` shared.
 
@@ -343,7 +395,8 @@ class PerJoint(Structure):
 
 
 #: Built-in structures by CLI name (``order2`` and any ``orderN`` are :class:`FixedOrder`).
-STRUCTURES = {"fl": FLOnly, "gain": Gain, "pid": PID, "leadlag": LeadLag, "order": FixedOrder}
+STRUCTURES = {"fl": FLOnly, "gain": Gain, "pid": PID, "leadlag": LeadLag, "order": FixedOrder,
+              "weight": LoopShapingWeight}
 
 
 def make_structure(name: str, lam: float | None = 45.0, joints=None,
@@ -373,5 +426,5 @@ def make_structure(name: str, lam: float | None = 45.0, joints=None,
     cls = STRUCTURES.get(name) if isinstance(name, str) and name != "order" else None
     if cls is None:
         raise FieldError("structure", f"{{name}}: unknown structure {name!r}; built-in: fl, "
-                                      f"gain, pid, leadlag, orderN (e.g. order2)")
+                                      f"gain, pid, leadlag, orderN (e.g. order2), weight")
     return cls(lam=lam)
