@@ -106,9 +106,10 @@ def run_tuned(args) -> int:
                                joints=robot.joint_names, per_joint=args.per_joint)
     fixed = parse_with(args.fixed, "")
     if args.plants == "vertices":
-        if args.uncertainty is not None:
+        if args.uncertainty is not None or args.confidence is not None:
             raise ValueError("--plants vertices takes the corners of the tolerance box; an "
-                             "identified set (--uncertainty) has none: give --plants samples")
+                             "identified set (--uncertainty, --confidence) has none: give "
+                             "--plants samples")
         from ..model.uncertainty import ToleranceVertices
 
         tol = ToleranceVertices()
