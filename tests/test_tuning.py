@@ -551,14 +551,3 @@ def test_tuning_the_weight_moves_the_papers_delay_margin_past_fl_alones(rrr, pap
     # the paper's weight: 2.8 ms (README); 15 evaluations from it reach past FL alone's 6 ms
     assert start < 0.003 and res.table[0]["verified"] > 0.006
     assert res.structure.to_dict(res.values)["kind"] == "weight"
-
-
-def test_starts_on_two_processes_give_the_one_process_result(rrr):
-    # the same starts and the same objective, on worker processes that each build the loops
-    kw = dict(plants=2, starts=2, maxfev=25, verify=False)
-    reqs = [DelayMargin(0.006), DiskMargin(0.5)]
-    one = tune(rrr, Gain(lam=None), reqs, jobs=1, **kw)
-    two = tune(rrr, Gain(lam=None), reqs, jobs=2, **kw)
-    assert_allclose(two.values, one.values, rtol=0, atol=0)
-    assert [s["objective"] for s in two.starts] == [s["objective"] for s in one.starts]
-    assert two.info["jobs"] == 2

@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..validation import FieldError, check_count, check_rate
-from .executors import check_jobs
 from .requirements import (
     ActuatorBandwidth,
     DelayMargin,
@@ -464,7 +463,7 @@ def _check_requirements(requirements, nominal, fixed) -> list:
 def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances=None,
          reference=None, rate: float = 1000.0, fixed=None, starts: int = 4,
          maxfev: int | None = None, verify: bool = True, simulate: bool = True,
-         duration: float = 4.0, stress_settings=None, jobs: int = 1) -> TuneResult:
+         duration: float = 4.0, stress_settings=None) -> TuneResult:
     """Tune ``structure`` on ``robot`` against ``requirements`` over a plant set, and verify.
 
     Parameters
@@ -498,9 +497,6 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         ratio, stress breaking points).
     duration : float
         Simulated time of the tracking runs [s].
-    jobs : int
-        Local processes running the starts (each builds the plants' loops once); the result
-        is the serial one (the same starts, the same objective).
 
     Returns
     -------
@@ -515,6 +511,8 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         No point of the structure stabilizes every plant, or a requirement no controller can
         meet (the peak torque the reference itself needs); ``.result`` is the best point.
     """
+    from scipy.optimize import minimize
+
     from ..control.references import default_reference
     from ..model.uncertainty import Tolerances
     from .stress import check_fixed
@@ -547,31 +545,42 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         r.prepare(ctx)
 
     bounds = np.log(np.array(structure.bounds(), dtype=float))
-    evaluate = _Objective(ctx, structure, reqs, fixed, bounds)
+    cache = {}
+
+    def evaluate(x):
+        key = tuple(np.round(x, 12))
+        if key in cache:
+            return cache[key]
+        values = np.exp(np.clip(x, bounds[:, 0], bounds[:, 1]))
+        lam, K = structure.split(values)
+        ev = _Eval(ctx, lam, K)
+        rho = max(float(np.max(loops.spectral_radius(ev.law))),
+                  float(np.max(loops.spectral_radius(ev.law, fixed.get("delay", 0.0),
+                                                     fixed.get("actuator"))))
+                  if fixed else 0.0)
+        if rho >= 1.0:
+            out = (_UNSTABLE + rho, ev, None)
+        else:
+            vals = [r.estimate(ctx, ev) for r in reqs]
+            norm = [r.normalized(v) for r, v in zip(reqs, vals, strict=True)]
+            out = (float(max(norm)), ev, vals)
+        cache[key] = out
+        return out
+
     rng = np.random.default_rng([int(seed), 7919])
     x0s = [np.clip(np.log(structure.initial()), bounds[:, 0], bounds[:, 1])]
     x0s += [rng.uniform(bounds[:, 0], bounds[:, 1]) for _ in range(starts - 1)]
     maxfev = maxfev or 150 * (len(names) + 1)
-    jobs = min(check_jobs(jobs), len(x0s))
-    if jobs == 1:
-        found = [_nelder_mead(lambda x: evaluate(x)[0], x0, bounds, maxfev) for x0 in x0s]
-    else:   # the same starts on worker processes, each building the context once
-        import uuid
-
-        from .executors import run_tasks
-
-        setup = (robot, plant_list, reference, rate, fixed, duration, structure, reqs, bounds)
-        token = uuid.uuid4().hex
-        found = [None] * len(x0s)
-        for task, out in run_tasks(_start_task, [(token, setup, x0, maxfev, i)
-                                                 for i, x0 in enumerate(x0s)], jobs=jobs):
-            found[task[-1]] = out
     best, runs = None, []
-    for x0, (fun, xbest, nfev) in zip(x0s, found, strict=True):
+    for x0 in x0s:
+        res = minimize(lambda x: evaluate(x)[0], x0, method="Nelder-Mead",
+                       bounds=list(map(tuple, bounds)),
+                       options={"maxfev": maxfev, "xatol": 1e-4, "fatol": 1e-6,
+                                "adaptive": len(names) > 3})
         runs.append({"initial": dict(zip(names, np.exp(x0).tolist(), strict=True)),
-                     "objective": fun, "evaluations": nfev})
-        if best is None or fun < best[0]:
-            best = (fun, xbest)
+                     "objective": float(res.fun), "evaluations": int(res.nfev)})
+        if best is None or res.fun < best[0]:
+            best = (float(res.fun), res.x)
     objective, x = best
     values = np.exp(np.clip(x, bounds[:, 0], bounds[:, 1]))
     lam, K = structure.split(values)
@@ -582,7 +591,6 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
             "grid_rad_s": [float(loops.omega[0]), float(loops.omega[-1]),
                            int(loops.omega.size)],
             "search": "scipy Nelder-Mead (bounded, log scale), seeded starts",
-            "jobs": jobs,
             "seconds_search": time.perf_counter() - t0}
     if estimates is None:
         result = TuneResult(structure, values, lam, K, rate, [], objective, "unstable",
@@ -624,67 +632,6 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
                         f"(inverse dynamics, whatever the controller); best point "
                         f"{dict(zip(names, values.round(6).tolist(), strict=True))}", result)
     return result
-
-
-class _Objective:
-    """The worst normalized requirement at a point ``x`` of the search (log parameters), cached.
-
-    Returns ``(objective, evaluation, estimates)``; a point unstable on some plant (with the
-    fixed effects) is penalized by its spectral radius, with ``estimates`` None.
-    """
-
-    def __init__(self, ctx, structure, reqs, fixed, bounds):
-        self.ctx, self.structure, self.reqs, self.fixed = ctx, structure, reqs, fixed
-        self.bounds, self.cache = bounds, {}
-
-    def __call__(self, x):
-        key = tuple(np.round(x, 12))
-        if key in self.cache:
-            return self.cache[key]
-        loops, fixed, reqs = self.ctx.loops, self.fixed, self.reqs
-        values = np.exp(np.clip(x, self.bounds[:, 0], self.bounds[:, 1]))
-        lam, K = self.structure.split(values)
-        ev = _Eval(self.ctx, lam, K)
-        rho = max(float(np.max(loops.spectral_radius(ev.law))),
-                  float(np.max(loops.spectral_radius(ev.law, fixed.get("delay", 0.0),
-                                                     fixed.get("actuator"))))
-                  if fixed else 0.0)
-        if rho >= 1.0:
-            out = (_UNSTABLE + rho, ev, None)
-        else:
-            vals = [r.estimate(self.ctx, ev) for r in reqs]
-            norm = [r.normalized(v) for r, v in zip(reqs, vals, strict=True)]
-            out = (float(max(norm)), ev, vals)
-        self.cache[key] = out
-        return out
-
-
-def _nelder_mead(fun, x0, bounds, maxfev) -> tuple:
-    """One start of the search: ``(best objective, best point, evaluations)``."""
-    from scipy.optimize import minimize
-
-    res = minimize(fun, x0, method="Nelder-Mead", bounds=list(map(tuple, bounds)),
-                   options={"maxfev": maxfev, "xatol": 1e-4, "fatol": 1e-6,
-                            "adaptive": len(x0) > 3})
-    return float(res.fun), np.asarray(res.x), int(res.nfev)
-
-
-#: A worker process's objective, built at its first start of a search (keyed by the search).
-_WORKER = {}
-
-
-def _start_task(task) -> tuple:
-    """Run one start on a worker process (:func:`tune` with ``jobs > 1``)."""
-    token, setup, x0, maxfev, _ = task
-    if token not in _WORKER:
-        robot, plants, reference, rate, fixed, duration, structure, reqs, bounds = setup
-        ctx = _context(robot, plants, reference, rate, fixed, duration)
-        for r in reqs:
-            r.prepare(ctx)
-        _WORKER.clear()
-        _WORKER[token] = _Objective(ctx, structure, reqs, fixed, bounds)
-    objective = _WORKER[token]
-    return _nelder_mead(lambda x: objective(x)[0], x0, objective.bounds, maxfev)
 
 
 def _stress_row(ctx, ev, req, settings) -> dict:

@@ -75,9 +75,6 @@ def add_tuning_arguments(p) -> None:
     g.add_argument("--with", dest="fixed", action="append", default=[], metavar="EFFECT=SIZE",
                    help="an effect present in every evaluation, delay=S or actuator=RAD_S")
     g.add_argument("--starts", type=int, default=4, help="seeded starts of the search (4)")
-    g.add_argument("--jobs", type=int, default=None,
-                   help="local processes running the starts (default min(2, CPUs)); the "
-                        "result is the one-process one")
     g.add_argument("--no-simulate", action="store_true",
                    help="verify without the simulations (peak torque, error ratio, stress "
                         "breaking points)")
@@ -91,7 +88,6 @@ def run_tuned(args) -> int:
     """Tune, verify and write ``--out/design.json``; print the requirement table."""
     import json
 
-    from ..campaign.executors import check_jobs
     from ..campaign.requirements import make_requirement
     from ..campaign.tuning import TuneError, tune
     from ..control.structures import make_structure
@@ -122,7 +118,7 @@ def run_tuned(args) -> int:
     try:
         res = tune(robot, structure, reqs, plants=args.samples, seed=args.seed,
                    rate=args.rate, fixed=fixed, starts=args.starts, tolerances=tol,
-                   simulate=not args.no_simulate, jobs=check_jobs(args.jobs))
+                   simulate=not args.no_simulate)
     except TuneError as exc:
         if exc.result is not None:
             (out / "design_refused.json").write_text(dumps(exc.result.to_dict()))
