@@ -40,6 +40,9 @@ asserted:
   same Pinocchio calls alone (``ctrl_dyn_crba`` + ``ctrl_dyn_nle`` of a Pinocchio export of the same
   arm: CRBA and NLE, M's triangle mirrored, nle copied out), in a C loop; and ``ctrl_step_dt`` at
   periods off the nominal one (K discretized at each call).
+- section 10 (issue 34): ``rrr_pin.tune`` of the RRR's order-2 K and lam against five requirements
+  over 20 plants (grid search), and one evaluation with the grid screened
+  (``rrr_pin.control.grid_bounds``) against LAPACK at every grid point, at the same points.
 
 Usage::
 
@@ -1006,9 +1009,46 @@ def tuning_bench(samples: int, starts: int, maxfev: int | None = None) -> dict:
                maxfev=maxfev, verify=False)
     search = time.perf_counter() - t0
     evals = sum(s["evaluations"] for s in res.starts)
-    return {"plants": samples + 1, "starts": starts, "requirements": len(reqs),
-            "search_s": search, "evaluations": evals, "per_evaluation_ms": 1e3 * search / evals,
-            "objective": res.objective, "goal_s": 60.0}
+    out = {"plants": samples + 1, "starts": starts, "requirements": len(reqs),
+           "search_s": search, "evaluations": evals, "per_evaluation_ms": 1e3 * search / evals,
+           "objective": res.objective, "goal_s": 60.0}
+    return {**out, **screen_bench(robot, reqs, samples, 5 if samples < 5 else 40)}
+
+
+def screen_bench(robot, reqs, samples: int, points: int) -> dict:
+    """Time the tuner's evaluation screened against LAPACK at every grid point.
+
+    The grid screened (``rrr_pin.control.grid_bounds``) against the path before it, at the
+    same seeded points of the order-2 structure: ms per evaluation of each and the largest
+    relative difference of the values.
+    """
+    import numpy as np
+
+    from rrr_pin import Tolerances
+    from rrr_pin.campaign.tuning import _context, _Eval
+    from rrr_pin.control.references import default_reference
+    from rrr_pin.control.structures import FixedOrder
+
+    st = FixedOrder(lam=None, order=2)
+    plants = [robot] + [robot.perturbed(np.random.default_rng([0, k]), Tolerances())[0]
+                        for k in range(samples)]
+    ctx = _context(robot, plants, default_reference(robot), 1000.0, {}, 4.0)
+    b = np.log(np.array(st.bounds()))
+    rng = np.random.default_rng(3)
+    xs = [st.split(np.exp(rng.uniform(b[:, 0], b[:, 1]))) for _ in range(points)]
+    times, vals = {}, {}
+    for screen in (False, True):
+        ctx.screen = screen
+        t0 = time.perf_counter()
+        vals[screen] = np.array([[r.estimate(ctx, ev) for r in reqs]
+                                 for ev in (_Eval(ctx, lam, K) for lam, K in xs)])
+        times[screen] = 1e3 * (time.perf_counter() - t0) / points
+    a, c = vals[False], vals[True]
+    same = np.isfinite(a) & np.isfinite(c)
+    rel = float(np.max(np.abs(a[same] - c[same]) / np.maximum(np.abs(a[same]), 1e-300)))
+    return {"lapack_everywhere_ms": times[False], "screened_ms": times[True],
+            "screen_points": points, "screen_max_rel_diff": rel,
+            "screen_same_infinities": bool(np.array_equal(~np.isfinite(a), ~np.isfinite(c)))}
 
 
 def report_tuning(r: dict) -> None:
@@ -1018,6 +1058,11 @@ def report_tuning(r: dict) -> None:
           f"evaluations, {r['per_evaluation_ms']:.1f} ms each; worst normalized "
           f"{r['objective']:.3g})   goal < {r['goal_s']:g} s: "
           f"{'met' if r['search_s'] < r['goal_s'] else 'NOT MET'}")
+    print(f"    one evaluation at {r['screen_points']} seeded points: LAPACK at every grid point "
+          f"{r['lapack_everywhere_ms']:.1f} ms -> screened {r['screened_ms']:.1f} ms "
+          f"(x{r['lapack_everywhere_ms'] / r['screened_ms']:.1f}); values differ by at most "
+          f"{r['screen_max_rel_diff']:.1e} relative"
+          f"{'' if r['screen_same_infinities'] else ' (NOT the same infinite values)'}")
 
 
 if __name__ == "__main__":

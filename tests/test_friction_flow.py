@@ -331,3 +331,16 @@ def test_exported_compensation_on_pinocchio_dynamics_equals_python(ur5, tmp_path
     assert ex.dynamics == "pinocchio"
     c_law = exported_law(tmp_path / "ur5", build(tmp_path / "ur5"))
     _assert_steps_equal(ex.law, c_law, 6, 1000, seed=5)
+
+
+def test_design_tunes_over_plants_drawn_from_the_identification(friction_record, tmp_path,
+                                                                capsys):
+    # issue 34: the plant set identified from data, as montecarlo's --uncertainty
+    out = tmp_path / "d"
+    assert main(["design", "--robot", str(friction_record / "identified.urdf"),
+                 "--uncertainty", str(friction_record / "identification.json"),
+                 "--samples", "2", "--structure", "gain", "--starts", "1", "--no-simulate",
+                 "--require", "delay_margin=0.004", "--out", str(out)]) == 0
+    data = json.loads((out / "design.json").read_text())
+    assert data["plants"]["tolerances"]["uncertainty"] == "identified"
+    assert data["plants"]["samples"] == 2 and data["requirements"][0]["verified"] > 0

@@ -13,8 +13,8 @@ linearized at the reference's mean configuration), with the effects held fixed (
 
 Built in (:data:`REQUIREMENTS`, the CLI's ``--require NAME=VALUE``): ``delay_margin`` [s],
 ``disk_margin`` [-], ``actuator_bandwidth`` [rad/s], ``bandwidth`` [rad/s], ``peak_torque``
-[N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad]. Write your own by
-subclassing :class:`Requirement`.
+[N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad], ``reference_model``
+[rad/s]. Write your own by subclassing :class:`Requirement`.
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ import numpy as np
 from ..validation import FieldError, check_positive
 
 __all__ = ["Requirement", "DelayMargin", "DiskMargin", "ActuatorBandwidth", "Bandwidth",
-           "PeakTorque", "ErrorRatio", "NoiseGain", "REQUIREMENTS", "make_requirement",
+           "PeakTorque", "ErrorRatio", "NoiseGain", "ReferenceModel", "REQUIREMENTS",
+           "make_requirement",
            "disk_margin_grid", "bandwidth_grid"]
 
 
@@ -37,40 +38,64 @@ __all__ = ["Requirement", "DelayMargin", "DiskMargin", "ActuatorBandwidth", "Ban
 MAX_DELAY_SAMPLES = 200
 
 
+def _sigma_max(A: np.ndarray) -> np.ndarray:
+    """Largest singular value of stacked matrices (LAPACK ``gesdd``), shape ``A.shape[:-2]``."""
+    return np.linalg.svd(A, compute_uv=False)[..., 0]
+
+
 def _sens(L: np.ndarray) -> np.ndarray:
     """Input sensitivity ``S = (I + L)^-1``, same shape as ``L`` (..., n, n)."""
     eye = np.eye(L.shape[-1])
     return np.linalg.inv(eye + L)
 
 
-def disk_margin_grid(L: np.ndarray, S=None) -> np.ndarray:
+def disk_margin_grid(L: np.ndarray, S=None, screen: bool = True) -> np.ndarray:
     r"""Balanced multiloop disk margin on a grid, per plant: ``1 / max_w sigma_max(S - I/2)``.
 
     The unstructured bound (``sigma_max`` instead of SLICOT's ``mu`` upper bound of
-    python-control's ``disk_margins``), so never above it; equal for a SISO loop.
+    python-control's ``disk_margins``), so never above it; equal for a SISO loop. LAPACK
+    only where the peak can be (:func:`~rrr_pin.control.grid_bounds.peak_sigma`).
 
     Parameters
     ----------
     L : ndarray, shape (np, nw, n, n)
+    S : ndarray, same shape, optional
+        ``(I + L)^-1`` if known.
+    screen : bool
+        False: LAPACK at every point.
 
     Returns
     -------
     ndarray, shape (np,)
     """
+    from ..control.grid_bounds import peak_sigma
+
     S = (_sens(L) if S is None else S) - 0.5 * np.eye(L.shape[-1])
-    sig = np.linalg.svd(S, compute_uv=False)[..., 0]
-    return 1.0 / sig.max(axis=1)
+    return 1.0 / peak_sigma(S, screen)
 
 
-def bandwidth_grid(L: np.ndarray, omega: np.ndarray, S=None) -> np.ndarray:
+#: The error bandwidth's level of ``sigma_max(S)`` (-3 dB).
+BANDWIDTH_LEVEL = 1.0 / math.sqrt(2.0)
+
+
+def bandwidth_grid(L: np.ndarray, omega: np.ndarray, S=None,
+                   screen: bool = True) -> np.ndarray:
     r"""Error bandwidth per plant: lowest ``w`` with ``sigma_max(S(jw)) >= 1/sqrt(2)`` [rad/s].
 
     Interpolated linearly in ``log w`` between grid points; ``inf`` if never reached.
+    Singular values by LAPACK only where they decide it
+    (:func:`~rrr_pin.control.grid_bounds.level_sigmas`): the value is the full grid's.
     """
-    sig = np.linalg.svd(_sens(L) if S is None else S, compute_uv=False)[..., 0]  # (np, nw)
-    lvl = 1.0 / math.sqrt(2.0)
-    out = np.full(L.shape[0], np.inf)
-    for p in range(L.shape[0]):
+    from ..control.grid_bounds import level_sigmas
+
+    sig = level_sigmas(_sens(L) if S is None else S, BANDWIDTH_LEVEL, screen)  # (np, nw)
+    return _first_crossing(sig, omega, BANDWIDTH_LEVEL)
+
+
+def _first_crossing(sig, omega, lvl) -> np.ndarray:
+    """Lowest ``w`` where ``sig[p]`` reaches ``lvl``, interpolated in ``log w``, per plant."""
+    out = np.full(sig.shape[0], np.inf)
+    for p in range(sig.shape[0]):
         above = np.nonzero(sig[p] >= lvl)[0]
         if above.size == 0:
             continue
@@ -152,10 +177,9 @@ class DelayMargin(Requirement):
         from ..control.sampled_loops import delay_margin_from_response
 
         wa = self._wa(ctx)
-        L = ev.L if wa is None else ev.L * (wa / (1j * ctx.loops.omega + wa))[None, :, None,
-                                                                                None]
-        eigs = ev.eigs("actuator") if self.actuator is None else None
-        return float(np.min(delay_margin_from_response(L, ctx.loops.omega, eigs)))
+        f = None if wa is None else wa / (1j * ctx.loops.omega + wa)
+        eigs, iv = ev.scaled_eigs(f, "modulus")
+        return float(np.min(delay_margin_from_response(None, ctx.loops.omega, eigs, iv)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -180,7 +204,12 @@ class DiskMargin(Requirement):
 
     def estimate(self, ctx, ev):
         """Return the grid value, worst over the plants."""
-        return float(np.min(disk_margin_grid(ev.L, ev.S())))
+        if ctx.screen:   # two screens, then LAPACK where the peak can be
+            from ..control.grid_bounds import peak_from_bounds
+
+            lo, hi, exact, refine = ev.sensitivity_screen(0.5)
+            return float(np.min(1.0 / peak_from_bounds(lo, hi, exact, refine)))
+        return float(np.min(disk_margin_grid(ev.L, ev.S(), screen=False)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -223,11 +252,10 @@ class ActuatorBandwidth(Requirement):
         """Return the grid value, worst over the plants."""
         from ..control.sampled_loops import actuator_margin_from_response
 
-        if self.delay is None:
-            return float(np.max(actuator_margin_from_response(None, ctx.loops.omega,
-                                                              ev.eigs("delay"))))
-        L = ev.L * np.exp(-1j * ctx.loops.omega * self.delay)[None, :, None, None]
-        return float(np.max(actuator_margin_from_response(L, ctx.loops.omega)))
+        delay = self._delay(ctx)
+        f = np.exp(-1j * ctx.loops.omega * delay) if delay else None
+        eigs, iv = ev.scaled_eigs(f, "real")
+        return float(np.max(actuator_margin_from_response(None, ctx.loops.omega, eigs, iv)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -243,7 +271,13 @@ class Bandwidth(Requirement):
 
     def estimate(self, ctx, ev):
         """Return the grid value, worst over the plants."""
-        return float(np.min(bandwidth_grid(ev.L, ctx.loops.omega, ev.S())))
+        if ctx.screen:   # two screens, then LAPACK where they cannot decide
+            from ..control.grid_bounds import level_from_bounds
+
+            lo, hi, exact, refine = ev.sensitivity_screen(0.0)
+            sig = level_from_bounds(lo, hi, BANDWIDTH_LEVEL, exact, refine)
+            return float(np.min(_first_crossing(sig, ctx.loops.omega, BANDWIDTH_LEVEL)))
+        return float(np.min(bandwidth_grid(ev.L, ctx.loops.omega, ev.S(), screen=False)))
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
@@ -270,6 +304,106 @@ class Bandwidth(Requirement):
 
 
 @dataclass(frozen=True)
+class ReferenceModel(Requirement):
+    r"""Tracking against a reference model: the error no larger than the model's.
+
+    The tracking error the FL law leaves is driven by the acceleration its model misses
+    (``Mhat^-1`` times the torque mismatch, what :class:`ErrorRatio` simulates); per unit of
+    it the error is ``E = P_q S Mhat`` (``P_q``: plant torque to ``q``; ``S = (I + L)^-1``),
+    on the nominal plant ``1 / (s + lam)^2`` per joint (eq. 10's closed loop). The reference
+    model is that closed loop at the target bandwidth ``w_m``, with a high-frequency allowance
+    ``M`` (above any inertia mismatch, where no controller acts):
+
+    .. math:: E_m(s) = \frac{1}{(s / \sqrt{M} + w_m)^2}, \qquad
+              \psi = \max_\omega \bar\sigma\big(E(e^{j\omega T})\big)
+              \Big(\frac{\omega^2}{M} + w_m^2\Big) \le 1,
+
+    the H-infinity norm of ``E / E_m`` (Skogestad & Postlethwaite 2005, eq. 2.105, squared,
+    as a weight on the error), worst plant. ``achieved`` and ``verified`` are ``psi`` (<= 1:
+    met; a graded value the tuner can descend, as MATLAB's ``TuningGoal`` normalized values);
+    FL alone of bandwidth ``lam`` gives ``max(w_m^2 / lam^2, 1/M)`` on the nominal plant.
+
+    Parameters
+    ----------
+    target : float
+        The model's bandwidth ``w_m`` [rad/s].
+    peak : float
+        ``M`` [-], the allowance at high frequency, > 1 (CLI:
+        ``reference_model=30,peak=1.5``; default 2).
+    """
+
+    peak: float = 2.0
+    name: ClassVar[str] = "reference_model"
+    unit: ClassVar[str] = "rad/s"
+    sense: ClassVar[str] = "max"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "peak", check_positive("peak", self.peak))
+        if self.peak <= 1.0:
+            raise FieldError("peak", f"{{name}} of reference_model must be > 1 (1 is the FL "
+                                     f"double integrator's continuous closed loop, which its "
+                                     f"sampled loop exceeds near the Nyquist frequency), got "
+                                     f"{self.peak!r}")
+
+    def normalized(self, achieved) -> float:
+        """Return ``psi`` itself (<= 1 met)."""
+        return float(achieved)
+
+    def _weight(self, w):
+        """``1 / |E_m(jw)| = w^2 / M + w_m^2``."""
+        return w * w / self.peak + self.target ** 2
+
+    @staticmethod
+    def _E(loops, S, Pq):
+        """``P_q S Mhat``, the error per unit of missed acceleration, shape of ``S``."""
+        return Pq @ S @ loops.Mhat
+
+    def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
+        from ..control.grid_bounds import peak_from_bounds, sigma_bounds
+
+        w = ctx.loops.omega
+        c = self._weight(w)
+        E = self._E(ctx.loops, ev.S(), ctx.loops.P[..., :ctx.loops.n, :])
+        if not ctx.screen:
+            return float((_sigma_max(E) * c).max())
+        lo, hi = sigma_bounds(E)
+        cw = np.broadcast_to(c, lo.shape)
+        return float(peak_from_bounds(lo * c, hi * c,
+                                      lambda m: _sigma_max(E[m]) * cw[m]).max())
+
+    def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
+        from scipy.optimize import minimize_scalar
+
+        loops, w, n = ctx.loops, ctx.loops.omega, ctx.loops.n
+
+        def psi(i, x):
+            P = loops.plant_response(x)[i:i + 1]
+            L = loops.loop_response(loops.law(ev.lam, ev.K, x, matrices=False), P)
+            return _sigma_max(self._E(loops, _sens(L), P[..., :n, :]))[0] * self._weight(x)
+
+        out = []
+        for i in range(len(loops.plants)):
+            k = int(np.argmax(psi(i, w)))
+            lo, hi = math.log(w[max(k - 1, 0)]), math.log(w[min(k + 1, w.size - 1)])
+            best = float(psi(i, w[k:k + 1])[0])
+            if hi > lo:
+                res = minimize_scalar(
+                    lambda lw, i=i: -float(psi(i, np.array([math.exp(lw)]))[0]),
+                    bounds=(lo, hi), method="bounded", options={"xatol": 1e-10})
+                best = max(best, -float(res.fun))
+            out.append(best)
+        return max(out), "exact frequency response, peak over w refined (scipy bounded)"
+
+    def to_dict(self):
+        """Return the JSON-ready record."""
+        return {**super().to_dict(),
+                "note": "achieved and verified are the peak of sigma_max(E) / |E_m| (<= 1 met)"}
+
+
+@dataclass(frozen=True)
 class NoiseGain(Requirement):
     r"""Noise amplification: peak gain from position-sensor noise to torque [N m/rad].
 
@@ -286,8 +420,10 @@ class NoiseGain(Requirement):
     def estimate(self, ctx, ev):
         """Return the grid peak, worst over the plants."""
         n = ctx.loops.n
+        from ..control.grid_bounds import peak_sigma
+
         T = ev.S() @ ev.law.C[None, :, :, :n]
-        return float(np.linalg.svd(T, compute_uv=False)[..., 0].max())
+        return float(peak_sigma(T, ctx.screen).max())
 
     def verify(self, ctx, ev):
         """Return the H-infinity norm of each plant's discrete loop (SLICOT AB13DD), worst."""
@@ -407,7 +543,8 @@ def _bisect_down(stable, start, rtol):
 
 #: Built-in requirements by CLI name.
 REQUIREMENTS = {cls.name: cls for cls in (DelayMargin, DiskMargin, ActuatorBandwidth,
-                                          Bandwidth, PeakTorque, ErrorRatio, NoiseGain)}
+                                          Bandwidth, PeakTorque, ErrorRatio, NoiseGain,
+                                          ReferenceModel)}
 
 
 def make_requirement(text: str) -> Requirement:
@@ -427,7 +564,8 @@ def make_requirement(text: str) -> Requirement:
     cls = REQUIREMENTS[name]
     value, *rest = value.split(",")
     extras = {}
-    allowed = {"delay_margin": "actuator", "actuator_bandwidth": "delay"}.get(name)
+    allowed = {"delay_margin": "actuator", "actuator_bandwidth": "delay",
+               "reference_model": "peak"}.get(name)
     for item in rest:
         key, eq, size = item.partition("=")
         try:

@@ -72,19 +72,90 @@ class _Eval:
         self.law = ctx.loops.law(lam, K)
         self.L = ctx.loops.loop_response(self.law)
         self._sim = None
-        self._eigs, self._S = {}, None
+        self._S, self._discs, self._lam, self._done = None, None, None, None
+        self._sb, self._Sp, self._Sdone = None, None, None
 
-    def eigs(self, *keep):
-        """Eigenvalues of :meth:`L_fixed` ``(*keep)``, computed once, shape (np, nw, n)."""
-        if keep not in self._eigs:
-            self._eigs[keep] = np.linalg.eigvals(self.L_fixed(*keep))
-        return self._eigs[keep]
+    def scaled_eigs(self, factor, kind):
+        """Eigenvalues of ``f(w) L`` where a margin may cross, and those intervals.
+
+        Eigenvalues of ``L`` are computed (LAPACK, once per grid point) only at the ends of
+        the intervals :func:`~rrr_pin.control.grid_bounds.crossing_intervals` cannot rule
+        out, then scaled by ``f`` (a scalar per frequency: ``eig(f L) = f eig(L)``); NaN
+        elsewhere. The margins searched on those intervals are the full grid's.
+
+        Parameters
+        ----------
+        factor : ndarray, shape (nw,), complex, or None
+        kind : {"modulus", "real"}
+
+        Returns
+        -------
+        eigs : ndarray, shape (np, nw, n), complex
+        intervals : ndarray of bool, shape (np, nw - 1)
+        """
+        from ..control.grid_bounds import crossing_intervals, gershgorin_discs
+
+        if self._discs is None:
+            self._discs = gershgorin_discs(self.L)
+            self._lam = np.full(self.L.shape[:-1], np.nan, complex)
+            self._done = np.zeros(self.L.shape[:2], bool)
+        iv = crossing_intervals(self._discs, factor, kind)
+        if not self.ctx.screen:
+            iv = np.ones_like(iv)
+        need = np.zeros_like(self._done)
+        need[:, :-1] |= iv
+        need[:, 1:] |= iv
+        need &= ~self._done
+        if need.any():
+            self._lam[need] = np.linalg.eigvals(self.L[need])
+            self._done |= need
+        lam = self._lam if factor is None else self._lam * factor[None, :, None]
+        return lam, iv
 
     def S(self):
         """Input sensitivity ``(I + L)^-1`` of the loop without effects, computed once."""
         if self._S is None:
             self._S = np.linalg.inv(np.eye(self.L.shape[-1]) + self.L)
         return self._S
+
+    def S_at(self, mask) -> np.ndarray:
+        """``(I + L)^-1`` at the points of ``mask`` (np, nw), inverted once each, (k, n, n)."""
+        if self._S is not None:
+            return self._S[mask]
+        if self._Sp is None:
+            self._Sp = np.full(self.L.shape, np.nan, complex)
+            self._Sdone = np.zeros(self.L.shape[:2], bool)
+        todo = mask & ~self._Sdone
+        if todo.any():
+            self._Sp[todo] = np.linalg.inv(np.eye(self.L.shape[-1]) + self.L[todo])
+            self._Sdone |= todo
+        return self._Sp[mask]
+
+    def sensitivity_screen(self, c: float) -> tuple:
+        """Screens of ``sigma_max(S - c I)`` for :mod:`~rrr_pin.control.grid_bounds`.
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (np, nw)
+            :func:`~rrr_pin.control.grid_bounds.sensitivity_bounds` (no inversion).
+        exact, refine : callable
+            On a mask: the singular value (LAPACK), and
+            :func:`~rrr_pin.control.grid_bounds.sigma_bounds` of ``S - c I`` there.
+        """
+        from ..control.grid_bounds import sensitivity_bounds, sigma_bounds
+
+        if self._sb is None:
+            self._sb = sensitivity_bounds(self.L)
+        inv_d, delta = self._sb
+        m = np.abs(inv_d - c).max(axis=-1)
+        eye = c * np.eye(self.L.shape[-1])
+
+        def exact(mask):
+            return np.linalg.svd(self.S_at(mask) - eye, compute_uv=False)[..., 0]
+
+        def refine(mask):
+            return sigma_bounds(self.S_at(mask) - eye)
+        return np.maximum(m - delta, 0.0), m + delta, exact, refine
 
     def L_fixed(self, *keep):
         """``L`` times the frequency factors of the fixed effects named in ``keep``."""
@@ -144,6 +215,8 @@ class _Context:
     id_peak: np.ndarray = None
     harmonics: tuple = None
     fl_energy: float = None
+    #: Screen the grid (:mod:`rrr_pin.control.grid_bounds`); False: LAPACK at every point.
+    screen: bool = True
 
     def joint_index(self, name):
         return list(self.nominal.joint_names).index(name)
@@ -169,16 +242,16 @@ class _Context:
         w = 2.0 * np.pi * np.fft.rfftfreq(nfft, 1.0 / fs)
         w[0] = 1e-3 * w[1]                                          # DC: the slowest bin
         P = self.loops.plant_response(w)                            # (np, nf, 2n, n)
-        self.harmonics = (w, W, t.size, nfft, P)
+        self.harmonics = (w, W, t.size, nfft, self.loops.parts(P))
         self.fl_energy = self._energy(100.0, None)
 
     def _energy(self, lam, K):
-        w, W, nt, nfft, P = self.harmonics
+        w, W, nt, nfft, parts = self.harmonics
         law = self.loops.law(lam, K, w, matrices=False)
-        L = self.loops.loop_response(law, P)
+        L = self.loops.loop_response(law, parts=parts)
         n = L.shape[-1]
-        S = np.linalg.inv(np.eye(n) + L)
-        E = np.einsum("pwij,pwjk,pwk->pwi", P[:, :, :n, :], S, W)
+        # e = P_q S w, S = (I + L)^-1 applied by a solve
+        E = (parts[0] @ np.linalg.solve(np.eye(n) + L, W[..., None]))[..., 0]
         e = np.fft.irfft(E, n=nfft, axis=1)[:, :nt]
         return float(np.sum(e * e))
 
@@ -213,10 +286,54 @@ class _Context:
         return ev._sim
 
 
+def _context(robot, plants, reference, rate, fixed, duration) -> _Context:
+    """Build the tuner's context: the plants' digital loops and the tracking estimate's inputs.
+
+    The loops are linearized at the reference's mean configuration.
+    """
+    from ..control.sampled_loops import LoopSet
+    from .runner import RunSettings
+
+    t = np.linspace(0.0, duration, 401)
+    home = np.asarray(reference.sample(t)[0], float).mean(axis=0)
+    loops = LoopSet(robot, plants, home, rate)
+    ctx = _Context(robot, loops, reference, fixed, RunSettings(duration=duration, rate=rate),
+                   list(plants))
+    ctx.prepare_tracking(duration)
+    return ctx
+
+
+def _diagonal(Ks):
+    """``diag(K_1, ..., K_n)`` as one ``control.TransferFunction`` (None: 0 on that joint)."""
+    import control
+
+    from ..control.sampled_loops import siso_coefficients
+
+    n = len(Ks)
+    nd = [siso_coefficients(k) if k is not None else (np.zeros(1), np.ones(1)) for k in Ks]
+    num = [[nd[i][0] if i == j else [0.0] for j in range(n)] for i in range(n)]
+    den = [[nd[i][1] if i == j else [1.0] for j in range(n)] for i in range(n)]
+    return control.tf(num, den)
+
+
 def _law(nominal, lam, K, name="tuned"):
     from ..control.laws import TrackingController
 
+    if isinstance(K, list | tuple):
+        K = _diagonal(K)
     return TrackingController(nominal=nominal, lam=lam, K=K, name=name, label="tuned design")
+
+
+def _k_record(K):
+    """``design.json``'s ``K``: ``{num, den}``, or ``{"per_joint": [{num, den}, ...]}``."""
+    from ..control.sampled_loops import siso_coefficients
+
+    if K is None:
+        return None
+    if isinstance(K, list | tuple):
+        return {"per_joint": [_k_record(k) for k in K]}
+    num, den = siso_coefficients(K)
+    return {"num": num.tolist(), "den": den.tolist()}
 
 
 @dataclass
@@ -230,8 +347,9 @@ class TuneResult:
         The tuned parameters.
     lam : float
         FL bandwidth [rad/s].
-    K : control.TransferFunction or None
-        The outer controller (negative feedback on ``e``), SISO, copied on every joint.
+    K : control.TransferFunction, list of them, or None
+        The outer controller (negative feedback on ``e``): SISO, copied on every joint, or
+        one per joint (:class:`~rrr_pin.control.structures.PerJoint`).
     rate : float
         Sampling rate [Hz] the law was tuned and verified at (Tustin ``K``).
     table : list of dict
@@ -271,10 +389,8 @@ class TuneResult:
 
     def to_dict(self) -> dict:
         """Return the ``design.json`` record."""
-        K = None if self.K is None else {
-            "num": np.asarray(self.K.num[0][0], float).ravel().tolist(),
-            "den": np.asarray(self.K.den[0][0], float).ravel().tolist()}
-        return {"format": DESIGN_FORMAT, "law": "tuned", "lam_rad_s": self.lam, "K": K,
+        return {"format": DESIGN_FORMAT, "law": "tuned", "lam_rad_s": self.lam,
+                "K": _k_record(self.K),
                 "rate_hz": self.rate, "structure": self.structure.to_dict(self.values),
                 "requirements": self.table, "objective": self.objective,
                 "status": self.status, "tradeoff": self.tradeoff, "starts": self.starts,
@@ -309,6 +425,8 @@ def _num(x):
 def _k_text(K):
     if K is None:
         return "K = 0"
+    if isinstance(K, list | tuple):
+        return "; ".join(f"joint {j + 1}: {_k_text(k)}" for j, k in enumerate(K))
     num = np.asarray(K.num[0][0], float).ravel()
     den = np.asarray(K.den[0][0], float).ravel()
     return f"K = [{', '.join(f'{c:.5g}' for c in num)}] / [{', '.join(f'{c:.5g}' for c in den)}]"
@@ -401,9 +519,7 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     from scipy.optimize import minimize
 
     from ..control.references import default_reference
-    from ..control.sampled_loops import LoopSet
     from ..model.uncertainty import Tolerances
-    from .runner import RunSettings
     from .stress import check_fixed
 
     t0 = time.perf_counter()
@@ -419,23 +535,20 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
                                    f"{search!r}")
     fixed = check_fixed(fixed)
     reqs = _check_requirements(requirements, robot, fixed)
+    structure.check_joints(robot.name, robot.joint_names)
     if isinstance(plants, int | np.integer):
         count = check_count("plants", plants)
         tol = tolerances or Tolerances()
         plant_list = [robot] + [robot.perturbed(np.random.default_rng([int(seed), k]), tol)[0]
                                 for k in range(count)]
-        plant_info = {"samples": count, "seed": int(seed), "tolerances": tol.to_dict(),
+        plant_info = {"samples": count, "seed": int(seed), "tolerances": tol.as_settings(),
                       "nominal_included": True}
     else:
         plant_list = list(plants)
         plant_info = {"given": len(plant_list)}
     reference = reference or default_reference(robot)
-    t = np.linspace(0.0, duration, 401)
-    home = np.asarray(reference.sample(t)[0], float).mean(axis=0)
-    loops = LoopSet(robot, plant_list, home, rate)
-    run = RunSettings(duration=duration, rate=rate)
-    ctx = _Context(robot, loops, reference, fixed, run, plant_list)
-    ctx.prepare_tracking(duration)
+    ctx = _context(robot, plant_list, reference, rate, fixed, duration)
+    loops, home = ctx.loops, ctx.loops.home
     for r in reqs:
         r.prepare(ctx)
 
@@ -613,5 +726,8 @@ def tuned_law(design: dict, nominal, name: str = "tuned"):
                          f"{list(nominal.joint_names)}): tune one with rrr-pin design "
                          f"--robot ...")
     K = design.get("K")
-    K = None if K is None else control.tf(K["num"], K["den"])
+    if K is not None and "per_joint" in K:
+        K = [None if k is None else control.tf(k["num"], k["den"]) for k in K["per_joint"]]
+    elif K is not None:
+        K = control.tf(K["num"], K["den"])
     return _law(nominal, float(design["lam_rad_s"]), K, name)

@@ -42,15 +42,33 @@ def add_tuning_arguments(p) -> None:
                         "actuator_bandwidth=RAD_S, bandwidth=RAD_S, peak_torque=N_M|urdf "
                         "(peak_torque@JOINT=... for one joint), error_ratio=X (RMS error of "
                         "FL alone over the tuned law's on the uncertain plants), "
-                        "noise_gain=N_M_PER_RAD (peak gain from position noise to torque); default "
+                        "noise_gain=N_M_PER_RAD (peak gain from position noise to torque), "
+                        "reference_model=RAD_S[,peak=M] (the tracking error no larger than "
+                        "the FL closed loop's of that bandwidth, M > 1 allowed at high "
+                        "frequency; default 2); default "
                         "delay_margin=0.003 disk_margin=0.5 error_ratio=10")
     g.add_argument("--structure", default="order2", metavar="NAME",
                    help="the outer controller K: fl (none), gain, pid, leadlag, orderN "
-                        "(a stable order-N transfer function; order2 is the paper's shape)")
+                        "(a stable order-N transfer function; order2 is the paper's shape), "
+                        "weight (the paper's loop-shaping synthesis, its weight W1's k, z, p "
+                        "tuned; minutes)")
     g.add_argument("--tune-lam", action="store_true",
                    help="tune the FL bandwidth lam too (else fixed at --lam)")
+    g.add_argument("--per-joint", action="store_true",
+                   help="one outer controller of --structure per joint, each its own "
+                        "parameters (K diagonal; lam stays shared, the law's one bandwidth)")
     g.add_argument("--samples", type=int, default=20,
                    help="uncertain plants the design must work on, with the nominal (20)")
+    g.add_argument("--plants", choices=("samples", "vertices"), default="samples",
+                   help="how the --samples plants are drawn: samples (uniform inside the "
+                        "20 %% / 5 %% tolerance box, as the studies draw them) or vertices "
+                        "(seeded corners of that box, every factor at 1 - tol or 1 + tol)")
+    g.add_argument("--uncertainty", metavar="IDENTIFICATION.json", default=None,
+                   help="draw the plants from an identification (rrr-pin identify) instead "
+                        "of the tolerance box; use --robot DIR/identified.urdf as the nominal")
+    g.add_argument("--confidence", type=float, default=None,
+                   help="with --uncertainty only: confidence region the plants are drawn in "
+                        "(0.95)")
     g.add_argument("--seed", type=int, default=0, help="seed of the plants and starts (0)")
     g.add_argument("--rate", type=float, default=1000.0, metavar="HZ",
                    help="sampling rate of the tuned law [Hz] (1000)")
@@ -78,6 +96,7 @@ def run_tuned(args) -> int:
     from ..control.structures import make_structure
     from ..model.dynamics import load_robot
     from ..report.jsondata import dumps
+    from .build import tolerances_from_args
     from .common import parse_lock
     from .stress import parse_with
 
@@ -85,12 +104,23 @@ def run_tuned(args) -> int:
         raise ValueError("design to requirements writes DIR/design.json: give --out DIR")
     out = claim_out(args, "design")
     reqs = [make_requirement(t) for t in (args.require or DEFAULT_REQUIREMENTS)]
-    structure = make_structure(args.structure, None if args.tune_lam else args.lam)
     robot = load_robot(args.robot or "rrr", lock=parse_lock(args.lock))
+    structure = make_structure(args.structure, None if args.tune_lam else args.lam,
+                               joints=robot.joint_names, per_joint=args.per_joint)
     fixed = parse_with(args.fixed, "")
+    if args.plants == "vertices":
+        if args.uncertainty is not None or args.confidence is not None:
+            raise ValueError("--plants vertices takes the corners of the tolerance box; an "
+                             "identified set (--uncertainty, --confidence) has none: give "
+                             "--plants samples")
+        from ..model.uncertainty import ToleranceVertices
+
+        tol = ToleranceVertices()
+    else:
+        tol = tolerances_from_args(args, robot)
     try:
         res = tune(robot, structure, reqs, plants=args.samples, seed=args.seed,
-                   rate=args.rate, fixed=fixed, starts=args.starts,
+                   rate=args.rate, fixed=fixed, starts=args.starts, tolerances=tol,
                    simulate=not args.no_simulate, search=args.search)
     except TuneError as exc:
         if exc.result is not None:

@@ -11,8 +11,9 @@ registry of built-in laws by name, importable without numerical libraries),
 law compensates) and :mod:`~rrr_pin.control.analysis`
 (``loop_at_input``, its margins, and the real-parametric robust stability of the
 feedback-linearized loop at frozen configurations), :mod:`~rrr_pin.control.structures` (the
-tunable structures of the FL law) and :mod:`~rrr_pin.control.sampled_loops` (the digital FL
-loop on a set of plants). Every law reads its model through the
+tunable structures of the FL law), :mod:`~rrr_pin.control.sampled_loops` (the digital FL
+loop on a set of plants) and :mod:`~rrr_pin.control.grid_bounds` (the bounds that screen its
+frequency grid). Every law reads its model through the
 plant protocol only (:meth:`~rrr_pin.model.plant.Plant.terms`), so it runs on any plant.
 
 Layer: above :mod:`rrr_pin.robust`. May import :mod:`rrr_pin.validation`,

@@ -39,7 +39,7 @@ from ..validation import check_rate, check_vector
 
 __all__ = ["zoh", "split_delay", "delayed_loop_matrix", "LoopSet", "LawResponse",
            "tustin_response", "delay_margin_from_response",
-           "actuator_margin_from_response"]
+           "actuator_margin_from_response", "siso_coefficients"]
 
 
 def tustin_response(K, w: np.ndarray, rate: float) -> np.ndarray:
@@ -48,15 +48,64 @@ def tustin_response(K, w: np.ndarray, rate: float) -> np.ndarray:
     Tustin maps ``z = e^{j w T}`` to ``s = j (2/T) tan(w T / 2)`` exactly, so the discrete
     response is the continuous one at the warped frequency (no discretization needed).
     """
-    import control
-
     if K is None:
         return np.zeros(w.shape, complex)
-    K = control.tf(K)
     T = 1.0 / rate
     s = 1j * (2.0 / T) * np.tan(w * T / 2.0)
-    num, den = (np.asarray(x, dtype=float).ravel() for x in (K.num[0][0], K.den[0][0]))
+    num, den = siso_coefficients(K)
     return np.polyval(num, s) / np.polyval(den, s)
+
+
+def siso_coefficients(K) -> tuple[np.ndarray, np.ndarray]:
+    """Return the numerator and denominator coefficients of a SISO ``K`` (python-control LTI).
+
+    Returns
+    -------
+    num, den : ndarray, shape (m + 1,), (p + 1,)
+        Highest power first.
+    """
+    import control
+
+    if not isinstance(K, control.TransferFunction):
+        K = control.tf(K)
+    return tuple(np.asarray(x, dtype=float).ravel() for x in (K.num[0][0], K.den[0][0]))
+
+
+def _tustin_ss(K, T: float) -> tuple:
+    r"""``(A_d, B_d, C_d, D_d)`` of the Tustin discretization of a SISO ``K`` (None: empty).
+
+    The controllable canonical realization of ``K``'s coefficients (the form of scipy's
+    ``tf2ss``; not reduced, so an exactly cancelled pole of ``K`` stays as a mode the law does
+    not excite) mapped by the bilinear transform (the formulas of scipy's ``cont2discrete``,
+    ``method="bilinear"``). Written out because the two scipy calls cost ~1 ms per law on the
+    tuner's path; ``tests/test_tuning.py`` checks them against scipy.
+    Shapes (m, m), (m, 1), (1, m), float.
+    """
+    if K is None:
+        return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), 0.0
+    num, den = siso_coefficients(K)
+    num = np.trim_zeros(num, "f")
+    den = np.trim_zeros(den, "f")
+    m = den.size - 1
+    if num.size > den.size:
+        raise ValueError(f"K must be proper, got numerator degree {num.size - 1} over "
+                         f"denominator degree {m}")
+    num, den = np.concatenate([np.zeros(den.size - num.size), num]) / den[0], den / den[0]
+    D = num[0]
+    if m == 0:
+        return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), float(D)
+    A = np.zeros((m, m))
+    A[0] = -den[1:]
+    A[1:, :-1] = np.eye(m - 1)
+    B = np.zeros((m, 1))
+    B[0, 0] = 1.0
+    C = (num[1:] - D * den[1:])[None, :]
+    # bilinear: I - A T/2 solved against I + A T/2, T B and C^T
+    ima = np.eye(m) - 0.5 * T * A
+    Ad = np.linalg.solve(ima, np.eye(m) + 0.5 * T * A)
+    Bd = np.linalg.solve(ima, T * B)
+    Cd = np.linalg.solve(ima.T, C.T).T
+    return Ad, Bd, Cd, float(D + 0.5 * (C @ Bd)[0, 0])
 
 
 @dataclass(frozen=True)
@@ -69,10 +118,19 @@ class LawResponse:
         ``tau = C(e^{jwT}) [q; qd]`` [N m per rad, N m per rad/s].
     law : tuple of ndarray
         ``(Ac, Bc, Cc, Dc)``: ``x+ = Ac x + Bc [q; qd]``, ``tau = Cc x + Dc [q; qd]``.
+    a : ndarray, shape (nw, n), complex
+        ``lam_j^2 (1 + K_j(e^{jwT}))`` per joint [1/s^2]: ``C_q = -Mhat diag(a) + H_q``.
+    b : ndarray, shape (n,)
+        ``2 lam_j`` per joint [1/s]: ``C_qd = -Mhat diag(b) + H_v``.
+    uniform : bool
+        The same ``lam`` and ``K`` on every joint.
     """
 
     C: np.ndarray
     law: tuple
+    a: np.ndarray
+    b: np.ndarray
+    uniform: bool = False
 
 
 class LoopSet:
@@ -113,6 +171,22 @@ class LoopSet:
             self.A.append(np.block([[Z, eye], [dq, dv]]))
             self.B.append(np.vstack([Z, dtau]))
         self.P = self.plant_response(self.omega)
+        self._parts = self.parts(self.P)
+
+    def parts(self, P) -> tuple:
+        """Law-independent parts of ``L = Mhat (diag(a) P_q + diag(b) P_qd) + Z`` for ``P``.
+
+        ``Z = -(H_q P_q + H_v P_qd)``; with them :meth:`loop_response` needs one small product
+        per law instead of the full ``C P``.
+
+        Returns
+        -------
+        tuple of ndarray
+            ``(P_q, P_qd, Z, Mhat P_q, Mhat P_qd)``, each shape (np, nw, n, n), complex.
+        """
+        n = self.n
+        Pq, Pv = P[..., :n, :], P[..., n:, :]
+        return Pq, Pv, -(self.Hq @ Pq + self.Hv @ Pv), self.Mhat @ Pq, self.Mhat @ Pv
 
     def plant_response(self, omega) -> np.ndarray:
         """Zero-order-hold responses ``[q; qd](e^{jwT}) / tau``, shape (np, nw, 2n, n)."""
@@ -125,46 +199,66 @@ class LoopSet:
             out.append(np.linalg.solve(M, np.broadcast_to(Gam, (z.size, *Gam.shape))))
         return np.array(out)
 
-    def law(self, lam: float, K, omega=None, matrices: bool = True) -> LawResponse:
-        """Response and discrete matrices of the law ``(lam, K)`` (``K`` None: FL alone).
+    def law(self, lam, K, omega=None, matrices: bool = True) -> LawResponse:
+        """Response and discrete matrices of the law ``(lam, K)``.
 
-        ``matrices=False`` skips the discrete matrices (``law`` is then None).
+        Parameters
+        ----------
+        lam : float or array-like, shape (n,)
+            FL bandwidth [rad/s], shared or per joint.
+        K : SISO LTI, sequence of n SISO LTI (or None), or None
+            The outer controller on ``e``: shared by every joint, one per joint (None: no
+            ``K`` on that joint), or None (FL alone).
+        omega : array-like, optional
+            Frequencies [rad/s] (default the set's grid).
+        matrices : bool
+            False skips the discrete matrices (``law`` is then None).
         """
-        import control
-
         n, Mhat = self.n, self.Mhat
         w = self.omega if omega is None else np.asarray(omega)
-        kd = tustin_response(K, w, self.rate)
+        lam = np.broadcast_to(np.asarray(lam, dtype=float), (n,))
+        shared = not isinstance(K, list | tuple)
+        Ks = [K] * n if shared else list(K)
+        kd = tustin_response(Ks[0], w, self.rate)[:, None] if shared else np.stack(
+            [tustin_response(k, w, self.rate) for k in Ks], axis=1)
+        a = np.broadcast_to(lam * lam * (1.0 + kd), (w.size, n))
+        b = 2.0 * lam
         C = np.empty((w.size, n, 2 * n), complex)
-        C[:, :, :n] = -lam * lam * (1.0 + kd)[:, None, None] * Mhat + self.Hq
-        C[:, :, n:] = -2.0 * lam * Mhat + self.Hv
+        C[:, :, :n] = -Mhat[None] * a[:, None, :] + self.Hq
+        C[:, :, n:] = -Mhat * b + self.Hv
+        uniform = shared and bool(np.all(lam == lam[0]))
         if not matrices:
-            return LawResponse(C, None)
-        if K is None:
-            Ad, Bd, Cd, Dd = np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), 0.0
-        else:
-            Kd = control.sample_system(control.ss(K), self.T, method="tustin")
-            Ad, Bd, Cd, Dd = (np.asarray(x, dtype=float) for x in (Kd.A, Kd.B, Kd.C, Kd.D))
-            Dd = float(Dd[0, 0])
-        eye = np.eye(n)
-        Ac = np.kron(eye, Ad)
-        Bc = np.hstack([-np.kron(eye, Bd), np.zeros((Ac.shape[0], n))])
-        Cc = lam * lam * Mhat @ np.kron(eye, Cd)
-        Dc = np.hstack([-lam * lam * (1.0 + Dd) * Mhat + self.Hq, -2.0 * lam * Mhat + self.Hv])
-        return LawResponse(C, (Ac, Bc, Cc, Dc))
+            return LawResponse(C, None, a, b, uniform)
+        parts = [_tustin_ss(k, self.T) for k in ([Ks[0]] if shared else Ks)]
+        if shared:
+            parts = parts * n
+        Ac = scipy.linalg.block_diag(*[p[0] for p in parts])
+        Bk = scipy.linalg.block_diag(*[p[1] for p in parts])
+        Ck = scipy.linalg.block_diag(*[p[2] for p in parts])
+        Dd = np.array([p[3] for p in parts])
+        Bc = np.hstack([-Bk, np.zeros((Ac.shape[0], n))])
+        Cc = (Mhat * lam * lam) @ Ck
+        Dc = np.hstack([-Mhat * (lam * lam * (1.0 + Dd)) + self.Hq, -Mhat * b + self.Hv])
+        return LawResponse(C, (Ac, Bc, Cc, Dc), a, b, uniform)
 
-    def loop_response(self, law: LawResponse, P=None) -> np.ndarray:
-        """``L = -C P`` at the torque input for every plant, shape (np, nw, n, n)."""
-        P = self.P if P is None else P
-        return -np.einsum("wij,pwjk->pwik", law.C, P)
+    def loop_response(self, law: LawResponse, P=None, parts=None) -> np.ndarray:
+        """``L = -C P`` at the torque input for every plant, shape (np, nw, n, n).
 
-    def closed_loop(self, i: int, law: LawResponse, delay: float = 0.0,
-                    bandwidth: float | None = None) -> np.ndarray:
-        """State matrix of plant ``i``'s exact discrete closed loop with a delay and actuator.
+        Computed as ``Mhat (diag(a) P_q + diag(b) P_qd) + Z`` from :meth:`parts` (of ``P``,
+        or the given ``parts``; the grid's own are kept), equal to ``-C P`` to rounding; for
+        a law the same on every joint, ``a Mhat P_q + b Mhat P_qd + Z``.
+        """
+        if parts is None:
+            parts = self._parts if P is None else self.parts(P)
+        Pq, Pv, Z, X, Y = parts
+        if law.uniform:
+            return law.a[:, 0, None, None] * X + law.b[0] * Y + Z
+        return self.Mhat @ (law.a[:, :, None] * Pq + law.b[:, None] * Pv) + Z
 
-        The plant (with ``a' = wa (u - a)`` when ``bandwidth`` is given) driven by the law's
-        zero-order-hold torque delayed by ``delay`` [s] is discretized exactly at ``T``; a
-        fractional delay splits the period (Franklin, Powell & Workman sec. 4.3.4).
+    def _discrete(self, i: int, delay: float, bandwidth):
+        """Return plant ``i`` (with the actuator) over one period split by the delay's fraction.
+
+        ``((E0, G0, Phi, G1), ell)``, computed once per plant, fraction and actuator.
         """
         n = self.n
         A0, B0 = self.A[i], self.B[i]
@@ -177,7 +271,6 @@ class LoopSet:
             B = np.vstack([np.zeros((2 * n, n)), bandwidth * np.eye(n)])
         else:
             nz, A, B = 2 * n, A0, B0
-        Ac, Bc, Cc, Dc = law.law
         T = self.T
         ell, frac = split_delay(delay, T)
         key = (i, frac, bandwidth)
@@ -187,15 +280,28 @@ class LoopSet:
             if len(self._zohs) > 10000:
                 self._zohs.clear()
             self._zohs[key] = (E0, G0, E0 @ E1 if frac else E0, E0 @ G1i)
-        E0, G0, Phi, G1 = self._zohs[key]
-        return delayed_loop_matrix(Phi, G0, G1, ell, (Ac, Bc, Cc, Dc), n)
+        return self._zohs[key], ell
+
+    def closed_loop(self, i: int, law: LawResponse, delay: float = 0.0,
+                    bandwidth: float | None = None) -> np.ndarray:
+        """State matrix of plant ``i``'s exact discrete closed loop with a delay and actuator.
+
+        The plant (with ``a' = wa (u - a)`` when ``bandwidth`` is given) driven by the law's
+        zero-order-hold torque delayed by ``delay`` [s] is discretized exactly at ``T``; a
+        fractional delay splits the period (Franklin, Powell & Workman sec. 4.3.4).
+        """
+        (_, G0, Phi, G1), ell = self._discrete(i, delay, bandwidth)
+        return delayed_loop_matrix(Phi, G0, G1, ell, law.law, self.n)
 
     def spectral_radius(self, law: LawResponse, delay: float = 0.0,
                         bandwidth: float | None = None, plants=None) -> np.ndarray:
         """Largest ``|eigenvalue|`` of each plant's exact closed loop, shape (np,) (< 1: stable)."""
         idx = range(len(self.plants)) if plants is None else plants
-        return np.array([np.max(np.abs(np.linalg.eigvals(
-            self.closed_loop(i, law, delay, bandwidth)))) for i in idx])
+        parts = [self._discrete(i, delay, bandwidth) for i in idx]
+        ell = parts[0][1]
+        Phi, G0, G1 = (np.array([p[0][k] for p in parts]) for k in (2, 1, 3))
+        mats = delayed_loop_matrix(Phi, G0, G1, ell, law.law, self.n)   # stacked, one size
+        return np.abs(np.linalg.eigvals(mats)).max(axis=-1)
 
 
 def zoh(A, B, t):
@@ -225,8 +331,9 @@ def delayed_loop_matrix(Phi, G0, G1, ell: int, K, n: int) -> np.ndarray:
 
     Parameters
     ----------
-    Phi, G0, G1 : ndarray, shapes (nz, nz), (nz, n), (nz, n)
-        The plant over one period (:func:`zoh` of the two parts).
+    Phi, G0, G1 : ndarray, shapes (..., nz, nz), (..., nz, n), (..., nz, n)
+        The plant over one period (:func:`zoh` of the two parts); stacked plants give
+        stacked loops.
     ell : int
         Whole periods of delay (>= 0).
     K : tuple of ndarray
@@ -236,14 +343,16 @@ def delayed_loop_matrix(Phi, G0, G1, ell: int, K, n: int) -> np.ndarray:
 
     Returns
     -------
-    ndarray, shape (nz + nx + (ell + 1) n, same)
+    ndarray, shape (..., nz + nx + (ell + 1) n, same)
     """
     Ak, Bk, Ck, Dk = K
-    nz = Phi.shape[0]
+    Phi, G0, G1 = (np.asarray(x) for x in (Phi, G0, G1))
+    lead = Phi.shape[:-2]
+    nz = Phi.shape[-1]
     L = ell + 1                                 # buffer w_i = u_{k-i}, i = 1..L
     nx = Ak.shape[0]
     N = nz + nx + L * n
-    Acl = np.zeros((N, N))
+    Acl = np.zeros((*lead, N, N))
     Cy = np.zeros((2 * n, nz))
     Cy[:, :2 * n] = np.eye(2 * n)
     Uz, Ux = Dk @ Cy, Ck                        # u_k = C_k x + D_k Cy z
@@ -252,19 +361,19 @@ def delayed_loop_matrix(Phi, G0, G1, ell: int, K, n: int) -> np.ndarray:
     def wslot(k):
         return slice(iw + (k - 1) * n, iw + k * n)
 
-    Acl[iz, iz] = Phi
+    Acl[..., iz, iz] = Phi
     if ell == 0:
-        Acl[iz, iz] += G0 @ Uz
-        Acl[iz, ix] += G0 @ Ux
+        Acl[..., iz, iz] += G0 @ Uz
+        Acl[..., iz, ix] += G0 @ Ux
     else:
-        Acl[iz, wslot(ell)] += G0
-    Acl[iz, wslot(ell + 1)] += G1
-    Acl[ix, ix] = Ak
-    Acl[ix, iz] = Bk @ Cy
-    Acl[wslot(1), iz] = Uz
-    Acl[wslot(1), ix] = Ux
+        Acl[..., iz, wslot(ell)] += G0
+    Acl[..., iz, wslot(ell + 1)] += G1
+    Acl[..., ix, ix] = Ak
+    Acl[..., ix, iz] = Bk @ Cy
+    Acl[..., wslot(1), iz] = Uz
+    Acl[..., wslot(1), ix] = Ux
     for k in range(2, L + 1):
-        Acl[wslot(k), wslot(k - 1)] = np.eye(n)
+        Acl[..., wslot(k), wslot(k - 1)] = np.eye(n)
     return Acl
 
 
@@ -273,7 +382,8 @@ def _sorted_eigs(L, eigs):
     return np.take_along_axis(lam, np.argsort(np.abs(lam), axis=-1), axis=-1)
 
 
-def delay_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None) -> np.ndarray:
+def delay_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None,
+                               intervals=None) -> np.ndarray:
     r"""Common-delay margin [s] of loops from their frequency responses, per plant.
 
     A delay ``tau`` on every input turns ``L`` into ``e^{-j w tau} L``; the loop (stable
@@ -288,6 +398,11 @@ def delay_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None) -> n
         Loop responses.
     omega : ndarray, shape (nw,)
         Frequencies [rad/s].
+    eigs : ndarray, shape (np, nw, n), complex, optional
+        The eigenvalues of ``L`` if known (then ``L`` is not read; NaN where not computed).
+    intervals : ndarray of bool, shape (np, nw - 1), optional
+        The intervals to search
+        (:func:`~rrr_pin.control.grid_bounds.crossing_intervals`); default all.
 
     Returns
     -------
@@ -299,6 +414,8 @@ def delay_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None) -> n
     lw = np.log(omega)
     out = np.full(lam.shape[0], np.inf)
     cross = (s[:, :-1] > 0) != (s[:, 1:] > 0)                   # (np, nw-1, n)
+    if intervals is not None:
+        cross &= intervals[..., None]
     p, i, k = np.nonzero(cross)
     if p.size:
         f = s[p, i, k] / (s[p, i, k] - s[p, i + 1, k])
@@ -310,7 +427,8 @@ def delay_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None) -> n
     return out
 
 
-def actuator_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None) -> np.ndarray:
+def actuator_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None,
+                                  intervals=None) -> np.ndarray:
     r"""Slowest first-order actuator ``wa / (s + wa)`` each loop tolerates [rad/s], per plant.
 
     The actuator turns an eigenvalue ``lambda`` of ``L`` into ``lambda cos(phi) e^{-j phi}``,
@@ -319,7 +437,8 @@ def actuator_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None) -
     (stable without an actuator) tolerates every ``wa`` above the largest such value. Grid
     crossings of ``|lambda| cos(phi) = 1`` as in :func:`delay_margin_from_response` (a
     continuous-time actuator on the sampled loop's response: an estimate, verified exactly by
-    :meth:`LoopSet.spectral_radius`).
+    :meth:`LoopSet.spectral_radius`). ``eigs`` and ``intervals`` as in
+    :func:`delay_margin_from_response`.
 
     Returns
     -------
@@ -333,6 +452,8 @@ def actuator_margin_from_response(L: np.ndarray, omega: np.ndarray, eigs=None) -
     out = np.zeros(lam.shape[0])
     both = ok[:, :-1] & ok[:, 1:]
     cross = both & ((g[:, :-1] > 0) != (g[:, 1:] > 0))
+    if intervals is not None:
+        cross &= intervals[..., None]
     p, i, k = np.nonzero(cross)
     if p.size:
         f = g[p, i, k] / (g[p, i, k] - g[p, i + 1, k])

@@ -15,7 +15,10 @@ Write your own structure by subclassing :class:`Structure`: give ``names``, ``bo
 between its bounds (all parameters are positive).
 
 Built in: :class:`FLOnly` (no ``K``), :class:`Gain`, :class:`PID` (derivative filter),
-:class:`LeadLag`, :class:`FixedOrder` (a strictly stable order-``m`` transfer function).
+:class:`LeadLag`, :class:`FixedOrder` (a strictly stable order-``m`` transfer function), and
+:class:`LoopShapingWeight` (the paper's synthesis with its weight's ``k, z, p`` free), and
+:class:`PerJoint` (any of these once per joint: ``K`` diagonal, each joint its own
+parameters; ``lam`` stays shared, the law's one bandwidth).
 """
 
 from __future__ import annotations
@@ -27,8 +30,8 @@ import numpy as np
 
 from ..validation import FieldError, check_count, check_positive
 
-__all__ = ["Structure", "FLOnly", "Gain", "PID", "LeadLag", "FixedOrder", "STRUCTURES",
-           "make_structure", "LAM_BOUNDS"]
+__all__ = ["Structure", "FLOnly", "Gain", "PID", "LeadLag", "FixedOrder", "LoopShapingWeight",
+           "PerJoint", "STRUCTURES", "make_structure", "LAM_BOUNDS"]
 
 #: Default search range of a tuned ``lam`` [rad/s].
 LAM_BOUNDS = (5.0, 500.0)
@@ -76,6 +79,9 @@ class Structure:
         """Return ``K(s)`` (``control.TransferFunction``, SISO, continuous) of the values."""
         raise NotImplementedError(f"{type(self).__name__} must implement K(values)")
 
+    def check_joints(self, robot: str, joint_names) -> None:
+        """Refuse an arm whose joints the structure does not fit (nothing by default)."""
+
     # -- derived -------------------------------------------------------------------------------
     @property
     def names(self) -> tuple:
@@ -93,7 +99,10 @@ class Structure:
         return np.array(lam0 + list(self.outer_initial()), dtype=float)
 
     def split(self, values) -> tuple[float, object]:
-        """Return ``(lam, K)`` of the free parameters ``values`` (``K`` None: FL alone)."""
+        """Return ``(lam, K)`` of the free parameters ``values``.
+
+        ``K`` None: FL alone; a list: one SISO ``K`` per joint.
+        """
         values = list(np.asarray(values, dtype=float))
         lam = values.pop(0) if self.lam is None else self.lam
         return float(lam), self.K(values)
@@ -266,11 +275,132 @@ class FixedOrder(Structure):
         return {**super().to_dict(values), "order": self.order}
 
 
+@dataclass(frozen=True)
+class LoopShapingWeight(Structure):
+    r"""The paper's loop-shaping controller with its weight's parameters free.
+
+    ``K = W1 Ks`` of :func:`~rrr_pin.robust.ncf.ncfsyn` (optimal, ``factor = 1``) on the FL
+    plant ``lam^2 / (s + lam)^2`` (eq. 11) shaped by the lag weight (eq. 16)
+
+    .. math:: W_1(s) = \frac{k (s + z)}{s + p},
+
+    full order (the synthesis' own controller, as ``rrr_pin.design(...).K_full``); the paper's
+    point is ``k, z, p = 25, 11.5, 0.19`` at ``lam = 45``
+    (:data:`rrr_pin.robust.loopshaping.PAPER_W1`). Each evaluation
+    runs the synthesis (~30 ms), so a tuning of this structure takes minutes.
+    """
+
+    kind: ClassVar[str] = "weight"
+    outer_names: ClassVar[tuple] = ("k", "z", "p")
+
+    def outer_bounds(self):
+        """Return the search bounds: ``k`` [-], ``z`` and ``p`` [rad/s]."""
+        return [(0.1, 1e3), (0.01, 1e3), (1e-3, 100.0)]
+
+    def outer_initial(self):
+        """Return the paper's weight, eq. (16)."""
+        from ..robust.loopshaping import PAPER_W1
+
+        return list(PAPER_W1)
+
+    def split(self, values):
+        """Return ``(lam, K)``: the synthesis needs ``lam`` (its plant is eq. 11's)."""
+        values = list(np.asarray(values, dtype=float))
+        lam = values.pop(0) if self.lam is None else self.lam
+        return float(lam), self._K(float(lam), values)
+
+    def K(self, values):
+        """Return ``K`` at the fixed ``lam`` (tuned ``lam``: use :meth:`split`)."""
+        if self.lam is None:
+            raise ValueError("LoopShapingWeight with a tuned lam: K depends on it, use split")
+        return self._K(self.lam, values)
+
+    @staticmethod
+    def _K(lam, values):
+        import control
+
+        from ..robust.loopshaping import fl_plant, lag_weight
+        from ..robust.ncf import ncfsyn
+
+        k, z, p = values
+        return control.tf(ncfsyn(fl_plant(lam, 1), lag_weight(k, z, p), np.eye(1), 1.0).K)
+
+
+@dataclass(frozen=True)
+class PerJoint(Structure):
+    r"""One outer controller per joint, each of the shape of ``base``, ``lam`` shared.
+
+    ``K(s) = diag(K_1(s), ..., K_n(s))``, every ``K_j`` a ``base`` structure with its own
+    parameters (named ``<name>@<joint>``). ``lam`` is shared by every joint, fixed or tuned as
+    ``base``'s: the law (:class:`~rrr_pin.control.laws.TrackingController`, its compiled and
+    exported forms) takes one FL bandwidth, so a per-joint ``lam`` is refused by name.
+
+    Parameters
+    ----------
+    base : Structure
+        The shape of each joint's controller (its ``lam`` and ``lam_bounds`` are the law's).
+    joints : tuple of str
+        The arm's joint names, in order (``robot.joint_names``).
+    """
+
+    base: Structure = None
+    joints: tuple = ()
+    kind: ClassVar[str] = "perjoint"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.base, Structure) or isinstance(self.base, PerJoint):
+            raise FieldError("structure", f"{{name}}: PerJoint needs a base Structure (gain, "
+                                          f"pid, leadlag, orderN), got {self.base!r}")
+        if isinstance(self.base, FLOnly):
+            raise FieldError("structure", "{name}: PerJoint of fl has no outer controller to "
+                                          "give each joint")
+        joints = tuple(str(j) for j in self.joints)
+        if not joints or len(set(joints)) != len(joints):
+            raise FieldError("joints", f"{{name}} must be distinct joint names, got "
+                                       f"{self.joints!r}")
+        object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "lam", self.base.lam)
+        object.__setattr__(self, "lam_bounds", self.base.lam_bounds)
+        super().__post_init__()
+
+    @property
+    def outer_names(self) -> tuple:
+        """Return ``<name>@<joint>`` for each joint and each of ``base``'s parameters."""
+        return tuple(f"{k}@{j}" for j in self.joints for k in self.base.outer_names)
+
+    def outer_bounds(self):
+        """Return ``base``'s bounds, once per joint."""
+        return list(self.base.outer_bounds()) * len(self.joints)
+
+    def outer_initial(self):
+        """Return ``base``'s starting point, once per joint."""
+        return list(self.base.outer_initial()) * len(self.joints)
+
+    def K(self, values):
+        """Return the list of the joints' ``K_j`` (SISO, in joint order)."""
+        m = len(self.base.outer_names)
+        return [self.base.K(list(values[i * m:(i + 1) * m])) for i in range(len(self.joints))]
+
+    def check_joints(self, robot: str, joint_names) -> None:
+        """Refuse an arm with other joints (:class:`FieldError` ``structure``)."""
+        if tuple(joint_names) != self.joints:
+            raise FieldError("structure", f"{{name}}: per-joint structure on joints "
+                                          f"{list(self.joints)}, but {robot} has joints "
+                                          f"{list(joint_names)}")
+
+    def to_dict(self, values=None) -> dict:
+        """Return the JSON-ready record, with ``base``'s."""
+        return {**super().to_dict(values), "base": self.base.to_dict(),
+                "joints": list(self.joints)}
+
+
 #: Built-in structures by CLI name (``order2`` and any ``orderN`` are :class:`FixedOrder`).
-STRUCTURES = {"fl": FLOnly, "gain": Gain, "pid": PID, "leadlag": LeadLag, "order": FixedOrder}
+STRUCTURES = {"fl": FLOnly, "gain": Gain, "pid": PID, "leadlag": LeadLag, "order": FixedOrder,
+              "weight": LoopShapingWeight}
 
 
-def make_structure(name: str, lam: float | None = 45.0) -> Structure:
+def make_structure(name: str, lam: float | None = 45.0, joints=None,
+                   per_joint: bool = False) -> Structure:
     """Build a built-in structure by name: ``fl``, ``gain``, ``pid``, ``leadlag``, ``orderN``.
 
     Parameters
@@ -279,16 +409,22 @@ def make_structure(name: str, lam: float | None = 45.0) -> Structure:
         The structure's name; ``orderN`` is a :class:`FixedOrder` of ``N`` states.
     lam : float or None
         Fixed FL bandwidth [rad/s], or None to tune it.
+    joints : sequence of str, optional
+        The arm's joint names (needed with ``per_joint``).
+    per_joint : bool
+        One controller per joint (:class:`PerJoint`) instead of one shared.
 
     Raises
     ------
     FieldError
         ``structure``: an unknown name (the message lists the built-in ones).
     """
+    if per_joint:
+        return PerJoint(base=make_structure(name, lam), joints=tuple(joints or ()))
     if isinstance(name, str) and name.startswith("order") and name[5:].isdigit():
         return FixedOrder(lam=lam, order=int(name[5:]))
     cls = STRUCTURES.get(name) if isinstance(name, str) and name != "order" else None
     if cls is None:
         raise FieldError("structure", f"{{name}}: unknown structure {name!r}; built-in: fl, "
-                                      f"gain, pid, leadlag, orderN (e.g. order2)")
+                                      f"gain, pid, leadlag, orderN (e.g. order2), weight")
     return cls(lam=lam)

@@ -58,6 +58,7 @@ from .urdf import urdf_from_params
 
 __all__ = [
     "Tolerances",
+    "ToleranceVertices",
     "PlantSample",
     "perturb_params",
     "perturb_urdf",
@@ -127,6 +128,56 @@ class Tolerances(UncertaintySet):
     def mechanism(self, params, rng: np.random.Generator) -> tuple[object, dict]:
         """``perturb_mechanism(params, rng, inertia, length)``: masses and lengths."""
         return perturb_mechanism(params, rng, self.inertia, self.length)
+
+
+class _CornerDraws:
+    """A generator whose ``uniform(low, high)`` returns ``low`` or ``high`` (even odds).
+
+    Hands :class:`ToleranceVertices` the perturbation code of :class:`Tolerances` unchanged,
+    every factor moved from inside its interval to one of its two ends.
+    """
+
+    def __init__(self, rng: np.random.Generator):
+        self._rng = rng
+
+    def uniform(self, low=0.0, high=1.0, size=None):
+        pick = self._rng.random(size) < 0.5
+        return np.where(pick, low, high) if size is not None else float(low if pick
+                                                                         else high)
+
+
+@dataclass(frozen=True)
+class ToleranceVertices(Tolerances):
+    """Corners of the tolerance box: every factor at ``1 - tol`` or ``1 + tol``.
+
+    The same perturbation as :class:`Tolerances` (masses, principal second moments, lengths),
+    each factor drawn at one end of its interval with even odds instead of uniformly inside
+    it: a seeded sample of the box's ``2^N`` vertices (``N`` factors: 5 per link of a DH arm,
+    so 32768 for the RRR, too many to enumerate), where worst cases of a multilinear
+    dependence lie.
+
+    Parameters
+    ----------
+    inertia, length : float
+        As :class:`Tolerances`.
+    """
+
+    def describe(self) -> str:
+        """One line for reports."""
+        return f"vertices of {super().describe()}"
+
+    def to_dict(self) -> dict:
+        """Return :meth:`Tolerances.to_dict` with ``"draw": "vertices"``."""
+        return {**super().to_dict(), "draw": "vertices"}
+
+    def arm(self, source, rng: np.random.Generator, *, skip_joints=(), name=None
+            ) -> tuple[str, dict]:
+        """Perturb as :meth:`Tolerances.arm`, every factor at a corner."""
+        return super().arm(source, _CornerDraws(rng), skip_joints=skip_joints, name=name)
+
+    def mechanism(self, params, rng: np.random.Generator) -> tuple[object, dict]:
+        """Perturb as :meth:`Tolerances.mechanism`, every factor at a corner."""
+        return super().mechanism(params, _CornerDraws(rng))
 
 
 @dataclass(frozen=True)
