@@ -1,0 +1,99 @@
+"""Uncertain arms drawn straight into their model (rrr_pin.model.drawn) against the text route.
+
+The reference is independent code: the URDF text :meth:`Tolerances.arm` writes from the same
+seeded draws (yourdfpy or the DH generator), read by urdfdom and Pinocchio's URDF reader.
+"""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from rrr_pin import Tolerances, load_robot
+from rrr_pin.model.drawn import urdf_rotation
+from rrr_pin.model.dynamics import DrawnArm, robot_from_xml
+from rrr_pin.sim import dyngen
+
+TOL = Tolerances()
+PANDA_LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return load_robot("panda", lock=PANDA_LOCK)
+
+
+def _text_route(nominal, seed):
+    """The plant the URDF route makes of seed ``[0, k]``: its model and parameters record."""
+    source = nominal.params if nominal.params is not None else nominal.urdf
+    text, parameters = TOL.arm(source, np.random.default_rng(seed),
+                               skip_joints=tuple(nominal.locked), name="s")
+    plant = robot_from_xml(text, gravity=nominal.gravity, lock=dict(nominal.locked), name="s",
+                           check=False)
+    return text, plant, parameters
+
+
+@pytest.mark.parametrize("arm", ["rrr", "ur5", "panda"])
+def test_drawn_equals_text_route(arm, request):
+    """Every parameter of the drawn model equals the model read from the URDF text.
+
+    RRR and UR5 (no locked joint): bit for bit, as the reader adds the same numbers in the same
+    order. Panda (fingers locked): Pinocchio's buildReducedModel sums the hand's bodies in
+    another order, so to 1e-14 relative to the parameter's size (round-off of a few sums).
+    """
+    nominal = request.getfixturevalue(arm)
+    exact = not nominal.locked
+    for k in range(6):
+        drawn, parameters = nominal.perturbed(np.random.default_rng([7, k]), TOL, name="s")
+        text, plant, expected = _text_route(nominal, [7, k])
+        assert isinstance(drawn, DrawnArm) and parameters == expected
+        A, B = dyngen.parameters(drawn.model), dyngen.parameters(plant.model)
+        if exact:
+            np.testing.assert_array_equal(A, B)
+        else:
+            np.testing.assert_allclose(A, B, rtol=1e-14, atol=1e-14 * np.abs(B).max())
+        assert B.tolist() != dyngen.parameters(nominal.model).tolist()  # something was drawn
+        for fa, fb in zip(drawn.model.frames, plant.model.frames, strict=True):
+            assert fa.name == fb.name
+            np.testing.assert_allclose(fa.placement.homogeneous, fb.placement.homogeneous,
+                                       rtol=0, atol=1e-15)  # exact to round-off of a product
+        # the limits, armature and friction are the nominal's
+        np.testing.assert_array_equal(drawn.lower, plant.lower)
+        np.testing.assert_array_equal(drawn.effort_limits(), plant.effort_limits())
+        assert drawn.name == "s" and drawn.locked == plant.locked
+
+
+def test_urdf_written_at_first_use(rrr):
+    """The URDF of a drawn arm is written only when asked for, from the same draws."""
+    drawn, _ = rrr.perturbed(np.random.default_rng([3, 1]), TOL, name="rrr_sample001")
+    assert "_urdf" not in drawn.__dict__ or drawn.__dict__["_urdf"] is None
+    text, _, _ = _text_route(rrr, [3, 1])
+    assert drawn.urdf == text.replace('name="s"', 'name="rrr_sample001"')
+    assert drawn.source_text() == (drawn.urdf, ".urdf")
+
+
+def test_urdf_rotation_matches_pinocchio(ur5):
+    """urdf_rotation of a joint's rpy equals the placement Pinocchio read from the text."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(ur5.urdf)
+    checked = 0
+    for j in root.findall("joint"):
+        jid = ur5.model.getJointId(j.get("name"))
+        if j.get("type") == "fixed" or ur5.model.parents[jid] == 0:
+            continue  # the first joint sits after the fixed world joint: a product
+        checked += 1
+        rpy = [float(v) for v in j.find("origin").get("rpy").split()]
+        np.testing.assert_array_equal(
+            urdf_rotation(rpy),
+            ur5.model.jointPlacements[jid].rotation)
+    assert checked == 5
+    # and against Pinocchio's own rpy map, to round-off (another algorithm)
+    rpy = np.array([0.3, -1.2, 2.5])
+    np.testing.assert_allclose(urdf_rotation(rpy), pin.rpy.rpyToMatrix(rpy), atol=1e-15)
+
+
+def test_identified_set_keeps_the_text_route(rrr):
+    """An uncertainty set without a direct route draws through the URDF text (draw_arm None)."""
+    from rrr_pin.model.plant import UncertaintySet
+
+    assert UncertaintySet().draw_arm(rrr, np.random.default_rng(0)) is None
