@@ -219,12 +219,16 @@ def test_campaign_rows_equal_for_one_and_two_threads(rrr):
         mc.run_campaign(rrr, laws, settings, jobs=1, threads=0)
 
 
-def test_figures_equal_the_trajectorys_figures(rrr, ref, plants):
-    # figures=True reduces the batch arrays without making trajectories: the same numbers,
-    # bit for bit, as the trajectories' own figures (and as the campaign's run_metrics).
+@pytest.mark.parametrize("rate, duration", [(RATE, 0.2), (RATE, 0.731), (None, 0.2)],
+                         ids=["sampled", "sampled-odd-length", "continuous"])
+def test_figures_equal_the_trajectorys_figures(rrr, ref, plants, rate, duration):
+    # figures=True reduces each run inside the C++ loop (numpy's pairwise sum, streamed)
+    # without storing trajectories: the same numbers, bit for bit, as numpy's reduction of
+    # the trajectories (their own figures, the campaign's run_metrics). 0.731 s: 732 x 3
+    # values, a pairwise tree whose leaves are not all full blocks of 8.
     law = make_laws("hinf", rrr)[0]
-    trajs = simulate_batch(plants, law, ref, 0.2, rate=RATE, batch=4, threads=2)
-    figs = simulate_batch(plants, law, ref, 0.2, rate=RATE, batch=4, figures=True)
+    trajs = simulate_batch(plants, law, ref, duration, rate=rate, batch=4, threads=2)
+    figs = simulate_batch(plants, law, ref, duration, rate=rate, batch=4, figures=True)
     for t, f in zip(trajs, figs, strict=True):
         assert f.figures() == t.figures()
         assert f.info == t.info and f.info["engine"] == "codegen"

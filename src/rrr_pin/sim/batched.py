@@ -351,7 +351,24 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     def call(sl):
         return EXTENSION.batch_rollout(name, P[sl], nominal, law, inputs, lower[sl], upper[sl])
 
+    def reduced(sl):
+        return EXTENSION.batch_figures(name, P[sl], nominal, law, inputs, lower[sl], upper[sl])
+
     out = []
+    if figures and n1 > 1:
+        # Reduced in the C++ loop (tracking_figures_batch of the same arrays, bit for bit):
+        # no trajectory is stored. A diverged plant comes back with the state it diverged in
+        # (step ``bad_step``) and its first torque.
+        for sl, (F, Q1, QD1, TAU0, steps, joints, reasons) in zip(
+                slices, _map(reduced, slices, int(threads)), strict=True):
+            for b, run in enumerate(runs[sl]):
+                values = dict(zip(("rms_error", "max_error", "rms_torque"), F[b, :3].tolist(),
+                                  strict=True))
+                values.update(zip((f"rms_error_{j}" for j in run.plant.joint_names),
+                                  F[b, 3:].tolist(), strict=True))
+                out.append(_result(run, int(steps[b]), int(joints[b]), int(reasons[b]),
+                                   (Q1[b], QD1[b]), TAU0[b], figures=values))
+        return out
     for sl, (Q, QD, TAU, steps, joints, reasons) in zip(
             slices, _map(call, slices, int(threads)), strict=True):
         B = len(steps)
@@ -361,8 +378,9 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
                                          [r.plant.joint_names for r in runs[sl]])
                   if figures else [None] * B)
         for b, run in enumerate(runs[sl]):
-            out.append(_result(run, Q[b], QD[b], TAU[b], int(steps[b]), int(joints[b]),
-                               int(reasons[b]), values[b]))
+            k = int(steps[b])
+            out.append(_result(run, k, int(joints[b]), int(reasons[b]), (Q[b, k], QD[b, k]),
+                               TAU[b, 0], figures=values[b], arrays=(Q[b], QD[b], TAU[b])))
     return out
 
 
@@ -390,24 +408,27 @@ def _map(fn, items, threads: int):
     return thread_pool(threads).map(fn, items)
 
 
-def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int,
-            figures: dict | None = None):
+def _result(run, bad_step: int, bad_joint: int, reason: int, state, tau0,
+            figures: dict | None = None, arrays=None):
     """Return a plant's Trajectory (or RunFigures of ``figures``) or its SimulationDiverged.
 
-    As in compiled.run_compiled. The run's reference arrays may be shared with other runs
+    As in compiled.run_compiled. ``state``: ``(q, qd)`` at ``bad_step`` (the state that
+    diverged); ``tau0``: the first torque; ``arrays``: ``(Q, QD, TAU)`` for a trajectory. The
+    run's reference arrays may be shared with other runs
     (:func:`rrr_pin.sim.simulation.simulate_batch`): a trajectory gets its own copy.
     """
     law_failed = bad_step >= 0 and reason == LAW_TORQUE
-    if law_failed and bad_step == 0 and not np.isfinite(TAU[0]).all():
-        check_law_output(run.law, "step() torque" if run.sampled else "torque()", TAU[0],
+    if law_failed and bad_step == 0 and not np.isfinite(tau0).all():
+        check_law_output(run.law, "step() torque" if run.sampled else "torque()", tau0,
                          run.plant.nq, float(run.t[0]))
     if law_failed:
         return law_divergence(run.plant, run.law.name, float(run.t[bad_step]), bad_joint)
     if bad_step >= 0:
-        return divergence(run.plant, float(run.t[bad_step]), Q[bad_step], QD[bad_step],
-                          bad_joint, REASONS[reason])
+        return divergence(run.plant, float(run.t[bad_step]), state[0], state[1], bad_joint,
+                          REASONS[reason])
     if figures is not None:
         return RunFigures(run.law.name, run.plant.name, figures, dict(run.info))
+    Q, QD, TAU = arrays
     return make_trajectory(replace(run, R=run.R.copy()), np.ascontiguousarray(Q),
                            np.ascontiguousarray(QD), np.ascontiguousarray(TAU))
 
