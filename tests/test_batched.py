@@ -17,6 +17,7 @@ from numpy.testing import assert_allclose
 
 from rrr_pin.campaign import montecarlo as mc
 from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.control.effects import PlantEffects
 from rrr_pin.control.laws import fl_controller, hinf_fl_controller, pd_controller
 from rrr_pin.control.references import SineReference
 from rrr_pin.model.dynamics import load_robot, robot_from_xml
@@ -253,3 +254,46 @@ def test_batched_hinf_aw_equals_compiled(rrr, ref, plants, rate):
         assert_allclose(a.q, c.q, rtol=0.0, atol=1e-12)
         assert_allclose(a.qd, c.qd, rtol=0.0, atol=1e-11)
         assert_allclose(a.tau, c.tau, rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize("effects", [
+    PlantEffects(delay=0.0015), PlantEffects(torque_limit=60.0),
+    PlantEffects(delay=0.001, torque_limit=(80.0, 60.0, 20.0))],
+    ids=["delay", "torque-limit", "both"])
+@pytest.mark.parametrize("kind", ["fl", "hinf_aw"])
+def test_batched_effects_equal_compiled(rrr, ref, plants, effects, kind):
+    # The torque limit and the transport delay in the batched loop (law -> saturation ->
+    # delay -> plant, effects.hpp's order): pinned to the compiled engine plant by plant, and
+    # bit-identical for every batch size. The limits clip (the peak torque is the limit).
+    law = make_laws(kind, rrr)[0]
+    q0 = ref.sample(np.array([0.0]))[0][0] + np.array([0.05, -0.04, 0.03])
+    go = dict(rate=RATE, dt=0.0005, q0=q0, effects=effects)
+    together = simulate_batch(plants, law, ref, 0.3, **go)
+    alone = simulate_batch(plants, law, ref, 0.3, batch=1, **go)
+    figs = simulate_batch(plants, law, ref, 0.3, figures=True, **go)
+    for a, b, f, plant in zip(together, alone, figs, plants, strict=True):
+        assert a.info["engine"] == "codegen" and a.info["effects"] == b.info["effects"]
+        np.testing.assert_array_equal(a.q, b.q)
+        assert f.figures() == a.figures()
+        c = simulate(plant, law, ref, 0.3, engine="compiled", **go)
+        assert c.info["effects"] == a.info["effects"]
+        # 1e-12 rad as the ideal plant's pin above (the dynamics differ by round-off)
+        assert_allclose(a.q, c.q, rtol=0.0, atol=1e-12)
+        assert_allclose(a.qd, c.qd, rtol=0.0, atol=1e-11)
+    if effects.torque_limit is not None:
+        limit = np.broadcast_to(effects.torque_limit, (3,))
+        assert np.abs(together[0].tau).max(axis=0).tolist() <= limit.tolist()
+        assert np.isclose(np.abs(together[0].tau).max(axis=0), limit).any()  # it clips
+
+
+def test_unbatched_effects_are_refused_by_name(rrr, ref, plants):
+    # An actuator lag has no batched step: "auto" runs the compiled engine and says why,
+    # "codegen" refuses, naming the effect.
+    fx = PlantEffects(bandwidth=200.0, delay=0.001)
+    auto = simulate_batch(plants[:2], fl_controller(rrr), ref, 0.05, rate=RATE, effects=fx)
+    assert auto[0].info["engine"] == "compiled"
+    assert "batches the torque limit and the delay only" in auto[0].info["engine_note"]
+    assert "actuator bandwidth" in auto[0].info["engine_note"]
+    with pytest.raises(ValueError, match="actuator bandwidth"):
+        simulate_batch(plants[:2], fl_controller(rrr), ref, 0.05, rate=RATE, effects=fx,
+                       engine="codegen")

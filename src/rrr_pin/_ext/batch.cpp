@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "effects.hpp"
 #include "rk4.hpp"
 
 extern "C" {
@@ -708,9 +709,23 @@ namespace rrr_pin
     inline void keep_torque(BatchOutputs &, const Lanes &) {}
     inline void keep_torque(FigureOutputs & out, const Lanes & tau) { out.keep(tau); }
 
+    /// The plant effects the batched loop implements: saturation, then a transport delay of
+    /// delay_steps plant sub-steps (effects.hpp, the compiled engine's order). Others throw.
+    void check_batch_effects(const Effects & fx, Eigen::Index n, std::int64_t n_steps)
+    {
+      fx.check(n, n_steps);
+      if (fx.lags() || fx.rubs() || fx.flexes() || fx.noise_q.rows() > 0
+          || fx.noise_qd.rows() > 0 || fx.quantum > 0.0)
+        throw std::invalid_argument(
+          "the batched loop runs the delay and the torque limit only (no actuator, friction, "
+          "flexible joint, noise or encoder)");
+    }
+
+    /// Sampled law on B plants: law -> saturation -> delay -> plant, as rollout.cpp's
+    /// sampled_loop with these effects (the ideal plant without them).
     template<class Out, class Law>
     auto sampled_loop(const Models & md, const Law & law, const RolloutInputs & in,
-                      const RowMat & lower, const RowMat & upper)
+                      const RowMat & lower, const RowMat & upper, const Effects & fx)
     {
       const int B = md.B, n = md.n, m = static_cast<int>(law.nx());
       const std::int64_t N = in.n_steps;
@@ -721,6 +736,10 @@ namespace rrr_pin
       Lanes xn(m * B);
       BRK4 w = lane_work(n * B, 0);
       std::vector<int> stopped;
+      // The commands the delay reaches back to: row r (control step r) at hist[r % H].
+      const std::int64_t H = fx.delay_steps > 0 ? fx.delay_steps / in.substeps + 2 : 0;
+      std::vector<Lanes> hist(static_cast<std::size_t>(H), Lanes(n * B, 0.0));
+      Lanes cmd(n * B);
       for (int b = 0; b < B; ++b)
         out.start(b, y);
       for (std::int64_t k = 0; k < N && out.n_alive > 0; ++k)
@@ -733,31 +752,42 @@ namespace rrr_pin
           eval.state_map(y.x.data(), xn.data());
           y.x.swap(xn);
         }
+        cmd = tau;
+        if (fx.saturates())  // Eigen's cwiseMax(-limit).cwiseMin(limit): std::max, std::min
+          for (int j = 0; j < n; ++j)
+            for (int b = 0; b < B; ++b)
+              cmd[j * B + b] = std::min(std::max(tau[j * B + b], -fx.limit[j]), fx.limit[j]);
         stopped.clear();
         for (int b = 0; b < B; ++b)
         {
           if (!out.alive[b])
             continue;
-          out.torque(b, k, tau);
-          for (int j = 0; j < n; ++j)
-            if (!std::isfinite(tau[j * B + b]))  // the law's own output
-            {
-              out.kill(b, k, j, kLawTorque);
-              stopped.push_back(b);
-              break;
-            }
+          int bad = -1;
+          for (int j = 0; j < n && bad < 0; ++j)
+            if (!std::isfinite(tau[j * B + b]))  // the law's own output, before saturation
+              bad = j;
+          out.torque(b, k, bad < 0 ? cmd : tau);
+          if (bad >= 0)
+          {
+            out.kill(b, k, bad, kLawTorque);
+            stopped.push_back(b);
+          }
         }
         if (k == N - 1)
-          keep_torque(out, tau);
-        plant.u = tau;
+          keep_torque(out, cmd);
+        plant.u = cmd;
         for (int b : stopped)
         {
           park(y, b, B, in);
           for (int j = 0; j < n; ++j)
             plant.u[j * B + b] = 0.0;
         }
+        if (H > 0)
+          hist[k % H] = plant.u;
         for (int s = 0; s < in.substeps; ++s)
         {
+          if (H > 0)  // the command of row delayed_row(k, s) (row 0 before the first)
+            plant.u = hist[fx.delayed_row(k, s, in.substeps) % H];
           plant.slope(y, 0, w.k1);
           rk4_rest(plant, y, in.h, w);
         }
@@ -913,34 +943,46 @@ namespace rrr_pin
                                 + ")");
   }
 
+  namespace
+  {
+    template<class Out, class Law>
+    auto run_loop(const std::string & name, const RowMat & plant, const Vec & nominal,
+                  const Law & law, const RolloutInputs & in, const RowMat & lower,
+                  const RowMat & upper, const Effects * fx)
+    {
+      const DynFunctions & f = dyn_by_name(name);
+      check_batch(f, plant, nominal, in, law.nx(), lower, upper);
+      law.check(f.nq);
+      const Effects none;
+      if (fx)
+      {
+        if (!in.sampled)
+          throw std::invalid_argument("plant effects need a sampled law");
+        check_batch_effects(*fx, f.nq, in.n_steps);
+      }
+      const Models md(f, plant, nominal);
+      if (in.sampled)
+        return sampled_loop<Out>(md, law, in, lower, upper, fx ? *fx : none);
+      return continuous_loop<Out>(md, law, in, lower, upper);
+    }
+  } // namespace
+
   template<class Law>
   BatchResult batch_rollout(
     const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
-    const RolloutInputs & in, const RowMat & lower, const RowMat & upper)
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper, const Effects * fx)
   {
-    const DynFunctions & f = dyn_by_name(name);
-    check_batch(f, plant, nominal, in, law.nx(), lower, upper);
-    law.check(f.nq);
-    const Models md(f, plant, nominal);
-    if (in.sampled)
-      return sampled_loop<BatchOutputs>(md, law, in, lower, upper);
-    return continuous_loop<BatchOutputs>(md, law, in, lower, upper);
+    return run_loop<BatchOutputs>(name, plant, nominal, law, in, lower, upper, fx);
   }
 
   template<class Law>
   FigureResult batch_figures(
     const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
-    const RolloutInputs & in, const RowMat & lower, const RowMat & upper)
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper, const Effects * fx)
   {
-    const DynFunctions & f = dyn_by_name(name);
-    check_batch(f, plant, nominal, in, law.nx(), lower, upper);
-    law.check(f.nq);
     if (in.n_steps < 1)
       throw std::invalid_argument("batch_figures: n_steps must be >= 1");
-    const Models md(f, plant, nominal);
-    if (in.sampled)
-      return sampled_loop<FigureOutputs>(md, law, in, lower, upper);
-    return continuous_loop<FigureOutputs>(md, law, in, lower, upper);
+    return run_loop<FigureOutputs>(name, plant, nominal, law, in, lower, upper, fx);
   }
 
   template<class Law>
@@ -980,24 +1022,24 @@ namespace rrr_pin
 
   template BatchResult batch_rollout<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   template FigureResult batch_figures<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   template FigureResult batch_figures<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   template FigureResult batch_figures<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   template BatchResult batch_rollout<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   template double batch_floor_timing<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   template BatchResult batch_rollout<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   template double batch_floor_timing<FLLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   template double batch_floor_timing<PDLaw>(

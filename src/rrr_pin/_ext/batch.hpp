@@ -14,6 +14,7 @@
 #include <tuple>
 #include <vector>
 
+#include "effects.hpp"
 #include "law.hpp"
 #include "rollout.hpp"
 
@@ -64,12 +65,14 @@ namespace rrr_pin
   template<class Law>
   FigureResult batch_figures(
     const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
-    const RolloutInputs & in, const RowMat & lower, const RowMat & upper);
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper,
+    const Effects * fx = nullptr);
 
   template<class Law>
   BatchResult batch_rollout(
     const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
-    const RolloutInputs & in, const RowMat & lower, const RowMat & upper);
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper,
+    const Effects * fx = nullptr);
 
   /// Wall time [s] of the bare generated dynamics calls of B plant-rollouts of a `Law`
   /// (the calls floor_timing() times, on all B plants per call).
@@ -80,24 +83,24 @@ namespace rrr_pin
 
   extern template BatchResult batch_rollout<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   extern template FigureResult batch_figures<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   extern template FigureResult batch_figures<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   extern template FigureResult batch_figures<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   extern template BatchResult batch_rollout<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   extern template double batch_floor_timing<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   extern template BatchResult batch_rollout<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   extern template double batch_floor_timing<FLLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   extern template double batch_floor_timing<PDLaw>(

@@ -18,9 +18,11 @@ Pinocchio's calls), so trajectories equal the compiled engine's to round-off
 multiply-adds, so a plant's numbers are the same whatever batch it runs in.
 
 Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``FLAWForm``, ``PDForm``: FL, H-infinity +
-FL, its anti-windup form ``hinf_aw``, PD), sampled or continuous, on the ideal plant (no
-:mod:`~rrr_pin.control.effects`); anything else is refused by name (:func:`why_not`) and runs
-on the compiled engine under ``engine="auto"``, which records why.
+FL, its anti-windup form ``hinf_aw``, PD), sampled or continuous, on the ideal plant or, for a
+sampled law, with the plant effects of :data:`BATCH_EFFECTS` (a torque limit and a transport
+delay, in the compiled engine's order: law -> saturation -> delay -> plant); anything else (the
+actuator, friction, flexible joints, noise, the encoder) is refused by name (:func:`why_not`) and
+runs on the compiled engine under ``engine="auto"``, which records why.
 """
 
 from __future__ import annotations
@@ -49,7 +51,8 @@ from .trajectory import (
     tracking_figures_batch,
 )
 
-__all__ = ["GENERATED", "BATCH_LAWS", "BATCH_MAX", "StructureMismatch", "generated_structure",
+__all__ = ["GENERATED", "BATCH_LAWS", "BATCH_EFFECTS", "BATCH_MAX", "StructureMismatch",
+           "generated_structure",
            "plant_parameters", "batchable", "why_not", "run_batch", "raise_or_return",
            "floor_ms", "MAX_THREADS", "thread_pool", "warm"]
 
@@ -63,6 +66,11 @@ GENERATED = {
 
 #: The compiled forms the batched loop implements, by exact type, and their C++ law.
 BATCH_LAWS = {FLForm: "FLLaw", FLAWForm: "FLAWLaw", PDForm: "PDLaw"}
+
+#: The plant effects the batched loop implements (fields of
+#: :class:`rrr_pin.control.effects.Resolved`): the torque limit and the transport delay.
+BATCH_EFFECTS = ("limit", "delay_steps")
+_BATCH_EFFECT_LABEL = "the torque limit and the delay"
 
 #: Most plants in one batch (``RRR_DYN_BMAX`` of ``generated/dyn_common.h``).
 BATCH_MAX = 16
@@ -232,8 +240,12 @@ def why_not(run, form):
         known = ", ".join(cls.__name__ for cls in BATCH_LAWS)
         return (f"compiled form {type(form).__qualname__} of law {law.name!r} is not "
                 f"implemented by the batched engine (known: {known})")
-    if run.effects is not None:
-        return f"engine {CODEGEN!r} runs the ideal plant only, got plant effects"
+    others = _unbatched_effects(run.effects)
+    if others:
+        return (f"engine {CODEGEN!r} batches {_BATCH_EFFECT_LABEL} only of the plant "
+                f"effects, got {', '.join(others)}")
+    if run.effects is not None and not run.sampled:
+        return f"engine {CODEGEN!r} applies plant effects to sampled laws only"
     for robot, role in ((plant, "plant"), (form.nominal, "nominal")):
         if generated_structure(robot.model) is None:
             return _refusal(robot, role)
@@ -247,8 +259,53 @@ def batchable(runs, form) -> bool:
     if any(r.plant.loop_closures for r in runs) or form.nominal.loop_closures:
         return False
     name = generated_structure(form.nominal.model)
-    return (name is not None and all(r.effects is None for r in runs)
+    return (name is not None and all(not _unbatched_effects(r.effects) for r in runs)
+            and _shared_effects(runs)
             and all(generated_structure(r.plant.model) == name for r in runs))
+
+
+def _unbatched_effects(fx) -> list[str]:
+    """Return the effects of a run's ``Resolved`` outside BATCH_EFFECTS, by their user names."""
+    if fx is None:
+        return []
+    off = {"wa": 0.0, "quantum": 0.0}  # the scalar effects' "off"; arrays are None when off
+    out = []
+    for f in fields(fx):
+        value = getattr(fx, f.name)
+        if f.name in (*BATCH_EFFECTS, "info", "veps") or value is None or (
+                f.name in off and value == off[f.name]):
+            continue
+        name = _EFFECT_NAMES.get(f.name, f.name)
+        if name not in out:
+            out.append(name)
+    return out
+
+
+#: What a Resolved field is called where a user sets it (PlantEffects).
+_EFFECT_NAMES = {"wa": "actuator bandwidth", "Fv": "friction", "Fc": "friction",
+                 "noise_q": "sensor noise", "noise_qd": "sensor noise", "quantum": "encoder",
+                 "Bm": "flexible joints", "Kf": "flexible joints", "Df": "flexible joints"}
+
+
+def _key(fx):
+    return (None if fx is None else
+            (fx.delay_steps, None if fx.limit is None else tuple(fx.limit.tolist())))
+
+
+def _shared_effects(runs) -> bool:
+    """Whether the runs share their delay and torque limit (a batch applies one of each)."""
+    return len({_key(r.effects) for r in runs}) == 1
+
+
+def _effects(fx):
+    """Return the C++ ``Effects`` of a run's batched effects (None: the ideal plant)."""
+    if fx is None or (fx.delay_steps == 0 and fx.limit is None):
+        return None
+    out = EXTENSION.Effects()
+    out.delay_steps = int(fx.delay_steps)
+    if fx.limit is not None:
+        out.limit = np.asarray(fx.limit, dtype=float)
+    return out
 
 
 def _law(form):
@@ -302,7 +359,8 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     StructureMismatch
         A plant or the law's model of a structure without generated dynamics.
     ValueError
-        A form the batched loop does not implement, plant effects, runs that do not share the
+        A form the batched loop does not implement, plant effects other than
+        :data:`BATCH_EFFECTS` (or effects the runs do not share), runs that do not share the
         law, reference or initial state, or a law whose first torque is not finite (as
         :func:`rrr_pin.control.laws.check_law_output`).
     rrr_pin.validation.FieldError
@@ -319,9 +377,14 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     check_count("threads", threads, 1, MAX_THREADS)
     if not runs:
         return []
-    if any(r.effects is not None for r in runs):
-        raise ValueError(f"engine={CODEGEN!r} runs the ideal plant only, got effects; use "
-                         f"engine={COMPILED!r} with plant effects")
+    others = sorted({name for r in runs for name in _unbatched_effects(r.effects)})
+    if others:
+        raise ValueError(f"engine={CODEGEN!r} batches {_BATCH_EFFECT_LABEL} only of the plant "
+                         f"effects, got {', '.join(others)}; use engine={COMPILED!r} with "
+                         f"these effects")
+    if not _shared_effects(runs):
+        raise ValueError("a batch shares its plant effects: its runs differ in the delay or "
+                         "the torque limit")
     if any(r.law is not runs[0].law for r in runs):
         raise ValueError("a batch runs one law: its runs have different laws")
     for key in ("R", "RD", "RDD", "q0", "qd0", "x0"):
@@ -348,11 +411,15 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     n1, n = len(run0.t), run0.plant.nq
     slices = [slice(s, s + int(batch)) for s in range(0, len(runs), int(batch))]
 
+    fx = _effects(run0.effects)
+
     def call(sl):
-        return EXTENSION.batch_rollout(name, P[sl], nominal, law, inputs, lower[sl], upper[sl])
+        return EXTENSION.batch_rollout(name, P[sl], nominal, law, inputs, lower[sl], upper[sl],
+                                       fx)
 
     def reduced(sl):
-        return EXTENSION.batch_figures(name, P[sl], nominal, law, inputs, lower[sl], upper[sl])
+        return EXTENSION.batch_figures(name, P[sl], nominal, law, inputs, lower[sl], upper[sl],
+                                       fx)
 
     out = []
     if figures and n1 > 1:
