@@ -97,3 +97,15 @@ def test_identified_set_keeps_the_text_route(rrr):
     from rrr_pin.model.plant import UncertaintySet
 
     assert UncertaintySet().draw_arm(rrr, np.random.default_rng(0)) is None
+
+
+def test_drawn_arm_pickles_with_its_urdf(ur5):
+    """A drawn arm crossing a process boundary travels as its model and its (written) URDF."""
+    import pickle
+
+    drawn, _ = ur5.perturbed(np.random.default_rng([5, 2]), TOL, name="ur5_sample002")
+    back = pickle.loads(pickle.dumps(drawn))
+    np.testing.assert_array_equal(dyngen.parameters(back.model), dyngen.parameters(drawn.model))
+    assert type(back) is DrawnArm and back.urdf == drawn.urdf
+    text, plant, _ = _text_route(ur5, [5, 2])
+    assert back.urdf == text  # a URDF arm's drawn text keeps the nominal's <robot name>

@@ -448,6 +448,11 @@ class DrawnArm(Robot):
     def urdf(self, text) -> None:
         self.__dict__["_urdf"] = text
 
+    def __setstate__(self, state: dict) -> None:
+        state = dict(state)
+        state["_urdf"] = state.pop("urdf")  # written when pickled (Robot.__getstate__)
+        super().__setstate__(state)
+
 
 def _numbers(element, attribute: str, count: int, default: str, what: str) -> list[float]:
     """Parse ``count`` finite numbers from an attribute, or raise naming ``what``."""
