@@ -22,6 +22,11 @@ def panda():
     return load_robot("panda", lock=PANDA_LOCK)
 
 
+@pytest.fixture(scope="module")
+def kinova():
+    return load_robot("kinova")
+
+
 def _text_route(nominal, seed):
     """The plant the URDF route makes of seed ``[0, k]``: its model and parameters record."""
     source = nominal.params if nominal.params is not None else nominal.urdf
@@ -32,30 +37,24 @@ def _text_route(nominal, seed):
     return text, plant, parameters
 
 
-@pytest.mark.parametrize("arm", ["rrr", "ur5", "panda"])
+@pytest.mark.parametrize("arm", ["rrr", "ur5", "panda", "kinova"])
 def test_drawn_equals_text_route(arm, request):
-    """Every parameter of the drawn model equals the model read from the URDF text.
+    """Every parameter of the drawn model equals the model read from the URDF text, bit for bit.
 
-    RRR and UR5 (no locked joint): bit for bit, as the reader adds the same numbers in the same
-    order. Panda (fingers locked): Pinocchio's buildReducedModel sums the hand's bodies in
-    another order, so to 1e-14 relative to the parameter's size (round-off of a few sums).
+    RRR (DH parameters), UR5 (fixed joints), Panda (fingers locked: buildReducedModel),
+    Kinova (origins at gimbal lock, whose rpy yourdfpy writes back changed).
     """
     nominal = request.getfixturevalue(arm)
-    exact = not nominal.locked
-    for k in range(6):
+    for k in range(4):
         drawn, parameters = nominal.perturbed(np.random.default_rng([7, k]), TOL, name="s")
         text, plant, expected = _text_route(nominal, [7, k])
         assert isinstance(drawn, DrawnArm) and parameters == expected
         A, B = dyngen.parameters(drawn.model), dyngen.parameters(plant.model)
-        if exact:
-            np.testing.assert_array_equal(A, B)
-        else:
-            np.testing.assert_allclose(A, B, rtol=1e-14, atol=1e-14 * np.abs(B).max())
+        np.testing.assert_array_equal(A, B)
         assert B.tolist() != dyngen.parameters(nominal.model).tolist()  # something was drawn
         for fa, fb in zip(drawn.model.frames, plant.model.frames, strict=True):
             assert fa.name == fb.name
-            np.testing.assert_allclose(fa.placement.homogeneous, fb.placement.homogeneous,
-                                       rtol=0, atol=1e-15)  # exact to round-off of a product
+            np.testing.assert_array_equal(fa.placement.homogeneous, fb.placement.homogeneous)
         # the limits, armature and friction are the nominal's
         np.testing.assert_array_equal(drawn.lower, plant.lower)
         np.testing.assert_array_equal(drawn.effort_limits(), plant.effort_limits())

@@ -18,10 +18,10 @@ draw changes.
 
 This route *defines* the uncertain arm. Its URDF is written only when asked for
 (:class:`~rrr_pin.model.dynamics.DrawnArm`: a study saving its plants, a fingerprint), by the
-text route from the same draws; read back, that text gives the same model: bit for bit for an
-arm without locked joints (the same numbers added in the same order), to 1e-14 relative with
-locked joints (Pinocchio's ``buildReducedModel`` adds the bodies behind a locked joint in
-another order); ``tests/test_drawn.py`` pins both.
+text route from the same draws; read back, that text gives the same model bit for bit (the
+same numbers added in the same order, locked joints taken out as ``buildReducedModel`` does;
+``tests/test_drawn.py`` pins it on the RRR, UR5, Panda with locked fingers and Kinova, whose
+roll-pitch-yaw sit at gimbal lock).
 """
 
 from __future__ import annotations
@@ -134,12 +134,13 @@ def arm_map(urdf: str, params, locked: dict, model) -> ArmMap:
     text = urdf_from_params(params) if dh else urdf
     root = ET.fromstring(text)
     if not dh:
-        from yourdfpy.urdf import tra  # the text route writes rpy back through these
+        from yourdfpy.urdf import URDF, tra  # the text route reads and writes through these
 
     def rotation(origin):
         rpy = _numbers(origin, "rpy", "0 0 0") if origin is not None else [0.0, 0.0, 0.0]
-        if not dh and origin is not None:  # what yourdfpy writes back: matrix -> rpy
-            rpy = tra.euler_from_matrix(tra.euler_matrix(*rpy, axes="sxyz"))
+        if not dh and origin is not None:  # what yourdfpy writes back: its matrix -> rpy
+            # yourdfpy's own reader (a private static method): the matrix it writes rpy from
+            rpy = tra.euler_from_matrix(URDF._parse_origin(origin))
         return urdf_rotation(rpy)
 
     joints, children, parents = [], {}, set()
@@ -189,8 +190,14 @@ def arm_map(urdf: str, params, locked: dict, model) -> ArmMap:
 
 
 def _inertia(m: float, c, I, R) -> pin.Inertia:
-    """Pinocchio's ``convertFromUrdf`` of an inertial: ``Inertia(m, c, R I R^T)``."""
-    return pin.Inertia(float(m), np.asarray(c, dtype=float), _rotate(R, I))
+    """Pinocchio's ``convertFromUrdf`` of an inertial: ``Inertia(m, c, R I R^T)``.
+
+    ``I`` as a URDF ``<inertia>`` carries it: its upper triangle (``ixy, ixz, iyz``), mirrored.
+    """
+    I = np.asarray(I, dtype=float)
+    sym = np.array([[I[0, 0], I[0, 1], I[0, 2]], [I[0, 1], I[1, 1], I[1, 2]],
+                    [I[0, 2], I[1, 2], I[2, 2]]])
+    return pin.Inertia(float(m), np.asarray(c, dtype=float), _rotate(R, sym))
 
 
 def assemble(nominal_model, amap: ArmMap, origins: dict, inertials: dict):
@@ -199,21 +206,24 @@ def assemble(nominal_model, amap: ArmMap, origins: dict, inertials: dict):
     ``origins``: joint name -> translation [m] (absent: nominal); ``inertials``: link name ->
     ``(m, c, I, R)``. Walks the tree as Pinocchio's URDF reader (depth first, children by
     joint name): a moving joint at ``parent * origin``, its child's inertia appended at the
-    identity; a fixed (or locked) joint's child at ``parent * origin`` (times a locked joint's
-    motion), its inertia appended to the joint that carries it.
+    identity; a fixed joint's child at ``parent * origin``, its inertia appended to the joint
+    that carries it. Locked joints then go as ``buildReducedModel`` takes them out: each kept
+    joint's body re-appended to a zero inertia, a locked joint's body appended to its parent
+    at ``liMi = parent * placement * motion``.
     """
     model = nominal_model.copy()
     zero = pin.Inertia.Zero()
     identity = pin.SE3.Identity()
-    body = [pin.Inertia.Zero() for _ in range(model.njoints)]
-    frames = model.frames
+    full: dict = {}     # joint name -> its body in the model read from the URDF (locks moving)
+    joints: list = []   # (name, parent joint name or None, placement), in the reader's order
+    placed: list = []   # (frame name, its joint's name or None, placement in that joint)
 
-    def add(j: int, Y, P) -> None:
-        # Model::addFrame and appendBodyToJoint: inertias[j] += P.act(Y), in place.
-        if j != 0:
-            body[j] += Y.se3Action(P)
+    def add(owner, Y, P) -> None:
+        # Model::addFrame and appendBodyToJoint: inertias[owner] += P.act(Y), in place.
+        if owner is not None:
+            full[owner] += Y.se3Action(P)
 
-    def walk(link: str, P, jid: int) -> None:
+    def walk(link: str, P, owner) -> None:
         for joint in amap.children.get(link, ()):
             origin = pin.SE3(joint.R, origins.get(joint.name, joint.xyz))
             Y = inertials.get(joint.child)
@@ -221,28 +231,50 @@ def assemble(nominal_model, amap: ArmMap, origins: dict, inertials: dict):
                 nom = amap.inertials[joint.child]
                 Y = (nom.mass, nom.com, nom.I, nom.R)
             inertia = _inertia(*Y) if Y is not None else zero
-            if joint.kind != "fixed" and joint.motion is None:  # a joint of the model
-                j = model.getJointId(joint.name)
-                model.jointPlacements[j] = P * origin
-                add(j, zero, identity)              # its JOINT frame
+            if joint.kind != "fixed":  # a joint of the model read from the URDF
+                joints.append((joint.name, owner, P * origin))
+                full[joint.name] = pin.Inertia.Zero()
+                add(joint.name, zero, identity)     # its JOINT frame
                 if not inertia.isZero(0.0):         # the child link's body
-                    add(j, inertia, identity)
-                add(j, zero, identity)              # the child's BODY frame
-                walk(joint.child, identity, j)
+                    add(joint.name, inertia, identity)
+                add(joint.name, zero, identity)     # the child's BODY frame
+                placed.append((joint.child, joint.name, identity))
+                walk(joint.child, identity, joint.name)
                 continue
-            if joint.motion is not None:
-                origin = origin * joint.motion
             Pc = P * origin
-            for name in (joint.name, joint.child):
-                for fid in amap.frames.get(name, ()):
-                    f = frames[fid]
-                    f.placement = Pc
-                    frames[fid] = f
-            add(jid, inertia, Pc)                   # the FIXED_JOINT frame, with the child
-            add(jid, zero, Pc)                      # the child's BODY frame
-            walk(joint.child, Pc, jid)
+            placed.extend([(joint.name, owner, Pc), (joint.child, owner, Pc)])
+            add(owner, inertia, Pc)                 # the FIXED_JOINT frame, with the child
+            add(owner, zero, Pc)                    # the child's BODY frame
+            walk(joint.child, Pc, owner)
 
-    walk(amap.root, identity, 0)
-    for j in range(1, model.njoints):
-        model.inertias[j] = body[j]
+    walk(amap.root, identity, None)
+    locked = {j.name: j.motion for j in amap.joints if j.motion is not None}
+    frame: dict = {}  # locked joint -> (the kept joint it hangs on or None, liMi)
+    for name, parent, placement in joints:
+        owner, at = frame[parent] if parent in locked else (parent, identity)
+        if name in locked:
+            liMi = at * placement * locked[name]
+            frame[name] = (owner, liMi)
+            if owner is not None:  # addFrame(FIXED_JOINT frame carrying the body)
+                full[owner] += full[name].se3Action(liMi)
+            placed.append((name, owner, liMi))
+            continue
+        j = model.getJointId(name)
+        model.jointPlacements[j] = at * placement
+        if locked:  # buildReducedModel appends each kept body to a new joint's zero inertia
+            body = pin.Inertia.Zero()
+            body += full[name].se3Action(identity)
+            full[name] = body
+    for name in full:
+        if name not in locked:
+            model.inertias[model.getJointId(name)] = full[name]
+    frames = model.frames
+    for name, owner, P in placed:
+        if owner in locked:  # a frame on a locked joint: joint_frame.placement * placement
+            owner, liMi = frame[owner]
+            P = liMi * P
+        for fid in amap.frames.get(name, ()):
+            f = frames[fid]
+            f.placement = P
+            frames[fid] = f
     return model
