@@ -258,13 +258,15 @@ def test_batched_hinf_aw_equals_compiled(rrr, ref, plants, rate):
 
 @pytest.mark.parametrize("effects", [
     PlantEffects(delay=0.0015), PlantEffects(torque_limit=60.0),
-    PlantEffects(delay=0.001, torque_limit=(80.0, 60.0, 20.0))],
-    ids=["delay", "torque-limit", "both"])
+    PlantEffects(delay=0.001, torque_limit=(80.0, 60.0, 20.0)),
+    PlantEffects(noise_q=1e-4, noise_qd=1e-3, encoder_counts=4096, seed=3)],
+    ids=["delay", "torque-limit", "both", "sensor"])
 @pytest.mark.parametrize("kind", ["fl", "hinf_aw"])
 def test_batched_effects_equal_compiled(rrr, ref, plants, effects, kind):
-    # The torque limit and the transport delay in the batched loop (law -> saturation ->
-    # delay -> plant, effects.hpp's order): pinned to the compiled engine plant by plant, and
-    # bit-identical for every batch size. The limits clip (the peak torque is the limit).
+    # The sensor (noise, encoder), the torque limit and the transport delay in the batched
+    # loop (sensor -> law -> saturation -> delay -> plant, effects.hpp's order): pinned to the
+    # compiled engine plant by plant, and bit-identical for every batch size. The limits clip
+    # (the peak torque is the limit).
     law = make_laws(kind, rrr)[0]
     q0 = ref.sample(np.array([0.0]))[0][0] + np.array([0.05, -0.04, 0.03])
     go = dict(rate=RATE, dt=0.0005, q0=q0, effects=effects)
@@ -288,12 +290,15 @@ def test_batched_effects_equal_compiled(rrr, ref, plants, effects, kind):
 
 def test_unbatched_effects_are_refused_by_name(rrr, ref, plants):
     # An actuator lag has no batched step: "auto" runs the compiled engine and says why,
-    # "codegen" refuses, naming the effect.
+    # "codegen" refuses, naming the effect (friction too).
     fx = PlantEffects(bandwidth=200.0, delay=0.001)
     auto = simulate_batch(plants[:2], fl_controller(rrr), ref, 0.05, rate=RATE, effects=fx)
     assert auto[0].info["engine"] == "compiled"
-    assert "batches the torque limit and the delay only" in auto[0].info["engine_note"]
+    assert "the torque limit and the delay only" in auto[0].info["engine_note"]
     assert "actuator bandwidth" in auto[0].info["engine_note"]
+    rub = simulate_batch(plants[:1], fl_controller(rrr), ref, 0.05, rate=RATE,
+                         effects=PlantEffects(viscous=0.5))
+    assert rub[0].info["engine"] == "compiled" and "friction" in rub[0].info["engine_note"]
     with pytest.raises(ValueError, match="actuator bandwidth"):
         simulate_batch(plants[:2], fl_controller(rrr), ref, 0.05, rate=RATE, effects=fx,
                        engine="codegen")

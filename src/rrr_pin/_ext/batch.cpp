@@ -709,19 +709,19 @@ namespace rrr_pin
     inline void keep_torque(BatchOutputs &, const Lanes &) {}
     inline void keep_torque(FigureOutputs & out, const Lanes & tau) { out.keep(tau); }
 
-    /// The plant effects the batched loop implements: saturation, then a transport delay of
-    /// delay_steps plant sub-steps (effects.hpp, the compiled engine's order). Others throw.
+    /// The plant effects the batched loop implements (effects.hpp, the compiled engine's
+    /// order): the sensor (noise, encoder), saturation, a transport delay of delay_steps plant
+    /// sub-steps. Others throw.
     void check_batch_effects(const Effects & fx, Eigen::Index n, std::int64_t n_steps)
     {
       fx.check(n, n_steps);
-      if (fx.lags() || fx.rubs() || fx.flexes() || fx.noise_q.rows() > 0
-          || fx.noise_qd.rows() > 0 || fx.quantum > 0.0)
+      if (fx.lags() || fx.rubs() || fx.flexes())
         throw std::invalid_argument(
-          "the batched loop runs the delay and the torque limit only (no actuator, friction, "
-          "flexible joint, noise or encoder)");
+          "the batched loop runs the sensor, the torque limit and the delay only (no actuator, "
+          "friction or flexible joint)");
     }
 
-    /// Sampled law on B plants: law -> saturation -> delay -> plant, as rollout.cpp's
+    /// Sampled law on B plants: sensor -> law -> saturation -> delay -> plant, as rollout.cpp's
     /// sampled_loop with these effects (the ideal plant without them).
     template<class Out, class Law>
     auto sampled_loop(const Models & md, const Law & law, const RolloutInputs & in,
@@ -740,12 +740,29 @@ namespace rrr_pin
       const std::int64_t H = fx.delay_steps > 0 ? fx.delay_steps / in.substeps + 2 : 0;
       std::vector<Lanes> hist(static_cast<std::size_t>(H), Lanes(n * B, 0.0));
       Lanes cmd(n * B);
+      // The sensor (effects.hpp's sense): the law reads qm = Q(q + n_q), qdm = qd + n_qd.
+      const bool senses = fx.noise_q.rows() > 0 || fx.noise_qd.rows() > 0 || fx.quantum > 0.0;
+      Lanes qm(senses ? n * B : 0), qdm(senses ? n * B : 0);
       for (int b = 0; b < B; ++b)
         out.start(b, y);
       for (std::int64_t k = 0; k < N && out.n_alive > 0; ++k)
       {
+        if (senses)
+          for (int j = 0; j < n; ++j)
+            for (int b = 0; b < B; ++b)
+            {
+              const int i = j * B + b;
+              double v = y.q[i];
+              if (fx.noise_q.rows() > 0)
+                v = v + fx.noise_q(k, j);
+              if (fx.quantum > 0.0)
+                v = fx.quantum * std::nearbyint(v / fx.quantum);
+              qm[i] = v;
+              qdm[i] = fx.noise_qd.rows() > 0 ? y.qd[i] + fx.noise_qd(k, j) : y.qd[i];
+            }
         const Lanes & tau =
-          eval.torque(y.q.data(), y.qd.data(), in.R.row(k).data(), in.RD.row(k).data(),
+          eval.torque(senses ? qm.data() : y.q.data(), senses ? qdm.data() : y.qd.data(),
+                      in.R.row(k).data(), in.RD.row(k).data(),
                       in.RDD.row(k).data(), y.x.data());
         if (m > 0)
         {

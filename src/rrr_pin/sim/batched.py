@@ -19,10 +19,10 @@ multiply-adds, so a plant's numbers are the same whatever batch it runs in.
 
 Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``FLAWForm``, ``PDForm``: FL, H-infinity +
 FL, its anti-windup form ``hinf_aw``, PD), sampled or continuous, on the ideal plant or, for a
-sampled law, with the plant effects of :data:`BATCH_EFFECTS` (a torque limit and a transport
-delay, in the compiled engine's order: law -> saturation -> delay -> plant); anything else (the
-actuator, friction, flexible joints, noise, the encoder) is refused by name (:func:`why_not`) and
-runs on the compiled engine under ``engine="auto"``, which records why.
+sampled law, with the plant effects of :data:`BATCH_EFFECTS` (sensor noise, encoder, torque
+limit, transport delay, in the compiled engine's order: sensor -> law -> saturation -> delay ->
+plant); anything else (the actuator, friction, flexible joints) is refused by name
+(:func:`why_not`) and runs on the compiled engine under ``engine="auto"``, which records why.
 """
 
 from __future__ import annotations
@@ -68,9 +68,10 @@ GENERATED = {
 BATCH_LAWS = {FLForm: "FLLaw", FLAWForm: "FLAWLaw", PDForm: "PDLaw"}
 
 #: The plant effects the batched loop implements (fields of
-#: :class:`rrr_pin.control.effects.Resolved`): the torque limit and the transport delay.
-BATCH_EFFECTS = ("limit", "delay_steps")
-_BATCH_EFFECT_LABEL = "the torque limit and the delay"
+#: :class:`rrr_pin.control.effects.Resolved`): the sensor's noise and encoder, the torque limit
+#: and the transport delay.
+BATCH_EFFECTS = ("noise_q", "noise_qd", "quantum", "limit", "delay_steps")
+_BATCH_EFFECT_LABEL = "the sensor noise, the encoder, the torque limit and the delay"
 
 #: Most plants in one batch (``RRR_DYN_BMAX`` of ``generated/dyn_common.h``).
 BATCH_MAX = 16
@@ -288,23 +289,29 @@ _EFFECT_NAMES = {"wa": "actuator bandwidth", "Fv": "friction", "Fc": "friction",
 
 
 def _key(fx):
+    def array(a):
+        return None if a is None else (a.shape, np.ascontiguousarray(a, dtype=float).tobytes())
+
     return (None if fx is None else
-            (fx.delay_steps, None if fx.limit is None else tuple(fx.limit.tolist())))
+            (fx.delay_steps, float(fx.quantum), array(fx.limit), array(fx.noise_q),
+             array(fx.noise_qd)))
 
 
 def _shared_effects(runs) -> bool:
-    """Whether the runs share their delay and torque limit (a batch applies one of each)."""
+    """Whether the runs share their batched effects (a batch applies one of each)."""
     return len({_key(r.effects) for r in runs}) == 1
 
 
 def _effects(fx):
     """Return the C++ ``Effects`` of a run's batched effects (None: the ideal plant)."""
-    if fx is None or (fx.delay_steps == 0 and fx.limit is None):
+    if fx is None or (fx.delay_steps == 0 and fx.quantum == 0.0 and all(
+            getattr(fx, key) is None for key in ("limit", "noise_q", "noise_qd"))):
         return None
     out = EXTENSION.Effects()
-    out.delay_steps = int(fx.delay_steps)
-    if fx.limit is not None:
-        out.limit = np.asarray(fx.limit, dtype=float)
+    out.delay_steps, out.quantum = int(fx.delay_steps), float(fx.quantum)
+    for key in ("limit", "noise_q", "noise_qd"):
+        if getattr(fx, key) is not None:
+            setattr(out, key, np.asarray(getattr(fx, key), dtype=float))
     return out
 
 
