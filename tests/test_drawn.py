@@ -4,6 +4,8 @@ The reference is independent code: the URDF text :meth:`Tolerances.arm` writes f
 seeded draws (yourdfpy or the DH generator), read by urdfdom and Pinocchio's URDF reader.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -108,3 +110,24 @@ def test_drawn_arm_pickles_with_its_urdf(ur5):
     assert type(back) is DrawnArm and back.urdf == drawn.urdf
     text, plant, _ = _text_route(ur5, [5, 2])
     assert back.urdf == text  # a URDF arm's drawn text keeps the nominal's <robot name>
+
+
+def test_a_subclass_with_its_own_arm_keeps_its_text_route(rrr):
+    """Tolerances subclassed with another arm(): its plants are what its arm() writes."""
+    from dataclasses import dataclass
+
+    from rrr_pin.model.uncertainty import perturb_params
+    from rrr_pin.model.urdf import urdf_from_params
+
+    @dataclass(frozen=True)
+    class Heavier(Tolerances):
+        def arm(self, source, rng, *, skip_joints=(), name=None):
+            params, factors = perturb_params(source, rng, self)
+            links = [replace(link, mass=2.0 * link.mass) for link in params.links]
+            return urdf_from_params(params.with_links(links)), {"factors": factors}
+
+    drawn, _ = rrr.perturbed(np.random.default_rng([1, 0]), Heavier(), name="h")
+    plain, _ = rrr.perturbed(np.random.default_rng([1, 0]), TOL, name="h")
+    assert not isinstance(drawn, DrawnArm)
+    np.testing.assert_allclose(drawn.model.inertias[1].mass, 2.0 * plain.model.inertias[1].mass,
+                               rtol=1e-15)  # the subclass's own doubling, read from its text

@@ -139,11 +139,16 @@ class Tolerances(UncertaintySet):
         :meth:`rrr_pin.model.dynamics.Robot.drawn` instead of into text, which is written only
         when asked for (from the same draws, by :meth:`arm`).
 
+        A subclass that overrides :meth:`arm` gets None (its own text route): this route
+        draws what :meth:`arm` of this class draws, and nothing else.
+
         Raises
         ------
         RobotModelError (a ValueError)
             A drawn inertial that is not physical, naming the link, or a singular arm.
         """
+        if type(self).arm is not Tolerances.arm:
+            return None
         state = rng.bit_generator.state  # to write the URDF from the same draws, if asked
         amap = robot.arm_map()
         origins, inertials = {}, {}
