@@ -126,9 +126,14 @@ def test_codegen_generates_a_structure_without_committed_code_at_first_use(rrr, 
 def test_codegen_refuses_plant_effects(rrr, ref):
     from rrr_pin.control.effects import PlantEffects
 
-    with pytest.raises(ValueError, match="ideal plant"):
+    # The delay, the torque limit and the sensor are batched (tests/test_batched.py); an
+    # actuator lag is not, and is refused by name.
+    with pytest.raises(ValueError, match="actuator bandwidth"):
         simulate(rrr, fl_controller(rrr), ref, 0.1, rate=RATE, engine="codegen",
-                 effects=PlantEffects(delay=1e-3))
+                 effects=PlantEffects(delay=1e-3, bandwidth=200.0))
+    run = simulate(rrr, fl_controller(rrr), ref, 0.1, rate=RATE, engine="codegen",
+                   effects=PlantEffects(delay=1e-3))
+    assert run.info["engine"] == "codegen"
 
 
 def test_fingerprint_sees_every_change(rrr):
