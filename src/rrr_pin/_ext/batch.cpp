@@ -342,37 +342,20 @@ namespace rrr_pin
       }
     };
 
-    /// Per-plant outputs and status.
-    struct BatchOutputs
+    /// Per-plant status: running, or where and why it stopped.
+    struct BatchStatus
     {
-      int B, n;
-      std::int64_t N;
-      RowMat Q, QD, TAU;
       Eigen::VectorXi bad_step, bad_joint, reason;
       std::vector<char> alive;
       int n_alive;
 
-      BatchOutputs(int B_, int n_, std::int64_t N_)
-      : B(B_)
-      , n(n_)
-      , N(N_)
-      , Q(RowMat::Constant(B_ * (N_ + 1), n_, std::numeric_limits<double>::quiet_NaN()))
-      , QD(Q)
-      , TAU(Q)
-      , bad_step(Eigen::VectorXi::Constant(B_, -1))
-      , bad_joint(Eigen::VectorXi::Constant(B_, -1))
-      , reason(Eigen::VectorXi::Constant(B_, kOk))
-      , alive(B_, 1)
-      , n_alive(B_)
+      explicit BatchStatus(int B)
+      : bad_step(Eigen::VectorXi::Constant(B, -1))
+      , bad_joint(Eigen::VectorXi::Constant(B, -1))
+      , reason(Eigen::VectorXi::Constant(B, kOk))
+      , alive(B, 1)
+      , n_alive(B)
       {
-      }
-
-      std::int64_t row(int b, std::int64_t k) const { return b * (N + 1) + k; }
-
-      void put(RowMat & out, int b, std::int64_t k, const Lanes & v) const
-      {
-        for (int j = 0; j < n; ++j)
-          out(row(b, k), j) = v[j * B + b];
       }
 
       void kill(int b, std::int64_t step, int joint, int why)
@@ -382,6 +365,50 @@ namespace rrr_pin
         bad_step[b] = static_cast<int>(step);
         bad_joint[b] = joint;
         reason[b] = why;
+      }
+    };
+
+    /// rollout.cpp's divergence test of plant b after a step: kOk, or why (joint: where).
+    int diverged(const BState & y, int b, int B, int n, const RowMat & lower,
+                 const RowMat & upper, double vlim, int & joint)
+    {
+      int why = kOk;
+      for (int j = 0; j < n && why == kOk; ++j)
+        if (!std::isfinite(y.q[j * B + b]) || !std::isfinite(y.qd[j * B + b]))
+          joint = j, why = kNonFinite;
+      for (int j = 0; j < n && why == kOk; ++j)
+        if (std::abs(y.qd[j * B + b]) > vlim)
+          joint = j, why = kSpeed;
+      for (int j = 0; j < n && why == kOk; ++j)
+        if (y.q[j * B + b] < lower(b, j) || y.q[j * B + b] > upper(b, j))
+          joint = j, why = kLimits;
+      return why;
+    }
+
+    /// Per-plant outputs and status.
+    struct BatchOutputs : BatchStatus
+    {
+      int B, n;
+      std::int64_t N;
+      RowMat Q, QD, TAU;
+
+      BatchOutputs(int B_, int n_, std::int64_t N_)
+      : BatchStatus(B_)
+      , B(B_)
+      , n(n_)
+      , N(N_)
+      , Q(RowMat::Constant(B_ * (N_ + 1), n_, std::numeric_limits<double>::quiet_NaN()))
+      , QD(Q)
+      , TAU(Q)
+      {
+      }
+
+      std::int64_t row(int b, std::int64_t k) const { return b * (N + 1) + k; }
+
+      void put(RowMat & out, int b, std::int64_t k, const Lanes & v) const
+      {
+        for (int j = 0; j < n; ++j)
+          out(row(b, k), j) = v[j * B + b];
       }
 
       /// Record the states after step k; the plants that diverge are stopped.
@@ -394,16 +421,8 @@ namespace rrr_pin
             continue;
           put(Q, b, k + 1, y.q);
           put(QD, b, k + 1, y.qd);
-          int joint = -1, why = kOk;
-          for (int j = 0; j < n && why == kOk; ++j)
-            if (!std::isfinite(y.q[j * B + b]) || !std::isfinite(y.qd[j * B + b]))
-              joint = j, why = kNonFinite;
-          for (int j = 0; j < n && why == kOk; ++j)
-            if (std::abs(y.qd[j * B + b]) > vlim)
-              joint = j, why = kSpeed;
-          for (int j = 0; j < n && why == kOk; ++j)
-            if (y.q[j * B + b] < lower(b, j) || y.q[j * B + b] > upper(b, j))
-              joint = j, why = kLimits;
+          int joint = -1;
+          const int why = diverged(y, b, B, n, lower, upper, vlim, joint);
           if (why != kOk)
           {
             kill(b, k + 1, joint, why);
@@ -524,7 +543,7 @@ namespace rrr_pin
     /// F row b: RMS error, max |error| [rad], RMS torque [N m], RMS error per joint [rad].
     /// Q, QD: the last state recorded (at divergence: the state that diverged); TAU: the first
     /// torque (a law's non-finite first torque is reported from it).
-    struct FigureOutputs
+    struct FigureOutputs : BatchStatus
     {
       int B, n;
       std::int64_t N;
@@ -534,12 +553,10 @@ namespace rrr_pin
       std::vector<PairwiseSum> e2, t2;
       Lanes joint2, peak;
       RowMat Q, QD, TAU, F;
-      Eigen::VectorXi bad_step, bad_joint, reason;
-      std::vector<char> alive;
-      int n_alive;
 
       FigureOutputs(int B_, int n_, std::int64_t N_, const RolloutInputs & in)
-      : B(B_)
+      : BatchStatus(B_)
+      , B(B_)
       , n(n_)
       , N(N_)
       , R(in.R)
@@ -553,11 +570,6 @@ namespace rrr_pin
       , QD(Q)
       , TAU(Q)
       , F(RowMat::Constant(B_, 3 + n_, std::numeric_limits<double>::quiet_NaN()))
-      , bad_step(Eigen::VectorXi::Constant(B_, -1))
-      , bad_joint(Eigen::VectorXi::Constant(B_, -1))
-      , reason(Eigen::VectorXi::Constant(B_, kOk))
-      , alive(B_, 1)
-      , n_alive(B_)
       {
       }
 
@@ -597,15 +609,6 @@ namespace rrr_pin
               t2[b].add(last_[b * n + j] * last_[b * n + j]);
       }
 
-      void kill(int b, std::int64_t step, int joint, int why)
-      {
-        alive[b] = 0;
-        --n_alive;
-        bad_step[b] = static_cast<int>(step);
-        bad_joint[b] = joint;
-        reason[b] = why;
-      }
-
       void record(std::int64_t k, const BState & y, const RowMat & lower, const RowMat & upper,
                   double vlim, std::vector<int> & stopped)
       {
@@ -613,16 +616,8 @@ namespace rrr_pin
         {
           if (!alive[b])
             continue;
-          int joint = -1, why = kOk;
-          for (int j = 0; j < n && why == kOk; ++j)
-            if (!std::isfinite(y.q[j * B + b]) || !std::isfinite(y.qd[j * B + b]))
-              joint = j, why = kNonFinite;
-          for (int j = 0; j < n && why == kOk; ++j)
-            if (std::abs(y.qd[j * B + b]) > vlim)
-              joint = j, why = kSpeed;
-          for (int j = 0; j < n && why == kOk; ++j)
-            if (y.q[j * B + b] < lower(b, j) || y.q[j * B + b] > upper(b, j))
-              joint = j, why = kLimits;
+          int joint = -1;
+          const int why = diverged(y, b, B, n, lower, upper, vlim, joint);
           if (why != kOk)
           {
             for (int j = 0; j < n; ++j)
