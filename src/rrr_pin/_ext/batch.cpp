@@ -307,6 +307,89 @@ namespace rrr_pin
       }
     };
 
+    /// The sampled plant behind its drive train (effects.hpp's joint_torque, per plant): B arms
+    /// driven through the first-order actuator (a), the flexible joint (th, thd) and the
+    /// friction of the effects, by their held commands u.
+    struct BatchDriven
+    {
+      const Models & md;
+      const Effects & fx;
+      Lanes u, tj;
+      Parts parts;
+
+      BatchDriven(const Models & models, const Effects & effects)
+      : md(models)
+      , fx(effects)
+      , u(static_cast<std::size_t>(models.n) * models.B)
+      , tj(u.size())
+      , parts(effects.parts())
+      {
+      }
+
+      void slope(const BState & y, int, BState & k)
+      {
+        const int B = md.B, n = md.n;
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            const int i = j * B + b;
+            const double tm = fx.lags() ? y.a[i] : u[i];
+            double t = tm;
+            if (fx.flexes())
+            {
+              t = fx.Kf[j] * (y.th[i] - y.q[i]) + fx.Df[j] * (y.thd[i] - y.qd[i]);
+              k.th[i] = y.thd[i];
+              k.thd[i] = (tm - t) / fx.Bm[j];
+            }
+            if (fx.rubs())
+              t = t - (fx.Fv[j] * y.qd[i] + fx.Fc[j] * std::tanh(y.qd[i] / fx.veps));
+            if (fx.lags())
+              k.a[i] = fx.wa * (u[i] - y.a[i]);
+            tj[i] = t;
+          }
+        k.q = y.qd;
+        md.f.fd(B, md.plant.data(), y.q.data(), y.qd.data(), tj.data(), k.qd.data());
+      }
+
+      /// effects.hpp's start, per plant: at rest on the first command, a = u, th = q + u / K,
+      /// thd = qd.
+      void start(BState & y) const
+      {
+        const int B = md.B, n = md.n;
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            const int i = j * B + b;
+            if (fx.lags())
+              y.a[i] = u[i];
+            if (fx.flexes())
+            {
+              y.th[i] = y.q[i] + u[i] / fx.Kf[j];
+              y.thd[i] = y.qd[i];
+            }
+          }
+      }
+    };
+
+    /// The sampled system of a run: the ideal plant, or the plant behind its drive train.
+    template<class Sys>
+    Sys make_system(const Models & md, const Effects & fx);
+
+    template<>
+    BatchPlant make_system<BatchPlant>(const Models & md, const Effects &)
+    {
+      return BatchPlant{md, Lanes(static_cast<std::size_t>(md.n) * md.B), Parts{}};
+    }
+
+    template<>
+    BatchDriven make_system<BatchDriven>(const Models & md, const Effects & fx)
+    {
+      return BatchDriven(md, fx);
+    }
+
+    inline void start_system(BatchPlant &, BState &) {}
+    inline void start_system(BatchDriven & sys, BState & y) { sys.start(y); }
+
     /// A continuous law and B arms, integrated together.
     template<class Law>
     struct BatchContinuous
@@ -704,21 +787,10 @@ namespace rrr_pin
     inline void keep_torque(BatchOutputs &, const Lanes &) {}
     inline void keep_torque(FigureOutputs & out, const Lanes & tau) { out.keep(tau); }
 
-    /// The plant effects the batched loop implements (effects.hpp, the compiled engine's
-    /// order): the sensor (noise, encoder), saturation, a transport delay of delay_steps plant
-    /// sub-steps. Others throw.
-    void check_batch_effects(const Effects & fx, Eigen::Index n, std::int64_t n_steps)
-    {
-      fx.check(n, n_steps);
-      if (fx.lags() || fx.rubs() || fx.flexes())
-        throw std::invalid_argument(
-          "the batched loop runs the sensor, the torque limit and the delay only (no actuator, "
-          "friction or flexible joint)");
-    }
-
-    /// Sampled law on B plants: sensor -> law -> saturation -> delay -> plant, as rollout.cpp's
-    /// sampled_loop with these effects (the ideal plant without them).
-    template<class Out, class Law>
+    /// Sampled law on B plants: sensor -> law -> saturation -> delay -> actuator -> flexible
+    /// joint -> plant with friction, as rollout.cpp's sampled_loop with these effects (the
+    /// ideal plant without them; Sys: BatchPlant or BatchDriven).
+    template<class Out, class Sys, class Law>
     auto sampled_loop(const Models & md, const Law & law, const RolloutInputs & in,
                       const RowMat & lower, const RowMat & upper, const Effects & fx)
     {
@@ -726,10 +798,16 @@ namespace rrr_pin
       const std::int64_t N = in.n_steps;
       Out out = make_outputs<Out>(B, n, N, in);
       BatchLaw<Law> eval(law, md);
-      BatchPlant plant{md, Lanes(n * B)};
+      Sys plant = make_system<Sys>(md, fx);
       BState y = initial(B, in);
       Lanes xn(m * B);
       BRK4 w = lane_work(n * B, 0);
+      for (BState * s : {&y, &w.ys, &w.k1, &w.k2, &w.k3, &w.k4})  // the drive train's parts
+      {
+        s->a.assign(plant.parts.a ? n * B : 0, 0.0);
+        s->th.assign(plant.parts.th ? n * B : 0, 0.0);
+        s->thd.assign(plant.parts.th ? n * B : 0, 0.0);
+      }
       std::vector<int> stopped;
       // The commands the delay reaches back to: row r (control step r) at hist[r % H].
       const std::int64_t H = fx.delay_steps > 0 ? fx.delay_steps / in.substeps + 2 : 0;
@@ -794,6 +872,8 @@ namespace rrr_pin
           for (int j = 0; j < n; ++j)
             plant.u[j * B + b] = 0.0;
         }
+        if (k == 0)
+          start_system(plant, y);
         if (H > 0)
           hist[k % H] = plant.u;
         for (int s = 0; s < in.substeps; ++s)
@@ -970,11 +1050,13 @@ namespace rrr_pin
       {
         if (!in.sampled)
           throw std::invalid_argument("plant effects need a sampled law");
-        check_batch_effects(*fx, f.nq, in.n_steps);
+        fx->check(f.nq, in.n_steps);
       }
       const Models md(f, plant, nominal);
+      if (fx && (fx->lags() || fx->rubs() || fx->flexes()))
+        return sampled_loop<Out, BatchDriven>(md, law, in, lower, upper, *fx);
       if (in.sampled)
-        return sampled_loop<Out>(md, law, in, lower, upper, fx ? *fx : none);
+        return sampled_loop<Out, BatchPlant>(md, law, in, lower, upper, fx ? *fx : none);
       return continuous_loop<Out>(md, law, in, lower, upper);
     }
   } // namespace

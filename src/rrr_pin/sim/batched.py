@@ -19,10 +19,10 @@ multiply-adds, so a plant's numbers are the same whatever batch it runs in.
 
 Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``FLAWForm``, ``PDForm``: FL, H-infinity +
 FL, its anti-windup form ``hinf_aw``, PD), sampled or continuous, on the ideal plant or, for a
-sampled law, with the plant effects of :data:`BATCH_EFFECTS` (sensor noise, encoder, torque
-limit, transport delay, in the compiled engine's order: sensor -> law -> saturation -> delay ->
-plant); anything else (the actuator, friction, flexible joints) is refused by name
-(:func:`why_not`) and runs on the compiled engine under ``engine="auto"``, which records why.
+sampled law, with the plant effects of :data:`BATCH_EFFECTS` (in the compiled engine's order:
+sensor -> law -> saturation -> delay -> actuator -> flexible joint -> plant with friction);
+anything else is refused by name (:func:`why_not`) and runs on the compiled engine under
+``engine="auto"``, which records why.
 """
 
 from __future__ import annotations
@@ -68,10 +68,13 @@ GENERATED = {
 BATCH_LAWS = {FLForm: "FLLaw", FLAWForm: "FLAWLaw", PDForm: "PDLaw"}
 
 #: The plant effects the batched loop implements (fields of
-#: :class:`rrr_pin.control.effects.Resolved`): the sensor's noise and encoder, the torque limit
-#: and the transport delay.
-BATCH_EFFECTS = ("noise_q", "noise_qd", "quantum", "limit", "delay_steps")
-_BATCH_EFFECT_LABEL = "the sensor noise, the encoder, the torque limit and the delay"
+#: :class:`rrr_pin.control.effects.Resolved`): every one today (the sensor's noise and encoder,
+#: the torque limit, the transport delay, the actuator, flexible joints, friction); a field
+#: added there and not here is refused by name.
+BATCH_EFFECTS = ("noise_q", "noise_qd", "quantum", "limit", "delay_steps", "wa", "Bm", "Kf",
+                 "Df", "Fv", "Fc", "veps")
+_BATCH_EFFECT_LABEL = ("the sensor noise, the encoder, the torque limit, the delay, the actuator, "
+                       "flexible joints and friction")
 
 #: Most plants in one batch (``RRR_DYN_BMAX`` of ``generated/dyn_common.h``).
 BATCH_MAX = 16
@@ -273,7 +276,7 @@ def _unbatched_effects(fx) -> list[str]:
     out = []
     for f in fields(fx):
         value = getattr(fx, f.name)
-        if f.name in (*BATCH_EFFECTS, "info", "veps") or value is None or (
+        if f.name in (*BATCH_EFFECTS, "info") or value is None or (
                 f.name in off and value == off[f.name]):
             continue
         name = _EFFECT_NAMES.get(f.name, f.name)
@@ -293,8 +296,8 @@ def _key(fx):
         return None if a is None else (a.shape, np.ascontiguousarray(a, dtype=float).tobytes())
 
     return (None if fx is None else
-            (fx.delay_steps, float(fx.quantum), array(fx.limit), array(fx.noise_q),
-             array(fx.noise_qd)))
+            tuple(array(getattr(fx, key)) if isinstance(getattr(fx, key), np.ndarray)
+                  else getattr(fx, key) for key in BATCH_EFFECTS))
 
 
 def _shared_effects(runs) -> bool:
@@ -304,14 +307,14 @@ def _shared_effects(runs) -> bool:
 
 def _effects(fx):
     """Return the C++ ``Effects`` of a run's batched effects (None: the ideal plant)."""
-    if fx is None or (fx.delay_steps == 0 and fx.quantum == 0.0 and all(
-            getattr(fx, key) is None for key in ("limit", "noise_q", "noise_qd"))):
+    if fx is None:
         return None
-    out = EXTENSION.Effects()
-    out.delay_steps, out.quantum = int(fx.delay_steps), float(fx.quantum)
-    for key in ("limit", "noise_q", "noise_qd"):
-        if getattr(fx, key) is not None:
-            setattr(out, key, np.asarray(getattr(fx, key), dtype=float))
+    out = EXTENSION.Effects()  # every effect off; those of the run set by name
+    for key in BATCH_EFFECTS:
+        value = getattr(fx, key)
+        if value is not None:
+            setattr(out, key, np.asarray(value, dtype=float) if isinstance(value, np.ndarray)
+                    else value)
     return out
 
 
