@@ -307,3 +307,23 @@ def test_an_effect_without_a_batched_step_is_refused_by_name(rrr, ref, plants):
     more = WithBacklash(**{f.name: getattr(fx, f.name) for f in fields(fx)}, backlash=0.01)
     assert batched._unbatched_effects(fx) == []
     assert batched._unbatched_effects(more) == ["backlash"]
+
+
+def test_a_diverging_plant_with_effects_leaves_its_batch_unchanged(rrr, ref, plants):
+    # As test_a_diverging_plant_leaves_its_batch_unchanged, with a delay, an actuator and
+    # friction on: the light plant's divergence reads as the compiled engine's, in both output
+    # kinds, and its neighbours' numbers are those of a batch without it.
+    fx = PlantEffects(delay=0.001, bandwidth=500.0, viscous=0.3)
+    law = fl_controller(rrr)
+    light = _scaled(rrr, 0.01, "light")
+    mixed = plants[:2] + [light] + plants[2:]
+    go = dict(rate=RATE, effects=fx)
+    out = simulate_batch(mixed, law, ref, 0.3, **go)
+    figs = simulate_batch(mixed, law, ref, 0.3, figures=True, **go)
+    clean = simulate_batch(plants, law, ref, 0.3, **go)
+    with pytest.raises(SimulationDiverged) as compiled:
+        simulate(light, law, ref, 0.3, engine="compiled", **go)
+    assert str(out[2]) == str(figs[2]) == str(compiled.value)
+    for a, f, b in zip(out[:2] + out[3:], figs[:2] + figs[3:], clean, strict=True):
+        np.testing.assert_array_equal(a.q, b.q)
+        assert f.figures() == b.figures()
