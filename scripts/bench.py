@@ -395,8 +395,9 @@ def batch_row(arm, args, n_steps):
 def campaign_at_floor(robot, names, samples, duration, rate) -> dict:
     """Section 4c (issue 33): a campaign against the batched engine's own C++ loop on its plants.
 
-    The floor is the wall time spent inside the batched C++ rollouts (``batch_rollout``, the
-    GIL released) during a one-process, one-thread campaign on the same plants: the loop alone,
+    The floor is the wall time spent inside the batched C++ rollouts (``batch_rollout``, or
+    ``batch_figures``, the loop that reduces each run to its row's figures as it goes; the GIL
+    released) during a one-process, one-thread campaign on the same plants: the loop alone,
     without drawing plants, preparing runs or making rows. The campaign then runs with 2
     processes (``jobs=2``) and with 1 process of 2 threads (``threads=2``); each ratio is its
     wall time over ``floor / 2 cores``.
@@ -407,15 +408,18 @@ def campaign_at_floor(robot, names, samples, duration, rate) -> dict:
     settings = CampaignSettings(samples=samples, seed=0, baseline=laws[0].name,
                                 run=RunSettings(duration=duration, rate=rate))
     inner = {"s": 0.0, "cpu": 0.0}
-    original = EXTENSION.batch_rollout
+    # the loop with its trajectories, or reduced to the row's figures in C++ (a campaign's)
+    originals = {key: getattr(EXTENSION, key) for key in ("batch_rollout", "batch_figures")}
 
-    def timed(*a, **k):
-        t0, c0 = time.perf_counter(), time.thread_time()
-        try:
-            return original(*a, **k)
-        finally:
-            inner["s"] += time.perf_counter() - t0
-            inner["cpu"] += time.thread_time() - c0
+    def timer(original):
+        def timed(*a, **k):
+            t0, c0 = time.perf_counter(), time.thread_time()
+            try:
+                return original(*a, **k)
+            finally:
+                inner["s"] += time.perf_counter() - t0
+                inner["cpu"] += time.thread_time() - c0
+        return timed
 
     def wall(**kw):
         t0 = time.perf_counter()
@@ -423,12 +427,14 @@ def campaign_at_floor(robot, names, samples, duration, rate) -> dict:
         return time.perf_counter() - t0, rows
 
     load = [os.getloadavg()[0]]
-    EXTENSION.batch_rollout = timed
+    for key, original in originals.items():
+        setattr(EXTENSION, key, timer(original))
     c0 = time.process_time()
     try:
         one_s, rows1 = wall(jobs=1, threads=1)
     finally:
-        EXTENSION.batch_rollout = original
+        for key, original in originals.items():
+            setattr(EXTENSION, key, original)
     one_cpu = time.process_time() - c0
     floor_s = inner["s"]
     jobs2_s, rows2 = wall(jobs=2, threads=1)

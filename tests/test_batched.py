@@ -17,6 +17,7 @@ from numpy.testing import assert_allclose
 
 from rrr_pin.campaign import montecarlo as mc
 from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.control.effects import PlantEffects
 from rrr_pin.control.laws import fl_controller, hinf_fl_controller, pd_controller
 from rrr_pin.control.references import SineReference
 from rrr_pin.model.dynamics import load_robot, robot_from_xml
@@ -219,12 +220,16 @@ def test_campaign_rows_equal_for_one_and_two_threads(rrr):
         mc.run_campaign(rrr, laws, settings, jobs=1, threads=0)
 
 
-def test_figures_equal_the_trajectorys_figures(rrr, ref, plants):
-    # figures=True reduces the batch arrays without making trajectories: the same numbers,
-    # bit for bit, as the trajectories' own figures (and as the campaign's run_metrics).
+@pytest.mark.parametrize("rate, duration", [(RATE, 0.2), (RATE, 0.731), (None, 0.2)],
+                         ids=["sampled", "sampled-odd-length", "continuous"])
+def test_figures_equal_the_trajectorys_figures(rrr, ref, plants, rate, duration):
+    # figures=True reduces each run inside the C++ loop (numpy's pairwise sum, streamed)
+    # without storing trajectories: the same numbers, bit for bit, as numpy's reduction of
+    # the trajectories (their own figures, the campaign's run_metrics). 0.731 s: 732 x 3
+    # values, a pairwise tree whose leaves are not all full blocks of 8.
     law = make_laws("hinf", rrr)[0]
-    trajs = simulate_batch(plants, law, ref, 0.2, rate=RATE, batch=4, threads=2)
-    figs = simulate_batch(plants, law, ref, 0.2, rate=RATE, batch=4, figures=True)
+    trajs = simulate_batch(plants, law, ref, duration, rate=rate, batch=4, threads=2)
+    figs = simulate_batch(plants, law, ref, duration, rate=rate, batch=4, figures=True)
     for t, f in zip(trajs, figs, strict=True):
         assert f.figures() == t.figures()
         assert f.info == t.info and f.info["engine"] == "codegen"
@@ -249,3 +254,76 @@ def test_batched_hinf_aw_equals_compiled(rrr, ref, plants, rate):
         assert_allclose(a.q, c.q, rtol=0.0, atol=1e-12)
         assert_allclose(a.qd, c.qd, rtol=0.0, atol=1e-11)
         assert_allclose(a.tau, c.tau, rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize("effects", [
+    PlantEffects(delay=0.0015), PlantEffects(torque_limit=60.0),
+    PlantEffects(delay=0.001, torque_limit=(80.0, 60.0, 20.0)),
+    PlantEffects(noise_q=1e-4, noise_qd=1e-3, encoder_counts=4096, seed=3),
+    PlantEffects(bandwidth=300.0, viscous=0.5, coulomb=(1.0, 2.0, 0.5)),
+    PlantEffects(stiffness=2.0e4, motor_inertia=0.05, damping=5.0, torque_limit=200.0)],
+    ids=["delay", "torque-limit", "both", "sensor", "actuator-friction", "flexible"])
+@pytest.mark.parametrize("kind", ["fl", "hinf_aw"])
+def test_batched_effects_equal_compiled(rrr, ref, plants, effects, kind):
+    # Every plant effect in the batched loop (sensor -> law -> saturation -> delay ->
+    # actuator -> flexible joint -> plant with friction, effects.hpp's order): pinned to the
+    # compiled engine plant by plant, and bit-identical for every batch size. The limits clip
+    # (the peak torque is the limit).
+    law = make_laws(kind, rrr)[0]
+    q0 = ref.sample(np.array([0.0]))[0][0] + np.array([0.05, -0.04, 0.03])
+    go = dict(rate=RATE, dt=0.0005, q0=q0, effects=effects)
+    together = simulate_batch(plants, law, ref, 0.3, **go)
+    alone = simulate_batch(plants, law, ref, 0.3, batch=1, **go)
+    figs = simulate_batch(plants, law, ref, 0.3, figures=True, **go)
+    for a, b, f, plant in zip(together, alone, figs, plants, strict=True):
+        assert a.info["engine"] == "codegen" and a.info["effects"] == b.info["effects"]
+        np.testing.assert_array_equal(a.q, b.q)
+        assert f.figures() == a.figures()
+        c = simulate(plant, law, ref, 0.3, engine="compiled", **go)
+        assert c.info["effects"] == a.info["effects"]
+        # 1e-12 rad as the ideal plant's pin above (the dynamics differ by round-off)
+        assert_allclose(a.q, c.q, rtol=0.0, atol=1e-12)
+        assert_allclose(a.qd, c.qd, rtol=0.0, atol=1e-11)
+    if effects.torque_limit is not None:
+        limit = np.broadcast_to(effects.torque_limit, (3,))
+        assert np.abs(together[0].tau).max(axis=0).tolist() <= limit.tolist()
+        assert np.isclose(np.abs(together[0].tau).max(axis=0), limit).any()  # it clips
+
+
+def test_an_effect_without_a_batched_step_is_refused_by_name(rrr, ref, plants):
+    # Every effect of today's Resolved has its batched step; a field added to it and not to
+    # BATCH_EFFECTS is named in the refusal (here a made-up one), never run without it.
+    from dataclasses import dataclass, fields
+
+    from rrr_pin.control.effects import Resolved
+    from rrr_pin.sim import batched
+
+    fx = PlantEffects(bandwidth=200.0).resolve(rrr, substeps=1, h=1e-3, n_steps=10)
+
+    @dataclass(frozen=True)
+    class WithBacklash(Resolved):
+        backlash: float | None = None
+
+    more = WithBacklash(**{f.name: getattr(fx, f.name) for f in fields(fx)}, backlash=0.01)
+    assert batched._unbatched_effects(fx) == []
+    assert batched._unbatched_effects(more) == ["backlash"]
+
+
+def test_a_diverging_plant_with_effects_leaves_its_batch_unchanged(rrr, ref, plants):
+    # As test_a_diverging_plant_leaves_its_batch_unchanged, with a delay, an actuator and
+    # friction on: the light plant's divergence reads as the compiled engine's, in both output
+    # kinds, and its neighbours' numbers are those of a batch without it.
+    fx = PlantEffects(delay=0.001, bandwidth=500.0, viscous=0.3)
+    law = fl_controller(rrr)
+    light = _scaled(rrr, 0.01, "light")
+    mixed = plants[:2] + [light] + plants[2:]
+    go = dict(rate=RATE, effects=fx)
+    out = simulate_batch(mixed, law, ref, 0.3, **go)
+    figs = simulate_batch(mixed, law, ref, 0.3, figures=True, **go)
+    clean = simulate_batch(plants, law, ref, 0.3, **go)
+    with pytest.raises(SimulationDiverged) as compiled:
+        simulate(light, law, ref, 0.3, engine="compiled", **go)
+    assert str(out[2]) == str(figs[2]) == str(compiled.value)
+    for a, f, b in zip(out[:2] + out[3:], figs[:2] + figs[3:], clean, strict=True):
+        np.testing.assert_array_equal(a.q, b.q)
+        assert f.figures() == b.figures()

@@ -123,12 +123,14 @@ def test_codegen_generates_a_structure_without_committed_code_at_first_use(rrr, 
     np.testing.assert_allclose(fast.q, slow.q, rtol=0.0, atol=1e-12)
 
 
-def test_codegen_refuses_plant_effects(rrr, ref):
+def test_codegen_runs_plant_effects(rrr, ref):
     from rrr_pin.control.effects import PlantEffects
 
-    with pytest.raises(ValueError, match="ideal plant"):
-        simulate(rrr, fl_controller(rrr), ref, 0.1, rate=RATE, engine="codegen",
-                 effects=PlantEffects(delay=1e-3))
+    # Every plant effect is batched now (tests/test_batched.py pins each to the compiled
+    # engine); a continuous law with effects is refused as on every engine.
+    run = simulate(rrr, fl_controller(rrr), ref, 0.1, rate=RATE, engine="codegen",
+                   effects=PlantEffects(delay=1e-3, bandwidth=200.0))
+    assert run.info["engine"] == "codegen"
 
 
 def test_fingerprint_sees_every_change(rrr):

@@ -8,10 +8,13 @@
 #include <cmath>
 #include <deque>
 #include <limits>
+#include <memory>
 #include <mutex>
 #include <stdexcept>
 #include <vector>
 
+#include "batch_outputs.hpp"
+#include "effects.hpp"
 #include "rk4.hpp"
 
 extern "C" {
@@ -291,6 +294,10 @@ namespace rrr_pin
 
     using BState = LaneState;
     using BRK4 = RK4Work<Lanes>;
+    using batch_outputs::BatchOutputs;
+    using batch_outputs::FigureOutputs;
+    using batch_outputs::keep_torque;
+    using batch_outputs::make_outputs;
 
     /// RK4 stage points and slopes of B plants of n joints and a law of m states, sized.
     BRK4 lane_work(std::size_t nB, std::size_t mB)
@@ -314,6 +321,89 @@ namespace rrr_pin
         md.f.fd(md.B, md.plant.data(), y.q.data(), y.qd.data(), u.data(), k.qd.data());
       }
     };
+
+    /// The sampled plant behind its drive train (effects.hpp's joint_torque, per plant): B arms
+    /// driven through the first-order actuator (a), the flexible joint (th, thd) and the
+    /// friction of the effects, by their held commands u.
+    struct BatchDriven
+    {
+      const Models & md;
+      const Effects & fx;
+      Lanes u, tj;
+      Parts parts;
+
+      BatchDriven(const Models & models, const Effects & effects)
+      : md(models)
+      , fx(effects)
+      , u(static_cast<std::size_t>(models.n) * models.B)
+      , tj(u.size())
+      , parts(effects.parts())
+      {
+      }
+
+      void slope(const BState & y, int, BState & k)
+      {
+        const int B = md.B, n = md.n;
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            const int i = j * B + b;
+            const double tm = fx.lags() ? y.a[i] : u[i];
+            double t = tm;
+            if (fx.flexes())
+            {
+              t = fx.Kf[j] * (y.th[i] - y.q[i]) + fx.Df[j] * (y.thd[i] - y.qd[i]);
+              k.th[i] = y.thd[i];
+              k.thd[i] = (tm - t) / fx.Bm[j];
+            }
+            if (fx.rubs())
+              t = t - (fx.Fv[j] * y.qd[i] + fx.Fc[j] * std::tanh(y.qd[i] / fx.veps));
+            if (fx.lags())
+              k.a[i] = fx.wa * (u[i] - y.a[i]);
+            tj[i] = t;
+          }
+        k.q = y.qd;
+        md.f.fd(B, md.plant.data(), y.q.data(), y.qd.data(), tj.data(), k.qd.data());
+      }
+
+      /// effects.hpp's start, per plant: at rest on the first command, a = u, th = q + u / K,
+      /// thd = qd.
+      void start(BState & y) const
+      {
+        const int B = md.B, n = md.n;
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            const int i = j * B + b;
+            if (fx.lags())
+              y.a[i] = u[i];
+            if (fx.flexes())
+            {
+              y.th[i] = y.q[i] + u[i] / fx.Kf[j];
+              y.thd[i] = y.qd[i];
+            }
+          }
+      }
+    };
+
+    /// The sampled system of a run: the ideal plant, or the plant behind its drive train.
+    template<class Sys>
+    Sys make_system(const Models & md, const Effects & fx);
+
+    template<>
+    BatchPlant make_system<BatchPlant>(const Models & md, const Effects &)
+    {
+      return BatchPlant{md, Lanes(static_cast<std::size_t>(md.n) * md.B), Parts{}};
+    }
+
+    template<>
+    BatchDriven make_system<BatchDriven>(const Models & md, const Effects & fx)
+    {
+      return BatchDriven(md, fx);
+    }
+
+    inline void start_system(BatchPlant &, BState &) {}
+    inline void start_system(BatchDriven & sys, BState & y) { sys.start(y); }
 
     /// A continuous law and B arms, integrated together.
     template<class Law>
@@ -350,82 +440,6 @@ namespace rrr_pin
       }
     };
 
-    /// Per-plant outputs and status.
-    struct BatchOutputs
-    {
-      int B, n;
-      std::int64_t N;
-      RowMat Q, QD, TAU;
-      Eigen::VectorXi bad_step, bad_joint, reason;
-      std::vector<char> alive;
-      int n_alive;
-
-      BatchOutputs(int B_, int n_, std::int64_t N_)
-      : B(B_)
-      , n(n_)
-      , N(N_)
-      , Q(RowMat::Constant(B_ * (N_ + 1), n_, std::numeric_limits<double>::quiet_NaN()))
-      , QD(Q)
-      , TAU(Q)
-      , bad_step(Eigen::VectorXi::Constant(B_, -1))
-      , bad_joint(Eigen::VectorXi::Constant(B_, -1))
-      , reason(Eigen::VectorXi::Constant(B_, kOk))
-      , alive(B_, 1)
-      , n_alive(B_)
-      {
-      }
-
-      std::int64_t row(int b, std::int64_t k) const { return b * (N + 1) + k; }
-
-      void put(RowMat & out, int b, std::int64_t k, const Lanes & v) const
-      {
-        for (int j = 0; j < n; ++j)
-          out(row(b, k), j) = v[j * B + b];
-      }
-
-      void kill(int b, std::int64_t step, int joint, int why)
-      {
-        alive[b] = 0;
-        --n_alive;
-        bad_step[b] = static_cast<int>(step);
-        bad_joint[b] = joint;
-        reason[b] = why;
-      }
-
-      /// Record the states after step k; the plants that diverge are stopped.
-      void record(std::int64_t k, const BState & y, const RowMat & lower, const RowMat & upper,
-                  double vlim, std::vector<int> & stopped)
-      {
-        for (int b = 0; b < B; ++b)
-        {
-          if (!alive[b])
-            continue;
-          put(Q, b, k + 1, y.q);
-          put(QD, b, k + 1, y.qd);
-          int joint = -1, why = kOk;
-          for (int j = 0; j < n && why == kOk; ++j)
-            if (!std::isfinite(y.q[j * B + b]) || !std::isfinite(y.qd[j * B + b]))
-              joint = j, why = kNonFinite;
-          for (int j = 0; j < n && why == kOk; ++j)
-            if (std::abs(y.qd[j * B + b]) > vlim)
-              joint = j, why = kSpeed;
-          for (int j = 0; j < n && why == kOk; ++j)
-            if (y.q[j * B + b] < lower(b, j) || y.q[j * B + b] > upper(b, j))
-              joint = j, why = kLimits;
-          if (why != kOk)
-          {
-            kill(b, k + 1, joint, why);
-            stopped.push_back(b);
-          }
-        }
-      }
-
-      BatchResult result()
-      {
-        return {std::move(Q), std::move(QD), std::move(TAU), bad_step, bad_joint, reason};
-      }
-    };
-
     /// Put a stopped plant back on its initial state (finite numbers, never recorded).
     void park(BState & y, int b, int B, const RolloutInputs & in)
     {
@@ -449,57 +463,100 @@ namespace rrr_pin
       return y;
     }
 
-    template<class Law>
-    BatchResult sampled_loop(const Models & md, const Law & law, const RolloutInputs & in,
-                             const RowMat & lower, const RowMat & upper)
+
+    /// Sampled law on B plants: sensor -> law -> saturation -> delay -> actuator -> flexible
+    /// joint -> plant with friction, as rollout.cpp's sampled_loop with these effects (the
+    /// ideal plant without them; Sys: BatchPlant or BatchDriven).
+    template<class Out, class Sys, class Law>
+    auto sampled_loop(const Models & md, const Law & law, const RolloutInputs & in,
+                      const RowMat & lower, const RowMat & upper, const Effects & fx)
     {
       const int B = md.B, n = md.n, m = static_cast<int>(law.nx());
       const std::int64_t N = in.n_steps;
-      BatchOutputs out(B, n, N);
+      Out out = make_outputs<Out>(B, n, N, in);
       BatchLaw<Law> eval(law, md);
-      BatchPlant plant{md, Lanes(n * B)};
+      Sys plant = make_system<Sys>(md, fx);
       BState y = initial(B, in);
       Lanes xn(m * B);
       BRK4 w = lane_work(n * B, 0);
-      std::vector<int> stopped;
-      for (int b = 0; b < B; ++b)
+      for (BState * s : {&y, &w.ys, &w.k1, &w.k2, &w.k3, &w.k4})  // the drive train's parts
       {
-        out.put(out.Q, b, 0, y.q);
-        out.put(out.QD, b, 0, y.qd);
+        s->a.assign(plant.parts.a ? n * B : 0, 0.0);
+        s->th.assign(plant.parts.th ? n * B : 0, 0.0);
+        s->thd.assign(plant.parts.th ? n * B : 0, 0.0);
       }
+      std::vector<int> stopped;
+      // The commands the delay reaches back to: row r (control step r) at hist[r % H].
+      const std::int64_t H = fx.delay_steps > 0 ? fx.delay_steps / in.substeps + 2 : 0;
+      std::vector<Lanes> hist(static_cast<std::size_t>(H), Lanes(n * B, 0.0));
+      Lanes cmd(n * B);
+      // The sensor (effects.hpp's sense): the law reads qm = Q(q + n_q), qdm = qd + n_qd.
+      const bool senses = fx.noise_q.rows() > 0 || fx.noise_qd.rows() > 0 || fx.quantum > 0.0;
+      Lanes qm(senses ? n * B : 0), qdm(senses ? n * B : 0);
+      for (int b = 0; b < B; ++b)
+        out.start(b, y);
       for (std::int64_t k = 0; k < N && out.n_alive > 0; ++k)
       {
+        if (senses)
+          for (int j = 0; j < n; ++j)
+            for (int b = 0; b < B; ++b)
+            {
+              const int i = j * B + b;
+              double v = y.q[i];
+              if (fx.noise_q.rows() > 0)
+                v = v + fx.noise_q(k, j);
+              if (fx.quantum > 0.0)
+                v = fx.quantum * std::nearbyint(v / fx.quantum);
+              qm[i] = v;
+              qdm[i] = fx.noise_qd.rows() > 0 ? y.qd[i] + fx.noise_qd(k, j) : y.qd[i];
+            }
         const Lanes & tau =
-          eval.torque(y.q.data(), y.qd.data(), in.R.row(k).data(), in.RD.row(k).data(),
+          eval.torque(senses ? qm.data() : y.q.data(), senses ? qdm.data() : y.qd.data(),
+                      in.R.row(k).data(), in.RD.row(k).data(),
                       in.RDD.row(k).data(), y.x.data());
         if (m > 0)
         {
           eval.state_map(y.x.data(), xn.data());
           y.x.swap(xn);
         }
+        cmd = tau;
+        if (fx.saturates())  // Eigen's cwiseMax(-limit).cwiseMin(limit): std::max, std::min
+          for (int j = 0; j < n; ++j)
+            for (int b = 0; b < B; ++b)
+              cmd[j * B + b] = std::min(std::max(tau[j * B + b], -fx.limit[j]), fx.limit[j]);
         stopped.clear();
         for (int b = 0; b < B; ++b)
         {
           if (!out.alive[b])
             continue;
-          out.put(out.TAU, b, k, tau);
-          for (int j = 0; j < n; ++j)
-            if (!std::isfinite(tau[j * B + b]))  // the law's own output
-            {
-              out.kill(b, k, j, kLawTorque);
-              stopped.push_back(b);
-              break;
-            }
+          int bad = -1;
+          for (int j = 0; j < n && bad < 0; ++j)
+            if (!std::isfinite(tau[j * B + b]))  // the law's own output, before saturation
+              bad = j;
+          out.torque(b, k, bad < 0 ? cmd : tau);
+          if (bad >= 0)
+          {
+            out.kill(b, k, bad, kLawTorque);
+            stopped.push_back(b);
+          }
         }
-        plant.u = tau;
+        if (k == N - 1)
+          keep_torque(out, cmd);
+        plant.u = cmd;
         for (int b : stopped)
         {
           park(y, b, B, in);
           for (int j = 0; j < n; ++j)
             plant.u[j * B + b] = 0.0;
         }
+        if (k == 0)
+          start_system(plant, y);
+        if (H > 0)
+          hist[k % H] = plant.u;
         for (int s = 0; s < in.substeps; ++s)
         {
+          if (H > 0)  // the command of row delayed_row(k, s) (row 0 before the first)
+            plant.u = hist[fx.delayed_row(k, s, in.substeps) % H];
           plant.slope(y, 0, w.k1);
           rk4_rest(plant, y, in.h, w);
         }
@@ -508,20 +565,17 @@ namespace rrr_pin
         for (int b : stopped)
           park(y, b, B, in);
       }
-      // The torque held on the last interval is also the one "at" the final sample.
-      for (int b = 0; b < B; ++b)
-        if (out.bad_step[b] < 0)
-          out.TAU.row(out.row(b, N)) = out.TAU.row(out.row(b, N - 1));
+      out.hold_last_torque();
       return out.result();
     }
 
-    template<class Law>
-    BatchResult continuous_loop(const Models & md, const Law & law, const RolloutInputs & in,
-                                const RowMat & lower, const RowMat & upper)
+    template<class Out, class Law>
+    auto continuous_loop(const Models & md, const Law & law, const RolloutInputs & in,
+                         const RowMat & lower, const RowMat & upper)
     {
       const int B = md.B, n = md.n, m = static_cast<int>(law.nx());
       const std::int64_t N = in.n_steps;
-      BatchOutputs out(B, n, N);
+      Out out = make_outputs<Out>(B, n, N, in);
       BatchLaw<Law> eval(law, md);
       Parts parts;
       parts.x = m > 0;
@@ -530,17 +584,14 @@ namespace rrr_pin
       BRK4 w = lane_work(n * B, m * B);
       std::vector<int> stopped;
       for (int b = 0; b < B; ++b)
-      {
-        out.put(out.Q, b, 0, y.q);
-        out.put(out.QD, b, 0, y.qd);
-      }
+        out.start(b, y);
       for (std::int64_t k = 0; out.n_alive > 0; ++k)
       {
         loop.k = k;
         loop.slope(y, 0, w.k1);
         for (int b = 0; b < B; ++b)
           if (out.alive[b])
-            out.put(out.TAU, b, k, loop.tau1);
+            out.torque(b, k, loop.tau1);
         if (k < N)
           rk4_rest(loop, y, in.h, w);
         stopped.clear();
@@ -669,18 +720,48 @@ namespace rrr_pin
                                 + ")");
   }
 
+  namespace
+  {
+    template<class Out, class Law>
+    auto run_loop(const std::string & name, const RowMat & plant, const Vec & nominal,
+                  const Law & law, const RolloutInputs & in, const RowMat & lower,
+                  const RowMat & upper, const Effects * fx)
+    {
+      const DynFunctions & f = dyn_by_name(name);
+      check_batch(f, plant, nominal, in, law.nx(), lower, upper);
+      law.check(f.nq);
+      const Effects none;
+      if (fx)
+      {
+        if (!in.sampled)
+          throw std::invalid_argument("plant effects need a sampled law");
+        fx->check(f.nq, in.n_steps);
+      }
+      const Models md(f, plant, nominal);
+      if (fx && (fx->lags() || fx->rubs() || fx->flexes()))
+        return sampled_loop<Out, BatchDriven>(md, law, in, lower, upper, *fx);
+      if (in.sampled)
+        return sampled_loop<Out, BatchPlant>(md, law, in, lower, upper, fx ? *fx : none);
+      return continuous_loop<Out>(md, law, in, lower, upper);
+    }
+  } // namespace
+
   template<class Law>
   BatchResult batch_rollout(
     const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
-    const RolloutInputs & in, const RowMat & lower, const RowMat & upper)
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper, const Effects * fx)
   {
-    const DynFunctions & f = dyn_by_name(name);
-    check_batch(f, plant, nominal, in, law.nx(), lower, upper);
-    law.check(f.nq);
-    const Models md(f, plant, nominal);
-    if (in.sampled)
-      return sampled_loop(md, law, in, lower, upper);
-    return continuous_loop(md, law, in, lower, upper);
+    return run_loop<BatchOutputs>(name, plant, nominal, law, in, lower, upper, fx);
+  }
+
+  template<class Law>
+  FigureResult batch_figures(
+    const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper, const Effects * fx)
+  {
+    if (in.n_steps < 1)
+      throw std::invalid_argument("batch_figures: n_steps must be >= 1");
+    return run_loop<FigureOutputs>(name, plant, nominal, law, in, lower, upper, fx);
   }
 
   template<class Law>
@@ -720,15 +801,24 @@ namespace rrr_pin
 
   template BatchResult batch_rollout<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
+  template FigureResult batch_figures<FLLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
+  template FigureResult batch_figures<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
+  template FigureResult batch_figures<PDLaw>(
+    const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
   template BatchResult batch_rollout<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   template double batch_floor_timing<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   template BatchResult batch_rollout<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   template double batch_floor_timing<FLLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   template double batch_floor_timing<PDLaw>(

@@ -14,6 +14,7 @@
 #include <tuple>
 #include <vector>
 
+#include "effects.hpp"
 #include "law.hpp"
 #include "rollout.hpp"
 
@@ -62,10 +63,25 @@ namespace rrr_pin
 
   /// Run `law` on B plants (parameter rows of `plant`, (B, np)) with the law's model
   /// `nominal` (np,); `in` as for rollout() (q0, qd0, x0 shared), limits per plant (B, n).
+  /// (F, Q, QD, TAU0, bad_step, bad_joint, reason) of batch_figures: per plant its figures
+  /// (B, 3 + nq: RMS error, max |error|, RMS torque, RMS error per joint), its last state
+  /// recorded (the diverging one) and its first torque.
+  using FigureResult = std::tuple<RowMat, RowMat, RowMat, RowMat, Eigen::VectorXi,
+                                  Eigen::VectorXi, Eigen::VectorXi>;
+
+  /// batch_rollout reduced in the loop to the figures of a campaign's row
+  /// (rrr_pin.sim.trajectory.tracking_figures_batch of the same run, bit for bit).
+  template<class Law>
+  FigureResult batch_figures(
+    const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper,
+    const Effects * fx = nullptr);
+
   template<class Law>
   BatchResult batch_rollout(
     const std::string & name, const RowMat & plant, const Vec & nominal, const Law & law,
-    const RolloutInputs & in, const RowMat & lower, const RowMat & upper);
+    const RolloutInputs & in, const RowMat & lower, const RowMat & upper,
+    const Effects * fx = nullptr);
 
   /// Wall time [s] of the bare generated dynamics calls of B plant-rollouts of a `Law`
   /// (the calls floor_timing() times, on all B plants per call).
@@ -76,15 +92,24 @@ namespace rrr_pin
 
   extern template BatchResult batch_rollout<FLLaw>(
     const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
+  extern template FigureResult batch_figures<FLLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
+  extern template FigureResult batch_figures<FLAWLaw>(
+    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
+  extern template FigureResult batch_figures<PDLaw>(
+    const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
   extern template BatchResult batch_rollout<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   extern template double batch_floor_timing<FLAWLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   extern template BatchResult batch_rollout<PDLaw>(
     const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &);
+    const RowMat &, const RowMat &, const Effects *);
   extern template double batch_floor_timing<FLLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   extern template double batch_floor_timing<PDLaw>(

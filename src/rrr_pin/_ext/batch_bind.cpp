@@ -25,8 +25,16 @@ namespace rrr_pin
       mod.def(
         "batch_rollout", &batch_rollout<Law>, nb::arg("name"), nb::arg("plant"),
         nb::arg("nominal"), nb::arg("law"), nb::arg("inputs"), nb::arg("lower"),
-        nb::arg("upper"), nb::call_guard<nb::gil_scoped_release>(),
+        nb::arg("upper"), nb::arg("effects").none() = nb::none(),
+        nb::call_guard<nb::gil_scoped_release>(),
         "Run the closed loop on B plants; returns (Q, QD, TAU, bad_step, bad_joint, reason).");
+      mod.def(
+        "batch_figures", &batch_figures<Law>, nb::arg("name"), nb::arg("plant"),
+        nb::arg("nominal"), nb::arg("law"), nb::arg("inputs"), nb::arg("lower"),
+        nb::arg("upper"), nb::arg("effects").none() = nb::none(),
+        nb::call_guard<nb::gil_scoped_release>(),
+        "batch_rollout reduced to each plant's figures in the loop; returns (F, Q, QD, TAU0, "
+        "bad_step, bad_joint, reason).");
       mod.def(
         "batch_floor_timing",
         [](const std::string & name, const RowMat & plant, const Vec & nominal, const Law &,

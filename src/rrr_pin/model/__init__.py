@@ -6,7 +6,9 @@ capabilities, the ``UncertaintySet`` base), :mod:`~rrr_pin.model.dh` (the paper'
 comes from: the paper's RRR, an example-robot-data name or a URDF path),
 :mod:`~rrr_pin.model.dynamics` (``Robot``, ``load_robot``: M, V, G through Pinocchio),
 :mod:`~rrr_pin.model.closed_form` (the corrected eq. (2)-(7)), :mod:`~rrr_pin.model.uncertainty`
-(seeded uncertain plants as URDF), :mod:`~rrr_pin.model.identification` (a subpackage, one
+(seeded uncertain plants as URDF), :mod:`~rrr_pin.model.drawn` (an uncertain arm's numbers put
+together into its Pinocchio model as the URDF reader would, without the text),
+:mod:`~rrr_pin.model.identification` (a subpackage, one
 module per concept: base inertial parameters and friction from measured torques, logs, a
 physically consistent URDF, the identified uncertainty),
 :mod:`~rrr_pin.model.excitation` (Fourier excitation trajectories for it),

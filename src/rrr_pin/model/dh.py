@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -285,7 +285,9 @@ class ArmParams:
     def to_dict(self) -> dict:
         """Plain-JSON dictionary of the parameter set."""
         return {"name": self.name, "g": self.g, "notes": self.notes,
-                "links": [{**asdict(link), "J": list(link.J)} for link in self.links]}
+                # the fields are numbers and the tuple J: no deep copy needed (dataclasses.asdict)
+                "links": [{f.name: (list(link.J) if f.name == "J" else getattr(link, f.name))
+                           for f in fields(link)} for link in self.links]}
 
     @classmethod
     def from_dict(cls, data: dict) -> ArmParams:

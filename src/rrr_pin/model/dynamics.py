@@ -36,6 +36,7 @@ import pinocchio as pin
 
 from ..validation import check_positive, check_real
 from .dh import ArmParams, check_inertial
+from .drawn import ArmMap, arm_map, assemble
 from .plant import (
     EFFORT_LIMITS,
     FRAMES,
@@ -48,7 +49,8 @@ from .plant import (
 )
 from .robots import ERD_ARMS, RobotModelError, nominal_params, read_source
 
-__all__ = ["Robot", "load_robot", "robot_from_xml", "check_urdf_inertials", "DEFAULT_GRAVITY"]
+__all__ = ["Robot", "DrawnArm", "load_robot", "robot_from_xml", "check_urdf_inertials",
+           "check_regular", "DEFAULT_GRAVITY"]
 
 logger = logging.getLogger(__name__)
 
@@ -277,6 +279,9 @@ class Robot(Plant):
         if not isinstance(tolerances, UncertaintySet):
             raise TypeError(f"tolerances must be an uncertainty set (e.g. "
                             f"rrr_pin.Tolerances()), got {type(tolerances).__name__}")
+        drawn = tolerances.draw_arm(self, rng, name=name)
+        if drawn is not None:  # the set draws straight into the model (:meth:`drawn`)
+            return drawn
         source = self.params if self.params is not None else self.urdf
         urdf, parameters = tolerances.arm(source, rng, skip_joints=tuple(self.locked),
                                           name=name)
@@ -286,6 +291,49 @@ class Robot(Plant):
         plant = robot_from_xml(urdf, gravity=self.gravity, lock=dict(self.locked),
                                name=name or self.name, label=self.source, check=False)
         return plant, parameters
+
+    def arm_map(self) -> ArmMap:
+        """Return the numbers of this arm's URDF a draw changes (:func:`~.drawn.arm_map`).
+
+        Made once and kept (a cache: the arm's URDF, parameters and locks do not change).
+        """
+        amap = self.__dict__.get("_arm_map")
+        if amap is None:
+            amap = self.__dict__["_arm_map"] = arm_map(self.urdf, self.params, self.locked,
+                                                       self.model)
+        return amap
+
+    def drawn(self, origins: dict, inertials: dict, *, write, name: str | None = None
+              ) -> DrawnArm:
+        """Return this arm with other joint origins and inertials, without URDF text.
+
+        Put together as Pinocchio reads a URDF (:func:`rrr_pin.model.drawn.assemble`).
+
+        Parameters
+        ----------
+        origins : dict
+            URDF joint name -> origin translation, shape (3,) [m] (absent: this arm's).
+        inertials : dict
+            URDF link name -> ``(m [kg], c shape (3,) [m], I shape (3, 3) [kg m^2], R shape
+            (3, 3))``: mass, centre of mass and inertia in the inertial's frame, and that
+            frame's rotation (absent: this arm's). Physically valid (checked where drawn).
+        write : callable
+            ``write() -> str``: the URDF text of the same arm, called at the first use of
+            :attr:`DrawnArm.urdf`.
+        name : str, optional
+            Default this arm's name.
+
+        Raises
+        ------
+        RobotModelError (a ValueError)
+            A mass matrix singular at the neutral configuration (as when a URDF is loaded).
+        """
+        model = assemble(self.model, self.arm_map(), origins, inertials)
+        arm = DrawnArm(model=model, data=model.createData(), name=name or self.name,
+                       source=self.source, urdf=None, locked=dict(self.locked))
+        arm.__dict__["_write_urdf"] = write
+        check_regular(arm, f"the arm drawn around {self.name!r}")
+        return arm
 
     def M(self, q, *, check: bool = True) -> np.ndarray:
         """Joint-space inertia matrix ``M(q)`` (CRBA), eq. (2).
@@ -379,6 +427,31 @@ class Robot(Plant):
         q = self.check_state("q", q)
         pin.forwardKinematics(self.model, self.data, q)
         return [np.array(self.data.oMi[j].homogeneous) for j in range(1, self.model.njoints)]
+
+
+class DrawnArm(Robot):
+    """An uncertain arm drawn into its Pinocchio model (:meth:`Robot.drawn`); a :class:`Robot`.
+
+    Its URDF text is written at the first use of :attr:`urdf` (saving the plant, a
+    fingerprint, pickling), from the same draws.
+    """
+
+    @property
+    def urdf(self) -> str:
+        """The arm's URDF text, written at first use (a model read from it equals this one)."""
+        text = self.__dict__.get("_urdf")
+        if text is None:
+            text = self.__dict__["_urdf"] = self.__dict__.pop("_write_urdf")()
+        return text
+
+    @urdf.setter
+    def urdf(self, text) -> None:
+        self.__dict__["_urdf"] = text
+
+    def __setstate__(self, state: dict) -> None:
+        state = dict(state)
+        state["_urdf"] = state.pop("urdf")  # written when pickled (Robot.__getstate__)
+        super().__setstate__(state)
 
 
 def _numbers(element, attribute: str, count: int, default: str, what: str) -> list[float]:
@@ -775,6 +848,18 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
     model.gravity.linear = np.array([0.0, 0.0, -gravity])
     robot = Robot(model=model, data=model.createData(), name=name or urdf_name, source=label,
                   urdf=raw, locked=lock)
+    check_regular(robot, label)
+    return robot
+
+
+def check_regular(robot: Robot, label: str) -> None:
+    """Refuse an arm whose mass matrix is singular at the neutral configuration (clipped).
+
+    Raises
+    ------
+    RobotModelError (a ValueError)
+        Naming ``label`` and the eigenvalues.
+    """
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
     eig = np.linalg.eigvalsh(robot.M(q0))
     if not eig.min() > _SINGULAR_RTOL * eig.max():
@@ -786,4 +871,3 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
             f"{label}: the mass matrix is singular at the neutral configuration (eigenvalues "
             f"{eig}): some joint moves no inertia about its axis (e.g. point masses on the "
             f"axis, or an axis along a massless direction of its subtree)")
-    return robot

@@ -196,6 +196,16 @@ class UncertaintySet:
         """
         raise TypeError(f"{type(self).__name__} does not perturb a serial arm (a URDF)")
 
+    def draw_arm(self, robot, rng: np.random.Generator, *, name=None):
+        """Return ``(arm, parameters)`` drawn straight into the arm's model, or None.
+
+        None (the default): the set has no such route, and the arm is read from the URDF
+        text :meth:`arm` writes. A set that has one
+        (:class:`rrr_pin.model.uncertainty.Tolerances`) draws the same plant as :meth:`arm`
+        without the text.
+        """
+        return None
+
     def mechanism(self, params, rng: np.random.Generator) -> tuple[object, dict]:
         """Return ``(parameter set, parameters drawn)`` of an uncertain mechanism."""
         raise TypeError(f"{type(self).__name__} does not perturb a parallel mechanism (a "

@@ -1,6 +1,9 @@
 """Uncertain plants: seeded, physically valid perturbations of an arm, written out as URDF.
 
-The perturbed URDF texts ARE the uncertain plants. A plant is validated once, where it is made:
+Under :class:`Tolerances`, :meth:`rrr_pin.model.dynamics.Robot.perturbed` draws the plant
+straight into its Pinocchio model (:mod:`rrr_pin.model.drawn`: the same draws, the numbers this
+module writes, read as Pinocchio reads them) and writes the URDF text of this module only when
+asked for. A plant is validated once, where it is made:
 a DH plant by :class:`~rrr_pin.model.dh.DHLink` (its URDF is generated from checked links), a
 URDF plant by :func:`~rrr_pin.model.dynamics.check_urdf_inertials` on the text written (its
 tree, joints and limits are the nominal's, which were checked when the nominal was loaded). So
@@ -54,7 +57,8 @@ from ..validation import check_count, check_real, check_vector
 from .dh import ArmParams, check_inertial
 from .mechanisms import is_mechanism_params, perturb_mechanism
 from .plant import UncertaintySet
-from .urdf import urdf_from_params
+from .robots import RobotModelError
+from .urdf import dh_link_frame, urdf_from_params
 
 __all__ = [
     "Tolerances",
@@ -63,6 +67,8 @@ __all__ = [
     "perturb_params",
     "perturb_urdf",
     "perturb_inertia",
+    "perturb_link",
+    "length_factor",
     "sample_plant",
     "sample_plants",
     "MechanismUncertainty",
@@ -124,6 +130,64 @@ class Tolerances(UncertaintySet):
             return urdf, {"params": params.to_dict(), "factors": factors}
         urdf, factors = perturb_urdf(str(source), rng, self, skip_joints=skip_joints)
         return urdf, {"factors": factors}
+
+    def draw_arm(self, robot, rng: np.random.Generator, *, name=None):
+        """Return the arm of :meth:`arm` drawn straight into its model, and its parameters.
+
+        The same draws as :meth:`arm` (:func:`perturb_params`, or :func:`perturb_link` and
+        :func:`length_factor` per URDF link and joint, in document order), the same factors
+        recorded; the numbers the URDF would carry go to
+        :meth:`rrr_pin.model.dynamics.Robot.drawn` instead of into text, which is written only
+        when asked for (from the same draws, by :meth:`arm`).
+
+        A subclass that overrides :meth:`arm` gets None (its own text route): this route
+        draws what :meth:`arm` of this class draws, and nothing else.
+
+        Raises
+        ------
+        RobotModelError (a ValueError)
+            A drawn inertial that is not physical, naming the link, or a singular arm.
+        """
+        if type(self).arm is not Tolerances.arm:
+            return None
+        state = rng.bit_generator.state  # to write the URDF from the same draws, if asked
+        amap = robot.arm_map()
+        origins, inertials = {}, {}
+        if robot.params is not None:
+            params, factors = perturb_params(robot.params, rng, self)
+            parameters = {"params": params.to_dict(), "factors": factors}
+            xyz = np.zeros(3)
+            for i, link in enumerate(params.links, start=1):
+                origins[f"joint{i}"] = xyz  # urdf_from_params: the joints and inertials
+                xyz, _, com = dh_link_frame(link)
+                inertials[f"link{i}"] = (link.mass, com, np.diag(link.J),
+                                         amap.inertials[f"link{i}"].R)
+            origins["ee_joint"] = xyz
+        else:
+            skip, links, joints = set(robot.locked), {}, {}
+            for link, nom in amap.inertials.items():
+                m, I, c, links[link] = perturb_link(nom.mass, nom.I, nom.com, rng, self)
+                try:
+                    check_inertial(m, I, name=f"link {link!r} of the drawn arm")
+                except ValueError as exc:
+                    raise RobotModelError(str(exc)) from None
+                inertials[link] = (m, c, I, nom.R)
+            for joint in amap.joints:
+                f_l = length_factor(rng, self)
+                if joint.name in skip or not joint.has_origin:
+                    continue
+                origins[joint.name] = joint.xyz * f_l
+                joints[joint.name] = f_l
+            parameters = {"factors": {"links": links, "joints": joints}}
+
+        def write() -> str:
+            bit_generator = type(rng.bit_generator)()
+            bit_generator.state = state
+            source = robot.params if robot.params is not None else robot.urdf
+            return self.arm(source, np.random.Generator(bit_generator),
+                            skip_joints=tuple(robot.locked), name=name)[0]
+
+        return robot.drawn(origins, inertials, write=write, name=name), parameters
 
     def mechanism(self, params, rng: np.random.Generator) -> tuple[object, dict]:
         """``perturb_mechanism(params, rng, inertia, length)``: masses and lengths."""
@@ -214,6 +278,48 @@ class PlantSample:
 
 def _factor(rng: np.random.Generator, tol: float, size=None):
     return rng.uniform(1.0 - tol, 1.0 + tol, size=size)
+
+
+def perturb_link(mass: float, I, com, rng: np.random.Generator, tol: Tolerances
+                 ) -> tuple[float, np.ndarray | None, np.ndarray, dict]:
+    """Draw one URDF link's factors and apply them (:func:`perturb_urdf`, one link).
+
+    The draws, in order: the mass factor, three second-moment factors, the centre-of-mass
+    factor. Both routes of an uncertain arm call it (:func:`perturb_urdf` and
+    :mod:`rrr_pin.model.drawn`), so they draw the same numbers and mean the same thing.
+
+    Parameters
+    ----------
+    mass : float
+        Nominal mass [kg].
+    I : ndarray, shape (3, 3), or None
+        Nominal inertia in the inertial's frame [kg m^2], physically valid (checked where it
+        was read); None for none.
+    com : ndarray, shape (3,)
+        Nominal centre of mass (the inertial's origin) [m].
+    rng : numpy.random.Generator
+    tol : Tolerances
+
+    Returns
+    -------
+    mass : float
+    I : ndarray, shape (3, 3), or None
+        :func:`perturb_inertia` of ``I``.
+    com : ndarray, shape (3,)
+    factors : dict
+        ``{"mass", "second_moments", "com"}``, as :func:`perturb_urdf` records them.
+    """
+    f_m = float(_factor(rng, tol.inertia))
+    f_s = _factor(rng, tol.inertia, 3)
+    f_c = float(_factor(rng, tol.length))
+    return (mass * f_m, None if I is None else _perturb_inertia(I, f_s),
+            np.asarray(com, dtype=float) * f_c,
+            {"mass": f_m, "second_moments": f_s.tolist(), "com": f_c})
+
+
+def length_factor(rng: np.random.Generator, tol: Tolerances) -> float:
+    """Draw one joint origin's length factor (:func:`perturb_urdf`, one joint)."""
+    return float(_factor(rng, tol.length))
 
 
 def perturb_inertia(I: np.ndarray, factors) -> np.ndarray:
@@ -340,18 +446,13 @@ def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Toleranc
         inertial = link.inertial
         if inertial is None or inertial.mass is None:
             continue
-        f_m = float(_factor(rng, tol.inertia))
-        f_s = _factor(rng, tol.inertia, 3)
-        f_c = float(_factor(rng, tol.length))
-        inertial.mass = float(inertial.mass) * f_m
-        if inertial.inertia is not None:
-            inertial.inertia = _perturb_inertia(inertial.inertia, f_s)  # checked above
         origin = np.eye(4) if inertial.origin is None else np.array(inertial.origin, float)
-        origin[:3, 3] *= f_c
+        # the inertia was checked above (_check_nominal)
+        inertial.mass, inertial.inertia, origin[:3, 3], link_factors[link.name] = perturb_link(
+            float(inertial.mass), inertial.inertia, origin[:3, 3], rng, tol)
         inertial.origin = origin
-        link_factors[link.name] = {"mass": f_m, "second_moments": f_s.tolist(), "com": f_c}
     for joint in robot.robot.joints:
-        f_l = float(_factor(rng, tol.length))
+        f_l = length_factor(rng, tol)
         if joint.name in skip or joint.origin is None:
             continue
         origin = np.array(joint.origin, dtype=float)

@@ -28,7 +28,7 @@ import numpy as np
 
 from .dh import ArmParams, paper_params
 
-__all__ = ["urdf_from_params", "write_urdf", "check_urdf", "LINK_RADIUS_RATIO"]
+__all__ = ["urdf_from_params", "write_urdf", "check_urdf", "dh_link_frame", "LINK_RADIUS_RATIO"]
 
 #: Radius of the link cylinders as a fraction of the longest link length ``max l_i`` (0.05 m
 #: for the paper's 1 m links). The visual shapes are all sized from that radius ``r``: link
@@ -74,6 +74,23 @@ def _rot_x(angle: float) -> np.ndarray:
 def _rot_z(angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def dh_link_frame(link) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where a DH link's numbers go in its URDF link frame (the joint's frame).
+
+    Returns
+    -------
+    frame_xyz : ndarray, shape (3,)
+        Origin of DH frame ``i`` [m] (``Tz(d) Tx(a)``): the next joint's origin.
+    frame_R : ndarray, shape (3, 3)
+        Its rotation ``Rx(alpha)``: the next joint's and the inertial's rotation.
+    com : ndarray, shape (3,)
+        Centre of mass [m], the inertial's origin.
+    """
+    frame_xyz = np.array([link.a, 0.0, link.d])
+    frame_R = _rot_x(link.alpha)
+    return frame_xyz, frame_R, frame_xyz + frame_R @ link.com()
 
 
 def _origin(xyz, rpy) -> str:
@@ -129,10 +146,7 @@ def urdf_from_params(params: ArmParams | None = None) -> str:
             f'effort="{_num(link.effort)}" velocity="{_num(link.velocity)}"/>',
             "  </joint>",
         ]
-        # DH frame i inside link<i>: Tz(d) Tx(a) Rx(alpha).
-        frame_xyz = np.array([link.a, 0.0, link.d])
-        frame_R = _rot_x(link.alpha)
-        com = frame_xyz + frame_R @ link.com()
+        frame_xyz, frame_R, com = dh_link_frame(link)
         Jx, Jy, Jz = link.J
         length = link.length
         # Cylinder from the joint (link-frame origin) to the next frame origin; URDF cylinders

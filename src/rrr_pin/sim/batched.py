@@ -18,9 +18,11 @@ Pinocchio's calls), so trajectories equal the compiled engine's to round-off
 multiply-adds, so a plant's numbers are the same whatever batch it runs in.
 
 Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``FLAWForm``, ``PDForm``: FL, H-infinity +
-FL, its anti-windup form ``hinf_aw``, PD), sampled or continuous, on the ideal plant (no
-:mod:`~rrr_pin.control.effects`); anything else is refused by name (:func:`why_not`) and runs
-on the compiled engine under ``engine="auto"``, which records why.
+FL, its anti-windup form ``hinf_aw``, PD), sampled or continuous, on the ideal plant or, for a
+sampled law, with the plant effects of :data:`BATCH_EFFECTS` (in the compiled engine's order:
+sensor -> law -> saturation -> delay -> actuator -> flexible joint -> plant with friction);
+anything else is refused by name (:func:`why_not`) and runs on the compiled engine under
+``engine="auto"``, which records why.
 """
 
 from __future__ import annotations
@@ -49,7 +51,8 @@ from .trajectory import (
     tracking_figures_batch,
 )
 
-__all__ = ["GENERATED", "BATCH_LAWS", "BATCH_MAX", "StructureMismatch", "generated_structure",
+__all__ = ["GENERATED", "BATCH_LAWS", "BATCH_EFFECTS", "BATCH_MAX", "StructureMismatch",
+           "generated_structure",
            "plant_parameters", "batchable", "why_not", "run_batch", "raise_or_return",
            "floor_ms", "MAX_THREADS", "thread_pool", "warm"]
 
@@ -63,6 +66,15 @@ GENERATED = {
 
 #: The compiled forms the batched loop implements, by exact type, and their C++ law.
 BATCH_LAWS = {FLForm: "FLLaw", FLAWForm: "FLAWLaw", PDForm: "PDLaw"}
+
+#: The plant effects the batched loop implements (fields of
+#: :class:`rrr_pin.control.effects.Resolved`): every one today (the sensor's noise and encoder,
+#: the torque limit, the transport delay, the actuator, flexible joints, friction); a field
+#: added there and not here is refused by name.
+BATCH_EFFECTS = ("noise_q", "noise_qd", "quantum", "limit", "delay_steps", "wa", "Bm", "Kf",
+                 "Df", "Fv", "Fc", "veps")
+_BATCH_EFFECT_LABEL = ("the sensor noise, the encoder, the torque limit, the delay, the actuator, "
+                       "flexible joints and friction")
 
 #: Most plants in one batch (``RRR_DYN_BMAX`` of ``generated/dyn_common.h``).
 BATCH_MAX = 16
@@ -232,8 +244,12 @@ def why_not(run, form):
         known = ", ".join(cls.__name__ for cls in BATCH_LAWS)
         return (f"compiled form {type(form).__qualname__} of law {law.name!r} is not "
                 f"implemented by the batched engine (known: {known})")
-    if run.effects is not None:
-        return f"engine {CODEGEN!r} runs the ideal plant only, got plant effects"
+    others = _unbatched_effects(run.effects)
+    if others:
+        return (f"engine {CODEGEN!r} batches {_BATCH_EFFECT_LABEL} only of the plant "
+                f"effects, got {', '.join(others)}")
+    if run.effects is not None and not run.sampled:
+        return f"engine {CODEGEN!r} applies plant effects to sampled laws only"
     for robot, role in ((plant, "plant"), (form.nominal, "nominal")):
         if generated_structure(robot.model) is None:
             return _refusal(robot, role)
@@ -247,8 +263,59 @@ def batchable(runs, form) -> bool:
     if any(r.plant.loop_closures for r in runs) or form.nominal.loop_closures:
         return False
     name = generated_structure(form.nominal.model)
-    return (name is not None and all(r.effects is None for r in runs)
+    return (name is not None and all(not _unbatched_effects(r.effects) for r in runs)
+            and _shared_effects(runs)
             and all(generated_structure(r.plant.model) == name for r in runs))
+
+
+def _unbatched_effects(fx) -> list[str]:
+    """Return the effects of a run's ``Resolved`` outside BATCH_EFFECTS, by their user names."""
+    if fx is None:
+        return []
+    off = {"wa": 0.0, "quantum": 0.0}  # the scalar effects' "off"; arrays are None when off
+    out = []
+    for f in fields(fx):
+        value = getattr(fx, f.name)
+        if f.name in (*BATCH_EFFECTS, "info") or value is None or (
+                f.name in off and value == off[f.name]):
+            continue
+        name = _EFFECT_NAMES.get(f.name, f.name)
+        if name not in out:
+            out.append(name)
+    return out
+
+
+#: What a Resolved field is called where a user sets it (PlantEffects).
+_EFFECT_NAMES = {"wa": "actuator bandwidth", "Fv": "friction", "Fc": "friction",
+                 "noise_q": "sensor noise", "noise_qd": "sensor noise", "quantum": "encoder",
+                 "Bm": "flexible joints", "Kf": "flexible joints", "Df": "flexible joints"}
+
+
+def _key(fx):
+    def array(a):
+        return None if a is None else (a.shape, np.ascontiguousarray(a, dtype=float).tobytes())
+
+    return (None if fx is None else
+            tuple(array(getattr(fx, key)) if isinstance(getattr(fx, key), np.ndarray)
+                  else getattr(fx, key) for key in BATCH_EFFECTS))
+
+
+def _shared_effects(runs) -> bool:
+    """Whether the runs share their batched effects (a batch applies one of each)."""
+    return len({_key(r.effects) for r in runs}) == 1
+
+
+def _effects(fx):
+    """Return the C++ ``Effects`` of a run's batched effects (None: the ideal plant)."""
+    if fx is None:
+        return None
+    out = EXTENSION.Effects()  # every effect off; those of the run set by name
+    for key in BATCH_EFFECTS:
+        value = getattr(fx, key)
+        if value is not None:
+            setattr(out, key, np.asarray(value, dtype=float) if isinstance(value, np.ndarray)
+                    else value)
+    return out
 
 
 def _law(form):
@@ -302,7 +369,8 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     StructureMismatch
         A plant or the law's model of a structure without generated dynamics.
     ValueError
-        A form the batched loop does not implement, plant effects, runs that do not share the
+        A form the batched loop does not implement, plant effects other than
+        :data:`BATCH_EFFECTS` (or effects the runs do not share), runs that do not share the
         law, reference or initial state, or a law whose first torque is not finite (as
         :func:`rrr_pin.control.laws.check_law_output`).
     rrr_pin.validation.FieldError
@@ -319,9 +387,14 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     check_count("threads", threads, 1, MAX_THREADS)
     if not runs:
         return []
-    if any(r.effects is not None for r in runs):
-        raise ValueError(f"engine={CODEGEN!r} runs the ideal plant only, got effects; use "
-                         f"engine={COMPILED!r} with plant effects")
+    others = sorted({name for r in runs for name in _unbatched_effects(r.effects)})
+    if others:
+        raise ValueError(f"engine={CODEGEN!r} batches {_BATCH_EFFECT_LABEL} only of the plant "
+                         f"effects, got {', '.join(others)}; use engine={COMPILED!r} with "
+                         f"these effects")
+    if not _shared_effects(runs):
+        raise ValueError("a batch shares its plant effects: its runs differ in the delay or "
+                         "the torque limit")
     if any(r.law is not runs[0].law for r in runs):
         raise ValueError("a batch runs one law: its runs have different laws")
     for key in ("R", "RD", "RDD", "q0", "qd0", "x0"):
@@ -348,10 +421,31 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     n1, n = len(run0.t), run0.plant.nq
     slices = [slice(s, s + int(batch)) for s in range(0, len(runs), int(batch))]
 
+    fx = _effects(run0.effects)
+
     def call(sl):
-        return EXTENSION.batch_rollout(name, P[sl], nominal, law, inputs, lower[sl], upper[sl])
+        return EXTENSION.batch_rollout(name, P[sl], nominal, law, inputs, lower[sl], upper[sl],
+                                       fx)
+
+    def reduced(sl):
+        return EXTENSION.batch_figures(name, P[sl], nominal, law, inputs, lower[sl], upper[sl],
+                                       fx)
 
     out = []
+    if figures and n1 > 1:
+        # Reduced in the C++ loop (tracking_figures_batch of the same arrays, bit for bit):
+        # no trajectory is stored. A diverged plant comes back with the state it diverged in
+        # (step ``bad_step``) and its first torque.
+        for sl, (F, Q1, QD1, TAU0, steps, joints, reasons) in zip(
+                slices, _map(reduced, slices, int(threads)), strict=True):
+            for b, run in enumerate(runs[sl]):
+                values = dict(zip(("rms_error", "max_error", "rms_torque"), F[b, :3].tolist(),
+                                  strict=True))
+                values.update(zip((f"rms_error_{j}" for j in run.plant.joint_names),
+                                  F[b, 3:].tolist(), strict=True))
+                out.append(_result(run, int(steps[b]), int(joints[b]), int(reasons[b]),
+                                   (Q1[b], QD1[b]), TAU0[b], figures=values))
+        return out
     for sl, (Q, QD, TAU, steps, joints, reasons) in zip(
             slices, _map(call, slices, int(threads)), strict=True):
         B = len(steps)
@@ -361,8 +455,9 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
                                          [r.plant.joint_names for r in runs[sl]])
                   if figures else [None] * B)
         for b, run in enumerate(runs[sl]):
-            out.append(_result(run, Q[b], QD[b], TAU[b], int(steps[b]), int(joints[b]),
-                               int(reasons[b]), values[b]))
+            k = int(steps[b])
+            out.append(_result(run, k, int(joints[b]), int(reasons[b]), (Q[b, k], QD[b, k]),
+                               TAU[b, 0], figures=values[b], arrays=(Q[b], QD[b], TAU[b])))
     return out
 
 
@@ -390,24 +485,27 @@ def _map(fn, items, threads: int):
     return thread_pool(threads).map(fn, items)
 
 
-def _result(run, Q, QD, TAU, bad_step: int, bad_joint: int, reason: int,
-            figures: dict | None = None):
+def _result(run, bad_step: int, bad_joint: int, reason: int, state, tau0,
+            figures: dict | None = None, arrays=None):
     """Return a plant's Trajectory (or RunFigures of ``figures``) or its SimulationDiverged.
 
-    As in compiled.run_compiled. The run's reference arrays may be shared with other runs
+    As in compiled.run_compiled. ``state``: ``(q, qd)`` at ``bad_step`` (the state that
+    diverged); ``tau0``: the first torque; ``arrays``: ``(Q, QD, TAU)`` for a trajectory. The
+    run's reference arrays may be shared with other runs
     (:func:`rrr_pin.sim.simulation.simulate_batch`): a trajectory gets its own copy.
     """
     law_failed = bad_step >= 0 and reason == LAW_TORQUE
-    if law_failed and bad_step == 0 and not np.isfinite(TAU[0]).all():
-        check_law_output(run.law, "step() torque" if run.sampled else "torque()", TAU[0],
+    if law_failed and bad_step == 0 and not np.isfinite(tau0).all():
+        check_law_output(run.law, "step() torque" if run.sampled else "torque()", tau0,
                          run.plant.nq, float(run.t[0]))
     if law_failed:
         return law_divergence(run.plant, run.law.name, float(run.t[bad_step]), bad_joint)
     if bad_step >= 0:
-        return divergence(run.plant, float(run.t[bad_step]), Q[bad_step], QD[bad_step],
-                          bad_joint, REASONS[reason])
+        return divergence(run.plant, float(run.t[bad_step]), state[0], state[1], bad_joint,
+                          REASONS[reason])
     if figures is not None:
         return RunFigures(run.law.name, run.plant.name, figures, dict(run.info))
+    Q, QD, TAU = arrays
     return make_trajectory(replace(run, R=run.R.copy()), np.ascontiguousarray(Q),
                            np.ascontiguousarray(QD), np.ascontiguousarray(TAU))
 

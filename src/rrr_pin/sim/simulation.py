@@ -366,7 +366,8 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
     With ``engine="auto"`` the plants run ``batch`` at a time on the generated dynamics
     (:func:`rrr_pin.sim.batched.run_batch`) when that engine can run them all (the law's
     compiled form in :data:`rrr_pin.sim.batched.BATCH_LAWS`, the plants and the law's model of
-    a generated structure, no plant effects), and one at a time as :func:`simulate` picks
+    a generated structure, plant effects among :data:`rrr_pin.sim.batched.BATCH_EFFECTS` shared
+    by the runs), and one at a time as :func:`simulate` picks
     otherwise. ``engine="codegen"`` requires the batched engine (refusing what it cannot run);
     any other engine runs one plant at a time. Each result is the one :func:`simulate` would
     give with the engine recorded in its ``info["engine"]``; ``batch`` changes no number.
