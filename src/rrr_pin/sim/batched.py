@@ -253,9 +253,8 @@ def batchable(runs, form) -> bool:
 
 def _law(form):
     law = getattr(EXTENSION, BATCH_LAWS[type(form)])()
-    for f in fields(form):
-        if f.name != "nominal":
-            setattr(law, f.name, getattr(form, f.name))
+    for key, value in form.engine_fields().items():
+        setattr(law, key, value)
     return law
 
 
