@@ -176,7 +176,7 @@ def check_bandwidth(name: str, value, joints, *, unit: str = "rad/s"):
     for i, x in enumerate(v):
         if not (math.isfinite(x) and x > 0.0):
             raise FieldError(f"{name}[{i}]", f"{{name}} (joint {joints[i]!r}) must be a finite "
-                                             f"number > 0{_unit(unit)}, got {x!r}")
+                                             f"number > 0{_unit(unit)}, got {float(x)!r}")
     v.setflags(write=False)
     return v
 

@@ -177,8 +177,14 @@ class TrackingController(ModelLaw, ControlLaw):
     _mats: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "lam", check_bandwidth("lam", self.lam,
-                                                        self.nominal.joint_names))
+        if np.ndim(self.lam) == 0:
+            lam = float(self.lam)
+            if not (math.isfinite(lam) and lam > 0.0):
+                raise ValueError(f"lam must be a positive finite bandwidth [rad/s], got "
+                                 f"{self.lam!r}")
+        else:  # one per joint, each checked (naming the joint)
+            lam = check_bandwidth("lam", self.lam, self.nominal.joint_names)
+        object.__setattr__(self, "lam", lam)
         n = self.nominal.nq
         if self.K is not None:
             K = controller_ss(self.K, n)
