@@ -92,9 +92,10 @@ def test_per_joint_lam_is_one_torque_in_every_engine(rrr, paper_K, kind):
 def test_per_joint_lam_exported_c_steps_as_python(rrr, paper_K, tmp_path):
     if shutil.which("cc") is None:
         pytest.skip("no C compiler")
+    from test_export import _compile_shared, _random_steps
+
     from rrr_pin import export as export_law
     from rrr_pin import exported_law
-    from test_export import _compile_shared, _random_steps
 
     for name, law in (("fl", TrackingController(rrr, LAMS, paper_K, name="pj")),
                       ("aw", AntiWindupTracking(rrr, LAMS, paper_K, name="pj_aw",
@@ -278,3 +279,25 @@ def test_cli_per_joint_lam_on_the_papers_design_is_refused(tmp_path):
 
     run = run_cli(["design", "--per-joint-lam"], tmp_path / "d")
     assert run.code == 2 and "--per-joint-lam: the paper's loop-shaping design" in run.stderr
+
+
+def test_linear_model_loops_per_joint(rrr):
+    """Each joint's continuous loop is (2 lam_j s + lam_j^2 (1 + K_j(s))) / s^2 (eq. 10-11)."""
+    import control
+
+    from rrr_pin.campaign.tuning import _law
+
+    Ks = [control.tf([1.0], [1.0]), control.tf([2.0, 30.0], [1.0, 10.0]),
+          control.tf([3.0, 5.0], [1.0, 50.0])]
+    s = 7.0j
+    for lam in (LAMS, 45.0):
+        loops = _law(rrr, lam, Ks).linear_model().loops(np.zeros(3))
+        assert len(loops) == 3
+        for j, (L, K) in enumerate(zip(loops, Ks, strict=True)):
+            lj = np.broadcast_to(lam, (3,))[j]
+            want = (2 * lj * s + lj * lj * (1 + K(s))) / s ** 2
+            assert_allclose(L(s), want, rtol=1e-12)  # a minimal realization: round-off
+    # the shared law is still one loop
+    assert len(TrackingController(rrr, 45.0, Ks[1]).linear_model().loops(np.zeros(3))) == 1
+    # the slowest joint's bandwidth
+    assert TrackingController(rrr, LAMS, None).linear_model().bandwidth(np.zeros(3)) == 30.0

@@ -36,8 +36,14 @@ import control
 import numpy as np
 import scipy.linalg as sla
 
-from ..validation import (FieldError, check_count, check_positive, check_real,
-                          check_scalar_bandwidth, check_size)
+from ..validation import (
+    FieldError,
+    check_count,
+    check_positive,
+    check_real,
+    check_scalar_bandwidth,
+    check_size,
+)
 from .barriers import (
     PAPER_MODEL_ERROR,
     PAPER_PERFORMANCE_SPECS,

@@ -26,7 +26,7 @@ on the compiled engine under ``engine="auto"``, which records why.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import fields, replace
+from dataclasses import replace
 
 import numpy as np
 

@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass, field, fields
 
 import numpy as np
+import scipy.linalg
 
 from ...validation import check_bandwidth, check_rate, check_scalar_bandwidth
 from .forms import FLForm, FLFrictionForm
@@ -115,22 +116,30 @@ class FLLinearModel(LinearModel):
         return Ad, Bc, Cc, Dc, eye
 
     def loops(self, home):
-        """Return ``[L(s)]``: every joint has the same loop (``K`` SISO, copied on the diagonal).
+        """Return ``[L(s)]``: one loop if every joint has the same, else one per joint.
 
-        With a per-joint ``lam``, one loop per joint (``K``'s first block on each).
+        The same: ``K`` SISO copied on the diagonal and ``lam`` shared. Any other ``K`` (a
+        diagonal one of one ``K_j`` per joint) gives joint ``j`` its channel ``K_jj``, minimal
+        (python-control's ``minreal``, SLICOT).
         """
         import control
 
         A, B, C, D = self.K
-        nx = A.shape[0]
-        if nx:
-            k = nx // self.n
-            K = control.tf(control.ss(A[:k, :k], B[:k, :1], C[:1, :k], D[:1, :1]))
-        else:
-            K = control.tf([0.0], [1.0])
+        n, nx = self.n, A.shape[0]
         s = control.tf("s")
-        lams = [self.lam] if np.ndim(self.lam) == 0 else [float(x) for x in self.lam]
-        return [(2 * lam * s + lam * lam * (1 + K)) / s ** 2 for lam in lams]
+        shared = np.ndim(self.lam) == 0
+        lams = [self.lam] if shared else [float(x) for x in self.lam]
+        if not nx:
+            Ks = [control.tf([0.0], [1.0])] * len(lams)
+        elif _copied(A, B, C, D, n):
+            k = nx // n
+            Ks = [control.tf(control.ss(A[:k, :k], B[:k, :1], C[:1, :k], D[:1, :1]))] * len(lams)
+        else:
+            Ks = [control.tf(control.minreal(control.ss(A, B[:, [j]], C[[j], :], D[[j]][:, [j]]),
+                                             verbose=False)) for j in range(n)]
+            lams = lams * n if shared else lams
+        return [(2 * lam * s + lam * lam * (1 + K)) / s ** 2 for lam, K in zip(lams, Ks,
+                                                                                strict=True)]
 
     def bandwidth(self, home):
         """Return ``lam`` [rad/s] (per joint: the smallest, the loop's slowest joint)."""
@@ -291,6 +300,17 @@ class TrackingController(ModelLaw, ControlLaw):
         return {**super().describe(), "lam_rad_s": lam_record(self.lam), "K_states": self.nx,
                 "nominal": self.nominal.name, "friction_compensation":
                 None if self.friction is None else self.friction.to_dict()}
+
+
+def _copied(A, B, C, D, n: int) -> bool:
+    """Whether ``(A, B, C, D)`` is one SISO block copied ``n`` times on the diagonal."""
+    nx = A.shape[0]
+    if nx % n:
+        return False
+    k = nx // n
+    blocks = (A[:k, :k], B[:k, :1], C[:1, :k], D[:1, :1])
+    want = [scipy.linalg.block_diag(*[b] * n) for b in blocks]
+    return all(np.array_equal(x, w) for x, w in zip((A, B, C, D), want, strict=True))
 
 
 def _rows(lam):
