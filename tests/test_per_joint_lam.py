@@ -301,3 +301,31 @@ def test_linear_model_loops_per_joint(rrr):
     assert len(TrackingController(rrr, 45.0, Ks[1]).linear_model().loops(np.zeros(3))) == 1
     # the slowest joint's bandwidth
     assert TrackingController(rrr, LAMS, None).linear_model().bandwidth(np.zeros(3)) == 30.0
+
+
+def test_the_tuners_loops_use_each_joints_lam(rrr):
+    """FL alone, lam per joint, on the digital loop the tuner evaluates (at 100 kHz: ~continuous).
+
+    Per joint L_j = (2 lam_j s + lam_j^2) / s^2: w_c = lam_j sqrt(2 + sqrt 5) and the delay
+    margin atan(2 w_c / lam_j) / w_c, least at the fastest joint; the actuator boundary (Routh
+    on s^3 + wa s^2 + 2 lam wa s + lam^2 wa) is wa > lam_j / 2, highest at the fastest joint.
+    """
+    import math
+
+    from test_tuning import _ctx
+
+    from rrr_pin.campaign.requirements import ActuatorBandwidth, DelayMargin
+    from rrr_pin.campaign.tuning import _Eval
+
+    lams = np.array([60.0, 100.0, 140.0])
+    fast = _ctx(rrr, 1e5)
+    ev = _Eval(fast, lams, None)
+    taus = [math.atan(2 * math.sqrt(2 + math.sqrt(5))) / (lam * math.sqrt(2 + math.sqrt(5)))
+            for lam in lams]
+    # as tests/test_tuning.py's shared-lam closed forms: ZOH T/2 and the grid, 0.2 % / 0.5 %
+    assert_allclose(DelayMargin(0.001).estimate(fast, ev), min(taus), rtol=2e-3)
+    assert_allclose(ActuatorBandwidth(60.0).estimate(fast, ev), lams.max() / 2, rtol=5e-3)
+    # equal entries: the shared law's values exactly
+    for req in (DelayMargin(0.001), ActuatorBandwidth(60.0)):
+        assert req.estimate(fast, _Eval(fast, np.full(3, 100.0), None)) == \
+            req.estimate(fast, _Eval(fast, 100.0, None))
