@@ -250,8 +250,8 @@ def test_per_joint_lam_structure_tunes_and_round_trips(rrr, tmp_path):
     # FL alone with one lam per joint is a structure too; the weight's synthesis is not
     assert PerJoint(base=make_structure("fl"), joints=rrr.joint_names,
                     lam="per_joint").K([]) is None
-    with pytest.raises(FieldError, match="the weight structure: its loop-shaping synthesis is "
-                                         "of one FL plant"):
+    with pytest.raises(FieldError, match="lam: a per-joint lam with the weight structure: its "
+                                         "loop-shaping synthesis is of one FL plant"):
         PerJoint(base=make_structure("weight"), joints=rrr.joint_names, lam="per_joint")
     with pytest.raises(FieldError, match="lam of PerJoint must be None"):
         PerJoint(base=make_structure("gain"), joints=rrr.joint_names, lam=30.0)
@@ -279,6 +279,10 @@ def test_cli_per_joint_lam_on_the_papers_design_is_refused(tmp_path):
 
     run = run_cli(["design", "--per-joint-lam"], tmp_path / "d")
     assert run.code == 2 and "--per-joint-lam: the paper's loop-shaping design" in run.stderr
+    run = run_cli(["design", "--robot", "rrr", "--structure", "weight", "--per-joint-lam"],
+                  tmp_path / "w")
+    assert run.code == 2 and "--per-joint-lam: a per-joint lam with the weight structure" in \
+        run.stderr
 
 
 def test_linear_model_loops_per_joint(rrr):

@@ -99,6 +99,7 @@ def run_tuned(args) -> int:
     from ..control.structures import make_structure
     from ..model.dynamics import load_robot
     from ..report.jsondata import dumps
+    from ..validation import FieldError
     from .build import tolerances_from_args
     from .common import parse_lock
     from .stress import parse_with
@@ -108,9 +109,13 @@ def run_tuned(args) -> int:
     out = claim_out(args, "design")
     reqs = [make_requirement(t) for t in (args.require or DEFAULT_REQUIREMENTS)]
     robot = load_robot(args.robot or "rrr", lock=parse_lock(args.lock))
-    structure = make_structure(args.structure, None if args.tune_lam else args.lam,
-                               joints=robot.joint_names, per_joint=args.per_joint,
-                               per_joint_lam=args.per_joint_lam)
+    try:
+        structure = make_structure(args.structure, None if args.tune_lam else args.lam,
+                                   joints=robot.joint_names, per_joint=args.per_joint,
+                                   per_joint_lam=args.per_joint_lam)
+    except FieldError as exc:  # PerJoint's lam is --per-joint-lam here
+        raise exc.relabelled(lambda f: "--per-joint-lam" if f == "lam" and args.per_joint_lam
+                             else f) from None
     fixed = parse_with(args.fixed, "")
     if args.plants == "vertices":
         if args.uncertainty is not None or args.confidence is not None:

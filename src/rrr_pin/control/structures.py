@@ -370,7 +370,7 @@ class PerJoint(Structure):
                                     f"on the base structure, got {self.lam!r}")
         per_joint = self.lam == PER_JOINT
         if per_joint and isinstance(self.base, LoopShapingWeight):
-            raise FieldError("lam", "{name} = 'per_joint' with the weight structure: its "
+            raise FieldError("lam", "{name}: a per-joint lam with the weight structure: its "
                                     "loop-shaping synthesis is of one FL plant (eq. 11), one "
                                     "lam; tune a gain, pid, leadlag or orderN per joint")
         if isinstance(self.base, FLOnly) and not per_joint:
