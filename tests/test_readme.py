@@ -68,6 +68,8 @@ PARSE_ONLY = {
     "hil": "needs an exported folder, and runs for minutes; tests/test_hil.py runs it",
     "--tune-lam": "a tuning against three requirements on 21 plants with its simulations "
                   "takes minutes; tests/test_tuning.py runs rrr-pin design small",
+    "--per-joint-lam": "a tuning of six parameters on 21 plants takes a minute; "
+                       "tests/test_per_joint_lam.py runs it small",
 }
 
 #: Python blocks (named by a line they hold) that are compiled, not run, and why.

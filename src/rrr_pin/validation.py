@@ -36,6 +36,8 @@ __all__ = [
     "FieldError",
     "check_real",
     "check_positive",
+    "check_bandwidth",
+    "check_scalar_bandwidth",
     "check_count",
     "check_size",
     "check_rate",
@@ -125,6 +127,79 @@ def check_positive(name: str, value, *, allow_zero: bool = False, unit: str = ""
     if not ok:
         raise _fail(name, f" must be a finite number {want}{_unit(unit)}, got {value!r}")
     return float(value)
+
+
+def check_bandwidth(name: str, value, joints, *, unit: str = "rad/s"):
+    """Return a bandwidth shared by every joint (a float) or one per joint (read-only vector).
+
+    The FL bandwidth ``lam`` of the tracking laws: one number, or one value per joint of the
+    law's model, each finite and > 0. A sequence of one value per joint keeps its shape (equal
+    entries included), so the law records exactly what it was given.
+
+    Parameters
+    ----------
+    name : str
+        The field, for the message.
+    value : float or array-like, shape (n,)
+        The bandwidth [unit].
+    joints : sequence of str
+        The joint names, in order (``n = len(joints)``; named in the messages).
+    unit : str
+        Unit shown in the messages.
+
+    Returns
+    -------
+    float or ndarray, shape (n,)
+        The value checked: a float for a number, a read-only vector for a sequence.
+
+    Raises
+    ------
+    FieldError
+        A non-number, a wrong length (naming the joints), or a value that is not finite and
+        > 0 (naming the joint).
+    """
+    if _is_number(value) or (isinstance(value, np.ndarray) and value.ndim == 0):
+        return check_positive(name, value.item() if isinstance(value, np.ndarray) else value,
+                              unit=unit)
+    joints = [str(j) for j in joints]
+    try:
+        if value is None or isinstance(value, str):
+            raise TypeError
+        v = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise _fail(name, f" must be one number or one number per joint{_unit(unit)}, got "
+                         f"{value!r}") from None
+    if v.shape != (len(joints),):
+        raise _fail(name, f" must be one number or one per joint ({len(joints)}: "
+                         f"{', '.join(joints)}){_unit(unit)}, got shape {v.shape}: "
+                         f"{v.tolist()}")
+    for i, x in enumerate(v):
+        if not (math.isfinite(x) and x > 0.0):
+            raise FieldError(f"{name}[{i}]", f"{{name}} (joint {joints[i]!r}) must be a finite "
+                                             f"number > 0{_unit(unit)}, got {float(x)!r}")
+    v.setflags(write=False)
+    return v
+
+
+def check_scalar_bandwidth(name: str, value, where: str, *, unit: str = "rad/s") -> float:
+    """Return ``value`` as one finite float > 0, refusing a per-joint vector by name.
+
+    For the paths built on one FL plant ``lam^2 / (s + lam)^2`` (eq. 11): the loop-shaping
+    synthesis, its certificates and the ``hinf`` laws' design. ``where`` names the path.
+
+    Raises
+    ------
+    FieldError
+        A sequence (a per-joint ``lam``), or a number that is not finite and > 0.
+    """
+    if not _is_number(value) and np.ndim(value) > 0:
+        raise _fail(name, f" must be one number{_unit(unit)} for {where} (its FL plant "
+                         f"lam^2/(s + lam)^2 of eq. 11 has one bandwidth), got a per-joint "
+                         f"value {np.asarray(value).tolist()!r}; a per-joint lam is the tuned "
+                         f"law's (rrr-pin design --per-joint-lam) and the tracking laws'")
+    if isinstance(value, np.ndarray):
+        value = value.item()
+    return check_positive(name, value, unit=unit)
 
 
 def check_count(name: str, value, low: int = 0, high: int | None = None) -> int:

@@ -119,10 +119,10 @@ namespace rrr_pin
               s += p.C(j, l) * x[l * B + b];
             y[j * B + b] = s;
           }
-        const double lam = p.lam;
         for (int j = 0; j < n; ++j)
           for (int b = 0; b < B; ++b)
           {
+            const double lam = p.lam[j];
             const int i = j * B + b;
             taubar[i] = rdd[j] + 2.0 * lam * (rd[j] - qd[i]) + lam * lam * (e[i] + y[i]);
           }
@@ -194,7 +194,6 @@ namespace rrr_pin
         const double * rdd, const double * x)
       {
         const Lanes & raw = fl.torque(q, qd, r, rd, rdd, x);
-        const double lam2 = p.lam * p.lam;
         for (int b = 0; b < B; ++b)
         {
           bool c = false;
@@ -214,9 +213,9 @@ namespace rrr_pin
             for (int k = 0; k < n; ++k)
               Mb(r_, k) = fl.M[(r_ * n + k) * B + b];
           }
-          const Vec sol = Mb.partialPivLu().solve(rhs) / lam2;
+          const Vec sol = Mb.partialPivLu().solve(rhs);
           for (int j = 0; j < n; ++j)
-            dy[j * B + b] = sol[j];
+            dy[j * B + b] = sol[j] / (p.lam[j] * p.lam[j]);
         }
         return tau;
       }

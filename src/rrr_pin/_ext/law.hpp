@@ -5,12 +5,13 @@
 // Terms (terms.hpp) is where M, h and G come from: a serial tree's (ArmTerms) or a closed
 // chain's reduced model (ChainTerms), as the Python laws read nominal.terms() and nominal.G():
 //
-//   FLLaw: taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), y = C x + D e,
+//   FLLaw: taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), y = C x + D e, elementwise with
+//          lam one value per joint (a shared lam arrives as nq equal entries),
 //          tau = Mhat(q) taubar + h_hat(q, qd)                                         eq. (8)
 //          state: xdot = A x + B e (continuous) or x+ = A x + B e after the output (sampled,
 //          A..D already discrete).
 //   FLAWLaw: FLLaw's tau clipped, tau_s = clip(tau, -limit, limit); K conditioned on it (Hanus):
-//          x+ (or xdot) = A x + B e + L dy, dy = Mhat^-1 (tau_s - tau) / lam^2, L = B D^-1, the
+//          x+ (or xdot) = A x + B e + L dy, dy_j = (Mhat^-1 (tau_s - tau))_j / lam_j^2, L = B D^-1, the
 //          last term only at evaluations where a joint clips (FLAWForm).
 //   PDLaw: tau = Kp e + Kd (rd - qd) + Ghat(q); no state.
 //
@@ -27,8 +28,8 @@ namespace rrr_pin
   /// Feedback linearization with a linear controller (A, B, C, D) on e = r - q (FLForm).
   struct FLLaw
   {
-    double lam = 0.0;  // [rad/s]
-    Mat A, B, C, D;    // (m, m), (m, n), (n, m), (n, n); m = 0 for FL alone
+    Vec lam;         // (n,) [rad/s], per joint
+    Mat A, B, C, D;  // (m, m), (m, n), (n, m), (n, n); m = 0 for FL alone
 
     Eigen::Index nx() const { return A.rows(); }
 
@@ -39,6 +40,8 @@ namespace rrr_pin
         A.cols() != m || B.rows() != m || B.cols() != n || C.rows() != n || C.cols() != m
         || D.rows() != n || D.cols() != n)
         throw std::invalid_argument("controller matrices have inconsistent shapes");
+      if (lam.size() != n)
+        throw std::invalid_argument("lam must have one entry per joint");
     }
 
     /// The nominal-model calls one torque() makes on a serial tree (for floor_timing).
@@ -73,8 +76,11 @@ namespace rrr_pin
         y.noalias() = p.D * e;
         if (m > 0)
           y.noalias() += p.C * x;
-        const double lam = p.lam;
-        taubar = rdd.transpose() + 2.0 * lam * (rd.transpose() - qd) + lam * lam * (e + y);
+        // per joint: (2 lam_j) (rd_j - qd_j) and (lam_j lam_j) (e_j + y_j), the Python law's
+        // operations in its order
+        const auto lam = p.lam.array();
+        taubar = (rdd.transpose().array() + (2.0 * lam) * (rd.transpose() - qd).array()
+                  + (lam * lam) * (e + y).array()).matrix();
         // Eq. (8) with the law's model.
         if (const int st = terms.terms(q, qd); st != kOk)
           return st;
@@ -141,7 +147,8 @@ namespace rrr_pin
         tau_ = raw.cwiseMax(-p.limit).cwiseMin(p.limit);
         clipped = tau_ != raw;
         if (clipped)
-          dy = fl.inertia().partialPivLu().solve(tau_ - raw) / (p.lam * p.lam);
+          dy = (fl.inertia().partialPivLu().solve(tau_ - raw).array()
+                / (p.lam.array() * p.lam.array())).matrix();
         return kOk;
       }
 

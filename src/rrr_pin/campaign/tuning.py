@@ -345,8 +345,8 @@ class TuneResult:
     structure : Structure
     values : ndarray, shape (len(structure.names),)
         The tuned parameters.
-    lam : float
-        FL bandwidth [rad/s].
+    lam : float or ndarray, shape (n,)
+        FL bandwidth [rad/s]: shared, or one per joint (``PerJoint(..., lam="per_joint")``).
     K : control.TransferFunction, list of them, or None
         The outer controller (negative feedback on ``e``): SISO, copied on every joint, or
         one per joint (:class:`~rrr_pin.control.structures.PerJoint`).
@@ -388,8 +388,10 @@ class TuneResult:
         return _law(nominal, self.lam, self.K, name)
 
     def to_dict(self) -> dict:
-        """Return the ``design.json`` record."""
-        return {"format": DESIGN_FORMAT, "law": "tuned", "lam_rad_s": self.lam,
+        """Return the ``design.json`` record (``lam_rad_s`` a list when per joint)."""
+        from ..control.laws.tracking import lam_record
+
+        return {"format": DESIGN_FORMAT, "law": "tuned", "lam_rad_s": lam_record(self.lam),
                 "K": _k_record(self.K),
                 "rate_hz": self.rate, "structure": self.structure.to_dict(self.values),
                 "requirements": self.table, "objective": self.objective,
@@ -398,8 +400,10 @@ class TuneResult:
 
     def lines(self) -> list[str]:
         """Return a printable summary: the law and the requirement table."""
+        lam = (f"{self.lam:.4g}" if np.ndim(self.lam) == 0 else
+               "[" + ", ".join(f"{x:.4g}" for x in self.lam) + "] (per joint)")
         out = [f"tuned {self.structure.kind} on {self.info.get('robot')}: lam = "
-               f"{self.lam:.4g} rad/s, {_k_text(self.K)}, at {self.rate:g} Hz; status "
+               f"{lam} rad/s, {_k_text(self.K)}, at {self.rate:g} Hz; status "
                f"{self.status} (worst normalized {self.objective:.3g})"]
         out.append(f"{'requirement':<20}{'target':>12}{'achieved':>12}{'verified':>12}"
                    f"{'simulated':>12}  met")
@@ -730,4 +734,5 @@ def tuned_law(design: dict, nominal, name: str = "tuned"):
         K = [None if k is None else control.tf(k["num"], k["den"]) for k in K["per_joint"]]
     elif K is not None:
         K = control.tf(K["num"], K["den"])
-    return _law(nominal, float(design["lam_rad_s"]), K, name)
+    # lam_rad_s: a number, or a list of one per joint (checked by the law, naming the joint)
+    return _law(nominal, design.get("lam_rad_s"), K, name)

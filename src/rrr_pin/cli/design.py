@@ -56,7 +56,10 @@ def add_tuning_arguments(p) -> None:
                    help="tune the FL bandwidth lam too (else fixed at --lam)")
     g.add_argument("--per-joint", action="store_true",
                    help="one outer controller of --structure per joint, each its own "
-                        "parameters (K diagonal; lam stays shared, the law's one bandwidth)")
+                        "parameters (K diagonal; lam shared unless --per-joint-lam)")
+    g.add_argument("--per-joint-lam", action="store_true",
+                   help="tune one FL bandwidth lam per joint, each starting at --lam (implies "
+                        "--per-joint; design.json records lam_rad_s as a list)")
     g.add_argument("--samples", type=int, default=20,
                    help="uncertain plants the design must work on, with the nominal (20)")
     g.add_argument("--plants", choices=("samples", "vertices"), default="samples",
@@ -96,6 +99,7 @@ def run_tuned(args) -> int:
     from ..control.structures import make_structure
     from ..model.dynamics import load_robot
     from ..report.jsondata import dumps
+    from ..validation import FieldError
     from .build import tolerances_from_args
     from .common import parse_lock
     from .stress import parse_with
@@ -105,8 +109,13 @@ def run_tuned(args) -> int:
     out = claim_out(args, "design")
     reqs = [make_requirement(t) for t in (args.require or DEFAULT_REQUIREMENTS)]
     robot = load_robot(args.robot or "rrr", lock=parse_lock(args.lock))
-    structure = make_structure(args.structure, None if args.tune_lam else args.lam,
-                               joints=robot.joint_names, per_joint=args.per_joint)
+    try:
+        structure = make_structure(args.structure, None if args.tune_lam else args.lam,
+                                   joints=robot.joint_names, per_joint=args.per_joint,
+                                   per_joint_lam=args.per_joint_lam)
+    except FieldError as exc:  # PerJoint's lam is --per-joint-lam here
+        raise exc.relabelled(lambda f: "--per-joint-lam" if f == "lam" and args.per_joint_lam
+                             else f) from None
     fixed = parse_with(args.fixed, "")
     if args.plants == "vertices":
         if args.uncertainty is not None or args.confidence is not None:
@@ -139,6 +148,10 @@ def run_design(args) -> int:
     """Design, print (or ``--json``) and optionally draw the loop-shaping controller."""
     if args.robot is not None or args.require:
         return run_tuned(args)
+    if args.per_joint_lam:
+        raise ValueError("--per-joint-lam: the paper's loop-shaping design is of one FL plant "
+                         "(eq. 11), one lam; a per-joint lam is tuned to requirements: give "
+                         "--robot ARM (and --require NAME=VALUE ...)")
     if args.out is not None:  # before the design and its imports: --out /proc/x refused at once
         claim_out(args, "design")
     from ..report.design import design_lines, design_summary

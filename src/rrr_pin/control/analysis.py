@@ -307,7 +307,9 @@ def _closed_loop(lam, K, Mhat, Ghat_q, M, G_q) -> np.ndarray:
     n = Mhat.shape[0]
     AK, BK, CK, DK = K
     nk = AK.shape[0]
-    # taubar = -lam^2 q - 2 lam qd + lam^2 (CK xK - DK q)
+    # taubar = -lam^2 q - 2 lam qd + lam^2 (CK xK - DK q); a per-joint lam is diag(lam) on
+    # the left (row j scaled by lam_j)
+    lam = lam if np.ndim(lam) == 0 else np.asarray(lam, dtype=float)[:, None]
     Tq, Tv, Tx = -lam * lam * (np.eye(n) + DK), -2 * lam * np.eye(n), lam * lam * CK
     Minv = np.linalg.inv(M)
     acc_q = Minv @ (Mhat @ Tq + Ghat_q - G_q)

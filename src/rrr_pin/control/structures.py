@@ -8,7 +8,8 @@ bandwidth ``lam`` and the parameters of the outer controller ``K(s)`` on ``e = r
 
 so ``K = 0`` is FL alone (eq. 20) and the paper's order-2 ``K`` (eq. 18) is one
 :class:`FixedOrder` point. ``K`` is shared by every joint (copied on the diagonal, as the
-paper's); ``lam`` is fixed (a number) or tuned (``lam=None``, inside ``lam_bounds``).
+paper's); ``lam`` is fixed (a number) or tuned (``lam=None``, inside ``lam_bounds``), shared
+by every joint, or tuned per joint by :class:`PerJoint` (``lam="per_joint"``).
 
 Write your own structure by subclassing :class:`Structure`: give ``names``, ``bounds``,
 ``initial`` and ``K(values)``; :func:`rrr_pin.tune` searches each parameter on a log scale
@@ -18,7 +19,7 @@ Built in: :class:`FLOnly` (no ``K``), :class:`Gain`, :class:`PID` (derivative fi
 :class:`LeadLag`, :class:`FixedOrder` (a strictly stable order-``m`` transfer function), and
 :class:`LoopShapingWeight` (the paper's synthesis with its weight's ``k, z, p`` free), and
 :class:`PerJoint` (any of these once per joint: ``K`` diagonal, each joint its own
-parameters; ``lam`` stays shared, the law's one bandwidth).
+parameters; ``lam`` shared, or with ``lam="per_joint"`` one tuned per joint).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ import numpy as np
 from ..validation import FieldError, check_count, check_positive
 
 __all__ = ["Structure", "FLOnly", "Gain", "PID", "LeadLag", "FixedOrder", "LoopShapingWeight",
-           "PerJoint", "STRUCTURES", "make_structure", "LAM_BOUNDS"]
+           "PerJoint", "PER_JOINT", "STRUCTURES", "make_structure", "LAM_BOUNDS"]
 
 #: Default search range of a tuned ``lam`` [rad/s].
 LAM_BOUNDS = (5.0, 500.0)
@@ -326,23 +327,35 @@ class LoopShapingWeight(Structure):
         return control.tf(ncfsyn(fl_plant(lam, 1), lag_weight(k, z, p), np.eye(1), 1.0).K)
 
 
+#: :class:`PerJoint`'s ``lam`` for one FL bandwidth tuned per joint.
+PER_JOINT = "per_joint"
+
+
 @dataclass(frozen=True)
 class PerJoint(Structure):
-    r"""One outer controller per joint, each of the shape of ``base``, ``lam`` shared.
+    r"""One outer controller per joint, each of the shape of ``base``; ``lam`` shared or per joint.
 
     ``K(s) = diag(K_1(s), ..., K_n(s))``, every ``K_j`` a ``base`` structure with its own
-    parameters (named ``<name>@<joint>``). ``lam`` is shared by every joint, fixed or tuned as
-    ``base``'s: the law (:class:`~rrr_pin.control.laws.TrackingController`, its compiled and
-    exported forms) takes one FL bandwidth, so a per-joint ``lam`` is refused by name.
+    parameters (named ``<name>@<joint>``). ``lam`` is ``base``'s (shared by every joint, fixed
+    or tuned), or with ``lam="per_joint"`` one bandwidth per joint, each tuned inside
+    ``base.lam_bounds`` (named ``lam@<joint>``, starting from ``base``'s ``lam`` when fixed):
+    the law is then ``taubar = rdd + 2 diag(lam) (rd - qd) + diag(lam)^2 (e + y)``
+    (:class:`~rrr_pin.control.laws.TrackingController` with a vector ``lam``).
 
     Parameters
     ----------
+    lam : None or "per_joint"
+        None: ``base``'s ``lam`` (shared); ``"per_joint"``: tuned per joint. A shared number
+        is given on ``base``.
     base : Structure
         The shape of each joint's controller (its ``lam`` and ``lam_bounds`` are the law's).
+        With ``lam="per_joint"``, :class:`FLOnly` too (FL alone, one bandwidth per joint);
+        never :class:`LoopShapingWeight` (its synthesis is of one FL plant, eq. 11).
     joints : tuple of str
         The arm's joint names, in order (``robot.joint_names``).
     """
 
+    lam: object = None
     base: Structure = None
     joints: tuple = ()
     kind: ClassVar[str] = "perjoint"
@@ -351,17 +364,64 @@ class PerJoint(Structure):
         if not isinstance(self.base, Structure) or isinstance(self.base, PerJoint):
             raise FieldError("structure", f"{{name}}: PerJoint needs a base Structure (gain, "
                                           f"pid, leadlag, orderN), got {self.base!r}")
-        if isinstance(self.base, FLOnly):
+        if self.lam is not None and self.lam != PER_JOINT:
+            raise FieldError("lam", f"{{name}} of PerJoint must be None (the base's, shared) "
+                                    f"or {PER_JOINT!r} (tuned per joint); a shared lam is given "
+                                    f"on the base structure, got {self.lam!r}")
+        per_joint = self.lam == PER_JOINT
+        if per_joint and isinstance(self.base, LoopShapingWeight):
+            raise FieldError("lam", "{name}: a per-joint lam with the weight structure: its "
+                                    "loop-shaping synthesis is of one FL plant (eq. 11), one "
+                                    "lam; tune a gain, pid, leadlag or orderN per joint")
+        if isinstance(self.base, FLOnly) and not per_joint:
             raise FieldError("structure", "{name}: PerJoint of fl has no outer controller to "
-                                          "give each joint")
+                                          "give each joint (with lam='per_joint' it tunes one "
+                                          "lam per joint)")
         joints = tuple(str(j) for j in self.joints)
         if not joints or len(set(joints)) != len(joints):
             raise FieldError("joints", f"{{name}} must be distinct joint names, got "
                                        f"{self.joints!r}")
         object.__setattr__(self, "joints", joints)
-        object.__setattr__(self, "lam", self.base.lam)
         object.__setattr__(self, "lam_bounds", self.base.lam_bounds)
+        if per_joint:
+            return  # base's lam (start) and lam_bounds are checked by base
+        object.__setattr__(self, "lam", self.base.lam)
         super().__post_init__()
+
+    @property
+    def per_joint_lam(self) -> bool:
+        """Whether ``lam`` is tuned per joint."""
+        return self.lam == PER_JOINT
+
+    @property
+    def names(self) -> tuple:
+        """Names of the free parameters: ``lam@<joint>`` first when tuned per joint."""
+        if not self.per_joint_lam:
+            return super().names
+        return tuple(f"lam@{j}" for j in self.joints) + tuple(self.outer_names)
+
+    def bounds(self) -> list[tuple[float, float]]:
+        """Search bounds of the free parameters (``lam_bounds`` once per joint first)."""
+        if not self.per_joint_lam:
+            return super().bounds()
+        return [self.lam_bounds] * len(self.joints) + list(self.outer_bounds())
+
+    def initial(self) -> np.ndarray:
+        """Return a start: per-joint ``lam`` from ``base``'s fixed one (else mid-bounds)."""
+        if not self.per_joint_lam:
+            return super().initial()
+        lo, hi = self.lam_bounds
+        lam0 = float(np.clip(self.base.lam, lo, hi)) if self.base.lam is not None \
+            else float(np.sqrt(lo * hi))
+        return np.array([lam0] * len(self.joints) + list(self.outer_initial()), dtype=float)
+
+    def split(self, values) -> tuple[object, object]:
+        """Return ``(lam, K)``: ``lam`` a vector (n,) [rad/s] when tuned per joint."""
+        if not self.per_joint_lam:
+            return super().split(values)
+        values = np.asarray(values, dtype=float)
+        n = len(self.joints)
+        return values[:n].copy(), self.K(list(values[n:]))
 
     @property
     def outer_names(self) -> tuple:
@@ -377,7 +437,9 @@ class PerJoint(Structure):
         return list(self.base.outer_initial()) * len(self.joints)
 
     def K(self, values):
-        """Return the list of the joints' ``K_j`` (SISO, in joint order)."""
+        """Return the list of the joints' ``K_j`` (SISO, in joint order); None for FL alone."""
+        if isinstance(self.base, FLOnly):
+            return None
         m = len(self.base.outer_names)
         return [self.base.K(list(values[i * m:(i + 1) * m])) for i in range(len(self.joints))]
 
@@ -390,8 +452,11 @@ class PerJoint(Structure):
 
     def to_dict(self, values=None) -> dict:
         """Return the JSON-ready record, with ``base``'s."""
-        return {**super().to_dict(values), "base": self.base.to_dict(),
-                "joints": list(self.joints)}
+        out = {**super().to_dict(values), "base": self.base.to_dict(),
+               "joints": list(self.joints), "lam_per_joint": self.per_joint_lam}
+        if self.per_joint_lam:
+            out["lam_rad_s"] = None  # tuned, one per joint: the values' lam@<joint>
+        return out
 
 
 #: Built-in structures by CLI name (``order2`` and any ``orderN`` are :class:`FixedOrder`).
@@ -400,7 +465,7 @@ STRUCTURES = {"fl": FLOnly, "gain": Gain, "pid": PID, "leadlag": LeadLag, "order
 
 
 def make_structure(name: str, lam: float | None = 45.0, joints=None,
-                   per_joint: bool = False) -> Structure:
+                   per_joint: bool = False, per_joint_lam: bool = False) -> Structure:
     """Build a built-in structure by name: ``fl``, ``gain``, ``pid``, ``leadlag``, ``orderN``.
 
     Parameters
@@ -413,14 +478,18 @@ def make_structure(name: str, lam: float | None = 45.0, joints=None,
         The arm's joint names (needed with ``per_joint``).
     per_joint : bool
         One controller per joint (:class:`PerJoint`) instead of one shared.
+    per_joint_lam : bool
+        One ``lam`` per joint, tuned (:class:`PerJoint` with ``lam="per_joint"``; implies
+        ``per_joint``); ``lam`` is then the start of each.
 
     Raises
     ------
     FieldError
         ``structure``: an unknown name (the message lists the built-in ones).
     """
-    if per_joint:
-        return PerJoint(base=make_structure(name, lam), joints=tuple(joints or ()))
+    if per_joint or per_joint_lam:
+        return PerJoint(base=make_structure(name, lam), joints=tuple(joints or ()),
+                        lam=PER_JOINT if per_joint_lam else None)
     if isinstance(name, str) and name.startswith("order") and name[5:].isdigit():
         return FixedOrder(lam=lam, order=int(name[5:]))
     cls = STRUCTURES.get(name) if isinstance(name, str) and name != "order" else None

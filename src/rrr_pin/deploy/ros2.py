@@ -121,12 +121,19 @@ def ros2_package(prepared, robot) -> dict[str, str]:
         gain_yaml = (f"    kp: {_yaml_list(_num(v) for v in gains['kp'])}  # row-major, "
                      f"compiled in: checked\n"
                      f"    kd: {_yaml_list(_num(v) for v in gains['kd'])}\n")
-        gain_decl = (f"constexpr bool kIsPD = true;\nconstexpr double kLam = 0.0;\n"
+        gain_decl = (f"constexpr bool kIsPD = true;\nconstexpr bool kLamPerJoint = false;\n"
+                     f"constexpr double kLam[1] = {{0.0}};\n"
                      f"constexpr double kKp[{n * n}] = {{{', '.join(map(_num, gains['kp']))}}};\n"
                      f"constexpr double kKd[{n * n}] = {{{', '.join(map(_num, gains['kd']))}}};\n")
     else:
-        gain_yaml = f"    lam: {_num(form.lam)}  # compiled in: checked\n"
-        gain_decl = (f"constexpr bool kIsPD = false;\nconstexpr double kLam = {_num(form.lam)};\n"
+        # lam: one number, or a list of one per joint (a double array parameter)
+        per_joint = np.ndim(form.lam) > 0
+        lams = [_num(v) for v in np.atleast_1d(form.lam)]
+        lam_text = _yaml_list(lams) if per_joint else lams[0]
+        gain_yaml = f"    lam: {lam_text}  # compiled in: checked\n"
+        gain_decl = (f"constexpr bool kIsPD = false;\n"
+                     f"constexpr bool kLamPerJoint = {'true' if per_joint else 'false'};\n"
+                     f"constexpr double kLam[{len(lams)}] = {{{', '.join(lams)}}};\n"
                      f"constexpr double kKp[1] = {{0.0}};\nconstexpr double kKd[1] = {{0.0}};\n")
     rate = prepared.rate
     files = {
@@ -469,7 +476,12 @@ CallbackReturn ExportedLawController::on_init()
     auto_declare<std::vector<double>>(
       "kd", std::vector<double>(exported::kKd, exported::kKd + CTRL_NQ * CTRL_NQ));
   }} else {{
-    auto_declare<double>("lam", exported::kLam);
+    if (exported::kLamPerJoint) {{
+      auto_declare<std::vector<double>>(
+        "lam", std::vector<double>(exported::kLam, exported::kLam + CTRL_NQ));
+    }} else {{
+      auto_declare<double>("lam", exported::kLam[0]);
+    }}
   }}
   joints_ = exported;
   return CallbackReturn::SUCCESS;
@@ -579,10 +591,16 @@ CallbackReturn ExportedLawController::on_configure(const rclcpp_lifecycle::State
                    "law; export the law again with the gains wanted");
       return CallbackReturn::ERROR;
     }}
-  }} else if (node->get_parameter("lam").as_double() != exported::kLam) {{
+  }} else if (exported::kLamPerJoint) {{
+    if (!same_doubles(node->get_parameter("lam").as_double_array(), exported::kLam, CTRL_NQ)) {{
+      RCLCPP_ERROR(logger, "parameter lam differs from the per-joint lam compiled into the "
+                   "exported law; export the law again with the gains wanted");
+      return CallbackReturn::ERROR;
+    }}
+  }} else if (node->get_parameter("lam").as_double() != exported::kLam[0]) {{
     RCLCPP_ERROR(logger, "parameter lam = %g differs from the lam = %g compiled into the "
                  "exported law; export the law again with the gain wanted",
-                 node->get_parameter("lam").as_double(), exported::kLam);
+                 node->get_parameter("lam").as_double(), exported::kLam[0]);
     return CallbackReturn::ERROR;
   }}
   subscription_ = node->create_subscription<trajectory_msgs::msg::JointTrajectoryPoint>(

@@ -253,6 +253,11 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
 '''
     m = form.A.shape[0]
     lam = form.lam
+    # one lam: the #define as ever; one per joint: a constant vector, LAM[i] on joint i
+    per_joint = np.ndim(lam) > 0
+    lam_i, lam_j = ("LAM[i]", "LAM[j]") if per_joint else ("LAM", "LAM")
+    lam_note = "; lam per joint. */" if per_joint else ". */"
+    lam_def = _vector("LAM", lam) if per_joint else f"#define LAM {_num(lam)}\n"
     if m:
         # the tables at CTRL_PERIOD; law_step takes K's matrices as arguments (ctrl_step_dt
         # passes them discretized at its dt)
@@ -298,7 +303,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         for (i = 0; i < {m}; ++i) {{
             double ld = 0.0;
             for (j = 0; j < CTRL_NQ; ++j) {{
-                ld += KL[i][j] * (dy[j] / (LAM * LAM));
+                ld += KL[i][j] * (dy[j] / ({lam_j} * {lam_j}));
             }}
             xn[i] += ld;
         }}
@@ -357,9 +362,8 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         wrapper = ""
     return head + tables + f'''
 /* {what};
- * taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), tau = Mhat(q) taubar + hhat(q, qd). */
-#define LAM {_num(lam)}
-
+ * taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), tau = Mhat(q) taubar + hhat(q, qd){lam_note}
+{lam_def}
 {signature}
 {{
 {decl}    int i, j;
@@ -367,7 +371,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         e[i] = r[i] - q[i];
     }}
     for (i = 0; i < CTRL_NQ; ++i) {{
-{y}        taubar[i] = rdd[i] + 2.0 * LAM * (rd[i] - qd[i]) + LAM * LAM * (e[i] + y[i]);
+{y}        taubar[i] = rdd[i] + 2.0 * {lam_i} * (rd[i] - qd[i]) + {lam_i} * {lam_i} * (e[i] + y[i]);
     }}
     ctrl_dyn_crba(q, M);
     ctrl_dyn_nle(q, qd, h);

@@ -37,6 +37,7 @@ from ..control.laws import (
     TrackingController,
     check_law,
 )
+from ..control.laws.tracking import lam_record
 from ..outputs import OutputDir, writing
 from ..sim.codegen import fingerprint
 from ..validation import FieldError, check_positive, check_rate
@@ -397,7 +398,9 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
             source = "continuous K discretized here"
         else:
             source = "no K (feedback linearization alone)"
-        law_record = {"kind": "fl", "lam": form.lam, "A": A.tolist(), "B": B.tolist(),
+        # lam: a number, or a list of one per joint
+        law_record = {"kind": "fl", "lam": lam_record(form.lam), "A": A.tolist(),
+                      "B": B.tolist(),
                       "C": C.tolist(), "D": D.tolist(), "Ts": 1.0 / rate,
                       "method": None if isinstance(law, DiscreteTrackingController) or not nx
                       else method, "prewarp_rad_s": prewarp, "K_source": source}

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ..validation import check_count, check_positive
+from ..validation import check_count, check_scalar_bandwidth
 from .gap import _nugap
 from .loopshaping import fl_plant
 from .lti import DimensionMismatchError, check_lti, expand_diagonal
@@ -145,7 +145,8 @@ def frozen_linearization(nominal, plant, q, qd, qdd=None, lam: float = 45.0,
     """
     nq = _check_pair(nominal, plant)
     q, qd, qdd = (x[0] for x in _configs(nq, q, qd, qdd))
-    return _linearization(nominal, plant, q, qd, qdd, check_positive("lam", lam, unit="rad/s"),
+    return _linearization(nominal, plant, q, qd, qdd,
+                          check_scalar_bandwidth("lam", lam, "the frozen linearization"),
                           h)
 
 
@@ -253,7 +254,7 @@ def _frozen(nominal, plant, q, qd, qdd, nq, lam, W1, W2, Ks, visit=None) -> Froz
     ``visit(k)``, if given, first takes both models to configuration ``k``
     (:func:`certificate_along`).
     """
-    lam = check_positive("lam", lam, unit="rad/s")
+    lam = check_scalar_bandwidth("lam", lam, "the frozen certificate")
     Gs0, W1, W2, Ks = _shaped_loop(lam, W1, W2, Ks, nq)
     b = ncfmargin(Gs0, Ks)[0]
     G0, Gt0 = _graph_symbols_ct(Gs0)
@@ -311,7 +312,7 @@ def certificate_along(nominal, plant, reference, t, *, lam: float, W1, W2,
     nq = _check_pair(nominal, plant)
     R, RD, RDD = reference.sample(t)
     q, qd, qdd = _configs(nq, R, RD, RDD)
-    check_positive("lam", lam, unit="rad/s")
+    check_scalar_bandwidth("lam", lam, "the certificate along a reference")
     r0 = reference.sample(np.array([0.0]))[0][0]
     for model in (nominal, plant):
         model.reset(r0)
@@ -357,7 +358,8 @@ class CertificateSpec:
     points: int = 8
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
+        object.__setattr__(self, "lam", check_scalar_bandwidth("lam", self.lam,
+                                                               "the certificate"))
         object.__setattr__(self, "points", check_count("points", self.points, 1))
 
     @classmethod

@@ -36,7 +36,14 @@ import control
 import numpy as np
 import scipy.linalg as sla
 
-from ..validation import FieldError, check_count, check_positive, check_real, check_size
+from ..validation import (
+    FieldError,
+    check_count,
+    check_positive,
+    check_real,
+    check_scalar_bandwidth,
+    check_size,
+)
 from .barriers import (
     PAPER_MODEL_ERROR,
     PAPER_PERFORMANCE_SPECS,
@@ -123,7 +130,7 @@ def fl_plant(lam: float = 45.0, n: int = 3) -> control.StateSpace:
     control.StateSpace
         ``n x n`` plant with ``2 n`` states.
     """
-    return _fl_plant(check_positive("lam", lam, unit="rad/s"), check_size("n", n))
+    return _fl_plant(check_scalar_bandwidth("lam", lam, "the FL plant"), check_size("n", n))
 
 
 def _fl_plant(lam: float, n: int) -> control.StateSpace:
@@ -778,7 +785,8 @@ def design(lam: float = 45.0, n: int = 3, factor: float = 1.0, W1=None, W2=None,
         ``[1, MAX_JOINTS]`` (:data:`MAX_JOINTS`), ``factor``
         not finite or below 1 (each a ``FieldError`` naming the field).
     """
-    lam, n = check_positive("lam", lam, unit="rad/s"), check_count("n", n, 1, high=MAX_JOINTS)
+    lam = check_scalar_bandwidth("lam", lam, "the loop-shaping design")
+    n = check_count("n", n, 1, high=MAX_JOINTS)
     order = check_count("order", order)
     if not LAM_RANGE[0] <= lam <= LAM_RANGE[1]:
         raise FieldError("lam", f"{{name}} must be in [{LAM_RANGE[0]:g}, {LAM_RANGE[1]:g}] "

@@ -28,7 +28,7 @@ anything else is refused by name (:func:`why_not`) and runs on the compiled engi
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import fields, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -320,9 +320,8 @@ def _effects(fx):
 
 def _law(form):
     law = getattr(EXTENSION, BATCH_LAWS[type(form)])()
-    for f in fields(form):
-        if f.name != "nominal":
-            setattr(law, f.name, getattr(form, f.name))
+    for key, value in form.engine_fields().items():
+        setattr(law, key, value)
     return law
 
 

@@ -174,8 +174,7 @@ def _fill(obj, **values):
 
 def _law(form):
     """Return the C++ law of a compiled form: the extension's class for its type, by name."""
-    return _fill(getattr(EXTENSION, ENGINE_LAWS[type(form)])(),
-                 **{f.name: getattr(form, f.name) for f in fields(form) if f.name != "nominal"})
+    return _fill(getattr(EXTENSION, ENGINE_LAWS[type(form)])(), **form.engine_fields())
 
 
 def _effects(fx: Resolved):

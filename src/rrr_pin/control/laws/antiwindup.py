@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from ...validation import check_rate
+from ...validation import check_rate, check_scalar_bandwidth
 from ..effects import check_torque_limit
 from .forms import FLAWForm
 from .protocol import DEFAULT_RATE, ControlLaw, SampledForm, SampledLaw
@@ -99,6 +99,7 @@ class AntiWindupTracking(TrackingController):
         sat = np.minimum(np.maximum(tau, -lim), lim)
         if np.array_equal(sat, tau):
             return tau, None
+        # per-joint lam: diag(lam)^-2 Mhat^-1 (tau_s - tau), elementwise
         return sat, np.linalg.solve(M, sat - tau) / (lam * lam)
 
     def torque(self, t, q, qd, r, rd, rdd, x) -> np.ndarray:
@@ -225,6 +226,8 @@ def hinf_aw_controller(nominal, K, lam: float = 45.0, *, torque_limit="urdf",
         Friction compensated (added before the clip); the law then runs on the Python engine
         only (it declares no compiled form).
     """
+    lam = check_scalar_bandwidth("lam", lam, "the hinf_aw law (its K is the H-infinity "
+                                             "design of one FL plant)")
     return AntiWindupTracking(nominal=nominal, lam=lam, K=K, name=name,
                               label="H-infinity + FL, anti-windup", torque_limit=torque_limit,
                               friction=friction)

@@ -9,12 +9,12 @@ so a form it does not know is never run as another. The nominal model of a form 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import ClassVar
 
 import numpy as np
 
-from ...validation import check_matrix, check_positive, check_vector
+from ...validation import check_bandwidth, check_matrix, check_positive, check_vector
 
 __all__ = ["CompiledForm", "FLForm", "FLFrictionForm", "FLAWForm", "PDForm"]
 
@@ -40,13 +40,25 @@ class CompiledForm:
     nominal: object
     kind: ClassVar[str] = ""
 
+    def engine_fields(self) -> dict:
+        """Return the fields a compiled law is filled with, by name (all but ``nominal``).
+
+        The compiled laws take ``lam`` per joint (a vector of ``nominal.nq``): a shared
+        ``lam`` is given as ``nq`` equal entries, the same numbers in every operation.
+        """
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "nominal"}
+        if "lam" in out:
+            out["lam"] = np.broadcast_to(np.asarray(out["lam"], dtype=float),
+                                         (self.nominal.nq,)).copy()
+        return out
+
 
 def _check_controller(form, *extra) -> None:
     """Check ``lam`` and ``K``'s matrices ``A, B, C, D`` of ``form``, stored back read-only.
 
     ``extra`` names further matrices of ``B``'s shape ``(m, n)`` (the conditioning gain ``L``).
     """
-    object.__setattr__(form, "lam", check_positive("lam", form.lam, unit="rad/s"))
+    object.__setattr__(form, "lam", check_bandwidth("lam", form.lam, form.nominal.joint_names))
     n = form.nominal.nq
     m = np.shape(form.A)[0] if np.ndim(form.A) == 2 else -1
     shapes = [("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n))]
@@ -71,8 +83,8 @@ class FLForm(CompiledForm):
     ----------
     nominal : Robot
         The law's model (``n = nominal.nq`` joints).
-    lam : float
-        Bandwidth ``lambda`` [rad/s], > 0.
+    lam : float or ndarray, shape (n,)
+        Bandwidth ``lambda`` [rad/s], > 0: shared, or one per joint.
     A, B, C, D : ndarray, shapes (m, m), (m, n), (n, m), (n, n)
         The controller ``K`` on ``e`` [rad] (output ``y`` in rad), negative feedback.
     """
@@ -141,7 +153,7 @@ class FLAWForm(CompiledForm):
     the output ``y_hat`` the clipped torque realises (:class:`AntiWindupTracking`):
 
     .. math:: \tau_s = \mathrm{sat}(\tau), \quad
-              \hat y - y = \hat M(q)^{-1} (\tau_s - \tau) / \lambda^2, \quad
+              \hat y - y = \Lambda^{-2} \hat M(q)^{-1} (\tau_s - \tau), \quad
               x^+ = A x + B e + L (\hat y - y)
 
     (sampled; continuous: ``xdot`` instead of ``x+``), with ``L = B D^-1``. The correction is
@@ -151,8 +163,8 @@ class FLAWForm(CompiledForm):
     ----------
     nominal : Robot
         The law's model (``n = nominal.nq`` joints).
-    lam : float
-        Bandwidth ``lambda`` [rad/s], > 0.
+    lam : float or ndarray, shape (n,)
+        Bandwidth ``lambda`` [rad/s], > 0: shared, or one per joint.
     A, B, C, D : ndarray, shapes (m, m), (m, n), (n, m), (n, n)
         The controller ``K`` on ``e`` [rad], as in :class:`FLForm` (``m >= 1``).
     L : ndarray, shape (m, n)

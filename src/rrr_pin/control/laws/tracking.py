@@ -19,8 +19,9 @@ import math
 from dataclasses import dataclass, field, fields
 
 import numpy as np
+import scipy.linalg
 
-from ...validation import check_rate
+from ...validation import check_bandwidth, check_rate, check_scalar_bandwidth
 from .forms import FLForm, FLFrictionForm
 from .protocol import (
     DEFAULT_RATE,
@@ -33,7 +34,8 @@ from .protocol import (
 )
 
 __all__ = ["TrackingController", "DiscreteTrackingController", "SampledTracking",
-           "FLLinearModel", "controller_ss", "fl_controller", "hinf_fl_controller"]
+           "FLLinearModel", "controller_ss", "fl_controller", "hinf_fl_controller",
+           "lam_record"]
 
 
 def controller_ss(K, n: int, discrete: bool = False):
@@ -85,8 +87,8 @@ class FLLinearModel(LinearModel):
     ----------
     n : int
         Number of joints.
-    lam : float
-        Bandwidth ``lambda`` [rad/s].
+    lam : float or ndarray, shape (n,)
+        Bandwidth ``lambda`` [rad/s], shared or one per joint (``diag(lam_j)`` in the loop).
     K : tuple of ndarray
         ``(A, B, C, D)`` of the continuous controller (block diagonal for a SISO ``K``; empty
         for FL alone), shapes (m, m), (m, n), (n, m), (n, n).
@@ -101,8 +103,11 @@ class FLLinearModel(LinearModel):
     discretize: object
 
     def digital(self, rate, home):
-        """Return ``u = lam^2 (Cd x - (I + Dd) q) - 2 lam qd``, ``x+ = Ad x - Bd q``, and ``I``."""
-        n, lam = self.n, self.lam
+        """Return ``u = lam^2 (Cd x - (I + Dd) q) - 2 lam qd``, ``x+ = Ad x - Bd q``, and ``I``.
+
+        A per-joint ``lam`` scales row ``j`` by ``lam_j`` (``diag(lam)`` on the left).
+        """
+        n, lam = self.n, _rows(self.lam)
         Ad, Bd, Cd, Dd = self.discretize(rate)
         eye = np.eye(n)
         Dc = np.hstack([-lam * lam * (eye + Dd), -2.0 * lam * eye])
@@ -111,23 +116,34 @@ class FLLinearModel(LinearModel):
         return Ad, Bc, Cc, Dc, eye
 
     def loops(self, home):
-        """Return ``[L(s)]``: every joint has the same loop (``K`` SISO, copied on the diagonal)."""
+        """Return ``[L(s)]``: one loop if every joint has the same, else one per joint.
+
+        The same: ``K`` SISO copied on the diagonal and ``lam`` shared. Any other ``K`` (a
+        diagonal one of one ``K_j`` per joint) gives joint ``j`` its channel ``K_jj``, minimal
+        (python-control's ``minreal``, SLICOT).
+        """
         import control
 
-        lam = self.lam
         A, B, C, D = self.K
-        nx = A.shape[0]
-        if nx:
-            k = nx // self.n
-            K = control.tf(control.ss(A[:k, :k], B[:k, :1], C[:1, :k], D[:1, :1]))
-        else:
-            K = control.tf([0.0], [1.0])
+        n, nx = self.n, A.shape[0]
         s = control.tf("s")
-        return [(2 * lam * s + lam * lam * (1 + K)) / s ** 2]
+        shared = np.ndim(self.lam) == 0
+        lams = [self.lam] if shared else [float(x) for x in self.lam]
+        if not nx:
+            Ks = [control.tf([0.0], [1.0])] * len(lams)
+        elif _copied(A, B, C, D, n):
+            k = nx // n
+            Ks = [control.tf(control.ss(A[:k, :k], B[:k, :1], C[:1, :k], D[:1, :1]))] * len(lams)
+        else:
+            Ks = [control.tf(control.minreal(control.ss(A, B[:, [j]], C[[j], :], D[[j]][:, [j]]),
+                                             verbose=False)) for j in range(n)]
+            lams = lams * n if shared else lams
+        return [(2 * lam * s + lam * lam * (1 + K)) / s ** 2 for lam, K in zip(lams, Ks,
+                                                                                strict=True)]
 
     def bandwidth(self, home):
-        """Return ``lam`` [rad/s]."""
-        return self.lam
+        """Return ``lam`` [rad/s] (per joint: the smallest, the loop's slowest joint)."""
+        return self.lam if np.ndim(self.lam) == 0 else float(np.min(self.lam))
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,8 +160,10 @@ class TrackingController(ModelLaw, ControlLaw):
     ----------
     nominal : Robot
         The model the controller uses (never the simulated plant).
-    lam : float
-        Bandwidth ``lambda`` of the linearized plant ``lam^2/(s + lam)^2`` [rad/s], eq. (10).
+    lam : float or array-like, shape (n,)
+        Bandwidth ``lambda`` of the linearized plant ``lam^2/(s + lam)^2`` [rad/s], eq. (10):
+        one for every joint, or one per joint (``diag(lam_j)`` in the law; kept as a
+        read-only vector, equal entries included), each finite and > 0.
     K : control LTI or None
         Continuous-time ``n x n`` (or SISO, copied on the diagonal) controller on
         ``e = r - q`` (negative feedback, ``y = K e``); ``None`` for feedback linearization
@@ -168,9 +186,13 @@ class TrackingController(ModelLaw, ControlLaw):
     _mats: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        lam = float(self.lam)
-        if not (math.isfinite(lam) and lam > 0.0):
-            raise ValueError(f"lam must be a positive finite bandwidth [rad/s], got {self.lam!r}")
+        if np.ndim(self.lam) == 0:
+            lam = float(self.lam)
+            if not (math.isfinite(lam) and lam > 0.0):
+                raise ValueError(f"lam must be a positive finite bandwidth [rad/s], got "
+                                 f"{self.lam!r}")
+        else:  # one per joint, each checked (naming the joint)
+            lam = check_bandwidth("lam", self.lam, self.nominal.joint_names)
         object.__setattr__(self, "lam", lam)
         n = self.nominal.nq
         if self.K is not None:
@@ -275,9 +297,30 @@ class TrackingController(ModelLaw, ControlLaw):
 
     def describe(self) -> dict:
         """Name, class, bandwidth, ``K``'s order and the friction compensated (or None)."""
-        return {**super().describe(), "lam_rad_s": self.lam, "K_states": self.nx,
+        return {**super().describe(), "lam_rad_s": lam_record(self.lam), "K_states": self.nx,
                 "nominal": self.nominal.name, "friction_compensation":
                 None if self.friction is None else self.friction.to_dict()}
+
+
+def _copied(A, B, C, D, n: int) -> bool:
+    """Whether ``(A, B, C, D)`` is one SISO block copied ``n`` times on the diagonal."""
+    nx = A.shape[0]
+    if nx % n:
+        return False
+    k = nx // n
+    blocks = (A[:k, :k], B[:k, :1], C[:1, :k], D[:1, :1])
+    want = [scipy.linalg.block_diag(*[b] * n) for b in blocks]
+    return all(np.array_equal(x, w) for x, w in zip((A, B, C, D), want, strict=True))
+
+
+def _rows(lam):
+    """``lam`` as a factor on the rows of an (n, k) matrix: a number, or shape (n, 1)."""
+    return lam if np.ndim(lam) == 0 else np.asarray(lam)[:, None]
+
+
+def lam_record(lam):
+    """JSON record of a bandwidth: a number, or a list of one per joint [rad/s]."""
+    return float(lam) if np.ndim(lam) == 0 else [float(x) for x in lam]
 
 
 def _fl_form(law, A, B, C, D):
@@ -342,8 +385,9 @@ class DiscreteTrackingController(ModelLaw, SampledLaw):
     ----------
     nominal : Robot
         The model the controller uses.
-    lam : float
-        Bandwidth ``lambda`` [rad/s], eq. (10).
+    lam : float or array-like, shape (n,)
+        Bandwidth ``lambda`` [rad/s], eq. (10), shared or one per joint (as
+        :class:`TrackingController`'s).
     K : control LTI
         Discrete-time ``n x n`` (or SISO, copied on the diagonal) stable controller on
         ``e = r - q`` (negative feedback) with sampling time ``K.dt > 0`` [s].
@@ -404,7 +448,7 @@ class DiscreteTrackingController(ModelLaw, SampledLaw):
 
     def describe(self) -> dict:
         """Name, class, rate, bandwidth and ``K``'s order."""
-        return {**super().describe(), "lam_rad_s": self.lam, "K_states": self.nx,
+        return {**super().describe(), "lam_rad_s": lam_record(self.lam), "K_states": self.nx,
                 "K_dt_s": float(self.K.dt), "nominal": self.nominal.name,
                 "friction_compensation":
                 None if self.friction is None else self.friction.to_dict()}
@@ -437,12 +481,15 @@ def hinf_fl_controller(nominal, K, lam: float = 45.0, *, name: str = "hinf",
         discrete ``ncfsyn(...).K``) gives a :class:`DiscreteTrackingController`, a sampled law
         at ``1 / K.dt`` Hz.
     lam : float, default 45
-        FL bandwidth the design assumed [rad/s].
+        FL bandwidth the design assumed [rad/s]: one number (a per-joint ``lam`` is refused
+        by name: ``K`` is the design of one FL plant, eq. 11).
     friction : rrr_pin.control.friction.JointFriction, optional
         Friction compensated by the law (None: none).
     """
     import control
 
+    lam = check_scalar_bandwidth("lam", lam, "the hinf law (its K is the H-infinity design "
+                                             "of one FL plant)")
     if isinstance(K, control.LTI) and K.isdtime(strict=True):
         return DiscreteTrackingController(nominal=nominal, lam=lam, K=K, name=name,
                                           label="H-infinity + FL", friction=friction)

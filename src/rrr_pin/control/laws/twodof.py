@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...validation import check_positive, check_rate
+from ...validation import check_positive, check_rate, check_scalar_bandwidth
 from .protocol import (
     DEFAULT_RATE,
     ControlLaw,
@@ -156,7 +156,8 @@ class TwoDOFController(ModelLaw, ControlLaw):
     def __post_init__(self) -> None:
         import control
 
-        object.__setattr__(self, "lam", check_positive("lam", self.lam, unit="rad/s"))
+        object.__setattr__(self, "lam", check_scalar_bandwidth("lam", self.lam,
+                                                               "the 2-DOF law"))
         n = self.nominal.nq
         K = _as_2dof_statespace(self.K, n)
         object.__setattr__(self, "K", K)
@@ -310,7 +311,7 @@ def hinf_2dof_controller(nominal, lam: float = 45.0, wr: float | None = None, rh
     from ...robust.loopshaping import fl_plant, lag_weight
     from ...robust.ncf import ncfsyn_2dof
 
-    lam = check_positive("lam", lam, unit="rad/s")
+    lam = check_scalar_bandwidth("lam", lam, "the hinf2dof law's H-infinity design")
     wr = TREF_BANDWIDTH * lam if wr is None else check_positive("wr", wr, unit="rad/s")
     s = control.tf("s")
     res = ncfsyn_2dof(fl_plant(lam, 1), wr * wr / (s + wr) ** 2, rho, lag_weight())
