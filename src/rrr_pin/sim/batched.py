@@ -28,7 +28,7 @@ anything else is refused by name (:func:`why_not`) and runs on the compiled engi
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 
