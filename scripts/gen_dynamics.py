@@ -66,16 +66,17 @@ def main(argv=None) -> int:
     parser.add_argument("--counts", action="store_true",
                         help="print the operations (+, -, *, /) per plant and call of each "
                              "structure's functions, before and after hoisting, next to "
-                             "Featherstone's count for the ABA; write nothing")
+                             "Featherstone's count for the ABA, and the inverse dynamics (id) the "
+                             "FL law runs; write nothing")
     args = parser.parse_args(argv)
     if args.counts:
         print(f"{'structure':10}{'nq':>3}{'crba':>11}{'nle':>6}{'ldlt':>12}{'aba':>12}"
-              f"{'Featherstone ABA':>18}{'pre':>6}  fd")
+              f"{'Featherstone ABA':>18}{'pre':>6}{'id':>6}  fd")
         for r in counts():
             print(f"{r['structure']:10}{r['nq']:>3}{r['crba_unhoisted']:>5} -> {r['crba']:<4}"
                   f"{r['nle']:>5} {r['ldlt_unhoisted']:>5} -> {r['ldlt']:<4}"
                   f"{r['aba_unhoisted']:>5} -> {r['aba']:<4}{r['featherstone_aba']:>18}"
-                  f"{r['pre']:>6}  {r['fd']}")
+                  f"{r['pre']:>6}{r['id']:>6}  {r['fd']}")
         return 0
     stale = []
     for path, text in expected().items():

@@ -249,7 +249,8 @@ def generated_matches_pinocchio():
     """``check(name, model, seed, B)``: generated dynamics ``name`` == Pinocchio's, random models.
 
     B copies of ``model`` with random placements, inertias, armature and gravity, at random
-    states: the generated M, nonLinearEffects, G and forward dynamics (both algorithms of the
+    states: the generated M, nonLinearEffects, G, inverse dynamics (``M a + nle``) and forward
+    dynamics (both algorithms of the
     structures compiled in: the chosen one and the other, CRBA + L D L^T and the generated ABA;
     a structure built at first use holds the chosen one) against Pinocchio's CRBA,
     nonLinearEffects, computeGeneralizedGravity and ABA (an independent implementation).
@@ -267,11 +268,15 @@ def generated_matches_pinocchio():
         models = [_random_model(model, rng) for _ in range(B)]
         P = np.stack([dyngen.parameters(m) for m in models])
         q, v, tau = (rng.uniform(-3.0, 3.0, (B, n)) for _ in range(3))
-        M, nle, g, qdd, qdd_other = EXTENSION.batch_dynamics(name, P, q, v, tau)
+        M, nle, g, qdd, qdd_other, inv = EXTENSION.batch_dynamics(name, P, q, v, tau)
         for b, m in enumerate(models):
             d = m.createData()
             Mp = pin.crba(m, d, q[b])
             Mp = np.triu(Mp) + np.triu(Mp, 1).T
+            # the inverse dynamics (tau read as an acceleration): M a + nle from Pinocchio's
+            # CRBA (armature on its diagonal) and nonLinearEffects, against one generated RNEA
+            assert_allclose(inv[b], Mp @ tau[b] + pin.nonLinearEffects(m, d, q[b], v[b]),
+                            rtol=0.0, atol=1e-12 * np.abs(Mp @ tau[b]).max())
             # 1e-12 relative (issue 23): both are exact algorithms in double; measured ~1e-15.
             for got, want in ((M[b].reshape(n, n), Mp),
                               (nle[b], pin.nonLinearEffects(m, d, q[b], v[b])),

@@ -30,7 +30,8 @@ extern "C" {
   void name##_gravity(int, const double *, const double *, double *);                          \
   void name##_fd(int, const double *, const double *, const double *, const double *, double *); \
   void name##_fd_other(int, const double *, const double *, const double *, const double *,    \
-                       double *);
+                       double *);                                                              \
+  void name##_id(int, const double *, const double *, const double *, const double *, double *);
 RRR_DYN_DECLARE(rrr)
 RRR_DYN_DECLARE(ur5)
 RRR_DYN_DECLARE(panda)
@@ -44,7 +45,8 @@ namespace rrr_pin
 #define RRR_DYN_ENTRY(name)                                                                    \
   DynFunctions{#name,          name##_dyn_structure, name##_dyn_fd, name##_dyn_nq,              \
                name##_dyn_np,  name##_dyn_nd,        name##_pre,    name##_crba,                \
-               name##_nle,     name##_gravity,       name##_fd,     name##_fd_other}
+               name##_nle,     name##_gravity,       name##_fd,     name##_fd_other,            \
+               name##_id}
     const DynFunctions kTable[] = {RRR_DYN_ENTRY(rrr), RRR_DYN_ENTRY(ur5), RRR_DYN_ENTRY(panda)};
 #undef RRR_DYN_ENTRY
 
@@ -85,7 +87,7 @@ namespace rrr_pin
       const FLLaw & p;
       const Models & md;
       int B, n, m;
-      Lanes e, y, taubar, M, nle, tau;
+      Lanes e, y, taubar, M, tau;  // M: Mhat(q), filled by BatchLaw<FLAWLaw> when it clips
 
       BatchLaw(const FLLaw & law, const Models & models)
       : p(law)
@@ -97,7 +99,6 @@ namespace rrr_pin
       , y(n * B)
       , taubar(n * B)
       , M(n * n * B)
-      , nle(n * B)
       , tau(n * B)
       {
       }
@@ -126,16 +127,8 @@ namespace rrr_pin
             const int i = j * B + b;
             taubar[i] = rdd[j] + 2.0 * lam * (rd[j] - qd[i]) + lam * lam * (e[i] + y[i]);
           }
-        md.f.crba(B, md.nominal.data(), q, M.data());
-        md.f.nle(B, md.nominal.data(), q, qd, nle.data());
-        for (int j = 0; j < n; ++j)
-          for (int b = 0; b < B; ++b)
-          {
-            double s = 0.0;
-            for (int k = 0; k < n; ++k)
-              s += M[(j * n + k) * B + b] * taubar[k * B + b];
-            tau[j * B + b] = s + nle[j * B + b];
-          }
+        // tau = Mhat(q) taubar + hhat(q, qd): one inverse-dynamics recursion (dyngen's id)
+        md.f.id(B, md.nominal.data(), q, qd, taubar.data(), tau.data());
         return tau;
       }
 
@@ -194,6 +187,7 @@ namespace rrr_pin
         const double * rdd, const double * x)
       {
         const Lanes & raw = fl.torque(q, qd, r, rd, rdd, x);
+        bool any = false;
         for (int b = 0; b < B; ++b)
         {
           bool c = false;
@@ -205,7 +199,15 @@ namespace rrr_pin
             c = c || tau[i] != raw[i];
           }
           clipped[b] = c;
-          if (!c)
+          any = any || c;
+        }
+        if (!any)
+          return tau;
+        // Mhat(q) only when a plant clipped (the raw torque came from one id recursion).
+        fl.md.f.crba(B, fl.md.nominal.data(), q, fl.M.data());
+        for (int b = 0; b < B; ++b)
+        {
+          if (!clipped[b])
             continue;
           for (int r_ = 0; r_ < n; ++r_)
           {
@@ -665,12 +667,12 @@ namespace rrr_pin
   void dyn_register(const std::string & name, const std::string & structure,
                     const std::string & fd_algorithm, int nq, int np, int nd, std::uintptr_t pre,
                     std::uintptr_t crba, std::uintptr_t nle, std::uintptr_t gravity,
-                    std::uintptr_t fd, std::uintptr_t fd_other)
+                    std::uintptr_t fd, std::uintptr_t fd_other, std::uintptr_t id)
   {
     if (nq < 1 || np != 3 + 23 * nq || nd < 1 || !pre || !crba || !nle || !gravity || !fd
-        || !fd_other)
+        || !fd_other || !id)
       throw std::invalid_argument(
-        "dyn_register: nq >= 1, np = 3 + 23 nq, nd >= 1 and six functions");
+        "dyn_register: nq >= 1, np = 3 + 23 nq, nd >= 1 and seven functions");
     if (fd_algorithm != "ldlt" && fd_algorithm != "aba")
       throw std::invalid_argument("dyn_register: fd_algorithm must be 'ldlt' or 'aba'");
     Loaded & l = loaded();
@@ -695,7 +697,7 @@ namespace rrr_pin
       reinterpret_cast<void (*)(int, const double *, const double *, const double *, double *)>(
         nle),
       reinterpret_cast<void (*)(int, const double *, const double *, double *)>(gravity),
-      reinterpret_cast<Fd>(fd), reinterpret_cast<Fd>(fd_other)});
+      reinterpret_cast<Fd>(fd), reinterpret_cast<Fd>(fd_other), reinterpret_cast<Fd>(id)});
   }
 
   const DynFunctions & dyn_by_name(const std::string & name)

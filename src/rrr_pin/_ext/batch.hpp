@@ -38,6 +38,8 @@ namespace rrr_pin
     void (*fd)(int, const double *, const double *, const double *, const double *, double *);
     void (*fd_other)(int, const double *, const double *, const double *, const double *,
                      double *);
+    /// Inverse dynamics M(q) a + nle(q, v) (armature included), the FL law's torque.
+    void (*id)(int, const double *, const double *, const double *, const double *, double *);
   };
 
   /// The generated structures compiled in, and their count.
@@ -49,7 +51,7 @@ namespace rrr_pin
   void dyn_register(const std::string & name, const std::string & structure,
                     const std::string & fd_algorithm, int nq, int np, int nd, std::uintptr_t pre,
                     std::uintptr_t crba, std::uintptr_t nle, std::uintptr_t gravity,
-                    std::uintptr_t fd, std::uintptr_t fd_other);
+                    std::uintptr_t fd, std::uintptr_t fd_other, std::uintptr_t id);
   /// The generated structure named `name` (throws std::invalid_argument naming the known ones).
   const DynFunctions & dyn_by_name(const std::string & name);
 

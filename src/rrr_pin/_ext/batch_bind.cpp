@@ -74,7 +74,7 @@ namespace rrr_pin
     mod.def("batch_register", &dyn_register, nb::arg("name"), nb::arg("structure"),
             nb::arg("fd_algorithm"), nb::arg("nq"), nb::arg("np"), nb::arg("nd"),
             nb::arg("pre"), nb::arg("crba"), nb::arg("nle"), nb::arg("gravity"), nb::arg("fd"),
-            nb::arg("fd_other"),
+            nb::arg("fd_other"), nb::arg("id"),
             "Register generated functions loaded at run time, by address (rrr_pin.sim.dyncache).");
     mod.def(
       "batch_fd_algorithm",
@@ -100,7 +100,7 @@ namespace rrr_pin
         // Structure-of-arrays: transposed, row-major (entry k of plant b at [k * B + b]).
         const RowMat Ps = P.transpose(), qs = q.transpose(), vs = v.transpose(),
                      ts = tau.transpose();
-        RowMat Ds(f.nd, B), M(n * n, B), nle(n, B), g(n, B), qdd(n, B), qdd2(n, B);
+        RowMat Ds(f.nd, B), M(n * n, B), nle(n, B), g(n, B), qdd(n, B), qdd2(n, B), id(n, B);
         const int b = static_cast<int>(B);
         f.pre(b, Ps.data(), Ds.data());
         f.crba(b, Ds.data(), qs.data(), M.data());
@@ -108,13 +108,14 @@ namespace rrr_pin
         f.gravity(b, Ds.data(), qs.data(), g.data());
         f.fd(b, Ds.data(), qs.data(), vs.data(), ts.data(), qdd.data());
         f.fd_other(b, Ds.data(), qs.data(), vs.data(), ts.data(), qdd2.data());
+        f.id(b, Ds.data(), qs.data(), vs.data(), ts.data(), id.data());  // tau read as a
         return nb::make_tuple(RowMat(M.transpose()), RowMat(nle.transpose()),
                               RowMat(g.transpose()), RowMat(qdd.transpose()),
-                              RowMat(qdd2.transpose()));
+                              RowMat(qdd2.transpose()), RowMat(id.transpose()));
       },
       nb::arg("name"), nb::arg("P"), nb::arg("q"), nb::arg("v"), nb::arg("tau"),
       "Generated M (B, n n, row-major), nonLinearEffects, G, forward dynamics (B, n) by the "
       "chosen algorithm (batch_fd_algorithm) and by the other one (a structure built at first "
-      "use: the chosen one again).");
+      "use: the chosen one again), and the inverse dynamics M a + nle with tau read as a.");
   }
 } // namespace rrr_pin

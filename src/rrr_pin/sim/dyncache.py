@@ -62,7 +62,7 @@ def _version() -> str:
 #: counts its releases) and of the header the generated C includes, so any change to either
 #: makes new cache entries.
 GENERATOR_VERSION = _version()
-_FUNCTIONS = ("pre", "crba", "nle", "gravity", "fd")
+_FUNCTIONS = ("pre", "crba", "nle", "gravity", "fd", "id")
 
 # structure -> registered name, or the CacheError of its first attempt (this process).
 _LOADED: dict = {}
@@ -252,6 +252,7 @@ def _register(so: Path, name: str, st: str, nq: int, folder: Path) -> str:
                          f"(forward dynamics {algorithm!r}, {nd} derived entries); delete the "
                          f"folder to rebuild it")
     # fd_other: the chosen algorithm again (an entry holds one; see dyngen.generate).
-    EXTENSION.batch_register(name, st, algorithm, nq, npar, nd, *addresses, addresses[-1])
+    EXTENSION.batch_register(name, st, algorithm, nq, npar, nd, *addresses[:5], addresses[4],
+                             addresses[5])  # fd_other: fd again (one algorithm built)
     _LIBS.append(lib)
     return name

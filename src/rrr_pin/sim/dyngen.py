@@ -15,6 +15,8 @@ structure-of-arrays (input ``x[k * B + b]`` is entry ``k`` of plant ``b``):
 * ``<name>_crba``: joint-space inertia ``M(q)`` (full, row-major), composite rigid bodies;
 * ``<name>_nle``: ``nonLinearEffects(q, v)`` = RNEA(q, v, 0) with gravity;
 * ``<name>_gravity``: ``G(q)`` = RNEA(q, 0, 0);
+* ``<name>_id``: inverse dynamics ``M(q) a + nle(q, v)`` = RNEA(q, v, a) plus the armature's
+  ``armature_j a_j`` (the FL law's torque, one recursion instead of CRBA, RNEA and a product);
 * ``<name>_fd``: forward dynamics ``qdd = M(q)^{-1} (tau - nle(q, v))`` by the algorithm of
   fewer operations for the structure (:func:`operation_counts`, :func:`fd_algorithm`; named by
   ``<name>_dyn_fd``): the same CRBA and RNEA with an unrolled ``L D L^T`` solve, or
@@ -49,10 +51,11 @@ __all__ = ["VERSION", "JOINT_AXES", "PER_JOINT", "FD_ALGORITHMS", "structure", "
            "parameters", "operation_counts", "fd_algorithm", "featherstone_aba_operations",
            "generate"]
 
-#: The generator's release: 2 hoists the parameter-only expressions into ``<name>_pre`` (once per
+#: The generator's release: 3 adds ``<name>_id`` (``M(q) a + nle(q, v)`` in one recursion, the FL
+#: law's torque); 2 hoists the parameter-only expressions into ``<name>_pre`` (once per
 #: plant) and chooses the forward-dynamics algorithm per structure by operation count
 #: (:func:`operation_counts`); 1 evaluated everything at every call, by CRBA + L D L^T.
-VERSION = 2
+VERSION = 3
 
 #: Joint types the generator handles: the axis (0, 1, 2) of the revolute joint.
 JOINT_AXES = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2}
@@ -269,8 +272,12 @@ def _body(em: _Emitter, j: int):
     return m, h, Io
 
 
-def _rnea(em: _Emitter, axes, parents, with_v: bool):
-    """Emit tau = RNEA(q, v, 0) (with_v) or RNEA(q, 0, 0); returns the n torque expressions."""
+def _rnea(em: _Emitter, axes, parents, with_v: bool, with_a: bool = False):
+    """Emit tau = RNEA(q, v, 0) (with_v) or RNEA(q, 0, 0); returns the n torque expressions.
+
+    ``with_a``: RNEA(q, v, a) plus the armature's ``armature_j a_j``, i.e. ``M(q) a + nle(q, v)``
+    with ``M`` as :func:`_crba` writes it (armature on the diagonal), in one recursion.
+    """
     n = len(axes)
     Rs, ps = _kinematics(em, axes)
     zero = ["0", "0", "0"]
@@ -294,6 +301,8 @@ def _rnea(em: _Emitter, axes, parents, with_v: bool):
         # + v_i x (S qd): linear v_i x e, angular w_i x e
         a_i = em.vadd(a_i, em.cross(v_i, e))
         b_i = em.vadd(b_i, em.cross(w_i, e))
+        if with_a:  # + S qdd
+            b_i[axes[j]] = em.add((1, b_i[axes[j]]), (1, f"A({j})"))
         v[i], a[i] = (v_i, w_i), (a_i, b_i)
         m, c, Ic = _inertia(j)
 
@@ -312,6 +321,8 @@ def _rnea(em: _Emitter, axes, parents, with_v: bool):
         i, lam = j + 1, parents[j]
         fl, nn = f[i]
         tau[j] = nn[axes[j]]
+        if with_a:  # the rotor's inertia, as M's diagonal carries it
+            tau[j] = em.add((1, tau[j]), (1, em.mul(f"P({3 + PER_JOINT * j + 22})", f"A({j})")))
         if lam > 0:
             R, p = Rs[j], ps[j]
             fp = em.matvec(R, fl)
@@ -506,6 +517,8 @@ _ARGS = {
     "gravity": "const double * __restrict q, double * __restrict out",
     "fd": "const double * __restrict q, const double * __restrict v, const double * "
           "__restrict tau, double * __restrict out",
+    "id": "const double * __restrict q, const double * __restrict v, const double * "
+          "__restrict a, double * __restrict out",
 }
 
 #: The forward-dynamics algorithms the generator writes: CRBA + RNEA + unrolled L D L^T, and
@@ -527,6 +540,8 @@ def _build(axes, parents, hoist):
     out["nle"] = em, list(enumerate(_rnea(em, axes, parents, True)))
     em = _Emitter(hoist)
     out["gravity"] = em, list(enumerate(_rnea(em, axes, parents, False)))
+    em = _Emitter(hoist)
+    out["id"] = em, list(enumerate(_rnea(em, axes, parents, True, True)))
     em = _Emitter(hoist)
     M = _crba(em, axes, parents)
     nle = _rnea(em, axes, parents, True)
@@ -575,7 +590,7 @@ def operation_counts(model, *, hoisted: bool = True) -> dict:
 
     Counts the operations of the expressions the outputs need (what the emitted C computes;
     exact zeros and ones are folded away, identical expressions named once):
-    ``{"crba" | "nle" | "gravity" | "ldlt" | "aba" | "pre": {"add", "mul", "div", "neg",
+    ``{"crba" | "nle" | "gravity" | "id" | "ldlt" | "aba" | "pre": {"add", "mul", "div", "neg",
     "sincos", "total"}}``, ``total = add + mul + div`` (unary minus, a sign flip, apart, as in
     Featherstone's counts), ``sincos``: the ``sin`` and ``cos`` of the joint angles (2 n).
     ``ldlt`` is the forward dynamics by CRBA + RNEA + L D L^T, ``aba`` by the articulated-body
@@ -676,7 +691,8 @@ def generate(name: str, model, *, source: str, hoisted: bool = True, other: bool
     built = _build(axes, parents, hoist)
     counts = operation_counts(model, hoisted=hoisted)
     chosen = fd_algorithm(operation_counts(model) if not hoisted else counts)
-    order = [("crba", "crba"), ("nle", "nle"), ("gravity", "gravity"), ("fd", chosen)]
+    order = [("crba", "crba"), ("nle", "nle"), ("gravity", "gravity"), ("fd", chosen),
+             ("id", "id")]
     unchosen = "aba" if chosen == "ldlt" else "ldlt"
     if other:
         order.append(("fd_other", unchosen))
@@ -719,6 +735,7 @@ const int {name}_dyn_nd = {nd};
 #define S(j) s_[(j) * B + b]
 #define C(j) c_[(j) * B + b]
 #define V(j) v[(j) * B + b]
+#define A(j) a[(j) * B + b]
 #define T(j) tau[(j) * B + b]
 """, _PROLOGUE.format(name=name, n=n)]
     parts.append("\n".join([
