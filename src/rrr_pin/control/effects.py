@@ -318,8 +318,9 @@ class Resolved:
     """The effects of one run as both engines take them: validated, per joint, None when off.
 
     Made by :meth:`PlantEffects.resolve`. Each field but ``info`` has a namesake in the compiled
-    engine's ``Effects`` (``src/rrr_pin/_ext/effects.hpp``), which :mod:`rrr_pin.sim.compiled`
-    fills by name; a new effect is a field here, its check in :meth:`PlantEffects.resolve`, its
+    engine's ``Effects`` (``src/rrr_pin/_ext/effects.hpp``), which
+    :func:`rrr_pin.sim.extension.effects_struct` fills by name for the compiled and batched
+    engines; a new effect is a field here, its check in :meth:`PlantEffects.resolve`, its
     step in the Python engine and its step in C++.
 
     Attributes

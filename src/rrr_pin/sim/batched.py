@@ -38,7 +38,7 @@ from ..validation import FieldError, check_count
 from . import dyncache, dyngen
 from .codegen import CodegenModelMismatch
 from .engine_names import AUTO, CODEGEN, COMPILED
-from .extension import EXTENSION, available, cannot_start, require
+from .extension import EXTENSION, available, cannot_start, effects_struct, require
 from .trajectory import (
     LAW_TORQUE,
     REASONS,
@@ -305,19 +305,6 @@ def _shared_effects(runs) -> bool:
     return len({_key(r.effects) for r in runs}) == 1
 
 
-def _effects(fx):
-    """Return the C++ ``Effects`` of a run's batched effects (None: the ideal plant)."""
-    if fx is None:
-        return None
-    out = EXTENSION.Effects()  # every effect off; those of the run set by name
-    for key in BATCH_EFFECTS:
-        value = getattr(fx, key)
-        if value is not None:
-            setattr(out, key, np.asarray(value, dtype=float) if isinstance(value, np.ndarray)
-                    else value)
-    return out
-
-
 def _law(form):
     law = getattr(EXTENSION, BATCH_LAWS[type(form)])()
     for key, value in form.engine_fields().items():
@@ -420,7 +407,7 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     n1, n = len(run0.t), run0.plant.nq
     slices = [slice(s, s + int(batch)) for s in range(0, len(runs), int(batch))]
 
-    fx = _effects(run0.effects)
+    fx = effects_struct(run0.effects)  # one for the batch (_shared_effects)
 
     def call(sl):
         return EXTENSION.batch_rollout(name, P[sl], nominal, law, inputs, lower[sl], upper[sl],

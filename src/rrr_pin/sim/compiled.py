@@ -76,15 +76,13 @@ pinned at build and run time (``pyproject.toml``) and checked at import.
 from __future__ import annotations
 
 import math
-from dataclasses import fields
 
 import numpy as np
 
-from ..control.effects import Resolved
 from ..control.laws import FLAWForm, FLForm, PDForm, check_law_output
 from ..model.closed_chain import ConstraintDrift, LoopClosureError, SingularConfiguration
 from .engine_names import COMPILED, PYTHON
-from .extension import EXTENSION, CompiledRobot, cached, cannot_start, require
+from .extension import EXTENSION, CompiledRobot, cached, cannot_start, effects_struct, require
 from .trajectory import (
     LAW_TORQUE,
     REASONS,
@@ -177,12 +175,6 @@ def _law(form):
     return _fill(getattr(EXTENSION, ENGINE_LAWS[type(form)])(), **form.engine_fields())
 
 
-def _effects(fx: Resolved):
-    """Return the C++ ``Effects``: every field of ``fx`` but ``info``, by name (None: off)."""
-    return _fill(EXTENSION.Effects(), **{f.name: getattr(fx, f.name) for f in fields(fx)
-                                         if f.name != "info" and getattr(fx, f.name) is not None})
-
-
 def why_not(run, form) -> str | None:
     """Why the compiled engine cannot run ``run`` exactly (None: it can; :mod:`.engines`).
 
@@ -273,7 +265,7 @@ def run_compiled(run, form):
                    vlim=VELOCITY_LIMIT, h=run.h, substeps=run.substeps,
                    n_steps=len(run.t) - 1)
     out = EXTENSION.rollout(compiled._model, compile_robot(form.nominal)._model, _law(form),
-                            inputs, _effects(fx) if fx is not None else None)
+                            inputs, effects_struct(fx))
     if out.step >= 0:
         _raise(run, form, compiled.description, out)
     traj = make_trajectory(run, out.Q, out.QD, out.TAU)

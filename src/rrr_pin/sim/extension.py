@@ -6,11 +6,12 @@ Shared by the compiled engine (:mod:`rrr_pin.sim.compiled`) and the batched engi
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import pinocchio as pin  # loads libpinocchio_default.so before the extension needs it
 
-__all__ = ["EXTENSION", "CompiledRobot", "available", "require", "cached", "cannot_start"]
+__all__ = ["EXTENSION", "CompiledRobot", "available", "require", "cached", "cannot_start",
+           "effects_struct"]
 
 
 def _load_extension():
@@ -98,4 +99,20 @@ def cached(cache: dict, robot, load):
     if len(cache) >= 8:
         cache.pop(next(iter(cache)))
     cache[key] = (robot.model, out)
+    return out
+
+
+def effects_struct(fx):
+    """Return the extension's ``Effects`` of a run's ``Resolved`` effects (None: the ideal plant).
+
+    Every field but ``info`` has a namesake in ``Effects`` (``_ext/effects.hpp``), set by name
+    when not None (off); the compiled and the batched engines both take it.
+    """
+    if fx is None:
+        return None
+    out = EXTENSION.Effects()
+    for f in fields(fx):
+        value = getattr(fx, f.name)
+        if f.name != "info" and value is not None:
+            setattr(out, f.name, value)
     return out
