@@ -379,8 +379,8 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
                          f"effects, got {', '.join(others)}; use engine={COMPILED!r} with "
                          f"these effects")
     if not _shared_effects(runs):
-        raise ValueError("a batch shares its plant effects: its runs differ in the delay or "
-                         "the torque limit")
+        raise ValueError("a batch shares its plant effects: its runs differ in them (a batch "
+                         "applies one of each of BATCH_EFFECTS)")
     if any(r.law is not runs[0].law for r in runs):
         raise ValueError("a batch runs one law: its runs have different laws")
     for key in ("R", "RD", "RDD", "q0", "qd0", "x0"):
