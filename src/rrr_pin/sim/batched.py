@@ -39,6 +39,7 @@ from . import dyncache, dyngen
 from .codegen import CodegenModelMismatch
 from .engine_names import AUTO, CODEGEN, COMPILED
 from .extension import EXTENSION, available, cannot_start, effects_struct, require
+from .reuse import keep, lookup, reused
 from .trajectory import (
     LAW_TORQUE,
     REASONS,
@@ -174,14 +175,35 @@ def plant_parameters(robot, role: str = "plant") -> np.ndarray:
     return _parameters([robot], role)[0]
 
 
+def _structure_name(robot) -> str | None:
+    """:func:`generated_structure` of ``robot.model``, once per robot in a campaign's block."""
+    return reused(robot, "generated structure", lambda: generated_structure(robot.model))
+
+
 def _parameters(robots, role: str) -> np.ndarray:
+    """Parameter vectors (B, np) of robots of one generated structure, checked.
+
+    Inside :func:`rrr_pin.sim.reuse.reuse_preparation` a robot's checked vector is kept and
+    reused by the next law that runs on it.
+    """
+    rows = [lookup(r, "codegen parameters") for r in robots]
+    todo = [i for i, row in enumerate(rows) if row is None]
+    if todo:
+        P = _checked_parameters([robots[i] for i in todo], role)
+        for i, row in zip(todo, P, strict=True):
+            rows[i] = row
+            keep(robots[i], "codegen parameters", row)
+    return np.stack(rows)
+
+
+def _checked_parameters(robots, role: str) -> np.ndarray:
     """Parameter vectors (B, np) of robots of one generated structure, checked.
 
     One vectorized screen for all bodies; a body it flags is checked again, alone, by
     :func:`rrr_pin.model.dh.check_inertial` for the message.
     """
     for robot in robots:
-        if generated_structure(robot.model) is None:
+        if _structure_name(robot) is None:
             raise _refusal(robot, role)
     P = np.stack([dyngen.parameters(r.model) for r in robots])
     n = robots[0].nq
@@ -262,10 +284,10 @@ def batchable(runs, form) -> bool:
         return False
     if any(r.plant.loop_closures for r in runs) or form.nominal.loop_closures:
         return False
-    name = generated_structure(form.nominal.model)
+    name = _structure_name(form.nominal)
     return (name is not None and all(not _unbatched_effects(r.effects) for r in runs)
             and _shared_effects(runs)
-            and all(generated_structure(r.plant.model) == name for r in runs))
+            and all(_structure_name(r.plant) == name for r in runs))
 
 
 def _unbatched_effects(fx) -> list[str]:
@@ -387,10 +409,10 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
         _same(runs, key)
     run0 = runs[0]
     nominal = plant_parameters(form.nominal, "nominal")
-    name = generated_structure(form.nominal.model)
+    name = _structure_name(form.nominal)
     P = _parameters([r.plant for r in runs], "plant")
     for r in runs:
-        if generated_structure(r.plant.model) != name:
+        if _structure_name(r.plant) != name:
             raise StructureMismatch(
                 f"engine={CODEGEN!r}: plant {r.plant.name!r} has the structure "
                 f"{dyngen.structure(r.plant.model)!r}, the law's model "

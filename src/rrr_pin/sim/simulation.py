@@ -52,7 +52,6 @@ from __future__ import annotations
 import logging
 import math
 import threading
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -71,6 +70,7 @@ from ..validation import (
 )
 from .engine_names import AUTO, CODEGEN
 from .engines import check_engine, choose
+from .reuse import reuse_preparation, reused, reusing
 from .trajectory import Run, SimulationDiverged, Trajectory, diverged_joint
 
 __all__ = [
@@ -417,8 +417,23 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
         except (SimulationDiverged, *plant.failures) as exc:
             return exc
 
+    def again(plant, first):
+        # Another plant of ``first``'s run settings (validated there): only what depends on
+        # the plant (:func:`_prepare_like`); a plant of another joint count is prepared whole.
+        if plant.nq != first.plant.nq:
+            return prepared(plant)
+        try:
+            return _prepare_like(first, plant, reference, float(options["limit_margin"]), fx)
+        except (SimulationDiverged, *plant.failures) as exc:
+            return exc
+
     with reuse_preparation():
-        runs = [prepared(p) for p in plants]
+        runs, first = [], None
+        for p in plants:
+            runs.append(prepared(p) if first is None else again(p, first))
+            if first is None and not isinstance(runs[-1], Exception):
+                first = runs[-1]
+                fx = _active_effects(options.get("effects"))
     ready = [r for r in runs if not isinstance(r, Exception)]
     if engine in (AUTO, CODEGEN) and len(ready) == len(runs):
         form = runs[0].law.compiled_form() if runs else None
@@ -444,7 +459,8 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
         if isinstance(run, Exception):
             out.append(run)
             continue
-        run = replace(run, R=run.R.copy(), RD=run.RD.copy(), RDD=run.RDD.copy())
+        run = replace(run, R=run.R.copy(), RD=run.RD.copy(), RDD=run.RDD.copy(),
+                      q0=run.q0.copy(), qd0=run.qd0.copy(), x0=run.x0.copy())
         try:
             # One run at a time in the process: a law object is shared by the runs (and a
             # campaign's threads), and the one-plant engines may keep state in it.
@@ -461,34 +477,6 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
 
 _ONE_AT_A_TIME = threading.Lock()
 
-#: Reuse of the law-side work of :func:`_prepare` across runs, active only inside
-#: :func:`reuse_preparation` (``None`` outside): the reference sampled on a grid, and the
-#: sampled form of a built-in law.
-_REUSE: dict | None = None
-
-
-@contextmanager
-def reuse_preparation():
-    """Within the block, runs of the same reference and law share their preparation.
-
-    A campaign runs the same laws on the same reference grid for thousands of plants; inside
-    this context :func:`simulate` samples each reference once per grid, and discretizes each
-    built-in law once per ``(rate, method)``, instead of once per run. Results are bit for bit
-    those of separate runs: the cached values are the ones a run would compute, and every run
-    gets its own copy of the reference arrays. Laws and references must not be changed inside
-    the block (the cache holds them by identity). Re-entrant; the cache is dropped when the
-    outermost block exits.
-    """
-    global _REUSE
-    outer = _REUSE is None
-    if outer:
-        _REUSE = {}
-    try:
-        yield
-    finally:
-        if outer:
-            _REUSE = None
-
 
 def _sampled_law(law, rate: float, method: str):
     """``law.sampled(rate, method)``, reused inside :func:`reuse_preparation`.
@@ -496,20 +484,9 @@ def _sampled_law(law, rate: float, method: str):
     Reused only for laws with a compiled form (the built-ins): their sampled form is a pure
     function of the law's parameters, whereas a user's ``sampled`` may build fresh state.
     """
-    if _REUSE is None or law.compiled_form() is None:
+    if not reusing() or law.compiled_form() is None:
         return law.sampled(rate, method)
-    key = ("law", id(law), rate, method)
-    hit = _REUSE.get(key)
-    if hit is None or hit[0] is not law:
-        # setdefault: threads preparing runs at once (a campaign's --threads) all get the
-        # first form stored, so the runs of a batch share one law object; a stale entry (an
-        # object of the same id) is replaced.
-        made = (law, law.sampled(rate, method))
-        if hit is None:
-            hit = _REUSE.setdefault(key, made)
-        else:
-            hit = _REUSE[key] = made
-    return hit[1]
+    return reused(law, ("sampled", rate, method), lambda: law.sampled(rate, method))
 
 
 def _sample_reference(reference, grid_key, grid, share: bool = False
@@ -521,17 +498,10 @@ def _sample_reference(reference, grid_key, grid, share: bool = False
     the cached arrays themselves (read-only for the caller: the batched runs of
     :func:`simulate_batch`, which copy them into a trajectory only when one is made).
     """
-    if _REUSE is None:
+    if not reusing():
         return checked_sample(reference, grid)
-    key = ("reference", id(reference), grid_key)
-    hit = _REUSE.get(key)
-    if hit is None or hit[0] is not reference:
-        made = (reference, checked_sample(reference, grid))
-        if hit is None:
-            hit = _REUSE.setdefault(key, made)  # threads: the first stored is everyone's
-        else:
-            hit = _REUSE[key] = made
-    return hit[1] if share else tuple(a.copy() for a in hit[1])
+    arrays = reused(reference, ("sampled", grid_key), lambda: checked_sample(reference, grid))
+    return arrays if share else tuple(a.copy() for a in arrays)
 
 
 def _check_limits(reference, plant, duration: float) -> None:
@@ -541,15 +511,12 @@ def _check_limits(reference, plant, duration: float) -> None:
     (:meth:`Reference.check_limits`, which depends on the reference and the limits only) is
     not repeated for a plant with the same joint limits.
     """
-    if _REUSE is None or type(reference).check_limits is not Reference.check_limits:
+    if not reusing() or type(reference).check_limits is not Reference.check_limits:
         reference.check_limits(plant, duration=duration)
         return
-    lower, upper = plant.lower, plant.upper
-    key = ("limits", id(reference), duration, lower.tobytes(), upper.tobytes())
-    hit = _REUSE.get(key)
-    if hit is None or hit is not reference:
-        reference.check_limits(plant, duration=duration)
-        _REUSE[key] = reference
+    # a check that raises keeps nothing: the next plant with these limits is checked again
+    reused(reference, ("limits", duration, plant.lower.tobytes(), plant.upper.tobytes()),
+           lambda: reference.check_limits(plant, duration=duration))
 
 
 def _trusted_grid(duration: float, dt: float | None, rate: float | None) -> TimeGrid:
@@ -585,9 +552,7 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         duration, limit_margin = float(duration), float(limit_margin)
         dt = None if dt is None else float(dt)
         rate = None if rate is None else float(rate)
-    effects = check_effects(effects)
-    if effects is not None and not effects.active:
-        effects = None
+    effects = _active_effects(effects)
     if effects is not None and rate is None and not isinstance(law, SampledLaw):
         raise ValueError(
             f"effects apply to sampled (digital) controllers only: law {law.name!r} is "
@@ -627,12 +592,7 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         reference, (rate is not None, Ts if rate is not None else dt, n_steps), grid, share)
     q0 = _state("q0", q0, R[0])
     qd0 = _state("qd0", qd0, RD[0])
-    bad = diverged_joint(q0, qd0, lower, upper)
-    if bad is not None:
-        j = bad[0]
-        raise ValueError(f"initial state of joint {plant.joint_names[j]!r} is invalid: "
-                         f"{bad[1]} (q0 = {q0[j]:.6g} rad, limits [{plant.lower[j]:.4g}, "
-                         f"{plant.upper[j]:.4g}], qd0 = {qd0[j]:.6g} rad/s)")
+    _check_initial(plant, q0, qd0, lower, upper)
     state0 = plant.start(q0, qd0)  # the full state (a closed chain closes its loop here)
     x0 = np.asarray(law.initial_state(), dtype=float)
     if x0.shape != (law.nx,):
@@ -644,6 +604,49 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         info["effects"] = fx.info
     return Run(plant, law, rate is not None, t, R, RD, RDD, q0, qd0, x0, h, substeps,
                 lower, upper, info, fx, state0)
+
+
+def _active_effects(effects):
+    """``check_effects(effects)``, None for effects that change nothing."""
+    effects = check_effects(effects)
+    return effects if effects is not None and effects.active else None
+
+
+def _prepare_like(first: Run, plant, reference, limit_margin: float, effects) -> Run:
+    """:func:`_prepare` of ``plant`` with the settings of ``first``, a run they were validated for.
+
+    Everything that does not depend on the plant is ``first``'s (the law, its sampled form
+    and state, the grid, the reference arrays, ``q0`` and ``qd0``: shared, read-only); what
+    does is done again as :func:`_prepare` does it: the joint limits and their check of the
+    reference, the initial state's test, the plant's start and its effects. ``plant`` has
+    ``first.plant``'s joint count (so the law and reference checks hold for it too);
+    ``effects`` is the checked, active :class:`PlantEffects` of ``first`` or None.
+    """
+    if limit_margin:
+        plant.require(JOINT_LIMITS, f"limit_margin = {limit_margin:g} rad")
+    lower = plant.lower - limit_margin
+    upper = plant.upper + limit_margin
+    _check_limits(reference, plant, float(first.t[-1]))
+    q0, qd0 = first.q0, first.qd0
+    _check_initial(plant, q0, qd0, lower, upper)
+    state0 = plant.start(q0, qd0)
+    info = dict(first.info)
+    fx = None
+    if effects is not None:
+        fx = effects.resolve(plant, first.substeps, first.h, len(first.t) - 1)
+        info["effects"] = fx.info
+    return replace(first, plant=plant, lower=lower, upper=upper, info=info, effects=fx,
+                   state0=state0)
+
+
+def _check_initial(plant, q0, qd0, lower, upper) -> None:
+    """Refuse an initial state that the divergence test of the engines would stop at once."""
+    bad = diverged_joint(q0, qd0, lower, upper)
+    if bad is not None:
+        j = bad[0]
+        raise ValueError(f"initial state of joint {plant.joint_names[j]!r} is invalid: "
+                         f"{bad[1]} (q0 = {q0[j]:.6g} rad, limits [{plant.lower[j]:.4g}, "
+                         f"{plant.upper[j]:.4g}], qd0 = {qd0[j]:.6g} rad/s)")
 
 
 def _check_rk4_step(law, dt: float) -> None:
