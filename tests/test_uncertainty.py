@@ -15,6 +15,8 @@ from rrr_pin.model.uncertainty import (
     MechanismUncertainty,
     Tolerances,
     perturb_inertia,
+    perturb_link,
+    perturb_links,
     perturb_urdf,
     sample_mechanism,
     sample_plants,
@@ -65,6 +67,25 @@ def test_perturb_inertia_property():
         assert J.min() >= -1e-12
         assert J.max() <= J.sum() - J.max() + 1e-12  # triangle inequality
         assert np.all(np.abs(J / J0 - 1) <= 0.2 + 1e-9)
+
+
+def test_links_drawn_together_are_the_links_drawn_one_by_one():
+    # perturb_links (the drawn arms' route) scales the inertias as one stack; it must give the
+    # numbers of perturb_link (the URDF text route) bit for bit, draws and all.
+    rng = np.random.default_rng(5)
+    nominals = []
+    for _ in range(9):
+        R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        s = rng.uniform(0, 1, 3)
+        nominals.append((rng.uniform(0.1, 10.0), np.trace(np.diag(s)) * np.eye(3)
+                         - R @ np.diag(s) @ R.T, rng.normal(size=3)))
+    tol = Tolerances(inertia=0.3, length=0.1)
+    together = perturb_links(nominals, np.random.default_rng(11), tol)
+    one = np.random.default_rng(11)
+    for (mass, I, com), got in zip(nominals, together, strict=True):
+        want = perturb_link(mass, I, com, one, tol)
+        assert got[0] == want[0] and got[3] == want[3]
+        assert got[1].tobytes() == want[1].tobytes() and got[2].tobytes() == want[2].tobytes()
 
 
 def test_written_urdf_loads_back_as_the_sampled_plant(tmp_path):

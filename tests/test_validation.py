@@ -16,7 +16,13 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from rrr_pin import cli
 from rrr_pin.cli.common import parse_lock
-from rrr_pin.model.dh import INERTIA_RTOL, ArmParams, check_inertial, paper_params
+from rrr_pin.model.dh import (
+    INERTIA_RTOL,
+    ArmParams,
+    check_inertial,
+    check_inertials,
+    paper_params,
+)
 from rrr_pin.model.dynamics import check_urdf_inertials, load_robot
 from rrr_pin.model.robots import RobotModelError
 from rrr_pin.model.uncertainty import perturb_inertia, perturb_urdf
@@ -366,3 +372,24 @@ def test_check_state(rrr):
     with pytest.raises(ValueError, match=r"q must be finite"):
         robot.V([math.nan, 0.0, 0.0], np.zeros(3))
     assert_array_equal(robot.V(big, np.zeros(3)), robot.V(big, np.zeros(3), check=False))
+
+
+@pytest.mark.parametrize(("mass", "inertia", "match"), [
+    (-1.0, np.eye(3), "mass must be a finite number >= 0"),
+    (0.0, np.eye(3), "massless body"),
+    (1.0, [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]], "inertia must be symmetric"),
+    (1.0, [[1, 0, 0], [0, math.nan, 0], [0, 0, 1]], "inertia must be finite"),
+    (1.0, np.diag([-1.0, 1.0, 1.0]), "not positive semi-definite"),
+    (1.0, np.diag([1.0, 1.0, 2.0 * (1.0 + 5.0 * INERTIA_RTOL)]), "triangle inequality"),
+], ids=["negative-mass", "massless", "asymmetric", "nan", "negative-moment", "triangle"])
+def test_check_inertials_refuses_what_check_inertial_refuses(mass, inertia, match):
+    # The vectorized check names the first failing body with check_inertial's own message;
+    # the bodies around it (valid, one on the triangle bound, one massless) pass.
+    good = [(1.0, np.diag([1.0, 2.0, 2.5])), (0.0, np.zeros((3, 3))),
+            (1.0, np.diag([1.0, 1.0, 2.0 * (1.0 + 0.2 * INERTIA_RTOL)]))]
+    check_inertials([m for m, _ in good], [I for _, I in good], ["a", "b", "c"])
+    bodies = [*good, (mass, np.asarray(inertia, dtype=float)), good[0]]
+    with pytest.raises(ValueError, match=match) as info:
+        check_inertials([m for m, _ in bodies], [I for _, I in bodies],
+                        ["a", "b", "c", "bad", "e"])
+    assert str(info.value).startswith("bad")

@@ -39,6 +39,7 @@ __all__ = [
     "dh_transform",
     "forward_kinematics",
     "check_inertial",
+    "check_inertials",
     "check_robot_name",
     "INERTIA_RTOL",
 ]
@@ -106,16 +107,58 @@ def check_inertial(mass, inertia, *, name: str = "inertial") -> tuple[float, np.
         raise ValueError(f"{name}: inertia must be symmetric, got {inertia.tolist()} kg m^2")
     J = np.linalg.eigvalsh(0.5 * (inertia + inertia.T))
     tol = INERTIA_RTOL * max(float(J.max()), 0.0)
-    moments = ", ".join(f"{v:.6g}" for v in J)
     if J.min() < -tol:
         raise ValueError(f"{name}: inertia is not positive semi-definite: principal moments "
-                         f"({moments}) kg m^2")
+                         f"({_moments(J)}) kg m^2")
     if J.max() > J.sum() - J.max() + tol:
         raise ValueError(f"{name}: inertia violates the triangle inequality: the largest "
                          f"principal moment {J.max():.6g} exceeds the sum of the other two "
-                         f"{J.sum() - J.max():.6g} (principal moments ({moments}) kg m^2); no "
-                         f"rigid body has it")
+                         f"{J.sum() - J.max():.6g} (principal moments ({_moments(J)}) kg m^2); "
+                         f"no rigid body has it")
     return mass, inertia
+
+
+def _moments(J) -> str:
+    return ", ".join(f"{v:.6g}" for v in J)
+
+
+def check_inertials(masses, inertias, names) -> None:
+    """:func:`check_inertial` of many bodies at once (the same tests, vectorized).
+
+    The first body that fails a test is checked again alone by :func:`check_inertial`, which
+    raises its message.
+
+    Parameters
+    ----------
+    masses : array-like, shape (k,)
+        Masses [kg].
+    inertias : array-like, shape (k, 3, 3)
+        Inertia tensors about the centres of mass [kg m^2].
+    names : sequence of str, length k
+        What each body is, for the message.
+
+    Raises
+    ------
+    ValueError
+        As :func:`check_inertial`, for the first body that fails.
+    """
+    m = np.asarray(masses, dtype=float)
+    inertia = np.asarray(inertias, dtype=float)
+    if inertia.shape != (len(m), 3, 3) or len(names) != len(m):
+        raise ValueError(f"check_inertials needs k masses, (k, 3, 3) inertias and k names, got "
+                         f"{m.shape}, {inertia.shape} and {len(names)}")
+    finite = np.isfinite(m) & np.isfinite(inertia).all(axis=(-1, -2))
+    inertia = np.where(finite[:, None, None], inertia, 0.0)
+    T = np.swapaxes(inertia, -1, -2)
+    scale = np.abs(inertia).max(axis=(-1, -2), initial=0.0)
+    J = np.linalg.eigvalsh(0.5 * (inertia + T))
+    top = J.max(axis=-1, initial=-np.inf)
+    tol = INERTIA_RTOL * np.maximum(top, 0.0)
+    body = ((np.abs(inertia - T).max(axis=(-1, -2), initial=0.0) <= INERTIA_RTOL * scale)
+            & (J.min(axis=-1, initial=np.inf) >= -tol) & ~(top > J.sum(axis=-1) - top + tol))
+    ok = finite & (m >= 0.0) & np.where(m == 0.0, scale == 0.0, body)
+    for k in np.flatnonzero(~ok):
+        check_inertial(masses[k], inertias[k], name=names[k])
 
 
 @dataclass(frozen=True)

@@ -73,14 +73,6 @@ def urdf_rotation(rpy) -> np.ndarray:
                      [txz - twy, tyz + twx, 1.0 - (txx + tyy)]])
 
 
-def _rotate(R: np.ndarray, I: np.ndarray) -> np.ndarray:
-    """``R I R^T`` with each dot product summed left to right (as Eigen's 3 x 3 products)."""
-    RI = np.array([[R[i, 0] * I[0, k] + R[i, 1] * I[1, k] + R[i, 2] * I[2, k]
-                    for k in range(3)] for i in range(3)])
-    return np.array([[RI[i, 0] * R[j, 0] + RI[i, 1] * R[j, 1] + RI[i, 2] * R[j, 2]
-                      for j in range(3)] for i in range(3)])
-
-
 @dataclass(frozen=True)
 class _Joint:
     name: str
@@ -189,15 +181,26 @@ def arm_map(urdf: str, params, locked: dict, model) -> ArmMap:
                   frames=frames)
 
 
-def _inertia(m: float, c, I, R) -> pin.Inertia:
-    """Pinocchio's ``convertFromUrdf`` of an inertial: ``Inertia(m, c, R I R^T)``.
+def _inertias(bodies: dict) -> dict:
+    """Pinocchio's ``convertFromUrdf`` of inertials: ``Inertia(m, c, R I R^T)`` each.
 
-    ``I`` as a URDF ``<inertia>`` carries it: its upper triangle (``ixy, ixz, iyz``), mirrored.
+    ``bodies``: link name -> ``(m, c, I, R)``. ``I`` as a URDF ``<inertia>`` carries it: its
+    upper triangle (``ixy, ixz, iyz``), mirrored. ``R I R^T`` with each dot product summed
+    left to right, as Eigen's 3 x 3 products do, for all links at once (elementwise).
     """
-    I = np.asarray(I, dtype=float)
-    sym = np.array([[I[0, 0], I[0, 1], I[0, 2]], [I[0, 1], I[1, 1], I[1, 2]],
-                    [I[0, 2], I[1, 2], I[2, 2]]])
-    return pin.Inertia(float(m), np.asarray(c, dtype=float), _rotate(R, sym))
+    if not bodies:
+        return {}
+    names = list(bodies)
+    sym = np.array([bodies[k][2] for k in names], dtype=float)
+    for i, j in ((1, 0), (2, 0), (2, 1)):
+        sym[:, i, j] = sym[:, j, i]
+    R = np.array([bodies[k][3] for k in names], dtype=float)
+    RI = (R[:, :, 0, None] * sym[:, None, 0, :] + R[:, :, 1, None] * sym[:, None, 1, :]
+          + R[:, :, 2, None] * sym[:, None, 2, :])
+    out = (RI[:, :, 0, None] * R[:, None, :, 0] + RI[:, :, 1, None] * R[:, None, :, 1]
+           + RI[:, :, 2, None] * R[:, None, :, 2])
+    return {k: pin.Inertia(float(bodies[k][0]), np.asarray(bodies[k][1], dtype=float), out[i])
+            for i, k in enumerate(names)}
 
 
 def assemble(nominal_model, amap: ArmMap, origins: dict, inertials: dict):
@@ -226,11 +229,7 @@ def assemble(nominal_model, amap: ArmMap, origins: dict, inertials: dict):
     def walk(link: str, P, owner) -> None:
         for joint in amap.children.get(link, ()):
             origin = pin.SE3(joint.R, origins.get(joint.name, joint.xyz))
-            Y = inertials.get(joint.child)
-            if Y is None and joint.child in amap.inertials:
-                nom = amap.inertials[joint.child]
-                Y = (nom.mass, nom.com, nom.I, nom.R)
-            inertia = _inertia(*Y) if Y is not None else zero
+            inertia = bodies.get(joint.child, zero)
             if joint.kind != "fixed":  # a joint of the model read from the URDF
                 joints.append((joint.name, owner, P * origin))
                 full[joint.name] = pin.Inertia.Zero()
@@ -247,6 +246,8 @@ def assemble(nominal_model, amap: ArmMap, origins: dict, inertials: dict):
             add(owner, zero, Pc)                    # the child's BODY frame
             walk(joint.child, Pc, owner)
 
+    bodies = _inertias({**{link: (nom.mass, nom.com, nom.I, nom.R)
+                           for link, nom in amap.inertials.items()}, **inertials})
     walk(amap.root, identity, None)
     locked = {j.name: j.motion for j in amap.joints if j.motion is not None}
     frame: dict = {}  # locked joint -> (the kept joint it hangs on or None, liMi)

@@ -54,7 +54,7 @@ import numpy as np
 
 from ..outputs import writing
 from ..validation import check_count, check_real, check_vector
-from .dh import ArmParams, check_inertial
+from .dh import ArmParams, check_inertial, check_inertials
 from .mechanisms import is_mechanism_params, perturb_mechanism
 from .plant import UncertaintySet
 from .robots import RobotModelError
@@ -68,6 +68,7 @@ __all__ = [
     "perturb_urdf",
     "perturb_inertia",
     "perturb_link",
+    "perturb_links",
     "length_factor",
     "sample_plant",
     "sample_plants",
@@ -165,12 +166,15 @@ class Tolerances(UncertaintySet):
             origins["ee_joint"] = xyz
         else:
             skip, links, joints = set(robot.locked), {}, {}
-            for link, nom in amap.inertials.items():
-                m, I, c, links[link] = perturb_link(nom.mass, nom.I, nom.com, rng, self)
-                try:
-                    check_inertial(m, I, name=f"link {link!r} of the drawn arm")
-                except ValueError as exc:
-                    raise RobotModelError(str(exc)) from None
+            names = list(amap.inertials)
+            noms = [amap.inertials[link] for link in names]
+            drawn = perturb_links([(nom.mass, nom.I, nom.com) for nom in noms], rng, self)
+            try:
+                check_inertials([d[0] for d in drawn], [d[1] for d in drawn],
+                                [f"link {link!r} of the drawn arm" for link in names])
+            except ValueError as exc:
+                raise RobotModelError(str(exc)) from None
+            for link, nom, (m, I, c, links[link]) in zip(names, noms, drawn, strict=True):
                 inertials[link] = (m, c, I, nom.R)
             for joint in amap.joints:
                 f_l = length_factor(rng, self)
@@ -309,12 +313,45 @@ def perturb_link(mass: float, I, com, rng: np.random.Generator, tol: Tolerances
     factors : dict
         ``{"mass", "second_moments", "com"}``, as :func:`perturb_urdf` records them.
     """
-    f_m = float(_factor(rng, tol.inertia))
-    f_s = _factor(rng, tol.inertia, 3)
-    f_c = float(_factor(rng, tol.length))
+    f_m, f_s, f_c = _link_factors(rng, tol)
     return (mass * f_m, None if I is None else _perturb_inertia(I, f_s),
             np.asarray(com, dtype=float) * f_c,
             {"mass": f_m, "second_moments": f_s.tolist(), "com": f_c})
+
+
+def _link_factors(rng: np.random.Generator, tol: Tolerances) -> tuple:
+    """One link's draws, in order: the mass factor, three second-moment factors, the com's."""
+    return (float(_factor(rng, tol.inertia)), _factor(rng, tol.inertia, 3),
+            float(_factor(rng, tol.length)))
+
+
+def perturb_links(nominals, rng: np.random.Generator, tol: Tolerances) -> list[tuple]:
+    """:func:`perturb_link` of several links, in order: the same draws and numbers.
+
+    The draws are made link by link as :func:`perturb_link` makes them; the inertias are then
+    scaled together (:func:`_perturb_inertias`, the same operations on a stack).
+
+    Parameters
+    ----------
+    nominals : sequence of (mass, I, com)
+        Per link as :func:`perturb_link` takes them; every ``I`` a (3, 3) array.
+    rng : numpy.random.Generator
+    tol : Tolerances
+
+    Returns
+    -------
+    list of (mass, I, com, factors)
+        Per link, what :func:`perturb_link` returns.
+    """
+    draws = [_link_factors(rng, tol) for _ in nominals]
+    if not draws:
+        return []
+    inertias = _perturb_inertias(np.array([I for _, I, _ in nominals], dtype=float),
+                                 np.array([f_s for _, f_s, _ in draws]))
+    return [(mass * f_m, I, np.asarray(com, dtype=float) * f_c,
+             {"mass": f_m, "second_moments": f_s.tolist(), "com": f_c})
+            for (mass, _, com), (f_m, f_s, f_c), I in zip(nominals, draws, inertias,
+                                                          strict=True)]
 
 
 def length_factor(rng: np.random.Generator, tol: Tolerances) -> float:
@@ -353,14 +390,23 @@ def perturb_inertia(I: np.ndarray, factors) -> np.ndarray:
 
 def _perturb_inertia(I, factors) -> np.ndarray:
     """:func:`perturb_inertia` without the checks, for inertias checked where they were read."""
-    I = np.asarray(I, dtype=float)
-    I = 0.5 * (I + I.T)
-    S = 0.5 * np.trace(I) * np.eye(3) - I
+    return _perturb_inertias(np.asarray(I, dtype=float)[None], np.asarray(factors)[None])[0]
+
+
+def _perturb_inertias(I: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """:func:`_perturb_inertia` of a stack, shapes (k, 3, 3) and (k, 3): each the same numbers.
+
+    numpy applies every operation to each matrix of the stack as to a single one (LAPACK's
+    eigensolver per matrix, the same products and sums), so the result does not depend on
+    the stack (``tests/test_uncertainty.py`` checks it bit for bit).
+    """
+    I = 0.5 * (I + np.swapaxes(I, -1, -2))
+    S = 0.5 * np.trace(I, axis1=-2, axis2=-1)[:, None, None] * np.eye(3) - I
     s, R = np.linalg.eigh(S)
     # I is checked: second moments below zero are round-off within INERTIA_RTOL; drop them.
     s = np.clip(s, 0.0, None) * factors
-    S_new = (R * s) @ R.T
-    return np.trace(S_new) * np.eye(3) - S_new
+    S_new = (R * s[:, None, :]) @ np.swapaxes(R, -1, -2)
+    return np.trace(S_new, axis1=-2, axis2=-1)[:, None, None] * np.eye(3) - S_new
 
 
 def perturb_params(params: ArmParams, rng: np.random.Generator,
@@ -374,14 +420,14 @@ def perturb_params(params: ArmParams, rng: np.random.Generator,
     factors : dict
         The factors drawn, per link: ``mass``, ``second_moments`` (3), ``length``.
     """
+    # the draws link by link (mass, 3 second moments, length), then the inertias together
+    draws = [_link_factors(rng, tol) for _ in params.links]
+    # link.J was checked by DHLink; the perturbed link is checked by DHLink again below.
+    Js = _perturb_inertias(np.array([np.diag(link.J) for link in params.links], dtype=float),
+                           np.array([f_s for _, f_s, _ in draws]))
     links, factors = [], []
-    for link in params.links:
-        f_m = float(_factor(rng, tol.inertia))
-        f_s = _factor(rng, tol.inertia, 3)
-        f_l = float(_factor(rng, tol.length))
-        # link.J was checked by DHLink; the perturbed link is checked by DHLink again below.
-        J = np.diag(_perturb_inertia(np.diag(link.J), f_s))
-        links.append(replace(link, mass=link.mass * f_m, J=tuple(float(v) for v in J),
+    for link, (f_m, f_s, f_l), J in zip(params.links, draws, Js, strict=True):
+        links.append(replace(link, mass=link.mass * f_m, J=tuple(np.diag(J).tolist()),
                              a=link.a * f_l, d=link.d * f_l, lg=link.lg * f_l))
         factors.append({"mass": f_m, "second_moments": f_s.tolist(), "length": f_l})
     return params.with_links(links), {"links": factors}
