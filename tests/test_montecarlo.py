@@ -268,6 +268,25 @@ def test_chunk_tasks_are_frozen_picklable_and_give_the_rows(plant, laws, serial)
         task.indices = (0,)
 
 
+def test_a_job_arrives_once_per_process(rrr):
+    # Chunks of one job unpickled in one process share one job (its laws' and reference's
+    # preparation made once); a job made by replace() is another job, never the cached one.
+    import dataclasses
+    import pickle
+
+    laws = make_laws("fl", rrr)
+    job = mc.CampaignJob(settings=settings_of(rrr), laws=tuple(laws), nominal=rrr,
+                         reference=study_reference(rrr, 0.01))
+    a, b = (pickle.loads(pickle.dumps(mc.CampaignChunk(job, (k,)))) for k in (0, 1))
+    assert a.job is b.job and a.job is not job and a.job.laws[0].name == "fl"
+    other = pickle.loads(pickle.dumps(mc.CampaignChunk(dataclasses.replace(job, batch=4),
+                                                       (0,))))
+    assert other.job is not a.job and other.job.batch == 4 and a.job.batch == 16
+    for k in range(mc._ARRIVED_MAX + 1):  # the process keeps the last few jobs only
+        pickle.loads(pickle.dumps(dataclasses.replace(job, batch=k + 1)))
+    assert len(mc._ARRIVED) == mc._ARRIVED_MAX
+
+
 # --- the CLI: one shared run per kind -------------------------------------------------------
 
 @pytest.mark.parametrize("montecarlo_run, plant", [(k, k) for k in [*KINDS, "delta"]],

@@ -24,9 +24,12 @@ from __future__ import annotations
 import itertools
 import logging
 import math
+import pickle
 import signal
+import threading
+import uuid
 from concurrent.futures import Executor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -111,6 +114,13 @@ class CampaignJob:
     threads : int
         Threads of the batched engine in each worker (a batch per thread); changes no number,
         so it is not recorded.
+
+    A job travels with each of its chunks, but a worker process unpickles it once: it is sent
+    as bytes under a token made at construction (a ``replace``-d job gets its own), and a
+    process that holds the job of that token already uses it (:func:`_arrived`). So the
+    preparation its laws and reference share (a law's sampled form, the reference sampled on
+    the grid: :func:`rrr_pin.sim.reuse.reuse_preparation`) is made once per process, not
+    once per chunk.
     """
 
     settings: Settings
@@ -120,6 +130,17 @@ class CampaignJob:
     certificate: CertificateSpec | None = None
     batch: int = 16
     threads: int = 1
+
+    def __post_init__(self) -> None:
+        self.__dict__["_token"] = uuid.uuid4().hex
+
+    def __reduce__(self):
+        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        return _arrived, (self.__dict__["_token"], pickle.dumps(state, pickle.HIGHEST_PROTOCOL))
+
+    def _kept(self) -> dict:
+        """Return the preparation this job's laws and reference share, kept across chunks."""
+        return self.__dict__.setdefault("_prepared", {})
 
     def rows(self, indices) -> list[dict]:
         """Simulate samples ``indices``, in order, and return their rows (:func:`run_chunk`).
@@ -131,7 +152,7 @@ class CampaignJob:
         # One reference and one set of laws for every sample: sample the reference and
         # discretize the laws once per chunk (bit-identical to doing it per run).
         indices = tuple(indices)
-        with reuse_preparation():
+        with reuse_preparation(keep=self._kept()):
             if self.threads == 1:
                 made = [_sample(self, k) for k in indices]
                 runs = run_laws_batch([plant for _, plant in made], self.laws, self.reference,
@@ -150,6 +171,25 @@ class CampaignJob:
                 runs = [r for f in futures for r in f.result()]
             return [_row(self, k, parameters, plant, r)
                     for k, (parameters, plant), r in zip(indices, made, runs, strict=True)]
+
+
+#: The jobs this process received last, by token (:meth:`CampaignJob.__reduce__`).
+_ARRIVED: dict = {}
+_ARRIVED_MAX = 4
+_ARRIVED_LOCK = threading.Lock()
+
+
+def _arrived(token: str, payload: bytes) -> CampaignJob:
+    """Return the job of ``token``: the one this process holds, or ``payload`` unpickled."""
+    with _ARRIVED_LOCK:  # a Dask worker's threads unpickle tasks at once
+        job = _ARRIVED.get(token)
+        if job is None:
+            job = CampaignJob(**pickle.loads(payload))
+            job.__dict__["_token"] = token
+            while len(_ARRIVED) >= _ARRIVED_MAX:
+                _ARRIVED.pop(next(iter(_ARRIVED)))
+            _ARRIVED[token] = job
+        return job
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,9 @@ Python reference engine, any plant), :mod:`~rrr_pin.sim.extension` (the C++ exte
 in one C++ loop), :mod:`~rrr_pin.sim.codegen` (the fingerprint of the fixed-model generated C),
 :mod:`~rrr_pin.sim.dyngen` (the generator of parameter-input dynamics per structure),
 :mod:`~rrr_pin.sim.dyncache` (any structure's generated dynamics, built at first use and
-cached) and
-:mod:`~rrr_pin.sim.batched` (engine ``"codegen"``: batched rollouts of many plants on them).
+cached),
+:mod:`~rrr_pin.sim.batched` (engine ``"codegen"``: batched rollouts of many plants on them) and
+:mod:`~rrr_pin.sim.reuse` (the preparation runs of many plants share, kept once).
 
 Layer: above :mod:`rrr_pin.control`. May import :mod:`rrr_pin.validation`,
 :mod:`rrr_pin.model`, :mod:`rrr_pin.robust` and :mod:`rrr_pin.control`.

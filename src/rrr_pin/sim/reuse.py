@@ -13,12 +13,13 @@ from contextlib import contextmanager
 __all__ = ["reuse_preparation", "reusing", "reused", "lookup", "keep"]
 
 #: The values kept, active only inside :func:`reuse_preparation` (``None`` outside):
-#: ``key -> (object, value)``.
+#: ``key -> (object, value)``; and the block's lasting values (``keep=``), or None.
 _REUSE: dict | None = None
+_LASTING: dict | None = None
 
 
 @contextmanager
-def reuse_preparation():
+def reuse_preparation(keep: dict | None = None):
     """Within the block, runs of the same reference, law and plant share their preparation.
 
     Inside this context :func:`rrr_pin.sim.simulation.simulate` samples each reference once
@@ -27,17 +28,24 @@ def reuse_preparation():
     Results are bit for bit those of separate runs: the values kept are the ones a run would
     compute. Laws, references and plants must not be changed inside the block (the values
     are kept by their identity). Re-entrant; the values are dropped when the outermost block
-    exits.
+    exits, except the lasting ones (:func:`reused` with ``lasting=True``: a law's or a
+    reference's), which go to ``keep`` when it is given: a campaign's job keeps them across
+    its chunks.
     """
-    global _REUSE
+    global _REUSE, _LASTING
     outer = _REUSE is None
+    lasting = keep is not None and _LASTING is None
     if outer:
         _REUSE = {}
+    if lasting:
+        _LASTING = keep
     try:
         yield
     finally:
         if outer:
             _REUSE = None
+        if lasting:
+            _LASTING = None
 
 
 def reusing() -> bool:
@@ -45,14 +53,16 @@ def reusing() -> bool:
     return _REUSE is not None
 
 
-def reused(obj, key, make):
+def reused(obj, key, make, *, lasting: bool = False):
     """``make()``, once per ``obj`` (by identity) and ``key`` inside :func:`reuse_preparation`.
 
     Outside the block ``make()`` is called every time. Threads preparing runs at once (a
     campaign's ``--threads``) all get the first value stored; an entry of another object that
-    had the same ``id`` is replaced, never returned.
+    had the same ``id`` is replaced, never returned. ``lasting``: kept in the block's ``keep``
+    dictionary when it has one (for objects that live as long as it: a job's laws and
+    reference), else in the block's.
     """
-    cache = _REUSE
+    cache = _LASTING if lasting and _LASTING is not None else _REUSE
     if cache is None:
         return make()
     full = (id(obj), key)

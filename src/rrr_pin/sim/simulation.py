@@ -486,7 +486,8 @@ def _sampled_law(law, rate: float, method: str):
     """
     if not reusing() or law.compiled_form() is None:
         return law.sampled(rate, method)
-    return reused(law, ("sampled", rate, method), lambda: law.sampled(rate, method))
+    return reused(law, ("sampled", rate, method), lambda: law.sampled(rate, method),
+                  lasting=True)
 
 
 def _sample_reference(reference, grid_key, grid, share: bool = False
@@ -500,7 +501,8 @@ def _sample_reference(reference, grid_key, grid, share: bool = False
     """
     if not reusing():
         return checked_sample(reference, grid)
-    arrays = reused(reference, ("sampled", grid_key), lambda: checked_sample(reference, grid))
+    arrays = reused(reference, ("sampled", grid_key), lambda: checked_sample(reference, grid),
+                    lasting=True)
     return arrays if share else tuple(a.copy() for a in arrays)
 
 
@@ -516,7 +518,7 @@ def _check_limits(reference, plant, duration: float) -> None:
         return
     # a check that raises keeps nothing: the next plant with these limits is checked again
     reused(reference, ("limits", duration, plant.lower.tobytes(), plant.upper.tobytes()),
-           lambda: reference.check_limits(plant, duration=duration))
+           lambda: reference.check_limits(plant, duration=duration), lasting=True)
 
 
 def _trusted_grid(duration: float, dt: float | None, rate: float | None) -> TimeGrid:
