@@ -1,4 +1,4 @@
-"""Reuse of a run's preparation across runs (rrr_pin.sim.simulation.reuse_preparation).
+"""Reuse of a run's preparation across runs (rrr_pin.sim.reuse.reuse_preparation).
 
 A campaign samples the reference and discretizes the laws once per chunk instead of once per
 run; the runs must not change by a single bit. The reference here is the same run made with no
@@ -13,7 +13,7 @@ from rrr_pin.campaign.runner import RunSettings, make_laws, run_laws
 from rrr_pin.control.references import QuinticReference, default_reference
 from rrr_pin.model.dynamics import robot_from_xml
 from rrr_pin.model.uncertainty import sample_plant
-from rrr_pin.sim import simulation
+from rrr_pin.sim import reuse
 from rrr_pin.sim.extension import available
 from rrr_pin.sim.simulation import reuse_preparation, simulate
 
@@ -49,8 +49,8 @@ def test_runs_inside_reuse_equal_separate_runs(setup, engine, rate):
         shared = [simulate(p, law, ref, DURATION, rate=rate, engine=engine)
                   for p, law, ref in cases]
         # the cached reference and law forms exist only inside the block
-        assert simulation._REUSE
-    assert simulation._REUSE is None
+        assert reuse._REUSE
+    assert reuse._REUSE is None
     for a, b in zip(alone, shared, strict=True):
         _same(a, b)
 
@@ -71,7 +71,7 @@ def test_reuse_is_reentrant_and_run_laws_unchanged(setup):
     with reuse_preparation():
         with reuse_preparation():
             pass
-        assert simulation._REUSE is not None  # the inner block did not drop the cache
+        assert reuse._REUSE is not None  # the inner block did not drop the cache
         inside = run_laws(plants[1], laws, refs[1], settings)
     for name in outside:
         _same(outside[name], inside[name])
@@ -105,3 +105,22 @@ def test_robot_pickles_small_and_computes_the_same():
         robot.name, robot.source, robot.urdf, robot.locked, robot.gravity)
     np.testing.assert_array_equal(back.upper, robot.upper)
     assert back.data is not robot.data
+
+
+def test_lasting_preparation_goes_to_the_kept_dictionary(setup):
+    # A campaign's job keeps its laws' sampled forms and its reference's samples across its
+    # chunks (keep=...); what belongs to one plant stays in the block and goes with it.
+    _, plants, laws, refs = setup
+    kept: dict = {}
+    with reuse_preparation(keep=kept):
+        first = simulate(plants[0], laws[0], refs[0], DURATION, rate=1000.0)
+        block = dict(reuse._REUSE)
+    kinds = {key[1][0] for key in kept}
+    assert "sampled" in kinds and kinds <= {"sampled", "limits"}
+    assert all(obj in (laws[0], refs[0]) for obj, _ in kept.values())
+    assert not any(key in block for key in kept)
+    assert reuse._REUSE is None and reuse._LASTING is None
+    with reuse_preparation(keep=kept):  # a later chunk: the same forms, the same numbers
+        again = simulate(plants[0], laws[0], refs[0], DURATION, rate=1000.0)
+        assert not reuse._REUSE  # nothing made again
+    _same(first, again)

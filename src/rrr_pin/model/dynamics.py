@@ -114,11 +114,18 @@ class Robot(Plant):
 
     def __post_init__(self) -> None:
         self._shape = (self.model.nq,)
-        # V(q, qd) = rnea(q, qd, 0) without gravity: one RNEA pass instead of nle - G.
-        self._model0 = self.model.copy()
-        self._model0.gravity = pin.Motion.Zero()
-        self._data0 = self._model0.createData()
+        self._joint_names = tuple(self.model.names)[1:]
         self._zero = np.zeros(self.model.nv)
+        self.__dict__.pop("_gravity_free", None)  # made at the first V() (_without_gravity)
+
+    def _without_gravity(self) -> tuple:
+        """Return the model without gravity and its data, for ``V(q, qd) = rnea(q, qd, 0)``."""
+        made = self.__dict__.get("_gravity_free")
+        if made is None:
+            model0 = self.model.copy()
+            model0.gravity = pin.Motion.Zero()
+            made = self.__dict__["_gravity_free"] = (model0, model0.createData())
+        return made
 
     def __getstate__(self) -> dict:
         # Travel as the model and its description only (about 13 kB for the RRR instead of
@@ -140,7 +147,7 @@ class Robot(Plant):
     @property
     def joint_names(self) -> list[str]:
         """Names of the moving joints, base to tip, shape (nq,)."""
-        return list(self.model.names)[1:]
+        return list(self._joint_names)
 
     @property
     def joint_units(self) -> list[str]:
@@ -376,7 +383,9 @@ class Robot(Plant):
                           and math.isfinite(sum(q.tolist()) + sum(qd.tolist()))):
             # One test for the common case (as in check_state); the exact one names the array.
             q, qd = self.check_state("q", q), self.check_state("qd", qd)
-        return pin.rnea(self._model0, self._data0, q, qd, self._zero)
+        # V(q, qd) = rnea(q, qd, 0) without gravity: one RNEA pass instead of nle - G.
+        model0, data0 = self._without_gravity()
+        return pin.rnea(model0, data0, q, qd, self._zero)
 
     def G(self, q, *, check: bool = True) -> np.ndarray:
         """Gravity torques ``G(q)``, eq. (4), shape (nq,) [N m], a new array.
