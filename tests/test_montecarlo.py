@@ -596,3 +596,17 @@ def test_a_law_returning_nan_mid_run_gives_a_stated_status(rrr):
             f"'joint1' in the step from t = 0.01 s")
         assert "nanlater_rms_error" not in row and "error_ratio_nanlater" not in row
     assert mc.campaign_summary(campaign)["samples_diverged"] == 2
+
+
+@pytest.mark.parametrize(("n", "size", "tail", "unit"), [(1001, 32, 4, 16), (301, 32, 4, 16),
+                                                        (5, 32, 4, 16), (1001, 126, 1, 128)])
+def test_chunks_cover_every_sample_once_and_shrink_at_the_end(n, size, tail, unit):
+    # Hand-counted for 1001 samples of chunks of 32, 2 workers (tail 4), batches of 16: 29
+    # chunks of 32 leave 73, then ceil(73 / 4) = 19 -> 32, 41 -> 11 -> 16, 25 -> 16, 9.
+    blocks = list(mc._blocks(list(range(n)), size, tail, unit))
+    assert [k for b in blocks for k in b] == list(range(n))
+    assert all(len(b) <= size for b in blocks)
+    if (n, size, tail) == (1001, 32, 4):
+        assert [len(b) for b in blocks[-4:]] == [32, 16, 16, 9] and len(blocks) == 33
+    if tail == 1:  # an explicit chunk: all of it but the last
+        assert {len(b) for b in blocks[:-1]} == {size}

@@ -21,7 +21,6 @@ adds ``<law>_drift`` [m] to its rows (:attr:`Campaign.per_law`).
 
 from __future__ import annotations
 
-import itertools
 import logging
 import math
 import pickle
@@ -432,7 +431,7 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
                        name=nominal.name, jobs=jobs, scheduler=scheduler, executor=executor,
                        chunk=chunk, store=store, progress=progress,
                        max_chunk=max(32, 4 * batch * threads),
-                       min_chunk=1 if threads == 1 else 4 * batch * threads)
+                       min_chunk=1 if threads == 1 else 4 * batch * threads, unit=batch)
     per_law = ("drift",) if any(f"{law.name}_drift" in r for r in rows for law in laws) else ()
     per_law += ("engine",)
     return Campaign(robot=nominal.name, joint_names=list(nominal.joint_names),
@@ -443,10 +442,26 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
                     per_law=per_law)
 
 
+def _blocks(todo: list, size: int, tail: int, unit: int):
+    """Yield ``todo`` in chunks of ``size``; once less than ``tail`` chunks' work is left, smaller.
+
+    A chunk of the last ``tail`` rounds takes about ``1 / tail`` of what is left, rounded up to
+    a multiple of ``unit`` (at least ``unit``, at most ``size``): the last chunk of one worker
+    then leaves the others idle for less time. Which samples go together changes no row.
+    """
+    i, n = 0, len(todo)
+    while i < n:
+        step = size
+        if n - i < tail * size:
+            step = min(size, max(unit, math.ceil(math.ceil((n - i) / tail) / unit) * unit))
+        yield tuple(todo[i:i + step])
+        i += step
+
+
 def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
                 scheduler: str | None = None, executor: Executor | None = None,
                 chunk: int | None = None, store: CampaignStore | None = None, progress=None,
-                max_chunk: int = 32, min_chunk: int = 1) -> list[dict]:
+                max_chunk: int = 32, min_chunk: int = 1, unit: int = 1) -> list[dict]:
     """Run the samples ``indices`` of ``job`` in chunks on the executor; return every row.
 
     The machinery every campaign shares: chunks of samples (:class:`CampaignChunk`) go to
@@ -470,6 +485,9 @@ def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
         Largest default chunk (a chunk's cost should stay well below a second).
     min_chunk : int, default 1
         Smallest default chunk (a job's threads need a batch of plants each).
+    unit : int, default 1
+        With the default chunk, the last chunks shrink in steps of ``unit`` samples (a batch
+        of the batched engine), so that the workers finish together (:func:`_blocks`).
 
     Returns
     -------
@@ -484,9 +502,10 @@ def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
     size = chunk or max(min_chunk, min(max_chunk,
                                        math.ceil(min(total, 10**6) / (8 * workers))))
     done = store.done() if store is not None else set()
-    todo = (k for k in indices if k not in done)
+    todo = [k for k in indices if k not in done]
+    tail = 1 if chunk else 2 * workers  # the chunks of the last rounds shrink (default chunk)
     tasks = (CampaignChunk(job, block)
-             for block in iter(lambda: tuple(itertools.islice(todo, size)), ()))
+             for block in _blocks(todo, size, tail, max(unit, min_chunk)))
     rows: list[dict] = []
     finished = len(done)
     samples = total
