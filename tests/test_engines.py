@@ -48,7 +48,7 @@ from rrr_pin.model.dynamics import load_robot, robot_from_xml
 from rrr_pin.model.uncertainty import Tolerances, sample_plants
 from rrr_pin.sim.compiled import ENGINE_LAWS, acceleration_ms, compile_robot, floor_ms
 from rrr_pin.sim.extension import EXTENSION, available
-from rrr_pin.sim.simulation import simulate
+from rrr_pin.sim.simulation import simulate, simulate_batch
 from rrr_pin.sim.trajectory import SimulationDiverged
 
 # The paper's H-infinity controller, eq. (18), typed from the paper (not from rrr_pin.design, so
@@ -431,6 +431,31 @@ def test_auto_runs_an_unknown_form_on_python(rrr, rrr_plant, rrr_laws, rrr_refs,
     assert auto.info["engine"] == "python"
     assert_same_run(auto, simulate(rrr_plant, builtin, ref, DURATION, rate=rate,
                                    engine="compiled"))
+
+
+class DeclaredPD(HandPD):
+    """A user's PD in Python that declares its compiled form: the C++ loops may run it."""
+
+    def compiled_form(self):
+        return PDForm(self.nominal, np.diag(self.Kp), np.diag(self.Kd))
+
+
+@pytest.mark.parametrize("rate", [None, RATE], ids=["continuous", "sampled"])
+def test_a_users_law_with_a_compiled_form_runs_batched(rrr, rrr_plant, rrr_laws, rrr_refs, rate):
+    # Issue 33: a user's law with a compiled form is batched like a built-in one; the batched
+    # runs equal the compiled engine's to the batched engine's pinned 1e-12 rad, and the
+    # user's own Python torque to 1e-9 rad (the Python engine's pin).
+    builtin = rrr_laws["pd"]
+    law = DeclaredPD(rrr, np.diag(builtin.Kp), np.diag(builtin.Kd))
+    ref = rrr_refs["quintic"]
+    plants = [rrr, rrr_plant]
+    batched = simulate_batch(plants, law, ref, DURATION, rate=rate)
+    for plant, run in zip(plants, batched, strict=True):
+        assert run.info["engine"] == "codegen"
+        compiled = simulate(plant, law, ref, DURATION, rate=rate, engine="compiled")
+        assert_allclose(run.q, compiled.q, rtol=0.0, atol=1e-12)
+        python = simulate(plant, law, ref, DURATION, rate=rate, engine="python")
+        assert_allclose(run.q, python.q, rtol=0.0, atol=1e-9)
 
 
 # --- the extension itself (ported from the former tests/test_compiled.py) ----------------------
