@@ -31,6 +31,7 @@ from rrr_pin.control.laws import (
     PDGravity,
     SampledLaw,
     TrackingController,
+    TwoDOFForm,
     fl_controller,
     hinf_aw_controller,
     hinf_fl_controller,
@@ -437,8 +438,8 @@ def test_auto_runs_an_unknown_form_on_python(rrr, rrr_plant, rrr_laws, rrr_refs,
 
 
 @pytest.mark.parametrize("form, cxx", [(FLForm, "FLLaw"), (PDForm, "PDLaw"), (FLAWForm, "FLAWLaw"),
-                                       (Resolved, "Effects")],
-                         ids=["FLForm", "PDForm", "FLAWForm", "Effects"])
+                                       (TwoDOFForm, "TwoDOFLaw"), (Resolved, "Effects")],
+                         ids=["FLForm", "PDForm", "FLAWForm", "TwoDOFForm", "Effects"])
 def test_python_and_cxx_structs_have_the_same_fields(form, cxx):
     # sim.compiled copies every field by name (nominal and info stay in Python), so a field on
     # one side only would fail loudly there; this names it here first.

@@ -16,7 +16,7 @@ import numpy as np
 
 from ...validation import check_bandwidth, check_matrix, check_positive, check_vector
 
-__all__ = ["CompiledForm", "FLForm", "FLFrictionForm", "FLAWForm", "PDForm"]
+__all__ = ["CompiledForm", "FLForm", "FLFrictionForm", "FLAWForm", "PDForm", "TwoDOFForm"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,3 +216,54 @@ class PDForm(CompiledForm):
         for key in ("Kp", "Kd"):
             value = check_matrix(key, getattr(self, key), (n, n), readonly=True)
             object.__setattr__(self, key, value)
+
+
+@dataclass(frozen=True, eq=False)
+class TwoDOFForm(CompiledForm):
+    r"""Feedback linearization with a two-degrees-of-freedom controller on ``v = [e; qd]``.
+
+    The implemented form of :class:`~rrr_pin.control.laws.TwoDOFController` (eq. 8-11 with
+    ``tauhat`` from the 2-DOF ``K``; no ``rd``, ``rdd`` feed-forward):
+
+    .. math:: \hat\tau = q + C x + D v, \quad v = \begin{bmatrix} r - q \\ \dot q
+              \end{bmatrix}, \quad
+              \bar\tau = \lambda^2 (\hat\tau - q) - 2\lambda \dot q, \quad
+              \tau = \hat M(q)\,\bar\tau + \hat h(q, \dot q)
+
+    and the controller state ``xdot = A x + B v`` (continuous law) or ``x+ = A x + B v`` after
+    the output (sampled law, matrices already discrete at its rate). Its own type: an engine
+    that implements :class:`FLForm` only refuses it by name (the two laws differ: FL forwards
+    ``rd`` and ``rdd`` and feeds its ``K`` the error alone).
+
+    Attributes
+    ----------
+    nominal : Robot
+        The law's model (``n = nominal.nq`` joints).
+    lam : float or ndarray, shape (n,)
+        Bandwidth ``lambda`` [rad/s], > 0: shared, or one per joint.
+    A : ndarray, shape (m, m)
+        State matrix (``m >= 0`` controller states).
+    B : ndarray, shape (m, 2 n)
+        Input matrix on ``v = [e; qd]`` (``e`` [rad], ``qd`` [rad/s]).
+    C : ndarray, shape (n, m)
+        Output matrix (``tauhat`` [rad]).
+    D : ndarray, shape (n, 2 n)
+        Feed-through on ``v`` (the continuous law's ``[Dr, 0]``; its discretization's
+        ``qd`` block is not zero).
+    """
+
+    lam: float
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    kind: ClassVar[str] = "twodof"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "lam", check_bandwidth("lam", self.lam,
+                                                        self.nominal.joint_names))
+        n = self.nominal.nq
+        m = np.shape(self.A)[0] if np.ndim(self.A) == 2 else -1
+        for key, shape in (("A", (m, m)), ("B", (m, 2 * n)), ("C", (n, m)), ("D", (n, 2 * n))):
+            object.__setattr__(self, key, check_matrix(key, getattr(self, key), shape,
+                                                       readonly=True))
