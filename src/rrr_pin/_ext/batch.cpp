@@ -77,6 +77,24 @@ namespace rrr_pin
       }
     };
 
+    /// out = A x + Bu u for B plants (lanes: entry k of plant b at [k * B + b]): the state map
+    /// of the batched laws, with u their K's input (e, or [e; qd]) of Bu.cols() entries.
+    void lane_state_map(const Mat & A, const Mat & Bu, const double * x, const double * u, int B,
+                        double * out)
+    {
+      const int m = static_cast<int>(A.rows()), w = static_cast<int>(Bu.cols());
+      for (int l = 0; l < m; ++l)
+        for (int b = 0; b < B; ++b)
+        {
+          double s = 0.0;
+          for (int k = 0; k < m; ++k)
+            s += A(l, k) * x[k * B + b];
+          for (int k = 0; k < w; ++k)
+            s += Bu(l, k) * u[k * B + b];
+          out[l * B + b] = s;
+        }
+    }
+
     /// The batched form of a law: torque of every plant from its state and law state.
     template<class Law>
     struct BatchLaw;
@@ -135,16 +153,7 @@ namespace rrr_pin
       /// out = A x + B e (e of the last torque()).
       void state_map(const double * x, double * out) const
       {
-        for (int l = 0; l < m; ++l)
-          for (int b = 0; b < B; ++b)
-          {
-            double s = 0.0;
-            for (int k = 0; k < m; ++k)
-              s += p.A(l, k) * x[k * B + b];
-            for (int k = 0; k < n; ++k)
-              s += p.B(l, k) * e[k * B + b];
-            out[l * B + b] = s;
-          }
+        lane_state_map(p.A, p.B, x, e.data(), B, out);
       }
 
       static void model_calls(const Models & md, const double * q, const double * qd,
@@ -348,16 +357,7 @@ namespace rrr_pin
       /// out = A x + B v (v of the last torque()).
       void state_map(const double * x, double * out) const
       {
-        for (int l = 0; l < m; ++l)
-          for (int b = 0; b < B; ++b)
-          {
-            double s = 0.0;
-            for (int k = 0; k < m; ++k)
-              s += p.A(l, k) * x[k * B + b];
-            for (int k = 0; k < 2 * n; ++k)
-              s += p.B(l, k) * v[k * B + b];
-            out[l * B + b] = s;
-          }
+        lane_state_map(p.A, p.B, x, v.data(), B, out);
       }
 
       static void model_calls(const Models & md, const double * q, const double * qd,

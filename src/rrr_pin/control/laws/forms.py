@@ -53,16 +53,19 @@ class CompiledForm:
         return out
 
 
-def _check_controller(form, *extra) -> None:
+def _check_controller(form, *extra, inputs: int = 1) -> None:
     """Check ``lam`` and ``K``'s matrices ``A, B, C, D`` of ``form``, stored back read-only.
 
-    ``extra`` names further matrices of ``B``'s shape ``(m, n)`` (the conditioning gain ``L``).
+    ``K`` has ``inputs * n`` inputs (``B`` of shape ``(m, inputs n)``, ``D`` of ``(n, inputs
+    n)``): 1 for a ``K`` on ``e``, 2 for one on ``[e; qd]``. ``extra`` names further matrices
+    of ``B``'s shape (the conditioning gain ``L``).
     """
     object.__setattr__(form, "lam", check_bandwidth("lam", form.lam, form.nominal.joint_names))
     n = form.nominal.nq
     m = np.shape(form.A)[0] if np.ndim(form.A) == 2 else -1
-    shapes = [("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n))]
-    shapes += [(key, (m, n)) for key in extra]
+    w = inputs * n
+    shapes = [("A", (m, m)), ("B", (m, w)), ("C", (n, m)), ("D", (n, w))]
+    shapes += [(key, (m, w)) for key in extra]
     for key, shape in shapes:
         object.__setattr__(form, key, check_matrix(key, getattr(form, key), shape,
                                                    readonly=True))
@@ -260,10 +263,4 @@ class TwoDOFForm(CompiledForm):
     kind: ClassVar[str] = "twodof"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "lam", check_bandwidth("lam", self.lam,
-                                                        self.nominal.joint_names))
-        n = self.nominal.nq
-        m = np.shape(self.A)[0] if np.ndim(self.A) == 2 else -1
-        for key, shape in (("A", (m, m)), ("B", (m, 2 * n)), ("C", (n, m)), ("D", (n, 2 * n))):
-            object.__setattr__(self, key, check_matrix(key, getattr(self, key), shape,
-                                                       readonly=True))
+        _check_controller(self, inputs=2)
