@@ -57,6 +57,38 @@ def test_the_law_declares_its_own_form(twodof):
     assert np.abs(sampled.D[:, n:]).max() > 0.0  # Tustin's D has a qd block: kept, not dropped
 
 
+def test_bad_matrices_are_refused_by_the_form_and_by_both_extension_loops(rrr, twodof, ref):
+    from rrr_pin.sim import batched, compiled
+    from rrr_pin.sim.extension import EXTENSION
+    from rrr_pin.sim.simulation import _prepare
+
+    form = twodof.compiled_form()
+    m = twodof.nx
+    with pytest.raises(ValueError, match=rf"Expected B of shape \({m}, 6\), got \({m}, 3\)"):
+        TwoDOFForm(rrr, 45.0, form.A, form.B[:, :3], form.C, form.D)
+    with pytest.raises(ValueError, match=r"lam must be a finite number > 0"):
+        TwoDOFForm(rrr, -1.0, form.A, form.B, form.C, form.D)
+    # The C++ law checks its own shapes (a K on e alone, not [e; qd]), in both loops.
+    run = _prepare(rrr, twodof.sampled(RATE), ref, 0.01, dt=None, rate=RATE, method="tustin",
+                   q0=None, qd0=None, limit_margin=0.0)
+    law = EXTENSION.TwoDOFLaw()
+    for key, value in run.law.compiled_form().engine_fields().items():
+        setattr(law, key, value)
+    law.D = law.D[:, :3]
+    ins = EXTENSION.RolloutInputs()
+    for key, value in dict(sampled=True, R=run.R, RD=run.RD, RDD=run.RDD, q0=run.q0,
+                           qd0=run.qd0, x0=run.x0, lower=run.lower, upper=run.upper, vlim=1e4,
+                           h=run.h, substeps=run.substeps, n_steps=len(run.t) - 1).items():
+        setattr(ins, key, value)
+    tree = compiled.compile_robot(rrr)._model
+    match = "2-DOF controller matrices have inconsistent shapes"
+    with pytest.raises(ValueError, match=match):
+        EXTENSION.rollout(tree, tree, law, ins)
+    P = batched.plant_parameters(rrr)
+    with pytest.raises(ValueError, match=match):
+        EXTENSION.batch_rollout("rrr", P[None], P, law, ins, run.lower[None], run.upper[None])
+
+
 @pytest.mark.parametrize("rate", [RATE, None], ids=["sampled", "continuous"])
 def test_compiled_equals_python(plants, twodof, ref, rate):
     plant = plants[0]
