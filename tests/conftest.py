@@ -133,6 +133,14 @@ def paper(design_for):
     return design_for(3)
 
 
+@pytest.fixture(scope="session")
+def twodof(rrr):
+    """The built-in 2-DOF law ``hinf2dof`` on the nominal RRR (its ncfsyn_2dof design, once)."""
+    from rrr_pin.control.catalog import make_law
+
+    return make_law("hinf2dof", rrr)
+
+
 # --- end-to-end CLI runs, shared by the tests that only read their outputs ---------------------
 
 class CliRun(NamedTuple):

@@ -19,6 +19,7 @@ from rrr_pin.control.laws import (
     SampledLaw,
     TrackingController,
     TwoDOFController,
+    TwoDOFForm,
 )
 
 # The paper's eq. (18), typed from the paper (a test input, not from rrr_pin.robust).
@@ -29,7 +30,7 @@ K18 = control.tf([47.40, 47.40 * (134.75 + 12.17), 47.40 * 134.75 * 12.17],
 #: What each built-in name builds, and the compiled form it declares (None: Python only).
 BUILT = {"fl": (TrackingController, FLForm), "hinf": (TrackingController, FLForm),
          "pd": (PDGravity, PDForm), "hinf_aw": (AntiWindupTracking, FLAWForm),
-         "hinf2dof": (TwoDOFController, type(None))}
+         "hinf2dof": (TwoDOFController, TwoDOFForm)}
 
 
 def test_catalog_imports_no_numerical_library():

@@ -330,13 +330,6 @@ def test_bad_rate(rrr):
 # --- the 2-DOF law (hinf2dof) -------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def twodof(rrr):
-    from rrr_pin.control.catalog import make_law
-
-    return make_law("hinf2dof", rrr)
-
-
-@pytest.fixture(scope="module")
 def design_2dof():
     """The design hinf2dof documents: ncfsyn_2dof on eq. (11), W1 of eq. (16), Tref at 90 rad/s."""
     from rrr_pin.robust.loopshaping import fl_plant, lag_weight
@@ -361,16 +354,6 @@ def test_2dof_law_follows_the_designed_closed_loop(rrr, twodof, design_2dof):
     for j in range(3):
         lin = control.forced_response(CL, traj.t, r[:, j] - start[j]).outputs
         assert_allclose(traj.q[:, j] - start[j], lin, atol=1e-6)
-
-
-def test_2dof_law_on_the_engines(rrr, twodof):
-    law = twodof
-    assert type(law).__name__ == "TwoDOFController" and law.compiled_form() is None
-    ref = QuinticReference(np.zeros(3) + 0.2, np.zeros(3) + 0.4, 0.5)
-    with pytest.raises(ValueError, match="law 'hinf2dof' .*declares no compiled form"):
-        simulate(rrr, law, ref, 0.1, rate=1000.0, engine="compiled")
-    traj = simulate(rrr, law, ref, 0.02, rate=1000.0, engine="auto")
-    assert traj.info["engine"] == "python"
 
 
 def test_2dof_linear_model_is_the_feedback_block(rrr, twodof, design_2dof):

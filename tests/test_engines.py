@@ -31,6 +31,7 @@ from rrr_pin.control.laws import (
     PDGravity,
     SampledLaw,
     TrackingController,
+    TwoDOFForm,
     fl_controller,
     hinf_aw_controller,
     hinf_fl_controller,
@@ -462,8 +463,8 @@ def test_a_users_law_with_a_compiled_form_runs_batched(rrr, rrr_plant, rrr_laws,
 
 
 @pytest.mark.parametrize("form, cxx", [(FLForm, "FLLaw"), (PDForm, "PDLaw"), (FLAWForm, "FLAWLaw"),
-                                       (Resolved, "Effects")],
-                         ids=["FLForm", "PDForm", "FLAWForm", "Effects"])
+                                       (TwoDOFForm, "TwoDOFLaw"), (Resolved, "Effects")],
+                         ids=["FLForm", "PDForm", "FLAWForm", "TwoDOFForm", "Effects"])
 def test_python_and_cxx_structs_have_the_same_fields(form, cxx):
     # sim.compiled copies every field by name (nominal and info stay in Python), so a field on
     # one side only would fail loudly there; this names it here first.

@@ -337,15 +337,14 @@ def test_on_the_exact_model_both_laws_track_alike(plant):
 
 
 @pytest.mark.parametrize("plant, engine, names, message", [
-    ("rrr", "compiled", "fl,hinf2dof",
-     "law 'hinf2dof' (TwoDOFController) declares no compiled form, so the compiled engine "
-     "cannot run it"),
-    ("fivebar", "compiled", "fl,hinf2dof",
-     "law 'hinf2dof' (TwoDOFController) declares no compiled form, so the compiled engine "
-     "cannot run it"),
+    ("rrr", "compiled", "fl,hold",
+     "law 'hold' (Hold) declares no compiled form, so the compiled engine cannot run it"),
+    ("fivebar", "compiled", "fl,hold",
+     "law 'hold' (Hold) declares no compiled form, so the compiled engine cannot run it"),
     ("fivebar", "codegen", "fl",
      "engine 'codegen' does not implement closed chains ('fivebar' closes loop)"),
-], indirect=["plant"], ids=["rrr-compiled-2dof", "fivebar-compiled-2dof", "fivebar-codegen"])
+], indirect=["plant"], ids=["rrr-compiled-user-law", "fivebar-compiled-user-law",
+                            "fivebar-codegen"])
 def test_an_engine_that_cannot_run_a_law_is_refused_before_any_run(plant, engine, names,
                                                                    message, monkeypatch):
     import rrr_pin.campaign.study as study
@@ -355,5 +354,8 @@ def test_an_engine_that_cannot_run_a_law_is_refused_before_any_run(plant, engine
 
     monkeypatch.setattr(study, "run_plants", never)
     config = StudyConfig(run=RunSettings(duration=0.01, rate=1000.0, engine=engine), samples=1)
+    laws = make_laws(names.removesuffix(",hold"), plant)
+    if names.endswith(",hold"):  # a user's law (no compiled form) beside a built-in
+        laws.append(Hold(plant, Kp=[50.0] * plant.nq, Kd=[2.0] * plant.nq, name="hold"))
     with pytest.raises(ValueError, match=re.escape(message)):
-        run_study(plant, make_laws(names, plant), config=config)
+        run_study(plant, laws, config=config)

@@ -77,6 +77,24 @@ namespace rrr_pin
       }
     };
 
+    /// out = A x + Bu u for B plants (lanes: entry k of plant b at [k * B + b]): the state map
+    /// of the batched laws, with u their K's input (e, or [e; qd]) of Bu.cols() entries.
+    void lane_state_map(const Mat & A, const Mat & Bu, const double * x, const double * u, int B,
+                        double * out)
+    {
+      const int m = static_cast<int>(A.rows()), w = static_cast<int>(Bu.cols());
+      for (int l = 0; l < m; ++l)
+        for (int b = 0; b < B; ++b)
+        {
+          double s = 0.0;
+          for (int k = 0; k < m; ++k)
+            s += A(l, k) * x[k * B + b];
+          for (int k = 0; k < w; ++k)
+            s += Bu(l, k) * u[k * B + b];
+          out[l * B + b] = s;
+        }
+    }
+
     /// The batched form of a law: torque of every plant from its state and law state.
     template<class Law>
     struct BatchLaw;
@@ -135,16 +153,7 @@ namespace rrr_pin
       /// out = A x + B e (e of the last torque()).
       void state_map(const double * x, double * out) const
       {
-        for (int l = 0; l < m; ++l)
-          for (int b = 0; b < B; ++b)
-          {
-            double s = 0.0;
-            for (int k = 0; k < m; ++k)
-              s += p.A(l, k) * x[k * B + b];
-            for (int k = 0; k < n; ++k)
-              s += p.B(l, k) * e[k * B + b];
-            out[l * B + b] = s;
-          }
+        lane_state_map(p.A, p.B, x, e.data(), B, out);
       }
 
       static void model_calls(const Models & md, const double * q, const double * qd,
@@ -290,6 +299,71 @@ namespace rrr_pin
                               double * tau)
       {
         md.f.gravity(md.B, md.nominal.data(), q, tau);
+      }
+    };
+
+    /// TwoDOFLaw per plant, as TwoDOFLaw::Eval: tauhat = q + C x + D v, v = [e; qd],
+    /// taubar = lam^2 (tauhat - q) - 2 lam qd, tau = Mhat(q) taubar + hhat(q, qd) by one
+    /// inverse-dynamics recursion (dyngen's id, as BatchLaw<FLLaw>).
+    template<>
+    struct BatchLaw<TwoDOFLaw>
+    {
+      const TwoDOFLaw & p;
+      const Models & md;
+      int B, n, m;
+      Lanes v, taubar, tau;  // v: (2n, B), [e; qd] of the last torque()
+
+      BatchLaw(const TwoDOFLaw & law, const Models & models)
+      : p(law)
+      , md(models)
+      , B(models.B)
+      , n(models.n)
+      , m(static_cast<int>(law.nx()))
+      , v(2 * n * B)
+      , taubar(n * B)
+      , tau(n * B)
+      {
+      }
+
+      const Lanes & torque(
+        const double * q, const double * qd, const double * r, const double *,
+        const double *, const double * x)
+      {
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            v[j * B + b] = r[j] - q[j * B + b];
+            v[(n + j) * B + b] = qd[j * B + b];
+          }
+        for (int j = 0; j < n; ++j)
+          for (int b = 0; b < B; ++b)
+          {
+            const int i = j * B + b;
+            // (q + C x) + D v, in the Python law's order
+            double cx = 0.0, dv = 0.0;
+            for (int l = 0; l < m; ++l)
+              cx += p.C(j, l) * x[l * B + b];
+            for (int k = 0; k < 2 * n; ++k)
+              dv += p.D(j, k) * v[k * B + b];
+            const double tauhat = q[i] + cx + dv;
+            const double lam = p.lam[j];
+            taubar[i] = lam * lam * (tauhat - q[i]) - 2.0 * lam * qd[i];
+          }
+        // tau = Mhat(q) taubar + hhat(q, qd): one inverse-dynamics recursion (dyngen's id)
+        md.f.id(B, md.nominal.data(), q, qd, taubar.data(), tau.data());
+        return tau;
+      }
+
+      /// out = A x + B v (v of the last torque()).
+      void state_map(const double * x, double * out) const
+      {
+        lane_state_map(p.A, p.B, x, v.data(), B, out);
+      }
+
+      static void model_calls(const Models & md, const double * q, const double * qd,
+                              double * M, double * tau)
+      {
+        BatchLaw<FLLaw>::model_calls(md, q, qd, M, tau);
       }
     };
 
@@ -823,5 +897,13 @@ namespace rrr_pin
   template double batch_floor_timing<FLLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   template double batch_floor_timing<PDLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
+  template BatchResult batch_rollout<TwoDOFLaw>(
+    const std::string &, const RowMat &, const Vec &, const TwoDOFLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
+  template FigureResult batch_figures<TwoDOFLaw>(
+    const std::string &, const RowMat &, const Vec &, const TwoDOFLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
+  template double batch_floor_timing<TwoDOFLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
 } // namespace rrr_pin

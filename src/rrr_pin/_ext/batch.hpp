@@ -116,4 +116,12 @@ namespace rrr_pin
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
   extern template double batch_floor_timing<PDLaw>(
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
+  extern template BatchResult batch_rollout<TwoDOFLaw>(
+    const std::string &, const RowMat &, const Vec &, const TwoDOFLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
+  extern template FigureResult batch_figures<TwoDOFLaw>(
+    const std::string &, const RowMat &, const Vec &, const TwoDOFLaw &, const RolloutInputs &,
+    const RowMat &, const RowMat &, const Effects *);
+  extern template double batch_floor_timing<TwoDOFLaw>(
+    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
 } // namespace rrr_pin

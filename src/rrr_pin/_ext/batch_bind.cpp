@@ -53,6 +53,7 @@ namespace rrr_pin
     def_batch_law<FLLaw>(mod);
     def_batch_law<FLAWLaw>(mod);
     def_batch_law<PDLaw>(mod);
+    def_batch_law<TwoDOFLaw>(mod);
     mod.def("batch_models", []() {
       nb::dict d;
       int count = 0;

@@ -1,5 +1,6 @@
 // The control laws the compiled engine implements, one struct of parameters per compiled form of
-// rrr_pin.control.laws (FLForm -> FLLaw, FLAWForm -> FLAWLaw, PDForm -> PDLaw;
+// rrr_pin.control.laws (FLForm -> FLLaw, FLAWForm -> FLAWLaw, PDForm -> PDLaw,
+// TwoDOFForm -> TwoDOFLaw;
 // rrr_pin.sim.compiled maps one to the other by type and copies the fields by name). Each law's
 // Eval<Terms> evaluates it on the law's model, operation for operation as the Python laws do;
 // Terms (terms.hpp) is where M, h and G come from: a serial tree's (ArmTerms) or a closed
@@ -14,6 +15,10 @@
 //          x+ (or xdot) = A x + B e + L dy, dy_j = (Mhat^-1 (tau_s - tau))_j / lam_j^2, L = B D^-1, the
 //          last term only at evaluations where a joint clips (FLAWForm).
 //   PDLaw: tau = Kp e + Kd (rd - qd) + Ghat(q); no state.
+//   TwoDOFLaw: tauhat = q + C x + D v, v = [e; qd], taubar = lam^2 (tauhat - q) - 2 lam qd,
+//          elementwise, tau = Mhat(q) taubar + h_hat(q, qd) (TwoDOFController, the 2-DOF
+//          H-infinity law: no rd, rdd feed-forward); state: xdot = A x + B v or x+ = A x + B v
+//          after the output (sampled).
 //
 // torque() returns kOk or the stop of the law's model (a closed chain's loop that does not close
 // there); the torque is then tau().
@@ -172,6 +177,90 @@ namespace rrr_pin
       const FLAWLaw & p;
       Vec tau_, dy;
       bool clipped = false;
+    };
+  };
+
+  /// Feedback linearization with a two-degrees-of-freedom controller on v = [e; qd]
+  /// (TwoDOFForm).
+  struct TwoDOFLaw
+  {
+    Vec lam;         // (n,) [rad/s], per joint
+    Mat A, B, C, D;  // (m, m), (m, 2n), (n, m), (n, 2n)
+
+    Eigen::Index nx() const { return A.rows(); }
+
+    void check(Eigen::Index n) const
+    {
+      const Eigen::Index m = A.rows();
+      if (
+        A.cols() != m || B.rows() != m || B.cols() != 2 * n || C.rows() != n || C.cols() != m
+        || D.rows() != n || D.cols() != 2 * n)
+        throw std::invalid_argument("2-DOF controller matrices have inconsistent shapes");
+      if (lam.size() != n)
+        throw std::invalid_argument("lam must have one entry per joint");
+    }
+
+    /// FLLaw's nominal-model calls (CRBA and nonLinearEffects).
+    static void model_calls(Workspace & nominal, const Vec & q, const Vec & qd, Vec & tau,
+                            double & sink)
+    {
+      FLLaw::model_calls(nominal, q, qd, tau, sink);
+    }
+
+    template<class Terms>
+    class Eval
+    {
+    public:
+      Eval(const TwoDOFLaw & law, const Tree & nominal)
+      : terms(nominal)
+      , p(law)
+      , m(law.nx())
+      , n(nominal.na())
+      , v(2 * n)
+      , tauhat(n)
+      , taubar(n)
+      , tau_(n)
+      {
+      }
+
+      /// Torque at (q, qd) for reference row r and law state x (rd, rdd unread); keeps v.
+      template<typename R1, typename R2, typename R3>
+      int torque(
+        const Vec & q, const Vec & qd, const R1 & r, const R2 &, const R3 &, const Vec & x)
+      {
+        v.head(n) = r.transpose() - q;
+        v.tail(n) = qd;
+        // tauhat = q + C x + D v, the Python law's sums in its order
+        tauhat = q;
+        if (m > 0)
+          tauhat.noalias() += p.C * x;
+        tauhat.noalias() += p.D * v;
+        // per joint: (lam_j lam_j) (tauhat_j - q_j) - (2 lam_j) qd_j
+        const auto lam = p.lam.array();
+        taubar = ((lam * lam) * (tauhat - q).array() - (2.0 * lam) * qd.array()).matrix();
+        // Eq. (8) with the law's model.
+        if (const int st = terms.terms(q, qd); st != kOk)
+          return st;
+        tau_.noalias() = terms.M() * taubar;
+        tau_ += terms.h();
+        return kOk;
+      }
+
+      const Vec & tau() const { return tau_; }
+
+      /// x+ = A x + B v (sampled) or xdot = A x + B v (continuous), v of the last torque().
+      void state_map(const Vec & x, Vec & out) const
+      {
+        out.noalias() = p.A * x;
+        out.noalias() += p.B * v;
+      }
+
+      Terms terms;
+
+    private:
+      const TwoDOFLaw & p;
+      Eigen::Index m, n;
+      Vec v, tauhat, taubar, tau_;
     };
   };
 

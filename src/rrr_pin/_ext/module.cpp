@@ -1,7 +1,7 @@
 // Python bindings of the compiled rollout: rrr_pin.sim._rollout (private; use
 // rrr_pin.sim.compiled). Parameters travel as objects whose fields Python sets by name: a plant's
-// Tree (rrr_pin.model.plant.TreeDescription), a law (FLLaw, FLAWLaw or PDLaw, one per compiled
-// form), RolloutInputs and Effects.
+// Tree (rrr_pin.model.plant.TreeDescription), a law (FLLaw, FLAWLaw, PDLaw or TwoDOFLaw, one per
+// compiled form), RolloutInputs and Effects.
 #include <cstdint>
 #include <string>
 
@@ -150,6 +150,12 @@ NB_MODULE(_rollout, mod)
   def_law<PDLaw>(mod, "PDLaw", "PD + gravity compensation (PDForm).")
     .def_rw("Kp", &PDLaw::Kp)
     .def_rw("Kd", &PDLaw::Kd);
+  def_law<TwoDOFLaw>(mod, "TwoDOFLaw", "FL + 2-DOF controller on [e; qd] (TwoDOFForm).")
+    .def_rw("lam", &TwoDOFLaw::lam)
+    .def_rw("A", &TwoDOFLaw::A)
+    .def_rw("B", &TwoDOFLaw::B)
+    .def_rw("C", &TwoDOFLaw::C)
+    .def_rw("D", &TwoDOFLaw::D);
 
   mod.def("check_reference", &check_reference, nb::arg("plant"), nb::arg("R"),
           nb::call_guard<nb::gil_scoped_release>(),

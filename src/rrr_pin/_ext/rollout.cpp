@@ -480,4 +480,5 @@ namespace rrr_pin
   RRR_PIN_ROLLOUT_LAW(FLLaw, )
   RRR_PIN_ROLLOUT_LAW(FLAWLaw, )
   RRR_PIN_ROLLOUT_LAW(PDLaw, )
+  RRR_PIN_ROLLOUT_LAW(TwoDOFLaw, )
 } // namespace rrr_pin

@@ -88,4 +88,5 @@ namespace rrr_pin
   RRR_PIN_ROLLOUT_LAW(FLLaw, extern)
   RRR_PIN_ROLLOUT_LAW(FLAWLaw, extern)
   RRR_PIN_ROLLOUT_LAW(PDLaw, extern)
+  RRR_PIN_ROLLOUT_LAW(TwoDOFLaw, extern)
 } // namespace rrr_pin

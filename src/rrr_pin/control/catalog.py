@@ -110,7 +110,7 @@ LAWS = {
     "hinf_aw": BuiltinLaw("hinf told the torque limits (default the URDF's), K self-conditioned "
                           "on the saturated torque (Hanus anti-windup)", _hinf_aw),
     "hinf2dof": BuiltinLaw("2-DOF H-infinity (ncfsyn_2dof) + FL, lam = 45 rad/s, reference model "
-                           "(90/(s + 90))^2; Python engine only", _hinf2dof),
+                           "(90/(s + 90))^2", _hinf2dof),
 }
 
 #: Built-in laws by CLI name, with what each is (the descriptions of :data:`LAWS`).

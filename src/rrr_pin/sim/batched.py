@@ -17,12 +17,12 @@ Pinocchio's calls), so trajectories equal the compiled engine's to round-off
 (``tests/test_batched.py``). No operation crosses plants and the C is compiled without fused
 multiply-adds, so a plant's numbers are the same whatever batch it runs in.
 
-Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``FLAWForm``, ``PDForm``: FL, H-infinity +
-FL, its anti-windup form ``hinf_aw``, PD), sampled or continuous, on the ideal plant or, for a
-sampled law, with the plant effects of :data:`BATCH_EFFECTS` (in the compiled engine's order:
-sensor -> law -> saturation -> delay -> actuator -> flexible joint -> plant with friction);
-anything else is refused by name (:func:`why_not`) and runs on the compiled engine under
-``engine="auto"``, which records why.
+Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``FLAWForm``, ``PDForm``, ``TwoDOFForm``: FL,
+H-infinity + FL, its anti-windup form ``hinf_aw``, PD, the 2-DOF H-infinity + FL ``hinf2dof``),
+sampled or continuous, on the ideal plant or, for a sampled law, with the plant effects of
+:data:`BATCH_EFFECTS` (in the compiled engine's order: sensor -> law -> saturation -> delay ->
+actuator -> flexible joint -> plant with friction); anything else is refused by name
+(:func:`why_not`) and runs on the compiled engine under ``engine="auto"``, which records why.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from dataclasses import fields, replace
 
 import numpy as np
 
-from ..control.laws import FLAWForm, FLForm, PDForm, check_law_output
+from ..control.laws import FLAWForm, FLForm, PDForm, TwoDOFForm, check_law_output
 from ..model.dh import INERTIA_RTOL, check_inertial
 from ..validation import FieldError, check_count
 from . import dyncache, dyngen
@@ -66,7 +66,7 @@ GENERATED = {
 }
 
 #: The compiled forms the batched loop implements, by exact type, and their C++ law.
-BATCH_LAWS = {FLForm: "FLLaw", FLAWForm: "FLAWLaw", PDForm: "PDLaw"}
+BATCH_LAWS = {FLForm: "FLLaw", FLAWForm: "FLAWLaw", PDForm: "PDLaw", TwoDOFForm: "TwoDOFLaw"}
 
 #: The plant effects the batched loop implements (fields of
 #: :class:`rrr_pin.control.effects.Resolved`): every one today (the sensor's noise and encoder,
@@ -542,7 +542,7 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
         Control (or RK4) steps, >= 0.
     substeps, repeat : int
         As for :func:`rrr_pin.sim.compiled.floor_ms`.
-    kind : {"fl", "fl_aw", "pd"}
+    kind : {"fl", "fl_aw", "pd", "twodof"}
     sampled : bool, default True
     batch : int, default 1
         Plants per call, 1 to :data:`BATCH_MAX`.

@@ -45,14 +45,18 @@ of ``law.hpp``, the plant effects of ``effects.hpp`` and the one RK4 of ``rk4.hp
   - :class:`~rrr_pin.control.laws.FLAWForm`, the same torque clipped to the law's limits, with
     ``K``'s state conditioned on the clipped torque (Hanus; H-infinity + FL with anti-windup);
   - :class:`~rrr_pin.control.laws.PDForm`, PD + gravity compensation:
-    ``tau = Kp e + Kd (rd - qd) + Ghat(q)``.
+    ``tau = Kp e + Kd (rd - qd) + Ghat(q)``;
+  - :class:`~rrr_pin.control.laws.TwoDOFForm`, feedback linearization with the 2-DOF
+    H-infinity controller (``hinf2dof``): ``tauhat = q + C x + D v`` on ``v = [e; qd]``,
+    ``taubar = lam^2 (tauhat - q) - 2 lam qd``, ``tau = Mhat(q) taubar + hhat(q, qd)``, state
+    ``A x + B v``.
 
   Any other form is refused with a ``ValueError`` naming it (:func:`why_not`); sampled and
   continuous-time laws run alike (a continuous law at every RK4 stage, the plant settled after
   every step, as in the Python engine).
 
 The form's fields, the run (:class:`~rrr_pin.sim.trajectory.Run`) and its plant effects reach C++
-as three objects whose fields are set by name (``FLLaw``/``FLAWLaw``/``PDLaw``,
+as three objects whose fields are set by name (``FLLaw``/``FLAWLaw``/``PDLaw``/``TwoDOFLaw``,
 ``RolloutInputs``, ``Effects``), so a field added on one side and not on the other fails loudly
 (``AttributeError``) instead of being dropped. Models travel as
 :meth:`pinocchio.Model.saveToString` text (Boost.Serialization, exact for doubles, including
@@ -79,7 +83,7 @@ import math
 
 import numpy as np
 
-from ..control.laws import FLAWForm, FLForm, PDForm, check_law_output
+from ..control.laws import FLAWForm, FLForm, PDForm, TwoDOFForm, check_law_output
 from ..model.closed_chain import ConstraintDrift, LoopClosureError, SingularConfiguration
 from .engine_names import COMPILED, PYTHON
 from .extension import EXTENSION, CompiledRobot, cached, cannot_start, effects_struct, require
@@ -105,7 +109,7 @@ __all__ = [
 
 #: The compiled forms the C++ loop implements, by exact type, and the C++ law (a class of the
 #: extension whose fields are the form's, ``nominal`` aside) each one becomes.
-ENGINE_LAWS = {FLForm: "FLLaw", PDForm: "PDLaw", FLAWForm: "FLAWLaw"}
+ENGINE_LAWS = {FLForm: "FLLaw", PDForm: "PDLaw", FLAWForm: "FLAWLaw", TwoDOFForm: "TwoDOFLaw"}
 
 # Why a C++ run stopped (RolloutResult.reason, Reason of terms.hpp): 0 to 3 index
 # rrr_pin.sim.trajectory.REASONS (the divergences, LAW_TORQUE: a law's non-finite torque), the
@@ -347,9 +351,10 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
         RK4 steps per control step, >= 1 (sampled only).
     repeat : int, default 5
         Runs; the fastest is returned (the least disturbed by other processes).
-    kind : {"fl", "pd", "fl_aw"}
+    kind : {"fl", "pd", "fl_aw", "twodof"}
         The ``kind`` of a form in :data:`ENGINE_LAWS` (``FLForm.kind``, ``PDForm.kind``,
-        ``FLAWForm.kind``; ``"fl_aw"`` times FL's calls).
+        ``FLAWForm.kind``, ``TwoDOFForm.kind``; ``"fl_aw"`` and ``"twodof"`` time FL's
+        calls).
     sampled : bool, default True
 
     Returns

@@ -67,7 +67,7 @@ References
 """
 
 from .antiwindup import AntiWindupTracking, hinf_aw_controller
-from .forms import CompiledForm, FLAWForm, FLForm, FLFrictionForm, PDForm
+from .forms import CompiledForm, FLAWForm, FLForm, FLFrictionForm, PDForm, TwoDOFForm
 from .pd import PD_BANDWIDTH, PDGravity, PDLinearModel, pd_controller
 from .protocol import (
     DEFAULT_RATE,
@@ -95,6 +95,7 @@ __all__ = [
     "FLFrictionForm",
     "FLAWForm",
     "PDForm",
+    "TwoDOFForm",
     "LinearModel",
     "FLLinearModel",
     "PDLinearModel",

@@ -16,7 +16,7 @@ import numpy as np
 
 from ...validation import check_bandwidth, check_matrix, check_positive, check_vector
 
-__all__ = ["CompiledForm", "FLForm", "FLFrictionForm", "FLAWForm", "PDForm"]
+__all__ = ["CompiledForm", "FLForm", "FLFrictionForm", "FLAWForm", "PDForm", "TwoDOFForm"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,16 +53,19 @@ class CompiledForm:
         return out
 
 
-def _check_controller(form, *extra) -> None:
+def _check_controller(form, *extra, inputs: int = 1) -> None:
     """Check ``lam`` and ``K``'s matrices ``A, B, C, D`` of ``form``, stored back read-only.
 
-    ``extra`` names further matrices of ``B``'s shape ``(m, n)`` (the conditioning gain ``L``).
+    ``K`` has ``inputs * n`` inputs (``B`` of shape ``(m, inputs n)``, ``D`` of ``(n, inputs
+    n)``): 1 for a ``K`` on ``e``, 2 for one on ``[e; qd]``. ``extra`` names further matrices
+    of ``B``'s shape (the conditioning gain ``L``).
     """
     object.__setattr__(form, "lam", check_bandwidth("lam", form.lam, form.nominal.joint_names))
     n = form.nominal.nq
     m = np.shape(form.A)[0] if np.ndim(form.A) == 2 else -1
-    shapes = [("A", (m, m)), ("B", (m, n)), ("C", (n, m)), ("D", (n, n))]
-    shapes += [(key, (m, n)) for key in extra]
+    w = inputs * n
+    shapes = [("A", (m, m)), ("B", (m, w)), ("C", (n, m)), ("D", (n, w))]
+    shapes += [(key, (m, w)) for key in extra]
     for key, shape in shapes:
         object.__setattr__(form, key, check_matrix(key, getattr(form, key), shape,
                                                    readonly=True))
@@ -216,3 +219,48 @@ class PDForm(CompiledForm):
         for key in ("Kp", "Kd"):
             value = check_matrix(key, getattr(self, key), (n, n), readonly=True)
             object.__setattr__(self, key, value)
+
+
+@dataclass(frozen=True, eq=False)
+class TwoDOFForm(CompiledForm):
+    r"""Feedback linearization with a two-degrees-of-freedom controller on ``v = [e; qd]``.
+
+    The implemented form of :class:`~rrr_pin.control.laws.TwoDOFController` (eq. 8-11 with
+    ``tauhat`` from the 2-DOF ``K``; no ``rd``, ``rdd`` feed-forward):
+
+    .. math:: \hat\tau = q + C x + D v, \quad v = \begin{bmatrix} r - q \\ \dot q
+              \end{bmatrix}, \quad
+              \bar\tau = \lambda^2 (\hat\tau - q) - 2\lambda \dot q, \quad
+              \tau = \hat M(q)\,\bar\tau + \hat h(q, \dot q)
+
+    and the controller state ``xdot = A x + B v`` (continuous law) or ``x+ = A x + B v`` after
+    the output (sampled law, matrices already discrete at its rate). Its own type: an engine
+    that implements :class:`FLForm` only refuses it by name (the two laws differ: FL forwards
+    ``rd`` and ``rdd`` and feeds its ``K`` the error alone).
+
+    Attributes
+    ----------
+    nominal : Robot
+        The law's model (``n = nominal.nq`` joints).
+    lam : float or ndarray, shape (n,)
+        Bandwidth ``lambda`` [rad/s], > 0: shared, or one per joint.
+    A : ndarray, shape (m, m)
+        State matrix (``m >= 0`` controller states).
+    B : ndarray, shape (m, 2 n)
+        Input matrix on ``v = [e; qd]`` (``e`` [rad], ``qd`` [rad/s]).
+    C : ndarray, shape (n, m)
+        Output matrix (``tauhat`` [rad]).
+    D : ndarray, shape (n, 2 n)
+        Feed-through on ``v`` (the continuous law's ``[Dr, 0]``; its discretization's
+        ``qd`` block is not zero).
+    """
+
+    lam: float
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    kind: ClassVar[str] = "twodof"
+
+    def __post_init__(self) -> None:
+        _check_controller(self, inputs=2)

@@ -2,7 +2,8 @@ r"""Feedback linearization with a two-degrees-of-freedom H-infinity controller (
 
 :class:`TwoDOFController` (``K = [K1, -K2]`` on ``[r; q]``, the Glover-McFarlane 2-DOF design),
 its sampled form, its loop :class:`TwoDOFLinearModel` and the built-in
-:func:`hinf_2dof_controller`. Python engine only (no compiled form).
+:func:`hinf_2dof_controller`, and its compiled form
+:class:`~rrr_pin.control.laws.forms.TwoDOFForm` (run by the compiled and the batched engines).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...validation import check_positive, check_rate, check_scalar_bandwidth
+from .forms import TwoDOFForm
 from .protocol import (
     DEFAULT_RATE,
     ControlLaw,
@@ -128,9 +130,12 @@ class TwoDOFController(ModelLaw, ControlLaw):
     arm by the whole position (0.43 rad on the RRR). ``|H(0)|`` is checked below 1e-9
     (relative to ``|K(0)|``) at construction; a ``K`` without it is refused.
 
-    Runs on the Python engine: the compiled engine's :class:`FLForm` forwards ``rd`` and
-    ``rdd`` and feeds ``K`` the error alone, which this law does not, so :meth:`compiled_form`
-    is None (``engine="compiled"`` refuses it naming the law; ``"auto"`` runs it on Python).
+    Its compiled form is its own type, :class:`~rrr_pin.control.laws.forms.TwoDOFForm`
+    (``A``, ``B`` on ``[e; qd]``, ``C``, ``D = [Dr, 0]``; not :class:`FLForm`, which forwards
+    ``rd`` and ``rdd`` and feeds ``K`` the error alone): the compiled engine runs it on
+    Pinocchio and the batched engine on generated dynamics, operation for operation as
+    :meth:`torque` and :meth:`derivative` (or :class:`SampledTwoDOF`'s ``step``). A subclass
+    gets no compiled form (it may change the law) and runs on the Python engine.
 
     Parameters
     ----------
@@ -205,6 +210,7 @@ class TwoDOFController(ModelLaw, ControlLaw):
         return tuple(np.asarray(x, dtype=float) for x in (Kd.A, Kd.B, Kd.C, Kd.D))
 
     def _own_law(self) -> bool:
+        """Whether the torque is this class's (no subclass overrides the law's methods)."""
         cls = type(self)
         return all(getattr(cls, m) is getattr(TwoDOFController, m)
                    for m in ("torque", "derivative", "_tau"))
@@ -215,6 +221,15 @@ class TwoDOFController(ModelLaw, ControlLaw):
         if self._own_law():
             return SampledTwoDOF(self, rate, method, self.discretize(rate, method))
         return ControlLaw.sampled(self, rate, method)
+
+    def compiled_form(self) -> TwoDOFForm | None:
+        """Return the :class:`TwoDOFForm` with the continuous matrices, for this exact class only.
+
+        A subclass may change the law, so it gets None (the Python engine runs it).
+        """
+        if type(self) is not TwoDOFController:
+            return None
+        return TwoDOFForm(self.nominal, self.lam, *self._mats)
 
     def linear_model(self) -> TwoDOFLinearModel | None:
         """Return the :class:`TwoDOFLinearModel` (None if a subclass overrides the law)."""
@@ -260,6 +275,12 @@ class SampledTwoDOF(SampledForm):
         Ad, Bd, Cd, Dd = self.mats
         v = np.concatenate([r - q, qd])
         return self.law._tau(q, qd, q + Cd @ x + Dd @ v), Ad @ x + Bd @ v
+
+    def compiled_form(self):
+        """Return the :class:`TwoDOFForm` with the discrete matrices (None for a subclassed law)."""
+        if type(self.law) is not TwoDOFController:
+            return None
+        return TwoDOFForm(self.law.nominal, self.law.lam, *self.mats)
 
     def linear_model(self):
         """Return the continuous law's linear model."""
