@@ -572,7 +572,7 @@ def main(argv=None):
     # 1. Per call. The bare calls are the ones the Robot methods make (V: RNEA with zero
     # acceleration on the zero-gravity copy of the model).
     if run("1"):
-        m0, d0, zero = robot._model0, robot._data0, np.zeros(robot.nq)
+        (m0, d0), zero = robot._without_gravity(), np.zeros(robot.nq)
         calls = {
             "M": {"robot": lambda: robot.M(q),
                   "robot_unchecked": lambda: robot.M(q, check=False),
