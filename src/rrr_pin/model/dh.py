@@ -241,6 +241,31 @@ class DHLink:
             raise ValueError(f"joint limits must satisfy lower < upper, got lower="
                              f"{self.lower!r} rad, upper={self.upper!r} rad")
 
+    def scaled(self, mass_factor: float, J, length_factor: float) -> DHLink:
+        """Return this link with its mass and lengths scaled and other principal moments.
+
+        ``mass * mass_factor``, ``a``, ``d`` and ``lg`` times ``length_factor``, ``J`` as given:
+        an uncertain arm's draw (:func:`rrr_pin.model.uncertainty.perturb_params`). The checks
+        of :class:`DHLink` are not run again, because they hold for the result whenever they
+        hold for this link: both factors are > 0 (so the mass stays > 0 and ``lg / l`` is
+        unchanged up to round-off, inside the ``lg <= l`` check's 1e-12), and ``J``, the
+        principal moments of :func:`~rrr_pin.model.uncertainty.perturb_inertia` of this
+        link's, are >= 0 and satisfy the triangle inequality by construction.
+
+        Parameters
+        ----------
+        mass_factor, length_factor : float
+            In ``(0, 2)`` (``1 +- tolerance``).
+        J : tuple of 3 float
+            Principal moments [kg m^2].
+        """
+        new = object.__new__(DHLink)
+        new.__dict__.update(self.__dict__)
+        new.__dict__.update(mass=self.mass * mass_factor, J=tuple(J),
+                            a=self.a * length_factor, d=self.d * length_factor,
+                            lg=self.lg * length_factor)
+        return new
+
     @property
     def length(self) -> float:
         """Link length ``l = sqrt(a**2 + d**2)`` [m]."""

@@ -422,13 +422,12 @@ def perturb_params(params: ArmParams, rng: np.random.Generator,
     """
     # the draws link by link (mass, 3 second moments, length), then the inertias together
     draws = [_link_factors(rng, tol) for _ in params.links]
-    # link.J was checked by DHLink; the perturbed link is checked by DHLink again below.
+    # link.J was checked by DHLink; the perturbed link needs no check again (DHLink.scaled).
     Js = _perturb_inertias(np.array([np.diag(link.J) for link in params.links], dtype=float),
                            np.array([f_s for _, f_s, _ in draws]))
     links, factors = [], []
     for link, (f_m, f_s, f_l), J in zip(params.links, draws, Js, strict=True):
-        links.append(replace(link, mass=link.mass * f_m, J=tuple(np.diag(J).tolist()),
-                             a=link.a * f_l, d=link.d * f_l, lg=link.lg * f_l))
+        links.append(link.scaled(f_m, np.diag(J).tolist(), f_l))
         factors.append({"mass": f_m, "second_moments": f_s.tolist(), "length": f_l})
     return params.with_links(links), {"links": factors}
 
