@@ -30,6 +30,18 @@
 
 namespace rrr_pin
 {
+  /// Eq. (8) with the law's model: tau = Mhat(q) taubar + h_hat(q, qd) (FLLaw, TwoDOFLaw), or
+  /// the stop of a model whose loop does not close at q.
+  template<class Terms>
+  int model_torque(Terms & terms, const Vec & q, const Vec & qd, const Vec & taubar, Vec & tau)
+  {
+    if (const int st = terms.terms(q, qd); st != kOk)
+      return st;
+    tau.noalias() = terms.M() * taubar;
+    tau += terms.h();
+    return kOk;
+  }
+
   /// Feedback linearization with a linear controller (A, B, C, D) on e = r - q (FLForm).
   struct FLLaw
   {
@@ -86,12 +98,7 @@ namespace rrr_pin
         const auto lam = p.lam.array();
         taubar = (rdd.transpose().array() + (2.0 * lam) * (rd.transpose() - qd).array()
                   + (lam * lam) * (e + y).array()).matrix();
-        // Eq. (8) with the law's model.
-        if (const int st = terms.terms(q, qd); st != kOk)
-          return st;
-        tau_.noalias() = terms.M() * taubar;
-        tau_ += terms.h();
-        return kOk;
+        return model_torque(terms, q, qd, taubar, tau_);
       }
 
       const Vec & tau() const { return tau_; }
@@ -238,12 +245,7 @@ namespace rrr_pin
         // per joint: (lam_j lam_j) (tauhat_j - q_j) - (2 lam_j) qd_j
         const auto lam = p.lam.array();
         taubar = ((lam * lam) * (tauhat - q).array() - (2.0 * lam) * qd.array()).matrix();
-        // Eq. (8) with the law's model.
-        if (const int st = terms.terms(q, qd); st != kOk)
-          return st;
-        tau_.noalias() = terms.M() * taubar;
-        tau_ += terms.h();
-        return kOk;
+        return model_torque(terms, q, qd, taubar, tau_);
       }
 
       const Vec & tau() const { return tau_; }
