@@ -124,3 +124,29 @@ def test_lasting_preparation_goes_to_the_kept_dictionary(setup):
         again = simulate(plants[0], laws[0], refs[0], DURATION, rate=1000.0)
         assert not reuse._REUSE  # nothing made again
     _same(first, again)
+
+
+def test_a_batch_prepares_each_plant_as_simulate_does(setup):
+    # simulate_batch prepares the runs after the first from it (only what depends on the
+    # plant again): a plant whose own joint limits exclude the shared reference is refused
+    # with the message simulate gives it alone, and the others run as they do alone.
+    from dataclasses import replace
+
+    from rrr_pin.model.dynamics import load_robot
+    from rrr_pin.sim.simulation import simulate_batch
+
+    robot, plants, laws, refs = setup
+    params = robot.params
+    tight = params.with_links([replace(params.links[0], upper=-2.9), *params.links[1:]])
+    narrow = load_robot(tight)
+    ref = refs[0]
+    with pytest.raises(ValueError) as alone:
+        simulate(narrow, laws[0], ref, DURATION, rate=1000.0)
+    assert "joint 'joint1'" in str(alone.value) and "outside its limits" in str(alone.value)
+    with pytest.raises(ValueError) as batched:
+        simulate_batch([plants[0], narrow], laws[0], ref, DURATION, rate=1000.0)
+    assert str(batched.value) == str(alone.value)
+    for a, b in zip(simulate_batch(plants, laws[0], ref, DURATION, rate=1000.0, engine="compiled"),
+                    [simulate(p, laws[0], ref, DURATION, rate=1000.0, engine="compiled")
+                     for p in plants], strict=True):
+        _same(a, b)

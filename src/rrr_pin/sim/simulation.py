@@ -459,8 +459,10 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
         if isinstance(run, Exception):
             out.append(run)
             continue
+        # its own arrays: the runs of a batch share them (_prepare_like), a law may not
         run = replace(run, R=run.R.copy(), RD=run.RD.copy(), RDD=run.RDD.copy(),
-                      q0=run.q0.copy(), qd0=run.qd0.copy(), x0=run.x0.copy())
+                      q0=run.q0.copy(), qd0=run.qd0.copy(), x0=run.x0.copy(),
+                      state0=tuple(np.copy(a) for a in run.state0))
         try:
             # One run at a time in the process: a law object is shared by the runs (and a
             # campaign's threads), and the one-plant engines may keep state in it.
