@@ -327,3 +327,16 @@ def test_a_diverging_plant_with_effects_leaves_its_batch_unchanged(rrr, ref, pla
     for a, f, b in zip(out[:2] + out[3:], figs[:2] + figs[3:], clean, strict=True):
         np.testing.assert_array_equal(a.q, b.q)
         assert f.figures() == b.figures()
+
+
+def test_a_batch_filled_up_to_whole_lanes_gives_the_same_numbers(rrr, ref, plants):
+    # 7 plants run as 8 (the last copied, its results dropped): each plant's run is the one it
+    # has alone, bit for bit (no operation crosses plants).
+    law = fl_controller(rrr)
+    seven = (plants + plants)[:7]
+    together = simulate_batch(seven, law, ref, 0.05, rate=RATE)
+    for run, plant in zip(together, seven, strict=True):
+        alone = simulate_batch([plant], law, ref, 0.05, rate=RATE)[0]
+        assert run.info["engine"] == "codegen"
+        for key in ("q", "qd", "tau"):
+            np.testing.assert_array_equal(getattr(run, key), getattr(alone, key))

@@ -610,3 +610,13 @@ def test_chunks_cover_every_sample_once_and_shrink_at_the_end(n, size, tail, uni
         assert [len(b) for b in blocks[-4:]] == [32, 16, 16, 9] and len(blocks) == 33
     if tail == 1:  # an explicit chunk: all of it but the last
         assert {len(b) for b in blocks[:-1]} == {size}
+
+
+def test_default_chunks_are_whole_batches():
+    # 1001 samples on 2 workers: ceil(1001 / 16) = 63 -> 64 (4 batches of 16, not 16 16 16 15);
+    # on 1 worker the 64 cap; a campaign too small for one batch per chunk keeps small chunks.
+    assert mc._chunk_size(1001, 2, 64, 1, 16) == 64
+    assert mc._chunk_size(1001, 1, 64, 1, 16) == 64
+    assert mc._chunk_size(401, 2, 64, 1, 16) == 32  # ceil(401 / 16) = 26 -> 32
+    assert mc._chunk_size(21, 2, 64, 1, 16) == 2
+    assert mc._chunk_size(1001, 1, 128, 128, 16) == 128  # threads=2: four batches per thread
