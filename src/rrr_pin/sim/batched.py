@@ -436,10 +436,11 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     fx = effects_struct(run0.effects)  # one for the batch (_shared_effects)
 
     def lanes(fn, sl):
-        # A batch of k plants, k not a multiple of LANES, runs its last plants outside the
-        # vector loop, and they cost more than a full group (RRR, FL, 5000 steps: 20.2 ms for 15
-        # plants, 14.4 ms for 16). It is filled up with copies of its last plant, whose results
-        # are dropped: no operation crosses plants, so the others' numbers are unchanged.
+        # A batch of k plants, k not a multiple of LANES, costs as much as the next multiple
+        # or more (RRR, FL, 5000 steps: 20.2 ms for 15 plants, 14.4 ms for 16: the remainder of
+        # the generated simd loop). It is filled up with copies of its last plant, whose
+        # results are dropped: no operation crosses plants, so the others' numbers are
+        # unchanged.
         k = len(P[sl])
         size = k if k == 1 else LANES * -(-k // LANES)
         rows = np.minimum(np.arange(sl.start, sl.start + size), sl.start + k - 1)
