@@ -148,8 +148,9 @@ class CampaignJob:
         (:func:`rrr_pin.campaign.runner.run_laws_batch`); each row is made from its own
         plant's values only, so rows do not depend on the chunk or the batch.
         """
-        # One reference and one set of laws for every sample: sample the reference and
-        # discretize the laws once per chunk (bit-identical to doing it per run).
+        # One reference and one set of laws for every sample: the reference is sampled and the
+        # laws discretized once per job in this process (kept across its chunks; bit-identical
+        # to doing it per run).
         indices = tuple(indices)
         with reuse_preparation(keep=self._kept()):
             if self.threads == 1:
@@ -445,9 +446,11 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
 def _chunk_size(total: int, workers: int, max_chunk: int, min_chunk: int, unit: int) -> int:
     """Return the default chunk: about 8 per worker, in ``[min_chunk, max_chunk]``, whole units.
 
-    Whole batches (``unit``) once a chunk holds more than one: the batched engine runs a batch
-    of 15 plants as 16 (:data:`rrr_pin.sim.batched.LANES`), so a chunk of 63 costs as much as
-    one of 64 (before that padding, chunks of 63 made the RRR campaign's C++ loop 7 % slower).
+    About 8 tasks per worker: a task costs a few ms of set-up, while the last task of one
+    worker leaves the others idle (:func:`_blocks` shrinks the last ones). Whole batches
+    (``unit``) once a chunk holds more than one: the batched engine runs a batch of 15 plants
+    as 16 (:data:`rrr_pin.sim.batched.LANES`), so a chunk of 63 costs as much as one of 64
+    (before that padding, chunks of 63 made the RRR campaign's C++ loop 7 % slower).
     Small campaigns keep small chunks, so that every worker gets some.
     """
     size = max(min_chunk, min(max_chunk, math.ceil(min(total, 10**6) / (8 * workers))))
@@ -498,8 +501,9 @@ def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
     min_chunk : int, default 1
         Smallest default chunk (a job's threads need a batch of plants each).
     unit : int, default 1
-        With the default chunk, the last chunks shrink in steps of ``unit`` samples (a batch
-        of the batched engine), so that the workers finish together (:func:`_blocks`).
+        The default chunk is a whole number of ``unit`` samples (a batch of the batched
+        engine; :func:`_chunk_size`), and its last chunks shrink in steps of ``unit`` so that
+        the workers finish together (:func:`_blocks`).
 
     Returns
     -------
@@ -508,9 +512,6 @@ def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
     """
     jobs = check_jobs(jobs)
     workers = jobs if executor is None and scheduler is None else 4
-    # About 8 tasks per worker, at most max_chunk samples (32 for the RRR: two batches of 16,
-    # ~0.5 s at 10 s, 1 kHz on the batched engine): a task costs ~3 ms of set-up, while the
-    # last task of one worker leaves the other idle.
     size = chunk or _chunk_size(total, workers, max_chunk, min_chunk, unit)
     done = store.done() if store is not None else set()
     todo = [k for k in indices if k not in done]

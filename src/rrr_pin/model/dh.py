@@ -40,6 +40,7 @@ __all__ = [
     "forward_kinematics",
     "check_inertial",
     "check_inertials",
+    "inertials_ok",
     "check_robot_name",
     "INERTIA_RTOL",
 ]
@@ -142,11 +143,32 @@ def check_inertials(masses, inertias, names) -> None:
     ValueError
         As :func:`check_inertial`, for the first body that fails.
     """
+    if len(names) != len(masses):
+        raise ValueError(f"check_inertials needs one name per body, got {len(names)} names for "
+                         f"{len(masses)} bodies")
+    for k in np.flatnonzero(~inertials_ok(masses, inertias)):
+        check_inertial(masses[k], inertias[k], name=names[k])
+
+
+def inertials_ok(masses, inertias) -> np.ndarray:
+    """Return which bodies pass the tests of :func:`check_inertial`, vectorized.
+
+    Parameters
+    ----------
+    masses : array-like, shape (k,)
+        Masses [kg].
+    inertias : array-like, shape (k, 3, 3)
+        Inertia tensors about the centres of mass [kg m^2].
+
+    Returns
+    -------
+    ndarray of bool, shape (k,)
+    """
     m = np.asarray(masses, dtype=float)
     inertia = np.asarray(inertias, dtype=float)
-    if inertia.shape != (len(m), 3, 3) or len(names) != len(m):
-        raise ValueError(f"check_inertials needs k masses, (k, 3, 3) inertias and k names, got "
-                         f"{m.shape}, {inertia.shape} and {len(names)}")
+    if inertia.shape != (len(m), 3, 3):
+        raise ValueError(f"inertials_ok needs k masses and (k, 3, 3) inertias, got {m.shape} "
+                         f"and {inertia.shape}")
     finite = np.isfinite(m) & np.isfinite(inertia).all(axis=(-1, -2))
     inertia = np.where(finite[:, None, None], inertia, 0.0)
     T = np.swapaxes(inertia, -1, -2)
@@ -156,9 +178,7 @@ def check_inertials(masses, inertias, names) -> None:
     tol = INERTIA_RTOL * np.maximum(top, 0.0)
     body = ((np.abs(inertia - T).max(axis=(-1, -2), initial=0.0) <= INERTIA_RTOL * scale)
             & (J.min(axis=-1, initial=np.inf) >= -tol) & ~(top > J.sum(axis=-1) - top + tol))
-    ok = finite & (m >= 0.0) & np.where(m == 0.0, scale == 0.0, body)
-    for k in np.flatnonzero(~ok):
-        check_inertial(masses[k], inertias[k], name=names[k])
+    return finite & (m >= 0.0) & np.where(m == 0.0, scale == 0.0, body)
 
 
 @dataclass(frozen=True)

@@ -3,10 +3,12 @@
 Under :class:`Tolerances`, :meth:`rrr_pin.model.dynamics.Robot.perturbed` draws the plant
 straight into its Pinocchio model (:mod:`rrr_pin.model.drawn`: the same draws, the numbers this
 module writes, read as Pinocchio reads them) and writes the URDF text of this module only when
-asked for. A plant is validated once, where it is made:
-a DH plant by :class:`~rrr_pin.model.dh.DHLink` (its URDF is generated from checked links), a
-URDF plant by :func:`~rrr_pin.model.dynamics.check_urdf_inertials` on the text written (its
-tree, joints and limits are the nominal's, which were checked when the nominal was loaded). So
+asked for. A plant is validated once, where it is made: a DH plant by the checks of
+:class:`~rrr_pin.model.dh.DHLink`, which hold for its scaled links by construction
+(:meth:`~rrr_pin.model.dh.DHLink.scaled`; its URDF is generated from them), a URDF plant by
+:func:`~rrr_pin.model.dynamics.check_urdf_inertials` on the text written, or by
+:func:`~rrr_pin.model.dh.check_inertials` on the inertials drawn into its model (its tree,
+joints and limits are the nominal's, which were checked when the nominal was loaded). So
 the plant of a loaded nominal may be loaded with
 ``rrr_pin.model.dynamics.robot_from_xml(plant.urdf, ..., check=False)``.
 
@@ -313,10 +315,7 @@ def perturb_link(mass: float, I, com, rng: np.random.Generator, tol: Tolerances
     factors : dict
         ``{"mass", "second_moments", "com"}``, as :func:`perturb_urdf` records them.
     """
-    f_m, f_s, f_c = _link_factors(rng, tol)
-    return (mass * f_m, None if I is None else _perturb_inertia(I, f_s),
-            np.asarray(com, dtype=float) * f_c,
-            {"mass": f_m, "second_moments": f_s.tolist(), "com": f_c})
+    return perturb_links([(mass, I, com)], rng, tol)[0]
 
 
 def _link_factors(rng: np.random.Generator, tol: Tolerances) -> tuple:
@@ -334,7 +333,7 @@ def perturb_links(nominals, rng: np.random.Generator, tol: Tolerances) -> list[t
     Parameters
     ----------
     nominals : sequence of (mass, I, com)
-        Per link as :func:`perturb_link` takes them; every ``I`` a (3, 3) array.
+        Per link as :func:`perturb_link` takes them (``I`` a (3, 3) array or None).
     rng : numpy.random.Generator
     tol : Tolerances
 
@@ -344,10 +343,13 @@ def perturb_links(nominals, rng: np.random.Generator, tol: Tolerances) -> list[t
         Per link, what :func:`perturb_link` returns.
     """
     draws = [_link_factors(rng, tol) for _ in nominals]
-    if not draws:
-        return []
-    inertias = _perturb_inertias(np.array([I for _, I, _ in nominals], dtype=float),
-                                 np.array([f_s for _, f_s, _ in draws]))
+    with_I = [k for k, (_, I, _) in enumerate(nominals) if I is not None]
+    inertias = [None] * len(nominals)
+    if with_I:
+        stack = _perturb_inertias(np.array([nominals[k][1] for k in with_I], dtype=float),
+                                  np.array([draws[k][1] for k in with_I]))
+        for k, I in zip(with_I, stack, strict=True):
+            inertias[k] = I
     return [(mass * f_m, I, np.asarray(com, dtype=float) * f_c,
              {"mass": f_m, "second_moments": f_s.tolist(), "com": f_c})
             for (mass, _, com), (f_m, f_s, f_c), I in zip(nominals, draws, inertias,

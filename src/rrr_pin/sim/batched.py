@@ -33,7 +33,7 @@ from dataclasses import fields, replace
 import numpy as np
 
 from ..control.laws import FLAWForm, FLForm, PDForm, TwoDOFForm, check_law_output
-from ..model.dh import INERTIA_RTOL, check_inertial
+from ..model.dh import check_inertial, inertials_ok
 from ..validation import FieldError, check_count
 from . import dyncache, dyngen
 from .codegen import CodegenModelMismatch
@@ -227,12 +227,7 @@ def _checked_parameters(robots, role: str) -> np.ndarray:
                          f"{{name}} must be finite, got {P[b, k]!r}")
     ortho = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-1, -2))
     det = np.linalg.det(R)
-    J = np.linalg.eigvalsh(inertia)
-    tol = INERTIA_RTOL * np.maximum(J.max(axis=-1), 0.0)
-    scale = np.abs(inertia).max(axis=(-1, -2))
-    body_ok = (m >= 0) & np.where(m == 0.0, scale == 0.0,
-                                  (J.min(axis=-1) >= -tol)
-                                  & (2.0 * J.max(axis=-1) <= J.sum(axis=-1) + tol))
+    body_ok = inertials_ok(m.reshape(-1), inertia.reshape(-1, 3, 3)).reshape(m.shape)
     for b, j in np.argwhere(~body_ok | (ortho > _ORTHO_TOL) | (det < 0) | (arm < 0)):
         where = f"{role} {robots[b].name!r}"
         if ortho[b, j] > _ORTHO_TOL or det[b, j] < 0:
@@ -274,8 +269,6 @@ def why_not(run, form):
     if others:
         return (f"engine {CODEGEN!r} batches {_BATCH_EFFECT_LABEL} only of the plant "
                 f"effects, got {', '.join(others)}")
-    if run.effects is not None and not run.sampled:
-        return f"engine {CODEGEN!r} applies plant effects to sampled laws only"
     for robot, role in ((plant, "plant"), (form.nominal, "nominal")):
         if generated_structure(robot.model) is None:
             return _refusal(robot, role)

@@ -253,6 +253,6 @@ def _register(so: Path, name: str, st: str, nq: int, folder: Path) -> str:
                          f"folder to rebuild it")
     # fd_other: the chosen algorithm again (an entry holds one; see dyngen.generate).
     EXTENSION.batch_register(name, st, algorithm, nq, npar, nd, *addresses[:5], addresses[4],
-                             addresses[5])  # fd_other: fd again (one algorithm built)
+                             addresses[5])
     _LIBS.append(lib)
     return name

@@ -417,23 +417,26 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
         except (SimulationDiverged, *plant.failures) as exc:
             return exc
 
-    def again(plant, first):
+    def again(plant, first, effects):
         # Another plant of ``first``'s run settings (validated there): only what depends on
         # the plant (:func:`_prepare_like`); a plant of another joint count is prepared whole.
         if plant.nq != first.plant.nq:
             return prepared(plant)
         try:
-            return _prepare_like(first, plant, reference, float(options["limit_margin"]), fx)
+            return _prepare_like(first, plant, reference, float(options["limit_margin"]),
+                                 effects)
         except (SimulationDiverged, *plant.failures) as exc:
             return exc
 
     with reuse_preparation():
-        runs, first = [], None
+        runs, first, effects = [], None, None
         for p in plants:
-            runs.append(prepared(p) if first is None else again(p, first))
-            if first is None and not isinstance(runs[-1], Exception):
-                first = runs[-1]
-                fx = _active_effects(options.get("effects"))
+            if first is not None:
+                runs.append(again(p, first, effects))
+                continue
+            runs.append(prepared(p))
+            if not isinstance(runs[-1], Exception):  # the runs after it are prepared from it
+                first, effects = runs[-1], _active_effects(options.get("effects"))
     ready = [r for r in runs if not isinstance(r, Exception)]
     if engine in (AUTO, CODEGEN) and len(ready) == len(runs):
         form = runs[0].law.compiled_form() if runs else None
