@@ -148,6 +148,19 @@ def test_non_finite_time_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize("suffix", FORMATS, ids=[s[1:] for s in FORMATS])
+def test_non_finite_samples_are_refused(tmp_path, suffix):
+    # issue 50's probe: a .mat whose q held inf was accepted; a run that diverges raises
+    # instead of saving, so a saved run with NaN or inf is damaged or edited.
+    traj = _by_hand()
+    traj.q = traj.q.copy()
+    traj.q[3, 1] = np.inf
+    path = traj.save(tmp_path / f"run{suffix}")
+    with pytest.raises(TrajectoryFileError, match=rf"run\{suffix}: q\[3, 1\] = inf is not "
+                                                  rf"finite \(t = "):
+        Trajectory.load(path)
+
+
+@pytest.mark.parametrize("suffix", FORMATS, ids=[s[1:] for s in FORMATS])
 def test_damaged_files_are_refused_by_name(tmp_path, suffix):
     binary = tmp_path / f"binary{suffix}"
     binary.write_bytes(bytes(range(256)) * 4)  # not UTF-8, not a zip, not Parquet

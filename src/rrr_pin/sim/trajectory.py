@@ -222,8 +222,8 @@ class Trajectory:
         TrajectoryFileError (a ValueError)
             The file is not an rrr-pin trajectory (a folder, a CSV that is not UTF-8 text, an
             NPZ or Parquet file that is truncated or not of that format, no metadata, another
-            format or version, columns that do not match the joints), or its times ``t`` are
-            not finite and strictly increasing (time running backwards, rows out of order or
+            format or version, columns that do not match the joints, a NaN or inf in ``q``,
+            ``qd``, ``r`` or ``tau``), or its times ``t`` are not finite and strictly increasing (time running backwards, rows out of order or
             repeated), naming the file and what is wrong.
         FileNotFoundError
             No such file.
@@ -747,6 +747,12 @@ def _trajectory(path: Path, meta: dict, arrays: dict, n: int) -> Trajectory:
         if arrays[key].shape != (N, n):
             raise TrajectoryFileError(f"{path}: {key} has shape {arrays[key].shape}, expected "
                                       f"({N}, {n})")
+        bad = ~np.isfinite(arrays[key])
+        if bad.any():  # a run that diverged raises, so no saved run holds NaN or inf
+            k, j = (int(i) for i in np.argwhere(bad)[0])
+            raise TrajectoryFileError(f"{path}: {key}[{k}, {j}] = {float(arrays[key][k, j])!r} "
+                                      f"is not finite (t = {float(t[k])!r} s); a saved run "
+                                      f"holds finite q, qd, r and tau")
     return Trajectory(**arrays, controller=meta.get("controller", ""),
                       plant=meta.get("plant", ""), info=meta.get("info", {}),
                       joint_names=list(meta.get("joint_names", [])),
