@@ -109,3 +109,20 @@ def test_the_largest_amplitude_is_accepted_as_given(rrr):
     amp = 2.0 * np.pi / 2.2 * (1 - 1e-12)
     ref = default_reference(rrr, amp=amp)
     assert_allclose(ref.amp, amp, rtol=0, atol=0)  # not reduced
+
+
+@pytest.mark.parametrize("kind", [k for k in KINDS if k != "study"])
+def test_an_option_the_kind_does_not_read_is_refused(rrr, kind):
+    # issue 50's probe: --radius, --move-time, --csv ... without their --reference kind were
+    # ignored without a word. Every option another kind reads is refused by this one.
+    defaults = ReferenceSpec()
+    others = {"amp": 0.3, "freq": 1.0, "to": (0.1, 0.2, 0.3), "move_time": 1.0, "csv": "w.csv",
+              "frame": "tool", "end": (0.1, 0.1, 0.1), "radius": 0.1, "normal": (1.0, 0.0, 0.0)}
+    for key, value in others.items():
+        spec = ReferenceSpec(kind=kind, **{key: value})
+        if key in spec._reads():
+            continue
+        assert getattr(defaults, key) != value
+        with pytest.raises(ValueError, match=rf"^--{key.replace('_', '-')} is not read by "
+                                             rf"--reference {kind}: "):
+            spec.build(rrr, 2.0, label=option)

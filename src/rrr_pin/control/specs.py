@@ -36,6 +36,20 @@ __all__ = ["KINDS", "ReferenceSpec"]
 KINDS = REFERENCES
 
 
+#: The options each kind reads ("study" reads the sinusoid's: a plant with a task path refuses
+#: them when it is built); any other option given is refused, never ignored.
+_OPTIONS_OF_KIND = {
+    "sine": ("amp", "freq", "home"),
+    "study": ("amp", "freq", "home"),
+    "spline": ("csv",),
+    "quintic": ("home", "to", "move_time"),
+    "line": ("home", "move_time", "frame", "end"),
+    "circle": ("home", "move_time", "frame", "radius", "normal"),
+    "all": ("amp", "freq", "home", "to", "move_time", "csv", "frame", "end", "radius",
+            "normal"),
+}
+
+
 @dataclass(frozen=True)
 class ReferenceSpec:
     """Options of a built-in reference (SI units; joint values per joint, in joint order).
@@ -83,6 +97,30 @@ class ReferenceSpec:
     radius: float | None = None
     normal: tuple = (0.0, 0.0, 1.0)
 
+    def given(self) -> tuple[str, ...]:
+        """Return the options set away from their defaults, in field order (``kind`` aside)."""
+        return tuple(key for key in _OPTIONS_OF_KIND["all"]
+                     if getattr(self, key) != _DEFAULTS[key])
+
+    def _reads(self) -> tuple[str, ...]:
+        """Return the options this spec's kind reads."""
+        return _OPTIONS_OF_KIND.get(self.kind, _OPTIONS_OF_KIND["all"])
+
+    def _check_options_of(self, kind: str, label: Callable[[str], str]) -> None:
+        """Refuse an option the reference ``kind`` does not read (it would be ignored)."""
+        reads = self._reads()
+        stray = [key for key in self.given() if key not in reads]
+        if stray:
+            users = {key: [k for k in KINDS
+                           if k != "study" and key in _OPTIONS_OF_KIND.get(k, ())]
+                     for key in stray}
+            raise ValueError(
+                f"{', '.join(label(key) for key in stray)} "
+                f"{'is' if len(stray) == 1 else 'are'} not read by {label('reference')} "
+                f"{kind}: " + "; ".join(f"{label(key)} belongs to {' or '.join(users[key])}"
+                                        for key in stray)
+                + f" (give {label('reference')} KIND, or drop the option)")
+
     def build(self, robot, duration: float, *,
               label: Callable[[str], str] = str) -> Reference:
         """Check the options against ``robot`` and return the reference they name.
@@ -108,6 +146,7 @@ class ReferenceSpec:
         if kind not in KINDS:
             raise ValueError(f"{label('reference')} {kind!r} is unknown; known: "
                              f"{', '.join(KINDS)}")
+        self._check_options_of(kind, label)
         home = None if self.home is None else check_vector(label("home"), self.home, n)
         if kind == "study":
             if robot.task_path(duration) is None:
@@ -155,3 +194,7 @@ class ReferenceSpec:
             path = circle_from_start(p0, check_positive(label("radius"), self.radius),
                                      check_direction(label("normal"), self.normal, 3))
         return task_space_reference(robot, frame, path, move, q_start=start)
+
+
+#: The defaults of :class:`ReferenceSpec`'s options (an option is "given" when it differs).
+_DEFAULTS = {key: getattr(ReferenceSpec, key) for key in _OPTIONS_OF_KIND["all"]}

@@ -223,8 +223,9 @@ class Trajectory:
             The file is not an rrr-pin trajectory (a folder, a CSV that is not UTF-8 text, an
             NPZ or Parquet file that is truncated or not of that format, no metadata, another
             format or version, columns that do not match the joints, a NaN or inf in ``q``,
-            ``qd``, ``r`` or ``tau``), or its times ``t`` are not finite and strictly increasing (time running backwards, rows out of order or
-            repeated), naming the file and what is wrong.
+            ``qd``, ``r`` or ``tau``), or its times ``t`` are not finite and strictly
+            increasing (time running backwards, rows out of order or repeated), naming the file
+            and what is wrong.
         FileNotFoundError
             No such file.
         """
