@@ -85,3 +85,22 @@ def test_plant_reaching_a_singularity_stops_with_the_time(pair):
     # (distal links aligned) at 0.126 s.
     with pytest.raises(SingularConfiguration, match=r"plant at t = 0\.1\d+ s: .*type-II"):
         simulate(plant, _Passive(), ref, 0.2, qd0=np.array([1.0, -0.5]))
+
+
+def test_a_given_initial_state_the_chain_cannot_start_at_is_refused_naming_q0(pair):
+    # issue 50's probe: the 3-RRR at an impossible --q0 ran the whole study and ended on a
+    # divergence that did not name the option. A q0 the caller gave is a settings error: the
+    # edge check names it; a drawn plant that cannot start at the default q0 stays a result.
+    from rrr_pin.sim.simulation import check_run
+    from rrr_pin.validation import FieldError
+
+    plant, _ = pair
+    P = plant.params
+    s = np.arcsin((2 * P.l2 - P.d) / (2 * P.l1))
+    q0 = np.array([np.pi / 2 + s, np.pi / 2 - s])  # distal links aligned: type-II
+    ref = SineReference(home=plant.neutral(), amp=0.0, freq=0.0, phase=0.0)
+    with pytest.raises(FieldError, match=r"^q0 = \[.*\] rad: the plant cannot start there: "):
+        check_run(plant, _Passive(), ref, 0.1, q0=q0)
+    from rrr_pin.sim.engines import ENGINES
+
+    assert check_run(plant, _Passive(), ref, 0.1) in ENGINES

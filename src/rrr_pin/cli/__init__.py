@@ -14,7 +14,7 @@ import argparse
 import sys
 
 from . import analysis, campaign, descriptions, design, export, hil, identify, reproduce, stress
-from .common import logging_to_stderr, negative_values
+from .common import logging_to_stderr, negative_values, option
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
@@ -67,6 +67,10 @@ def main(argv: list[str] | None = None) -> int:
                 if getattr(args, "outputs", None) is not None:
                     args.outputs.close(finished=status == 0)
     except (ValueError, FileNotFoundError, RuntimeError) as exc:
+        from ..validation import FieldError
+
+        if isinstance(exc, FieldError) and args is not None and exc.field in vars(args):
+            exc = exc.relabelled(option)  # a field that is this command's option: --q0
         print(f"rrr-pin {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # stdout closed early (`| head`): stop quietly, as shell tools do

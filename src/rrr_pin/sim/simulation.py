@@ -342,7 +342,12 @@ def check_run(plant, law, reference: Reference, duration: float, *, engine: str 
                "limit_margin": 0.0, **kwargs}
     try:
         run = _prepare(plant, law, reference, duration, **options)
-    except plant.failures:
+    except plant.failures as exc:
+        if options["q0"] is not None:  # the caller's own initial state: a settings error
+            q0 = ", ".join(f"{float(v):.6g}" for v in np.ravel(options["q0"]))
+            raise FieldError("q0", "{name} = [" + q0 + "] rad: the plant cannot start "
+                             "there: " + str(exc).replace("{", "{{").replace("}", "}}")
+                             ) from None
         return engine
     return choose(run, engine)[0].name
 
