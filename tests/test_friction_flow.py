@@ -81,6 +81,17 @@ def test_the_urdf_friction_is_read_and_simulated(rrr, rubbing):
         PlantEffects(viscous="urdf", coulomb=1.0)
 
 
+def test_the_urdf_friction_of_an_arm_without_any_is_refused(rrr):
+    # issue 50's probe: --friction urdf on an arm whose URDF has no friction ran with none and
+    # recorded "urdf", not the zeros; asking for the description's friction where it gives
+    # none is refused, naming the arm and how to give the coefficients.
+    assert not np.any(np.concatenate(rrr.joint_friction()))
+    with pytest.raises(EffectsError, match=r"friction 'urdf': the serial arm 'rrr' has no joint "
+                                           r"friction in its description .* viscous=V,coulomb=C"):
+        simulate(rrr, fl_controller(rrr), _ref(rrr), 0.01, rate=RATE, engine="python",
+                 effects=PlantEffects(viscous="urdf", coulomb="urdf"))
+
+
 def test_compensation_adds_the_friction_torque(rubbing):
     """The law's torque with compensation minus without is Fv qd + Fc tanh(qd / v_eps)."""
     f = JointFriction(FV, FC)

@@ -278,6 +278,13 @@ class PlantEffects:
                                    f"has no joint friction in its description; give the "
                                    f"coefficients per joint ({', '.join(plant.joint_names)})")
             Fv, Fc = plant.joint_friction()
+            if not (np.any(Fv != 0.0) or np.any(Fc != 0.0)):
+                raise EffectsError(f"friction 'urdf': {plant.describe_kind()} {plant.name!r} "
+                                   f"has no joint friction in its description (every "
+                                   f"damping and friction is 0 or absent), so the run would "
+                                   f"have none; give the coefficients per joint "
+                                   f"({', '.join(plant.joint_names)}), e.g. "
+                                   f"viscous=V,coulomb=C")
             bad = [f"{j}: viscous {v:g}, coulomb {c:g}" for j, v, c in
                    zip(plant.joint_names, Fv, Fc, strict=True) if not (v >= 0.0 and c >= 0.0)]
             if bad:
