@@ -333,3 +333,30 @@ def test_the_tuners_loops_use_each_joints_lam(rrr):
     for req in (DelayMargin(0.001), ActuatorBandwidth(60.0)):
         assert req.estimate(fast, _Eval(fast, np.full(3, 100.0), None)) == \
             req.estimate(fast, _Eval(fast, 100.0, None))
+
+
+def test_a_lam_start_outside_the_search_range_is_refused(rrr):
+    # issue 50's probe: --per-joint-lam --lam 600 started at 500 without a word (the start was
+    # clipped to LAM_BOUNDS); the start is refused by name, naming the range.
+    from rrr_pin.control.structures import LAM_BOUNDS
+
+    lo, hi = LAM_BOUNDS
+    for lam in (0.5 * lo, 1.2 * hi):
+        with pytest.raises(FieldError, match=rf"^lam_start = {lam:g} rad/s, the start of each "
+                                             rf"joint's lam, is outside the search range "
+                                             rf"\[{lo:g}, {hi:g}\] rad/s"):
+            make_structure("gain", lam=lam, joints=rrr.joint_names, per_joint_lam=True)
+    for lam in (lo, hi):  # the ends of the range are starts
+        assert_allclose(make_structure("gain", lam=lam, joints=rrr.joint_names,
+                                       per_joint_lam=True).initial()[:3], [lam] * 3)
+
+
+def test_cli_lam_with_tune_lam_is_refused_not_ignored(tmp_path, capsys):
+    # issue 50's probe: design --tune-lam --lam 0 started at 50 rad/s without a word
+    from rrr_pin.cli import main
+
+    assert main(["design", "--robot", "rrr", "--tune-lam", "--lam", "0", "--out",
+                 str(tmp_path / "d")]) == 2
+    err = capsys.readouterr().err
+    assert "--lam 0 with --tune-lam: the search of lam starts at 50 rad/s" in err
+    assert "Traceback" not in err

@@ -11,8 +11,10 @@ __all__ = ["add", "run_design", "run_tuned", "add_tuning_arguments", "DEFAULT_RE
 def add(sub) -> None:
     """Declare ``design``."""
     p = sub.add_parser("design", help="H-infinity loop-shaping design of the paper's section 4")
-    p.add_argument("--lam", type=float, default=45.0,
-                   help="feedback-linearization natural frequency lambda [rad/s] (default 45)")
+    p.add_argument("--lam", type=float, default=None,
+                   help="feedback-linearization natural frequency lambda [rad/s] (default 45; "
+                        "with --per-joint-lam the start of each joint's; refused with "
+                        "--tune-lam, whose search starts mid-range)")
     p.add_argument("--factor", type=float, default=1.0,
                    help="gamma / gamma_min of ncfsyn, 1 = optimal (default 1.0)")
     p.add_argument("--joints", type=int, default=3,
@@ -109,13 +111,21 @@ def run_tuned(args) -> int:
     out = claim_out(args, "design")
     reqs = [make_requirement(t) for t in (args.require or DEFAULT_REQUIREMENTS)]
     robot = load_robot(args.robot or "rrr", lock=parse_lock(args.lock))
+    if args.tune_lam and args.lam is not None:
+        from ..control.structures import LAM_BOUNDS
+
+        lo, hi = LAM_BOUNDS
+        raise ValueError(f"--lam {args.lam:g} with --tune-lam: the search of lam starts at "
+                         f"{(lo * hi) ** 0.5:g} rad/s inside [{lo:g}, {hi:g}] rad/s and "
+                         f"would not read --lam; drop --lam, or drop --tune-lam to fix lam")
+    lam = 45.0 if args.lam is None else args.lam
     try:
-        structure = make_structure(args.structure, None if args.tune_lam else args.lam,
+        structure = make_structure(args.structure, None if args.tune_lam else lam,
                                    joints=robot.joint_names, per_joint=args.per_joint,
                                    per_joint_lam=args.per_joint_lam)
     except FieldError as exc:  # PerJoint's lam is --per-joint-lam here
         raise exc.relabelled(lambda f: "--per-joint-lam" if f == "lam" and args.per_joint_lam
-                             else f) from None
+                             else "--lam" if f == "lam_start" else f) from None
     fixed = parse_with(args.fixed, "")
     if args.plants == "vertices":
         if args.uncertainty is not None or args.confidence is not None:
@@ -160,7 +170,8 @@ def run_design(args) -> int:
     from ..validation import FieldError
 
     try:
-        d = design(lam=args.lam, n=args.joints, factor=args.factor, order=args.order)
+        d = design(lam=45.0 if args.lam is None else args.lam, n=args.joints,
+                   factor=args.factor, order=args.order)
     except FieldError as exc:  # design's lam, n, factor are --lam, --joints, --factor
         raise exc.relabelled(lambda f: "--joints" if f == "n" else option(f)) from None
     figures = []

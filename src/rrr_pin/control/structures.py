@@ -383,8 +383,13 @@ class PerJoint(Structure):
                                        f"{self.joints!r}")
         object.__setattr__(self, "joints", joints)
         object.__setattr__(self, "lam_bounds", self.base.lam_bounds)
-        if per_joint:
-            return  # base's lam (start) and lam_bounds are checked by base
+        if per_joint:  # base's lam (each joint's start) and lam_bounds are checked by base
+            lo, hi = self.lam_bounds
+            if self.base.lam is not None and not lo <= self.base.lam <= hi:
+                raise FieldError("lam_start", f"{{name}} = {self.base.lam:g} rad/s, the "
+                                              f"start of each joint's lam, is outside the "
+                                              f"search range [{lo:g}, {hi:g}] rad/s")
+            return
         object.__setattr__(self, "lam", self.base.lam)
         super().__post_init__()
 
