@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import control
 import numpy as np
@@ -551,3 +552,27 @@ def test_tuning_the_weight_moves_the_papers_delay_margin_past_fl_alones(rrr, pap
     # the paper's weight: 2.8 ms (README); 15 evaluations from it reach past FL alone's 6 ms
     assert start < 0.003 and res.table[0]["verified"] > 0.006
     assert res.structure.to_dict(res.values)["kind"] == "weight"
+
+
+def test_a_design_file_without_or_with_a_bad_K_is_refused_naming_the_file(tmp_path, rrr):
+    # issue 50's probe: a design.json without K ran FL alone (another law), and a bad K was
+    # named without the file. load_design checks both, naming the file.
+    from rrr_pin.campaign.tuning import DESIGN_FORMAT
+
+    good = {"format": DESIGN_FORMAT, "robot": "rrr", "joints": list(rrr.joint_names),
+            "lam_rad_s": 45.0, "K": {"num": [2.0, 1.0], "den": [1.0, 0.5]}}
+    cases = [({k: v for k, v in good.items() if k != "K"}, r"no K "),
+             ({**good, "K": {"num": [1.0, 2.0, 3.0], "den": [1.0, 1.0]}}, "is not a transfer"),
+             ({**good, "K": {"num": [1.0], "den": [0.0, 1.0]}}, "is not a transfer"),
+             ({**good, "K": {"num": ["x"], "den": [1.0]}}, "is not a transfer"),
+             ({**good, "K": {"per_joint": [None, {"num": [float("inf")], "den": [1.0]}]}},
+              "is not a transfer")]
+    path = tmp_path / "design.json"
+    for data, match in cases:
+        path.write_text(json.dumps(data))
+        with pytest.raises(ValueError,
+                           match=rf"^--design {re.escape(str(path))}: (K = .* )?{match}"):
+            load_design(path)
+    path.write_text(json.dumps(good))
+    law = tuned_law(load_design(path), rrr)  # the hand-written K is the law's, unchanged
+    assert law.lam == 45.0

@@ -710,7 +710,31 @@ def load_design(path) -> dict:
                          f"{data.get('format') if isinstance(data, dict) else None!r}, "
                          f"expected {DESIGN_FORMAT!r}); write one with rrr-pin design "
                          f"--require ...")
+    missing = [key for key in ("robot", "joints", "lam_rad_s", "K") if key not in data]
+    if missing:  # K null is FL alone, as the tuner writes it; a missing K is another law
+        raise ValueError(f"--design {path}: no {', '.join(missing)} (a design.json written by "
+                         f"rrr-pin design --require ... has them all; K null for FL alone)")
+    K = data["K"]
+    for k in (K["per_joint"] if isinstance(K, dict) and "per_joint" in K and
+              isinstance(K["per_joint"], list) else [K]):
+        if k is not None and not _k_ok(k):
+            raise ValueError(f"--design {path}: K = {json.dumps(k)[:120]} is not a transfer "
+                             f"function {{\"num\": [...], \"den\": [...]}} of finite "
+                             f"coefficients, den[0] != 0, proper (len(num) <= len(den))")
     return data
+
+
+def _k_ok(k) -> bool:
+    """Whether ``k`` is ``{num, den}`` of a proper SISO transfer function with finite numbers."""
+    if not isinstance(k, dict) or set(k) != {"num", "den"}:
+        return False
+    try:
+        num, den = (np.asarray(k[key], dtype=float) for key in ("num", "den"))
+    except (TypeError, ValueError):
+        return False
+    return bool(num.ndim == den.ndim == 1 and num.size and den.size and den[0] != 0
+                and num.size <= den.size and np.all(np.isfinite(num))
+                and np.all(np.isfinite(den)))
 
 
 def tuned_law(design: dict, nominal, name: str = "tuned"):
