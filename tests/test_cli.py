@@ -454,6 +454,16 @@ def test_design_names_its_options(argv, message, capsys):
 
 
 
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_threads_for_an_engine_that_has_none_are_refused(engine, tmp_path, capsys):
+    # issue 50's probe: --threads 2 --engine compiled was accepted without a word
+    assert cli.main(["montecarlo", "--samples", "1", "--threads", "2", "--engine", engine,
+                     "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"--threads 2 with --engine {engine}: threads are the batched engine's" in err
+    assert "Traceback" not in err and not (tmp_path / "o").exists()
+
+
 @pytest.mark.parametrize("name", ["xarm7", "panda", "rrr", "fivebar"])
 def test_a_folder_does_not_shadow_a_robot_name(name, tmp_path, monkeypatch):
     # Issue 31: `--robot xarm7 --out xarm7` claimed the folder first, then refused the name

@@ -74,10 +74,16 @@ def run_montecarlo(args) -> int:
     from ..outputs import check_writable
     from ..report.campaign import summary_lines, write_campaign, write_campaign_report
     from ..sim.batched import MAX_THREADS
+    from ..sim.engine_names import AUTO, CODEGEN
     from ..validation import check_count
 
     check_count("--samples", args.samples, 1)
     check_count("--threads", args.threads, 1, MAX_THREADS)
+    if args.threads > 1 and args.engine not in (AUTO, CODEGEN):
+        raise ValueError(f"--threads {args.threads} with --engine {args.engine}: threads are "
+                         f"the batched engine's ({CODEGEN}); the {args.engine} engine runs one "
+                         f"plant at a time per process: give --jobs instead, or --engine "
+                         f"{CODEGEN} or {AUTO}")
     check_writable(args.out)
     args.write_hint = (f"; the samples finished so far are kept in {args.out}/parts.jsonl: "
                        "free space, then rerun with --resume")
