@@ -10,6 +10,7 @@ and that the console shows no error. The README's screenshot is made by
 
 import base64
 import io
+import json
 import math
 import re
 import shutil
@@ -341,6 +342,16 @@ def test_study_report_is_self_contained_and_covers_every_law(reproduced, plant):
     # the tables: results.md's, with the settings and the reference
     assert "| Uncertain plants: RMS error FL alone / H-inf+FL" not in text  # as HTML, not md
     assert "<td>Uncertain plants: RMS error FL alone / H-inf+FL [-] (Fig. 6c)</td>" in text
+    # issue 50: every failed design check in the headline, before the tables. The paper's
+    # design misses its robust performance barrier (sec. 4.1: the RPB and RSB intersect), so
+    # the page lists it first, with the margin results.json records.
+    design = json.loads((out / "results.json").read_text())["design"]
+    assert design["robust_performance"]["ok"] is False
+    head = text.index("Design checks not passed")
+    assert head < text.index("Study tables")
+    margin = design["robust_performance"]["margin_db"]
+    assert "robust_performance: ok = no (worst_frequency = " in text[head:]
+    assert f"margin_db = {margin:.3g})" in text[head:text.index("Study tables")]
 
 
 @pytest.mark.parametrize("where", ["example-robot-data", "copied"])
@@ -418,6 +429,18 @@ def test_campaign_report_and_summary_lines(small_campaign, tmp_path):
     assert [line.split()[0] for line in lines[4:]] == [
         "fl_rms_error", "fl_max_error", "error_ratio_pd", "torque_ratio_pd", "pd_rms_error",
         "pd_max_error"]
+
+
+def test_failed_checks_lists_every_false_verdict_with_its_path():
+    from rrr_pin.report.results import failed_checks
+
+    record = {"gamma": 2.1, "robust_stability": {"ok": True, "margin_db": 1.0},
+              "robust_performance": {"ok": False, "margin_db": -10.63},
+              "reduction": {"inner": {"guaranteed": False, "b": 0.4}},
+              "certificate": {"certified": True}}
+    assert failed_checks(record) == ["robust_performance: ok = no (margin_db = -10.6)",
+                                     "reduction.inner: guaranteed = no (b = 0.4)"]
+    assert failed_checks({"robust_stability": {"ok": True}}) == [] == failed_checks(None)
 
 
 def test_design_summary_and_lines_agree():

@@ -26,8 +26,8 @@ from .jsondata import dumps
 from .viewer import Scene, Track, task_path_points
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "study_captions",
-           "summary_lines", "write_trajectories", "torque_limit_table", "PAPER_ERROR_RATIO",
-           "PAPER_LAWS"]
+           "failed_checks", "summary_lines", "write_trajectories", "torque_limit_table",
+           "PAPER_ERROR_RATIO", "PAPER_LAWS"]
 
 #: The paper's claim for the uncertain plants: "almost a ten times better performance".
 PAPER_ERROR_RATIO = 10.0
@@ -386,7 +386,8 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
             warnings.simplefilter("always")
             return write_report_html(Path(out) / "report.html",
                                      title=f"rrr-pin study on {result.robot}",
-                                     tables=[("Study tables", results_markdown(result, data))],
+                                     tables=_failed_table(design) + [
+                                         ("Study tables", results_markdown(result, data))],
                                      figures=[(f, captions.get(Path(f).name, Path(f).name))
                                               for f in figures],
                                      design=design, scenes=scenes, units=DESIGN_UNITS)
@@ -402,6 +403,47 @@ def write_study_report(result: StudyResult, out: str | Path, figures, design: di
                 seen.add(w.message.missing)
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno,
                                    source=w.source)
+
+
+#: The boolean verdict keys of the design's records (``ok`` of a barrier check,
+#: ``guaranteed`` of a reduction, ``certified`` of a certificate).
+_VERDICT_KEYS = ("ok", "guaranteed", "certified")
+
+
+def failed_checks(design: dict | None, where: str = "") -> list[str]:
+    """Return one line per check of a design record that did not pass, in record order.
+
+    A check is a dict holding a verdict key (``ok``, ``guaranteed`` or ``certified``) that is
+    false; the line names its path in the record and its figures (``margin_db`` ...), so a
+    reader of a report's headline sees every failed check, not only the nested tables.
+
+    Parameters
+    ----------
+    design : dict or None
+        A design record (:func:`rrr_pin.report.design.study_design`), nested dicts.
+    where : str
+        The path of ``design`` in the record (for the recursion).
+    """
+    out: list[str] = []
+    if not isinstance(design, dict):
+        return out
+    for key in _VERDICT_KEYS:
+        if key in design and design[key] is False:
+            figures = ", ".join(f"{k} = {_fmt(v)}" for k, v in design.items()
+                                if isinstance(v, int | float) and not isinstance(v, bool))
+            out.append(f"{where or 'design'}: {key} = no" + (f" ({figures})" if figures else ""))
+    for key, value in design.items():
+        if isinstance(value, dict):
+            out += failed_checks(value, f"{where}.{key}" if where else key)
+    return out
+
+
+def _failed_table(design: dict | None) -> list[tuple[str, str]]:
+    """Return the report's first section when a design check failed: each one, listed."""
+    lines = failed_checks(design)
+    if not lines:
+        return []
+    return [("Design checks not passed", "\n".join(f"- {line}" for line in lines))]
 
 
 def study_captions(result: StudyResult, design: dict | None = None) -> dict:
