@@ -228,6 +228,31 @@ def test_parametric_margin_brackets_the_sampled_vertices(plant, name, samples):
         assert r.critical_frequency == np.inf
 
 
+def test_lower_and_upper_gain_margins_bound_the_stable_loop_gains(rrr, paper):
+    # issue 50: margins printed python-control's gain margin (7.54e-14/inf/0.00519/...)
+    # without saying it is a lower one. Each channel's lower and upper margins are checked
+    # against the closed loop's poles (an independent computation): the loop k L_i is stable
+    # just inside (lower, upper) and unstable just outside a finite end.
+    law = make_law("hinf", rrr, K=paper.K_reduced)
+    L = loop_at_input(law, rrr, Q)
+    m = loop_margins(L)
+    from rrr_pin.control.analysis import loop_channel
+
+    def stable(Li, k):
+        A = Li.A - k * Li.B @ Li.C  # negative feedback of k L_i (D = 0)
+        return bool(np.max(np.linalg.eigvals(A).real) < 0)
+
+    for i in range(rrr.nq):
+        Li = loop_channel(L, i)
+        lo, hi = m.gain_lower[i], m.gain_upper[i]
+        assert 0 < lo < 1 < hi  # the H-infinity loop has a lower margin (0.046 at q = 0)
+        assert stable(Li, 1.0) and stable(Li, 1.02 * lo) and not stable(Li, 0.98 * lo)
+        if np.isfinite(hi):
+            assert stable(Li, 0.98 * hi) and not stable(Li, 1.02 * hi)
+        else:
+            assert stable(Li, 1e3)
+
+
 @pytest.mark.parametrize("robot, home", [
     ("rrr", ["--home", "0.3,0.6,-0.9"]),
     ("fivebar", []),
@@ -238,6 +263,11 @@ def test_cli_margins_json(robot, home, capsys):
                      "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     pm = out["laws"]["fl"]["phase_margin_deg"]
+    # the lower and upper gain margins bracket the nominal gain 1 (checked against the poles
+    # in test_lower_and_upper_gain_margins_bound_the_stable_loop_gains)
+    lower, upper = (out["laws"]["fl"][f"gain_margin_{k}"] for k in ("lower", "upper"))
+    assert all(0 <= lo < 1 for lo in lower)
+    assert all(hi is None or hi > 1 for hi in upper)  # None: inf in strict JSON
     # FL alone, gravity cancelled exactly in the closed loop; the loop at the input still
     # carries the gravity stiffness, so only a band is asserted: near the shaped double
     # integrator's atan(2 sqrt(2 + sqrt 5)) = 76.3 deg (checked exactly at g = 0 above)

@@ -57,7 +57,8 @@ def run_margins(args) -> int:
             loops[law.name] = loop_at_input(law, robot, q)
             m = loop_margins(loops[law.name])
             out["laws"][law.name] = {
-                "gain_margin": m.gain.tolist(), "phase_margin_deg": m.phase.tolist(),
+                "gain_margin_lower": m.gain_lower.tolist(),
+                "gain_margin_upper": m.gain_upper.tolist(), "phase_margin_deg": m.phase.tolist(),
                 "crossover_rad_s": m.crossover.tolist(), "delay_margin_s": m.delay.tolist(),
                 "disk_margin": m.disk, "disk_gain_margin": m.disk_gain,
                 "disk_gain_margin_db": m.disk_gain_db,
@@ -77,8 +78,9 @@ def run_margins(args) -> int:
     for name, m in out["laws"].items():
         print(f"  {name}: phase margin {join(m['phase_margin_deg'], '.1f')} deg at "
               f"{join(m['crossover_rad_s'], '.1f')} rad/s; delay margin "
-              f"{join([1e3 * d for d in m['delay_margin_s']], '.2f')} ms; gain margin "
-              f"{join(m['gain_margin'], '.3g')}; disk margin {m['disk_margin']:.3f} "
+              f"{join([1e3 * d for d in m['delay_margin_s']], '.2f')} ms; gain margins: "
+              f"{_gain_range(m['gain_margin_lower'], m['gain_margin_upper'])}; disk margin "
+              f"{m['disk_margin']:.3f} "
               f"(gain x{m['disk_gain_margin']:.3g} = {m['disk_gain_margin_db']:.3g} dB, "
               f"phase {m['disk_phase_margin_deg']:.1f} "
               f"deg, all joints at once)")
@@ -124,3 +126,12 @@ def run_robstab(args) -> int:
             line += f"; sampled vertices: unstable from {m['sampled_margin']:.3f} x"
         print(line)
     return 0
+
+
+def _gain_range(lower, upper) -> str:
+    """Per joint, the loop-gain factors the loop stays stable within: ``x0.046 to inf``."""
+    def one(lo, hi):
+        return (f"x{lo:.3g}" if lo > 0 else "0") + " to " + (f"x{hi:.3g}" if hi < float("inf")
+                                                                else "inf")
+    return "/".join(one(lo, hi) for lo, hi in zip(lower, upper, strict=True)) + \
+        " (lower to upper, per joint)"

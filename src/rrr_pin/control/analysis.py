@@ -112,6 +112,14 @@ class LoopMargins:
         (``inf`` when there is none). Below 1 it is a lower margin: a double-integrator loop
         has phase -180 deg at ``w -> 0``, so FL alone gives about 0 (any gain in ``(0, inf)``
         keeps it stable).
+    gain_lower : ndarray, shape (n,)
+        Lower gain margins [-]: the loop stays stable when its gain drops to this factor,
+        not below (the largest ``1/|L(jw)|`` below 1 over the phase crossings of -180 deg,
+        ``w = 0`` included); 0 when no crossing limits it from below (a factor below 1e-9
+        is the ``w = 0`` crossing of a double integrator through round-off: 0).
+    gain_upper : ndarray, shape (n,)
+        Upper gain margins [-]: stable up to this factor (the smallest ``1/|L(jw)|`` above 1
+        over the crossings); ``inf`` when none limits it from above.
     phase : ndarray, shape (n,)
         Phase margins [deg].
     crossover : ndarray, shape (n,)
@@ -133,6 +141,8 @@ class LoopMargins:
     """
 
     gain: np.ndarray
+    gain_lower: np.ndarray
+    gain_upper: np.ndarray
     phase: np.ndarray
     crossover: np.ndarray
     delay: np.ndarray
@@ -157,6 +167,11 @@ def loop_channel(L: control.StateSpace, i: int) -> control.StateSpace:
     return control.ss(A, L.B[:, [i]], L.C[[i], :], 0)
 
 
+#: A lower gain margin below this is 0: the crossing of -180 deg at ``w = 0`` of a loop with
+#: two integrators (FL's, ``|L(0)| = inf``), seen through round-off (1e-23 to 1e-14 here).
+_GAIN_ZERO = 1e-9
+
+
 def loop_margins(L, omega=None) -> LoopMargins:
     """Gain, phase, delay and disk margins of a loop ``L`` (negative feedback, ``D = 0``).
 
@@ -173,17 +188,27 @@ def loop_margins(L, omega=None) -> LoopMargins:
     """
     L = control.ss(L)
     w = np.logspace(-2, 5, 2000) if omega is None else np.asarray(omega, dtype=float)
-    gm, pm, wc = [], [], []
+    gm, pm, wc, low, high = [], [], [], [], []
     for i in range(L.ninputs):
-        g, p, _, w_c = control.margin(loop_channel(L, i))
+        Li = loop_channel(L, i)
+        g, p, _, w_c = control.margin(Li)
         gm.append(g)
         pm.append(p)
         wc.append(w_c)
-    gm, pm, wc = (np.array(x, dtype=float) for x in (gm, pm, wc))
+        # every crossing of -180 deg: the gains at which the Nyquist curve passes -1
+        every = np.atleast_1d(np.asarray(control.stability_margins(Li, returnall=True)[0],
+                                         dtype=float))
+        # a factor below _GAIN_ZERO is the w = 0 crossing of a double integrator (|L| -> inf)
+        # up to round-off: no lower limit, 0
+        lo = float(every[every < 1.0].max()) if np.any(every < 1.0) else 0.0
+        low.append(lo if lo >= _GAIN_ZERO else 0.0)
+        high.append(float(every[every > 1.0].min()) if np.any(every > 1.0) else np.inf)
+    gm, pm, wc, low, high = (np.array(x, dtype=float) for x in (gm, pm, wc, low, high))
     with np.errstate(divide="ignore", invalid="ignore"):
         delay = np.where(wc > 0, np.deg2rad(pm) / wc, np.inf)
     dm, dgm_db, dpm = control.disk_margins(L, w)  # the gain margin in dB
-    return LoopMargins(gm, pm, wc, delay, float(dm), float(10.0 ** (float(dgm_db) / 20.0)),
+    return LoopMargins(gm, low, high, pm, wc, delay, float(dm),
+                       float(10.0 ** (float(dgm_db) / 20.0)),
                        float(dgm_db), float(dpm))
 
 
