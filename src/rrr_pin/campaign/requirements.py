@@ -213,13 +213,15 @@ class DiskMargin(Requirement):
 
     def verify(self, ctx, ev):
         """Return the exact value and how it was computed."""
-        import control
+        from ..control.analysis import refined_disk_margin
 
-        out = []
-        for i in range(len(ctx.loops.plants)):
-            L = ev.loop_ss(ctx, i)
-            out.append(float(control.disk_margins(L, ctx.loops.omega)[0]))
-        return min(out), "python-control disk_margins (SLICOT AB13MD mu bound)"
+        got = [refined_disk_margin(ev.loop_ss(ctx, i), ctx.loops.omega)
+               for i in range(len(ctx.loops.plants))]
+        worst = min(got, key=lambda m: m.alpha)
+        return worst.alpha, (f"python-control disk_margins (SLICOT AB13MD mu bound), its grid "
+                             f"refined at its lowest minima to 1e-6 in frequency (grid "
+                             f"{min(m.grid for m in got):.6g}); certified lower bound "
+                             f"1/||S - I/2||_inf = {min(m.lower for m in got):.6g} (AB13DD)")
 
 
 @dataclass(frozen=True)
