@@ -32,6 +32,7 @@ from ...validation import FieldError
 from .regressors import BaseParameters, IdentificationError
 
 __all__ = [
+    "SolverAccuracyWarning",
     "PSEUDO_INERTIA_MARGIN",
     "CONSISTENCY_CONFIDENCE",
     "pseudo_inertia",
@@ -92,11 +93,36 @@ def parameter_weights(phi0) -> np.ndarray:
     return w
 
 
+class SolverAccuracyWarning(UserWarning):
+    """cvxpy's solver ended short of its tolerances on a consistency SDP (its status says which).
+
+    Issued with one fixed message per kind of problem, so Python's default filter prints it
+    once per process and problem, where cvxpy printed its own words at every draw; the
+    solution is still checked by the caller (consistency, distance) before it is used.
+    """
+
+
+#: The problems whose inaccurate solution this process has warned about.
+_WARNED: set = set()
+
+
 def _solve(problem, what: str):
+    import warnings
+
     try:
-        problem.solve(solver="CLARABEL")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            problem.solve(solver="CLARABEL")
     except Exception as exc:  # cvxpy.SolverError: say which problem
         raise IdentificationError(f"the consistency SDP ({what}) failed: {exc}") from None
+    if any("inaccurate" in str(w.message) for w in caught) and what not in _WARNED:
+        _WARNED.add(what)  # a set, not the registry: catch_warnings resets the registries
+        warnings.warn(f"the consistency SDP ({what}): Clarabel's solution may be inaccurate "
+                      f"(cvxpy's status 'optimal_inaccurate'; shown once per process)",
+                      SolverAccuracyWarning, stacklevel=2)
+    for w in caught:  # anything else is passed on as it came
+        if "inaccurate" not in str(w.message):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return problem.status
 
 
