@@ -229,7 +229,14 @@ def test_an_unstabilizable_set_is_named_with_the_best_point(rrr):
     ("delay_margin=-1", "delay_margin must be"), ("disk_margin=x", "needs a number"),
     ("bandwidth@joint1=3", "applies to peak_torque only"),
     ("delay_margin=0.003,delay=1", "takes actuator=SIZE"),
-], ids=["unknown", "novalue", "negative", "nan", "joint", "option"])
+    # issue 50's probe: numpy's words ("array is too big", "negative dimensions are not
+    # allowed", "cannot convert float NaN to integer") came out of these
+    ("delay_margin=1e9", "delay_margin = 1e.09 s is beyond what is verified: at most 1 s"),
+    ("actuator_bandwidth=300,delay=-1", "delay must be a finite number >= 0"),
+    ("actuator_bandwidth=300,delay=nan", "delay must be a finite number >= 0"),
+    ("delay_margin=0.003,actuator=-5", "actuator must be a finite number > 0"),
+], ids=["unknown", "novalue", "negative", "nan", "joint", "option", "delay-huge",
+        "delay-negative", "delay-nan", "actuator-negative"])
 def test_bad_requirement_text(text, match):
     with pytest.raises(FieldError, match=match):
         make_requirement(text)

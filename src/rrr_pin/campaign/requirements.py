@@ -33,6 +33,9 @@ __all__ = ["Requirement", "DelayMargin", "DiskMargin", "ActuatorBandwidth", "Ban
            "disk_margin_grid", "bandwidth_grid"]
 
 
+#: Largest delay [s] a requirement names: :func:`_bisect_up` counts a margin above it as inf.
+MAX_DELAY_MARGIN = 1.0
+
 #: Largest delay, in samples of the law, that :meth:`DelayMargin.verify` builds an exact
 #: discrete loop for (each sample adds ``n`` states to the eigenvalue problem).
 MAX_DELAY_SAMPLES = 200
@@ -169,6 +172,15 @@ class DelayMargin(Requirement):
     name: ClassVar[str] = "delay_margin"
     unit: ClassVar[str] = "s"
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.target > MAX_DELAY_MARGIN:
+            raise FieldError(self.name, f"{{name}} = {self.target:g} s is beyond what is "
+                                        f"verified: at most {MAX_DELAY_MARGIN:g} s (a larger "
+                                        f"margin counts as inf)")
+        if self.actuator is not None:
+            check_positive("actuator", self.actuator, unit="rad/s")
+
     def _wa(self, ctx):
         return self.actuator or ctx.fixed.get("actuator")
 
@@ -191,7 +203,8 @@ class DelayMargin(Requirement):
 
         def stable(tau):
             return bool(np.all(ctx.loops.spectral_radius(ev.law, tau, wa) < 1.0))
-        return _bisect_up(stable, max(self.target, 1e-4), 1e-4), \
+        start = min(max(self.target, 1e-4), MAX_DELAY_SAMPLES / ctx.loops.rate)
+        return _bisect_up(stable, start, 1e-4), \
             "exact discrete eigenvalues (fractional delay), bisection"
 
 
@@ -239,6 +252,14 @@ class ActuatorBandwidth(Requirement):
     name: ClassVar[str] = "actuator_bandwidth"
     unit: ClassVar[str] = "rad/s"
     sense: ClassVar[str] = "max"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.delay is not None:
+            check_positive("delay", self.delay, allow_zero=True, unit="s")
+            if self.delay > MAX_DELAY_MARGIN:
+                raise FieldError("delay", f"{{name}} = {self.delay:g} s: at most "
+                                          f"{MAX_DELAY_MARGIN:g} s")
 
     def _delay(self, ctx):
         return self.delay if self.delay is not None else ctx.fixed.get("delay", 0.0)
