@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from .common import as_options, floats, not_a_folder, option, parse_lock
 
-__all__ = ["load_plant", "parse_armature", "reference_from_args", "settings_from_args", "tolerances_from_args",
+__all__ = ["load_plant", "parse_armature", "reference_from_args", "settings_from_args",
+           "tolerances_from_args",
            "friction_spec", "compensation_from_args",
            "laws_from_args", "tuned_from_args", "design_record", "torque_limit_from_args",
            "with_torque_limit", "rejections_line",

@@ -156,7 +156,7 @@ class Tolerances(UncertaintySet):
                    if getattr(self, k)}}
 
     def _draws(self, rng: np.random.Generator):
-        """The generator the factors are drawn from (:class:`ToleranceVertices`: corners)."""
+        """Return the generator the factors are drawn from (:class:`ToleranceVertices`: corners)."""
         return rng
 
     def draw_joint_dynamics(self, values: dict, rng: np.random.Generator
@@ -313,7 +313,7 @@ class ToleranceVertices(Tolerances):
         return {**super().to_dict(), "draw": "vertices"}
 
     def _draws(self, rng: np.random.Generator):
-        """Every joint coefficient's factor at a corner too."""
+        """Return a generator drawing every joint coefficient's factor at a corner too."""
         return _CornerDraws(rng)
 
     def arm(self, source, rng: np.random.Generator, *, skip_joints=(), name=None
