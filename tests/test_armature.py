@@ -320,3 +320,52 @@ def test_cli_refuses_bad_armature(argv, match, capsys, tmp_path):
     err = capsys.readouterr().err
     assert code == 2
     assert match in err and "Traceback" not in err and err.count("\n") == 1
+
+
+# --- campaigns: every row records its plant's coefficients, and resumes stay exact ------------
+
+def test_campaign_records_joint_dynamics_and_resumes(rrr_armature, tmp_path):
+    import json
+    import shutil
+
+    from rrr_pin.campaign import montecarlo as mc
+    from rrr_pin.campaign.runner import RunSettings, make_laws
+    from rrr_pin.campaign.store import StoreError
+    from rrr_pin.control.references import study_reference
+    from rrr_pin.report.campaign import write_campaign
+
+    settings = mc.CampaignSettings(samples=3, tolerances=Tolerances(armature=0.3),
+                                   run=RunSettings(duration=0.05, rate=1000.0))
+    laws = make_laws("fl", rrr_armature)
+    reference = study_reference(rrr_armature, settings.run.duration)
+    ref = tmp_path / "ref"
+    with mc.open_store(ref, rrr_armature, laws, settings, reference) as store:
+        whole = mc.run_campaign(rrr_armature, laws, settings, jobs=1, chunk=1, store=store)
+    for row in whole.rows:  # each row's record is its plant's, redrawn alone from its seed
+        plant, _ = rrr_armature.perturbed(np.random.default_rng(row["seed"]),
+                                          settings.tolerances)
+        assert row["parameters"]["joint_dynamics"] == json.loads(json.dumps(
+            {**plant.joint_dynamics(),
+             "factors": row["parameters"]["joint_dynamics"]["factors"]}))
+        assert_allclose(plant.model.armature,
+                        ARMATURE * row["parameters"]["joint_dynamics"]["factors"]["armature"],
+                        rtol=1e-15)
+    write_campaign(whole, tmp_path / "out")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["joint_dynamics"] == rrr_armature.joint_dynamics()
+    assert summary["settings"]["tolerance_armature"] == 0.3
+    # a killed run resumes to the same rows; another armature or tolerance is refused
+    cut = tmp_path / "cut"
+    shutil.copytree(ref, cut)
+    lines = (cut / "parts.jsonl").read_text().splitlines(keepends=True)
+    (cut / "parts.jsonl").write_text("".join(lines[:2]))
+    with mc.open_store(cut, rrr_armature, laws, settings, reference, resume=True) as store:
+        resumed = mc.run_campaign(rrr_armature, laws, settings, jobs=1, chunk=1, store=store)
+    assert resumed.rows == whole.rows
+    other = rrr_armature.with_joint_dynamics(armature=0.1)
+    with pytest.raises(StoreError):
+        mc.open_store(cut, other, make_laws("fl", other), settings, reference, resume=True)
+    with pytest.raises(StoreError):
+        mc.open_store(cut, rrr_armature, laws,
+                      replace(settings, tolerances=Tolerances(armature=0.2)), reference,
+                      resume=True)
