@@ -50,6 +50,8 @@ def test_drawn_equals_text_route(arm, request):
     for k in range(4):
         drawn, parameters = nominal.perturbed(np.random.default_rng([7, k]), TOL, name="s")
         text, plant, expected = _text_route(nominal, [7, k])
+        # the record adds the plant's joint coefficients (armature, damping, friction)
+        assert parameters.pop("joint_dynamics") == drawn.joint_dynamics()
         assert isinstance(drawn, DrawnArm) and parameters == expected
         A, B = dyngen.parameters(drawn.model), dyngen.parameters(plant.model)
         np.testing.assert_array_equal(A, B)

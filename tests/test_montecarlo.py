@@ -52,13 +52,17 @@ def redrawn(plant, seed, k):
 
     The RRR: ``sample_plant(paper_params(), seed, k)``; the 5-bar: ``perturb_mechanism`` of
     the built-in parameter set with ``default_rng([seed, k])``, 20 % masses, 5 % lengths.
+    Each record ends with the plant's armature, damping and friction (``joint_dynamics``).
     """
     if plant.name == "rrr":
         sample = sample_plant(paper_params(), seed, k)
-        return sample.parameters, robot_from_xml(sample.urdf, gravity=plant.gravity)
+        drawn = robot_from_xml(sample.urdf, gravity=plant.gravity)
+        return {**sample.parameters, "joint_dynamics": drawn.joint_dynamics()}, drawn
     params, factors = perturb_mechanism(FiveBarParams(), np.random.default_rng([seed, k]),
                                         0.2, 0.05)
-    return {"params": asdict(params), "factors": factors}, load_robot(params)
+    drawn = load_robot(params)
+    return ({"params": asdict(params), "factors": factors,
+             "joint_dynamics": drawn.joint_dynamics()}, drawn)
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ and the expected range, in the same words everywhere:
 * :func:`check_probability`: a number in [0, 1];
 * :func:`check_vector`: a finite vector of shape (n,);
 * :func:`check_direction`: a finite non-zero vector of shape (n,), returned of unit length;
+* :func:`check_joint_values`: one finite value >= 0 per joint (a scalar for every joint);
 * :func:`check_matrix`: a finite matrix of a given shape.
 
 :func:`describe_value` words a value that is not what was expected (its repr and type), for
@@ -46,6 +47,7 @@ __all__ = [
     "check_probability",
     "check_vector",
     "check_direction",
+    "check_joint_values",
     "check_matrix",
     "describe_value",
 ]
@@ -333,6 +335,50 @@ def check_vector(name: str, value, n: int | None = None, *, readonly: bool = Fal
         raise _fail(name, f" must be finite, got {v.tolist()}")
     if readonly:
         v.setflags(write=False)
+    return v
+
+
+def check_joint_values(name: str, value, joints, *, unit: str = "") -> np.ndarray:
+    """Return one finite value >= 0 per joint, shape ``(len(joints),)`` (a new array).
+
+    A per-joint physical coefficient (armature, damping, Coulomb friction): one number for
+    every joint, or one per joint in the order of ``joints``.
+
+    Parameters
+    ----------
+    name : str
+        The field, for the message (``"armature"``).
+    value : float or array-like, shape (len(joints),)
+        The value(s).
+    joints : sequence of str
+        The joints' names, base to tip (the message names the joint of a bad value).
+    unit : str, optional
+        Unit shown in the message.
+
+    Raises
+    ------
+    ValueError
+        ``"armature has 2 values, the arm has 3 joints (j1, j2, j3): give one value, or one
+        per joint"`` or ``"armature of joint 'j2' must be a finite number >= 0 [kg m^2], got
+        -0.1"``.
+    """
+    joints = list(joints)
+    try:
+        if value is None or isinstance(value, (str, bytes)):
+            raise TypeError
+        v = np.atleast_1d(np.array(value, dtype=float)).copy()
+    except (TypeError, ValueError):
+        raise _fail(name, f" must be a number or one number per joint{_unit(unit)}, got "
+                         f"{value!r}") from None
+    if v.ndim != 1 or v.size not in (1, len(joints)):
+        raise _fail(name, f" has {v.size} values, the arm has {len(joints)} joints "
+                         f"({', '.join(joints)}): give one value, or one per joint")
+    if v.size == 1:
+        v = np.full(len(joints), v[0])
+    for joint, x in zip(joints, v.tolist(), strict=True):
+        if not (math.isfinite(x) and x >= 0.0):
+            raise FieldError(name, f"{{name}} of joint {joint!r} must be a finite number >= 0"
+                                   f"{_unit(unit)}, got {x!r}")
     return v
 
 

@@ -230,6 +230,10 @@ class Campaign:
     per_law : tuple of str
         Further per-law keys of the rows, ``<law>_<key>`` (``engine``; a closed chain's
         ``drift`` [m], the largest loop gap of the run); written to ``campaign.csv``.
+    joint_dynamics : dict or None
+        The nominal plant's armature, damping and friction and their source
+        (:meth:`rrr_pin.model.plant.Plant.joint_dynamics`); each drawn arm's are in its row's
+        ``parameters["joint_dynamics"]``.
     """
 
     robot: str
@@ -239,6 +243,7 @@ class Campaign:
     settings: dict = field(default_factory=dict)
     nominal: dict | None = None
     per_law: tuple = ()
+    joint_dynamics: dict | None = None
 
     @property
     def names(self) -> list[str]:
@@ -440,7 +445,7 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
                     rows=[r for r in rows if r["index"] != NOMINAL_INDEX],
                     settings={**settings.to_dict(), "reference": reference.to_dict()},
                     nominal=next((r for r in rows if r["index"] == NOMINAL_INDEX), None),
-                    per_law=per_law)
+                    per_law=per_law, joint_dynamics=nominal.joint_dynamics())
 
 
 def _chunk_size(total: int, workers: int, max_chunk: int, min_chunk: int, unit: int) -> int:

@@ -221,6 +221,10 @@ class StudyResult:
         (:func:`refined_nominal_errors`; None where not measured), recorded in
         ``summary["nominal_max_error_refined"]``: how much of the nominal error is the
         sampling's or the integrator's.
+    joint_dynamics : dict or None
+        The nominal plant's armature, damping and friction and their source
+        (:meth:`rrr_pin.model.plant.Plant.joint_dynamics`), in ``results.json``; each drawn
+        arm's are in its sample's ``parameters["joint_dynamics"]``.
     """
 
     robot: str
@@ -237,6 +241,7 @@ class StudyResult:
     dropped: dict = field(default_factory=dict)
     torque_limit: dict = field(default_factory=dict)
     refined: dict = field(default_factory=dict)
+    joint_dynamics: dict | None = None
 
     @property
     def names(self) -> list[str]:
@@ -281,6 +286,7 @@ class StudyResult:
         return {
             "robot": self.robot,
             "joint_names": self.joint_names,
+            **({"joint_dynamics": self.joint_dynamics} if self.joint_dynamics else {}),
             "reference": {**self.reference.to_dict(), "duration_s": self.config.run.duration},
             "config": self.config.to_dict(),
             "controllers": self.laws,
@@ -713,4 +719,5 @@ def run_study(nominal, laws, *, config: StudyConfig = StudyConfig(),
                        config=config, laws=[law.describe() for law in laws],
                        nominal=nominal_runs, samples=samples, plants=plants,
                        certificate=certificate.to_dict() if certificate is not None else None,
-                       task_space=task_space, dropped=dropped, refined=refined)
+                       task_space=task_space, dropped=dropped, refined=refined,
+                       joint_dynamics=nominal.joint_dynamics())

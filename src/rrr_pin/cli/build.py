@@ -10,19 +10,42 @@ from __future__ import annotations
 
 from .common import as_options, floats, not_a_folder, option, parse_lock
 
-__all__ = ["load_plant", "reference_from_args", "settings_from_args", "tolerances_from_args",
+__all__ = ["load_plant", "parse_armature", "reference_from_args", "settings_from_args",
+           "tolerances_from_args",
            "friction_spec", "compensation_from_args",
            "laws_from_args", "tuned_from_args", "design_record", "torque_limit_from_args",
            "with_torque_limit", "rejections_line",
            "frozen_configuration"]
 
 
-def load_plant(args, *, lock: bool = True):
-    """Return the plant of ``--robot`` (and ``--lock``): any kind :func:`load_robot` reads."""
+def load_plant(args, *, lock: bool = True, robot=None):
+    """Return the plant of ``--robot`` (and ``--lock``, ``--armature``): any kind load_robot reads.
+
+    ``robot`` stands for ``args.robot`` where a command's ``--robot`` has another default.
+    """
     from ..model.dynamics import load_robot
 
-    not_a_folder(robot=args.robot)
-    return load_robot(args.robot, lock=parse_lock(args.lock) if lock else None)
+    robot = args.robot if robot is None else robot
+    not_a_folder(robot=robot)
+    with as_options():
+        return load_robot(robot, lock=parse_lock(args.lock) if lock else None,
+                          armature=parse_armature(getattr(args, "armature", None)))
+
+
+def parse_armature(text: str | None):
+    """``--armature``'s ``V`` or ``V1/V2/...`` as numbers (None without it).
+
+    Their count and range are checked against the arm's joints where the arm is loaded
+    (:meth:`rrr_pin.model.dynamics.Robot.with_joint_dynamics`).
+    """
+    if text is None:
+        return None
+    try:
+        values = [float(v) for v in str(text).split("/")]
+    except ValueError:
+        raise ValueError(f"--armature expects a number [kg m^2] or one per joint separated "
+                         f"by '/', got {text!r}") from None
+    return values[0] if len(values) == 1 else values
 
 
 def reference_from_args(args, plant):
@@ -149,16 +172,30 @@ def compensation_from_args(args, nominal):
     return f
 
 
-def tolerances_from_args(args, plant):
-    """Return the paper's tolerances, or ``--uncertainty``'s identified distribution."""
-    from ..model.uncertainty import Tolerances
+def tolerances_from_args(args, plant, *, vertices: bool = False):
+    """Return the paper's tolerances, or ``--uncertainty``'s identified distribution.
 
+    The tolerances widened by ``--tolerance-armature``, ``--tolerance-damping`` and
+    ``--tolerance-friction`` (relative to the nominal's values); ``vertices``: the corners of
+    that box (:class:`~rrr_pin.model.uncertainty.ToleranceVertices`).
+    """
+    from ..model.uncertainty import JOINT_TOLERANCES, Tolerances, ToleranceVertices
+
+    joint = {k: getattr(args, f"tolerance_{k}", 0.0) or 0.0 for k in JOINT_TOLERANCES}
     if args.uncertainty is None:
         if args.confidence is not None:
             raise ValueError(f"--confidence {args.confidence:g} applies to plants drawn from "
                              f"an identification: give --uncertainty IDENTIFICATION.json too "
                              f"(the paper's tolerances have no confidence region)")
-        return Tolerances()
+        try:
+            return (ToleranceVertices if vertices else Tolerances)(**joint)
+        except ValueError as exc:  # "armature tolerance must be ..." -> the option's name
+            key = str(exc).split(" ", 1)[0]
+            raise ValueError(f"--tolerance-{key}: {exc}") from None
+    if any(joint.values()):
+        raise ValueError("--tolerance-armature, --tolerance-damping and --tolerance-friction "
+                         "widen the tolerance box; an identification (--uncertainty) draws "
+                         "its own plants: give one or the other")
     from ..model.identification import IdentifiedUncertainty
 
     not_a_folder(uncertainty=args.uncertainty)

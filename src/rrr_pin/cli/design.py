@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .common import claim_out, control_ss, option
-from .options import add_overwrite
+from .options import add_armature_argument, add_joint_tolerance_arguments, add_overwrite
 
 __all__ = ["add", "run_design", "run_tuned", "add_tuning_arguments", "DEFAULT_REQUIREMENTS"]
 
@@ -39,6 +39,7 @@ def add_tuning_arguments(p) -> None:
                         "over its uncertain plants")
     g.add_argument("--lock", action="append", metavar="JOINT=VALUE",
                    help="lock a joint of --robot at a position (repeatable)")
+    add_armature_argument(g)
     g.add_argument("--require", action="append", default=[], metavar="NAME=VALUE",
                    help="a requirement (repeatable): delay_margin=S, disk_margin=ALPHA, "
                         "actuator_bandwidth=RAD_S, bandwidth=RAD_S, peak_torque=N_M|urdf "
@@ -68,6 +69,7 @@ def add_tuning_arguments(p) -> None:
                    help="how the --samples plants are drawn: samples (uniform inside the "
                         "20 %% / 5 %% tolerance box, as the studies draw them) or vertices "
                         "(seeded corners of that box, every factor at 1 - tol or 1 + tol)")
+    add_joint_tolerance_arguments(g)
     g.add_argument("--uncertainty", metavar="IDENTIFICATION.json", default=None,
                    help="draw the plants from an identification (rrr-pin identify) instead "
                         "of the tolerance box; use --robot DIR/identified.urdf as the nominal")
@@ -99,18 +101,16 @@ def run_tuned(args) -> int:
     from ..campaign.requirements import make_requirement
     from ..campaign.tuning import TuneError, tune
     from ..control.structures import make_structure
-    from ..model.dynamics import load_robot
     from ..report.jsondata import dumps
     from ..validation import FieldError
-    from .build import tolerances_from_args
-    from .common import parse_lock
+    from .build import load_plant, tolerances_from_args
     from .stress import parse_with
 
     if args.out is None:
         raise ValueError("design to requirements writes DIR/design.json: give --out DIR")
     out = claim_out(args, "design")
     reqs = [make_requirement(t) for t in (args.require or DEFAULT_REQUIREMENTS)]
-    robot = load_robot(args.robot or "rrr", lock=parse_lock(args.lock))
+    robot = load_plant(args, robot=args.robot or "rrr")
     if args.tune_lam and args.lam is not None:
         from ..control.structures import LAM_BOUNDS
 
@@ -132,9 +132,7 @@ def run_tuned(args) -> int:
             raise ValueError("--plants vertices takes the corners of the tolerance box; an "
                              "identified set (--uncertainty, --confidence) has none: give "
                              "--plants samples")
-        from ..model.uncertainty import ToleranceVertices
-
-        tol = ToleranceVertices()
+        tol = tolerances_from_args(args, robot, vertices=True)
     else:
         tol = tolerances_from_args(args, robot)
     try:
@@ -158,6 +156,11 @@ def run_design(args) -> int:
     """Design, print (or ``--json``) and optionally draw the loop-shaping controller."""
     if args.robot is not None or args.require:
         return run_tuned(args)
+    for name in ("armature", "tolerance_armature", "tolerance_damping", "tolerance_friction"):
+        if getattr(args, name):
+            raise ValueError(f"{option(name)} applies to an arm's design to requirements: give "
+                             f"--robot ARM too (the paper's loop-shaping design, eq. 11, has "
+                             f"no arm)")
     if args.per_joint_lam:
         raise ValueError("--per-joint-lam: the paper's loop-shaping design is of one FL plant "
                          "(eq. 11), one lam; a per-joint lam is tuned to requirements: give "

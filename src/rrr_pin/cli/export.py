@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from .build import compensation_from_args, design_record, load_plant, tuned_from_args
 from .common import as_options, check_out_early, claim_out
-from .options import add_design_argument, add_overwrite
+from .options import add_armature_argument, add_design_argument, add_overwrite
 
 __all__ = ["add", "run_export"]
 
@@ -26,6 +26,7 @@ def add(sub) -> None:
                         "path")
     p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
                    help="lock a joint at a position [rad or m] (repeatable)")
+    add_armature_argument(p)
     p.add_argument("--law", default="hinf", metavar="NAME",
                    help="built-in controller: " + "; ".join(
                        f"{k} = {v}" for k, v in BUILTIN_LAWS.items()) + "; tuned = the law "

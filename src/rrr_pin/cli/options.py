@@ -8,7 +8,7 @@ and reference kinds from :mod:`rrr_pin.control.catalog`.
 from __future__ import annotations
 
 __all__ = ["add_design_argument", "add_overwrite", "add_plant_arguments", "add_law_arguments",
-           "add_force_argument",
+           "add_force_argument", "add_armature_argument", "add_joint_tolerance_arguments",
            "add_reference_arguments"]
 
 _PLANT_HELP = ("plant: 'rrr' (the paper's arm, default), an example-robot-data arm (ur5, ur3, "
@@ -32,12 +32,35 @@ def add_design_argument(p) -> None:
                         "its requirement table")
 
 
+def add_armature_argument(p) -> None:
+    """``--armature V`` or ``V1/V2/...``: the arm's reflected rotor inertia per joint."""
+    p.add_argument("--armature", metavar="V|V1/V2/...", default=None,
+                   help="reflected rotor inertia of each joint [kg m^2] (>= 0), added to the "
+                        "mass matrix's diagonal in the plant and in the laws' nominal model: "
+                        "one value for every joint or one per joint (after --lock) separated "
+                        "by '/', e.g. 0.1 or 0.3/0.3/0.3/0.3/0.1/0.1/0.1 (default: none, as a "
+                        "URDF carries none; serial arms only); recorded in the results")
+
+
+def add_joint_tolerance_arguments(p) -> None:
+    """``--tolerance-armature``, ``--tolerance-damping``, ``--tolerance-friction``."""
+    for key, what in (("armature", "armature (--armature)"),
+                      ("damping", "viscous friction (the URDF's <dynamics damping>)"),
+                      ("friction", "Coulomb friction (the URDF's <dynamics friction>)")):
+        p.add_argument(f"--tolerance-{key}", type=float, default=0.0, metavar="TOL",
+                       help=f"uncertain plants: each joint's {what} drawn in [1 - TOL, 1 + TOL] "
+                            f"times its nominal value, TOL in [0, 1) (default 0: nominal); "
+                            f"relative, so a zero nominal stays zero"
+                            + ("" if key == "armature" else "; acts with --friction urdf"))
+
+
 def add_plant_arguments(p, *, home: bool = True) -> None:
-    """``--robot``, ``--lock`` (and ``--home`` unless ``home=False``)."""
+    """``--robot``, ``--lock``, ``--armature`` (and ``--home`` unless ``home=False``)."""
     p.add_argument("--robot", default="rrr", metavar="NAME|PATH", help=_PLANT_HELP)
     p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
                    help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
                         "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
+    add_armature_argument(p)
     if home:
         p.add_argument("--home", metavar="Q1,Q2,...", default=None,
                        help="centre of the sinusoid, start of a quintic or task-space motion "
@@ -92,6 +115,7 @@ def add_law_arguments(p, default_duration: float, default_rate) -> None:
     p.add_argument("--confidence", type=float, default=None,
                    help="with --uncertainty only: confidence region the plants are drawn in "
                         "(0.95)")
+    add_joint_tolerance_arguments(p)
     p.add_argument("--uncertainty-draws", choices=("reject", "project"), default="reject",
                    help="with --uncertainty: a draw with no physically consistent arm is "
                         "rejected and redrawn (reject, default), or moved to the nearest "

@@ -613,8 +613,9 @@ class ClosedChain(Plant):
 
         The mechanism's parameter set is perturbed (a built-in's, or your own
         :class:`~rrr_pin.model.mechanisms.FiveBarParams` / ``DeltaParams``); an MJCF file
-        without one is refused. Returns the closed chain and ``{"params", "factors"}`` (the
-        parameter set drawn, and each field's factor).
+        without one is refused. Returns the closed chain and ``{"params", "factors",
+        "joint_dynamics"}`` (the parameter set drawn, each field's factor, and the chain's
+        armature, damping and friction as :meth:`Plant.joint_dynamics` records them).
         """
         if not isinstance(tolerances, UncertaintySet):
             raise TypeError(f"tolerances must be an uncertainty set (e.g. "
@@ -627,7 +628,8 @@ class ClosedChain(Plant):
         record = {"params": asdict(params), "factors": factors}
         if name:
             params = replace(params, name=name)
-        return load_closed_chain(params, gravity=self.gravity), record
+        plant = load_closed_chain(params, gravity=self.gravity)
+        return plant, {**record, "joint_dynamics": plant.joint_dynamics()}
 
     # --- the plant ---------------------------------------------------------------------------
     def actuation(self, tau) -> np.ndarray:

@@ -34,12 +34,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pinocchio as pin
 
-from ..validation import check_positive, check_real
+from ..validation import check_joint_values, check_positive, check_real
 from .dh import ArmParams, check_inertial
 from .drawn import ArmMap, arm_map, assemble
 from .plant import (
     EFFORT_LIMITS,
     FRAMES,
+    JOINT_DYNAMICS,
+    JOINT_DYNAMICS_SOURCES,
     JOINT_FRICTION,
     JOINT_LIMITS,
     URDF,
@@ -100,6 +102,12 @@ class Robot(Plant):
     params : ArmParams or None
         The DH parameter set the arm is built from, when its uncertain plants perturb it (the
         paper's RRR, :func:`rrr_pin.model.robots.nominal_params`) instead of its URDF.
+    joint_sources : dict
+        Where the model's armature, damping and friction came from (a value of
+        :data:`~rrr_pin.model.plant.JOINT_DYNAMICS_SOURCES` per key of
+        :data:`~rrr_pin.model.plant.JOINT_DYNAMICS`); by default ``"urdf"`` for the damping
+        and friction a URDF gives (``"none"`` where all zero) and ``"none"`` for a zero
+        armature. Set by the loader that sets the values (:meth:`with_joint_dynamics`).
     """
 
     model: pin.Model = field(repr=False)
@@ -109,6 +117,7 @@ class Robot(Plant):
     urdf: str = field(repr=False)
     locked: dict = field(default_factory=dict)
     params: ArmParams | None = field(default=None, repr=False)
+    joint_sources: dict | None = field(default=None, repr=False)
 
     capabilities = frozenset({URDF, EFFORT_LIMITS, JOINT_FRICTION, JOINT_LIMITS, FRAMES})
 
@@ -117,6 +126,13 @@ class Robot(Plant):
         self._joint_names = tuple(self.model.names)[1:]
         self._zero = np.zeros(self.model.nv)
         self.__dict__.pop("_gravity_free", None)  # made at the first V() (_without_gravity)
+        sources = dict(self.joint_sources or {})
+        for key in JOINT_DYNAMICS:
+            if key not in sources:
+                nonzero = bool(np.any(np.asarray(getattr(self.model, key))))
+                sources[key] = "none" if not nonzero else "urdf" if key != "armature" \
+                    else "cli"
+        self.joint_sources = sources
 
     def _without_gravity(self) -> tuple:
         """Return the model without gravity and its data, for ``V(q, qd) = rnea(q, qd, 0)``."""
@@ -132,7 +148,7 @@ class Robot(Plant):
         # 200 kB): the workspaces and the zero-gravity copy are rebuilt on arrival, as at
         # construction. A campaign sends its laws' nominal Robot with every task.
         return {key: getattr(self, key) for key in ("model", "name", "source", "urdf",
-                                                    "locked", "params")}
+                                                    "locked", "params", "joint_sources")}
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
@@ -190,6 +206,64 @@ class Robot(Plant):
         """
         return (np.asarray(self.model.damping, dtype=float).copy(),
                 np.asarray(self.model.friction, dtype=float).copy())
+
+    def joint_dynamics(self) -> dict:
+        """Return the arm's armature, damping and friction per joint and their source.
+
+        As :meth:`Plant.joint_dynamics` records them (lists of length nq, the sources of
+        :attr:`joint_sources`).
+        """
+        return {"armature_kg_m2": np.asarray(self.model.armature, dtype=float).tolist(),
+                "damping_Nms_rad": np.asarray(self.model.damping, dtype=float).tolist(),
+                "friction_Nm": np.asarray(self.model.friction, dtype=float).tolist(),
+                "source": dict(self.joint_sources)}
+
+    def with_joint_dynamics(self, *, armature=None, damping=None, friction=None,
+                            source: str = "cli") -> Robot:
+        r"""Return this arm with other joint coefficients (a new model; this arm unchanged).
+
+        The armature :math:`I_a` is the reflected rotor inertia of each joint's drive (a rotor
+        of inertia :math:`J_r` behind a gear ratio :math:`n` reflects :math:`n^2 J_r`), added
+        to the mass matrix's diagonal in every algorithm (Pinocchio's CRBA, RNEA and ABA, the
+        compiled engines, the generated code):
+
+        .. math:: M_a(q) = M(q) + \operatorname{diag}(I_a).
+
+        Damping and friction are the description's viscous and Coulomb coefficients, which
+        the plant effect ``friction="urdf"`` (``--friction urdf``) applies and
+        ``--compensate-friction`` compensates (:meth:`joint_friction`).
+
+        Parameters
+        ----------
+        armature : float or array-like, shape (nq,), optional
+            Reflected rotor inertia per joint [kg m^2] (kg for a prismatic joint), >= 0; one
+            value for every joint or one per joint, base to tip. None: unchanged.
+        damping : float or array-like, shape (nq,), optional
+            Viscous friction [N m s/rad], >= 0. None: unchanged.
+        friction : float or array-like, shape (nq,), optional
+            Coulomb friction [N m], >= 0. None: unchanged.
+        source : str, default "cli"
+            Where the values given come from, one of
+            :data:`~rrr_pin.model.plant.JOINT_DYNAMICS_SOURCES` (recorded in results).
+
+        Raises
+        ------
+        ValueError
+            A value that is negative or not finite, or a count that is neither 1 nor nq,
+            naming the field and the joint; an unknown ``source``.
+        """
+        if source not in JOINT_DYNAMICS_SOURCES:
+            raise ValueError(f"source must be one of {', '.join(JOINT_DYNAMICS_SOURCES)}, "
+                             f"got {source!r}")
+        given = {key: check_joint_values(key, value, self.joint_names, unit=unit)
+                 for (key, unit), value in zip(JOINT_DYNAMICS.items(),
+                                               (armature, damping, friction), strict=True)
+                 if value is not None}
+        model = self.model.copy()
+        for key, value in given.items():
+            getattr(model, key)[:] = value
+        sources = {**self.joint_sources, **dict.fromkeys(given, source)}
+        return replace(self, model=model, data=model.createData(), joint_sources=sources)
 
     def check_state(self, name: str, x) -> np.ndarray:
         """Return ``x`` as a finite float64 array of shape ``(nq,)``, or raise ``ValueError``.
@@ -263,9 +337,17 @@ class Robot(Plant):
         return self.urdf, ".urdf"
 
     def fingerprint(self) -> dict:
-        """Return ``{"urdf_sha256", "locked", "gravity"}``."""
-        return {"urdf_sha256": hashlib.sha256(self.urdf.encode()).hexdigest(),
-                "locked": dict(self.locked), "gravity": self.gravity}
+        """Return ``{"urdf_sha256", "locked", "gravity"}``, and the joint coefficients.
+
+        ``"joint_dynamics"`` (:meth:`joint_dynamics`) when the URDF does not say them all:
+        a nonzero armature, or damping or friction from elsewhere than the URDF.
+        """
+        out = {"urdf_sha256": hashlib.sha256(self.urdf.encode()).hexdigest(),
+               "locked": dict(self.locked), "gravity": self.gravity}
+        if np.any(np.asarray(self.model.armature)) or any(
+                v not in ("urdf", "none") for v in self.joint_sources.values()):
+            out["joint_dynamics"] = self.joint_dynamics()
+        return out
 
     def description(self) -> TreeDescription:
         """Return the arm as a tree with no loop, every joint actuated (a TreeDescription)."""
@@ -288,16 +370,39 @@ class Robot(Plant):
                             f"rrr_pin.Tolerances()), got {type(tolerances).__name__}")
         drawn = tolerances.draw_arm(self, rng, name=name)
         if drawn is not None:  # the set draws straight into the model (:meth:`drawn`)
-            return drawn
-        source = self.params if self.params is not None else self.urdf
-        urdf, parameters = tolerances.arm(source, rng, skip_joints=tuple(self.locked),
-                                          name=name)
-        # source: the nominal's, so that the drawn arm's mesh references (the nominal's, byte
-        # for byte: only inertials and joint origins are perturbed) resolve where the
-        # nominal's do (an example-robot-data folder, the URDF's own folder).
-        plant = robot_from_xml(urdf, gravity=self.gravity, lock=dict(self.locked),
-                               name=name or self.name, label=self.source, check=False)
-        return plant, parameters
+            plant, parameters = drawn
+        else:
+            source = self.params if self.params is not None else self.urdf
+            urdf, parameters = tolerances.arm(source, rng, skip_joints=tuple(self.locked),
+                                              name=name)
+            # source: the nominal's, so that the drawn arm's mesh references (the nominal's,
+            # byte for byte: only inertials and joint origins are perturbed) resolve where the
+            # nominal's do (an example-robot-data folder, the URDF's own folder).
+            plant = robot_from_xml(urdf, gravity=self.gravity, lock=dict(self.locked),
+                                   name=name or self.name, label=self.source, check=False)
+        return plant, self._drawn_joint_dynamics(plant, parameters, rng, tolerances)
+
+    def _drawn_joint_dynamics(self, plant: Robot, parameters: dict, rng, tolerances) -> dict:
+        """Give a drawn ``plant`` its joint coefficients, drawn around this arm's; in place.
+
+        The nominal values are this arm's, except damping and friction from the URDF, which
+        are the drawn plant's own (its URDF's: an identified set draws them there). The set
+        then draws each around them (:meth:`UncertaintySet.draw_joint_dynamics`), after the
+        arm's own draws, from the same ``rng``: a set that draws none leaves every earlier
+        plant of a seed as it was. Returns ``parameters`` with ``"joint_dynamics"`` (the
+        values, their source and the factors drawn).
+        """
+        nominal = {key: np.array(getattr(plant.model if self.joint_sources[key] == "urdf"
+                                         else self.model, key), dtype=float)
+                   for key in JOINT_DYNAMICS}
+        values, factors = tolerances.draw_joint_dynamics(nominal, rng)
+        for key in JOINT_DYNAMICS:
+            getattr(plant.model, key)[:] = values[key]
+        plant.joint_sources = dict(self.joint_sources)
+        record = plant.joint_dynamics()
+        if factors:
+            record["factors"] = factors
+        return {**parameters, "joint_dynamics": record}
 
     def arm_map(self) -> ArmMap:
         """Return the numbers of this arm's URDF a draw changes (:func:`~.drawn.arm_map`).
@@ -715,7 +820,7 @@ def _check_lock(model: pin.Model, lock: dict) -> dict[str, float]:
 
 
 def load_robot(source="rrr", *, gravity: float | None = None,
-               lock: dict[str, float] | None = None) -> Robot:
+               lock: dict[str, float] | None = None, armature=None) -> Robot:
     """Load a fixed-base serial arm into Pinocchio.
 
     Parameters
@@ -732,6 +837,11 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     lock : dict of str to float, optional
         Joints to lock, by name, at the given positions [rad or m] (Pinocchio's reduced model);
         e.g. ``{"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}``.
+    armature : float or array-like, shape (nq,), optional
+        Reflected rotor inertia of each moving joint [kg m^2] (after locking), >= 0: one value
+        for every joint or one per joint, base to tip; added to ``M(q)``'s diagonal
+        (:meth:`Robot.with_joint_dynamics`, source ``"cli"``). Default: none (a URDF carries
+        no armature). Not for a closed chain (refused): its armature is its MJCF's.
 
     Returns
     -------
@@ -748,12 +858,18 @@ def load_robot(source="rrr", *, gravity: float | None = None,
         is not physical (:func:`check_urdf_inertials`), floating base, unlocked mimic joint,
         moving joint without mass downstream, a joint to lock that is unknown or whose value
         is not finite or outside its limits, or a mass matrix that is not positive definite.
+    ValueError
+        An armature that is negative, not finite, or not one value or one per joint, naming
+        the joint.
     """
     from .closed_chain import is_closed_chain_source, load_closed_chain
 
     if is_closed_chain_source(source):  # a parallel mechanism (MJCF): "fivebar", "delta"
         if lock:
             raise ValueError(f"lock: joints of a closed chain cannot be locked, got {lock}")
+        if armature is not None:
+            raise ValueError(f"armature: a closed chain's armature is its MJCF's (<joint "
+                             f"armature>); it cannot be set on {source!r}, got {armature!r}")
         return load_closed_chain(source, gravity=DEFAULT_GRAVITY if gravity is None else gravity)
     if gravity is None:
         gravity = source.g if isinstance(source, ArmParams) else DEFAULT_GRAVITY
@@ -762,6 +878,8 @@ def load_robot(source="rrr", *, gravity: float | None = None,
         lock = _lock_mimics(raw, name, lock)
     robot = robot_from_xml(raw, name=name, gravity=gravity, lock=lock, label=label)
     robot.params = nominal_params(robot)
+    if armature is not None:
+        robot = robot.with_joint_dynamics(armature=armature, source="cli")
     logger.info("loaded %s from %s: %d joints (%s)%s", robot.name, label, robot.nq,
                 ", ".join(robot.joint_names),
                 f", locked {robot.locked}" if robot.locked else "")

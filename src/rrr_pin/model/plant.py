@@ -45,7 +45,7 @@ import numpy as np
 
 __all__ = ["Plant", "Settler", "UncertaintySet", "TreeDescription", "CapabilityError",
            "CAPABILITIES", "URDF", "EFFORT_LIMITS", "JOINT_FRICTION", "JOINT_LIMITS", "FRAMES",
-           "CLOSED_FORM",
+           "CLOSED_FORM", "JOINT_DYNAMICS", "JOINT_DYNAMICS_SOURCES",
            "central_jacobian"]
 
 #: The plant is a serial tree described by a URDF: its regressor can be identified, its
@@ -74,6 +74,17 @@ CAPABILITIES = {
     FRAMES: "named frames placed by forward kinematics of the actuated joints",
     CLOSED_FORM: "the paper's closed-form dynamics, eq. (2)-(7)",
 }
+
+
+#: The joint coefficients a plant carries beyond its links, with their units: the reflected
+#: rotor inertia added to ``M``'s diagonal (Pinocchio's ``model.armature``), the viscous and
+#: the Coulomb friction of its description (``model.damping``, ``model.friction``).
+JOINT_DYNAMICS = {"armature": "kg m^2", "damping": "N m s/rad", "friction": "N m"}
+
+#: Where a plant's joint coefficients came from (:attr:`Plant.joint_sources`): its URDF's
+#: ``<dynamics>``, the command line or the Python call (``load_robot(armature=...)``), an MJCF
+#: ``<joint armature damping frictionloss>``, an identification, or nowhere (all zero).
+JOINT_DYNAMICS_SOURCES = ("urdf", "cli", "mjcf", "identification", "none")
 
 
 def central_jacobian(f, x0: np.ndarray, h: float) -> np.ndarray:
@@ -206,6 +217,18 @@ class UncertaintySet:
         """
         return None
 
+    def draw_joint_dynamics(self, values: dict, rng: np.random.Generator
+                            ) -> tuple[dict, dict]:
+        """Return a drawn arm's joint coefficients around its nominal ones, and the factors.
+
+        ``values`` maps each key of :data:`JOINT_DYNAMICS` to the nominal's values, shape
+        (nq,); called by :meth:`Plant.perturbed` after :meth:`arm` (or :meth:`draw_arm`) with
+        the same ``rng``. Here: the values unchanged and no factor (a set that does not draw
+        them); :class:`rrr_pin.model.uncertainty.Tolerances` draws each with its own relative
+        tolerance.
+        """
+        return values, {}
+
     def mechanism(self, params, rng: np.random.Generator) -> tuple[object, dict]:
         """Return ``(parameter set, parameters drawn)`` of an uncertain mechanism."""
         raise TypeError(f"{type(self).__name__} does not perturb a parallel mechanism (a "
@@ -317,6 +340,30 @@ class Plant:
         """
         self.require(JOINT_FRICTION, "joint friction")
         raise NotImplementedError
+
+    #: Where each coefficient of :data:`JOINT_DYNAMICS` came from (a value of
+    #: :data:`JOINT_DYNAMICS_SOURCES` per key), set where the plant is loaded; see
+    #: :meth:`joint_dynamics`.
+    joint_sources: dict | None = None
+
+    def joint_dynamics(self) -> dict:
+        """Return the plant's armature, damping and friction per actuated joint, and their source.
+
+        What results record of every plant (a campaign's rows, a study's ``results.json``):
+        ``{"armature_kg_m2": [...], "damping_Nms_rad": [...], "friction_Nm": [...],
+        "source": {"armature": "cli", "damping": "urdf", "friction": "none"}}``, lists of
+        length nq, sources from :data:`JOINT_DYNAMICS_SOURCES`. Read from :attr:`model` at
+        the actuated coordinates (a closed chain's as its MJCF gave them to Pinocchio).
+        """
+        index = self.description().actuated
+        values = {key: np.asarray(getattr(self.model, key), dtype=float)[index]
+                  for key in JOINT_DYNAMICS}
+        sources = dict(self.joint_sources or {})
+        for key, v in values.items():
+            sources.setdefault(key, "mjcf" if np.any(v) else "none")
+        return {"armature_kg_m2": values["armature"].tolist(),
+                "damping_Nms_rad": values["damping"].tolist(),
+                "friction_Nm": values["friction"].tolist(), "source": sources}
 
     def has(self, capability: str) -> bool:
         """Whether the plant declares ``capability`` (a key of :data:`CAPABILITIES`)."""

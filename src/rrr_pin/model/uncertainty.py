@@ -26,6 +26,14 @@ link lengths"); every factor is drawn independently and uniformly in ``[1 - tol,
 * lengths: each link length ``l`` (DH ``a`` and ``d``) by ``f_l`` with the centre-of-mass
   distance ``lg`` scaled by the same factor (for a URDF: each joint origin's translation and the
   link's centre of mass).
+* joint coefficients (off by default): each joint's armature (reflected rotor inertia),
+  damping and Coulomb friction by its own factor in ``[1 - tol, 1 + tol]``, ``tol`` being
+  ``Tolerances.armature``, ``.damping``, ``.friction``. These are *relative to the nominal
+  value*: a joint whose nominal armature is zero (any URDF without ``--armature``) stays at
+  zero whatever the tolerance. Give the nominal first (``load_robot(..., armature=0.1)``,
+  ``--armature 0.1``), then its tolerance. They are drawn after the inertials and lengths,
+  from the same generator, and only when nonzero: a zero tolerance draws nothing, so every
+  plant drawn without them is the same as before they existed.
 
 Identified uncertainty: with ``tol`` an
 :class:`~rrr_pin.model.identification.IdentifiedUncertainty` (an ``identification.json`` of
@@ -65,6 +73,7 @@ from .urdf import dh_link_frame, urdf_from_params
 __all__ = [
     "Tolerances",
     "ToleranceVertices",
+    "JOINT_TOLERANCES",
     "PlantSample",
     "perturb_params",
     "perturb_urdf",
@@ -80,9 +89,14 @@ __all__ = [
 ]
 
 
+#: The relative tolerances of an arm's joint coefficients (:class:`Tolerances`), by the key of
+#: :data:`rrr_pin.model.plant.JOINT_DYNAMICS` they perturb, in the order they are drawn.
+JOINT_TOLERANCES = ("armature", "damping", "friction")
+
+
 def _check_tolerances(tol) -> None:
-    """Check and store ``tol.inertia`` and ``tol.length``: real, in ``[0, 1)`` (frozen record)."""
-    for name in ("inertia", "length"):
+    """Check and store the tolerances of ``tol``: real, in ``[0, 1)`` (frozen record)."""
+    for name in ("inertia", "length", *(k for k in JOINT_TOLERANCES if hasattr(tol, k))):
         value = check_real(f"{name} tolerance", getattr(tol, name))
         if not 0.0 <= value < 1.0:
             raise ValueError(f"{name} tolerance must be in [0, 1), got {value!r}")
@@ -104,21 +118,72 @@ class Tolerances(UncertaintySet):
         On masses and moments of inertia, in ``[0, 1)``.
     length : float, default 0.05
         On link lengths, joint offsets and centre-of-mass positions, in ``[0, 1)``.
+    armature : float, default 0
+        On each joint's armature (reflected rotor inertia), relative to its nominal value, in
+        ``[0, 1)``: a zero nominal armature stays zero (module docstring). Arms only.
+    damping : float, default 0
+        On each joint's viscous friction (the description's, ``model.damping``), relative to
+        the nominal, in ``[0, 1)``. Arms only; it acts through ``--friction urdf``.
+    friction : float, default 0
+        On each joint's Coulomb friction (``model.friction``), relative to the nominal, in
+        ``[0, 1)``. Arms only; it acts through ``--friction urdf``.
     """
 
     inertia: float = 0.2
     length: float = 0.05
+    armature: float = 0.0
+    damping: float = 0.0
+    friction: float = 0.0
 
     def __post_init__(self) -> None:
         _check_tolerances(self)
 
     def describe(self) -> str:
         """One line for reports: ``20% on masses and moments, 5% on lengths``."""
-        return f"{self.inertia:.0%} on masses and moments, {self.length:.0%} on lengths"
+        joints = "".join(f", {getattr(self, k):.0%} on {k}" for k in JOINT_TOLERANCES
+                         if getattr(self, k))
+        return (f"{self.inertia:.0%} on masses and moments, {self.length:.0%} on lengths"
+                + joints)
 
     def to_dict(self) -> dict:
-        """``{"tolerance_inertia", "tolerance_length"}``, as the outputs record them."""
-        return {"tolerance_inertia": self.inertia, "tolerance_length": self.length}
+        """``{"tolerance_inertia", "tolerance_length"}``, as the outputs record them.
+
+        With ``"tolerance_armature"``, ``"tolerance_damping"``, ``"tolerance_friction"``
+        where nonzero (a set without them records as it always did: a resume matches).
+        """
+        return {"tolerance_inertia": self.inertia, "tolerance_length": self.length,
+                **{f"tolerance_{k}": getattr(self, k) for k in JOINT_TOLERANCES
+                   if getattr(self, k)}}
+
+    def _draws(self, rng: np.random.Generator):
+        """Return the generator the factors are drawn from (:class:`ToleranceVertices`: corners)."""
+        return rng
+
+    def draw_joint_dynamics(self, values: dict, rng: np.random.Generator
+                            ) -> tuple[dict, dict]:
+        """Scale each joint's armature, damping and friction by a factor in ``[1 - tol, 1 + tol]``.
+
+        One factor per joint for each coefficient whose tolerance is nonzero, drawn in the
+        order of :data:`JOINT_TOLERANCES` (nothing drawn for a zero tolerance). Returns the
+        values (shape (nq,) each) and ``{key: factors}`` of those drawn.
+        """
+        out, factors = dict(values), {}
+        draws = self._draws(rng)
+        for key in JOINT_TOLERANCES:
+            tol = getattr(self, key)
+            if tol:
+                f = np.asarray(_factor(draws, tol, len(values[key])), dtype=float)
+                out[key] = np.asarray(values[key], dtype=float) * f
+                factors[key] = f.tolist()
+        return out, factors
+
+    def _refuse_joint_tolerances(self) -> None:
+        """Refuse joint tolerances for a closed chain (its draws are parameter sets)."""
+        given = [k for k in JOINT_TOLERANCES if getattr(self, k)]
+        if given:
+            raise ValueError(f"{', '.join(f'tolerance {k}' for k in given)}: drawn for serial "
+                             f"arms only; a closed chain's uncertain plants perturb its "
+                             f"parameter set (masses and lengths)")
 
     def as_settings(self) -> dict:
         """Return what ``Settings.to_dict`` records of the set: :meth:`to_dict`."""
@@ -196,7 +261,14 @@ class Tolerances(UncertaintySet):
         return robot.drawn(origins, inertials, write=write, name=name), parameters
 
     def mechanism(self, params, rng: np.random.Generator) -> tuple[object, dict]:
-        """``perturb_mechanism(params, rng, inertia, length)``: masses and lengths."""
+        """``perturb_mechanism(params, rng, inertia, length)``: masses and lengths.
+
+        Raises
+        ------
+        ValueError
+            A nonzero armature, damping or friction tolerance (arms only).
+        """
+        self._refuse_joint_tolerances()
         return perturb_mechanism(params, rng, self.inertia, self.length)
 
 
@@ -239,6 +311,10 @@ class ToleranceVertices(Tolerances):
     def to_dict(self) -> dict:
         """Return :meth:`Tolerances.to_dict` with ``"draw": "vertices"``."""
         return {**super().to_dict(), "draw": "vertices"}
+
+    def _draws(self, rng: np.random.Generator):
+        """Return a generator drawing every joint coefficient's factor at a corner too."""
+        return _CornerDraws(rng)
 
     def arm(self, source, rng: np.random.Generator, *, skip_joints=(), name=None
             ) -> tuple[str, dict]:

@@ -68,6 +68,8 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
               "settings": campaign.settings, "summary": summary}
     if campaign.nominal is not None:  # every campaign runs the nominal plant too (index -1)
         record["nominal"] = campaign.nominal
+    if campaign.joint_dynamics is not None:  # the nominal's armature, damping, friction
+        record["joint_dynamics"] = campaign.joint_dynamics
     text = dumps(record, indent=1) + "\n"
     written = []
     for name, content in (("campaign.csv", table.getvalue()), ("samples.jsonl", params),
