@@ -17,7 +17,8 @@ import pytest
 import rrr_pin
 
 ROOT = Path(__file__).resolve().parents[1]
-TEXTS = sorted([ROOT / "README.md", *ROOT.glob("docs/*.md"), *ROOT.glob("scripts/*.py"),
+TEXTS = sorted([ROOT / "README.md", *ROOT.glob("docs/*.md"), *ROOT.glob("docs/guide/*.md"),
+                *ROOT.glob("scripts/*.py"),
                 *(ROOT / "src" / "rrr_pin").rglob("*.py")])
 
 DOTTED = re.compile(r"(?<![\w.])rrr_pin(?:\.[A-Za-z_]\w*)+")
@@ -63,8 +64,9 @@ NAMES = _names()
 
 
 def test_texts_name_many_things():
-    # the extraction itself works: the README alone names dozens of rrr_pin objects
-    assert sum(1 for rel, _ in NAMES if rel == "README.md") > 20
+    # the extraction itself works: the README and the guide name dozens of rrr_pin objects
+    assert sum(1 for rel, _ in NAMES if rel == "README.md") > 5
+    assert sum(1 for rel, _ in NAMES if rel.startswith("docs/guide/")) > 20
 
 
 @pytest.mark.parametrize("where, name", NAMES, ids=[f"{w}:{n}" for w, n in NAMES])

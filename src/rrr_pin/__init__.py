@@ -107,5 +107,5 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    """The public names only (``__all__``), not this module's own imports."""
+    """List the public names only (``__all__``), not this module's own imports."""
     return list(__all__)

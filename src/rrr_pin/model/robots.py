@@ -98,7 +98,7 @@ def _read_text(path: Path) -> str:
 
 
 def _erd_version() -> str:
-    """The installed example-robot-data's version (an unknown name is refused naming it)."""
+    """Return the installed example-robot-data's version (an unknown name's refusal names it)."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:
