@@ -17,7 +17,8 @@ import pytest
 import rrr_pin
 
 ROOT = Path(__file__).resolve().parents[1]
-TEXTS = sorted([ROOT / "README.md", *ROOT.glob("docs/*.md"), *ROOT.glob("scripts/*.py"),
+TEXTS = sorted([ROOT / "README.md", *ROOT.glob("docs/*.md"), *ROOT.glob("docs/guide/*.md"),
+                *ROOT.glob("scripts/*.py"),
                 *(ROOT / "src" / "rrr_pin").rglob("*.py")])
 
 DOTTED = re.compile(r"(?<![\w.])rrr_pin(?:\.[A-Za-z_]\w*)+")
@@ -63,8 +64,9 @@ NAMES = _names()
 
 
 def test_texts_name_many_things():
-    # the extraction itself works: the README alone names dozens of rrr_pin objects
-    assert sum(1 for rel, _ in NAMES if rel == "README.md") > 20
+    # the extraction itself works: the README and the guide name dozens of rrr_pin objects
+    assert sum(1 for rel, _ in NAMES if rel == "README.md") > 5
+    assert sum(1 for rel, _ in NAMES if rel.startswith("docs/guide/")) > 20
 
 
 @pytest.mark.parametrize("where, name", NAMES, ids=[f"{w}:{n}" for w, n in NAMES])
@@ -109,3 +111,41 @@ def test_no_module_reexports_a_siblings_names(path):
     # a module's __all__ names only what it defines; a name's home is the module defining it
     defined, listed = _defined_and_all(path)
     assert [n for n in listed if n not in defined] == []
+
+
+def test_dir_lists_only_the_public_names():
+    # issue 50: dir(rrr_pin) showed the module's own imports (annotations, importlib)
+    assert dir(rrr_pin) == sorted(rrr_pin.__all__)
+    assert not {"annotations", "importlib"} & set(dir(rrr_pin))
+    assert all(not n.startswith("_") for n in dir(rrr_pin) if n != "__version__")
+
+
+def test_design_files_and_tuned_laws_at_the_top_level(tmp_path, rrr):
+    # issue 50: a tuned law is rrr_pin.tuned_law(rrr_pin.load_design(path), robot)
+    import json
+
+    from rrr_pin.campaign.tuning import DESIGN_FORMAT
+
+    path = tmp_path / "design.json"
+    path.write_text(json.dumps({"format": DESIGN_FORMAT, "robot": rrr.name,
+                                "joints": list(rrr.joint_names), "lam_rad_s": 30.0,
+                                "K": None}))
+    law = rrr_pin.tuned_law(rrr_pin.load_design(path), rrr)
+    assert law.name == "tuned" and law.lam == 30.0
+    with pytest.raises(ValueError, match="not an rrr-pin design"):
+        path.write_text('{"format": "other"}')
+        rrr_pin.load_design(path)
+
+
+def test_campaign_summary_is_a_method():
+    # Campaign.summary() is campaign_summary(campaign); a hand-made campaign of three plants
+    from rrr_pin.campaign.montecarlo import campaign_summary
+
+    rows = [{"index": k, "seed": [0, k], "status": "ok", "parameters": {}, "fl_rms_error": e,
+             "fl_max_error": e, "fl_rms_torque": 1.0} for k, e in enumerate([1.0, 3.0, 2.0])]
+    camp = rrr_pin.Campaign(robot="rrr", joint_names=["j1"], laws=[{"name": "fl", "label": "FL"}],
+                            rows=rows, settings={"baseline": "fl"})
+    assert camp.summary() == campaign_summary(camp)
+    # the median and the worst of 1, 3, 2 by hand
+    assert camp.summary()["fl_rms_error"]["median"] == 2.0
+    assert camp.summary()["fl_rms_error"]["worst"] == 3.0

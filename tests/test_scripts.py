@@ -41,7 +41,8 @@ def run_script(script, args, monkeypatch):
 def test_every_script_is_tested():
     assert {p.name for p in SCRIPTS.glob("*.py")} == {r[0] for r in RUNS} | {
         "bench.py", "codegen.py", "gen_dynamics.py", "report_screenshot.py",
-        "panda_heldout.py", "probe_inputs.py"}
+        "panda_heldout.py", "probe_inputs.py",
+        "figures_table.py"}  # tests/test_readme.py runs it (--check, and on a changed figure)
 
 
 def test_report_screenshot_refuses_a_missing_report(tmp_path, monkeypatch, capsys):

@@ -8,10 +8,8 @@ The names below are imported on first use (PEP 562), so ``import rrr_pin`` and t
 ``rrr-pin`` command start without loading Pinocchio or python-control until needed.
 """
 
-from __future__ import annotations
-
-import importlib
 import importlib.metadata as _metadata
+from importlib import import_module as _import_module
 
 try:
     __version__ = _metadata.version("rrr-pin")
@@ -22,6 +20,7 @@ except _metadata.PackageNotFoundError:  # running from a source tree that is not
 _EXPORTS = {
     "AntiWindupTracking": "control.laws",
     "ArmParams": "model.dh",
+    "Campaign": "campaign.montecarlo",
     "CampaignSettings": "campaign.montecarlo",
     "CertificateSpec": "robust.certificates",
     "check_inertial": "model.dh",
@@ -51,6 +50,7 @@ _EXPORTS = {
     "IKError": "control.references",
     "LinearModel": "control.laws",
     "LinePath": "control.references",
+    "load_design": "campaign.tuning",
     "load_robot": "model.dynamics",
     "loopsyn": "robust.loopshaping",
     "make_law": "control.catalog",
@@ -91,6 +91,7 @@ _EXPORTS = {
     "Trajectory": "sim.trajectory",
     "tune": "campaign.tuning",
     "TuneResult": "campaign.tuning",
+    "tuned_law": "campaign.tuning",
 }
 
 __all__ = ["__version__", *sorted(_EXPORTS, key=str.lower)]
@@ -100,10 +101,11 @@ def __getattr__(name: str):
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'rrr_pin' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    value = getattr(_import_module(f".{module}", __name__), name)
     globals()[name] = value
     return value
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_EXPORTS))
+    """List the public names only (``__all__``), not this module's own imports."""
+    return list(__all__)

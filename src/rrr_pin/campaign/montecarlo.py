@@ -255,11 +255,15 @@ class Campaign:
         """Name of the baseline law."""
         return self.settings["baseline"]
 
+    def summary(self) -> dict:
+        """Median, 95th percentile and worst of each metric: :func:`campaign_summary` (self)."""
+        return campaign_summary(self)
+
     def _repr_html_(self) -> str:
         """Summary table for notebooks: per law, median and worst RMS error and status."""
         import html
 
-        s = campaign_summary(self)
+        s = self.summary()
         run = self.settings
         rate = (f"{run['rate_hz']:g} Hz (sampled laws)" if run.get("rate_hz")
                 else "continuous-time laws")

@@ -740,6 +740,24 @@ def _k_ok(k) -> bool:
 def tuned_law(design: dict, nominal, name: str = "tuned"):
     """Build the tuned law of a ``design.json`` record on ``nominal``.
 
+    ``rrr_pin.tuned_law(rrr_pin.load_design("tuned/design.json"), robot)`` is the law that
+    ``rrr-pin design --require ...`` wrote, ready for :func:`rrr_pin.simulate` or a campaign.
+
+    Parameters
+    ----------
+    design : dict
+        A record read by :func:`load_design`.
+    nominal : rrr_pin.model.plant.Plant
+        The arm it was tuned for (same name and joints).
+    name : str
+        The law's name in runs and tables.
+
+    Returns
+    -------
+    rrr_pin.ControlLaw
+        The feedback-linearizing law with the design's ``lam_rad_s`` [rad/s] (one, or one per
+        joint) and its loop-shaping controller ``K`` (none: FL alone).
+
     Raises
     ------
     ValueError

@@ -1,4 +1,4 @@
-"""``rrr-pin design``: the H-infinity loop-shaping design of the paper's section 4."""
+"""``rrr-pin design``: the paper's loop-shaping design (section 4), or a design to requirements."""
 
 from __future__ import annotations
 
@@ -10,7 +10,14 @@ __all__ = ["add", "run_design", "run_tuned", "add_tuning_arguments", "DEFAULT_RE
 
 def add(sub) -> None:
     """Declare ``design``."""
-    p = sub.add_parser("design", help="H-infinity loop-shaping design of the paper's section 4")
+    p = sub.add_parser(
+        "design", help="the paper's H-infinity loop-shaping design (section 4), or with --robot "
+                       "and --require a design tuned to requirements (design.json)",
+        description="Without --robot or --require: the paper's H-infinity loop-shaping design "
+                    "(section 4: ncfsyn on the feedback-linearized plant, the reduced controller "
+                    "of eq. 18). With --robot or --require: design to requirements, a "
+                    "structured FL law tuned over the arm's uncertain plants, written to "
+                    "--out DIR/design.json.")
     p.add_argument("--lam", type=float, default=None,
                    help="feedback-linearization natural frequency lambda [rad/s] (default 45; "
                         "with --per-joint-lam the start of each joint's; refused with "

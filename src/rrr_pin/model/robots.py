@@ -15,8 +15,15 @@ from .urdf import urdf_from_params
 __all__ = ["ERD_ARMS", "RobotModelError", "robot_names", "read_source", "erd_urdf_path",
            "nominal_params"]
 
-#: example-robot-data names accepted by :func:`load_robot` (fixed-base arms).
-ERD_ARMS = ("ur3", "ur5", "ur10", "panda", "kinova", "z1", "bravo7_no_ee", "xarm7")
+#: example-robot-data names accepted by :func:`load_robot`: every fixed-base serial arm of
+#: example-robot-data 5.0 that rrr-pin can simulate (its joint-limited and gripper variants
+#: too). Not listed: floating bases, trees (baxter, tiago, hands), and those whose URDF
+#: rrr-pin refuses (bravo7_gripper: a finger moves no mass; talos_arm: its mimic joints'
+#: leaders are not joints of the file); the 2-joint pendulums and the 3-joint finger_edu load
+#: by name too but are not arms.
+ERD_ARMS = ("ur3", "ur5", "ur10", "panda", "kinova", "z1", "bravo7_no_ee", "xarm7",
+            "ur3_limited", "ur5_limited", "ur10_limited", "ur3_gripper", "ur5_gripper",
+            "panda_collision")
 
 
 class RobotModelError(ValueError):
@@ -51,7 +58,8 @@ def read_source(source) -> tuple[str, str, str]:
     path = Path(text)
     if path.suffix.lower() != ".urdf" and not path.exists():
         raise ValueError(f"unknown robot {text!r}: give a URDF path or one of "
-                         f"{', '.join(robot_names())}")
+                         f"{', '.join(robot_names())} (the arms of example-robot-data "
+                         f"{_erd_version()}, installed)")
     if path.is_dir():
         raise RobotModelError(f"{path}: is a directory; a robot is a URDF file or a name")
     if not path.is_file():
@@ -87,6 +95,16 @@ def _read_text(path: Path) -> str:
     except UnicodeDecodeError as exc:
         raise RobotModelError(f"{path}: not a UTF-8 text file (byte {exc.start}: "
                               f"{exc.reason}); a URDF is XML text") from None
+
+
+def _erd_version() -> str:
+    """Return the installed example-robot-data's version (an unknown name's refusal names it)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("example-robot-data")
+    except PackageNotFoundError:
+        return "(version unknown)"
 
 
 def _erd_has(name: str) -> bool:
