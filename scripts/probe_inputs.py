@@ -185,6 +185,49 @@ def cases() -> list[Case]:
         Case("names", "panda-by-name", _cli("margins", "--robot", "panda", "--controllers",
                                             "fl"), refuse=False,
              shows=r"^panda at q = \[(-?[\d.]+, ){6}-?[\d.]+\] rad"),
+        # issue 50: silent and unclear cases the issue's probe found
+        *[Case("issue50", f"require-{name}", _cli("design", "--robot", "rrr", "--require", text,
+                                                 "--samples", "1", "--starts", "1",
+                                                 "--no-simulate", "--out", "{o}"),
+               names=("--require", word))
+          for name, text, word in (("delay-1e9", "delay_margin=1e9", "delay_margin"),
+                                   ("delay-negative", "actuator_bandwidth=300,delay=-1",
+                                    "delay"),
+                                   ("delay-nan", "actuator_bandwidth=300,delay=nan", "delay"))],
+        Case("issue50", "tune-lam-with-lam-0", _cli("design", "--robot", "rrr", "--tune-lam",
+                                                    "--lam", "0", "--out", "{o}"),
+             names=("--lam", "--tune-lam")),
+        Case("issue50", "per-joint-lam-600", _cli("design", "--robot", "rrr", "--per-joint-lam",
+                                                  "--lam", "600", "--out", "{o}"),
+             names=("--lam", "500")),
+        Case("issue50", "design-json-without-K", _cli(*mc, "--controllers", "fl,tuned",
+                                                      "--design", "{w}/noK.json", "--out",
+                                                      "{o}"),
+             names=("noK.json", "K"), needs=("designs",)),
+        Case("issue50", "threads-compiled", _cli(*mc, "--threads", "2", "--engine", "compiled",
+                                                 "--out", "{o}"), names=("--threads", "--jobs")),
+        Case("issue50", "friction-urdf-without-friction",
+             _cli(*mc, "--rate", "1000", "--friction", "urdf", "--out", "{o}"),
+             names=("friction 'urdf'", "no joint friction")),
+        *[Case("issue50", f"reference-option-{opt[2:]}",
+               _cli("reproduce", "--robot", robot, opt, value, "--samples", "1",
+                    "--duration", "0.1", "--no-progress", "--out", "{o}"),
+               names=(opt, "--reference"))
+          for robot, opt, value in (("fivebar", "--radius", "0.1"), ("rrr", "--move-time", "1"),
+                                    ("rrr", "--csv", "x.csv"))],
+        Case("issue50", "mat-with-inf", code=textwrap.dedent("""
+            import numpy as np
+            from rrr_pin import Trajectory
+            a = Trajectory.load("{w}/ok.npz")
+            a.q = a.q.copy(); a.q[3, 1] = np.inf
+            a.save("{w}/inf.mat")
+            Trajectory.load("{w}/inf.mat")"""), names=("inf.mat", "q[3, 1]"),
+             needs=("trajectories",)),
+        Case("issue50", "threerrr-impossible-q0",
+             _cli("reproduce", "--robot", "threerrr", "--q0", "5,5,5", "--samples", "1",
+                  "--duration", "0.1", "--no-progress", "--out", "{o}"), names=("--q0",)),
+        Case("issue50", "margins-lower-upper", _cli("margins", "--controllers", "hinf"),
+             refuse=False, shows=r"gain margins: x0\.046 to inf"),
         # mu on a badly scaled matrix (SLICOT AB13MD's published bound 41.7475, scaled 1e6)
         Case("mu", "ab13md-scaled-1e6", code=textwrap.dedent("""
             import numpy as np
@@ -300,13 +343,22 @@ def _trajectories(w: Path) -> None:
     (w / "folder.npz").mkdir(exist_ok=True)
 
 
+def _designs(w: Path) -> None:
+    from rrr_pin.campaign.tuning import DESIGN_FORMAT
+
+    (w / "noK.json").write_text(json.dumps({"format": DESIGN_FORMAT, "robot": "rrr",
+                                            "joints": ["joint1", "joint2", "joint3"],
+                                            "lam_rad_s": 45.0}))
+
+
 def _xarm7_folder(w: Path) -> None:
     (w / "xarm7").mkdir(exist_ok=True)
     (w / "xarm7" / "notes.txt").write_text("a folder named like a robot")
 
 
 _PREPARE = {"log": _log, "records": _records, "urdf": _urdf, "mjcf": _mjcf,
-            "trajectories": _trajectories, "xarm7-folder": _xarm7_folder}
+            "trajectories": _trajectories, "xarm7-folder": _xarm7_folder,
+            "designs": _designs}
 _DONE: set = set()
 
 
