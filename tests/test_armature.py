@@ -137,20 +137,18 @@ def _law(name, nominal, paper, twodof):
     return make_law(name, nominal, K=paper.K_reduced)
 
 
-@pytest.fixture(scope="module")
-def armature_runs(rrr_armature, paper, twodof):
+def _runs(nominal, laws, home):
     """Per (engine, law): the run's trajectory, or the reason the engine refused it.
 
-    The laws are the catalog's built-ins on the nominal with armature; the plant is an
-    uncertain RRR drawn around it (armature drawn too); a viscous and Coulomb friction effect
-    acts on the joints.
+    ``laws``: the catalog's built-ins on ``nominal`` (which has an armature), by name; the
+    plant is an uncertain arm drawn around it (armature drawn too); a viscous and Coulomb
+    friction effect acts on the joints.
     """
-    plant, _ = rrr_armature.perturbed(np.random.default_rng(3), Tolerances(armature=0.3))
-    ref = SineReference(home=[0.2, -0.4, 0.6], amp=0.1, freq=2.0, phase=0.3)
-    effects = PlantEffects(viscous=[0.5, 0.4, 0.3], coulomb=[1.0, 0.8, 0.5])
+    plant, _ = nominal.perturbed(np.random.default_rng(3), Tolerances(armature=0.3))
+    ref = SineReference(home=home, amp=0.1, freq=2.0, phase=0.3)
+    effects = PlantEffects(viscous=0.4, coulomb=0.8)
     out = {}
-    for law_name in LAWS:
-        law = _law(law_name, rrr_armature, paper, twodof)
+    for law_name, law in laws.items():
         for engine in ENGINES:
             try:
                 out[engine, law_name] = simulate(plant, law, ref, DURATION, rate=RATE,
@@ -161,9 +159,27 @@ def armature_runs(rrr_armature, paper, twodof):
     return plant, out
 
 
+@pytest.fixture(scope="module")
+def armature_runs(rrr_armature, paper, twodof):
+    """:func:`_runs` on the RRR with :data:`ARMATURE`, every law of the catalog."""
+    laws = {name: _law(name, rrr_armature, paper, twodof) for name in LAWS}
+    return _runs(rrr_armature, laws, [0.2, -0.4, 0.6])
+
+
 @pytest.mark.parametrize("engine", [e for e in ENGINES if e != "python"])
 def test_every_engine_equals_python_with_armature_and_friction(armature_runs, engine):
-    plant, runs = armature_runs
+    _check_engine(*armature_runs, engine)
+
+
+@pytest.mark.slow  # about 10 s: the designs of every law for 6 joints and 6-joint Python runs
+@pytest.mark.parametrize("engine", [e for e in ENGINES if e != "python"])
+def test_every_engine_equals_python_with_armature_on_the_ur5(ur5, engine):
+    nominal = ur5.with_joint_dynamics(armature=[0.4, 0.4, 0.3, 0.1, 0.1, 0.05])
+    laws = {name: make_law(name, nominal) for name in LAWS}
+    _check_engine(*_runs(nominal, laws, [0.0, -1.2, 1.0, -0.5, 0.3, 0.2]), engine)
+
+
+def _check_engine(plant, runs, engine):
     assert np.all(np.asarray(plant.model.armature) > 0.0)
     ran = []
     for law_name in LAWS:
