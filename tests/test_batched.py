@@ -260,7 +260,7 @@ def test_batched_hinf_aw_equals_compiled(rrr, ref, plants, rate):
     PlantEffects(delay=0.0015), PlantEffects(torque_limit=60.0),
     PlantEffects(delay=0.001, torque_limit=(80.0, 60.0, 20.0)),
     PlantEffects(noise_q=1e-4, noise_qd=1e-3, encoder_counts=4096, seed=3),
-    PlantEffects(bandwidth=300.0, viscous=0.5, coulomb=(1.0, 2.0, 0.5)),
+    PlantEffects(actuator_bandwidth=300.0, viscous=0.5, coulomb=(1.0, 2.0, 0.5)),
     PlantEffects(stiffness=2.0e4, motor_inertia=0.05, damping=5.0, torque_limit=200.0)],
     ids=["delay", "torque-limit", "both", "sensor", "actuator-friction", "flexible"])
 @pytest.mark.parametrize("kind", ["fl", "hinf_aw"])
@@ -298,7 +298,7 @@ def test_an_effect_without_a_batched_step_is_refused_by_name(rrr, ref, plants):
     from rrr_pin.control.effects import Resolved
     from rrr_pin.sim import batched
 
-    fx = PlantEffects(bandwidth=200.0).resolve(rrr, substeps=1, h=1e-3, n_steps=10)
+    fx = PlantEffects(actuator_bandwidth=200.0).resolve(rrr, substeps=1, h=1e-3, n_steps=10)
 
     @dataclass(frozen=True)
     class WithBacklash(Resolved):
@@ -313,7 +313,7 @@ def test_a_diverging_plant_with_effects_leaves_its_batch_unchanged(rrr, ref, pla
     # As test_a_diverging_plant_leaves_its_batch_unchanged, with a delay, an actuator and
     # friction on: the light plant's divergence reads as the compiled engine's, in both output
     # kinds, and its neighbours' numbers are those of a batch without it.
-    fx = PlantEffects(delay=0.001, bandwidth=500.0, viscous=0.3)
+    fx = PlantEffects(delay=0.001, actuator_bandwidth=500.0, viscous=0.3)
     law = fl_controller(rrr)
     light = _scaled(rrr, 0.01, "light")
     mixed = plants[:2] + [light] + plants[2:]

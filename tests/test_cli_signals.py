@@ -196,6 +196,6 @@ def test_a_refused_reproduce_prints_one_line_and_writes_nothing(tmp_path, capsys
                          "--out", str(out), "--overwrite"])
         lines = capsys.readouterr().err.splitlines()
         assert code == 2
-        assert lines == ["rrr-pin reproduce: error: bandwidth = 1e+09 rad/s is too fast for "
-                         "the plant sub-step h = 0.001 s (RK4 needs wa h < 2.5): lower dt"]
+        assert lines == ["rrr-pin reproduce: error: actuator_bandwidth = 1e+09 rad/s is too fast "
+                         "for the plant sub-step h = 0.001 s (RK4 needs wa h < 2.5): lower dt"]
         assert sorted(p.name for p in out.iterdir()) == keep

@@ -129,7 +129,7 @@ def test_codegen_runs_plant_effects(rrr, ref):
     # Every plant effect is batched now (tests/test_batched.py pins each to the compiled
     # engine); a continuous law with effects is refused as on every engine.
     run = simulate(rrr, fl_controller(rrr), ref, 0.1, rate=RATE, engine="codegen",
-                   effects=PlantEffects(delay=1e-3, bandwidth=200.0))
+                   effects=PlantEffects(delay=1e-3, actuator_bandwidth=200.0))
     assert run.info["engine"] == "codegen"
 
 

@@ -65,7 +65,7 @@ def test_first_order_actuator_matches_its_exponential(joint1, rest):
     # a(t) = C (1 - exp(-wa (t - Ts))) from t = Ts on, so
     # qd(t) = C / I ((t - Ts) - (1 - exp(-wa (t - Ts))) / wa).
     wa = 40.0
-    traj = run(joint1, rest, PlantEffects(bandwidth=wa))
+    traj = run(joint1, rest, PlantEffects(actuator_bandwidth=wa))
     s = np.maximum(traj.t - TS, 0.0)
     expected = C / inertia(joint1) * (s - (1.0 - np.exp(-wa * s)) / wa)
     # RK4 with h = 1e-4 s on a smooth exponential: error ~ (wa h)^4 ~ 3e-10 relative.
@@ -162,10 +162,10 @@ def test_a_one_period_delay_equals_holding_the_previous_command(plant, engine):
 def test_each_drive_effect_runs_and_is_recorded(plant, limit):
     # Mild effects of every drive kind at once (a limit above the reference's torques): the
     # loop still tracks; a plant that closes a loop records its drift, within its bound.
-    fx = PlantEffects(bandwidth=2000.0, viscous=0.01, coulomb=0.01, torque_limit=limit,
+    fx = PlantEffects(actuator_bandwidth=2000.0, viscous=0.01, coulomb=0.01, torque_limit=limit,
                       noise_q=1e-5, encoder_counts=2 ** 18, seed=3)
     traj = _run(plant, fl_controller(plant, 100.0), fx)
-    assert traj.info["effects"]["bandwidth_rad_s"] == 2000.0
+    assert traj.info["effects"]["actuator_bandwidth_rad_s"] == 2000.0
     assert traj.info["effects"]["torque_limit_Nm"] == limit
     assert np.all(np.abs(traj.tau) <= limit)
     assert ("drift_m" in traj.info) == bool(plant.loop_closures)
@@ -250,8 +250,8 @@ def test_noise_runs_are_reproducible_from_the_seed(rrr):
 @pytest.mark.parametrize("kwargs, match", [
     ({"delay": -1e-3}, r"delay = -0.001: expected finite >= 0 \[s\]"),
     ({"delay": math.nan}, r"delay = nan"),
-    ({"bandwidth": 0.0}, r"bandwidth = 0.0: expected finite > 0 \[rad/s\]"),
-    ({"bandwidth": -5.0}, r"bandwidth = -5.0"),
+    ({"actuator_bandwidth": 0.0}, r"actuator_bandwidth = 0.0: expected finite > 0 \[rad/s\]"),
+    ({"actuator_bandwidth": -5.0}, r"actuator_bandwidth = -5.0"),
     ({"stiffness": 0.0}, r"stiffness = 0.0"),
     ({"encoder_counts": 0}, r"encoder_counts = 0"),
     ({"seed": -1}, r"seed = -1"),
@@ -263,8 +263,8 @@ def test_bad_effects_name_the_field(kwargs, match):
 
 
 def test_every_bad_field_is_named_at_once():
-    with pytest.raises(EffectsError, match=r"delay = -1.*bandwidth = 0"):
-        PlantEffects(delay=-1, bandwidth=0)
+    with pytest.raises(EffectsError, match=r"delay = -1.*actuator_bandwidth = 0"):
+        PlantEffects(delay=-1, actuator_bandwidth=0)
 
 
 @pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
@@ -279,7 +279,7 @@ def test_wrong_joint_count_and_too_fast_actuator(rrr):
     with pytest.raises(EffectsError, match="viscous: expected one value or 3"):
         simulate(rrr, law, ref, 0.1, rate=1000, effects=PlantEffects(viscous=[1.0, 2.0]))
     with pytest.raises(EffectsError, match="too fast for the plant sub-step"):
-        simulate(rrr, law, ref, 0.1, rate=1000, effects=PlantEffects(bandwidth=1e5))
+        simulate(rrr, law, ref, 0.1, rate=1000, effects=PlantEffects(actuator_bandwidth=1e5))
 
 
 @pytest.mark.parametrize("plant", ["rrr", "fivebar"], indirect=True)
@@ -317,3 +317,16 @@ def test_no_effect_is_the_ideal_run(plant):
     assert wide.info["effects"]["torque_limit_Nm"] == 1e9
     np.testing.assert_allclose(wide.q, a.q, rtol=0, atol=1e-12)
     np.testing.assert_allclose(wide.tau, a.tau, rtol=0, atol=1e-9)
+
+
+def test_the_old_name_bandwidth_still_works_with_a_deprecation_warning():
+    # issue 50: Python spelled the actuator PlantEffects(bandwidth=...) where the command line
+    # says --actuator-bandwidth; the field is actuator_bandwidth, the old name kept a while.
+    with pytest.warns(DeprecationWarning, match="actuator_bandwidth"):
+        old = PlantEffects(delay=0.001, bandwidth=300.0)
+    assert old == PlantEffects(delay=0.001, actuator_bandwidth=300.0)
+    with pytest.warns(DeprecationWarning, match="use actuator_bandwidth"):
+        assert old.bandwidth == 300.0
+    with pytest.raises(TypeError, match="not both"):
+        PlantEffects(bandwidth=300.0, actuator_bandwidth=200.0)
+    assert "actuator_bandwidth_rad_s" in old.to_dict()

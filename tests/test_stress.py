@@ -321,7 +321,7 @@ def test_cli_bad_input_names_the_option(argv, match, capsys, tmp_path):
 
 @pytest.mark.parametrize("effect, expected", [
     ("delay", PlantEffects(delay=0.003)),
-    ("actuator", PlantEffects(bandwidth=0.003)),
+    ("actuator", PlantEffects(actuator_bandwidth=0.003)),
     ("stiffness", PlantEffects(stiffness=0.003, motor_inertia=0.01)),
     ("torque", PlantEffects(torque_limit=0.003)),
     ("noise", PlantEffects(noise_q=0.003, noise_qd=0.3, seed=7)),
@@ -385,7 +385,7 @@ def test_combined_delay_margin_with_a_fixed_actuator(rrr):
 
 def test_fixed_effects_reach_the_plant_and_the_barrier(rrr):
     assert effects_of("delay", 0.002, fixed={"actuator": 300.0}) == PlantEffects(
-        delay=0.002, bandwidth=300.0)
+        delay=0.002, actuator_bandwidth=300.0)
     # Barrier with a fixed actuator: |e^{-jw tau} wa/(jw + wa) - 1| <= |e_M|; a 300 rad/s
     # actuator alone already exceeds |e_M| (the actuator's own guarantee is 800 rad/s), so no
     # delay is covered; a 2000 rad/s one leaves a smaller delay than none.

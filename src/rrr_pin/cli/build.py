@@ -84,7 +84,8 @@ def settings_from_args(args, n: int):
             raise ValueError("--delay, --actuator-bandwidth and --friction act on sampled "
                              "controllers: give --rate HZ too")
         with as_options():
-            effects = PlantEffects(delay=args.delay or 0.0, bandwidth=args.actuator_bandwidth,
+            effects = PlantEffects(delay=args.delay or 0.0,
+                                   actuator_bandwidth=args.actuator_bandwidth,
                                    **friction)
     q0, qd0 = (None if text is None else tuple(check_vector(name, floats(text, name), n))
                for text, name in ((args.q0, "--q0"), (args.qd0, "--qd0")))

@@ -163,7 +163,7 @@ EFFECTS = {
     "delay": StressEffect("s", "up", "actuator transport delay tau_d",
                           lambda size, seed: {"delay": size}),
     "actuator": StressEffect("rad/s", "down", "first-order actuator bandwidth wa",
-                             lambda size, seed: {"bandwidth": size}),
+                             lambda size, seed: {"actuator_bandwidth": size}),
     "stiffness": StressEffect("N m/rad", "down", "joint stiffness K (motor inertia 0.01 kg m^2)",
                               lambda size, seed: {"stiffness": size, "motor_inertia": 0.01}),
     "torque": StressEffect("N m", "down", "torque limit |tau| <= tau_max, every joint",

@@ -51,7 +51,9 @@ References
 
 from __future__ import annotations
 
+import inspect
 import math
+import warnings
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -89,9 +91,10 @@ class PlantEffects:
         Transport delay ``tau_d`` [s] >= 0: the torque computed at ``t`` reaches the joints at
         ``t + tau_d``: a whole number of RK4 sub-steps ``h`` of the run (others are refused
         when the run is prepared, :meth:`delay_substeps`).
-    bandwidth : float, optional
+    actuator_bandwidth : float, optional
         First-order actuator bandwidth ``wa`` [rad/s] > 0: applied = ``wa/(s + wa)`` times the
-        commanded torque. None: ideal actuator.
+        commanded torque (``--actuator-bandwidth``). None: ideal actuator. The old keyword
+        ``bandwidth=`` and attribute ``bandwidth`` still work, with a ``DeprecationWarning``.
     viscous : "urdf", float or sequence, shape (n,), default 0
         Viscous friction ``Fv`` [N m s/rad] >= 0 per joint; ``"urdf"``: each plant's own
         (its URDF's ``<dynamics damping>``, :meth:`rrr_pin.model.plant.Plant.joint_friction`:
@@ -122,7 +125,7 @@ class PlantEffects:
     """
 
     delay: float = 0.0
-    bandwidth: float | None = None
+    actuator_bandwidth: float | None = None
     viscous: float | tuple = 0.0
     coulomb: float | tuple = 0.0
     coulomb_velocity: float = 0.01
@@ -145,7 +148,7 @@ class PlantEffects:
                 errors.append(f"{key} = {getattr(self, key)!r}: expected a number or a "
                               f"sequence of numbers")
         specs = {  # field: (lowest, zero allowed, unit)
-            "delay": (0.0, True, "s"), "bandwidth": (0.0, False, "rad/s"),
+            "delay": (0.0, True, "s"), "actuator_bandwidth": (0.0, False, "rad/s"),
             "viscous": (0.0, True, "N m s/rad"), "coulomb": (0.0, True, "N m"),
             "coulomb_velocity": (0.0, False, "rad/s"), "torque_limit": (0.0, False, "N m"),
             "noise_q": (0.0, True, "rad"), "noise_qd": (0.0, True, "rad/s"),
@@ -181,7 +184,7 @@ class PlantEffects:
     @property
     def active(self) -> bool:
         """Whether any effect is switched on."""
-        return bool(self.delay > 0 or self.bandwidth is not None or self.friction
+        return bool(self.delay > 0 or self.actuator_bandwidth is not None or self.friction
                     or self.torque_limit is not None or self.noisy
                     or self.encoder_counts is not None or self.stiffness is not None)
 
@@ -200,7 +203,8 @@ class PlantEffects:
     def to_dict(self) -> dict:
         """JSON-ready fields (units in the key names)."""
         d = asdict(self)
-        units = {"delay": "delay_s", "bandwidth": "bandwidth_rad_s", "viscous": "viscous_Nms",
+        units = {"delay": "delay_s", "actuator_bandwidth": "actuator_bandwidth_rad_s",
+                 "viscous": "viscous_Nms",
                  "coulomb": "coulomb_Nm", "coulomb_velocity": "coulomb_velocity_rad_s",
                  "torque_limit": "torque_limit_Nm", "noise_q": "noise_q_rad",
                  "noise_qd": "noise_qd_rad_s", "encoder_counts": "encoder_counts",
@@ -255,11 +259,11 @@ class PlantEffects:
                                    f"effort limits {limit.tolist()}, expected > 0 per joint")
         elif self.torque_limit is not None:
             limit = vec("torque_limit", self.torque_limit)
-        wa = float(self.bandwidth) if self.bandwidth is not None else 0.0
+        wa = float(self.actuator_bandwidth) if self.actuator_bandwidth is not None else 0.0
         # RK4's stability interval on the negative real axis ends at -2.785.
         if wa * h > 2.5:
-            raise EffectsError(f"bandwidth = {wa:g} rad/s is too fast for the plant sub-step "
-                               f"h = {h:g} s (RK4 needs wa h < 2.5): lower dt")
+            raise EffectsError(f"actuator_bandwidth = {wa:g} rad/s is too fast for the plant "
+                               f"sub-step h = {h:g} s (RK4 needs wa h < 2.5): lower dt")
         Bm = Kf = Df = None
         if self.stiffness is not None:
             Kf = vec("stiffness", self.stiffness)
@@ -318,6 +322,36 @@ class PlantEffects:
                         friction_source=f"URDF <dynamics> of {plant.name!r}")
         return Resolved(delay_steps=d, wa=wa, limit=limit, Fv=Fv, Fc=Fc, veps=veps, noise_q=nq,
                         noise_qd=nqd, quantum=quantum, Bm=Bm, Kf=Kf, Df=Df, info=info)
+
+
+_UNSET = object()
+_plant_effects_init = PlantEffects.__init__
+
+
+def _init_with_old_names(self, *args, bandwidth=_UNSET, **kwargs):
+    """``PlantEffects(bandwidth=...)``: the name before ``actuator_bandwidth`` (deprecated)."""
+    if bandwidth is not _UNSET:
+        warnings.warn("PlantEffects(bandwidth=...) is deprecated: the field is "
+                      "actuator_bandwidth, as --actuator-bandwidth spells it",
+                      DeprecationWarning, stacklevel=2)
+        if "actuator_bandwidth" in kwargs or len(args) > 1:
+            raise TypeError("PlantEffects: give actuator_bandwidth or its old name "
+                            "bandwidth, not both")
+        kwargs["actuator_bandwidth"] = bandwidth
+    _plant_effects_init(self, *args, **kwargs)
+
+
+def _bandwidth(self):
+    """Return the actuator bandwidth under its old name (deprecated: ``actuator_bandwidth``)."""
+    warnings.warn("PlantEffects.bandwidth is deprecated: use actuator_bandwidth",
+                  DeprecationWarning, stacklevel=2)
+    return self.actuator_bandwidth
+
+
+_init_with_old_names.__signature__ = inspect.signature(_plant_effects_init)
+_init_with_old_names.__doc__ = _plant_effects_init.__doc__
+PlantEffects.__init__ = _init_with_old_names
+PlantEffects.bandwidth = property(_bandwidth)
 
 
 @dataclass(frozen=True, eq=False)

@@ -324,8 +324,8 @@ def plant_effects_phrase(effects, lead: str = "") -> str:
     parts = []
     if effects.delay > 0:
         parts.append(f"delay {effects.delay * 1e3:g} ms")
-    if effects.bandwidth is not None:
-        parts.append(f"actuator bandwidth {effects.bandwidth:g} rad/s")
+    if effects.actuator_bandwidth is not None:
+        parts.append(f"actuator bandwidth {effects.actuator_bandwidth:g} rad/s")
     if effects.viscous == "urdf":
         parts.append("friction of each plant's URDF")
     else:
