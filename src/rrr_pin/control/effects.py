@@ -331,12 +331,12 @@ _plant_effects_init = PlantEffects.__init__
 def _init_with_old_names(self, *args, bandwidth=_UNSET, **kwargs):
     """``PlantEffects(bandwidth=...)``: the name before ``actuator_bandwidth`` (deprecated)."""
     if bandwidth is not _UNSET:
-        warnings.warn("PlantEffects(bandwidth=...) is deprecated: the field is "
-                      "actuator_bandwidth, as --actuator-bandwidth spells it",
-                      DeprecationWarning, stacklevel=2)
         if "actuator_bandwidth" in kwargs or len(args) > 1:
             raise TypeError("PlantEffects: give actuator_bandwidth or its old name "
                             "bandwidth, not both")
+        warnings.warn("PlantEffects(bandwidth=...) is deprecated: the field is "
+                      "actuator_bandwidth, as --actuator-bandwidth spells it",
+                      DeprecationWarning, stacklevel=2)
         kwargs["actuator_bandwidth"] = bandwidth
     _plant_effects_init(self, *args, **kwargs)
 
