@@ -261,7 +261,8 @@ def test_batched_hinf_aw_equals_compiled(rrr, ref, plants, rate):
     PlantEffects(delay=0.001, torque_limit=(80.0, 60.0, 20.0)),
     PlantEffects(noise_q=1e-4, noise_qd=1e-3, encoder_counts=4096, seed=3),
     PlantEffects(actuator_bandwidth=300.0, viscous=0.5, coulomb=(1.0, 2.0, 0.5)),
-    PlantEffects(stiffness=2.0e4, motor_inertia=0.05, damping=5.0, torque_limit=200.0)],
+    PlantEffects(stiffness=2.0e4, motor_inertia=0.05, transmission_damping=5.0,
+                 torque_limit=200.0)],
     ids=["delay", "torque-limit", "both", "sensor", "actuator-friction", "flexible"])
 @pytest.mark.parametrize("kind", ["fl", "hinf_aw"])
 def test_batched_effects_equal_compiled(rrr, ref, plants, effects, kind):

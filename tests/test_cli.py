@@ -492,3 +492,39 @@ def test_a_negative_percentage_reaches_the_options_own_check(capsys, tmp_path):
     assert cli.main(["reproduce", "--torque-limit", "-5%", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "--torque-limit" in err and "expected one argument" not in err
+
+
+def test_every_plant_effect_is_an_option_spelled_as_its_field():
+    # issue 50: montecarlo had no torque limit and no sensor noise; Python spelled the
+    # actuator `bandwidth`. Each PlantEffects field is an option of reproduce and montecarlo,
+    # --name-with-dashes for name_with_underscores (but --noise-seed for seed), parsed into
+    # the field; the friction's three fields are --friction's (viscous=,coulomb=,smooth=).
+    import dataclasses
+
+    from rrr_pin.cli.build import settings_from_args
+    from rrr_pin.control.effects import PlantEffects
+
+    parser = cli.build_parser()
+    for command in ("reproduce", "montecarlo"):
+        options = {a.dest for a in parser._subparsers._group_actions[0].choices[command]._actions}
+        for f in dataclasses.fields(PlantEffects):
+            if f.name in ("viscous", "coulomb", "coulomb_velocity"):
+                assert "friction" in options
+            else:
+                assert ("noise_seed" if f.name == "seed" else f.name) in options, f.name
+    args = parser.parse_args(["montecarlo", "--samples", "1", "--rate", "1000", "--delay", "0.002",
+                              "--actuator-bandwidth", "300", "--noise-q", "1e-4/2e-4/3e-4",
+                              "--noise-qd", "1e-3", "--noise-seed", "7", "--encoder-counts",
+                              "4096", "--stiffness", "2e4", "--motor-inertia", "0.05",
+                              "--transmission-damping", "20", "--friction",
+                              "viscous=0.5,coulomb=1"])
+    got = settings_from_args(args, 3).effects
+    assert got == PlantEffects(delay=0.002, actuator_bandwidth=300.0,
+                               noise_q=(1e-4, 2e-4, 3e-4), noise_qd=1e-3, seed=7,
+                               encoder_counts=4096, stiffness=2e4, motor_inertia=0.05,
+                               transmission_damping=20.0, viscous=0.5, coulomb=1.0)
+    for argv, message in ((["--noise-seed", "3"], "--noise-seed seeds the sensor noise"),
+                          (["--motor-inertia", "0.1"], "give --stiffness K too"),
+                          (["--noise-q", "x"], "--noise-q expects a number")):
+        with pytest.raises(ValueError, match=message):
+            settings_from_args(parser.parse_args(["montecarlo", "--samples", "1", *argv]), 3)

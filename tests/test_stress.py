@@ -469,3 +469,16 @@ def test_torque_breaking_points_against_the_predictions(rrr):
             assert 0.85 <= ratio <= 1.0, (row["controller"], ratio)
         else:
             assert ratio > 1.0, (row["controller"], ratio)
+
+
+def test_an_effect_is_also_named_by_its_field():
+    # issue 50: one vocabulary: stress --effect torque_limit is --effect torque, and --with
+    # actuator_bandwidth=300 is --with actuator=300 (the option --actuator-bandwidth).
+    from rrr_pin.campaign.stress import check_fixed
+    from rrr_pin.control.catalog import EFFECT_FIELDS, EFFECTS
+
+    for field, name in EFFECT_FIELDS.items():
+        assert name in EFFECTS
+        assert effects_of(field, 0.5) == effects_of(name, 0.5)
+        assert check_fixed({field: 2.0}) == {name: 2.0}
+        assert getattr(effects_of(name, 0.5), field) in (0.5, (0.5,))

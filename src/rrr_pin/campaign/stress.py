@@ -61,7 +61,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..control.catalog import DEFAULT_BUDGET, EFFECTS
+from ..control.catalog import DEFAULT_BUDGET, EFFECTS, effect_name
 from ..control.effects import PlantEffects
 from ..control.sampled_loops import delayed_loop_matrix, split_delay, zoh
 from ..robust.barriers import model_error_bound, robust_stability_barrier
@@ -133,6 +133,7 @@ class StressSettings:
 
 
 def _check_effect(effect: str) -> str:
+    effect = effect_name(effect)
     if effect not in EFFECTS:
         raise ValueError(f"unknown effect {effect!r}; known: {', '.join(EFFECTS)}")
     return effect
@@ -148,7 +149,9 @@ def check_fixed(fixed, effect: str | None = None) -> dict:
         positive finite number (the message names the effect and the size).
     """
     out = {}
+    effect = None if effect is None else effect_name(effect)
     for name, size in dict(fixed or {}).items():
+        name = effect_name(name)
         if name not in EFFECTS:
             raise FieldError("fixed", f"{{name}}: unknown effect {name!r}; known: "
                                       f"{', '.join(EFFECTS)}")

@@ -79,20 +79,59 @@ def settings_from_args(args, n: int):
             check_positive(option(name), getattr(args, name), allow_zero=name == "delay")
     effects = None
     friction = friction_spec(getattr(args, "friction", None), n)
-    if args.delay or args.actuator_bandwidth is not None or friction:
+    others = effect_fields(args)
+    if args.delay or args.actuator_bandwidth is not None or friction or others:
         if args.rate is None:
-            raise ValueError("--delay, --actuator-bandwidth and --friction act on sampled "
-                             "controllers: give --rate HZ too")
+            given = ["--delay"] * bool(args.delay) + ["--actuator-bandwidth"] * (
+                args.actuator_bandwidth is not None) + ["--friction"] * bool(friction) + [
+                option(k) for k in others]
+            raise ValueError(f"{', '.join(given)}: plant effects act on sampled controllers: "
+                             f"give --rate HZ too")
         with as_options():
             effects = PlantEffects(delay=args.delay or 0.0,
                                    actuator_bandwidth=args.actuator_bandwidth,
-                                   **friction)
+                                   **friction, **others)
     q0, qd0 = (None if text is None else tuple(check_vector(name, floats(text, name), n))
                for text, name in ((args.q0, "--q0"), (args.qd0, "--qd0")))
     with as_options():
         return RunSettings(duration=args.duration, dt=args.dt, rate=args.rate,
                            engine=args.engine, q0=q0, qd0=qd0, effects=effects,
                            force=args.force)
+
+
+#: The options of :func:`rrr_pin.cli.options.add_effect_arguments` read here, by field:
+#: per joint (``/``-separated numbers) or a count.
+_PER_JOINT = ("noise_q", "noise_qd", "stiffness", "motor_inertia", "transmission_damping")
+
+
+def effect_fields(args) -> dict:
+    """Return the :class:`~rrr_pin.control.effects.PlantEffects` fields of the options given.
+
+    ``--noise-q 1e-4/2e-4`` -> ``{"noise_q": (1e-4, 2e-4)}``; ``--noise-seed`` -> ``seed``.
+    The torque limit is not here (:func:`torque_limit_from_args`: it needs the reference).
+    """
+    out = {}
+    for key in _PER_JOINT:
+        text = getattr(args, key, None)
+        if text is None:
+            continue
+        try:
+            values = tuple(float(v) for v in str(text).split("/"))
+        except ValueError:
+            raise ValueError(f"{option(key)} expects a number or one per joint separated by "
+                             f"'/', got {text!r}") from None
+        out[key] = values[0] if len(values) == 1 else values
+    if getattr(args, "encoder_counts", None) is not None:
+        out["encoder_counts"] = args.encoder_counts
+    if getattr(args, "noise_seed", None) is not None:
+        out["seed"] = args.noise_seed
+    if ("motor_inertia" in out or "transmission_damping" in out) and "stiffness" not in out:
+        raise ValueError("--motor-inertia and --transmission-damping shape a flexible "
+                         "transmission: give --stiffness K too")
+    if "seed" in out and not ("noise_q" in out or "noise_qd" in out):
+        raise ValueError("--noise-seed seeds the sensor noise: give --noise-q or --noise-qd "
+                         "too")
+    return out
 
 
 def friction_spec(text, n: int) -> dict:

@@ -12,6 +12,8 @@ from .build import (
     rejections_line,
     settings_from_args,
     tolerances_from_args,
+    torque_limit_from_args,
+    with_torque_limit,
 )
 from .options import add_design_argument, add_law_arguments, add_plant_arguments
 
@@ -90,6 +92,9 @@ def run_montecarlo(args) -> int:
     plant = load_plant(args)
     run = settings_from_args(args, plant.nq)
     reference = reference_from_args(args, plant)
+    limit, _ = torque_limit_from_args(args, plant, reference, run)
+    if limit is not None:
+        run = with_torque_limit(run, limit)
     tolerances = tolerances_from_args(args, plant)
     certificate = K = None
     if args.certify:  # one design serves the certificate and the H-infinity law

@@ -8,6 +8,7 @@ and reference kinds from :mod:`rrr_pin.control.catalog`.
 from __future__ import annotations
 
 __all__ = ["add_design_argument", "add_overwrite", "add_plant_arguments", "add_law_arguments",
+           "add_effect_arguments",
            "add_force_argument", "add_armature_argument", "add_joint_tolerance_arguments",
            "add_reference_arguments"]
 
@@ -134,6 +135,7 @@ def add_law_arguments(p, default_duration: float, default_rate) -> None:
                         "each drawn plant's); or Fv [N m s/rad], Fc [N m] and S [rad/s] "
                         "(0.01), one value for every joint or one per joint separated by '/', e.g. "
                         "viscous=0.5/0.5/0.2,coulomb=1")
+    add_effect_arguments(p)
     p.add_argument("--compensate-friction", action="store_true",
                    help="the laws fl, hinf and hinf_aw add the friction of their nominal model "
                         "to their torque (that of --friction, or with --friction urdf or "
@@ -143,6 +145,42 @@ def add_law_arguments(p, default_duration: float, default_rate) -> None:
                    help="worker processes (default: min(2, CPUs))")
     add_force_argument(p)
     add_reference_arguments(p)
+
+
+def add_effect_arguments(p) -> None:
+    """Declare the plant effects besides delay, actuator and friction (one per field).
+
+    Each option is its :class:`~rrr_pin.control.effects.PlantEffects` field with ``-`` for
+    ``_`` (``--noise-q`` = ``noise_q``), but ``--noise-seed`` (the field ``seed``). A
+    per-joint value is one number or one per joint separated by ``/``. All act on sampled
+    controllers (``--rate``).
+    """
+    p.add_argument("--torque-limit", default=None, metavar="auto|P%|T1,T2,...",
+                   help="plant effect: actuator limits |tau_j| <= T_j [N m] (torque_limit): "
+                        "auto = the URDF's effort limits; P%% = P percent of the peak torque "
+                        "the reference asks of the nominal plant, per joint (its inverse "
+                        "dynamics over the control instants); or one number per joint; "
+                        "reproduce adds hinf_aw to --controllers, told the limits")
+    p.add_argument("--noise-q", default=None, metavar="STD[/STD...]",
+                   help="plant effect: standard deviation of the Gaussian noise on the "
+                        "measured q [rad] (noise_q)")
+    p.add_argument("--noise-qd", default=None, metavar="STD[/STD...]",
+                   help="plant effect: standard deviation of the Gaussian noise on the "
+                        "measured qd [rad/s] (noise_qd)")
+    p.add_argument("--noise-seed", type=int, default=None, metavar="N",
+                   help="seed of the noise sequences (PlantEffects.seed; default 0)")
+    p.add_argument("--encoder-counts", type=int, default=None, metavar="N",
+                   help="plant effect: encoder resolution [counts per revolution]: q measured "
+                        "in steps of 2 pi / N rad (encoder_counts)")
+    p.add_argument("--stiffness", default=None, metavar="K[/K...]",
+                   help="plant effect: flexible transmission of stiffness K [N m/rad] "
+                        "between motor and link (stiffness)")
+    p.add_argument("--motor-inertia", default=None, metavar="B[/B...]",
+                   help="with --stiffness: motor-side inertia B [kg m^2] (motor_inertia, "
+                        "default 0.01)")
+    p.add_argument("--transmission-damping", default=None, metavar="D[/D...]",
+                   help="with --stiffness: transmission damping D [N m s/rad] "
+                        "(transmission_damping, default 0)")
 
 
 def add_reference_arguments(p) -> None:

@@ -33,13 +33,6 @@ def add(sub) -> None:
     add_law_arguments(p, 4.0, None)
     add_design_argument(p)
     p.add_argument("--samples", type=int, default=10, help="uncertain plants (10, the paper's)")
-    p.add_argument("--torque-limit", default=None, metavar="auto|P%|T1,T2,...",
-                   help="run the study under actuator limits |tau_j| <= T_j [N m] (sampled "
-                        "controllers: give --rate too), with hinf_aw added to --controllers "
-                        "and told the limits: auto = the URDF's effort limits; P%% = P percent "
-                        "of the peak torque the reference asks of the nominal plant, per joint "
-                        "(its inverse dynamics over the control instants); or one number per "
-                        "joint. results.json records the limits used (summary.torque_limit)")
     p.add_argument("--no-certify", action="store_true",
                    help="skip the frozen-configuration nu-gap certificate of each uncertain "
                         "plant (about 0.3 s per plant)")

@@ -13,7 +13,7 @@ __all__ = ["add", "run_stress", "parse_with"]
 
 def add(sub) -> None:
     """Declare ``stress``."""
-    from ..control.catalog import DEFAULT_BUDGET, EFFECTS
+    from ..control.catalog import DEFAULT_BUDGET, EFFECT_FIELDS, EFFECTS
     from ..sim.engines import ENGINE_CHOICES
 
     p = sub.add_parser(
@@ -28,7 +28,9 @@ def add(sub) -> None:
     p.add_argument("--controllers", default="fl,hinf,pd", metavar="NAMES",
                    help="comma-separated built-in controllers (fl,hinf,pd)")
     p.add_argument("--effect", required=True, metavar="NAME",
-                   help="; ".join(f"{k}: {v.what} [{v.unit}]" for k, v in EFFECTS.items()))
+                   help="; ".join(f"{k}: {v.what} [{v.unit}]" for k, v in EFFECTS.items())
+                        + " (also named by the PlantEffects field and option it sizes: "
+                        + ", ".join(f"{f} = {k}" for f, k in EFFECT_FIELDS.items()) + ")")
     p.add_argument("--with", dest="fixed", action="append", default=[], metavar="EFFECT=SIZE",
                    help="hold another effect at a size in every run, e.g. actuator=300 "
                         "(repeatable or comma-separated); predictions include it")
@@ -82,7 +84,7 @@ def run_stress(args) -> int:
 
     from ..campaign.runner import RunSettings, make_laws
     from ..campaign.stress import StressSettings, stress
-    from ..control.catalog import EFFECTS
+    from ..control.catalog import EFFECTS, effect_name
     from ..control.specs import ReferenceSpec
     from ..report.jsondata import dumps
     from ..report.stress import stress_lines, write_stress
@@ -90,6 +92,7 @@ def run_stress(args) -> int:
     from ..validation import check_rate
     from .common import floats
 
+    args.effect = effect_name(args.effect)  # --effect torque_limit is --effect torque
     if args.effect not in EFFECTS:
         raise ValueError(f"--effect {args.effect!r} is unknown; known effects: "
                          f"{', '.join(EFFECTS)}")

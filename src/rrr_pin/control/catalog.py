@@ -13,7 +13,7 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 __all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "FRICTION_LAWS", "make_law", "StressEffect",
-           "EFFECTS", "DEFAULT_BUDGET", "REFERENCES"]
+           "EFFECTS", "EFFECT_FIELDS", "effect_name", "DEFAULT_BUDGET", "REFERENCES"]
 
 
 #: The built-in laws that can compensate joint friction (``friction=``).
@@ -176,6 +176,17 @@ EFFECTS = {
     "coulomb": StressEffect("N m", "up", "Coulomb joint friction Fc tanh(qd / 0.01 rad/s), "
                             "every joint", lambda size, seed: {"coulomb": size}),
 }
+
+#: The names of :data:`EFFECTS` by the :class:`~rrr_pin.control.effects.PlantEffects` field
+#: each one sizes, for ``stress --effect`` and ``--with`` (one vocabulary with the options
+#: ``--actuator-bandwidth``, ``--torque-limit``, ``--noise-q``): either name is accepted.
+EFFECT_FIELDS = {"actuator_bandwidth": "actuator", "torque_limit": "torque", "noise_q": "noise"}
+
+
+def effect_name(name: str) -> str:
+    """Return the :data:`EFFECTS` key of ``name``, a key or its field (:data:`EFFECT_FIELDS`)."""
+    return EFFECT_FIELDS.get(name, name)
+
 
 #: RMS tracking error [rad] above which a stress run counts as broken.
 DEFAULT_BUDGET = 0.05

@@ -118,8 +118,11 @@ class PlantEffects:
         Joint stiffness ``K`` [N m/rad] > 0 of a flexible transmission; None: rigid joints.
     motor_inertia : float or sequence, default 0.01
         Motor-side inertia ``B`` [kg m^2] > 0 (flexible joints only).
-    damping : float or sequence, default 0
-        Transmission damping ``D`` [N m s/rad] >= 0 (flexible joints only).
+    transmission_damping : float or sequence, default 0
+        Transmission damping ``D`` [N m s/rad] >= 0 (flexible joints only;
+        ``--transmission-damping``, not the joint's own damping of
+        :meth:`rrr_pin.model.plant.Plant.joint_friction`). The old keyword and attribute
+        ``damping`` still work, with a ``DeprecationWarning``.
     seed : int, default 0
         Seed of the noise sequences, >= 0.
     """
@@ -135,13 +138,13 @@ class PlantEffects:
     encoder_counts: int | None = None
     stiffness: float | tuple | None = None
     motor_inertia: float | tuple = 0.01
-    damping: float | tuple = 0.0
+    transmission_damping: float | tuple = 0.0
     seed: int = 0
 
     def __post_init__(self) -> None:
         errors = []
         for key in ("viscous", "coulomb", "torque_limit", "noise_q", "noise_qd", "stiffness",
-                    "motor_inertia", "damping"):
+                    "motor_inertia", "transmission_damping"):
             try:
                 object.__setattr__(self, key, _per_joint(getattr(self, key)))
             except (TypeError, ValueError):
@@ -153,7 +156,7 @@ class PlantEffects:
             "coulomb_velocity": (0.0, False, "rad/s"), "torque_limit": (0.0, False, "N m"),
             "noise_q": (0.0, True, "rad"), "noise_qd": (0.0, True, "rad/s"),
             "stiffness": (0.0, False, "N m/rad"), "motor_inertia": (0.0, False, "kg m^2"),
-            "damping": (0.0, True, "N m s/rad"),
+            "transmission_damping": (0.0, True, "N m s/rad"),
         }
         for key, (low, zero_ok, unit) in specs.items():
             v = getattr(self, key)
@@ -209,7 +212,7 @@ class PlantEffects:
                  "torque_limit": "torque_limit_Nm", "noise_q": "noise_q_rad",
                  "noise_qd": "noise_qd_rad_s", "encoder_counts": "encoder_counts",
                  "stiffness": "stiffness_Nm_rad", "motor_inertia": "motor_inertia_kgm2",
-                 "damping": "damping_Nms", "seed": "seed"}
+                 "transmission_damping": "transmission_damping_Nms", "seed": "seed"}
         return {units[k]: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
 
     def delay_substeps(self, h: float) -> int:
@@ -268,7 +271,7 @@ class PlantEffects:
         if self.stiffness is not None:
             Kf = vec("stiffness", self.stiffness)
             Bm = vec("motor_inertia", self.motor_inertia)
-            Df = vec("damping", self.damping)
+            Df = vec("transmission_damping", self.transmission_damping)
             w = float(np.max(np.sqrt(Kf / Bm)))
             if w * h > 2.5:
                 raise EffectsError(f"stiffness: the motor resonance sqrt(K/B) = {w:.4g} rad/s "
@@ -326,32 +329,39 @@ class PlantEffects:
 
 _UNSET = object()
 _plant_effects_init = PlantEffects.__init__
+#: Old field names of :class:`PlantEffects` (deprecated) and the names that replaced them, as
+#: the command line spells them (``--actuator-bandwidth``, ``--transmission-damping``).
+_RENAMED = {"bandwidth": "actuator_bandwidth", "damping": "transmission_damping"}
 
 
-def _init_with_old_names(self, *args, bandwidth=_UNSET, **kwargs):
-    """``PlantEffects(bandwidth=...)``: the name before ``actuator_bandwidth`` (deprecated)."""
-    if bandwidth is not _UNSET:
-        if "actuator_bandwidth" in kwargs or len(args) > 1:
-            raise TypeError("PlantEffects: give actuator_bandwidth or its old name "
-                            "bandwidth, not both")
-        warnings.warn("PlantEffects(bandwidth=...) is deprecated: the field is "
-                      "actuator_bandwidth, as --actuator-bandwidth spells it",
-                      DeprecationWarning, stacklevel=2)
-        kwargs["actuator_bandwidth"] = bandwidth
+def _init_with_old_names(self, *args, **kwargs):
+    """``PlantEffects(bandwidth=..., damping=...)``: the names before the renames (deprecated)."""
+    fields = list(inspect.signature(_plant_effects_init).parameters)[1:]
+    for old, new in _RENAMED.items():
+        if old not in kwargs:
+            continue
+        if new in kwargs or fields.index(new) < len(args):
+            raise TypeError(f"PlantEffects: give {new} or its old name {old}, not both")
+        warnings.warn(f"PlantEffects({old}=...) is deprecated: the field is {new}, as "
+                      f"--{new.replace('_', '-')} spells it", DeprecationWarning, stacklevel=2)
+        kwargs[new] = kwargs.pop(old)
     _plant_effects_init(self, *args, **kwargs)
 
 
-def _bandwidth(self):
-    """Return the actuator bandwidth under its old name (deprecated: ``actuator_bandwidth``)."""
-    warnings.warn("PlantEffects.bandwidth is deprecated: use actuator_bandwidth",
-                  DeprecationWarning, stacklevel=2)
-    return self.actuator_bandwidth
+def _old_name(old: str, new: str) -> property:
+    def get(self):
+        warnings.warn(f"PlantEffects.{old} is deprecated: use {new}", DeprecationWarning,
+                      stacklevel=2)
+        return getattr(self, new)
+    get.__doc__ = f"Return ``{new}`` under its old name (deprecated)."
+    return property(get)
 
 
 _init_with_old_names.__signature__ = inspect.signature(_plant_effects_init)
 _init_with_old_names.__doc__ = _plant_effects_init.__doc__
 PlantEffects.__init__ = _init_with_old_names
-PlantEffects.bandwidth = property(_bandwidth)
+for _old, _new in _RENAMED.items():
+    setattr(PlantEffects, _old, _old_name(_old, _new))
 
 
 @dataclass(frozen=True, eq=False)
