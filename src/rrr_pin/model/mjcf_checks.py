@@ -256,7 +256,7 @@ def check_serial_mjcf(root, label: str, locked=()) -> list[str]:
                 continue
             for attr in ("stiffness", "ref"):
                 value = _resolved(defaults, j, attr, cls)
-                if value is not None and float(value) != 0.0:
+                if value is not None and any(float(v) != 0.0 for v in value.split()):
                     raise RobotModelError(
                         f"{label}: joint {name!r} has {attr}={value!r}: "
                         + ("a joint spring rrr-pin's plants do not apply" if attr == "stiffness"
