@@ -228,7 +228,8 @@ def check_serial_mjcf(root, label: str, locked=()) -> list[str]:
         raise RobotModelError(f"{label}: not an MJCF model (no <mujoco><worldbody>)")
     defaults = _defaults(root)
     locked = set(locked)
-    free = [el.get("name") or "(unnamed)" for el in world.iter("freejoint")]
+    worlds = root.findall("worldbody")  # MJCF merges every <worldbody> section
+    free = [el.get("name") or "(unnamed)" for w in worlds for el in w.iter("freejoint")]
     if free:
         raise RobotModelError(f"{label}: <freejoint {free[0]!r}>: a free-floating body; "
                               f"rrr-pin handles fixed-base arms only (remove the free joint to "
@@ -242,7 +243,7 @@ def check_serial_mjcf(root, label: str, locked=()) -> list[str]:
         for child in body.findall("body"):
             yield from joints(child, cls)
 
-    for body in world.findall("body"):
+    for body in (b for w in worlds for b in w.findall("body")):
         for j, cls in joints(body, None):
             name = j.get("name") or f"(unnamed joint {len(names) + 1})"
             names.append(name)
@@ -262,7 +263,7 @@ def check_serial_mjcf(root, label: str, locked=()) -> list[str]:
                         + ("a joint spring rrr-pin's plants do not apply" if attr == "stiffness"
                            else "a reference position other than 0 (qpos0)")
                         + "; remove it (or lock the joint)")
-    for body in world.iter("body"):
+    for body in (b for w in worlds for b in w.iter("body")):
         if body.get("gravcomp") not in (None, "0"):
             raise RobotModelError(f"{label}: body {body.get('name')!r} has gravcomp="
                                   f"{body.get('gravcomp')!r}: MuJoCo's gravity compensation is "
