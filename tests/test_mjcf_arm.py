@@ -75,7 +75,7 @@ def test_mjcf_arm_loads_its_joint_coefficients(arm_file):
 def test_mjcf_arm_matches_mujoco(arm_file):
     mujoco = pytest.importorskip("mujoco", reason="MuJoCo not installed: "
                                  "pip install 'rrr-pin[mujoco]'")
-    robot = arm_from_mjcf(arm_file, gravity=9.81)  # MuJoCo's default gravity
+    robot = arm_from_mjcf(arm_file)  # the file's gravity: MuJoCo's default, 9.81
     m = mujoco.MjModel.from_xml_path(str(arm_file))
     d = mujoco.MjData(m)
     rng = np.random.default_rng(44)

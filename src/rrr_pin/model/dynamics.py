@@ -734,7 +734,8 @@ def load_robot(source="rrr", *, gravity: float | None = None,
         :class:`rrr_pin.model.closed_chain.ClosedChain` instead.
     gravity : float, optional
         Gravity magnitude [m/s^2], along ``-z`` of the URDF's root link; default ``source.g``
-        for an :class:`ArmParams`, else 9.8 (the paper's value).
+        for an :class:`ArmParams`, an MJCF arm's ``<option gravity>`` (9.81 without one),
+        else 9.8 (the paper's value).
     lock : dict of str to float, optional
         Joints to lock, by name, at the given positions [rad or m] (Pinocchio's reduced model);
         e.g. ``{"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}``.
@@ -758,8 +759,7 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     from .closed_chain import is_closed_chain_source, load_closed_chain
 
     if is_serial_mjcf(source):  # an arm described in MJCF (e.g. MuJoCo Menagerie's)
-        return arm_from_mjcf(source, gravity=DEFAULT_GRAVITY if gravity is None else gravity,
-                             lock=lock)
+        return arm_from_mjcf(source, gravity=gravity, lock=lock)
     if is_closed_chain_source(source):  # a parallel mechanism (MJCF): "fivebar", "delta"
         if lock:
             raise ValueError(f"lock: joints of a closed chain cannot be locked, got {lock}")
@@ -973,7 +973,26 @@ class MjcfArm(Robot):
         return self.perturbed(None, None)
 
 
-def arm_from_mjcf(source, *, gravity: float = DEFAULT_GRAVITY,
+#: MuJoCo's gravity when the MJCF gives none [m/s^2] (``<option gravity="0 0 -9.81">``).
+MJCF_GRAVITY = 9.81
+
+
+def _mjcf_gravity(root, label: str) -> float:
+    """Return the magnitude [m/s^2] of an MJCF's ``<option gravity>``, which must point down z."""
+    text = next((o.get("gravity") for o in root.findall("option") if o.get("gravity")), None)
+    if text is None:
+        return MJCF_GRAVITY
+    try:
+        g = [float(v) for v in text.split()]
+    except ValueError:
+        g = []
+    if len(g) != 3 or g[0] != 0.0 or g[1] != 0.0 or not g[2] <= 0.0:
+        raise RobotModelError(f"{label}: <option gravity={text!r}>: rrr-pin's plants have "
+                              f"gravity along -z (0 0 -g, g >= 0 [m/s^2])")
+    return -g[2]
+
+
+def arm_from_mjcf(source, *, gravity: float | None = None,
                   lock: dict[str, float] | None = None, name: str | None = None) -> MjcfArm:
     """Load a fixed-base serial arm from an MJCF file with Pinocchio's MJCF parser.
 
@@ -987,8 +1006,9 @@ def arm_from_mjcf(source, *, gravity: float = DEFAULT_GRAVITY,
     ----------
     source : str or path-like
         An MJCF file (``.xml``) with no ``<equality><connect>`` loop closure.
-    gravity : float, default 9.8
-        Gravity magnitude [m/s^2] along ``-z`` (the MJCF's ``<option gravity>`` is not read).
+    gravity : float, optional
+        Gravity magnitude [m/s^2] along ``-z``; default the file's ``<option gravity>``
+        (MuJoCo's default 9.81 without one; a gravity not along ``-z`` is refused).
     lock : dict of str to float, optional
         Joints to lock, by name, at the given positions [rad or m].
     name : str, optional
@@ -1025,6 +1045,8 @@ def arm_from_mjcf(source, *, gravity: float = DEFAULT_GRAVITY,
                               f"chain, not a serial arm (load it with load_robot, or --robot, "
                               f"as a parallel mechanism)")
     lock = dict(lock or {})
+    if gravity is None:
+        gravity = _mjcf_gravity(root, label)
     gravity = check_positive("gravity", gravity, allow_zero=True, unit="m/s^2")
     check_serial_mjcf(root, label, locked=lock)
     try:
