@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from .common import as_options, floats, not_a_folder, option, parse_lock
 
-__all__ = ["load_plant", "reference_from_args", "settings_from_args", "tolerances_from_args",
+__all__ = ["load_plant", "load_model_and_plant", "reference_from_args", "settings_from_args",
+           "tolerances_from_args",
            "friction_spec", "compensation_from_args",
            "laws_from_args", "tuned_from_args", "design_record", "torque_limit_from_args",
            "with_torque_limit", "rejections_line",
@@ -23,6 +24,29 @@ def load_plant(args, *, lock: bool = True):
 
     not_a_folder(robot=args.robot)
     return load_robot(args.robot, lock=parse_lock(args.lock) if lock else None)
+
+
+def load_model_and_plant(args):
+    """Return ``(model, plant, match)``: the laws' model (``--robot``), the simulated plant.
+
+    Without ``--plant`` the plant is the model and ``match`` is None; with it, ``--plant`` and
+    ``--plant-lock`` load the plant and :func:`rrr_pin.model.joint_map.match_joints` pairs the
+    joints (``--joint-map``), refusing by name what cannot be paired.
+    """
+    from ..model.dynamics import load_robot
+    from ..model.joint_map import match_joints, parse_joint_map
+
+    model = load_plant(args)
+    if args.plant is None:
+        if args.joint_map is not None or args.plant_lock:
+            raise ValueError("--joint-map and --plant-lock pair and lock the joints of "
+                             "--plant: give --plant too")
+        return model, model, None
+    not_a_folder(plant=args.plant)
+    plant = load_robot(args.plant, lock=parse_lock(args.plant_lock, "--plant-lock")
+                       if args.plant_lock else None)
+    mapping = None if args.joint_map is None else parse_joint_map(args.joint_map)
+    return model, plant, match_joints(model, plant, mapping)
 
 
 def reference_from_args(args, plant):

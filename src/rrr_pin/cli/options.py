@@ -32,12 +32,30 @@ def add_design_argument(p) -> None:
                         "its requirement table")
 
 
-def add_plant_arguments(p, *, home: bool = True) -> None:
-    """``--robot``, ``--lock`` (and ``--home`` unless ``home=False``)."""
+def add_plant_arguments(p, *, home: bool = True, plant: bool = False) -> None:
+    """Declare ``--robot``, ``--lock``, ``--home`` and, with ``plant=True``, ``--plant``.
+
+    ``--home`` unless ``home=False``; ``--plant``, ``--plant-lock`` and ``--joint-map`` (the
+    simulated arm when it is not the laws' model) with ``plant=True``.
+    """
     p.add_argument("--robot", default="rrr", metavar="NAME|PATH", help=_PLANT_HELP)
     p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
                    help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
                         "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
+    if plant:
+        p.add_argument("--plant", default=None, metavar="NAME|PATH",
+                       help="simulate this arm instead of --robot, which stays the laws' "
+                            "model (e.g. --robot panda --plant panda.xml: a design on "
+                            "example-robot-data's Panda run on MuJoCo Menagerie's); joints "
+                            "paired by order, or by --joint-map; both recorded")
+        p.add_argument("--plant-lock", action="append", metavar="JOINT=VALUE",
+                       help="lock a joint of --plant (repeatable), e.g. the Menagerie Panda's "
+                            "fingers: --plant-lock finger_joint1=0 --plant-lock "
+                            "finger_joint2=0")
+        p.add_argument("--joint-map", default=None, metavar="MODEL=PLANT,...",
+                       help="with --plant: pair the laws' model joints with the plant's by "
+                            "name, e.g. panda_joint1=joint1,...; checked to be every joint once, "
+                            "in order")
     if home:
         p.add_argument("--home", metavar="Q1,Q2,...", default=None,
                        help="centre of the sinusoid, start of a quintic or task-space motion "
