@@ -187,3 +187,37 @@ def test_mujoco_engine_with_armature_damping_and_effects(arm_file):
     # agree far inside the integrator's own error (RK4 at 1 ms on this arm: ~1e-8 rad).
     assert_allclose(b.q, a.q, rtol=0, atol=1e-8)
     assert abs(_rms(b) - _rms(a)) <= 1e-6 * _rms(a)
+
+
+# --- a law's model and the plant (rrr_pin.model.joint_map) -----------------------------------
+
+def test_match_joints_by_order_and_by_map(arm_file):
+    from rrr_pin.model.joint_map import match_joints
+
+    model, plant = load_robot("rrr"), load_robot(arm_file, lock=LOCK)
+    by_order = match_joints(model, plant)
+    assert by_order.by == "order"
+    assert by_order.pairs == (("joint1", "j1"), ("joint2", "j2"), ("joint3", "j3"))
+    by_map = match_joints(model, plant, {"joint1": "j1", "joint2": "j2", "joint3": "j3"})
+    assert by_map.by == "map" and by_map.pairs == by_order.pairs
+
+
+@pytest.mark.parametrize("mapping, match", [
+    ({"joint1": "j2", "joint2": "j1", "joint3": "j3"}, "reorders"),
+    ({"joint1": "j1", "joint2": "j2", "joint3": "nope"}, "unknown joint 'nope'"),
+    ({"joint1": "j1", "joint2": "j2"}, "'joint3' is not mapped"),
+], ids=["reorder", "unknown", "missing"])
+def test_match_joints_refuses_a_bad_map(arm_file, mapping, match):
+    from rrr_pin.model.joint_map import JointMapError, match_joints
+
+    with pytest.raises(JointMapError, match=match):
+        match_joints(load_robot("rrr"), load_robot(arm_file, lock=LOCK), mapping)
+
+
+def test_match_joints_refuses_other_counts_and_kinds(arm_file):
+    from rrr_pin.model.joint_map import JointMapError, match_joints
+
+    with pytest.raises(JointMapError, match="4 .*lock the extra joints"):
+        match_joints(load_robot("rrr"), load_robot(arm_file))
+    with pytest.raises(JointMapError, match="closed chain"):
+        match_joints(load_robot("fivebar"), load_robot("rrr", lock={"joint3": 0.0}))
