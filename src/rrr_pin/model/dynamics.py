@@ -905,7 +905,8 @@ def is_serial_mjcf(source) -> bool:
         root = ET.fromstring(Path(source).read_bytes())
     except (OSError, ET.ParseError):
         return False
-    return root.tag == "mujoco" and not has_loop_closure(root)
+    return (root.tag == "mujoco" and root.find("worldbody") is not None
+            and not has_loop_closure(root))
 
 
 #: The joints Pinocchio builds from an MJCF hinge or slide (any axis).
