@@ -221,3 +221,15 @@ def test_match_joints_refuses_other_counts_and_kinds(arm_file):
         match_joints(load_robot("rrr"), load_robot(arm_file))
     with pytest.raises(JointMapError, match="closed chain"):
         match_joints(load_robot("fivebar"), load_robot("rrr", lock={"joint3": 0.0}))
+
+
+def test_mujoco_engine_writes_the_arm_when_a_joint_is_locked_away_from_zero(tmp_path):
+    pytest.importorskip("mujoco", reason="MuJoCo not installed: pip install 'rrr-pin[mujoco]'")
+    robot = load_robot(write_arm(tmp_path, arm=0, arm2=0, damp=0, fric=0),
+                       lock={"finger": 0.02})
+    law, ref = make_law("fl", robot), default_reference(robot, amp=0.4, freq=0.5)
+    a = simulate(robot, law, ref, 0.2, rate=1000.0, engine="python")
+    b = simulate(robot, law, ref, 0.2, rate=1000.0, engine="mujoco")
+    assert b.info["mujoco"]["model"].startswith("written from the Pinocchio model")
+    # The same RK4 on the same arm, its body written from Pinocchio's reduced model: round-off.
+    assert_allclose(b.q, a.q, rtol=0, atol=1e-9)

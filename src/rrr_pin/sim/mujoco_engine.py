@@ -12,7 +12,9 @@ The model MuJoCo steps (:func:`mujoco_model`):
 * an arm read from MJCF (:class:`rrr_pin.model.dynamics.MjcfArm`): its own file, compiled by
   MuJoCo, with its locked joints removed (each locked at its reference position 0; another
   lock value is written as below) and everything that is not the arm's rigid body taken out:
-  geoms, meshes, actuators, tendons, equalities, sensors, keyframes;
+  geoms, meshes, actuators, tendons, equalities, sensors, keyframes; checked against the plant
+  as Pinocchio reads it (``M`` and ``h`` to :data:`FILE_RTOL`), else written as below, the
+  reason recorded (``Trajectory.info["mujoco"]["model"]``);
 * any other serial arm (a URDF, example-robot-data, the paper's RRR): an MJCF written from the
   arm's Pinocchio model, one body per joint with its placement, mass, centre of mass and
   inertia, and the joint's axis and armature.
@@ -55,7 +57,7 @@ from .trajectory import (
     make_trajectory,
 )
 
-__all__ = ["why_not", "run", "mujoco_model", "INSTALL"]
+__all__ = ["why_not", "run", "mujoco_model", "INSTALL", "FILE_RTOL", "MujocoMissing"]
 
 #: How to install the optional dependency (in every refusal that lacks it).
 INSTALL = "pip install 'rrr-pin[mujoco]'"
@@ -140,10 +142,8 @@ def _written(mujoco, plant):
 def _from_file(mujoco, plant):
     """Return an MjSpec of an MJCF arm's own file, reduced to its rigid bodies and moving joints.
 
-    None when a joint is locked away from its reference position (then the arm is written).
+    Its locked joints (locked at 0, their reference position) are removed.
     """
-    if any(v != 0.0 for v in plant.locked.values()):
-        return None
     spec = mujoco.MjSpec.from_string(plant.mjcf)
     for kind in ("actuators", "tendons", "equalities", "sensors", "keys", "pairs", "excludes",
                  "geoms", "sites", "cameras", "lights", "meshes", "textures", "materials",
@@ -156,14 +156,19 @@ def _from_file(mujoco, plant):
     return spec
 
 
-def mujoco_model(plant, h: float, *, viscous=None, bandwidth: float = 0.0):
+def mujoco_model(plant, h: float, *, viscous=None, bandwidth: float = 0.0) -> tuple:
     """Compile the MuJoCo model of a serial arm for a run with plant sub-step ``h`` [s].
+
+    An MJCF arm is compiled from its own file, then checked against the plant as Pinocchio
+    reads it: ``M`` and the bias torques at two seeded states must agree to
+    :data:`FILE_RTOL` (relative). A file MuJoCo reads otherwise (e.g. inertias it computes from
+    geoms, which are removed) or cannot compile alone (an ``<include>``) is replaced by the
+    model written from the Pinocchio model, and the reason is returned.
 
     Parameters
     ----------
     plant : Robot
-        A serial arm (an :class:`~rrr_pin.model.dynamics.MjcfArm` is compiled from its own
-        file, any other from its Pinocchio model; module docstring).
+        A serial arm (module docstring).
     h : float
         MuJoCo's timestep [s] (the run's RK4 sub-step).
     viscous : ndarray, shape (nq,), optional
@@ -173,22 +178,63 @@ def mujoco_model(plant, h: float, *, viscous=None, bandwidth: float = 0.0):
 
     Returns
     -------
-    mujoco.MjModel
+    model : mujoco.MjModel
         ``nv == plant.nq``, its dofs in the plant's joint order, one actuator per joint.
+    source : str
+        Which model: ``"the MJCF file"`` or ``"written from the Pinocchio model"`` (with why).
 
     Raises
     ------
     ValueError
-        MuJoCo's compiler refused the model, or its joints are not the plant's.
+        MuJoCo's compiler refused the written model, or its joints are not the plant's.
     """
     mujoco = _mujoco()
     if mujoco is None:
         raise MujocoMissing(f"the MuJoCo engine needs MuJoCo: {INSTALL}")
-    spec = None
+    why = None
     if plant.source_text()[1] == ".xml":
-        spec = _from_file(mujoco, plant)
-    if spec is None:
-        spec = _written(mujoco, plant)
+        if any(v != 0.0 for v in plant.locked.values()):
+            why = "a joint is locked away from 0"
+        else:
+            try:
+                m = _compile(mujoco, plant, _from_file(mujoco, plant), h, viscous, bandwidth)
+                gap = _gap(mujoco, plant, m)
+                if gap <= FILE_RTOL:
+                    return m, "the MJCF file"
+                why = (f"MuJoCo reads the file otherwise than Pinocchio (M and h differ by "
+                       f"{gap:.2g} relative)")
+            except ValueError as exc:
+                why = f"MuJoCo could not compile the file alone ({exc})"
+    m = _compile(mujoco, plant, _written(mujoco, plant), h, viscous, bandwidth)
+    return m, "written from the Pinocchio model" + (f": {why}" if why else "")
+
+
+#: Largest relative difference of ``M`` and the bias torques between an MJCF file as MuJoCo
+#: compiles it and the plant as Pinocchio reads it, for the engine to step the file itself.
+FILE_RTOL = 1e-9
+
+
+def _gap(mujoco, plant, m) -> float:
+    """Return the largest relative difference of (M, h) of MuJoCo's ``m`` and the plant's."""
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(0)
+    worst = 0.0
+    for _ in range(2):
+        q = np.clip(rng.uniform(-1.0, 1.0, plant.nq), plant.lower, plant.upper)
+        qd = rng.uniform(-1.0, 1.0, plant.nq)
+        d.qpos[:], d.qvel[:] = q, qd
+        mujoco.mj_forward(m, d)
+        M = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, M)
+        Mp, hp = plant.terms(q, qd)
+        scale = 1.0 + max(np.abs(Mp).max(), np.abs(hp).max())
+        worst = max(worst, np.abs(M - Mp).max() / scale,
+                    np.abs(d.qfrc_bias - hp).max() / scale)
+    return float(worst)
+
+
+def _compile(mujoco, plant, spec, h, viscous, bandwidth):
+    """Set the run's options, joints and actuators on ``spec`` and compile it."""
     names = plant.joint_names
     opt = spec.option
     opt.timestep = h
@@ -201,6 +247,9 @@ def mujoco_model(plant, h: float, *, viscous=None, bandwidth: float = 0.0):
                          | bits.mjDSBL_FRICTIONLOSS | bits.mjDSBL_SPRING)
     damping = np.zeros(plant.nq) if viscous is None else np.asarray(viscous, dtype=float)
     joints = {j.name: j for j in spec.joints}
+    missing = [n for n in names if n not in joints]
+    if missing:
+        raise ValueError(f"MuJoCo's model of {plant.name!r} has no joint {missing[0]!r}")
     for j, name in enumerate(names):
         joint = joints[name]
         joint.armature = float(plant.model.armature[j])
@@ -233,7 +282,8 @@ def run(run: Run, form=None) -> Trajectory:
     mujoco = _mujoco()
     plant, law, fx = run.plant, run.law, run.effects
     wa = fx.wa if fx is not None else 0.0
-    m = mujoco_model(plant, run.h, viscous=None if fx is None else fx.Fv, bandwidth=wa)
+    m, source = mujoco_model(plant, run.h, viscous=None if fx is None else fx.Fv,
+                             bandwidth=wa)
     d = mujoco.MjData(m)
     t, R, RD, RDD = run.t, run.R, run.RD, run.RDD
     N, S, n = len(t) - 1, run.substeps, plant.nq
@@ -287,7 +337,5 @@ def run(run: Run, form=None) -> Trajectory:
     traj = make_trajectory(run, Q, QD, TAU)
     traj.info["mujoco"] = {"version": mujoco.__version__, "integrator": "RK4",
                            "timestep_s": run.h,
-                           "model": ("the MJCF file" if plant.source_text()[1] == ".xml"
-                                     and not any(plant.locked.values())
-                                     else "written from the Pinocchio model")}
+                           "model": source}
     return traj
