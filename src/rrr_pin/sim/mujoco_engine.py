@@ -105,7 +105,7 @@ def _axis(joint) -> tuple[str, np.ndarray]:
     kind = joint.shortname()
     jtype = "hinge" if kind.startswith("JointModelR") else "slide"
     if kind.endswith("Unaligned"):
-        return jtype, np.asarray(joint.axis, dtype=float)
+        return jtype, np.asarray(joint.extract().axis, dtype=float)
     return jtype, np.eye(3)["XYZ".index(kind[-1])]
 
 
