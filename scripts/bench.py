@@ -449,10 +449,11 @@ def _engine_campaign(engine, samples, duration, rate) -> dict:
             "engines": sorted({v for r in rows for k, v in r.items() if k.endswith("_engine")})}
 
 
-def mujoco_campaign(samples, duration, rate) -> dict:
+def mujoco_campaign(samples, duration, rate, fresh: bool = True) -> dict:
     """Section 4d (issue 44): the MuJoCo engine's campaign next to the batched engine's.
 
-    Each campaign runs in a fresh process (``spawn``), so each peak RSS is its own.
+    Each campaign runs in a fresh process (``spawn``), so each peak RSS is its own; with
+    ``fresh=False`` (``--quick``) both run in this process (the peak RSS is then this one's).
     """
     import concurrent.futures
     import importlib.util
@@ -463,11 +464,14 @@ def mujoco_campaign(samples, duration, rate) -> dict:
                                                "'rrr-pin[mujoco]')"}
     engines = {}
     for engine in ("auto", "mujoco"):
+        if not fresh:
+            engines[engine] = _engine_campaign(engine, samples, duration, rate)
+            continue
         with concurrent.futures.ProcessPoolExecutor(
                 1, mp_context=multiprocessing.get_context("spawn")) as pool:
             engines[engine] = pool.submit(_engine_campaign, engine, samples, duration,
                                           rate).result()
-    return {"samples": samples, "engines": engines,
+    return {"samples": samples, "engines": engines, "fresh_processes": fresh,
             "ratio": engines["mujoco"]["s"] / engines["auto"]["s"]}
 
 
@@ -818,7 +822,7 @@ def main(argv=None):
     # 4d. The MuJoCo engine's campaign next to the batched engine's (issue 44).
     if run("4d"):
         result["mujoco_campaign"] = mujoco_campaign(args.mujoco_samples, args.duration,
-                                                    args.rate)
+                                                    args.rate, fresh=not args.quick)
 
     # 5. Start-up in fresh processes.
     if run("5"):
@@ -981,8 +985,9 @@ def report(res, args):
     if "4d" in args.sections:
         r = res["mujoco_campaign"]
         print(f"\n4d. the MuJoCo engine (issue 44): {r['samples']} uncertain RRR plants x (FL, "
-              f"H-inf + FL), {args.duration:g} s at {args.rate:g} Hz, 1 job, each engine in a "
-              f"fresh process")
+              f"H-inf + FL), {args.duration:g} s at {args.rate:g} Hz, 1 job, "
+              + ("each engine in a fresh process" if r.get("fresh_processes", True)
+                 else "both in this process"))
         if r.get("skipped"):
             print(f"  skipped: {r['skipped']}")
         else:
