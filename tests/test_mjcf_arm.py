@@ -174,10 +174,11 @@ def test_mujoco_engine_equals_python_on_a_rigid_arm(rigid_run, duration):
     assert_allclose(b.q, a.q, rtol=0, atol=1e-9)
 
 
-def test_mujoco_engine_with_armature_damping_and_effects(arm_file):
+def test_mujoco_engine_with_armature_damping_and_effects(arm_file, paper):
     pytest.importorskip("mujoco", reason="MuJoCo not installed: pip install 'rrr-pin[mujoco]'")
     robot = load_robot(arm_file, lock=LOCK)
-    law, ref = make_law("hinf", robot), default_reference(robot, amp=0.4, freq=0.5)
+    law = make_law("hinf", robot, K=paper.K_reduced)  # the paper's 3-joint design, shared
+    ref = default_reference(robot, amp=0.4, freq=0.5)
     fx = PlantEffects(delay=2e-3, bandwidth=300.0, torque_limit=60.0, noise_q=1e-4, seed=3)
     a = simulate(robot, law, ref, 0.5, rate=500.0, dt=1e-3, engine="python", effects=fx)
     b = simulate(robot, law, ref, 0.5, rate=500.0, dt=1e-3, engine="mujoco", effects=fx)
@@ -191,10 +192,10 @@ def test_mujoco_engine_with_armature_damping_and_effects(arm_file):
 
 # --- a law's model and the plant (rrr_pin.model.joint_map) -----------------------------------
 
-def test_match_joints_by_order_and_by_map(arm_file):
+def test_match_joints_by_order_and_by_map(arm_file, rrr):
     from rrr_pin.model.joint_map import match_joints
 
-    model, plant = load_robot("rrr"), load_robot(arm_file, lock=LOCK)
+    model, plant = rrr, load_robot(arm_file, lock=LOCK)
     by_order = match_joints(model, plant)
     assert by_order.by == "order"
     assert by_order.pairs == (("joint1", "j1"), ("joint2", "j2"), ("joint3", "j3"))
@@ -207,20 +208,20 @@ def test_match_joints_by_order_and_by_map(arm_file):
     ({"joint1": "j1", "joint2": "j2", "joint3": "nope"}, "unknown joint 'nope'"),
     ({"joint1": "j1", "joint2": "j2"}, "'joint3' is not mapped"),
 ], ids=["reorder", "unknown", "missing"])
-def test_match_joints_refuses_a_bad_map(arm_file, mapping, match):
+def test_match_joints_refuses_a_bad_map(arm_file, rrr, mapping, match):
     from rrr_pin.model.joint_map import JointMapError, match_joints
 
     with pytest.raises(JointMapError, match=match):
-        match_joints(load_robot("rrr"), load_robot(arm_file, lock=LOCK), mapping)
+        match_joints(rrr, load_robot(arm_file, lock=LOCK), mapping)
 
 
-def test_match_joints_refuses_other_counts_and_kinds(arm_file):
+def test_match_joints_refuses_other_counts_and_kinds(arm_file, rrr, fivebar):
     from rrr_pin.model.joint_map import JointMapError, match_joints
 
     with pytest.raises(JointMapError, match="4 .*lock the extra joints"):
-        match_joints(load_robot("rrr"), load_robot(arm_file))
+        match_joints(rrr, load_robot(arm_file))
     with pytest.raises(JointMapError, match="closed chain"):
-        match_joints(load_robot("fivebar"), load_robot("rrr", lock={"joint3": 0.0}))
+        match_joints(fivebar, load_robot("rrr", lock={"joint3": 0.0}))
 
 
 def test_mujoco_engine_writes_the_arm_when_a_joint_is_locked_away_from_zero(tmp_path):
