@@ -234,3 +234,14 @@ def test_mujoco_engine_writes_the_arm_when_a_joint_is_locked_away_from_zero(tmp_
     assert b.info["mujoco"]["model"].startswith("written from the Pinocchio model")
     # The same RK4 on the same arm, its body written from Pinocchio's reduced model: round-off.
     assert_allclose(b.q, a.q, rtol=0, atol=1e-9)
+
+
+def test_cli_refuses_a_joint_map_that_reorders(arm_file, tmp_path, capsys):
+    from rrr_pin import cli
+
+    argv = ["stress", "--robot", "rrr", "--plant", str(arm_file), "--plant-lock", "finger=0",
+            "--joint-map", "joint1=j2,joint2=j1,joint3=j3", "--effect", "delay",
+            "--out", str(tmp_path / "out"), "--no-progress"]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "reorders the joints" in err and "Traceback" not in err

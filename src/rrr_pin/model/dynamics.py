@@ -967,7 +967,8 @@ class MjcfArm(Robot):
         """Refused: uncertain plants are drawn around a URDF, and an MJCF arm has none."""
         raise CapabilityError(f"uncertain plants drawn around {self.describe_kind()} "
                               f"{self.name!r} need a URDF, which an MJCF arm does not have; "
-                              f"run it as a nominal plant", URDF)
+                              f"run it as a nominal plant (rrr-pin reproduce --samples 0, "
+                              f"rrr-pin stress)", URDF)
 
     def arm_map(self):
         """Refused: see :meth:`perturbed`."""
