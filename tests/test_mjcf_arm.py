@@ -150,6 +150,11 @@ def test_mjcf_arm_run_records_the_friction_it_applied(arm_file):
                     rate=1000.0, engine="python", effects=PlantEffects(viscous=0.1))
     assert not traj.info["plant_friction"]["applied"]
     assert "replaced" in traj.info["plant_friction"]["note"]
+    # a continuous-time law cannot have effects: not applied, and it says so
+    with pytest.warns(UserWarning, match="not applied"):
+        traj = simulate(robot, make_law("fl", robot), default_reference(robot, amp=0.3), 0.02,
+                        engine="python")
+    assert traj.info["plant_friction"]["applied"] is False
 
 
 def test_mujoco_engine_refused_without_mujoco(rigid_run, monkeypatch):

@@ -220,6 +220,10 @@ class StudyResult:
         When the laws were designed on another model than the plant (``--plant``): the
         :meth:`rrr_pin.model.joint_map.JointMatch.to_dict` of the pairing, recorded in
         ``summary["joint_match"]``.
+    plant_friction : dict
+        What the runs applied of the plant's own friction (an MJCF arm's damping and friction
+        loss, :func:`rrr_pin.control.effects.with_plant_friction`), recorded in
+        ``summary["plant_friction"]``.
     refined : dict
         Per law, the nominal run's largest error [rad] with the discretization halved
         (:func:`refined_nominal_errors`; None where not measured), recorded in
@@ -242,6 +246,7 @@ class StudyResult:
     torque_limit: dict = field(default_factory=dict)
     refined: dict = field(default_factory=dict)
     joint_match: dict = field(default_factory=dict)
+    plant_friction: dict = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:
@@ -347,6 +352,8 @@ def summarize(result: StudyResult) -> dict:
         out["torque_limit"] = limit
     if result.joint_match:
         out["joint_match"] = result.joint_match
+    if result.plant_friction:
+        out["plant_friction"] = result.plant_friction
     drifts = [m["drift_m"] for s in result.samples for m in s["metrics"].values()
               if "drift_m" in m] + [t.info["drift_m"] for t in result.nominal.values()
                                     if "drift_m" in t.info]

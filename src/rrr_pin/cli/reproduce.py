@@ -6,6 +6,7 @@ from .build import (
     design_record,
     laws_from_args,
     load_model_and_plant,
+    plant_friction_record,
     reference_from_args,
     rejections_line,
     settings_from_args,
@@ -110,6 +111,9 @@ def run_reproduce(args) -> int:
     result.torque_limit = limit_info
     if match is not None:
         result.joint_match = match.to_dict()
+    friction = plant_friction_record(plant, settings)
+    if friction is not None:
+        result.plant_friction = friction
     design_info = study_design(d, full_order=args.full_order)
     if design_record(args) is not None:
         design_info = {**design_info, "tuned": design_record(args)}
@@ -122,6 +126,9 @@ def run_reproduce(args) -> int:
     if match is not None:
         print(f"laws designed on {match.model}, run on {match.plant} (joints paired by "
               f"{match.by})")
+    if friction is not None:
+        print(f"{plant.name}: its own damping and friction loss ({friction['source']}): "
+              f"{friction['note']}")
     print("\n".join(summary_lines(result, data["summary"])))
     if rejections_line(result.samples):
         print(rejections_line(result.samples))

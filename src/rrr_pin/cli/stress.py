@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from .build import load_model_and_plant
+from .build import load_model_and_plant, plant_friction_record
 from .common import as_options, claim_out, option
 from .options import add_design_argument, add_force_argument, add_overwrite, add_plant_arguments
 
@@ -131,6 +131,9 @@ def run_stress(args) -> int:
     result["robot"] = plant.name
     if match is not None:
         result["joint_match"] = match.to_dict()
+    friction = plant_friction_record(plant, settings.run)
+    if friction is not None:
+        result["plant_friction"] = friction
     result["stem"] = stem
     if design_record(args) is not None:
         result["design"] = design_record(args)
@@ -138,5 +141,8 @@ def run_stress(args) -> int:
     if args.json:
         print(dumps(result))
         return 0
+    if friction is not None:
+        print(f"{plant.name}: its own damping and friction loss ({friction['source']}): "
+              f"{friction['note']}")
     print("\n".join(stress_lines(result) + [f"wrote {fig}"]))
     return 0

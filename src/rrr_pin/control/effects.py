@@ -52,6 +52,7 @@ References
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
@@ -504,7 +505,7 @@ def with_plant_friction(plant, effects: PlantEffects | None, sampled: bool
     * the effects already name a friction (numbers, or the plant's own): they are kept, and the
       record says they replace the description's;
     * the law is continuous-time (effects need a sampling instant): nothing is applied, and the
-      record and a logged warning say so.
+      record and a warning (``UserWarning``, once per message) say so.
 
     A plant without such friction (a URDF's ``<dynamics>`` is applied only when asked, with
     ``--friction urdf``) returns ``effects`` unchanged and no record.
@@ -524,8 +525,6 @@ def with_plant_friction(plant, effects: PlantEffects | None, sampled: bool
         ``Trajectory.info["plant_friction"]``: ``applied`` (bool), ``source``, the plant's
         ``damping_Nms_rad`` and ``frictionloss_Nm`` per joint, and ``note`` in words.
     """
-    import logging
-
     if _own_friction_source(plant) is None:
         return effects, None
     Fv, Fc = plant.joint_friction()
@@ -535,7 +534,7 @@ def with_plant_friction(plant, effects: PlantEffects | None, sampled: bool
     if not sampled:
         note = (f"not applied: the damping and friction loss of {plant.name!r} act as the "
                 f"friction effect, which needs a sampled law (give rate=)")
-        logging.getLogger(__name__).warning("%s", note)
+        warnings.warn(note, UserWarning, stacklevel=2)  # once per message (Python's filter)
         return effects, {**record, "applied": False, "note": note}
     if effects is not None and effects.friction:
         if effects.viscous == "urdf":
