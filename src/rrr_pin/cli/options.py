@@ -13,7 +13,9 @@ __all__ = ["add_design_argument", "add_overwrite", "add_plant_arguments", "add_l
 
 _PLANT_HELP = ("plant: 'rrr' (the paper's arm, default), an example-robot-data arm (ur5, ur3, "
                "ur10, panda, kinova, ...), a URDF path, a parallel mechanism by its registered "
-               "name (rrr_pin.model.mechanisms.MECHANISMS) or an MJCF path")
+               "name (rrr_pin.model.mechanisms.MECHANISMS) or an MJCF path (a serial arm with "
+               "its joints' armature, damping and friction loss, or a closed chain with "
+               "<equality><connect>)")
 
 
 def add_overwrite(p) -> None:
