@@ -57,6 +57,7 @@ Usage::
     python scripts/bench.py --quick          # seconds, to check that it runs
     python scripts/bench.py --sections 2,2b,2c,4b   # the engines' sections alone
     python scripts/bench.py --sections 4c --campaign-samples 1000 --panda-samples 1000
+    python scripts/bench.py --sections 4d --mujoco-samples 10   # the MuJoCo engine's campaign
     python scripts/bench.py --export         # also section 9 (builds three exports)
 """
 
