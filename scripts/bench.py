@@ -28,6 +28,11 @@ asserted:
   process, with ``jobs=2`` and with ``threads=2``, its CPU share outside that loop, on the RRR
   and the Panda (``--panda-samples``), and the xArm7 and the z1 at first use in an empty cache
   (the one-time build time; not under ``--quick``);
+- section 4d (issue 44): the MuJoCo engine (``engine="mujoco"``, the plant stepped by MuJoCo,
+  the laws in Python) on a campaign of N uncertain RRR plants x (FL, H-inf + FL), next to the
+  same campaign on the batched engine (``engine="auto"``), each in a fresh process (its peak
+  RSS), one job; with the load average, and the time scaled to 1000 plants
+  (``--mujoco-samples``; skipped without MuJoCo);
 - section 5: start-up: ``rrr-pin --help`` and ``python -c "import rrr_pin"`` in fresh processes;
 - section 6: ``rrr_pin.robust.loopshaping.loopsyn`` on a coupled 3 x 3 plant
   (:func:`loopsyn_3x3_s`);
@@ -52,6 +57,7 @@ Usage::
     python scripts/bench.py --quick          # seconds, to check that it runs
     python scripts/bench.py --sections 2,2b,2c,4b   # the engines' sections alone
     python scripts/bench.py --sections 4c --campaign-samples 1000 --panda-samples 1000
+    python scripts/bench.py --sections 4d --mujoco-samples 10   # the MuJoCo engine's campaign
     python scripts/bench.py --export         # also section 9 (builds three exports)
 """
 
@@ -426,6 +432,50 @@ def loop_on_cores(robot, laws, settings, threads: int) -> float:
     return spent[0]
 
 
+def _engine_campaign(engine, samples, duration, rate) -> dict:
+    """One campaign of ``samples`` RRR plants x (FL, H-inf + FL) on ``engine``, in this process."""
+    import resource
+
+    robot = rrr_pin.load_robot("rrr")
+    laws = make_laws("fl,hinf", robot)
+    settings = CampaignSettings(samples=samples, seed=0, baseline="fl",
+                                run=RunSettings(duration=duration, rate=rate, engine=engine))
+    load = [os.getloadavg()[0]]
+    t0 = time.perf_counter()
+    rows = run_campaign(robot, laws, settings, jobs=1).rows
+    seconds = time.perf_counter() - t0
+    load.append(os.getloadavg()[0])
+    return {"s": seconds, "load_avg": load,
+            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+            "engines": sorted({v for r in rows for k, v in r.items() if k.endswith("_engine")})}
+
+
+def mujoco_campaign(samples, duration, rate, fresh: bool = True) -> dict:
+    """Section 4d (issue 44): the MuJoCo engine's campaign next to the batched engine's.
+
+    Each campaign runs in a fresh process (``spawn``), so each peak RSS is its own; with
+    ``fresh=False`` (``--quick``) both run in this process (the peak RSS is then this one's).
+    """
+    import concurrent.futures
+    import importlib.util
+    import multiprocessing
+
+    if importlib.util.find_spec("mujoco") is None:
+        return {"samples": samples, "skipped": "MuJoCo not installed (pip install "
+                                               "'rrr-pin[mujoco]')"}
+    engines = {}
+    for engine in ("auto", "mujoco"):
+        if not fresh:
+            engines[engine] = _engine_campaign(engine, samples, duration, rate)
+            continue
+        with concurrent.futures.ProcessPoolExecutor(
+                1, mp_context=multiprocessing.get_context("spawn")) as pool:
+            engines[engine] = pool.submit(_engine_campaign, engine, samples, duration,
+                                          rate).result()
+    return {"samples": samples, "engines": engines, "fresh_processes": fresh,
+            "ratio": engines["mujoco"]["s"] / engines["auto"]["s"]}
+
+
 def campaign_at_floor(robot, names, samples, duration, rate) -> dict:
     """Section 4c (issue 33): a campaign against the batched engine's own C++ loop on its plants.
 
@@ -523,7 +573,7 @@ def loopsyn_3x3_s(repeat: int = 1) -> float:
 
 
 #: The sections, in order (``--sections``); 9 only with ``--export``.
-SECTIONS = ("1", "2", "2b", "2c", "3", "4", "4b", "4c", "5", "6", "7", "8", "10")
+SECTIONS = ("1", "2", "2b", "2c", "3", "4", "4b", "4c", "4d", "5", "6", "7", "8", "10")
 
 
 def main(argv=None):
@@ -540,6 +590,9 @@ def main(argv=None):
                         help="plants of the 2-job campaign (100; issue 13's table: 1000)")
     parser.add_argument("--panda-samples", type=int, default=100,
                         help="Panda plants of section 4c (100; 0 skips; issue 33: 1000)")
+    parser.add_argument("--mujoco-samples", type=int, default=10,
+                        help="RRR plants of section 4d, the MuJoCo engine's campaign (10; "
+                             "scaled to 1000)")
     parser.add_argument("--mc-samples", type=int, default=20,
                         help="plants of the 1-job throughput run (20)")
     parser.add_argument("--startup-repeat", type=int, default=5,
@@ -559,6 +612,7 @@ def main(argv=None):
     if args.quick:
         args.duration, args.repeat, args.calls = 0.05, 1, 20
         args.campaign_samples, args.mc_samples, args.startup_repeat = 2, 2, 1
+        args.mujoco_samples = 1
         args.panda_samples = 0  # section 4c on the RRR alone, no first-use build
     run = args.sections.__contains__
 
@@ -766,6 +820,11 @@ def main(argv=None):
             del os.environ["RRR_PIN_CACHE"]
         result["first_use"] = first
 
+    # 4d. The MuJoCo engine's campaign next to the batched engine's (issue 44).
+    if run("4d"):
+        result["mujoco_campaign"] = mujoco_campaign(args.mujoco_samples, args.duration,
+                                                    args.rate, fresh=not args.quick)
+
     # 5. Start-up in fresh processes.
     if run("5"):
         exe = shutil.which("rrr-pin", path=str(Path(sys.executable).parent)) or "rrr-pin"
@@ -924,6 +983,22 @@ def report(res, args):
                       f"{r['floor_1core_s']:.2f} s, 1 process {r['one_process_s']:.2f} s, "
                       f"jobs 2 {r['jobs2_s']:.2f} s, "
                       f"threads 2 {r['threads2_s']:.2f} s, engines {', '.join(r['engines'])}")
+    if "4d" in args.sections:
+        r = res["mujoco_campaign"]
+        print(f"\n4d. the MuJoCo engine (issue 44): {r['samples']} uncertain RRR plants x (FL, "
+              f"H-inf + FL), {args.duration:g} s at {args.rate:g} Hz, 1 job, "
+              + ("each engine in a fresh process" if r.get("fresh_processes", True)
+                 else "both in this process"))
+        if r.get("skipped"):
+            print(f"  skipped: {r['skipped']}")
+        else:
+            for name, e in r["engines"].items():
+                print(f"  {name:8} {e['s']:9.2f} s ({e['s'] * 1000 / r['samples']:9.1f} s per "
+                      f"1000 plants)  peak RSS {e['peak_rss_mb']:7.1f} MB  engines "
+                      f"{', '.join(e['engines'])}  load {e['load_avg'][0]:.1f} -> "
+                      f"{e['load_avg'][1]:.1f}")
+            print(f"  mujoco / batched: {r['ratio']:.1f} x; the MuJoCo engine checks, the batched "
+                  f"one runs campaigns")
     if "4b" in args.sections:
         cp, cf = res["closed_chain_rollout_ms"], res["constraint_dynamics_floor_ms"]
         cc, ck = res["closed_chain_compiled_ms"], res["closed_chain_kkt_floor_ms"]

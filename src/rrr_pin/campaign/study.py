@@ -216,6 +216,14 @@ class StudyResult:
     torque_limit : dict
         How the torque limit was chosen (e.g. by the CLI: ``spec``, ``rule``,
         ``peak_torque_Nm``), recorded in ``summary["torque_limit"]``.
+    joint_match : dict
+        When the laws were designed on another model than the plant (``--plant``): the
+        :meth:`rrr_pin.model.joint_map.JointMatch.to_dict` of the pairing, recorded in
+        ``summary["joint_match"]``.
+    plant_friction : dict
+        What the runs applied of the plant's own friction (an MJCF arm's damping and friction
+        loss, :func:`rrr_pin.control.effects.with_plant_friction`), recorded in
+        ``summary["plant_friction"]``.
     refined : dict
         Per law, the nominal run's largest error [rad] with the discretization halved
         (:func:`refined_nominal_errors`; None where not measured), recorded in
@@ -242,6 +250,8 @@ class StudyResult:
     torque_limit: dict = field(default_factory=dict)
     refined: dict = field(default_factory=dict)
     joint_dynamics: dict | None = None
+    joint_match: dict = field(default_factory=dict)
+    plant_friction: dict = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:
@@ -346,6 +356,10 @@ def summarize(result: StudyResult) -> dict:
     limit = _torque_limit_summary(result)
     if limit:
         out["torque_limit"] = limit
+    if result.joint_match:
+        out["joint_match"] = result.joint_match
+    if result.plant_friction:
+        out["plant_friction"] = result.plant_friction
     drifts = [m["drift_m"] for s in result.samples for m in s["metrics"].values()
               if "drift_m" in m] + [t.info["drift_m"] for t in result.nominal.values()
                                     if "drift_m" in t.info]

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from .common import as_options, floats, not_a_folder, option, parse_lock
 
-__all__ = ["load_plant", "parse_armature", "reference_from_args", "settings_from_args",
-           "tolerances_from_args",
+__all__ = ["load_plant", "load_model_and_plant", "plant_friction_record", "parse_armature",
+           "reference_from_args", "settings_from_args", "tolerances_from_args",
            "friction_spec", "compensation_from_args",
            "laws_from_args", "tuned_from_args", "design_record", "torque_limit_from_args",
            "with_torque_limit", "rejections_line",
@@ -46,6 +46,42 @@ def parse_armature(text: str | None):
         raise ValueError(f"--armature expects a number [kg m^2] or one per joint separated "
                          f"by '/', got {text!r}") from None
     return values[0] if len(values) == 1 else values
+
+
+def load_model_and_plant(args):
+    """Return ``(model, plant, match)``: the laws' model (``--robot``), the simulated plant.
+
+    Without ``--plant`` the plant is the model and ``match`` is None; with it, ``--plant`` and
+    ``--plant-lock`` load the plant and :func:`rrr_pin.model.joint_map.match_joints` pairs the
+    joints (``--joint-map``), refusing by name what cannot be paired.
+    """
+    from ..model.dynamics import load_robot
+    from ..model.joint_map import match_joints, parse_joint_map
+
+    model = load_plant(args)
+    if args.plant is None:
+        if args.joint_map is not None or args.plant_lock:
+            raise ValueError("--joint-map and --plant-lock pair and lock the joints of "
+                             "--plant: give --plant too")
+        return model, model, None
+    not_a_folder(plant=args.plant)
+    plant = load_robot(args.plant, lock=parse_lock(args.plant_lock, "--plant-lock")
+                       if args.plant_lock else None)
+    mapping = None if args.joint_map is None else parse_joint_map(args.joint_map)
+    return model, plant, match_joints(model, plant, mapping)
+
+
+def plant_friction_record(plant, run) -> dict | None:
+    """Return what runs on ``plant`` with the settings ``run`` apply of its own friction.
+
+    The record of :func:`rrr_pin.control.effects.with_plant_friction` (an MJCF arm's damping
+    and friction loss: ``applied``, ``source``, the values and a ``note``), which the command
+    prints and writes; None for a plant without friction of its own.
+    """
+    from ..control.effects import with_plant_friction
+
+    effects = run.effects if run.effects is not None and run.effects.active else None
+    return with_plant_friction(plant, effects, run.rate is not None)[1]
 
 
 def reference_from_args(args, plant):

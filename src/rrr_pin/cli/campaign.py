@@ -7,7 +7,7 @@ import sys
 from .build import (
     design_record,
     laws_from_args,
-    load_plant,
+    load_model_and_plant,
     reference_from_args,
     rejections_line,
     settings_from_args,
@@ -30,7 +30,7 @@ def add(sub) -> None:
                     "samples.jsonl, summary.json, montecarlo.png and report.html into --out. "
                     "Results are identical whatever --jobs. Any plant: a closed chain's rows "
                     "also hold each run's loop drift.")
-    add_plant_arguments(p)
+    add_plant_arguments(p, plant=True)
     add_law_arguments(p, 10.0, 1000.0)
     p.add_argument("--samples", type=int, required=True, help="number of uncertain plants")
     p.add_argument("--threads", type=int, default=1,
@@ -89,7 +89,7 @@ def run_montecarlo(args) -> int:
     check_writable(args.out)
     args.write_hint = (f"; the samples finished so far are kept in {args.out}/parts.jsonl: "
                        "free space, then rerun with --resume")
-    plant = load_plant(args)
+    model, plant, match = load_model_and_plant(args)
     run = settings_from_args(args, plant.nq)
     reference = reference_from_args(args, plant)
     limit, _ = torque_limit_from_args(args, plant, reference, run)
@@ -103,7 +103,7 @@ def run_montecarlo(args) -> int:
 
         d = design(lam=45.0, n=plant.nq)
         certificate, K = CertificateSpec.from_design(d), d.K_reduced
-    laws, baseline = laws_from_args(args, plant, K=K)
+    laws, baseline = laws_from_args(args, model, K=K)
     settings = CampaignSettings(samples=args.samples, seed=args.seed, run=run,
                                 baseline=baseline, tolerances=tolerances)
     # every refusal before the store is opened: a refused campaign leaves no files behind
@@ -136,11 +136,16 @@ def run_montecarlo(args) -> int:
         s = write_campaign(campaign, args.out, store=store, certificate_b=None if
                            certificate is None else certificate.margin(plant.nq))
         if design_record(args) is not None:  # which design ran, with its requirement table
-            _record_design(args)
+            _record_summary(args, "design", design_record(args))
+        if match is not None:  # the laws' model and the plant, joint by joint
+            _record_summary(args, "joint_match", match.to_dict())
         s["written"].append(str(write_campaign_report(campaign, s, args.out, store)))
     nl, ran = len(laws), total - done
     print(f"{plant.name}: {ran} plants x {nl} controllers x {run.duration:g} s in "
           f"{elapsed:.1f} s ({nl * ran / max(elapsed, 1e-9):.1f} rollouts/s)")
+    if match is not None:
+        print(f"laws designed on {match.model}, run on plants drawn around {match.plant} "
+              f"(joints paired by {match.by})")
     print("\n".join(summary_lines(campaign, s)))
     if rejections_line(campaign.rows):
         print(rejections_line(campaign.rows))
@@ -148,8 +153,8 @@ def run_montecarlo(args) -> int:
     return 0
 
 
-def _record_design(args) -> None:
-    """Add ``--design``'s record (path, law, requirement table) to ``summary.json``."""
+def _record_summary(args, key: str, record: dict) -> None:
+    """Add ``record`` to ``summary.json`` under ``key`` (``--design``'s, ``--plant``'s)."""
     import json
     from pathlib import Path
 
@@ -157,5 +162,5 @@ def _record_design(args) -> None:
 
     path = Path(args.out) / "summary.json"
     data = json.loads(path.read_text())
-    data["design"] = design_record(args)
+    data[key] = record
     path.write_text(dumps(data))

@@ -131,19 +131,19 @@ def not_a_folder(**options) -> None:
             raise ValueError(f"{option(field)} {path}: is a directory, expected a file")
 
 
-def parse_lock(items) -> dict:
+def parse_lock(items, option: str = "--lock") -> dict:
     """``["joint=0.1", ...]`` of ``--lock`` -> ``{"joint": 0.1, ...}``, each joint once."""
     lock = {}
     for item in items or []:
         name, sep, value = item.partition("=")
         if not sep or not name:
-            raise ValueError(f"--lock expects JOINT=VALUE, got {item!r}")
+            raise ValueError(f"{option} expects JOINT=VALUE, got {item!r}")
         if name in lock:
-            raise ValueError(f"--lock {name} given twice")
+            raise ValueError(f"{option} {name} given twice")
         try:
             lock[name] = float(value)
         except ValueError:
-            raise ValueError(f"--lock {item!r}: {value!r} is not a number") from None
+            raise ValueError(f"{option} {item!r}: {value!r} is not a number") from None
     return lock
 
 

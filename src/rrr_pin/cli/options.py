@@ -14,7 +14,9 @@ __all__ = ["add_design_argument", "add_overwrite", "add_plant_arguments", "add_l
 
 _PLANT_HELP = ("plant: 'rrr' (the paper's arm, default), an example-robot-data arm (ur5, ur3, "
                "ur10, panda, kinova, ...), a URDF path, a parallel mechanism by its registered "
-               "name (rrr_pin.model.mechanisms.MECHANISMS) or an MJCF path")
+               "name (rrr_pin.model.mechanisms.MECHANISMS) or an MJCF path (a serial arm with "
+               "its joints' armature, damping and friction loss, or a closed chain with "
+               "<equality><connect>)")
 
 
 def add_overwrite(p) -> None:
@@ -55,13 +57,31 @@ def add_joint_tolerance_arguments(p) -> None:
                             + ("" if key == "armature" else "; acts with --friction urdf"))
 
 
-def add_plant_arguments(p, *, home: bool = True) -> None:
-    """``--robot``, ``--lock``, ``--armature`` (and ``--home`` unless ``home=False``)."""
+def add_plant_arguments(p, *, home: bool = True, plant: bool = False) -> None:
+    """Declare ``--robot``, ``--lock``, ``--armature``, ``--home``; ``--plant`` if ``plant``.
+
+    ``--home`` unless ``home=False``; ``--plant``, ``--plant-lock`` and ``--joint-map`` (the
+    simulated arm when it is not the laws' model) with ``plant=True``.
+    """
     p.add_argument("--robot", default="rrr", metavar="NAME|PATH", help=_PLANT_HELP)
     p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
                    help="lock a joint at a position [rad or m] (repeatable), e.g. the Panda's "
                         "fingers: --lock panda_finger_joint1=0 --lock panda_finger_joint2=0")
     add_armature_argument(p)
+    if plant:
+        p.add_argument("--plant", default=None, metavar="NAME|PATH",
+                       help="simulate this arm instead of --robot, which stays the laws' "
+                            "model (e.g. --robot panda --plant panda.xml: a design on "
+                            "example-robot-data's Panda run on MuJoCo Menagerie's); joints "
+                            "paired by order, or by --joint-map; both recorded")
+        p.add_argument("--plant-lock", action="append", metavar="JOINT=VALUE",
+                       help="lock a joint of --plant (repeatable), e.g. the Menagerie Panda's "
+                            "fingers: --plant-lock finger_joint1=0 --plant-lock "
+                            "finger_joint2=0")
+        p.add_argument("--joint-map", default=None, metavar="MODEL=PLANT,...",
+                       help="with --plant: pair the laws' model joints with the plant's by "
+                            "name, e.g. panda_joint1=joint1,...; checked to be every joint once, "
+                            "in order")
     if home:
         p.add_argument("--home", metavar="Q1,Q2,...", default=None,
                        help="centre of the sinusoid, start of a quintic or task-space motion "

@@ -5,7 +5,8 @@ from __future__ import annotations
 from .build import (
     design_record,
     laws_from_args,
-    load_plant,
+    load_model_and_plant,
+    plant_friction_record,
     reference_from_args,
     rejections_line,
     settings_from_args,
@@ -29,7 +30,7 @@ def add(sub) -> None:
                     "fig6_uncertain, the plants (plants/*.urdf or *.xml), results.json, "
                     "results.md and report.html into --out. Any plant: a serial arm or a "
                     "closed chain (its own task path is its reference by default).")
-    add_plant_arguments(p)
+    add_plant_arguments(p, plant=True)
     add_law_arguments(p, 4.0, None)
     add_design_argument(p)
     p.add_argument("--samples", type=int, default=10, help="uncertain plants (10, the paper's)")
@@ -69,7 +70,7 @@ def run_reproduce(args) -> int:
 
     out = check_out_early(args, "reproduce")  # a file, no permission, another tool's run
     check_count("--samples", args.samples)
-    plant = load_plant(args)
+    model, plant, match = load_model_and_plant(args)
     settings = settings_from_args(args, plant.nq)
     reference = reference_from_args(args, plant)
     limit, limit_info = torque_limit_from_args(args, plant, reference, settings)
@@ -77,7 +78,7 @@ def run_reproduce(args) -> int:
         settings = with_torque_limit(settings, limit)
     tolerances = tolerances_from_args(args, plant)
     d = design(lam=45.0, n=plant.nq)
-    laws, baseline = laws_from_args(args, plant, K=d.K_full if args.full_order else
+    laws, baseline = laws_from_args(args, model, K=d.K_full if args.full_order else
                                     d.K_reduced, torque_limit=limit,
                                     extra=("hinf_aw",) if limit is not None else ())
     config = StudyConfig(run=settings, samples=args.samples, seed=args.seed, jobs=args.jobs,
@@ -101,6 +102,11 @@ def run_reproduce(args) -> int:
     finally:  # on Ctrl-C too, so the interrupt message starts on a line of its own
         bar.close()
     result.torque_limit = limit_info
+    if match is not None:
+        result.joint_match = match.to_dict()
+    friction = plant_friction_record(plant, settings)
+    if friction is not None:
+        result.plant_friction = friction
     design_info = study_design(d, full_order=args.full_order)
     if design_record(args) is not None:
         design_info = {**design_info, "tuned": design_record(args)}
@@ -110,6 +116,12 @@ def run_reproduce(args) -> int:
     saved = write_trajectories(result, out, args.save_trajectories)  # None: clears old ones
     print(f"{plant.name}: {plant.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "
           f"{', '.join(result.names)} (baseline {baseline})")
+    if match is not None:
+        print(f"laws designed on {match.model}, run on {match.plant} (joints paired by "
+              f"{match.by})")
+    if friction is not None:
+        print(f"{plant.name}: its own damping and friction loss ({friction['source']}): "
+              f"{friction['note']}")
     print("\n".join(summary_lines(result, data["summary"])))
     if rejections_line(result.samples):
         print(rejections_line(result.samples))

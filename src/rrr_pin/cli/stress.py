@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from .build import load_plant
+from .build import load_model_and_plant, plant_friction_record
 from .common import as_options, claim_out, option
 from .options import add_design_argument, add_force_argument, add_overwrite, add_plant_arguments
 
@@ -24,7 +24,7 @@ def add(sub) -> None:
                     "design's digital loop, and what the robust-stability barrier of eq. "
                     "(12)-(13) guarantees, on the plant's study reference. Writes "
                     "stress_<effect>.png (and .json) into --out.")
-    add_plant_arguments(p)
+    add_plant_arguments(p, plant=True)
     p.add_argument("--controllers", default="fl,hinf,pd", metavar="NAMES",
                    help="comma-separated built-in controllers (fl,hinf,pd)")
     p.add_argument("--effect", required=True, metavar="NAME",
@@ -106,7 +106,7 @@ def run_stress(args) -> int:
                                   budget=args.budget)
     stem = args.effect + "".join(f"_with_{k}{v:g}" for k, v in fixed.items())
     claim_out(args, "stress", part=stem)  # one folder holds every effect's run
-    plant = load_plant(args)
+    model, plant, match = load_model_and_plant(args)
     home = floats(args.home, "--home")
     if home is not None and plant.task_path(args.duration) is not None:
         # stress has no --reference: the specification's hint to give one does not apply
@@ -118,9 +118,9 @@ def run_stress(args) -> int:
     from .build import design_record, tuned_from_args
 
     names = [n.strip() for n in args.controllers.split(",")]
-    tuned = tuned_from_args(args, plant, names)
+    tuned = tuned_from_args(args, model, names)
     with as_options():
-        laws = make_laws([n for n in names if n != "tuned"], plant) \
+        laws = make_laws([n for n in names if n != "tuned"], model) \
             if set(names) - {"tuned"} else []
     if tuned is not None:
         laws.insert(names.index("tuned"), tuned)
@@ -132,6 +132,11 @@ def run_stress(args) -> int:
     bar.close()
     result["elapsed_s"] = time.perf_counter() - start
     result["robot"] = plant.name
+    if match is not None:
+        result["joint_match"] = match.to_dict()
+    friction = plant_friction_record(plant, settings.run)
+    if friction is not None:
+        result["plant_friction"] = friction
     result["stem"] = stem
     if design_record(args) is not None:
         result["design"] = design_record(args)
@@ -139,5 +144,8 @@ def run_stress(args) -> int:
     if args.json:
         print(dumps(result))
         return 0
+    if friction is not None:
+        print(f"{plant.name}: its own damping and friction loss ({friction['source']}): "
+              f"{friction['note']}")
     print("\n".join(stress_lines(result) + [f"wrote {fig}"]))
     return 0

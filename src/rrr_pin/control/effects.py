@@ -54,7 +54,7 @@ from __future__ import annotations
 import inspect
 import math
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -63,7 +63,7 @@ from ..validation import FieldError, check_multiple
 from .references import checked_sample
 
 __all__ = ["PlantEffects", "Resolved", "EffectsError", "check_effects", "check_torque_limit",
-           "peak_torque", "torque_limit_spec"]
+           "peak_torque", "torque_limit_spec", "with_plant_friction"]
 
 class EffectsError(ValueError):
     """Bad plant effects: the message names every bad field, its value and the expected range."""
@@ -321,8 +321,10 @@ class PlantEffects:
         quantum = 2.0 * math.pi / self.encoder_counts if self.encoder_counts else 0.0
         info = {**self.to_dict(), "delay_s": d * h, "delay_substeps": d}
         if self.viscous == "urdf":  # the values this plant's description gave
+            where = ("MJCF <joint damping frictionloss>" if _own_friction_source(plant)
+                     == "mjcf" else "URDF <dynamics>")
             info.update(viscous_Nms=Fv.tolist(), coulomb_Nm=Fc.tolist(),
-                        friction_source=f"URDF <dynamics> of {plant.name!r}")
+                        friction_source=f"{where} of {plant.name!r}")
         return Resolved(delay_steps=d, wa=wa, limit=limit, Fv=Fv, Fc=Fc, veps=veps, noise_q=nq,
                         noise_qd=nqd, quantum=quantum, Bm=Bm, Kf=Kf, Df=Df, info=info)
 
@@ -533,6 +535,69 @@ class Resolved:
             th = th + h6 * (thd + 2.0 * (w2 + w3) + w4)
             thd = thd + h6 * (c1 + 2.0 * (c2 + c3) + c4)
         return q, qd, a, th, thd
+
+
+def _own_friction_source(plant) -> str | None:
+    """``"mjcf"`` when the plant's damping or friction came from its MJCF, else None."""
+    sources = plant.joint_sources or {}
+    return "mjcf" if "mjcf" in (sources.get("damping"), sources.get("friction")) else None
+
+
+def with_plant_friction(plant, effects: PlantEffects | None, sampled: bool
+                        ) -> tuple[PlantEffects | None, dict | None]:
+    """Return the effects of a run with the plant's own friction, and what the run records.
+
+    A plant whose description is a simulator's (an MJCF arm: ``plant.joint_sources`` says
+    ``"mjcf"``) carries its joints' damping and friction loss as part of the arm, as MuJoCo
+    applies them. Every run on it applies them as the friction effect, with the plant's values
+    (``viscous="urdf", coulomb="urdf"``: ``Fv qd + Fc tanh(qd / v_eps)``), unless:
+
+    * the effects already name a friction (numbers, or the plant's own): they are kept, and the
+      record says they replace the description's;
+    * the law is continuous-time (effects need a sampling instant): nothing is applied, and the
+      record and a warning (``UserWarning``, once per message) say so.
+
+    A plant without such friction (a URDF's ``<dynamics>`` is applied only when asked, with
+    ``--friction urdf``) returns ``effects`` unchanged and no record.
+
+    Parameters
+    ----------
+    plant : Plant
+    effects : PlantEffects or None
+        Checked, active effects (or None).
+    sampled : bool
+        Whether the law is sampled (effects apply).
+
+    Returns
+    -------
+    effects : PlantEffects or None
+    record : dict or None
+        ``Trajectory.info["plant_friction"]``: ``applied`` (bool), ``source``, the plant's
+        ``damping_Nms_rad`` and ``frictionloss_Nm`` per joint, and ``note`` in words.
+    """
+    if _own_friction_source(plant) is None:
+        return effects, None
+    Fv, Fc = plant.joint_friction()
+    if not (np.any(Fv > 0) or np.any(Fc > 0)):
+        return effects, None
+    record = {"source": "mjcf", "damping_Nms_rad": Fv.tolist(), "frictionloss_Nm": Fc.tolist()}
+    if not sampled:
+        note = (f"not applied: the damping and friction loss of {plant.name!r} act as the "
+                f"friction effect, which needs a sampled law (give rate=)")
+        warnings.warn(note, UserWarning, stacklevel=2)  # once per message (Python's filter)
+        return effects, {**record, "applied": False, "note": note}
+    if effects is not None and effects.friction:
+        if effects.viscous == "urdf":
+            note = "applied: the plant's own (the effects' friction 'urdf')"
+        else:
+            note = (f"replaced: the run's friction effect (viscous {effects.viscous}, coulomb "
+                    f"{effects.coulomb}) instead of the MJCF's damping and friction loss")
+        return effects, {**record, "applied": effects.viscous == "urdf", "note": note}
+    base = effects if effects is not None else PlantEffects()
+    effects = replace(base, viscous="urdf", coulomb="urdf")
+    return effects, {**record, "applied": True,
+                     "note": f"applied: the MJCF's damping and friction loss as the friction "
+                             f"effect Fv qd + Fc tanh(qd / {effects.coulomb_velocity:g})"}
 
 
 def check_effects(effects) -> PlantEffects | None:

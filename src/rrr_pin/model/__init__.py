@@ -15,8 +15,10 @@ physically consistent URDF, the identified uncertainty),
 :mod:`~rrr_pin.model.mechanisms` (parallel mechanisms as data: one module per kind, its
 parameters, MJCF, closed-form kinematics and task path, one registry) and
 :mod:`~rrr_pin.model.closed_chain` (``ClosedChain``: loop closure and the reduced dynamics in
-actuated coordinates), with :mod:`~rrr_pin.model.mjcf_checks` (an MJCF's loops checked in Python
-before Pinocchio's parser reads the file). Only this layer knows the kinds of plant.
+actuated coordinates), with :mod:`~rrr_pin.model.mjcf_checks` (an MJCF's loops, or a serial
+MJCF arm's joints, tendons, equalities and actuators, checked in Python before Pinocchio's parser
+reads the file), and :mod:`~rrr_pin.model.joint_map` (a law's model and the simulated plant
+paired joint by joint). Only this layer knows the kinds of plant.
 
 Layer: the lowest. May import :mod:`rrr_pin.validation` only.
 """

@@ -30,6 +30,7 @@ import logging
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -45,14 +46,16 @@ from .plant import (
     JOINT_FRICTION,
     JOINT_LIMITS,
     URDF,
+    CapabilityError,
     Plant,
     TreeDescription,
     UncertaintySet,
 )
 from .robots import ERD_ARMS, RobotModelError, nominal_params, read_source
 
-__all__ = ["Robot", "DrawnArm", "load_robot", "robot_from_xml", "check_urdf_inertials",
-           "check_regular", "DEFAULT_GRAVITY"]
+__all__ = ["Robot", "DrawnArm", "MjcfArm", "load_robot", "robot_from_xml", "arm_from_mjcf",
+           "is_serial_mjcf",
+           "check_urdf_inertials", "check_regular", "DEFAULT_GRAVITY"]
 
 logger = logging.getLogger(__name__)
 
@@ -828,12 +831,16 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     source : str, path-like or ArmParams, default "rrr"
         A URDF file path; ``"rrr"`` (the paper's arm, generated from :func:`paper_params`);
         an example-robot-data arm name (see :func:`robot_names`); or an :class:`ArmParams`,
-        whose URDF is generated on the fly.
+        whose URDF is generated on the fly. An ``.xml`` MJCF path without loop closure is a
+        serial arm read by Pinocchio's MJCF parser (:func:`arm_from_mjcf`: a
+        :class:`MjcfArm`, with its joints' armature, damping and friction loss).
         A parallel mechanism (``"fivebar"``, ``"delta"``, their parameter sets or an
-        ``.xml`` MJCF path) gives a :class:`rrr_pin.model.closed_chain.ClosedChain` instead.
+        ``.xml`` MJCF path with ``<equality><connect>``) gives a
+        :class:`rrr_pin.model.closed_chain.ClosedChain` instead.
     gravity : float, optional
         Gravity magnitude [m/s^2], along ``-z`` of the URDF's root link; default ``source.g``
-        for an :class:`ArmParams`, else 9.8 (the paper's value).
+        for an :class:`ArmParams`, an MJCF arm's ``<option gravity>`` (9.81 without one),
+        else 9.8 (the paper's value).
     lock : dict of str to float, optional
         Joints to lock, by name, at the given positions [rad or m] (Pinocchio's reduced model);
         e.g. ``{"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}``.
@@ -864,6 +871,8 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     """
     from .closed_chain import is_closed_chain_source, load_closed_chain
 
+    if is_serial_mjcf(source):  # an arm described in MJCF (e.g. MuJoCo Menagerie's)
+        return arm_from_mjcf(source, gravity=gravity, lock=lock)
     if is_closed_chain_source(source):  # a parallel mechanism (MJCF): "fivebar", "delta"
         if lock:
             raise ValueError(f"lock: joints of a closed chain cannot be locked, got {lock}")
@@ -998,3 +1007,202 @@ def check_regular(robot: Robot, label: str) -> None:
             f"{label}: the mass matrix is singular at the neutral configuration (eigenvalues "
             f"{eig}): some joint moves no inertia about its axis (e.g. point masses on the "
             f"axis, or an axis along a massless direction of its subtree)")
+
+
+def is_serial_mjcf(source) -> bool:
+    """Whether ``source`` is an MJCF file (``.xml``) of a serial arm: no loop closure.
+
+    A file that cannot be read or parsed counts as not serial, so that the closed-chain
+    loader reports it as it always has.
+    """
+    from .mjcf_checks import has_loop_closure
+
+    if not isinstance(source, (str, Path)) or not str(source).lower().endswith(".xml"):
+        return False
+    try:
+        root = ET.fromstring(Path(source).read_bytes())
+    except (OSError, ET.ParseError):
+        return False
+    return (root.tag == "mujoco" and root.find("worldbody") is not None
+            and not has_loop_closure(root))
+
+
+#: The joints Pinocchio builds from an MJCF hinge or slide (any axis).
+_SERIAL_JOINTS = ("JointModelR", "JointModelP")
+
+
+@dataclass
+class MjcfArm(Robot):
+    """A fixed-base serial arm read from an MJCF file by Pinocchio (:func:`arm_from_mjcf`).
+
+    A :class:`Robot` whose description is MJCF instead of URDF: its joints' ``armature``
+    [kg m^2] is in :attr:`model` (Pinocchio adds it to ``M``'s diagonal in CRBA, ABA and RNEA,
+    as MuJoCo does), and its ``damping`` [N m s/rad] and ``frictionloss`` [N m] are the plant's
+    own friction (:meth:`joint_friction`, applied in every run as the friction effect; see
+    :func:`rrr_pin.sim.simulation.simulate`). It has no URDF: identification, C export of its
+    dynamics and uncertain plants drawn around it are refused by name.
+
+    Attributes
+    ----------
+    mjcf : str
+        The MJCF text the model was built from (before joint locking).
+    joint_sources : dict
+        Where the armature, damping and friction came from: ``"mjcf"`` for each.
+    """
+
+    mjcf: str = field(default="", repr=False)
+    joint_sources: dict = field(default_factory=lambda: dict.fromkeys(
+        ("armature", "damping", "friction"), "mjcf"))
+
+    capabilities = frozenset({EFFORT_LIMITS, JOINT_FRICTION, JOINT_LIMITS, FRAMES})
+
+    def __getstate__(self) -> dict:
+        return {**super().__getstate__(), "mjcf": self.mjcf,
+                "joint_sources": self.joint_sources}
+
+    def describe_kind(self) -> str:
+        """Return ``"the MJCF arm"``."""
+        return "the MJCF arm"
+
+    def source_text(self) -> tuple[str, str]:
+        """Return the MJCF text the arm was built from and ``".xml"``."""
+        return self.mjcf, ".xml"
+
+    def fingerprint(self) -> dict:
+        """Return ``{"mjcf_sha256", "locked", "gravity"}``."""
+        return {"mjcf_sha256": hashlib.sha256(self.mjcf.encode()).hexdigest(),
+                "locked": dict(self.locked), "gravity": self.gravity}
+
+    def joint_friction(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the MJCF's ``<joint damping frictionloss>`` per joint, shape (nq,) each.
+
+        Viscous [N m s/rad] and Coulomb [N m] (Pinocchio's ``model.damping`` and
+        ``model.friction``, as its MJCF parser fills them). New arrays.
+        """
+        return super().joint_friction()
+
+    def perturbed(self, rng, tolerances, *, name=None):
+        """Refused: uncertain plants are drawn around a URDF, and an MJCF arm has none."""
+        raise CapabilityError(f"uncertain plants drawn around {self.describe_kind()} "
+                              f"{self.name!r} need a URDF, which an MJCF arm does not have; "
+                              f"run it as a nominal plant (rrr-pin reproduce --samples 0, "
+                              f"rrr-pin stress)", URDF)
+
+    def arm_map(self):
+        """Refused: see :meth:`perturbed`."""
+        return self.perturbed(None, None)
+
+
+#: MuJoCo's gravity when the MJCF gives none [m/s^2] (``<option gravity="0 0 -9.81">``).
+MJCF_GRAVITY = 9.81
+
+
+def _mjcf_gravity(root, label: str) -> float:
+    """Return the magnitude [m/s^2] of an MJCF's ``<option gravity>``, which must point down z."""
+    text = next((o.get("gravity") for o in root.findall("option") if o.get("gravity")), None)
+    if text is None:
+        return MJCF_GRAVITY
+    try:
+        g = [float(v) for v in text.split()]
+    except ValueError:
+        g = []
+    if len(g) != 3 or g[0] != 0.0 or g[1] != 0.0 or not g[2] <= 0.0:
+        raise RobotModelError(f"{label}: <option gravity={text!r}>: rrr-pin's plants have "
+                              f"gravity along -z (0 0 -g, g >= 0 [m/s^2])")
+    return -g[2]
+
+
+def arm_from_mjcf(source, *, gravity: float | None = None,
+                  lock: dict[str, float] | None = None, name: str | None = None) -> MjcfArm:
+    """Load a fixed-base serial arm from an MJCF file with Pinocchio's MJCF parser.
+
+    The joints' ``armature`` [kg m^2], ``damping`` [N m s/rad] and ``frictionloss`` [N m]
+    become the plant's (Pinocchio's ``model.armature``, ``model.damping``,
+    ``model.friction``); joints that are not the arm's (a gripper's fingers) are locked with
+    ``lock`` as for a URDF, e.g. ``{"finger_joint1": 0.0, "finger_joint2": 0.0}`` on MuJoCo
+    Menagerie's Panda. Geometry, contacts and sensors are ignored.
+
+    Parameters
+    ----------
+    source : str or path-like
+        An MJCF file (``.xml``) with no ``<equality><connect>`` loop closure.
+    gravity : float, optional
+        Gravity magnitude [m/s^2] along ``-z``; default the file's ``<option gravity>``
+        (MuJoCo's default 9.81 without one; a gravity not along ``-z`` is refused).
+    lock : dict of str to float, optional
+        Joints to lock, by name, at the given positions [rad or m].
+    name : str, optional
+        Default: the file's stem.
+
+    Returns
+    -------
+    MjcfArm
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    RobotModelError (a ValueError)
+        A closed chain (``<connect>``: load it with :func:`load_robot`, not as an arm), and
+        each refusal of :func:`rrr_pin.model.mjcf_checks.check_serial_mjcf` (a free joint, a
+        tendon or an equality on an arm joint, an actuator other than a gear-1 motor on one);
+        a joint to lock that is unknown or outside its limits; a singular mass matrix.
+    """
+    from .mjcf_checks import check_serial_mjcf, has_loop_closure
+
+    path = Path(source)
+    label = str(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"MJCF file not found: {path}")
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8")
+        root = ET.fromstring(raw)
+    except (UnicodeDecodeError, ET.ParseError) as exc:
+        raise RobotModelError(f"{label}: not a well-formed UTF-8 XML file: {exc}") from None
+    if has_loop_closure(root):
+        raise RobotModelError(f"{label}: has <equality><connect> loop closures: a closed "
+                              f"chain, not a serial arm (load it with load_robot, or --robot, "
+                              f"as a parallel mechanism)")
+    lock = dict(lock or {})
+    if gravity is None:
+        gravity = _mjcf_gravity(root, label)
+    gravity = check_positive("gravity", gravity, allow_zero=True, unit="m/s^2")
+    check_serial_mjcf(root, label, locked=lock)
+    try:
+        model = pin.buildModelFromMJCF(str(path))
+    except (ValueError, RuntimeError) as exc:
+        raise RobotModelError(f"Pinocchio could not build a model from {label}: {exc}") from None
+    kinds = [j.shortname() for j in list(model.joints)[1:]]
+    odd = [(n, k) for n, k in zip(list(model.names)[1:], kinds, strict=True)
+           if not k.startswith(_SERIAL_JOINTS)]
+    if odd or model.nq != model.nv:
+        raise RobotModelError(f"{label}: joints other than hinge and slide ({odd}); rrr-pin "
+                              f"handles fixed-base arms of hinge and slide joints only")
+    negative = [(key, float(np.min(getattr(model, key)))) for key in
+                ("armature", "damping", "friction") if np.any(getattr(model, key) < 0)]
+    if negative:
+        raise RobotModelError(f"{label}: negative joint {negative[0][0]} "
+                              f"({negative[0][1]:g}); armature, damping and frictionloss "
+                              f"must be >= 0")
+    if lock:
+        try:
+            lock = _check_lock(model, lock)
+        except RobotModelError as exc:
+            raise RobotModelError(f"{label}: {exc}") from None
+        q_ref = pin.neutral(model)
+        for joint_name, value in lock.items():
+            q_ref[model.joints[model.getJointId(joint_name)].idx_q] = value
+        model = pin.buildReducedModel(model, [model.getJointId(j) for j in lock], q_ref)
+    if model.nq == 0:
+        raise RobotModelError(f"{label}: no moving joint left")
+    model.gravity.linear = np.array([0.0, 0.0, -gravity])
+    robot = MjcfArm(model=model, data=model.createData(), name=name or path.stem,
+                    source=label, urdf="", locked=lock, mjcf=text)
+    check_regular(robot, label)
+    logger.info("loaded %s from %s (MJCF): %d joints (%s), armature %s kg m^2, damping %s "
+                "N m s/rad, friction loss %s N m%s", robot.name, label, robot.nq,
+                ", ".join(robot.joint_names), np.round(model.armature, 6).tolist(),
+                np.round(model.damping, 6).tolist(), np.round(model.friction, 6).tolist(),
+                f", locked {robot.locked}" if robot.locked else "")
+    return robot

@@ -10,7 +10,10 @@ check here names the file, the element and the value, with a
 * :func:`check_home_closes` on the parsed model (every loop closes at ``home`` within
   :data:`HOME_GAP_LIMIT`).
 
-:func:`rrr_pin.model.closed_chain.load_closed_chain` runs both.
+:func:`rrr_pin.model.closed_chain.load_closed_chain` runs both. A *serial* MJCF (no
+``<connect>``: an arm such as MuJoCo Menagerie's Franka models) is checked by
+:func:`check_serial_mjcf` (a :class:`rrr_pin.model.robots.RobotModelError`), and
+:func:`has_loop_closure` tells the two apart.
 """
 
 from __future__ import annotations
@@ -21,8 +24,10 @@ import numpy as np
 import pinocchio as pin
 
 from .mechanisms import MechanismError
+from .robots import RobotModelError
 
-__all__ = ["HOME_GAP_LIMIT", "check_mjcf_tree", "check_home_closes"]
+__all__ = ["HOME_GAP_LIMIT", "check_mjcf_tree", "check_home_closes", "check_serial_mjcf",
+           "has_loop_closure", "MOTOR_ACTUATORS"]
 
 
 #: Largest gap [m] of a ``<connect>`` at the ``home`` keyframe that loading closes by Newton
@@ -150,3 +155,173 @@ def check_home_closes(model, constraints, home: np.ndarray, label: str) -> None:
                 f"keyframe (points at {np.round(p1, 4).tolist()} and {np.round(p2, 4).tolist()} "
                 f"m; at most {HOME_GAP_LIMIT:g} m is closed on loading): give a <key "
                 f"name='home'> where every loop closes")
+
+
+#: The MJCF actuator elements that put a torque ``gear * ctrl`` on their joint and nothing
+#: else: the only kind a serial arm's law can drive (its torque is the law's output).
+MOTOR_ACTUATORS = ("motor",)
+
+#: MJCF actuator elements (``<actuator>`` children) a serial arm refuses on a moving joint.
+_ACTUATOR_TAGS = ("motor", "position", "velocity", "intvelocity", "damper", "cylinder",
+                  "muscle", "adhesion", "general", "plugin")
+
+
+def has_loop_closure(root) -> bool:
+    """Whether an MJCF tree closes a kinematic loop (an ``<equality><connect>``)."""
+    return any(True for _ in root.iter("connect"))
+
+
+def _defaults(root) -> dict:
+    """Return ``{class name: (<default> element, parent class name or None)}`` of an MJCF."""
+    out = {}
+
+    def walk(el, parent):
+        name = el.get("class", "main")
+        out[name] = (el, parent)
+        for child in el.findall("default"):
+            walk(child, name)
+
+    top = root.find("default")
+    if top is not None:
+        walk(top, None)
+    return out
+
+
+def _resolved(defaults: dict, el, attr: str, cls: str | None) -> str | None:
+    """``el``'s attribute ``attr``, else the nearest default class's for its tag (MJCF rules)."""
+    if el.get(attr) is not None:
+        return el.get(attr)
+    name = el.get("class") or cls or "main"
+    while name is not None and name in defaults:
+        default, parent = defaults[name]
+        found = default.find(el.tag)
+        if found is not None and found.get(attr) is not None:
+            return found.get(attr)
+        name = parent
+    return None
+
+
+def check_serial_mjcf(root, label: str, locked=()) -> list[str]:
+    """Refuse, by name, a serial MJCF whose arm rrr-pin cannot simulate as MuJoCo would.
+
+    Checked on the XML (``root``, the ``<mujoco>`` element), for the joints that move (not in
+    ``locked``): no free or ball joint; no nonzero joint ``stiffness`` (a passive spring no
+    plant here applies) and no ``ref``; no ``<tendon>`` naming a moving joint, no spatial
+    tendon; no ``<equality>`` coupling a moving joint (``joint``, ``tendon``) nor a ``weld``;
+    no body with ``gravcomp``; and every actuator on a moving joint a ``<motor>`` with gear 1
+    (the law's output is the joint torque: a position servo, a velocity servo, a ``general``
+    actuator or a gear other than 1 would change what the law commands). Actuators on locked
+    joints are ignored (the joint does not move).
+
+    Returns
+    -------
+    list of str
+        The joint names, in document order.
+
+    Raises
+    ------
+    RobotModelError (a ValueError)
+        Naming the file, the element and the value, with the way out.
+    """
+    world = root.find("worldbody")
+    if root.tag != "mujoco" or world is None:
+        raise RobotModelError(f"{label}: not an MJCF model (no <mujoco><worldbody>)")
+    defaults = _defaults(root)
+    locked = set(locked)
+    worlds = root.findall("worldbody")  # MJCF merges every <worldbody> section
+    free = [el.get("name") or "(unnamed)" for w in worlds for el in w.iter("freejoint")]
+    if free:
+        raise RobotModelError(f"{label}: <freejoint {free[0]!r}>: a free-floating body; "
+                              f"rrr-pin handles fixed-base arms only (remove the free joint to "
+                              f"fix the arm's root body to the world)")
+    names = []
+
+    def joints(body, cls):
+        cls = body.get("childclass") or cls
+        for j in body.findall("joint"):
+            yield j, cls
+        for child in body.findall("body"):
+            yield from joints(child, cls)
+
+    for body in (b for w in worlds for b in w.findall("body")):
+        for j, cls in joints(body, None):
+            name = j.get("name") or f"(unnamed joint {len(names) + 1})"
+            names.append(name)
+            jtype = _resolved(defaults, j, "type", cls) or "hinge"
+            if jtype in ("free", "ball"):
+                raise RobotModelError(
+                    f"{label}: joint {name!r} is a {jtype} joint; rrr-pin handles fixed-base "
+                    f"arms of hinge and slide joints only"
+                    + (" (a free joint makes the arm free-floating)" if jtype == "free" else ""))
+            if name in locked:
+                continue
+            for attr in ("stiffness", "ref"):
+                value = _resolved(defaults, j, attr, cls)
+                if value is not None and any(float(v) != 0.0 for v in value.split()):
+                    raise RobotModelError(
+                        f"{label}: joint {name!r} has {attr}={value!r}: "
+                        + ("a joint spring rrr-pin's plants do not apply" if attr == "stiffness"
+                           else "a reference position other than 0 (qpos0)")
+                        + "; remove it (or lock the joint)")
+    for body in (b for w in worlds for b in w.iter("body")):
+        if body.get("gravcomp") not in (None, "0"):
+            raise RobotModelError(f"{label}: body {body.get('name')!r} has gravcomp="
+                                  f"{body.get('gravcomp')!r}: MuJoCo's gravity compensation is "
+                                  f"a force no plant here applies; remove it")
+    moving = [n for n in names if n not in locked]
+    tendon_joints = {}
+    for section in root.findall("tendon"):
+        for t in section:
+            tname = t.get("name") or "(unnamed)"
+            if t.tag == "spatial":
+                raise RobotModelError(f"{label}: <spatial tendon {tname!r}>: a spatial tendon "
+                                      f"acts on the arm through sites, which rrr-pin's plants "
+                                      f"do not model; remove it")
+            coupled = [j.get("joint") for j in t.iter("joint")]
+            tendon_joints[tname] = coupled
+            hit = [j for j in coupled if j in moving]
+            if hit:
+                raise RobotModelError(f"{label}: <fixed tendon {tname!r}> drives the arm joint "
+                                      f"{hit[0]!r}: a tendon couples joints, which rrr-pin's "
+                                      f"serial arms do not model; remove it or lock {hit[0]!r}")
+    for section in root.findall("equality"):
+        for e in section:
+            ename = e.get("name") or "(unnamed)"
+            if e.tag == "weld":
+                raise RobotModelError(f"{label}: <weld {ename!r}>: a weld constraint is not a "
+                                      f"serial arm; remove it")
+            coupled = [e.get("joint1"), e.get("joint2")] if e.tag == "joint" else \
+                sum((tendon_joints.get(e.get(k), []) for k in ("tendon1", "tendon2")), [])
+            hit = [j for j in coupled if j in moving]
+            if hit:
+                raise RobotModelError(f"{label}: <equality {e.tag} {ename!r}> couples the arm "
+                                      f"joint {hit[0]!r}: rrr-pin's serial arms have independent "
+                                      f"joints; remove it or lock {hit[0]!r}")
+    for section in root.findall("actuator"):
+        for a in section:
+            if a.tag not in _ACTUATOR_TAGS:
+                continue
+            aname = a.get("name") or "(unnamed)"
+            target = a.get("joint") or a.get("jointinparent")
+            via = a.get("tendon") or a.get("site") or a.get("body")
+            if target is None and via is not None:
+                joined = tendon_joints.get(via, [])
+                if a.get("tendon") is None or any(j in moving for j in joined):
+                    raise RobotModelError(
+                        f"{label}: actuator {aname!r} (<{a.tag}>) acts through "
+                        f"{via!r}, not on one joint: rrr-pin's laws command joint torques; "
+                        f"remove it")
+                continue
+            if target is None or target not in moving:
+                continue
+            if a.tag not in MOTOR_ACTUATORS:
+                raise RobotModelError(
+                    f"{label}: actuator {aname!r} on joint {target!r} is a <{a.tag}>: rrr-pin's "
+                    f"laws command the joint torque, which only a <motor> with gear 1 passes "
+                    f"through unchanged; remove it (or make it <motor joint={target!r}/>)")
+            gear = _resolved(defaults, a, "gear", None)
+            if gear is not None and [float(g) for g in gear.split()][:1] != [1.0]:
+                raise RobotModelError(f"{label}: <motor {aname!r}> on joint {target!r} has "
+                                      f"gear={gear!r}: the law's torque reaches the joint "
+                                      f"unchanged only with gear 1; remove the gear")
+    return names

@@ -285,6 +285,9 @@ class Plant:
     """
 
     capabilities: frozenset = frozenset()
+    #: Where the plant's armature, damping and friction came from (``{"armature": "mjcf",
+    #: ...}``), set where it is loaded; None: not stated (a URDF's or nothing).
+    joint_sources: dict | None = None
     failures: tuple = ()
     actuated_index = None
     loop_closures: tuple = ()

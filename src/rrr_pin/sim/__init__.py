@@ -10,8 +10,10 @@ in one C++ loop), :mod:`~rrr_pin.sim.codegen` (the fingerprint of the fixed-mode
 :mod:`~rrr_pin.sim.dyngen` (the generator of parameter-input dynamics per structure),
 :mod:`~rrr_pin.sim.dyncache` (any structure's generated dynamics, built at first use and
 cached),
-:mod:`~rrr_pin.sim.batched` (engine ``"codegen"``: batched rollouts of many plants on them) and
-:mod:`~rrr_pin.sim.reuse` (the preparation runs of many plants share, kept once).
+:mod:`~rrr_pin.sim.batched` (engine ``"codegen"``: batched rollouts of many plants on them),
+:mod:`~rrr_pin.sim.mujoco_engine` (engine ``"mujoco"``: the plant stepped by MuJoCo, an
+optional extra) and :mod:`~rrr_pin.sim.reuse` (the preparation runs of many plants share,
+kept once).
 
 Layer: above :mod:`rrr_pin.control`. May import :mod:`rrr_pin.validation`,
 :mod:`rrr_pin.model`, :mod:`rrr_pin.robust` and :mod:`rrr_pin.control`.

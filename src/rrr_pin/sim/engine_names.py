@@ -6,7 +6,7 @@ below the registry, so that the registry can import the engines without a cycle.
 
 from __future__ import annotations
 
-__all__ = ["AUTO", "PYTHON", "COMPILED", "CODEGEN"]
+__all__ = ["AUTO", "PYTHON", "COMPILED", "CODEGEN", "MUJOCO"]
 
 #: The policy that picks an engine per run (not an engine itself).
 AUTO = "auto"
@@ -16,3 +16,4 @@ PYTHON = "python"
 COMPILED = "compiled"
 #: The same loop on generated dynamics, many plants at once (:mod:`rrr_pin.sim.batched`).
 CODEGEN = "codegen"
+MUJOCO = "mujoco"

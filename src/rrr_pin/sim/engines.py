@@ -11,7 +11,9 @@ ever substituted for what was asked.
 Built in: ``"python"`` (:mod:`rrr_pin.sim.python_engine`, the reference; runs anything),
 ``"compiled"`` (:mod:`rrr_pin.sim.compiled`, the C++ loop of a law's compiled form) and
 ``"codegen"`` (:mod:`rrr_pin.sim.batched`, the same loop on generated dynamics; chosen by
-:func:`rrr_pin.sim.simulation.simulate_batch`, never by ``"auto"`` for one run). A new engine is
+:func:`rrr_pin.sim.simulation.simulate_batch`, never by ``"auto"`` for one run) and
+``"mujoco"`` (:mod:`rrr_pin.sim.mujoco_engine`, the plant stepped by MuJoCo, an optional
+extra; never chosen by ``"auto"``). A new engine is
 its module plus one :func:`register` line here.
 """
 
@@ -20,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from .engine_names import AUTO, CODEGEN, COMPILED, PYTHON
+from .engine_names import AUTO, CODEGEN, COMPILED, MUJOCO, PYTHON
 
 __all__ = ["Engine", "ENGINES", "ENGINE_CHOICES", "AUTO_ORDER", "register", "choose",
            "check_engine"]
@@ -97,12 +99,27 @@ def _codegen_run(run, form):
     return raise_or_return(run_batch([run], form)[0])
 
 
+def _mujoco_why_not(run, form):
+    from .mujoco_engine import why_not
+
+    return why_not(run, form)
+
+
+def _mujoco_run(run, form):
+    from .mujoco_engine import run as run_mujoco
+
+    return run_mujoco(run, form)
+
+
 register(Engine(PYTHON, "the Python reference loop (runs any law, plant and effect)",
                 _python_why_not, _python_run))
 register(Engine(COMPILED, "the C++ loop of a law's compiled form on Pinocchio's C++ "
                           "algorithms", _compiled_why_not, _compiled_run))
 register(Engine(CODEGEN, "the C++ loop on dynamics generated per arm structure, many plants "
                          "per call", _codegen_why_not, _codegen_run))
+register(Engine(MUJOCO, "the plant stepped by MuJoCo (RK4), the laws and effects as in Python; "
+                        "a checking engine (pip install 'rrr-pin[mujoco]')",
+                _mujoco_why_not, _mujoco_run))
 
 #: What ``"auto"`` tries for one run, in order (the first that can run it exactly).
 AUTO_ORDER = (COMPILED, PYTHON)

@@ -56,7 +56,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..control.effects import PlantEffects, check_effects
+from ..control.effects import PlantEffects, check_effects, with_plant_friction
 from ..control.laws import ControlLaw, SampledLaw, check_law
 from ..control.references import Reference, check_reference, checked_sample
 from ..model.plant import JOINT_LIMITS
@@ -565,6 +565,8 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         dt = None if dt is None else float(dt)
         rate = None if rate is None else float(rate)
     effects = _active_effects(effects)
+    effects, own_friction = with_plant_friction(plant, effects,
+                                                rate is not None or isinstance(law, SampledLaw))
     if effects is not None and rate is None and not isinstance(law, SampledLaw):
         raise ValueError(
             f"effects apply to sampled (digital) controllers only: law {law.name!r} is "
@@ -611,6 +613,8 @@ def _prepare(plant, law, reference, duration, *, dt, rate, method, q0, qd0,
         raise ValueError(f"law {law.name!r}: initial_state() has shape {x0.shape}, nx = "
                          f"{law.nx}")
     fx = None
+    if own_friction is not None:
+        info["plant_friction"] = own_friction
     if effects is not None:
         fx = effects.resolve(plant, substeps, h, len(t) - 1)
         info["effects"] = fx.info
@@ -643,6 +647,10 @@ def _prepare_like(first: Run, plant, reference, limit_margin: float, effects) ->
     _check_initial(plant, q0, qd0, lower, upper)
     state0 = plant.start(q0, qd0)
     info = dict(first.info)
+    info.pop("plant_friction", None)
+    effects, own_friction = with_plant_friction(plant, effects, first.sampled)
+    if own_friction is not None:
+        info["plant_friction"] = own_friction
     fx = None
     if effects is not None:
         fx = effects.resolve(plant, first.substeps, first.h, len(first.t) - 1)
