@@ -48,6 +48,12 @@ def add(sub) -> None:
     p.add_argument("--compensate-friction", action="store_true",
                    help="fl, hinf: the exported law adds Fv qd + Fc tanh(qd / S) to its torque "
                         "(recorded in controller.json: law.friction_compensation)")
+    p.add_argument("--command", default="full", choices=("full", "no-gravity",
+                                                          "no-gravity-no-friction"),
+                   help="the drive's torque convention: full (the law's whole torque, "
+                        "default), no-gravity (minus Ghat(q): the drive adds gravity), "
+                        "no-gravity-no-friction (minus the friction compensation too, as "
+                        "libfranka's franka::Torques); recorded in controller.json")
     p.add_argument("--out", default="controller", metavar="DIR",
                    help="output folder (controller/)")
     p.add_argument("--ros2", action="store_true",
@@ -83,7 +89,7 @@ def run_export(args) -> int:
             make_law(args.law, robot, **({"K": K} if K is not None else {}),
                      **({"friction": friction} if friction is not None else {}))
         prepared = prepare_export(law, robot, args.rate, method=args.method,
-                                  prewarp=args.prewarp, design=d)
+                                  prewarp=args.prewarp, design=d, command=args.command)
     band = 0.0
     if args.ros2:
         from ..deploy.ros2 import PERIOD_TOLERANCE, check_ros2
@@ -107,7 +113,8 @@ def run_export(args) -> int:
         (out / "design.json").write_text(json.dumps(design_record(args), indent=1,
                                                     default=str))
     print(f"{robot.name}: {prepared.law.name} ({prepared.form.kind}, {prepared.law.nx} states) "
-          f"at {prepared.rate:g} Hz, {prepared.dynamics} dynamics")
+          f"at {prepared.rate:g} Hz, {prepared.dynamics} dynamics, command "
+          f"{prepared.command.name}")
     print(f"wrote {out}/: {', '.join(prepared.files)}")
     print(f"build: cmake -S {out} -B {out}/build && cmake --build {out}/build && "
           f"{out}/build/ctrl_main")

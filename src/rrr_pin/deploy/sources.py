@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .command import COMMANDS, DEFAULT_COMMAND
+
 __all__ = ["controller_h", "controller_c", "dynamics_h", "dynamics_codegen_c",
            "dynamics_pinocchio_cpp", "cmakelists", "main_c"]
 
@@ -115,8 +117,13 @@ def _c_string(text: str) -> str:
 
 
 def controller_h(*, n: int, nx: int, rate: float, law: str, kind: str, joints, fingerprint: str,
-                 dynamics: str, step_dt: str = "") -> str:
-    """``controller.h``: the API, ``CTRL_NQ``, ``CTRL_RATE_HZ``, the joint names, the state."""
+                 dynamics: str, step_dt: str = "", command=None) -> str:
+    """``controller.h``: the API, ``CTRL_NQ``, ``CTRL_RATE_HZ``, the joint names, the state.
+
+    ``command`` is the torque convention (:class:`~rrr_pin.deploy.command.TorqueCommand`,
+    default ``full``): ``CTRL_COMMAND`` and its two flags.
+    """
+    command = COMMANDS[DEFAULT_COMMAND] if command is None else command
     names = ", ".join(_c_string(j) for j in joints)
     return _BANNER.format(what=f"Law {law!r} ({kind}), {n} joints, {rate!r} Hz; dynamics: "
                           f"{dynamics}.") + f"""#ifndef RRR_PIN_CONTROLLER_H
@@ -139,6 +146,12 @@ extern "C" {{
 /* Joint names, in the order of q, qd, r, rd, rdd and tau:
  * static const char *const names[CTRL_NQ] = CTRL_JOINT_NAMES; */
 #define CTRL_JOINT_NAMES {{{names}}}
+/* The torque convention (rrr-pin export --command): tau of ctrl_step is the law's torque minus
+ * Ghat(q) when CTRL_COMMAND_REMOVES_GRAVITY, minus the law's friction compensation when
+ * CTRL_COMMAND_REMOVES_FRICTION (the drive adds them itself). */
+#define CTRL_COMMAND {_c_string(command.name)}
+#define CTRL_COMMAND_REMOVES_GRAVITY {int(command.removes_gravity)}
+#define CTRL_COMMAND_REMOVES_FRICTION {int(command.removes_friction)}
 
 /* Return codes of ctrl_step. */
 #define CTRL_OK 0
@@ -176,6 +189,10 @@ int ctrl_step_dt(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ
                  const double r[CTRL_NQ], const double rd[CTRL_NQ], const double rdd[CTRL_NQ],
                  double tau[CTRL_NQ], double dt);
 
+/* The safe torque of a fault in the command's convention [N m]: gravity compensation Ghat(q)
+ * under "full", zero when the drive adds gravity itself (CTRL_COMMAND_REMOVES_GRAVITY). */
+void ctrl_safe_torque(const double q[CTRL_NQ], double tau[CTRL_NQ]);
+
 #ifdef __cplusplus
 }}
 #endif
@@ -184,12 +201,27 @@ int ctrl_step_dt(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ
 """
 
 
-def controller_c(form, *, law: str, rate: float) -> str:
+def controller_c(form, *, law: str, rate: float, command=None) -> str:
     """``controller.c``: the law of ``form`` (FLForm, FLFrictionForm, FLAWForm, PDForm).
 
     Discrete at ``rate``. ``FLFrictionForm`` adds ``Fv qd + Fc tanh(qd / v_eps)`` to the
-    torque after ``Mhat taubar + hhat``, as the Python law does.
+    torque after ``Mhat taubar + hhat``, as the Python law does. ``command``
+    (:class:`~rrr_pin.deploy.command.TorqueCommand`, default ``full``) removes ``Ghat(q)``
+    and the friction compensation last, after clipping and the state's update
+    (:mod:`rrr_pin.deploy.command`).
     """
+    command = COMMANDS[DEFAULT_COMMAND] if command is None else command
+    if command.removes_gravity:
+        convention = f'''    /* --command {command.name}: the drive adds Ghat(q) itself */
+    ctrl_dyn_gravity(q, g);
+    for (i = 0; i < CTRL_NQ; ++i) {{
+        tau[i] -= g[i];
+    }}
+'''
+        safe = "    for (i = 0; i < CTRL_NQ; ++i) {\n        tau[i] = 0.0;\n    }\n    (void)q;\n"
+    else:
+        convention = ""
+        safe = "    ctrl_dyn_gravity(q, tau);\n"
     head = _BANNER.format(what=f"Law {law!r}: C99, no allocation, no globals (constant tables "
                           f"only), re-entrant.") + '''#include <math.h>
 
@@ -216,6 +248,10 @@ void ctrl_reset(ctrl_state *s)
     }
 }
 
+''' + f'''void ctrl_safe_torque(const double q[CTRL_NQ], double tau[CTRL_NQ])
+{{
+{"    int i;" + chr(10) if command.removes_gravity else ""}{safe}}}
+
 '''
     check = '''    if (!all_finite(q) || !all_finite(qd) || !all_finite(r) || !all_finite(rd)
         || !all_finite(rdd)) {
@@ -223,13 +259,17 @@ void ctrl_reset(ctrl_state *s)
     }
 '''
     if form.kind == "pd":
+        pd_note = (f"; --command {command.name}: without Ghat(q)" if command.removes_gravity
+                   else "")
+        pd_g = "" if command.removes_gravity else ", g[CTRL_NQ]"
+        pd_gravity = "" if command.removes_gravity else "    ctrl_dyn_gravity(q, g);\n"
         return head + _matrix("KP", form.Kp) + _matrix("KD", form.Kd) + f'''
-/* PD + gravity: tau = Kp (r - q) + Kd (rd - qd) + Ghat(q). */
+/* PD + gravity: tau = Kp (r - q) + Kd (rd - qd) + Ghat(q){pd_note}. */
 int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
               const double r[CTRL_NQ], const double rd[CTRL_NQ], const double rdd[CTRL_NQ],
               double tau[CTRL_NQ])
 {{
-    double e[CTRL_NQ], ed[CTRL_NQ], g[CTRL_NQ];
+    double e[CTRL_NQ], ed[CTRL_NQ]{pd_g};
     int i, j;
     (void)s;
     (void)rdd;
@@ -237,8 +277,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         e[i] = r[i] - q[i];
         ed[i] = rd[i] - qd[i];
     }}
-    ctrl_dyn_gravity(q, g);
-    for (i = 0; i < CTRL_NQ; ++i) {{
+{pd_gravity}    for (i = 0; i < CTRL_NQ; ++i) {{
         double kp = 0.0, kd = 0.0;
         for (j = 0; j < CTRL_NQ; ++j) {{
             kp += KP[i][j] * e[j];
@@ -246,7 +285,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
         for (j = 0; j < CTRL_NQ; ++j) {{
             kd += KD[i][j] * ed[j];
         }}
-        tau[i] = kp + kd + g[i];
+        tau[i] = kp + kd{"" if command.removes_gravity else " + g[i]"};
     }}
     return all_finite(tau) ? CTRL_OK : CTRL_EOUTPUT;
 }}
@@ -318,7 +357,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
                 "h[CTRL_NQ];\n")
         what = "feedback linearization alone, eq. (20): y = 0"
     friction = ""
-    if form.kind == "fl_friction":
+    if form.kind == "fl_friction" and not command.removes_friction:
         tables += (_vector("FV", form.viscous) + _vector("FC", form.coulomb)
                    + f"#define VEPS {_num(form.coulomb_velocity)}\n")
         friction = "        tau[i] = tau[i] + (FV[i] * qd[i] + FC[i] * tanh(qd[i] / VEPS));\n"
@@ -360,6 +399,11 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
                      "const double rdd[CTRL_NQ],\n"
                      "              double tau[CTRL_NQ])")
         wrapper = ""
+    if command.removes_gravity:
+        decl += "    double g[CTRL_NQ];\n"
+        what += f"; --command {command.name}: tau -= Ghat(q)"
+        if command.removes_friction:
+            what += " and the friction compensation"
     return head + tables + f'''
 /* {what};
  * taubar = rdd + 2 lam (rd - qd) + lam^2 (e + y), tau = Mhat(q) taubar + hhat(q, qd){lam_note}
@@ -385,7 +429,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
     if (!all_finite(tau)) {{
         return CTRL_EOUTPUT;
     }}
-{clip}{update}    return CTRL_OK;
+{clip}{update}{convention}    return CTRL_OK;
 }}
 ''' + wrapper
 

@@ -42,6 +42,7 @@ from ..outputs import OutputDir, writing
 from ..sim.codegen import fingerprint
 from ..validation import FieldError, check_positive, check_rate
 from . import period, sources
+from .command import DEFAULT_COMMAND, TorqueCommand, check_command
 
 __all__ = ["Export", "ExportError", "export", "prepare_export", "check_exportable", "FILES",
            "FORMAT", "read_record",
@@ -123,6 +124,9 @@ class Export:
         ``K``'s continuous ``(A, B, C, D)`` that ``ctrl_step_dt`` discretizes at each measured
         period (None: a law without ``K``, a discrete ``K`` as given, or a method other than
         those of :data:`rrr_pin.deploy.period.GBT_ALPHA`).
+    command : TorqueCommand or None
+        The torque convention of ``ctrl_step``'s output (:mod:`rrr_pin.deploy.command`);
+        None reads as ``full``.
     """
 
     law: object
@@ -132,6 +136,7 @@ class Export:
     files: dict = field(repr=False)
     record: dict = field(repr=False)
     continuous: tuple | None = field(default=None, repr=False, compare=False)
+    command: TorqueCommand | None = None
 
     def write(self, folder) -> list[Path]:
         """Write the files into ``folder`` (which must exist); return their paths."""
@@ -314,7 +319,7 @@ def check_exportable(robot) -> None:
 
 def prepare_export(law, robot, rate: float | None = None, *, method: str = "tustin",
                    prewarp: float | None = None, design=None,
-                   dynamics: str = "auto") -> Export:
+                   dynamics: str = "auto", command: str = DEFAULT_COMMAND) -> Export:
     """Check and build an export of ``law`` on ``robot`` at ``rate``, without writing.
 
     Parameters as for :func:`export`.
@@ -347,6 +352,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         raise ExportError(f"law {law.name!r} was built on the model {form.nominal.name!r} "
                           f"(fingerprint {law_fp[:12]}...), not on robot {robot.name!r} "
                           f"({fp[:12]}...); build the law on the robot it is exported for")
+    conv = check_command(command, form)
     if dynamics not in ("auto", "generated", "pinocchio"):
         raise FieldError("dynamics", f"{{name}} must be 'auto', 'generated' or 'pinocchio', got "
                                      f"{dynamics!r}")
@@ -372,8 +378,8 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         "controller.h": sources.controller_h(n=n, nx=nx, rate=rate, law=twin.name,
                                              kind=form.kind, joints=robot.joint_names,
                                              fingerprint=fp, dynamics=where,
-                                             step_dt=step_dt),
-        "controller.c": sources.controller_c(form, law=twin.name, rate=rate)
+                                             step_dt=step_dt, command=conv),
+        "controller.c": sources.controller_c(form, law=twin.name, rate=rate, command=conv)
         + period.controller_step_dt_c(form, continuous, method=k_method, prewarp=prewarp),
         "dynamics.h": sources.dynamics_h(where),
     }
@@ -420,6 +426,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         "law": {"name": twin.name, "label": twin.label or twin.name,
                 "class": f"{type(law).__module__}.{type(law).__qualname__}", **law_record},
         "rate_hz": rate, "nq": n, "nx": nx, "joints": list(robot.joint_names),
+        "command": conv.as_dict(),
         "ctrl_step_dt": {"period": step_dt, "K_continuous": None if continuous is None else
                          dict(zip("ABCD", (M.tolist() for M in continuous), strict=True)),
                          "method": None if continuous is None else method,
@@ -430,12 +437,12 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         "design": _design_record(design),
     }
     files["controller.json"] = json.dumps(record, indent=2, sort_keys=True) + "\n"
-    return Export(twin, form, rate, dynamics, files, record, continuous)
+    return Export(twin, form, rate, dynamics, files, record, continuous, conv)
 
 
 def export(law, robot, rate: float | None = None, out="controller", *, method: str = "tustin",
            prewarp: float | None = None, design=None, dynamics: str = "auto",
-           overwrite: bool = False) -> Export:
+           command: str = DEFAULT_COMMAND, overwrite: bool = False) -> Export:
     """Write ``law`` on ``robot`` at ``rate`` as a self-contained C folder ``out``.
 
     The folder holds ``controller.h``/``controller.c`` (C99: no allocation, no mutable global,
@@ -471,6 +478,11 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
     dynamics : {"auto", "generated", "pinocchio"}, default "auto"
         The model's dynamics in the folder: the generated C of the nominal RRR when it is that
         model (``"auto"``, or required by ``"generated"``), else Pinocchio C++.
+    command : {"full", "no-gravity", "no-gravity-no-friction"}, default "full"
+        The torque convention of the drive (:mod:`rrr_pin.deploy.command`): ``ctrl_step``'s
+        torque is the law's minus ``Ghat(q)`` (``no-gravity``), and minus the law's friction
+        compensation too (``no-gravity-no-friction``); recorded in ``controller.json``
+        (``command``), applied to the safe torque ``ctrl_safe_torque``.
     overwrite : bool, default False
         Replace a previous export in ``out``.
 
@@ -486,14 +498,16 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
         law built on another model, joints the C API cannot express.
     FieldError
         A continuous law without ``rate``, a ``rate`` other than a sampled law's, a prewarp
-        at or above Nyquist, a ``K`` unstable once discretized.
+        at or above Nyquist, a ``K`` unstable once discretized, a ``command`` the law cannot
+        honour (:func:`rrr_pin.deploy.command.check_command`).
     OutputError
         ``out`` not empty without ``overwrite``, not writable, or another tool's.
     """
     prepared = prepare_export(law, robot, rate, method=method, prewarp=prewarp, design=design,
-                              dynamics=dynamics)
+                              dynamics=dynamics, command=command)
     settings = {"law": prepared.law.name, "robot": robot.name, "rate": prepared.rate,
-                "method": method, "prewarp": prewarp, "dynamics": prepared.dynamics}
+                "method": method, "prewarp": prewarp, "dynamics": prepared.dynamics,
+                "command": prepared.command.name}
     with OutputDir.claim(out, "export", overwrite=overwrite, settings=settings,
                          option="out") as run:
         prepared.write(run.path)
