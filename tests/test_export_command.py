@@ -155,3 +155,49 @@ def test_cli_command_recorded_and_refused(tmp_path, capsys):
                  "no-gravity-no-friction", "--out", str(tmp_path / "bad")]) == 2
     err = capsys.readouterr().err
     assert "--command" in err and "compensates no friction" in err and "Traceback" not in err
+
+
+def test_dyngen_dynamics_carry_the_armature(tmp_path, rrr):
+    """A chain of revolute joints exports generated C (no Pinocchio) with its armature.
+
+    The RRR with an armature is no longer the model codegen_rrr.c was generated for (its
+    fingerprint differs), so the export carries rrr_pin.sim.dyngen's C with the armature in its
+    parameters; its torque equals the Python law's, whose M is Pinocchio's CRBA plus
+    diag(armature), under ``no-gravity``.
+    """
+    if CC is None:
+        pytest.skip("no C compiler")
+    robot = load_robot("rrr")
+    robot.model.armature[:] = (0.2, 0.1, 0.05)  # [kg m^2], larger than the links' own
+    law = make_law("fl", robot)
+    ex = export_law(law, robot, RATE, tmp_path / "arm", command="no-gravity")
+    assert ex.dynamics == "dyngen" and ex.record["model"]["parameters"]["armature"] == [0.2, 0.1, 0.05]
+    objs = []
+    for f in ("controller.c", "dynamics.c", "dyn_model.c"):
+        obj = tmp_path / "arm" / (f + ".o")
+        subprocess.run([CC, "-std=c99", "-pedantic", *WARN, "-Wno-unknown-pragmas",
+                        "-ffp-contract=off", "-O1", "-fPIC", "-c", str(tmp_path / "arm" / f),
+                        "-o", str(obj)], check=True, capture_output=True, text=True)
+        objs.append(str(obj))
+    lib = tmp_path / "arm" / "lib.so"
+    subprocess.run([CC, "-shared", "-o", str(lib), *objs, "-lm"], check=True)
+    c_law = exported_law(tmp_path / "arm", lib)
+    rng = np.random.default_rng(44)
+    data = robot.model.createData()
+    for _ in range(10):
+        q, qd, rdd = (rng.uniform(-1.5, 1.5, 3) for _ in range(3))
+        r, rd = q + rng.uniform(-0.02, 0.02, 3), qd + rng.uniform(-0.05, 0.05, 3)
+        tau_c, _ = c_law.step(0.0, q, qd, r, rd, rdd, np.zeros(0))
+        # independent: FL's torque written out with CRBA + diag(armature) and RNEA - G
+        M = pin.crba(robot.model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        assert_allclose(np.diag(M) - np.diag(pin.crba(load_robot("rrr").model,
+                                                      load_robot("rrr").model.createData(), q)),
+                        robot.model.armature, rtol=0, atol=1e-12)  # Pinocchio adds it
+        lam = law.lam
+        taubar = rdd + 2 * lam * (rd - qd) + lam ** 2 * (r - q)
+        c_term = (pin.rnea(robot.model, data, q, qd, np.zeros(3))
+                  - pin.computeGeneralizedGravity(robot.model, data, q))
+        # two dynamics algorithms (generated recursion vs Pinocchio), torques of tens of N m:
+        # rounding of a few 1e-15 relative
+        assert_allclose(tau_c, M @ taubar + c_term, rtol=1e-12, atol=1e-12)

@@ -45,6 +45,7 @@ from . import period, sources
 from .command import DEFAULT_COMMAND, TorqueCommand, check_command
 
 __all__ = ["Export", "ExportError", "export", "prepare_export", "check_exportable", "FILES",
+           "DYNAMICS",
            "FORMAT", "read_record",
            "EXPRESSIBLE_JOINTS", "generated_rrr_source"]
 
@@ -80,7 +81,13 @@ _K_FORMS = (FLForm, FLFrictionForm, FLAWForm)
 
 #: Every file an export may write (the dynamics files depend on the model).
 FILES = ("controller.h", "controller.c", "dynamics.h", "dynamics.c", "codegen_rrr.c",
-         "dynamics.cpp", "CMakeLists.txt", "main.c", "controller.json")
+         "dyn_model.c", "dyn_common.h", "dynamics.cpp", "CMakeLists.txt", "main.c",
+         "controller.json")
+
+#: The dynamics an export can carry: the nominal RRR's CppADCodeGen C, the C of
+#: :mod:`rrr_pin.sim.dyngen` for a chain of revolute x/y/z joints (no Pinocchio to build or
+#: link), Pinocchio C++ for any other expressible model.
+DYNAMICS = ("generated", "dyngen", "pinocchio")
 
 #: Pinocchio joint types the C API (one ``q`` and one ``qd`` per joint) expresses.
 EXPRESSIBLE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ",
@@ -114,8 +121,8 @@ class Export:
         The compiled form transcribed (matrices discrete at :attr:`rate`).
     rate : float
         Sampling rate [Hz].
-    dynamics : {"generated", "pinocchio"}
-        Which dynamics the folder carries.
+    dynamics : {"generated", "dyngen", "pinocchio"}
+        Which dynamics the folder carries (:data:`DYNAMICS`).
     files : dict
         File name -> text, in :data:`FILES` order.
     record : dict
@@ -353,17 +360,26 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                           f"(fingerprint {law_fp[:12]}...), not on robot {robot.name!r} "
                           f"({fp[:12]}...); build the law on the robot it is exported for")
     conv = check_command(command, form)
-    if dynamics not in ("auto", "generated", "pinocchio"):
-        raise FieldError("dynamics", f"{{name}} must be 'auto', 'generated' or 'pinocchio', got "
-                                     f"{dynamics!r}")
+    if dynamics != "auto" and dynamics not in DYNAMICS:
+        raise FieldError("dynamics", f"{{name}} must be 'auto' or one of {', '.join(DYNAMICS)}, "
+                                     f"got {dynamics!r}")
     generated = generated_rrr_source()
     available = generated is not None and generated[0] == fp
     if dynamics == "generated" and not available:
         raise FieldError("dynamics", f"{{name}} = 'generated': no generated dynamics for robot "
                                      f"{robot.name!r} (fingerprint {fp[:12]}...); only the "
                                      f"nominal RRR has them")
-    use_generated = available and dynamics != "pinocchio"
-    dynamics = "generated" if use_generated else "pinocchio"
+    from ..sim.dyncache import generatable
+
+    if dynamics == "dyngen" and not generatable(robot.model):
+        raise FieldError("dynamics", f"{{name}} = 'dyngen': robot {robot.name!r} has a joint "
+                                     f"other than a revolute joint about x, y or z; the "
+                                     f"generator (rrr_pin.sim.dyngen) does not handle it")
+    use_generated = available and dynamics in ("auto", "generated")
+    if use_generated:
+        dynamics = "generated"
+    elif dynamics == "auto":
+        dynamics = "dyngen" if generatable(robot.model) else "pinocchio"
     import pinocchio as pin
 
     from .. import __version__
@@ -372,8 +388,10 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     continuous = _continuous_k(law, method)
     k_method = None if isinstance(law, SampledLaw) else method  # None: K discrete as given
     step_dt = period.step_dt_text(form, continuous, method=k_method, prewarp=prewarp)
-    where = ("generated plain C of the nominal RRR (codegen_rrr.c)" if use_generated
-             else "Pinocchio C++ on the embedded model (dynamics.cpp)")
+    where = {"generated": "generated plain C of the nominal RRR (codegen_rrr.c)",
+             "dyngen": "generated plain C of the structure, the model's numbers as constants "
+                       "(dyn_model.c, dynamics.c; no Pinocchio)",
+             "pinocchio": "Pinocchio C++ on the embedded model (dynamics.cpp)"}[dynamics]
     files = {
         "controller.h": sources.controller_h(n=n, nx=nx, rate=rate, law=twin.name,
                                              kind=form.kind, joints=robot.joint_names,
@@ -386,11 +404,14 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     if use_generated:
         files["dynamics.c"] = sources.dynamics_codegen_c()
         files["codegen_rrr.c"] = generated[1]
+    elif dynamics == "dyngen":
+        files.update(sources.dynamics_dyngen(robot.model, robot.name, fp))
     else:
         files["dynamics.cpp"] = sources.dynamics_pinocchio_cpp(robot.model.saveToString(),
                                                               robot.name)
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
-    files["CMakeLists.txt"] = sources.cmakelists(pinocchio=not use_generated,
+    files["CMakeLists.txt"] = sources.cmakelists(pinocchio=dynamics == "pinocchio",
+                                                 dyngen=dynamics == "dyngen",
                                                  version=pin.__version__,
                                                  python=sys.executable)
     files["main.c"] = sources.main_c(q0=q0)
@@ -475,9 +496,11 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
     design : Design, optional
         The source design, whose ``gamma`` and margins ``controller.json`` records (the
         ``"hinf"`` name uses the paper's design and records it).
-    dynamics : {"auto", "generated", "pinocchio"}, default "auto"
-        The model's dynamics in the folder: the generated C of the nominal RRR when it is that
-        model (``"auto"``, or required by ``"generated"``), else Pinocchio C++.
+    dynamics : {"auto", "generated", "dyngen", "pinocchio"}, default "auto"
+        The model's dynamics in the folder (:data:`DYNAMICS`): the generated C of the nominal
+        RRR when it is that model (``"auto"``, or required by ``"generated"``), else the
+        generated C of :mod:`rrr_pin.sim.dyngen` for a chain of revolute x/y/z joints (no
+        Pinocchio to build or link; armature included), else Pinocchio C++.
     command : {"full", "no-gravity", "no-gravity-no-friction"}, default "full"
         The torque convention of the drive (:mod:`rrr_pin.deploy.command`): ``ctrl_step``'s
         torque is the law's minus ``Ghat(q)`` (``no-gravity``), and minus the law's friction
