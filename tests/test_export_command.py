@@ -171,7 +171,8 @@ def test_dyngen_dynamics_carry_the_armature(tmp_path, rrr):
     robot.model.armature[:] = (0.2, 0.1, 0.05)  # [kg m^2], larger than the links' own
     law = make_law("fl", robot)
     ex = export_law(law, robot, RATE, tmp_path / "arm", command="no-gravity")
-    assert ex.dynamics == "dyngen" and ex.record["model"]["parameters"]["armature"] == [0.2, 0.1, 0.05]
+    assert ex.dynamics == "dyngen"
+    assert ex.record["model"]["parameters"]["armature"] == [0.2, 0.1, 0.05]
     objs = []
     for f in ("controller.c", "dynamics.c", "dyn_model.c"):
         obj = tmp_path / "arm" / (f + ".o")

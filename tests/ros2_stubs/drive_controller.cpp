@@ -21,7 +21,13 @@
 #include <vector>
 
 #include "pluginlib/class_list_macros.hpp"
-#include "rrr_pin_controller/exported_law_controller.hpp"
+// The package under test: -DRRR_PIN_PACKAGE=<name> (its namespace and include folder).
+#ifndef RRR_PIN_PACKAGE
+#define RRR_PIN_PACKAGE rrr_pin_controller
+#endif
+#define RRR_PIN_STR2(x) #x
+#define RRR_PIN_STR(x) RRR_PIN_STR2(x)
+#include RRR_PIN_STR(RRR_PIN_PACKAGE/exported_law_controller.hpp)
 
 namespace
 {
@@ -41,9 +47,9 @@ const char * name_of(controller_interface::CallbackReturn r)
 
 int main()
 {
-  using Ctrl = rrr_pin_controller::ExportedLawController;
+  using Ctrl = RRR_PIN_PACKAGE::ExportedLawController;
   auto & registry = rrr_pin_stub::registry<controller_interface::ControllerInterface>();
-  auto made = registry.at("rrr_pin_controller::ExportedLawController")();
+  auto made = registry.at(RRR_PIN_STR(RRR_PIN_PACKAGE) "::ExportedLawController")();
   auto c = std::dynamic_pointer_cast<Ctrl>(made);
   std::vector<std::pair<std::string, rclcpp::ParameterValue>> overrides;
   double hw_state[2 * CTRL_NQ] = {0.0}, hw_command[CTRL_NQ] = {0.0};
@@ -80,7 +86,7 @@ int main()
     } else if (cmd == "init") {
       std::string token;
       const unsigned int rate = (in >> token) ? static_cast<unsigned int>(std::stoul(token)) : 1000u;
-      std::printf("init %s\n", name_of(c->init("rrr_pin_controller", overrides, rate)));
+      std::printf("init %s\n", name_of(c->init(RRR_PIN_STR(RRR_PIN_PACKAGE), overrides, rate)));
     } else if (cmd == "configure") {
       const auto r = c->on_configure(state);
       if (r == controller_interface::CallbackReturn::SUCCESS) {

@@ -59,6 +59,12 @@ def add(sub) -> None:
     p.add_argument("--ros2", action="store_true",
                    help="also write DIR/ros2/, a ros2_control controller package (package.xml, "
                         "plugin, parameters YAML); build it with colcon build --paths DIR/ros2")
+    p.add_argument("--ros2-name", default=None, metavar="NAME",
+                   help="with --ros2: the package's name and the plugin's namespace (default "
+                        "<arm>_<law>_controller; a ROS 2 package name, REP 144)")
+    p.add_argument("--maintainer", default=None, metavar="'NAME <EMAIL>'",
+                   help="with --ros2: package.xml's maintainer (default a placeholder the "
+                        "package's CMake refuses to release)")
     add_overwrite(p)
     add_design_argument(p)
     p.set_defaults(func=run_export)
@@ -92,21 +98,28 @@ def run_export(args) -> int:
                                   prewarp=args.prewarp, design=d, command=args.command)
     band = 0.0
     if args.ros2:
-        from ..deploy.ros2 import PERIOD_TOLERANCE, check_ros2
+        from ..deploy.ros2 import PERIOD_TOLERANCE
 
         band = PERIOD_TOLERANCE
     check_sampled_loop(law, robot, prepared.rate, method=args.method, prewarp=args.prewarp,
                        band=band)
     if args.ros2:
+        from ..deploy.ros2 import ros2_package
 
-        check_ros2(prepared)  # before any file is written
+        with as_options():  # every check, --ros2-name and --maintainer too, before writing
+            package = ros2_package(prepared, robot, name=args.ros2_name,
+                                   maintainer=args.maintainer)
+    elif args.ros2_name is not None or args.maintainer is not None:
+        raise ValueError("--ros2-name and --maintainer name the ros2_control package: give "
+                         "--ros2 too")
     if out is None:  # --overwrite: the previous export is removed now that the options hold
         out = claim_out(args, "export")
     prepared.write(out)
     if args.ros2:
         from ..deploy.ros2 import write_ros2_package
 
-        write_ros2_package(prepared, robot, out)
+        write_ros2_package(prepared, robot, out, name=args.ros2_name,
+                           maintainer=args.maintainer)
     if design_record(args) is not None:  # which design ran, with its requirement table
         import json
 
@@ -119,8 +132,9 @@ def run_export(args) -> int:
     print(f"build: cmake -S {out} -B {out}/build && cmake --build {out}/build && "
           f"{out}/build/ctrl_main")
     if args.ros2:
-        print(f"ros2_control package: {out}/ros2/ (colcon build --paths {out}/ros2; parameters "
-              f"in {out}/ros2/config/rrr_pin_controller.yaml)")
+        name = next(k for k in package if k.startswith("ros2/config/")).split("/")[-1][:-5]
+        print(f"ros2_control package {name}: {out}/ros2/ (colcon build --paths {out}/ros2; "
+              f"parameters in {out}/ros2/config/{name}.yaml)")
     return 0
 
 

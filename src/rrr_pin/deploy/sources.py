@@ -43,7 +43,7 @@ TEMPLATES = Path(__file__).resolve().parent / "templates"
 
 
 def render(template: str, **values) -> str:
-    """Return the template file ``TEMPLATES/template`` with each ``@KEY@`` replaced by ``values[key]``.
+    """Return the file ``TEMPLATES/template``, each ``@KEY@`` replaced by ``values[key]``.
 
     Raises
     ------
@@ -644,7 +644,15 @@ def cmakelists(*, pinocchio: bool, version: str, python: str = "", dyngen: bool 
 set(Boost_NO_WARN_NEW_VERSIONS ON)
 set(RRR_PIN_PYTHON {_cmake_string(python)} CACHE FILEPATH
     "a Python with the pin wheel, asked for its cmeel prefix when pinocchio is not found")
-find_package(pinocchio {version} EXACT CONFIG QUIET)
+option(RRR_PIN_FIND_PIP "ask a Python environment (cmeel) for Pinocchio if CMake finds none"
+       ON)
+if(NOT RRR_PIN_FIND_PIP)
+  # a ROS 2 workspace (the ros2/ package sets this): Pinocchio from rosdep, any version whose
+  # text serialization reads the embedded model
+  find_package(pinocchio CONFIG REQUIRED)
+else()
+  find_package(pinocchio {version} EXACT CONFIG QUIET)
+endif()
 if(NOT pinocchio_FOUND)
   set(_rrr_pin_pythons)
   if(RRR_PIN_PYTHON AND EXISTS "${{RRR_PIN_PYTHON}}")
