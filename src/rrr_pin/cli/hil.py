@@ -24,6 +24,10 @@ def add(sub) -> None:
                    help="the harness clock [Hz] (default: the law's rate; the arm always "
                         "advances one law period per cycle, so a faster clock runs the same "
                         "loop faster than real time)")
+    p.add_argument("--delay", type=float, default=0.0, metavar="S",
+                   help="transport delay between the torque written and the joints [s], a "
+                        "whole number of law periods (default 0); a loop that diverges ends "
+                        "with status 'diverged' and its time in hil.json (exit 0)")
     p.add_argument("--out", default="hil", metavar="DIR", help="output folder (hil/)")
     add_overwrite(p)
     p.set_defaults(func=run_hil)
@@ -33,7 +37,8 @@ def run_hil(args) -> int:
     """Run the loop and print its figures."""
     from ..deploy.hil import hil
 
-    res = hil(args.folder, args.cycles, args.out, rate=args.rate, overwrite=args.overwrite)
+    res = hil(args.folder, args.cycles, args.out, rate=args.rate, delay=args.delay,
+              overwrite=args.overwrite)
     s, r = res.summary, res.run
     lat = s["latency_us"]
     print(f"{r['model']}: {r['law']} at {r['clock_rate_hz']:g} Hz ({s['cycles']} cycles, law "
@@ -46,5 +51,8 @@ def run_hil(args) -> int:
     print(f"max |q_hil - q_offline| {s['max_error_vs_offline_rad']:.3g} rad; max tracking "
           f"error {r['max_tracking_error_rad']['hil']:.3g} rad (offline "
           f"{r['max_tracking_error_rad']['offline']:.3g} rad)")
+    if s["status"] == "diverged":
+        print(f"the loop DIVERGED at t = {s['diverged_at_s']:.6g} s (offline: "
+              f"{r['offline_diverged_at_s']} s)")
     print(f"wrote {args.out}/hil.json, {args.out}/hil_run.json")
     return 0

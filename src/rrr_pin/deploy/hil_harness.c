@@ -6,9 +6,10 @@
  *
  *   rrr_pin_hil hil|offline SETTINGS OUT [HOLDS]
  *
- * SETTINGS (text, one number per token): cycles, clock period [ns], law period Ts [s], then per
- * joint home, amp, freq [Hz], phase (the reference r = home + amp sin(2 pi freq t + phase)),
- * then q0, qd0. OUT (binary): per cycle k the measured q[n] at tick k (the state the law read),
+ * SETTINGS (text, one number per token): cycles, clock period [ns], law period Ts [s], the
+ * transport delay d [law periods] and the velocity bound [rad/s] of the divergence test, then
+ * per joint home, amp, freq [Hz], phase (the reference r = home + amp sin(2 pi freq t + phase)),
+ * q0, qd0, and the joint limits lower, upper [rad] (widened) of the divergence test. OUT (binary): per cycle k the measured q[n] at tick k (the state the law read),
  * the torque applied on [k Ts, (k+1) Ts) tau[n], and in hil mode the int64 nanoseconds
  * wake - deadline, done - deadline (the torque written), step (ctrl_step alone), and the flags
  * missed (torque written after the next tick: the plant held the previous one) and plant_late
@@ -19,6 +20,15 @@
  * The plant: the nominal model of the export (its dynamics.h: M(q), h(q, qd)), forward dynamics
  * qdd = M^-1 (tau - h) by Gaussian elimination with partial pivoting, one classical RK4 step of Ts
  * per cycle with the torque held (zero-order hold), as rrr_pin's Python engine integrates.
+ * The torque the joints receive is the command of d cycles before (a transport delay; before
+ * the first d cycles, the first command, the loop taken at rest on it as rrr_pin's effects do),
+ * plus what a drive adds under the export's torque convention (ctrl_removed_torque: Ghat(q) at
+ * every RK4 stage when the command excludes gravity, as a drive compensates continuously).
+ * Divergence, as rrr_pin's engines define it: after a cycle's RK4 step, a q or qd not finite,
+ * |qd| above the bound or q outside the widened limits; the loop stops there and the header
+ * says "diverged K" (the cycle whose step diverged; -1: none).
+ * Both processes end when their parent ends (PR_SET_PDEATHSIG, SIGKILL): a killed rrr-pin hil
+ * leaves no real-time process behind.
  * The controller: on each absolute deadline t0 + k * period (clock_nanosleep, CLOCK_MONOTONIC,
  * TIMER_ABSTIME) it reads the state, calls ctrl_step and writes the torque. SCHED_FIFO (priority
  * 80 for the controller, 70 for the arm) and mlockall are asked for; whether they were granted
@@ -36,6 +46,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#ifdef __linux__
+#include <sys/prctl.h>
+#endif
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -49,8 +62,21 @@ typedef struct settings {
     long cycles;
     long period_ns;
     double Ts;
-    double home[N], amp[N], freq[N], phase[N], q0[N], qd0[N];
+    long delay;
+    double vmax;
+    double home[N], amp[N], freq[N], phase[N], q0[N], qd0[N], lower[N], upper[N];
 } settings;
+
+/* End this process when its parent ends (Linux); 0 if the parent is already gone. */
+static int die_with_parent(pid_t parent)
+{
+#ifdef __linux__
+    if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0) {
+        return 0;
+    }
+#endif
+    return parent <= 0 || getppid() == parent;
+}
 
 /* What the two processes share (one page-aligned anonymous mapping made before fork). */
 typedef struct shared {
@@ -110,6 +136,15 @@ static void acceleration(const double q[N], const double qd[N], const double tau
     for (i = 0; i < N; ++i) {
         qdd[i] = tau[i] - h[i];
     }
+#if CTRL_COMMAND_REMOVES_GRAVITY || CTRL_COMMAND_REMOVES_FRICTION
+    {
+        double added[N];
+        ctrl_removed_torque(q, qd, added); /* what the drive adds to the command */
+        for (i = 0; i < N; ++i) {
+            qdd[i] += added[i];
+        }
+    }
+#endif
     for (k = 0; k < N; ++k) {
         int p = k;
         for (i = k + 1; i < N; ++i) {
@@ -180,13 +215,45 @@ static int read_settings(const char *path, settings *s)
     if (!f) {
         return 0;
     }
-    ok = fscanf(f, "%ld %ld %lf", &s->cycles, &s->period_ns, &s->Ts) == 3;
+    ok = fscanf(f, "%ld %ld %lf %ld %lf", &s->cycles, &s->period_ns, &s->Ts, &s->delay,
+                &s->vmax) == 5;
     for (i = 0; ok && i < N; ++i) {
-        ok = fscanf(f, "%lf %lf %lf %lf %lf %lf", &s->home[i], &s->amp[i], &s->freq[i],
-                    &s->phase[i], &s->q0[i], &s->qd0[i]) == 6;
+        ok = fscanf(f, "%lf %lf %lf %lf %lf %lf %lf %lf", &s->home[i], &s->amp[i], &s->freq[i],
+                    &s->phase[i], &s->q0[i], &s->qd0[i], &s->lower[i], &s->upper[i]) == 8;
     }
     fclose(f);
-    return ok && s->cycles > 0 && s->period_ns > 0 && s->Ts > 0.0;
+    return ok && s->cycles > 0 && s->period_ns > 0 && s->Ts > 0.0 && s->delay >= 0;
+}
+
+/* The divergence test of rrr_pin's engines (rrr_pin.sim.trajectory.diverged_joint). */
+static int diverged(const settings *s, const double x[N], const double v[N])
+{
+    int i;
+    for (i = 0; i < N; ++i) {
+        if (!isfinite(x[i]) || !isfinite(v[i]) || fabs(v[i]) > s->vmax || x[i] < s->lower[i]
+            || x[i] > s->upper[i]) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* The transport delay line: the command the drive received at each of the last d + 1 cycles.
+ * line_push stores cycle k's and returns the one the joints get, cycle k - d's (the first
+ * command before it exists). */
+static double *line;
+
+static const double *line_push(const settings *s, long k, const double cmd[N])
+{
+    int i;
+    long slot = k % (s->delay + 1);
+    for (i = 0; i < N; ++i) {
+        line[slot * N + i] = cmd[i];
+    }
+    if (k < s->delay) {
+        return line; /* slot 0: the first command */
+    }
+    return line + ((k - s->delay) % (s->delay + 1)) * N;
 }
 
 /* Whether the other process is alive: the controller asks for its parent (the arm), the arm
@@ -234,7 +301,12 @@ static void controller(const settings *s, shared *sh, timing *tm)
     double q[N], qd[N], r[N], rd[N], rdd[N], tau[N];
     ctrl_state st;
     long k;
-    int i, rt = real_time(80);
+    int i, rt;
+    if (!die_with_parent(parent_pid)) {
+        sh->ctrl_rc = -2;
+        return;
+    }
+    rt = real_time(80);
     sh->sched_fifo = rt & 1;
     sh->mlocked = (rt >> 1) & 1;
     ctrl_reset(&st); /* Pinocchio's workspace for this thread, before the loop */
@@ -281,8 +353,9 @@ int main(int argc, char **argv)
     timing *tm;
     double *Q, *TAU, x[N], v[N], held[N];
     FILE *out;
-    long k, missed = 0;
+    long k, missed = 0, diverged_at = -1;
     int i, offline, status = 0, plant_rt = 0;
+    const char *parent = getenv("RRR_PIN_HIL_PARENT");
     pid_t child = -1;
     unsigned char *holds = NULL;
     if (argc < 4 || argc > 5 || (strcmp(argv[1], "hil") && strcmp(argv[1], "offline"))
@@ -291,6 +364,9 @@ int main(int argc, char **argv)
         return 2;
     }
     offline = !strcmp(argv[1], "offline");
+    if (!die_with_parent(parent ? (pid_t)atol(parent) : 0)) {
+        return 6; /* rrr-pin hil ended before this process started */
+    }
     memset(&s, 0, sizeof s);
     if (!read_settings(argv[2], &s)) {
         fprintf(stderr, "%s: cannot read the settings of %d joints\n", argv[2], N);
@@ -301,7 +377,8 @@ int main(int argc, char **argv)
     sh = mmap(NULL, sizeof *sh, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
     tm = mmap(NULL, sizeof *tm * (size_t)s.cycles, PROT_READ | PROT_WRITE,
               MAP_SHARED | MAP_ANONYMOUS, -1, 0);
-    if (!Q || !TAU || sh == MAP_FAILED || tm == MAP_FAILED) {
+    line = calloc((size_t)(s.delay + 1) * N, sizeof(double));
+    if (!Q || !TAU || !line || sh == MAP_FAILED || tm == MAP_FAILED) {
         fprintf(stderr, "out of memory for %ld cycles\n", s.cycles);
         return 3;
     }
@@ -342,11 +419,18 @@ int main(int argc, char **argv)
                     held[i] = tau[i];
                 }
             }
-            for (i = 0; i < N; ++i) {
-                Q[k * N + i] = x[i];
-                TAU[k * N + i] = held[i];
+            {
+                const double *applied = line_push(&s, k, held);
+                for (i = 0; i < N; ++i) {
+                    Q[k * N + i] = x[i];
+                    TAU[k * N + i] = applied[i];
+                }
+                rk4(x, v, applied, s.Ts);
             }
-            rk4(x, v, held, s.Ts);
+            if (diverged(&s, x, v)) {
+                diverged_at = k;
+                break;
+            }
         }
     } else {
         sh->t0 = now_ns() + 100000000LL; /* first tick 100 ms from now */
@@ -392,10 +476,18 @@ int main(int argc, char **argv)
                     held[i] = sh->tau[i];
                 }
             }
-            for (i = 0; i < N; ++i) {
-                TAU[k * N + i] = held[i];
+            {
+                const double *applied = line_push(&s, k, held);
+                for (i = 0; i < N; ++i) {
+                    TAU[k * N + i] = applied[i];
+                }
+                rk4(x, v, applied, s.Ts);
             }
-            rk4(x, v, held, s.Ts);
+            if (diverged(&s, x, v)) {
+                diverged_at = k;
+                kill(child, SIGKILL); /* the controller has nothing left to control */
+                break;
+            }
         }
         if (status && child > 0) {
             kill(child, SIGKILL);
@@ -419,7 +511,7 @@ int main(int argc, char **argv)
     }
     fclose(out);
     printf("cycles %ld missed %ld sched_fifo %d mlockall %d plant_sched_fifo %d "
-           "plant_mlockall %d\n", s.cycles, missed, offline ? 0 : sh->sched_fifo,
-           offline ? 0 : sh->mlocked, plant_rt & 1, (plant_rt >> 1) & 1);
+           "plant_mlockall %d diverged %ld\n", s.cycles, missed, offline ? 0 : sh->sched_fifo,
+           offline ? 0 : sh->mlocked, plant_rt & 1, (plant_rt >> 1) & 1, diverged_at);
     return 0;
 }

@@ -218,6 +218,11 @@ int ctrl_step_dt(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ
  * under "full", zero when the drive adds gravity itself (CTRL_COMMAND_REMOVES_GRAVITY). */
 void ctrl_safe_torque(const double q[CTRL_NQ], double tau[CTRL_NQ]);
 
+/* What the drive adds to the command under CTRL_COMMAND [N m]: Ghat(q) when the command
+ * excludes gravity, plus the law's friction compensation when it excludes friction; zeros under
+ * "full". A simulated drive (rrr-pin hil) adds it; ctrl_step's torque plus it is the law's. */
+void ctrl_removed_torque(const double q[CTRL_NQ], const double qd[CTRL_NQ], double tau[CTRL_NQ]);
+
 #ifdef __cplusplus
 }}
 #endif
@@ -284,6 +289,7 @@ void ctrl_reset(ctrl_state *s)
     }
 '''
     if form.kind == "pd":
+        removed = _removed_c(command, False)
         pd_note = (f"; --command {command.name}: without Ghat(q)" if command.removes_gravity
                    else "")
         pd_g = "" if command.removes_gravity else ", g[CTRL_NQ]"
@@ -314,7 +320,7 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
     }}
     return all_finite(tau) ? CTRL_OK : CTRL_EOUTPUT;
 }}
-'''
+''' + removed
     m = form.A.shape[0]
     lam = form.lam
     # one lam: the #define as ever; one per joint: a constant vector, LAM[i] on joint i
@@ -382,10 +388,11 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
                 "h[CTRL_NQ];\n")
         what = "feedback linearization alone, eq. (20): y = 0"
     friction = ""
-    if form.kind == "fl_friction" and not command.removes_friction:
+    if form.kind == "fl_friction":
         tables += (_vector("FV", form.viscous) + _vector("FC", form.coulomb)
                    + f"#define VEPS {_num(form.coulomb_velocity)}\n")
-        friction = "        tau[i] = tau[i] + (FV[i] * qd[i] + FC[i] * tanh(qd[i] / VEPS));\n"
+        friction = ("" if command.removes_friction else
+                    "        tau[i] = tau[i] + (FV[i] * qd[i] + FC[i] * tanh(qd[i] / VEPS));\n")
         what += "; friction compensation tau += Fv qd + Fc tanh(qd / v_eps)"
     clip = '''    for (i = 0; i < CTRL_NQ; ++i) {
         tau_u[i] = tau[i];
@@ -456,7 +463,27 @@ int ctrl_step(ctrl_state *s, const double q[CTRL_NQ], const double qd[CTRL_NQ],
     }}
 {clip}{update}{convention}    return CTRL_OK;
 }}
-''' + wrapper
+''' + wrapper + _removed_c(command, form.kind == "fl_friction")
+
+
+def _removed_c(command, friction: bool) -> str:
+    """``ctrl_removed_torque``: what the drive adds under ``command`` (controller.h)."""
+    body = []
+    if command.removes_gravity:
+        body.append("    ctrl_dyn_gravity(q, tau);\n")
+    else:
+        body.append("    for (i = 0; i < CTRL_NQ; ++i) {\n        tau[i] = 0.0;\n    }\n")
+    if command.removes_friction and friction:
+        body.append("    for (i = 0; i < CTRL_NQ; ++i) {\n        tau[i] += FV[i] * qd[i] + "
+                    "FC[i] * tanh(qd[i] / VEPS);\n    }\n")
+    else:
+        body.append("    (void)qd;\n")
+    uses_i = not command.removes_gravity or (command.removes_friction and friction)
+    return ("\n/* What the drive adds to the command (--command " + command.name + "). */\n"
+            "void ctrl_removed_torque(const double q[CTRL_NQ], const double qd[CTRL_NQ], "
+            "double tau[CTRL_NQ])\n{\n" + ("    int i;\n" if uses_i else "")
+            + ("    (void)q;\n" if not command.removes_gravity else "") + "".join(body)
+            + "}\n")
 
 
 def dynamics_h(source: str) -> str:

@@ -82,7 +82,7 @@ _K_FORMS = (FLForm, FLFrictionForm, FLAWForm)
 #: Every file an export may write (the dynamics files depend on the model).
 FILES = ("controller.h", "controller.c", "dynamics.h", "dynamics.c", "codegen_rrr.c",
          "dyn_model.c", "dyn_common.h", "dynamics.cpp", "CMakeLists.txt", "main.c",
-         "controller.json")
+         "model.txt", "controller.json")
 
 #: The dynamics an export can carry: the nominal RRR's CppADCodeGen C, the C of
 #: :mod:`rrr_pin.sim.dyngen` for a chain of revolute x/y/z joints (no Pinocchio to build or
@@ -415,6 +415,9 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
                                                  version=pin.__version__,
                                                  python=sys.executable)
     files["main.c"] = sources.main_c(q0=q0)
+    # the model itself (Pinocchio's text serialization), which rrr-pin hil simulates: a URDF
+    # path or an identified arm needs no name to be found again
+    files["model.txt"] = robot.model.saveToString()
     if form.kind == "pd":
         law_record = {"kind": "pd", "Kp": form.Kp.tolist(), "Kd": form.Kd.tolist()}
     else:
