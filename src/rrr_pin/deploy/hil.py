@@ -117,7 +117,8 @@ def _robot(record: dict, folder: Path):
 
 #: controller.h's defines and the controller.json keys they must equal.
 _DEFINES = {"CTRL_NQ": ("nq", int), "CTRL_RATE_HZ": ("rate_hz", float),
-            "CTRL_LAW_NAME": ("law.name", str), "CTRL_MODEL_FINGERPRINT": ("model.fingerprint", str),
+            "CTRL_LAW_NAME": ("law.name", str),
+            "CTRL_MODEL_FINGERPRINT": ("model.fingerprint", str),
             "CTRL_COMMAND": ("command.name", str)}
 
 
