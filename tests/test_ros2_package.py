@@ -105,10 +105,12 @@ def _updates(out: list[str]):
     """(tau rows, fault codes, periods used) of the driver's ``update`` answers."""
     rows = [line.split() for line in out if line.startswith("update ")]
     assert all(r[1] == "OK" for r in rows)
-    n = (len(rows[0]) - 6)
+    n = len(rows[0]) - 8  # "update OK" tau[n] "fault" code period clipped "allocations" k
     tau = np.array([[float(x) for x in r[2:2 + n]] for r in rows])
     fault = [int(r[3 + n]) for r in rows]
     period = np.array([float(r[4 + n]) for r in rows])
+    # the stub counts C++ allocations during each update(): a real-time thread makes none
+    assert all(r[6 + n] == "allocations" and r[7 + n] == "0" for r in rows), rows
     return tau, fault, period
 
 
@@ -328,7 +330,7 @@ def test_torque_limit_clips_and_counts(package):
     out, _ = _drive(drivers["jazzy"], [*_started(folder, torque_limit=[5.0, 5.0, 5.0]),
                                        "ref 3 1 1 1 0 0", f"update {TS!r} {_vec(q)} 0 0 0"])
     row = next(line for line in out if line.startswith("update ")).split()
-    assert [float(v) for v in row[2:5]] == [5.0, 5.0, 5.0] and row[-1] == "1"
+    assert [float(v) for v in row[2:5]] == [5.0, 5.0, 5.0] and row[-3] == "1"
 
 
 def test_deactivate_writes_zero(package):
@@ -424,3 +426,65 @@ def test_a_law_that_cannot_run_over_a_measured_period_is_refused(tmp_path, capsy
     prepared = prepare_export(DiscreteTrackingController(robot, 45.0, Kd), robot)
     with pytest.raises(ExportError, match=r"K is discrete as given; dt other than CTRL_PERIOD"):
         ros2_package(prepared, robot)
+
+
+#: The functions update() runs (the real-time thread): none may log or allocate.
+REAL_TIME = ("update", "latch", "safe_torque", "write_command")
+
+#: What logs or may allocate, as written in C++ source.
+FORBIDDEN = ("RCLCPP_", "new ", "malloc", "std::string", "std::vector", "push_back",
+             "emplace_back", "resize", "make_shared", "std::to_string", "get_logger")
+
+
+def _body(text: str, name: str) -> str:
+    """The body of ``ExportedLawController::name`` in the generated .cpp (braces matched)."""
+    start = text.index(f"ExportedLawController::{name}(")
+    i = text.index("{", text.index(")", start))
+    depth = 0
+    for j in range(i, len(text)):
+        depth += {"{": 1, "}": -1}.get(text[j], 0)
+        if depth == 0:
+            return text[i:j + 1]
+    raise AssertionError(f"unbalanced braces in {name}")
+
+
+def test_update_neither_logs_nor_allocates(package):
+    """Scan the real-time path's source (the allocation counter of the stub runs it too)."""
+    folder = package[2]
+    text = (folder / "ros2" / "src" / "exported_law_controller.cpp").read_text()
+    for name in REAL_TIME:
+        body = _body(text, name)
+        found = [word for word in FORBIDDEN if word in body]
+        assert not found, f"{name}() uses {found}"
+
+
+@pytest.mark.parametrize("bad", ["Ur5_controller", "ur5__fl", "1arm", "ur5-fl", "ur5_", "a",
+                                 "namespace"])
+def test_a_package_name_that_is_not_a_ros_name_is_refused(package, tmp_path, capsys, bad):
+    from rrr_pin.validation import FieldError
+
+    ex, robot, _, _, _ = package
+    with pytest.raises(FieldError, match=r"ros2_name = "):
+        write_ros2_package(ex, robot, tmp_path, name=bad)
+    assert main(["export", "--law", "pd", "--rate", "1000", "--ros2", "--ros2-name", bad,
+                 "--out", str(tmp_path / "cli")]) == 2
+    err = capsys.readouterr().err
+    assert "--ros2-name" in err and "Traceback" not in err
+    assert not (tmp_path / "cli" / "controller.c").exists()
+
+
+def test_default_names_and_maintainer(package, tmp_path):
+    from rrr_pin.deploy.ros2 import package_name, ros2_package
+    from rrr_pin.validation import FieldError
+
+    # two exports of one arm with two laws do not collide; any arm name becomes a ROS name
+    assert package_name("ur5", "hinf") == "ur5_hinf_controller"
+    assert package_name("UR5e-left", "hinf") == "ur5e_left_hinf_controller"
+    assert package_name("7dof", "fl") == "arm_7dof_fl_controller"
+    ex, robot, _, _, _ = package
+    files = ros2_package(ex, robot, maintainer="Ada Lovelace <ada@example.org>")
+    xml = files["ros2/package.xml"]
+    assert '<maintainer email="ada@example.org">Ada Lovelace</maintainer>' in xml
+    assert "if(OFF)" in files["ros2/CMakeLists.txt"]  # a real maintainer: releasable
+    with pytest.raises(FieldError, match=r"maintainer = 'ada'"):
+        ros2_package(ex, robot, maintainer="ada")
