@@ -44,7 +44,7 @@ from ..outputs import OutputDir, writing
 from ..validation import FieldError, check_count, check_rate
 from .writer import read_record
 
-__all__ = ["HilResult", "hil", "check_export", "MAX_CYCLES", "HARNESS"]
+__all__ = ["HilResult", "hil", "check_export", "build_cache", "MAX_CYCLES", "HARNESS"]
 
 #: Largest ``cycles``: the harness keeps every cycle's state, torque and timing in memory
 #: (``(2 n + 4) x 8`` bytes a cycle; 20 million cycles of a 7-joint arm: 2.9 GB).
@@ -165,34 +165,69 @@ def check_export(folder) -> dict:
     return record
 
 
-def _build(folder: Path, work: Path, pinocchio: bool) -> Path:
-    """Build ``hil_harness.c`` against ``folder`` (add_subdirectory); return the executable."""
+def build_cache(fingerprint: str, dynamics: str) -> Path:
+    """Return the folder where ``hil`` keeps the harness build of one model.
+
+    ``$RRR_PIN_CACHE/hil/<fingerprint[:16]>-<dynamics>`` (default ``~/.cache/rrr-pin``, as
+    :func:`rrr_pin.sim.dyncache.cache_dir`): the export's sources are copied there, each file
+    rewritten only when its text differs, so that CMake recompiles only what changed; the
+    model's dynamics (the largest file, ``dyn_model.c`` or ``dynamics.cpp``) are compiled once
+    per model and reused by every later ``hil`` of it, whatever the law.
+    """
+    from ..sim.dyncache import cache_dir
+
+    return cache_dir().parent / "hil" / f"{fingerprint[:16]}-{dynamics}"
+
+
+def _put(path: Path, data: bytes) -> None:
+    """Write ``data`` unless ``path`` holds it already (its time stamp then unchanged)."""
+    if not path.is_file() or path.read_bytes() != data:
+        path.write_bytes(data)
+
+
+def _build(folder: Path, work: Path, dynamics: str, fingerprint: str) -> Path:
+    """Build ``hil_harness.c`` against ``folder`` in the model's cache; copy it to ``work``."""
+    import fcntl
+
     cmake = shutil.which("cmake")
     if cmake is None:
         raise FileNotFoundError("cmake is not on PATH (install CMake >= 3.21 and a C compiler)")
-    src = work / "harness"
-    src.mkdir()
-    shutil.copyfile(HARNESS, src / "hil_harness.c")
-    langs = "C CXX" if pinocchio else "C"
-    link = ("set_target_properties(rrr_pin_hil PROPERTIES LINKER_LANGUAGE CXX)\n"
-            if pinocchio else "")
-    (src / "CMakeLists.txt").write_text(
-        "cmake_minimum_required(VERSION 3.21)\n"
-        f"project(rrr_pin_hil LANGUAGES {langs})\n"
-        f"add_subdirectory(\"{folder.resolve().as_posix()}\" ctrl)\n"
-        "add_executable(rrr_pin_hil hil_harness.c)\n"
-        "set_target_properties(rrr_pin_hil PROPERTIES C_STANDARD 11 C_EXTENSIONS ON)\n"
-        "target_compile_options(rrr_pin_hil PRIVATE -Wall -Wextra -Werror)\n"
-        "target_link_libraries(rrr_pin_hil PRIVATE rrr_pin_ctrl)\n" + link)
-    build = work / "build"
-    configure = [cmake, "-S", str(src), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
-                 f"-DRRR_PIN_PYTHON={sys.executable}"]
-    for cmd in (configure, [cmake, "--build", str(build), "--target", "rrr_pin_hil"]):
-        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        if done.returncode:
-            raise RuntimeError(f"{' '.join(cmd)} failed ({done.returncode}):\n"
-                               f"{done.stdout[-3000:]}{done.stderr[-3000:]}")
-    return build / "rrr_pin_hil"
+    pinocchio = dynamics == "pinocchio"
+    root = build_cache(fingerprint, dynamics)
+    export, src, build = root / "export", root / "harness", root / "build"
+    for d in (export, src):
+        d.mkdir(parents=True, exist_ok=True)
+    with open(root / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # one build of a model at a time
+        for f in folder.iterdir():
+            if f.is_file() and f.name != "design.json":
+                _put(export / f.name, f.read_bytes())
+        _put(src / "hil_harness.c", HARNESS.read_bytes())
+        langs = "C CXX" if pinocchio else "C"
+        link = ("set_target_properties(rrr_pin_hil PROPERTIES LINKER_LANGUAGE CXX)\n"
+                if pinocchio else "")
+        _put(src / "CMakeLists.txt", (
+            "cmake_minimum_required(VERSION 3.21)\n"
+            f"project(rrr_pin_hil LANGUAGES {langs})\n"
+            f"add_subdirectory(\"{export.resolve().as_posix()}\" ctrl)\n"
+            "add_executable(rrr_pin_hil hil_harness.c)\n"
+            "set_target_properties(rrr_pin_hil PROPERTIES C_STANDARD 11 C_EXTENSIONS ON)\n"
+            "target_compile_options(rrr_pin_hil PRIVATE -Wall -Wextra -Werror)\n"
+            "target_link_libraries(rrr_pin_hil PRIVATE rrr_pin_ctrl)\n" + link).encode())
+        configure = [cmake, "-S", str(src), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
+                     f"-DRRR_PIN_PYTHON={sys.executable}"]
+        steps = [[cmake, "--build", str(build), "--target", "rrr_pin_hil"]]
+        if not (build / "CMakeCache.txt").is_file():
+            steps.insert(0, configure)
+        for cmd in steps:
+            done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+            if done.returncode:
+                shutil.rmtree(build, ignore_errors=True)  # a failed tree is not kept
+                raise RuntimeError(f"{' '.join(cmd)} failed ({done.returncode}):\n"
+                                   f"{done.stdout[-3000:]}{done.stderr[-3000:]}")
+        exe = work / "rrr_pin_hil"
+        shutil.copy2(build / "rrr_pin_hil", exe)
+    return exe
 
 
 def _run(exe: Path, mode: str, settings: Path, out: Path, n: int, cycles: int,
@@ -302,7 +337,7 @@ def hil(folder, cycles: int, out, *, rate: float | None = None, delay: float = 0
                          option="out") as claimed, \
             tempfile.TemporaryDirectory(prefix="rrr-pin-hil-") as tmp:
         work = Path(tmp)
-        exe = _build(folder, work, record["model"]["dynamics"] == "pinocchio")
+        exe = _build(folder, work, record["model"]["dynamics"], record["model"]["fingerprint"])
         (work / "settings.txt").write_text("\n".join(lines) + "\n")
         q_off, tau_off, _, off_header, wall_off = _run(exe, "offline", work / "settings.txt",
                                                        work / "offline.bin", n, cycles)
