@@ -73,7 +73,7 @@ def package(tmp_path_factory):
 
 def _params(folder: Path, **changes) -> list[str]:
     """The YAML's controller parameters as driver lines, with ``changes``."""
-    (path,) = (folder / "ros2" / "config").glob("*.yaml")
+    (path,) = (folder / "ros2" / "config").glob("*_controller.yaml")
     doc = yaml.safe_load(path.read_text())
     params = dict(doc[path.stem]["ros__parameters"], **changes)
     lines = []
@@ -488,3 +488,40 @@ def test_default_names_and_maintainer(package, tmp_path):
     assert "if(OFF)" in files["ros2/CMakeLists.txt"]  # a real maintainer: releasable
     with pytest.raises(FieldError, match=r"maintainer = 'ada'"):
         ros2_package(ex, robot, maintainer="ada")
+
+
+def test_cleanup_and_error_return_to_unconfigured(package):
+    """on_cleanup drops the configuration (configure works again); on_error writes zero effort
+    and says why, from a non-real-time transition."""
+    ex, robot, folder, _, drivers = package
+    q = np.array([0.1, -0.4, 0.7])
+    lines = [*_started(folder), f"update {TS!r} {_vec(q)} 0 0 0", "deactivate", "cleanup",
+             "configure", f"activate {_vec(q)} {_vec(np.zeros(3))}",
+             f"update {TS!r} {_vec(q)} 0 0 0", f"update {1.5 * TS!r} {_vec(q)} 0 0 0",
+             "error"]
+    out, err = _drive(drivers["jazzy"], lines)
+    assert "cleanup SUCCESS" in out and out.count("configure SUCCESS") == 2
+    assert out[-1] == "error SUCCESS"
+    assert "transition failed: zero effort" in err and "latched fault: update period" in err
+
+
+def test_launch_file_and_ros2_control_block(package):
+    """The example launch file is Python that compiles and names the package's own files; the
+    <ros2_control> block gives each exported joint, in order, effort in, position and velocity
+    out (what command_interface_configuration and state_interface_configuration ask for)."""
+    import xml.etree.ElementTree as ET
+
+    ex, robot, folder, _, _ = package
+    launch = (folder / "ros2" / "launch" / f"{PKG}.launch.py").read_text()
+    compile(launch, "launch.py", "exec")  # syntax only: launch_ros is not installed here
+    assert f'FindPackageShare("{PKG}"), "config", "{PKG}.yaml"' in launch
+    block = ET.parse(folder / "ros2" / "config" / "ros2_control.xml").getroot()
+    joints = block.findall("joint")
+    assert [j.get("name") for j in joints] == list(robot.joint_names)
+    for j in joints:
+        assert [c.get("name") for c in j.findall("command_interface")] == ["effort"]
+        assert [c.get("name") for c in j.findall("state_interface")] == ["position", "velocity"]
+    xml = (folder / "ros2" / "package.xml").read_text()
+    assert "<exec_depend>controller_manager</exec_depend>" in xml
+    for path in [*(folder / "ros2").glob("*.xml"), *(folder / "ros2" / "config").glob("*.xml")]:
+        ET.parse(path)  # well-formed (a "--" inside a comment is not: it was, before)

@@ -144,6 +144,10 @@ int main()
       std::printf(" fault %d %.17g %llu allocations %zu\n", static_cast<int>(c->fault()),
                   c->last_period(), static_cast<unsigned long long>(c->clipped_periods()),
                   allocated);
+    } else if (cmd == "cleanup") {
+      std::printf("cleanup %s\n", name_of(c->on_cleanup(state)));
+    } else if (cmd == "error") {
+      std::printf("error %s\n", name_of(c->on_error(state)));
     } else if (cmd == "reason") {
       std::printf("reason %s\n", c->fault_reason().c_str());
     } else if (cmd == "deactivate") {

@@ -240,9 +240,24 @@ def ros2_package(prepared, robot, *, name: str | None = None,
         f"ros2/include/{package}/exported_law_controller.hpp": render(
             "ros2/exported_law_controller.hpp", **common),
         "ros2/src/exported_law_controller.cpp": render("ros2/exported_law_controller.cpp",
-                                                        **common),
+                                                       **common),
+        f"ros2/launch/{package}.launch.py": render("ros2/launch.py.in", **common,
+                                                   joints=", ".join(joints)),
+        "ros2/config/ros2_control.xml": render("ros2/ros2_control.xml", **common,
+                                               command=command, joint_blocks="".join(
+                                                   _JOINT_BLOCK.format(name=_xml(j))
+                                                   for j in joints)),
     }
     return files
+
+
+#: One joint of the <ros2_control> block (config/ros2_control.xml).
+_JOINT_BLOCK = """  <joint name="{name}">
+    <command_interface name="effort"/>
+    <state_interface name="position"/>
+    <state_interface name="velocity"/>
+  </joint>
+"""
 
 
 def _xml(text: str) -> str:

@@ -282,6 +282,22 @@ CallbackReturn ExportedLawController::on_deactivate(const rclcpp_lifecycle::Stat
   return CallbackReturn::SUCCESS;
 }
 
+CallbackReturn ExportedLawController::on_cleanup(const rclcpp_lifecycle::State &)
+{
+  subscription_.reset();  // the joints (declared in on_init) stay; configure reads them again
+  fault_ = Fault::NONE;
+  reason_[0] = '\0';
+  return CallbackReturn::SUCCESS;
+}
+
+CallbackReturn ExportedLawController::on_error(const rclcpp_lifecycle::State & previous_state)
+{
+  for (auto & c : command_interfaces_) (void)write_value(c, 0.0);
+  RCLCPP_ERROR(get_node()->get_logger(), "transition failed: zero effort, back to unconfigured%s%s",
+               fault_ != Fault::NONE ? "; latched fault: " : "", reason_);
+  return on_cleanup(previous_state);
+}
+
 void ExportedLawController::latch(Fault f, const char * fmt, ...)
 {
   if (fault_ != Fault::NONE) return;  // the first reason is kept

@@ -64,6 +64,13 @@ public:
     const rclcpp_lifecycle::State & previous_state) override;
   controller_interface::CallbackReturn on_deactivate(
     const rclcpp_lifecycle::State & previous_state) override;
+  /// Back to unconfigured: the subscription and the configured values are dropped.
+  controller_interface::CallbackReturn on_cleanup(
+    const rclcpp_lifecycle::State & previous_state) override;
+  /// A transition failed: zero effort on the interfaces still held, the fault logged, then
+  /// as on_cleanup.
+  controller_interface::CallbackReturn on_error(
+    const rclcpp_lifecycle::State & previous_state) override;
   controller_interface::return_type update(
     const rclcpp::Time & time, const rclcpp::Duration & period) override;
 
