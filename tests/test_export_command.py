@@ -44,39 +44,42 @@ CASES = [("fl", False, "full"), ("fl", False, "no-gravity"),
          ("hinf", True, "no-gravity-no-friction")]
 
 
-def _compile(folder: Path) -> Path:
-    objs = []
-    for f in ("controller.c", "dynamics.c", "codegen_rrr.c"):
-        obj = folder / (f + ".o")
-        subprocess.run([CC, "-std=c99", "-pedantic", *WARN, "-O2", "-fPIC", "-c",
-                        str(folder / f), "-o", str(obj)], check=True, capture_output=True,
-                       text=True)
-        objs.append(str(obj))
+def _object(folder: Path, f: str) -> str:
+    obj = folder / (f + ".o")
+    subprocess.run([CC, "-std=c99", "-pedantic", *WARN, "-O1", "-fPIC", "-c", str(folder / f),
+                    "-o", str(obj)], check=True, capture_output=True, text=True)
+    return str(obj)
+
+
+def _compile(folder: Path, dynamics: list) -> Path:
+    """The folder's controller.c linked with the RRR's dynamics objects (the same generated
+    C in every RRR export, compiled once: the largest file)."""
+    if not dynamics:
+        dynamics += [_object(folder, f) for f in ("dynamics.c", "codegen_rrr.c")]
     lib = folder / "libdirect.so"
-    subprocess.run([CC, "-shared", "-o", str(lib), *objs, "-lm"], check=True)
+    subprocess.run([CC, "-shared", "-o", str(lib), _object(folder, "controller.c"), *dynamics,
+                    "-lm"], check=True)
     return lib
 
 
-def _law(name, friction, robot):
+def _law(name, friction, robot, paper):
     kwargs = {"friction": FRICTION} if friction else {}
     if name in ("hinf", "hinf_aw"):
-        from rrr_pin.robust.loopshaping import design
-
-        kwargs["K"] = design(lam=45.0, n=robot.nq).K_reduced
+        kwargs["K"] = paper.K_reduced  # the paper's design, lam = 45 rad/s (session fixture)
     return make_law(name, robot, **kwargs)
 
 
 @pytest.fixture(scope="module")
-def compiled(tmp_path_factory, rrr):
+def compiled(tmp_path_factory, rrr, paper):
     """Every case of :data:`CASES` on the RRR at 1 kHz, compiled directly."""
     if CC is None:
         pytest.skip("no C compiler")
-    out = {}
+    out, dynamics = {}, []
     for name, friction, command in CASES:
         folder = tmp_path_factory.mktemp(f"{name}-{friction}-{command}")
-        ex = export_law(_law(name, friction, rrr), rrr, RATE, folder, command=command,
+        ex = export_law(_law(name, friction, rrr, paper), rrr, RATE, folder, command=command,
                         overwrite=True)
-        out[name, friction, command] = ex, exported_law(folder, _compile(folder))
+        out[name, friction, command] = ex, exported_law(folder, _compile(folder, dynamics))
     return out
 
 
@@ -177,7 +180,7 @@ def test_dyngen_dynamics_carry_the_armature(tmp_path, rrr):
     for f in ("controller.c", "dynamics.c", "dyn_model.c"):
         obj = tmp_path / "arm" / (f + ".o")
         subprocess.run([CC, "-std=c99", "-pedantic", *WARN, "-Wno-unknown-pragmas",
-                        "-ffp-contract=off", "-O1", "-fPIC", "-c", str(tmp_path / "arm" / f),
+                        "-ffp-contract=off", "-O0", "-fPIC", "-c", str(tmp_path / "arm" / f),
                         "-o", str(obj)], check=True, capture_output=True, text=True)
         objs.append(str(obj))
     lib = tmp_path / "arm" / "lib.so"

@@ -395,6 +395,40 @@ def test_arm_package_builds_without_a_python_environment(tmp_path, arm):
     assert "RPATH" not in dynamic and "RUNPATH" not in dynamic
     doc = yaml.safe_load((folder / "ros2" / "config" / f"{name}.yaml").read_text())
     assert doc[name]["ros__parameters"]["command"] == "no-gravity"
+    # the plugin's update() (stub driver) against the C law and the Python law minus G
+    objs = []
+    for f in ("controller.c", "dynamics.c", "dyn_model.c"):
+        obj = folder / (f + ".o")
+        subprocess.run([CC, "-std=c99", "-O1", "-fPIC", "-ffp-contract=off", "-c",
+                        str(folder / f), "-o", str(obj)], check=True, env=env)
+        objs.append(str(obj))
+    exe = folder / "drive"
+    subprocess.run([CXX, "-std=c++17", *WARN, f"-DRRR_PIN_PACKAGE={name}", "-O1",
+                    f"-I{STUBS}", f"-I{folder}", f"-I{folder / 'ros2' / 'include'}",
+                    str(folder / "ros2" / "src" / "exported_law_controller.cpp"),
+                    str(STUBS / "drive_controller.cpp"), *objs, "-o", str(exe), "-lm"],
+                   check=True, env=env)
+    lib = folder / "libdirect.so"
+    subprocess.run([CC, "-shared", "-o", str(lib), *objs, "-lm"], check=True, env=env)
+    c_law = exported_law(folder, lib)
+    rng = np.random.default_rng(47)
+    q0 = np.clip(robot.neutral(), robot.lower + 0.1, robot.upper - 0.1)  # inside the limits
+    q = q0 + rng.uniform(-0.05, 0.05, robot.nq)
+    qd = rng.uniform(-0.5, 0.5, robot.nq)
+    # no clipping: the law's own torque (the arm's effort limits would clip FL's at 0.05 rad)
+    out, _ = _drive(exe, [*_params(folder, torque_limit=[1e12] * robot.nq), "init", "configure",
+                          f"activate {_vec(q0)} {_vec(np.zeros(robot.nq))}",
+                          f"update {TS!r} {_vec(q)} {_vec(qd)}"])
+    tau, fault, _ = _updates(out)
+    assert fault == [NONE]
+    # the reference held at q0 (activation), zero velocity and acceleration
+    zero = np.zeros(robot.nq)
+    tau_c, _ = c_law.step(0.0, q, qd, q0, zero, zero, np.zeros(0))
+    assert_allclose(tau[0], tau_c, rtol=0, atol=0)  # the plugin runs the C law, bit for bit
+    tau_py, _ = ex.law.step(0.0, q, qd, q0, zero, zero, np.zeros(0))
+    G = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
+    # generated C vs Pinocchio, torques of tens of N m: round-off far below 1e-12 relative
+    assert_allclose(tau[0], tau_py - G, rtol=1e-12, atol=1e-12)
 
 
 def test_cli_export_ros2(tmp_path, capsys):
