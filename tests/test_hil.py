@@ -17,6 +17,7 @@ from numpy.testing import assert_allclose
 from rrr_pin import default_reference, load_robot, simulate
 from rrr_pin import export as export_law
 from rrr_pin.cli import main
+from rrr_pin.control.effects import PlantEffects
 from rrr_pin.deploy.hil import hil
 from rrr_pin.validation import FieldError
 
@@ -100,11 +101,10 @@ def test_a_rate_the_loop_cannot_meet_is_refused(exported, tmp_path):
 
 def test_a_delay_that_breaks_the_law_diverges_as_the_offline_replay(exported, tmp_path):
     """20 ms of transport delay: the loop diverges, in hil as offline and in rrr_pin.simulate."""
-    from rrr_pin.control.effects import PlantEffects
     from rrr_pin.sim.trajectory import SimulationDiverged
 
     ex, folder, robot = exported
-    res = hil(folder, 400, tmp_path / "d", rate=10_000.0, delay=0.02)
+    res = hil(folder, 400, tmp_path / "d", rate=10_000.0, effects=PlantEffects(delay=0.02))
     assert res.summary["status"] == "diverged"
     # the replay of the real-time run's missed deadlines diverges with it, bit for bit (hil
     # checks the cycle); with no deadline missed, that replay is the offline loop
@@ -127,7 +127,7 @@ def test_a_delay_that_breaks_the_law_diverges_as_the_offline_replay(exported, tm
 def test_delay_off_the_law_grid_is_refused(exported, tmp_path):
     _, folder, _ = exported
     with pytest.raises(FieldError, match=r"delay"):
-        hil(folder, 10, tmp_path / "x", delay=0.0015)
+        hil(folder, 10, tmp_path / "x", effects=PlantEffects(delay=0.0015))
 
 
 def _copy(folder, tmp_path):
@@ -244,3 +244,24 @@ def test_a_second_hil_of_the_model_reuses_its_build(exported, tmp_path):
     # CPU issue 47 allows (measured 1.5 s for a Panda with another law, load average 20)
     assert os.stat(root / "build" / "rrr_pin_hil").st_mtime_ns == stamp
     assert cpu() - before < 5.0
+
+
+def test_actuator_and_friction_as_the_engines(exported, tmp_path, capsys):
+    """An actuator of 200 rad/s and joint friction: hil's arm is rrr_pin.simulate's."""
+    ex, folder, robot = exported
+    fx = PlantEffects(bandwidth=200.0, viscous=(0.4, 0.3, 0.2), coulomb=0.5,
+                      coulomb_velocity=0.05)
+    res = hil(folder, 1000, tmp_path / "fx", rate=10_000.0, effects=fx)
+    ref = default_reference(robot)
+    r0, rd0, _ = ref(0.0)
+    traj = simulate(robot, ex.law, ref, 1.0, q0=r0, qd0=rd0, engine="python", dt=1e-3,
+                    effects=fx)
+    # the same RK4 stages and effects, two dynamics implementations (generated C vs
+    # Pinocchio's ABA): round-off, below 1e-9 rad over 1000 periods
+    assert_allclose(res.q_offline[:1000], traj.q[:1000], rtol=0, atol=1e-9)
+    assert res.run["effects"]["bandwidth_rad_s"] == 200.0
+    assert main(["hil", str(folder), "--cycles", "10", "--rate", "2000", "--friction",
+                 "viscous=1/2", "--out", str(tmp_path / "bad")]) == 2
+    assert "--friction viscous=1/2: 2 values" in capsys.readouterr().err
+    with pytest.raises(FieldError, match=r"noise_q: hil's simulated arm realizes the delay"):
+        hil(folder, 10, tmp_path / "n", effects=PlantEffects(noise_q=1e-3))

@@ -25,9 +25,15 @@ def add(sub) -> None:
                         "advances one law period per cycle, so a faster clock runs the same "
                         "loop faster than real time)")
     p.add_argument("--delay", type=float, default=0.0, metavar="S",
-                   help="transport delay between the torque written and the joints [s], a "
-                        "whole number of law periods (default 0); a loop that diverges ends "
-                        "with status 'diverged' and its time in hil.json (exit 0)")
+                   help="plant effect: transport delay between the torque written and the "
+                        "joints [s], a whole number of law periods (default 0); a loop that "
+                        "diverges ends with status 'diverged' and its time in hil.json (exit 0)")
+    p.add_argument("--actuator-bandwidth", type=float, default=None, metavar="RAD_S",
+                   help="plant effect: first-order actuator wa/(s + wa), wa [rad/s]")
+    p.add_argument("--friction", metavar="viscous=V,coulomb=C[,smooth=S]", default=None,
+                   help="plant effect: joint friction Fv qd + Fc tanh(qd / S) opposing the "
+                        "motion, as montecarlo spells it (one value or one per joint separated "
+                        "by '/')")
     p.add_argument("--out", default="hil", metavar="DIR", help="output folder (hil/)")
     add_overwrite(p)
     p.set_defaults(func=run_hil)
@@ -35,10 +41,18 @@ def add(sub) -> None:
 
 def run_hil(args) -> int:
     """Run the loop and print its figures."""
+    from ..control.effects import PlantEffects
     from ..deploy.hil import hil
+    from ..deploy.writer import read_record
+    from .build import friction_spec
+    from .common import as_options
 
-    res = hil(args.folder, args.cycles, args.out, rate=args.rate, delay=args.delay,
-              overwrite=args.overwrite)
+    n = int(read_record(args.folder)["nq"])
+    with as_options():
+        effects = PlantEffects(delay=args.delay, bandwidth=args.actuator_bandwidth,
+                               **friction_spec(args.friction, n))
+        res = hil(args.folder, args.cycles, args.out, rate=args.rate, effects=effects,
+                  overwrite=args.overwrite)
     s, r = res.summary, res.run
     lat = s["latency_us"]
     print(f"{r['model']}: {r['law']} at {r['clock_rate_hz']:g} Hz ({s['cycles']} cycles, law "

@@ -271,7 +271,7 @@ def _loadavg() -> list[float] | None:
         return None
 
 
-def hil(folder, cycles: int, out, *, rate: float | None = None, delay: float = 0.0,
+def hil(folder, cycles: int, out, *, rate: float | None = None, effects=None,
         overwrite: bool = False) -> HilResult:
     """Run an exported controller in real time against its nominal arm; write ``hil.json``.
 
@@ -288,11 +288,13 @@ def hil(folder, cycles: int, out, *, rate: float | None = None, delay: float = 0
         The harness's clock [Hz]; default the law's own rate (``rate_hz`` of
         ``controller.json``). The arm always advances one law period ``Ts`` a cycle: a faster
         clock runs the same closed loop faster than real time (recorded in ``hil_run.json``).
-    delay : float, default 0
-        Transport delay [s] between the torque written and the joints, a whole number of law
-        periods (as :class:`rrr_pin.control.effects.PlantEffects` realizes it; refused
-        otherwise). A loop that diverges (the engines' test) stops there: ``hil.json``
-        ``"status": "diverged"`` and ``"diverged_at_s"``.
+    effects : PlantEffects, optional
+        The simulated arm's effects (:class:`rrr_pin.control.effects.PlantEffects`), realized
+        as the engines do with one RK4 step per law period: ``delay`` (a whole number of law
+        periods), ``bandwidth`` (first-order actuator), ``viscous``/``coulomb`` friction. The
+        others (torque limit, noise, encoder, flexible joints) are refused by name. A loop that
+        diverges (the engines' test) stops there: ``hil.json`` ``"status": "diverged"`` and
+        ``"diverged_at_s"``.
     overwrite : bool, default False
         Replace a previous ``hil`` run in ``out``.
 
@@ -311,28 +313,44 @@ def hil(folder, cycles: int, out, *, rate: float | None = None, delay: float = 0
     RuntimeError
         The build or the harness failed.
     """
+    from ..control.effects import PlantEffects
     from ..sim.trajectory import VELOCITY_LIMIT
-    from ..validation import check_multiple
 
     folder = Path(folder)
     cycles = check_count("cycles", cycles, 1, MAX_CYCLES)
     record = check_export(folder)
     law_rate = float(record["rate_hz"])
     rate = law_rate if rate is None else check_rate("rate", rate)
-    d = check_multiple("delay", delay, 1.0 / law_rate, unit="s", step_name="law periods")
     robot = _robot(record, folder)
+    effects = PlantEffects() if effects is None else effects
+    if not isinstance(effects, PlantEffects):
+        raise TypeError(f"effects must be a PlantEffects, got {type(effects).__name__}")
+    fx = effects.resolve(robot, 1, 1.0 / law_rate, cycles)
+    unsupported = [name for name, on in (
+        ("torque_limit", fx.limit is not None), ("noise_q", fx.noise_q is not None),
+        ("noise_qd", fx.noise_qd is not None), ("encoder_counts", bool(fx.quantum)),
+        ("stiffness", fx.Kf is not None)) if on]
+    if unsupported:
+        raise FieldError(unsupported[0], f"{{name}}: hil's simulated arm realizes the delay, "
+                                         f"the actuator bandwidth and friction only; drop "
+                                         f"{', '.join(unsupported)}")
+    d = fx.delay_steps
+    fv = fx.Fv if fx.Fv is not None else np.zeros(robot.nq)
+    fc = fx.Fc if fx.Fc is not None else np.zeros(robot.nq)
     from ..control.references import default_reference
 
     ref = default_reference(robot)
     r0, rd0, _ = ref(0.0)
     n = int(record["nq"])
-    lines = [f"{cycles} {round(1e9 / rate)} {1.0 / law_rate!r} {d} {VELOCITY_LIMIT!r}"]
+    lines = [f"{cycles} {round(1e9 / rate)} {1.0 / law_rate!r} {d} {VELOCITY_LIMIT!r} "
+             f"{float(fx.wa or 0.0)!r} {float(fx.veps)!r}"]
     for j in range(n):
         lines.append(" ".join(repr(float(v)) for v in (ref.home[j], ref.amp[j], ref.freq[j],
                                                        ref.phase[j], r0[j], rd0[j],
-                                                       robot.lower[j], robot.upper[j])))
+                                                       robot.lower[j], robot.upper[j], fv[j],
+                                                       fc[j])))
     settings = {"folder": str(folder), "cycles": cycles, "rate": rate, "law_rate": law_rate,
-                "delay": delay}
+                "effects": effects.to_dict()}
     with OutputDir.claim(out, "hil", overwrite=overwrite, settings=settings,
                          option="out") as claimed, \
             tempfile.TemporaryDirectory(prefix="rrr-pin-hil-") as tmp:
@@ -387,7 +405,7 @@ def hil(folder, cycles: int, out, *, rate: float | None = None, delay: float = 0
                      "held; a torque written after the next tick is not applied (the "
                      "previous one is held); the drive adds what the torque convention "
                      "removes (ctrl_removed_torque)",
-            "delay_s": d / law_rate, "delay_periods": d,
+            "delay_s": d / law_rate, "delay_periods": d, "effects": fx.info,
             "command": (record.get("command") or {"name": "full"})["name"],
             "offline_diverged_at_s": (None if off_header["diverged"] < 0
                                       else (off_header["diverged"] + 1) / law_rate),

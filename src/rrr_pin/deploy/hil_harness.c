@@ -7,9 +7,11 @@
  *   rrr_pin_hil hil|offline SETTINGS OUT [HOLDS]
  *
  * SETTINGS (text, one number per token): cycles, clock period [ns], law period Ts [s], the
- * transport delay d [law periods] and the velocity bound [rad/s] of the divergence test, then
+ * transport delay d [law periods], the velocity bound [rad/s] of the divergence test, the
+ * actuator bandwidth wa [rad/s] (0: none) and the Coulomb smoothing speed v_eps [rad/s], then
  * per joint home, amp, freq [Hz], phase (the reference r = home + amp sin(2 pi freq t + phase)),
- * q0, qd0, and the joint limits lower, upper [rad] (widened) of the divergence test. OUT (binary): per cycle k the measured q[n] at tick k (the state the law read),
+ * q0, qd0, the joint limits lower, upper [rad] (widened) of the divergence test, and the
+ * friction Fv [N m s/rad], Fc [N m]. OUT (binary): per cycle k the measured q[n] at tick k (the state the law read),
  * the torque applied on [k Ts, (k+1) Ts) tau[n], and in hil mode the int64 nanoseconds
  * wake - deadline, done - deadline (the torque written), step (ctrl_step alone), and the flags
  * missed (torque written after the next tick: the plant held the previous one) and plant_late
@@ -24,6 +26,9 @@
  * the first d cycles, the first command, the loop taken at rest on it as rrr_pin's effects do),
  * plus what a drive adds under the export's torque convention (ctrl_removed_torque: Ghat(q) at
  * every RK4 stage when the command excludes gravity, as a drive compensates continuously).
+ * The plant's effects as rrr_pin.control.effects writes them, in the same order and RK4 stages:
+ * a first-order actuator a' = wa (u - a) (a = u0 at t = 0) and joint friction
+ * Fv qd + Fc tanh(qd / v_eps) opposing the motion.
  * Divergence, as rrr_pin's engines define it: after a cycle's RK4 step, a q or qd not finite,
  * |qd| above the bound or q outside the widened limits; the loop stops there and the header
  * says "diverged K" (the cycle whose step diverged; -1: none).
@@ -64,8 +69,14 @@ typedef struct settings {
     double Ts;
     long delay;
     double vmax;
-    double home[N], amp[N], freq[N], phase[N], q0[N], qd0[N], lower[N], upper[N];
+    double wa;   /* actuator bandwidth [rad/s]; 0: none */
+    double veps; /* Coulomb smoothing speed [rad/s] */
+    int friction;
+    double home[N], amp[N], freq[N], phase[N], q0[N], qd0[N], lower[N], upper[N], fv[N], fc[N];
 } settings;
+
+/* The plant's effects other than the delay, read once (rk4 and acceleration read them). */
+static const settings *fx;
 
 /* End this process when its parent ends (Linux); 0 if the parent is already gone. */
 static int die_with_parent(pid_t parent)
@@ -134,7 +145,11 @@ static void acceleration(const double q[N], const double qd[N], const double tau
     ctrl_dyn_crba(q, a);
     ctrl_dyn_nle(q, qd, h);
     for (i = 0; i < N; ++i) {
-        qdd[i] = tau[i] - h[i];
+        double tj = tau[i];
+        if (fx->friction) { /* the drive train's torque minus friction, then the arm */
+            tj = tj - (fx->fv[i] * qd[i] + fx->fc[i] * tanh(qd[i] / fx->veps));
+        }
+        qdd[i] = tj - h[i];
     }
 #if CTRL_COMMAND_REMOVES_GRAVITY || CTRL_COMMAND_REMOVES_FRICTION
     {
@@ -180,31 +195,47 @@ static void acceleration(const double q[N], const double qd[N], const double tau
     }
 }
 
-/* One classical RK4 step of h with tau held, in the order of rrr_pin's Python engine. */
-static void rk4(double x[N], double v[N], const double tau[N], double h)
+/* One classical RK4 step of h with the command u held, in the order of rrr_pin's Python engine
+ * (rrr_pin.control.effects.PlantEffects.rk4): with an actuator (wa > 0) its output act is a
+ * state integrated with the arm; without, the joints receive u. */
+static void rk4(double x[N], double v[N], double act[N], const double u[N], double h)
 {
     double a1[N], a2[N], a3[N], a4[N], v2[N], v3[N], v4[N], xs[N];
-    double h2 = 0.5 * h, h6 = h / 6.0;
+    double b1[N], b2[N], b3[N], b4[N], as[N];
+    double h2 = 0.5 * h, h6 = h / 6.0, wa = fx->wa;
     int i;
-    acceleration(x, v, tau, a1);
+    const double *t1 = wa > 0.0 ? act : u;
+    for (i = 0; i < N; ++i) {
+        b1[i] = wa > 0.0 ? wa * (u[i] - act[i]) : 0.0;
+    }
+    acceleration(x, v, t1, a1);
     for (i = 0; i < N; ++i) {
         v2[i] = v[i] + h2 * a1[i];
         xs[i] = x[i] + h2 * v[i];
+        as[i] = wa > 0.0 ? act[i] + h2 * b1[i] : u[i];
+        b2[i] = wa > 0.0 ? wa * (u[i] - as[i]) : 0.0;
     }
-    acceleration(xs, v2, tau, a2);
+    acceleration(xs, v2, as, a2);
     for (i = 0; i < N; ++i) {
         v3[i] = v[i] + h2 * a2[i];
         xs[i] = x[i] + h2 * v2[i];
+        as[i] = wa > 0.0 ? act[i] + h2 * b2[i] : u[i];
+        b3[i] = wa > 0.0 ? wa * (u[i] - as[i]) : 0.0;
     }
-    acceleration(xs, v3, tau, a3);
+    acceleration(xs, v3, as, a3);
     for (i = 0; i < N; ++i) {
         v4[i] = v[i] + h * a3[i];
         xs[i] = x[i] + h * v3[i];
+        as[i] = wa > 0.0 ? act[i] + h * b3[i] : u[i];
+        b4[i] = wa > 0.0 ? wa * (u[i] - as[i]) : 0.0;
     }
-    acceleration(xs, v4, tau, a4);
+    acceleration(xs, v4, as, a4);
     for (i = 0; i < N; ++i) {
         x[i] = x[i] + h6 * (v[i] + 2.0 * (v2[i] + v3[i]) + v4[i]);
         v[i] = v[i] + h6 * (a1[i] + 2.0 * (a2[i] + a3[i]) + a4[i]);
+        if (wa > 0.0) {
+            act[i] = act[i] + h6 * (b1[i] + 2.0 * (b2[i] + b3[i]) + b4[i]);
+        }
     }
 }
 
@@ -215,14 +246,18 @@ static int read_settings(const char *path, settings *s)
     if (!f) {
         return 0;
     }
-    ok = fscanf(f, "%ld %ld %lf %ld %lf", &s->cycles, &s->period_ns, &s->Ts, &s->delay,
-                &s->vmax) == 5;
+    ok = fscanf(f, "%ld %ld %lf %ld %lf %lf %lf", &s->cycles, &s->period_ns, &s->Ts,
+                &s->delay, &s->vmax, &s->wa, &s->veps) == 7;
+    s->friction = 0;
     for (i = 0; ok && i < N; ++i) {
-        ok = fscanf(f, "%lf %lf %lf %lf %lf %lf %lf %lf", &s->home[i], &s->amp[i], &s->freq[i],
-                    &s->phase[i], &s->q0[i], &s->qd0[i], &s->lower[i], &s->upper[i]) == 8;
+        ok = fscanf(f, "%lf %lf %lf %lf %lf %lf %lf %lf %lf %lf", &s->home[i], &s->amp[i],
+                    &s->freq[i], &s->phase[i], &s->q0[i], &s->qd0[i], &s->lower[i],
+                    &s->upper[i], &s->fv[i], &s->fc[i]) == 10;
+        s->friction = s->friction || (ok && (s->fv[i] != 0.0 || s->fc[i] != 0.0));
     }
     fclose(f);
-    return ok && s->cycles > 0 && s->period_ns > 0 && s->Ts > 0.0 && s->delay >= 0;
+    return ok && s->cycles > 0 && s->period_ns > 0 && s->Ts > 0.0 && s->delay >= 0
+           && s->wa >= 0.0 && s->veps > 0.0;
 }
 
 /* The divergence test of rrr_pin's engines (rrr_pin.sim.trajectory.diverged_joint). */
@@ -351,7 +386,7 @@ int main(int argc, char **argv)
     settings s;
     shared *sh;
     timing *tm;
-    double *Q, *TAU, x[N], v[N], held[N];
+    double *Q, *TAU, x[N], v[N], held[N], act[N];
     FILE *out;
     long k, missed = 0, diverged_at = -1;
     int i, offline, status = 0, plant_rt = 0;
@@ -395,6 +430,7 @@ int main(int argc, char **argv)
         }
         fclose(f);
     }
+    fx = &s;
     for (i = 0; i < N; ++i) {
         x[i] = s.q0[i];
         v[i] = s.qd0[i];
@@ -424,8 +460,11 @@ int main(int argc, char **argv)
                 for (i = 0; i < N; ++i) {
                     Q[k * N + i] = x[i];
                     TAU[k * N + i] = applied[i];
+                    if (k == 0) {
+                        act[i] = applied[i]; /* the actuator at rest on the first command */
+                    }
                 }
-                rk4(x, v, applied, s.Ts);
+                rk4(x, v, act, applied, s.Ts);
             }
             if (diverged(&s, x, v)) {
                 diverged_at = k;
@@ -480,8 +519,11 @@ int main(int argc, char **argv)
                 const double *applied = line_push(&s, k, held);
                 for (i = 0; i < N; ++i) {
                     TAU[k * N + i] = applied[i];
+                    if (k == 0) {
+                        act[i] = applied[i]; /* the actuator at rest on the first command */
+                    }
                 }
-                rk4(x, v, applied, s.Ts);
+                rk4(x, v, act, applied, s.Ts);
             }
             if (diverged(&s, x, v)) {
                 diverged_at = k;
