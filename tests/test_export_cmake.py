@@ -79,7 +79,9 @@ def _torque_at_rest(ex, robot) -> np.ndarray:
 def _build_both_ways(robot_name: str, law: str, tmp_path: Path):
     robot = load_robot(robot_name)
     folder = tmp_path / "export"
-    ex = export_law(law, robot, 1000.0, folder)
+    # the Pinocchio C++ path (a chain of RX/RY/RZ joints exports generated C by default)
+    ex = export_law(law, robot, 1000.0, folder,
+                    dynamics="generated" if robot_name == "rrr" else "pinocchio")
     _cmake("-S", folder, "-B", tmp_path / "plain")
     _cmake("--build", tmp_path / "plain")
     assert "holding q0" in subprocess.run([str(tmp_path / "plain" / "ctrl_main")],
@@ -102,7 +104,7 @@ def test_ur5_configures_by_add_subdirectory_without_a_venv(tmp_path):
     """The Pinocchio CMake package found by the export's own CMakeLists, targets made global."""
     robot = load_robot("ur5")
     folder = tmp_path / "export"
-    export_law("fl", robot, 1000.0, folder)
+    export_law("fl", robot, 1000.0, folder, dynamics="pinocchio")  # the Pinocchio C++ path
     text = (folder / "CMakeLists.txt").read_text()
     assert f'set(RRR_PIN_PYTHON "{Path(sys.executable).as_posix()}"' in text
     user = _user_project(tmp_path, folder, cxx=True)

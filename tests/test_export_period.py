@@ -280,7 +280,7 @@ def test_ur5_ctrl_step_dt_equals_sample_system_step_by_step(tmp_path):
 
     ur5 = load_robot("ur5")
     law = hinf_fl_controller(ur5, design(lam=45.0, n=6).K_reduced)
-    ex = export_law(law, ur5, RATE, tmp_path / "ur5")
+    ex = export_law(law, ur5, RATE, tmp_path / "ur5", dynamics="pinocchio")
     c_law = exported_law(tmp_path / "ur5", build(tmp_path / "ur5"))
     rng = np.random.default_rng(5)
     x_c = x_py = c_law.initial_state()

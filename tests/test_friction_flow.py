@@ -338,7 +338,7 @@ def test_exported_compensation_on_pinocchio_dynamics_equals_python(ur5, tmp_path
 
     f = JointFriction((0.3,) * 6, (0.5,) * 6, 0.05)
     ex = export_law(hinf_fl_controller(ur5, design_for(6).K_reduced, friction=f), ur5, RATE,
-                    tmp_path / "ur5")
+                    tmp_path / "ur5", dynamics="pinocchio")
     assert ex.dynamics == "pinocchio"
     c_law = exported_law(tmp_path / "ur5", build(tmp_path / "ur5"))
     _assert_steps_equal(ex.law, c_law, 6, 1000, seed=5)

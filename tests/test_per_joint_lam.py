@@ -137,7 +137,7 @@ def test_ros2_package_takes_lam_as_a_list(rrr, paper_K, tmp_path):
         pytest.skip("no C/C++ compiler")
     folder = tmp_path / "e"
     ex = export_law(TrackingController(rrr, LAMS, paper_K, name="pj"), rrr, RATE, folder)
-    write_ros2_package(ex, rrr, folder)
+    write_ros2_package(ex, rrr, folder, name="rrr_pin_controller")  # the stub driver's default
     doc = yaml.safe_load((folder / "ros2" / "config" / "rrr_pin_controller.yaml").read_text())
     assert doc["rrr_pin_controller"]["ros__parameters"]["lam"] == list(LAMS)
     objs = []

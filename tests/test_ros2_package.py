@@ -32,7 +32,10 @@ WARN = ["-Wall", "-Wextra", "-Werror"]
 RATE = 1000.0
 TS = 1.0 / RATE
 
-#: The fault codes of rrr_pin_controller::Fault.
+#: The package name by default: <arm>_<law>_controller.
+PKG = "rrr_hinf_controller"
+
+#: The fault codes of <package>::Fault.
 NONE, PERIOD, STATE, REF_SIZE, REF_VALUE = 0, 1, 2, 3, 4
 
 
@@ -57,7 +60,8 @@ def package(tmp_path_factory):
     for api, flags in (("jazzy", []), ("humble", ["-DRRR_PIN_STUB_HUMBLE"])):
         exe = folder / f"drive_{api}"
         done = subprocess.run(
-            [CXX, "-std=c++17", *WARN, *flags, "-O1", f"-I{STUBS}", f"-I{folder}",
+            [CXX, "-std=c++17", *WARN, *flags, f"-DRRR_PIN_PACKAGE={PKG}", "-O1", f"-I{STUBS}",
+             f"-I{folder}",
              f"-I{folder / 'ros2' / 'include'}",
              str(folder / "ros2" / "src" / "exported_law_controller.cpp"),
              str(STUBS / "drive_controller.cpp"), *objs, "-o", str(exe), "-lm"],
@@ -68,9 +72,10 @@ def package(tmp_path_factory):
 
 
 def _params(folder: Path, **changes) -> list[str]:
-    """The YAML's ``rrr_pin_controller`` parameters as driver lines, with ``changes``."""
-    doc = yaml.safe_load((folder / "ros2" / "config" / "rrr_pin_controller.yaml").read_text())
-    params = dict(doc["rrr_pin_controller"]["ros__parameters"], **changes)
+    """The YAML's controller parameters as driver lines, with ``changes``."""
+    (path,) = (folder / "ros2" / "config").glob("*_controller.yaml")
+    doc = yaml.safe_load(path.read_text())
+    params = dict(doc[path.stem]["ros__parameters"], **changes)
     lines = []
     for name, v in params.items():
         if v is None:
@@ -100,10 +105,12 @@ def _updates(out: list[str]):
     """(tau rows, fault codes, periods used) of the driver's ``update`` answers."""
     rows = [line.split() for line in out if line.startswith("update ")]
     assert all(r[1] == "OK" for r in rows)
-    n = (len(rows[0]) - 6)
+    n = len(rows[0]) - 8  # "update OK" tau[n] "fault" code period clipped "allocations" k
     tau = np.array([[float(x) for x in r[2:2 + n]] for r in rows])
     fault = [int(r[3 + n]) for r in rows]
     period = np.array([float(r[4 + n]) for r in rows])
+    # the stub counts C++ allocations during each update(): a real-time thread makes none
+    assert all(r[6 + n] == "allocations" and r[7 + n] == "0" for r in rows), rows
     return tau, fault, period
 
 
@@ -116,16 +123,19 @@ def _started(folder, **changes) -> list[str]:
 def test_package_files(package):
     ex, robot, folder, _, _ = package
     xml = (folder / "ros2" / "package.xml").read_text()
-    assert "<name>rrr_pin_controller</name>" in xml and "<depend>realtime_tools</depend>" in xml
+    assert f"<name>{PKG}</name>" in xml and "<depend>realtime_tools</depend>" in xml
+    # generated dynamics: no Pinocchio to depend on; a placeholder maintainer that cannot exist
+    assert "<depend>pinocchio</depend>" not in xml and "@rrr-pin.invalid" in xml
     cmake = (folder / "ros2" / "CMakeLists.txt").read_text()
-    assert ("pluginlib_export_plugin_description_file(controller_interface "
-            "rrr_pin_controller.xml)") in cmake
-    plugin = (folder / "ros2" / "rrr_pin_controller.xml").read_text()
-    assert 'type="rrr_pin_controller::ExportedLawController"' in plugin
+    assert f"pluginlib_export_plugin_description_file(controller_interface {PKG}.xml)" in cmake
+    assert "RPATH" not in cmake and "if(ON)\n  if(RRR_PIN_RELEASE)" in cmake
+    plugin = (folder / "ros2" / f"{PKG}.xml").read_text()
+    assert f'type="{PKG}::ExportedLawController"' in plugin
     assert 'base_class_type="controller_interface::ControllerInterface"' in plugin
-    doc = yaml.safe_load((folder / "ros2" / "config" / "rrr_pin_controller.yaml").read_text())
+    doc = yaml.safe_load((folder / "ros2" / "config" / f"{PKG}.yaml").read_text())
     assert doc["controller_manager"]["ros__parameters"]["update_rate"] == 1000
-    p = doc["rrr_pin_controller"]["ros__parameters"]
+    p = doc[PKG]["ros__parameters"]
+    assert p["command"] == "full"
     assert p["joints"] == list(robot.joint_names) and p["rate_hz"] == RATE
     assert p["period_tolerance"] == PERIOD_TOLERANCE and p["lam"] == ex.form.lam
     assert p["torque_limit"] == robot.model.effortLimit.tolist()
@@ -213,14 +223,14 @@ def _gravity(robot, q):
 
 def _assert_latched_safe_torque(out, err, robot, q, code, reason):
     """Updates good, faulty, good: the fault ``code`` latches, the safe torque (gravity
-    compensation, by Pinocchio) is written on the faulty update and after, the reason and the
-    log line say so. Returns the three torques."""
+    compensation, by Pinocchio) is written on the faulty update and after, the reason says so
+    and nothing is logged from update(). Returns the three torques."""
     tau, fault, _ = _updates(out)
     assert fault == [NONE, code, code]  # latched: a good update does not clear it
     assert_allclose(tau[1], _gravity(robot, q), rtol=1e-12)
     assert_allclose(tau[2], _gravity(robot, q), rtol=1e-12)
     assert reason in next(line for line in out if line.startswith("reason "))
-    assert "fault, safe torque (gravity compensation)" in err
+    assert err == ""  # nothing logged from update(), the real-time thread (issue 47)
     return tau
 
 
@@ -296,7 +306,10 @@ def test_reference_and_state_not_finite(package):
     ({"period_tolerance": 1.5}, "period_tolerance = 1.5: must be in (0, 1)"),
     ({"torque_limit": [1.0, 2.0]}, "torque_limit: 2 entries, expected 3"),
     ({"fault_torque": "hold"}, "fault_torque = 'hold': 'gravity' or 'zero'"),
-], ids=["missing joint", "extra joint", "order", "rate", "gain", "band", "limits", "hold"])
+    ({"command": "no-gravity"}, "command = 'no-gravity': the law was exported for the torque "
+                                "convention 'full'"),
+], ids=["missing joint", "extra joint", "order", "rate", "gain", "band", "limits", "hold",
+        "command"])
 def test_bad_parameters_refused_at_configure(package, changes, message):
     ex, robot, folder, _, drivers = package
     out, err = _drive(drivers["jazzy"], [*_params(folder, **changes), "init", "configure"])
@@ -317,7 +330,7 @@ def test_torque_limit_clips_and_counts(package):
     out, _ = _drive(drivers["jazzy"], [*_started(folder, torque_limit=[5.0, 5.0, 5.0]),
                                        "ref 3 1 1 1 0 0", f"update {TS!r} {_vec(q)} 0 0 0"])
     row = next(line for line in out if line.startswith("update ")).split()
-    assert [float(v) for v in row[2:5]] == [5.0, 5.0, 5.0] and row[-1] == "1"
+    assert [float(v) for v in row[2:5]] == [5.0, 5.0, 5.0] and row[-3] == "1"
 
 
 def test_deactivate_writes_zero(package):
@@ -332,21 +345,21 @@ STUB_PACKAGES = ("ament_cmake", "controller_interface", "hardware_interface", "p
                  "rclcpp", "rclcpp_lifecycle", "realtime_tools", "trajectory_msgs")
 
 
-def _build_package(folder: Path, tmp_path: Path) -> Path:
+def _build_package(folder: Path, tmp_path: Path, name: str = PKG, env=None) -> Path:
     """Configure and build ``folder/ros2`` with the stub packages; return the build folder."""
     cmake = shutil.which("cmake")
     if cmake is None:
         pytest.skip("no cmake")
-    stubs = [f"-D{name}_DIR={STUBS / 'cmake'}" for name in STUB_PACKAGES]
+    stubs = [f"-D{pkg}_DIR={STUBS / 'cmake'}" for pkg in STUB_PACKAGES]
     build = tmp_path / "build"
     log = subprocess.run([cmake, "-S", str(folder / "ros2"), "-B", str(build), *stubs,
                           "-DCMAKE_CXX_FLAGS=-Werror"], capture_output=True, text=True,
-                         check=True).stdout
-    assert "STUB pluginlib: controller_interface plugins in rrr_pin_controller.xml" in log
+                         check=True, env=env).stdout
+    assert f"STUB pluginlib: controller_interface plugins in {name}.xml" in log
     done = subprocess.run([cmake, "--build", str(build)], capture_output=True, text=True,
-                          check=False)
+                          check=False, env=env)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    assert (build / "librrr_pin_controller.so").is_file()
+    assert (build / f"lib{name}.so").is_file()
     assert not (build / "rrr_pin_ctrl" / "ctrl_main").exists()  # EXCLUDE_FROM_ALL: not built
     return build
 
@@ -357,24 +370,73 @@ def test_package_cmake_builds_the_plugin_against_stub_packages(package, tmp_path
 
 
 @pytest.mark.slow
-def test_ur5_package_builds_with_pinocchio_dynamics(tmp_path):
-    """UR5: the law's Pinocchio C++ pulled in by add_subdirectory, linked into the plugin."""
-    robot = load_robot("ur5")
-    folder = tmp_path / "ur5"
-    ex = export_law("fl", robot, RATE, folder)
+@pytest.mark.parametrize("arm", ["ur5", "panda"])
+def test_arm_package_builds_without_a_python_environment(tmp_path, arm):
+    """UR5, Panda with --command no-gravity: the package builds with PATH=/usr/bin:/bin.
+
+    No Python environment on PATH or the library path, the stub workspace's packages only; the
+    plugin links no Pinocchio (the arm's dynamics are generated C) and carries no RPATH.
+    """
+    import os
+
+    robot = load_robot(arm)
+    folder = tmp_path / arm
+    ex = export_law("fl", robot, RATE, folder, command="no-gravity")
     write_ros2_package(ex, robot, folder)
-    build = _build_package(folder, tmp_path)
-    needed = subprocess.run(["ldd", str(build / "librrr_pin_controller.so")],
-                            capture_output=True, text=True, check=True).stdout
-    assert "libpinocchio_default" in needed and "not found" not in needed
+    name = f"{arm}_fl_controller"
+    env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/tmp")}
+    build = _build_package(folder, tmp_path, name, env=env)
+    lib = build / f"lib{name}.so"
+    needed = subprocess.run(["ldd", str(lib)], capture_output=True, text=True, check=True,
+                            env=env).stdout
+    assert "pinocchio" not in needed and "not found" not in needed
+    dynamic = subprocess.run(["readelf", "-d", str(lib)], capture_output=True, text=True,
+                             check=True, env=env).stdout
+    assert "RPATH" not in dynamic and "RUNPATH" not in dynamic
+    doc = yaml.safe_load((folder / "ros2" / "config" / f"{name}.yaml").read_text())
+    assert doc[name]["ros__parameters"]["command"] == "no-gravity"
+    # the plugin's update() (stub driver) against the C law and the Python law minus G
+    objs = []
+    for f in ("controller.c", "dynamics.c", "dyn_model.c"):
+        obj = folder / (f + ".o")
+        subprocess.run([CC, "-std=c99", "-O1", "-fPIC", "-ffp-contract=off", "-c",
+                        str(folder / f), "-o", str(obj)], check=True, env=env)
+        objs.append(str(obj))
+    exe = folder / "drive"
+    subprocess.run([CXX, "-std=c++17", *WARN, f"-DRRR_PIN_PACKAGE={name}", "-O1",
+                    f"-I{STUBS}", f"-I{folder}", f"-I{folder / 'ros2' / 'include'}",
+                    str(folder / "ros2" / "src" / "exported_law_controller.cpp"),
+                    str(STUBS / "drive_controller.cpp"), *objs, "-o", str(exe), "-lm"],
+                   check=True, env=env)
+    lib = folder / "libdirect.so"
+    subprocess.run([CC, "-shared", "-o", str(lib), *objs, "-lm"], check=True, env=env)
+    c_law = exported_law(folder, lib)
+    rng = np.random.default_rng(47)
+    q0 = np.clip(robot.neutral(), robot.lower + 0.1, robot.upper - 0.1)  # inside the limits
+    q = q0 + rng.uniform(-0.05, 0.05, robot.nq)
+    qd = rng.uniform(-0.5, 0.5, robot.nq)
+    # no clipping: the law's own torque (the arm's effort limits would clip FL's at 0.05 rad)
+    out, _ = _drive(exe, [*_params(folder, torque_limit=[1e12] * robot.nq), "init", "configure",
+                          f"activate {_vec(q0)} {_vec(np.zeros(robot.nq))}",
+                          f"update {TS!r} {_vec(q)} {_vec(qd)}"])
+    tau, fault, _ = _updates(out)
+    assert fault == [NONE]
+    # the reference held at q0 (activation), zero velocity and acceleration
+    zero = np.zeros(robot.nq)
+    tau_c, _ = c_law.step(0.0, q, qd, q0, zero, zero, np.zeros(0))
+    assert_allclose(tau[0], tau_c, rtol=0, atol=0)  # the plugin runs the C law, bit for bit
+    tau_py, _ = ex.law.step(0.0, q, qd, q0, zero, zero, np.zeros(0))
+    G = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
+    # generated C vs Pinocchio, torques of tens of N m: round-off far below 1e-12 relative
+    assert_allclose(tau[0], tau_py - G, rtol=1e-12, atol=1e-12)
 
 
 def test_cli_export_ros2(tmp_path, capsys):
     out = tmp_path / "c"
     assert main(["export", "--law", "pd", "--rate", "500", "--out", str(out), "--ros2"]) == 0
     assert "colcon build --paths" in capsys.readouterr().out
-    doc = yaml.safe_load((out / "ros2" / "config" / "rrr_pin_controller.yaml").read_text())
-    p = doc["rrr_pin_controller"]["ros__parameters"]
+    doc = yaml.safe_load((out / "ros2" / "config" / "rrr_pd_controller.yaml").read_text())
+    p = doc["rrr_pd_controller"]["ros__parameters"]
     assert p["rate_hz"] == 500.0 and len(p["kp"]) == 9 and "lam" not in p
 
 
@@ -398,3 +460,102 @@ def test_a_law_that_cannot_run_over_a_measured_period_is_refused(tmp_path, capsy
     prepared = prepare_export(DiscreteTrackingController(robot, 45.0, Kd), robot)
     with pytest.raises(ExportError, match=r"K is discrete as given; dt other than CTRL_PERIOD"):
         ros2_package(prepared, robot)
+
+
+#: The functions update() runs (the real-time thread): none may log or allocate.
+REAL_TIME = ("update", "latch", "safe_torque", "write_command")
+
+#: What logs or may allocate, as written in C++ source.
+FORBIDDEN = ("RCLCPP_", "new ", "malloc", "std::string", "std::vector", "push_back",
+             "emplace_back", "resize", "make_shared", "std::to_string", "get_logger")
+
+
+def _body(text: str, name: str) -> str:
+    """The body of ``ExportedLawController::name`` in the generated .cpp (braces matched)."""
+    start = text.index(f"ExportedLawController::{name}(")
+    i = text.index("{", text.index(")", start))
+    depth = 0
+    for j in range(i, len(text)):
+        depth += {"{": 1, "}": -1}.get(text[j], 0)
+        if depth == 0:
+            return text[i:j + 1]
+    raise AssertionError(f"unbalanced braces in {name}")
+
+
+def test_update_neither_logs_nor_allocates(package):
+    """Scan the real-time path's source (the allocation counter of the stub runs it too)."""
+    folder = package[2]
+    text = (folder / "ros2" / "src" / "exported_law_controller.cpp").read_text()
+    for name in REAL_TIME:
+        body = _body(text, name)
+        found = [word for word in FORBIDDEN if word in body]
+        assert not found, f"{name}() uses {found}"
+
+
+@pytest.mark.parametrize("bad", ["Ur5_controller", "ur5__fl", "1arm", "ur5-fl", "ur5_", "a",
+                                 "namespace"])
+def test_a_package_name_that_is_not_a_ros_name_is_refused(package, tmp_path, capsys, bad):
+    from rrr_pin.validation import FieldError
+
+    ex, robot, _, _, _ = package
+    with pytest.raises(FieldError, match=r"ros2_name = "):
+        write_ros2_package(ex, robot, tmp_path, name=bad)
+    assert main(["export", "--law", "pd", "--rate", "1000", "--ros2", "--ros2-name", bad,
+                 "--out", str(tmp_path / "cli")]) == 2
+    err = capsys.readouterr().err
+    assert "--ros2-name" in err and "Traceback" not in err
+    assert not (tmp_path / "cli" / "controller.c").exists()
+
+
+def test_default_names_and_maintainer(package, tmp_path):
+    from rrr_pin.deploy.ros2 import package_name, ros2_package
+    from rrr_pin.validation import FieldError
+
+    # two exports of one arm with two laws do not collide; any arm name becomes a ROS name
+    assert package_name("ur5", "hinf") == "ur5_hinf_controller"
+    assert package_name("UR5e-left", "hinf") == "ur5e_left_hinf_controller"
+    assert package_name("7dof", "fl") == "arm_7dof_fl_controller"
+    ex, robot, _, _, _ = package
+    files = ros2_package(ex, robot, maintainer="Ada Lovelace <ada@example.org>")
+    xml = files["ros2/package.xml"]
+    assert '<maintainer email="ada@example.org">Ada Lovelace</maintainer>' in xml
+    assert "if(OFF)" in files["ros2/CMakeLists.txt"]  # a real maintainer: releasable
+    with pytest.raises(FieldError, match=r"maintainer = 'ada'"):
+        ros2_package(ex, robot, maintainer="ada")
+
+
+def test_cleanup_and_error_return_to_unconfigured(package):
+    """on_cleanup drops the configuration (configure works again); on_error writes zero effort
+    and says why, from a non-real-time transition."""
+    ex, robot, folder, _, drivers = package
+    q = np.array([0.1, -0.4, 0.7])
+    lines = [*_started(folder), f"update {TS!r} {_vec(q)} 0 0 0", "deactivate", "cleanup",
+             "configure", f"activate {_vec(q)} {_vec(np.zeros(3))}",
+             f"update {TS!r} {_vec(q)} 0 0 0", f"update {1.5 * TS!r} {_vec(q)} 0 0 0",
+             "error"]
+    out, err = _drive(drivers["jazzy"], lines)
+    assert "cleanup SUCCESS" in out and out.count("configure SUCCESS") == 2
+    assert out[-1] == "error SUCCESS"
+    assert "transition failed: zero effort" in err and "latched fault: update period" in err
+
+
+def test_launch_file_and_ros2_control_block(package):
+    """The example launch file is Python that compiles and names the package's own files; the
+    <ros2_control> block gives each exported joint, in order, effort in, position and velocity
+    out (what command_interface_configuration and state_interface_configuration ask for)."""
+    import xml.etree.ElementTree as ET
+
+    ex, robot, folder, _, _ = package
+    launch = (folder / "ros2" / "launch" / f"{PKG}.launch.py").read_text()
+    compile(launch, "launch.py", "exec")  # syntax only: launch_ros is not installed here
+    assert f'FindPackageShare("{PKG}"), "config", "{PKG}.yaml"' in launch
+    block = ET.parse(folder / "ros2" / "config" / "ros2_control.xml").getroot()
+    joints = block.findall("joint")
+    assert [j.get("name") for j in joints] == list(robot.joint_names)
+    for j in joints:
+        assert [c.get("name") for c in j.findall("command_interface")] == ["effort"]
+        assert [c.get("name") for c in j.findall("state_interface")] == ["position", "velocity"]
+    xml = (folder / "ros2" / "package.xml").read_text()
+    assert "<exec_depend>controller_manager</exec_depend>" in xml
+    for path in [*(folder / "ros2").glob("*.xml"), *(folder / "ros2" / "config").glob("*.xml")]:
+        ET.parse(path)  # well-formed (a "--" inside a comment is not: it was, before)

@@ -17,11 +17,34 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <new>
 #include <utility>
 #include <vector>
 
 #include "pluginlib/class_list_macros.hpp"
-#include "rrr_pin_controller/exported_law_controller.hpp"
+// The package under test: -DRRR_PIN_PACKAGE=<name> (its namespace and include folder).
+#ifndef RRR_PIN_PACKAGE
+#define RRR_PIN_PACKAGE rrr_pin_controller
+#endif
+#define RRR_PIN_STR2(x) #x
+#define RRR_PIN_STR(x) RRR_PIN_STR2(x)
+#include RRR_PIN_STR(RRR_PIN_PACKAGE/exported_law_controller.hpp)
+
+// Every C++ allocation of the process, counted (the global operator new replaced): update()
+// must make none (issue 47). malloc called directly from C is not counted.
+#if defined(__GNUC__) && !defined(__clang__)
+// GCC sees the replaced operator new inlined next to std::free and warns; they do match here.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+#endif
+static std::size_t g_allocations = 0;
+void * operator new(std::size_t n)
+{
+  ++g_allocations;
+  if (void * p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void * p) noexcept { std::free(p); }
+void operator delete(void * p, std::size_t) noexcept { std::free(p); }
 
 namespace
 {
@@ -41,9 +64,9 @@ const char * name_of(controller_interface::CallbackReturn r)
 
 int main()
 {
-  using Ctrl = rrr_pin_controller::ExportedLawController;
+  using Ctrl = RRR_PIN_PACKAGE::ExportedLawController;
   auto & registry = rrr_pin_stub::registry<controller_interface::ControllerInterface>();
-  auto made = registry.at("rrr_pin_controller::ExportedLawController")();
+  auto made = registry.at(RRR_PIN_STR(RRR_PIN_PACKAGE) "::ExportedLawController")();
   auto c = std::dynamic_pointer_cast<Ctrl>(made);
   std::vector<std::pair<std::string, rclcpp::ParameterValue>> overrides;
   double hw_state[2 * CTRL_NQ] = {0.0}, hw_command[CTRL_NQ] = {0.0};
@@ -80,7 +103,7 @@ int main()
     } else if (cmd == "init") {
       std::string token;
       const unsigned int rate = (in >> token) ? static_cast<unsigned int>(std::stoul(token)) : 1000u;
-      std::printf("init %s\n", name_of(c->init("rrr_pin_controller", overrides, rate)));
+      std::printf("init %s\n", name_of(c->init(RRR_PIN_STR(RRR_PIN_PACKAGE), overrides, rate)));
     } else if (cmd == "configure") {
       const auto r = c->on_configure(state);
       if (r == controller_interface::CallbackReturn::SUCCESS) {
@@ -111,12 +134,20 @@ int main()
     } else if (cmd == "update") {
       const double period = num(in);
       for (double & v : hw_state) v = num(in);
-      const auto r = c->update(rclcpp::Time(0), rclcpp::Duration::from_nanoseconds(
-                                                  std::llround(period * 1e9)));
+      const rclcpp::Time now(0);
+      const auto dt = rclcpp::Duration::from_nanoseconds(std::llround(period * 1e9));
+      const std::size_t before = g_allocations;
+      const auto r = c->update(now, dt);
+      const std::size_t allocated = g_allocations - before;
       std::printf("update %s", r == controller_interface::return_type::OK ? "OK" : "ERROR");
       for (double v : hw_command) std::printf(" %.17g", v);
-      std::printf(" fault %d %.17g %llu\n", static_cast<int>(c->fault()), c->last_period(),
-                  static_cast<unsigned long long>(c->clipped_periods()));
+      std::printf(" fault %d %.17g %llu allocations %zu\n", static_cast<int>(c->fault()),
+                  c->last_period(), static_cast<unsigned long long>(c->clipped_periods()),
+                  allocated);
+    } else if (cmd == "cleanup") {
+      std::printf("cleanup %s\n", name_of(c->on_cleanup(state)));
+    } else if (cmd == "error") {
+      std::printf("error %s\n", name_of(c->on_error(state)));
     } else if (cmd == "reason") {
       std::printf("reason %s\n", c->fault_reason().c_str());
     } else if (cmd == "deactivate") {

@@ -49,11 +49,23 @@ def add(sub) -> None:
     p.add_argument("--compensate-friction", action="store_true",
                    help="fl, hinf: the exported law adds Fv qd + Fc tanh(qd / S) to its torque "
                         "(recorded in controller.json: law.friction_compensation)")
+    p.add_argument("--command", default="full", choices=("full", "no-gravity",
+                                                          "no-gravity-no-friction"),
+                   help="the drive's torque convention: full (the law's whole torque, "
+                        "default), no-gravity (minus Ghat(q): the drive adds gravity), "
+                        "no-gravity-no-friction (minus the friction compensation too, as "
+                        "libfranka's franka::Torques); recorded in controller.json")
     p.add_argument("--out", default="controller", metavar="DIR",
                    help="output folder (controller/)")
     p.add_argument("--ros2", action="store_true",
                    help="also write DIR/ros2/, a ros2_control controller package (package.xml, "
                         "plugin, parameters YAML); build it with colcon build --paths DIR/ros2")
+    p.add_argument("--ros2-name", default=None, metavar="NAME",
+                   help="with --ros2: the package's name and the plugin's namespace (default "
+                        "<arm>_<law>_controller; a ROS 2 package name, REP 144)")
+    p.add_argument("--maintainer", default=None, metavar="'NAME <EMAIL>'",
+                   help="with --ros2: package.xml's maintainer (default a placeholder the "
+                        "package's CMake refuses to release)")
     add_overwrite(p)
     add_design_argument(p)
     p.set_defaults(func=run_export)
@@ -84,37 +96,46 @@ def run_export(args) -> int:
             make_law(args.law, robot, **({"K": K} if K is not None else {}),
                      **({"friction": friction} if friction is not None else {}))
         prepared = prepare_export(law, robot, args.rate, method=args.method,
-                                  prewarp=args.prewarp, design=d)
+                                  prewarp=args.prewarp, design=d, command=args.command)
     band = 0.0
     if args.ros2:
-        from ..deploy.ros2 import PERIOD_TOLERANCE, check_ros2
+        from ..deploy.ros2 import PERIOD_TOLERANCE
 
         band = PERIOD_TOLERANCE
     check_sampled_loop(law, robot, prepared.rate, method=args.method, prewarp=args.prewarp,
                        band=band)
     if args.ros2:
+        from ..deploy.ros2 import ros2_package
 
-        check_ros2(prepared)  # before any file is written
+        with as_options():  # every check, --ros2-name and --maintainer too, before writing
+            package = ros2_package(prepared, robot, name=args.ros2_name,
+                                   maintainer=args.maintainer)
+    elif args.ros2_name is not None or args.maintainer is not None:
+        raise ValueError("--ros2-name and --maintainer name the ros2_control package: give "
+                         "--ros2 too")
     if out is None:  # --overwrite: the previous export is removed now that the options hold
         out = claim_out(args, "export")
     prepared.write(out)
     if args.ros2:
         from ..deploy.ros2 import write_ros2_package
 
-        write_ros2_package(prepared, robot, out)
+        write_ros2_package(prepared, robot, out, name=args.ros2_name,
+                           maintainer=args.maintainer)
     if design_record(args) is not None:  # which design ran, with its requirement table
         import json
 
         (out / "design.json").write_text(json.dumps(design_record(args), indent=1,
                                                     default=str))
     print(f"{robot.name}: {prepared.law.name} ({prepared.form.kind}, {prepared.law.nx} states) "
-          f"at {prepared.rate:g} Hz, {prepared.dynamics} dynamics")
+          f"at {prepared.rate:g} Hz, {prepared.dynamics} dynamics, command "
+          f"{prepared.command.name}")
     print(f"wrote {out}/: {', '.join(prepared.files)}")
     print(f"build: cmake -S {out} -B {out}/build && cmake --build {out}/build && "
           f"{out}/build/ctrl_main")
     if args.ros2:
-        print(f"ros2_control package: {out}/ros2/ (colcon build --paths {out}/ros2; parameters "
-              f"in {out}/ros2/config/rrr_pin_controller.yaml)")
+        name = next(k for k in package if k.startswith("ros2/config/")).split("/")[-1][:-5]
+        print(f"ros2_control package {name}: {out}/ros2/ (colcon build --paths {out}/ros2; "
+              f"parameters in {out}/ros2/config/{name}.yaml)")
     return 0
 
 

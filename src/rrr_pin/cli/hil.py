@@ -24,6 +24,16 @@ def add(sub) -> None:
                    help="the harness clock [Hz] (default: the law's rate; the arm always "
                         "advances one law period per cycle, so a faster clock runs the same "
                         "loop faster than real time)")
+    p.add_argument("--delay", type=float, default=0.0, metavar="S",
+                   help="plant effect: transport delay between the torque written and the "
+                        "joints [s], a whole number of law periods (default 0); a loop that "
+                        "diverges ends with status 'diverged' and its time in hil.json (exit 0)")
+    p.add_argument("--actuator-bandwidth", type=float, default=None, metavar="RAD_S",
+                   help="plant effect: first-order actuator wa/(s + wa), wa [rad/s]")
+    p.add_argument("--friction", metavar="viscous=V,coulomb=C[,smooth=S]", default=None,
+                   help="plant effect: joint friction Fv qd + Fc tanh(qd / S) opposing the "
+                        "motion, as montecarlo spells it (one value or one per joint separated "
+                        "by '/')")
     p.add_argument("--out", default="hil", metavar="DIR", help="output folder (hil/)")
     add_overwrite(p)
     p.set_defaults(func=run_hil)
@@ -31,9 +41,18 @@ def add(sub) -> None:
 
 def run_hil(args) -> int:
     """Run the loop and print its figures."""
+    from ..control.effects import PlantEffects
     from ..deploy.hil import hil
+    from ..deploy.writer import read_record
+    from .build import friction_spec
+    from .common import as_options
 
-    res = hil(args.folder, args.cycles, args.out, rate=args.rate, overwrite=args.overwrite)
+    n = int(read_record(args.folder)["nq"])
+    with as_options():
+        effects = PlantEffects(delay=args.delay, bandwidth=args.actuator_bandwidth,
+                               **friction_spec(args.friction, n))
+        res = hil(args.folder, args.cycles, args.out, rate=args.rate, effects=effects,
+                  overwrite=args.overwrite)
     s, r = res.summary, res.run
     lat = s["latency_us"]
     print(f"{r['model']}: {r['law']} at {r['clock_rate_hz']:g} Hz ({s['cycles']} cycles, law "
@@ -46,5 +65,8 @@ def run_hil(args) -> int:
     print(f"max |q_hil - q_offline| {s['max_error_vs_offline_rad']:.3g} rad; max tracking "
           f"error {r['max_tracking_error_rad']['hil']:.3g} rad (offline "
           f"{r['max_tracking_error_rad']['offline']:.3g} rad)")
+    if s["status"] == "diverged":
+        print(f"the loop DIVERGED at t = {s['diverged_at_s']:.6g} s (offline: "
+              f"{r['offline_diverged_at_s']} s)")
     print(f"wrote {args.out}/hil.json, {args.out}/hil_run.json")
     return 0

@@ -4,10 +4,11 @@ Holds :mod:`~rrr_pin.deploy.writer` (:func:`~rrr_pin.deploy.writer.export`: a la
 compiled form, sampled, written as a self-contained C99 folder with the model's dynamics,
 CMake and an example), :mod:`~rrr_pin.deploy.ros2` (a ros2_control controller package around
 it), :mod:`~rrr_pin.deploy.hil` (the exported controller in real time against a simulated arm,
-measured), :mod:`~rrr_pin.deploy.sources` (the
-text of each file), :mod:`~rrr_pin.deploy.period` (``ctrl_step_dt``: the law over a measured
-period) and :mod:`~rrr_pin.deploy.loaded` (build the folder, load its library
-by ``ctypes`` as a ``SampledLaw`` that :func:`rrr_pin.simulate` runs against the Python law).
+measured), :mod:`~rrr_pin.deploy.command` (the drive's torque convention, ``--command``),
+:mod:`~rrr_pin.deploy.sources` (the text of each file, filled from ``templates/``),
+:mod:`~rrr_pin.deploy.period` (``ctrl_step_dt``: the law over a measured period) and
+:mod:`~rrr_pin.deploy.loaded` (build the folder, load its library by ``ctypes`` as a
+``SampledLaw`` that :func:`rrr_pin.simulate` runs against the Python law).
 
 The package face names the two entry points as issue 19 does: ``rrr_pin.export(law, robot,
 rate, out)`` and ``rrr_pin.exported_law(folder)``. This subpackage is called ``deploy``, not

@@ -44,7 +44,7 @@ from ..outputs import OutputDir, writing
 from ..validation import FieldError, check_count, check_rate
 from .writer import read_record
 
-__all__ = ["HilResult", "hil", "MAX_CYCLES", "HARNESS"]
+__all__ = ["HilResult", "hil", "check_export", "build_cache", "MAX_CYCLES", "HARNESS"]
 
 #: Largest ``cycles``: the harness keeps every cycle's state, torque and timing in memory
 #: (``(2 n + 4) x 8`` bytes a cycle; 20 million cycles of a 7-joint arm: 2.9 GB).
@@ -78,12 +78,32 @@ class HilResult:
     q_replay: np.ndarray
 
 
-def _robot(record: dict):
-    """Return the arm the export was made for, loaded by its recorded name, fingerprint checked."""
-    from ..model.dynamics import load_robot
+def _robot(record: dict, folder: Path):
+    """Return the arm the export was made for, fingerprint checked.
+
+    The model the export embeds (``model.txt``, Pinocchio's text serialization: a URDF path,
+    an identified arm, any model); an export written before it carried one, by its recorded
+    name.
+    """
+    from ..model.dynamics import Robot, load_robot
     from ..sim.codegen import fingerprint
 
     name = record["model"]["name"]
+    embedded = folder / "model.txt"
+    if embedded.is_file():
+        import pinocchio as pin
+
+        model = pin.Model()
+        try:
+            model.loadFromString(embedded.read_text(encoding="ascii"))
+        except (RuntimeError, ValueError, UnicodeDecodeError) as exc:
+            raise ValueError(f"{embedded} is not a Pinocchio model ({exc}): export again"
+                             ) from None
+        if fingerprint(model) != record["model"]["fingerprint"]:
+            raise ValueError(f"{embedded}: the model's fingerprint {fingerprint(model)[:12]}... "
+                             f"is not controller.json's {record['model']['fingerprint'][:12]}...; "
+                             f"the folder's files come from different exports: export again")
+        return Robot(model, model.createData(), name, f"{embedded} (rrr-pin export)", "")
     try:
         robot = load_robot(name)
     except (ValueError, FileNotFoundError) as exc:
@@ -95,34 +115,119 @@ def _robot(record: dict):
     return robot
 
 
-def _build(folder: Path, work: Path, pinocchio: bool) -> Path:
-    """Build ``hil_harness.c`` against ``folder`` (add_subdirectory); return the executable."""
+#: controller.h's defines and the controller.json keys they must equal.
+_DEFINES = {"CTRL_NQ": ("nq", int), "CTRL_RATE_HZ": ("rate_hz", float),
+            "CTRL_LAW_NAME": ("law.name", str),
+            "CTRL_MODEL_FINGERPRINT": ("model.fingerprint", str),
+            "CTRL_COMMAND": ("command.name", str)}
+
+
+def check_export(folder) -> dict:
+    """Check an export's files against each other before a cycle runs; return its record.
+
+    ``controller.h`` (what the code is compiled with: joints, rate, law, model fingerprint,
+    torque convention) against ``controller.json`` (what ``hil`` reads); the embedded model's
+    fingerprint is checked when it is loaded. An export without a torque convention (written
+    before it existed) is ``full``.
+
+    Raises
+    ------
+    FileNotFoundError
+        No ``controller.json`` or ``controller.h``: not an export.
+    ValueError
+        A value of one file that the other contradicts, named with both values.
+    """
+    import re
+
+    folder = Path(folder)
+    record = read_record(folder)
+    header = folder / "controller.h"
+    if not header.is_file():
+        raise FileNotFoundError(f"{folder} holds no controller.h: not a folder written by "
+                                f"rrr-pin export")
+    text = header.read_text(encoding="ascii", errors="replace")
+    for define, (key, kind) in _DEFINES.items():
+        hit = re.search(rf"^#define {define} (.+)$", text, re.M)
+        value = record
+        for part in key.split("."):
+            value = value.get(part) if isinstance(value, dict) else None
+        if define == "CTRL_COMMAND" and value is None and hit is None:
+            continue  # an export from before the torque conventions: full
+        if hit is None or value is None:
+            raise ValueError(f"{folder}: controller.h has no {define} or controller.json no "
+                             f"{key}: not a complete export; export again")
+        raw = hit.group(1).strip()
+        compiled = kind(raw.strip('"')) if kind is not float else float(raw)
+        if compiled != kind(value):
+            raise ValueError(f"{folder}: controller.json says {key} = {value!r}, the code "
+                             f"(controller.h {define}) is compiled for {compiled!r}; the files "
+                             f"come from different exports or were edited: export again")
+    return record
+
+
+def build_cache(fingerprint: str, dynamics: str) -> Path:
+    """Return the folder where ``hil`` keeps the harness build of one model.
+
+    ``$RRR_PIN_CACHE/hil/<fingerprint[:16]>-<dynamics>`` (default ``~/.cache/rrr-pin``, as
+    :func:`rrr_pin.sim.dyncache.cache_dir`): the export's sources are copied there, each file
+    rewritten only when its text differs, so that CMake recompiles only what changed; the
+    model's dynamics (the largest file, ``dyn_model.c`` or ``dynamics.cpp``) are compiled once
+    per model and reused by every later ``hil`` of it, whatever the law.
+    """
+    from ..sim.dyncache import cache_dir
+
+    return cache_dir().parent / "hil" / f"{fingerprint[:16]}-{dynamics}"
+
+
+def _put(path: Path, data: bytes) -> None:
+    """Write ``data`` unless ``path`` holds it already (its time stamp then unchanged)."""
+    if not path.is_file() or path.read_bytes() != data:
+        path.write_bytes(data)
+
+
+def _build(folder: Path, work: Path, dynamics: str, fingerprint: str) -> Path:
+    """Build ``hil_harness.c`` against ``folder`` in the model's cache; copy it to ``work``."""
+    import fcntl
+
     cmake = shutil.which("cmake")
     if cmake is None:
         raise FileNotFoundError("cmake is not on PATH (install CMake >= 3.21 and a C compiler)")
-    src = work / "harness"
-    src.mkdir()
-    shutil.copyfile(HARNESS, src / "hil_harness.c")
-    langs = "C CXX" if pinocchio else "C"
-    link = ("set_target_properties(rrr_pin_hil PROPERTIES LINKER_LANGUAGE CXX)\n"
-            if pinocchio else "")
-    (src / "CMakeLists.txt").write_text(
-        "cmake_minimum_required(VERSION 3.21)\n"
-        f"project(rrr_pin_hil LANGUAGES {langs})\n"
-        f"add_subdirectory(\"{folder.resolve().as_posix()}\" ctrl)\n"
-        "add_executable(rrr_pin_hil hil_harness.c)\n"
-        "set_target_properties(rrr_pin_hil PROPERTIES C_STANDARD 11 C_EXTENSIONS ON)\n"
-        "target_compile_options(rrr_pin_hil PRIVATE -Wall -Wextra -Werror)\n"
-        "target_link_libraries(rrr_pin_hil PRIVATE rrr_pin_ctrl)\n" + link)
-    build = work / "build"
-    configure = [cmake, "-S", str(src), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
-                 f"-DRRR_PIN_PYTHON={sys.executable}"]
-    for cmd in (configure, [cmake, "--build", str(build), "--target", "rrr_pin_hil"]):
-        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        if done.returncode:
-            raise RuntimeError(f"{' '.join(cmd)} failed ({done.returncode}):\n"
-                               f"{done.stdout[-3000:]}{done.stderr[-3000:]}")
-    return build / "rrr_pin_hil"
+    pinocchio = dynamics == "pinocchio"
+    root = build_cache(fingerprint, dynamics)
+    export, src, build = root / "export", root / "harness", root / "build"
+    for d in (export, src):
+        d.mkdir(parents=True, exist_ok=True)
+    with open(root / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # one build of a model at a time
+        for f in folder.iterdir():
+            if f.is_file() and f.name != "design.json":
+                _put(export / f.name, f.read_bytes())
+        _put(src / "hil_harness.c", HARNESS.read_bytes())
+        langs = "C CXX" if pinocchio else "C"
+        link = ("set_target_properties(rrr_pin_hil PROPERTIES LINKER_LANGUAGE CXX)\n"
+                if pinocchio else "")
+        _put(src / "CMakeLists.txt", (
+            "cmake_minimum_required(VERSION 3.21)\n"
+            f"project(rrr_pin_hil LANGUAGES {langs})\n"
+            f"add_subdirectory(\"{export.resolve().as_posix()}\" ctrl)\n"
+            "add_executable(rrr_pin_hil hil_harness.c)\n"
+            "set_target_properties(rrr_pin_hil PROPERTIES C_STANDARD 11 C_EXTENSIONS ON)\n"
+            "target_compile_options(rrr_pin_hil PRIVATE -Wall -Wextra -Werror)\n"
+            "target_link_libraries(rrr_pin_hil PRIVATE rrr_pin_ctrl)\n" + link).encode())
+        configure = [cmake, "-S", str(src), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
+                     f"-DRRR_PIN_PYTHON={sys.executable}"]
+        steps = [[cmake, "--build", str(build), "--target", "rrr_pin_hil"]]
+        if not (build / "CMakeCache.txt").is_file():
+            steps.insert(0, configure)
+        for cmd in steps:
+            done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+            if done.returncode:
+                shutil.rmtree(build, ignore_errors=True)  # a failed tree is not kept
+                raise RuntimeError(f"{' '.join(cmd)} failed ({done.returncode}):\n"
+                                   f"{done.stdout[-3000:]}{done.stderr[-3000:]}")
+        exe = work / "rrr_pin_hil"
+        shutil.copy2(build / "rrr_pin_hil", exe)
+    return exe
 
 
 def _run(exe: Path, mode: str, settings: Path, out: Path, n: int, cycles: int,
@@ -130,8 +235,10 @@ def _run(exe: Path, mode: str, settings: Path, out: Path, n: int, cycles: int,
     """Run the harness; return (q, tau, timing or None, header dict, wall seconds)."""
     start = time.perf_counter()
     extra = [str(holds)] if holds is not None else []
+    # the harness ends with this process however it ends (PR_SET_PDEATHSIG on this pid)
+    env = {**os.environ, "RRR_PIN_HIL_PARENT": str(os.getpid())}
     done = subprocess.run([str(exe), mode, str(settings), str(out), *extra],
-                          capture_output=True, text=True, check=False)
+                          capture_output=True, text=True, check=False, env=env)
     wall = time.perf_counter() - start
     if done.returncode:
         raise RuntimeError(f"the {mode} harness failed ({done.returncode}): "
@@ -164,7 +271,7 @@ def _loadavg() -> list[float] | None:
         return None
 
 
-def hil(folder, cycles: int, out, *, rate: float | None = None,
+def hil(folder, cycles: int, out, *, rate: float | None = None, effects=None,
         overwrite: bool = False) -> HilResult:
     """Run an exported controller in real time against its nominal arm; write ``hil.json``.
 
@@ -181,6 +288,13 @@ def hil(folder, cycles: int, out, *, rate: float | None = None,
         The harness's clock [Hz]; default the law's own rate (``rate_hz`` of
         ``controller.json``). The arm always advances one law period ``Ts`` a cycle: a faster
         clock runs the same closed loop faster than real time (recorded in ``hil_run.json``).
+    effects : PlantEffects, optional
+        The simulated arm's effects (:class:`rrr_pin.control.effects.PlantEffects`), realized
+        as the engines do with one RK4 step per law period: ``delay`` (a whole number of law
+        periods), ``bandwidth`` (first-order actuator), ``viscous``/``coulomb`` friction. The
+        others (torque limit, noise, encoder, flexible joints) are refused by name. A loop that
+        diverges (the engines' test) stops there: ``hil.json`` ``"status": "diverged"`` and
+        ``"diverged_at_s"``.
     overwrite : bool, default False
         Replace a previous ``hil`` run in ``out``.
 
@@ -199,30 +313,52 @@ def hil(folder, cycles: int, out, *, rate: float | None = None,
     RuntimeError
         The build or the harness failed.
     """
+    from ..control.effects import PlantEffects
+    from ..sim.trajectory import VELOCITY_LIMIT
+
     folder = Path(folder)
     cycles = check_count("cycles", cycles, 1, MAX_CYCLES)
-    record = read_record(folder)
+    record = check_export(folder)
     law_rate = float(record["rate_hz"])
     rate = law_rate if rate is None else check_rate("rate", rate)
-    robot = _robot(record)
+    robot = _robot(record, folder)
+    effects = PlantEffects() if effects is None else effects
+    if not isinstance(effects, PlantEffects):
+        raise TypeError(f"effects must be a PlantEffects, got {type(effects).__name__}")
+    fx = effects.resolve(robot, 1, 1.0 / law_rate, cycles)
+    unsupported = [name for name, on in (
+        ("torque_limit", fx.limit is not None), ("noise_q", fx.noise_q is not None),
+        ("noise_qd", fx.noise_qd is not None), ("encoder_counts", bool(fx.quantum)),
+        ("stiffness", fx.Kf is not None)) if on]
+    if unsupported:
+        raise FieldError(unsupported[0], f"{{name}}: hil's simulated arm realizes the delay, "
+                                         f"the actuator bandwidth and friction only; drop "
+                                         f"{', '.join(unsupported)}")
+    d = fx.delay_steps
+    fv = fx.Fv if fx.Fv is not None else np.zeros(robot.nq)
+    fc = fx.Fc if fx.Fc is not None else np.zeros(robot.nq)
     from ..control.references import default_reference
 
     ref = default_reference(robot)
     r0, rd0, _ = ref(0.0)
     n = int(record["nq"])
-    lines = [f"{cycles} {round(1e9 / rate)} {1.0 / law_rate!r}"]
+    lines = [f"{cycles} {round(1e9 / rate)} {1.0 / law_rate!r} {d} {VELOCITY_LIMIT!r} "
+             f"{float(fx.wa or 0.0)!r} {float(fx.veps)!r}"]
     for j in range(n):
         lines.append(" ".join(repr(float(v)) for v in (ref.home[j], ref.amp[j], ref.freq[j],
-                                                       ref.phase[j], r0[j], rd0[j])))
-    settings = {"folder": str(folder), "cycles": cycles, "rate": rate, "law_rate": law_rate}
+                                                       ref.phase[j], r0[j], rd0[j],
+                                                       robot.lower[j], robot.upper[j], fv[j],
+                                                       fc[j])))
+    settings = {"folder": str(folder), "cycles": cycles, "rate": rate, "law_rate": law_rate,
+                "effects": effects.to_dict()}
     with OutputDir.claim(out, "hil", overwrite=overwrite, settings=settings,
                          option="out") as claimed, \
             tempfile.TemporaryDirectory(prefix="rrr-pin-hil-") as tmp:
         work = Path(tmp)
-        exe = _build(folder, work, record["model"]["dynamics"] == "pinocchio")
+        exe = _build(folder, work, record["model"]["dynamics"], record["model"]["fingerprint"])
         (work / "settings.txt").write_text("\n".join(lines) + "\n")
-        q_off, tau_off, _, _, wall_off = _run(exe, "offline", work / "settings.txt",
-                                              work / "offline.bin", n, cycles)
+        q_off, tau_off, _, off_header, wall_off = _run(exe, "offline", work / "settings.txt",
+                                                       work / "offline.bin", n, cycles)
         per_cycle = wall_off / cycles
         if per_cycle > 1.0 / rate:
             raise FieldError("rate", f"{{name}} = {rate:g} Hz: one cycle of the law and the "
@@ -241,8 +377,14 @@ def hil(folder, cycles: int, out, *, rate: float | None = None,
         if rep_header["missed"] != header["missed"]:
             raise RuntimeError(f"the harness counted {header['missed']} missed deadlines, its "
                                f"timing {rep_header['missed']}")
-        summary = _summary(cycles, header, timing, rate, q_hil, q_off)
-        r = ref.sample(np.arange(cycles) / law_rate)[0]
+        if rep_header["diverged"] != header["diverged"]:
+            raise RuntimeError(f"the real-time loop diverged at cycle {header['diverged']}, "
+                               f"its replay at {rep_header['diverged']}")
+        summary = _summary(cycles, header, timing, rate, q_hil, q_off, law_rate)
+        ran = cycles if header["diverged"] < 0 else header["diverged"] + 1
+        q_hil, q_off, q_rep = q_hil[:ran], q_off[:ran], q_rep[:ran]
+        tau_hil, tau_off = tau_hil[:ran], tau_off[:ran]
+        r = ref.sample(np.arange(ran) / law_rate)[0]
         run = {
             "folder": str(folder), "law": record["law"]["name"], "model": robot.name,
             "law_rate_hz": law_rate, "clock_rate_hz": rate,
@@ -261,7 +403,12 @@ def hil(folder, cycles: int, out, *, rate: float | None = None,
             "reference": ref.to_dict(),
             "plant": "the export's nominal model (dynamics.h), RK4 of Ts per cycle, torque "
                      "held; a torque written after the next tick is not applied (the "
-                     "previous one is held)",
+                     "previous one is held); the drive adds what the torque convention "
+                     "removes (ctrl_removed_torque)",
+            "delay_s": d / law_rate, "delay_periods": d, "effects": fx.info,
+            "command": (record.get("command") or {"name": "full"})["name"],
+            "offline_diverged_at_s": (None if off_header["diverged"] < 0
+                                      else (off_header["diverged"] + 1) / law_rate),
             "offline": "the same harness and arithmetic in one process, no clock",
         }
         for name, data in (("hil.json", summary), ("hil_run.json", run)):
@@ -271,10 +418,21 @@ def hil(folder, cycles: int, out, *, rate: float | None = None,
     return HilResult(summary, run, q_hil.copy(), q_off.copy(), q_rep.copy())
 
 
-def _summary(cycles, header, timing, rate, q_hil, q_off) -> dict:
-    """``hil.json``: exactly ``cycles``, ``missed``, ``latency_us``, ``jitter_us``, the error."""
-    wake = timing["wake"].astype(float)
-    jitter = float(np.max(np.abs(np.diff(wake)))) / 1e3 if cycles > 1 else 0.0
+def _summary(cycles, header, timing, rate, q_hil, q_off, law_rate) -> dict:
+    """``hil.json``: ``cycles``, ``missed``, ``latency_us``, ``jitter_us``, the error, status.
+
+    A loop that diverged at cycle ``k`` ran ``k + 1`` cycles: the figures are theirs, and
+    ``diverged_at_s`` is the end of that cycle's period, ``(k + 1) Ts`` (as the engines date a
+    sampled run's divergence); None when the loop held.
+    """
+    k = int(header["diverged"])
+    ran = cycles if k < 0 else k + 1
+    wake = timing["wake"][:ran].astype(float)
+    jitter = float(np.max(np.abs(np.diff(wake)))) / 1e3 if ran > 1 else 0.0
+    err = np.abs(q_hil[:ran] - q_off[:ran])
     return {"cycles": cycles, "missed": int(header["missed"]),
-            "latency_us": _percentiles(timing["done"]), "jitter_us": jitter,
-            "max_error_vs_offline_rad": float(np.max(np.abs(q_hil - q_off)))}
+            "latency_us": _percentiles(timing["done"][:ran]), "jitter_us": jitter,
+            "max_error_vs_offline_rad": float(np.max(err)) if np.isfinite(err).all()
+            else float("inf"),
+            "status": "completed" if k < 0 else "diverged",
+            "diverged_at_s": None if k < 0 else ran / law_rate}

@@ -6,9 +6,12 @@
  *
  *   rrr_pin_hil hil|offline SETTINGS OUT [HOLDS]
  *
- * SETTINGS (text, one number per token): cycles, clock period [ns], law period Ts [s], then per
- * joint home, amp, freq [Hz], phase (the reference r = home + amp sin(2 pi freq t + phase)),
- * then q0, qd0. OUT (binary): per cycle k the measured q[n] at tick k (the state the law read),
+ * SETTINGS (text, one number per token): cycles, clock period [ns], law period Ts [s], the
+ * transport delay d [law periods], the velocity bound [rad/s] of the divergence test, the
+ * actuator bandwidth wa [rad/s] (0: none) and the Coulomb smoothing speed v_eps [rad/s], then
+ * per joint home, amp, freq [Hz], phase (the reference r = home + amp sin(2 pi freq t + phase)),
+ * q0, qd0, the joint limits lower, upper [rad] (widened) of the divergence test, and the
+ * friction Fv [N m s/rad], Fc [N m]. OUT (binary): per cycle k the measured q[n] at tick k (the state the law read),
  * the torque applied on [k Ts, (k+1) Ts) tau[n], and in hil mode the int64 nanoseconds
  * wake - deadline, done - deadline (the torque written), step (ctrl_step alone), and the flags
  * missed (torque written after the next tick: the plant held the previous one) and plant_late
@@ -19,6 +22,18 @@
  * The plant: the nominal model of the export (its dynamics.h: M(q), h(q, qd)), forward dynamics
  * qdd = M^-1 (tau - h) by Gaussian elimination with partial pivoting, one classical RK4 step of Ts
  * per cycle with the torque held (zero-order hold), as rrr_pin's Python engine integrates.
+ * The torque the joints receive is the command of d cycles before (a transport delay; before
+ * the first d cycles, the first command, the loop taken at rest on it as rrr_pin's effects do),
+ * plus what a drive adds under the export's torque convention (ctrl_removed_torque: Ghat(q) at
+ * every RK4 stage when the command excludes gravity, as a drive compensates continuously).
+ * The plant's effects as rrr_pin.control.effects writes them, in the same order and RK4 stages:
+ * a first-order actuator a' = wa (u - a) (a = u0 at t = 0) and joint friction
+ * Fv qd + Fc tanh(qd / v_eps) opposing the motion.
+ * Divergence, as rrr_pin's engines define it: after a cycle's RK4 step, a q or qd not finite,
+ * |qd| above the bound or q outside the widened limits; the loop stops there and the header
+ * says "diverged K" (the cycle whose step diverged; -1: none).
+ * Both processes end when their parent ends (PR_SET_PDEATHSIG, SIGKILL): a killed rrr-pin hil
+ * leaves no real-time process behind.
  * The controller: on each absolute deadline t0 + k * period (clock_nanosleep, CLOCK_MONOTONIC,
  * TIMER_ABSTIME) it reads the state, calls ctrl_step and writes the torque. SCHED_FIFO (priority
  * 80 for the controller, 70 for the arm) and mlockall are asked for; whether they were granted
@@ -36,6 +51,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#ifdef __linux__
+#include <sys/prctl.h>
+#endif
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -49,8 +67,27 @@ typedef struct settings {
     long cycles;
     long period_ns;
     double Ts;
-    double home[N], amp[N], freq[N], phase[N], q0[N], qd0[N];
+    long delay;
+    double vmax;
+    double wa;   /* actuator bandwidth [rad/s]; 0: none */
+    double veps; /* Coulomb smoothing speed [rad/s] */
+    int friction;
+    double home[N], amp[N], freq[N], phase[N], q0[N], qd0[N], lower[N], upper[N], fv[N], fc[N];
 } settings;
+
+/* The plant's effects other than the delay, read once (rk4 and acceleration read them). */
+static const settings *fx;
+
+/* End this process when its parent ends (Linux); 0 if the parent is already gone. */
+static int die_with_parent(pid_t parent)
+{
+#ifdef __linux__
+    if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0) {
+        return 0;
+    }
+#endif
+    return parent <= 0 || getppid() == parent;
+}
 
 /* What the two processes share (one page-aligned anonymous mapping made before fork). */
 typedef struct shared {
@@ -108,8 +145,21 @@ static void acceleration(const double q[N], const double qd[N], const double tau
     ctrl_dyn_crba(q, a);
     ctrl_dyn_nle(q, qd, h);
     for (i = 0; i < N; ++i) {
-        qdd[i] = tau[i] - h[i];
+        double tj = tau[i];
+        if (fx->friction) { /* the drive train's torque minus friction, then the arm */
+            tj = tj - (fx->fv[i] * qd[i] + fx->fc[i] * tanh(qd[i] / fx->veps));
+        }
+        qdd[i] = tj - h[i];
     }
+#if CTRL_COMMAND_REMOVES_GRAVITY || CTRL_COMMAND_REMOVES_FRICTION
+    {
+        double added[N];
+        ctrl_removed_torque(q, qd, added); /* what the drive adds to the command */
+        for (i = 0; i < N; ++i) {
+            qdd[i] += added[i];
+        }
+    }
+#endif
     for (k = 0; k < N; ++k) {
         int p = k;
         for (i = k + 1; i < N; ++i) {
@@ -145,31 +195,47 @@ static void acceleration(const double q[N], const double qd[N], const double tau
     }
 }
 
-/* One classical RK4 step of h with tau held, in the order of rrr_pin's Python engine. */
-static void rk4(double x[N], double v[N], const double tau[N], double h)
+/* One classical RK4 step of h with the command u held, in the order of rrr_pin's Python engine
+ * (rrr_pin.control.effects.PlantEffects.rk4): with an actuator (wa > 0) its output act is a
+ * state integrated with the arm; without, the joints receive u. */
+static void rk4(double x[N], double v[N], double act[N], const double u[N], double h)
 {
     double a1[N], a2[N], a3[N], a4[N], v2[N], v3[N], v4[N], xs[N];
-    double h2 = 0.5 * h, h6 = h / 6.0;
+    double b1[N], b2[N], b3[N], b4[N], as[N];
+    double h2 = 0.5 * h, h6 = h / 6.0, wa = fx->wa;
     int i;
-    acceleration(x, v, tau, a1);
+    const double *t1 = wa > 0.0 ? act : u;
+    for (i = 0; i < N; ++i) {
+        b1[i] = wa > 0.0 ? wa * (u[i] - act[i]) : 0.0;
+    }
+    acceleration(x, v, t1, a1);
     for (i = 0; i < N; ++i) {
         v2[i] = v[i] + h2 * a1[i];
         xs[i] = x[i] + h2 * v[i];
+        as[i] = wa > 0.0 ? act[i] + h2 * b1[i] : u[i];
+        b2[i] = wa > 0.0 ? wa * (u[i] - as[i]) : 0.0;
     }
-    acceleration(xs, v2, tau, a2);
+    acceleration(xs, v2, as, a2);
     for (i = 0; i < N; ++i) {
         v3[i] = v[i] + h2 * a2[i];
         xs[i] = x[i] + h2 * v2[i];
+        as[i] = wa > 0.0 ? act[i] + h2 * b2[i] : u[i];
+        b3[i] = wa > 0.0 ? wa * (u[i] - as[i]) : 0.0;
     }
-    acceleration(xs, v3, tau, a3);
+    acceleration(xs, v3, as, a3);
     for (i = 0; i < N; ++i) {
         v4[i] = v[i] + h * a3[i];
         xs[i] = x[i] + h * v3[i];
+        as[i] = wa > 0.0 ? act[i] + h * b3[i] : u[i];
+        b4[i] = wa > 0.0 ? wa * (u[i] - as[i]) : 0.0;
     }
-    acceleration(xs, v4, tau, a4);
+    acceleration(xs, v4, as, a4);
     for (i = 0; i < N; ++i) {
         x[i] = x[i] + h6 * (v[i] + 2.0 * (v2[i] + v3[i]) + v4[i]);
         v[i] = v[i] + h6 * (a1[i] + 2.0 * (a2[i] + a3[i]) + a4[i]);
+        if (wa > 0.0) {
+            act[i] = act[i] + h6 * (b1[i] + 2.0 * (b2[i] + b3[i]) + b4[i]);
+        }
     }
 }
 
@@ -180,13 +246,49 @@ static int read_settings(const char *path, settings *s)
     if (!f) {
         return 0;
     }
-    ok = fscanf(f, "%ld %ld %lf", &s->cycles, &s->period_ns, &s->Ts) == 3;
+    ok = fscanf(f, "%ld %ld %lf %ld %lf %lf %lf", &s->cycles, &s->period_ns, &s->Ts,
+                &s->delay, &s->vmax, &s->wa, &s->veps) == 7;
+    s->friction = 0;
     for (i = 0; ok && i < N; ++i) {
-        ok = fscanf(f, "%lf %lf %lf %lf %lf %lf", &s->home[i], &s->amp[i], &s->freq[i],
-                    &s->phase[i], &s->q0[i], &s->qd0[i]) == 6;
+        ok = fscanf(f, "%lf %lf %lf %lf %lf %lf %lf %lf %lf %lf", &s->home[i], &s->amp[i],
+                    &s->freq[i], &s->phase[i], &s->q0[i], &s->qd0[i], &s->lower[i],
+                    &s->upper[i], &s->fv[i], &s->fc[i]) == 10;
+        s->friction = s->friction || (ok && (s->fv[i] != 0.0 || s->fc[i] != 0.0));
     }
     fclose(f);
-    return ok && s->cycles > 0 && s->period_ns > 0 && s->Ts > 0.0;
+    return ok && s->cycles > 0 && s->period_ns > 0 && s->Ts > 0.0 && s->delay >= 0
+           && s->wa >= 0.0 && s->veps > 0.0;
+}
+
+/* The divergence test of rrr_pin's engines (rrr_pin.sim.trajectory.diverged_joint). */
+static int diverged(const settings *s, const double x[N], const double v[N])
+{
+    int i;
+    for (i = 0; i < N; ++i) {
+        if (!isfinite(x[i]) || !isfinite(v[i]) || fabs(v[i]) > s->vmax || x[i] < s->lower[i]
+            || x[i] > s->upper[i]) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* The transport delay line: the command the drive received at each of the last d + 1 cycles.
+ * line_push stores cycle k's and returns the one the joints get, cycle k - d's (the first
+ * command before it exists). */
+static double *line;
+
+static const double *line_push(const settings *s, long k, const double cmd[N])
+{
+    int i;
+    long slot = k % (s->delay + 1);
+    for (i = 0; i < N; ++i) {
+        line[slot * N + i] = cmd[i];
+    }
+    if (k < s->delay) {
+        return line; /* slot 0: the first command */
+    }
+    return line + ((k - s->delay) % (s->delay + 1)) * N;
 }
 
 /* Whether the other process is alive: the controller asks for its parent (the arm), the arm
@@ -234,7 +336,12 @@ static void controller(const settings *s, shared *sh, timing *tm)
     double q[N], qd[N], r[N], rd[N], rdd[N], tau[N];
     ctrl_state st;
     long k;
-    int i, rt = real_time(80);
+    int i, rt;
+    if (!die_with_parent(parent_pid)) {
+        sh->ctrl_rc = -2;
+        return;
+    }
+    rt = real_time(80);
     sh->sched_fifo = rt & 1;
     sh->mlocked = (rt >> 1) & 1;
     ctrl_reset(&st); /* Pinocchio's workspace for this thread, before the loop */
@@ -279,10 +386,11 @@ int main(int argc, char **argv)
     settings s;
     shared *sh;
     timing *tm;
-    double *Q, *TAU, x[N], v[N], held[N];
+    double *Q, *TAU, x[N], v[N], held[N], act[N];
     FILE *out;
-    long k, missed = 0;
+    long k, missed = 0, diverged_at = -1;
     int i, offline, status = 0, plant_rt = 0;
+    const char *parent = getenv("RRR_PIN_HIL_PARENT");
     pid_t child = -1;
     unsigned char *holds = NULL;
     if (argc < 4 || argc > 5 || (strcmp(argv[1], "hil") && strcmp(argv[1], "offline"))
@@ -291,6 +399,9 @@ int main(int argc, char **argv)
         return 2;
     }
     offline = !strcmp(argv[1], "offline");
+    if (!die_with_parent(parent ? (pid_t)atol(parent) : 0)) {
+        return 6; /* rrr-pin hil ended before this process started */
+    }
     memset(&s, 0, sizeof s);
     if (!read_settings(argv[2], &s)) {
         fprintf(stderr, "%s: cannot read the settings of %d joints\n", argv[2], N);
@@ -301,7 +412,8 @@ int main(int argc, char **argv)
     sh = mmap(NULL, sizeof *sh, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
     tm = mmap(NULL, sizeof *tm * (size_t)s.cycles, PROT_READ | PROT_WRITE,
               MAP_SHARED | MAP_ANONYMOUS, -1, 0);
-    if (!Q || !TAU || sh == MAP_FAILED || tm == MAP_FAILED) {
+    line = calloc((size_t)(s.delay + 1) * N, sizeof(double));
+    if (!Q || !TAU || !line || sh == MAP_FAILED || tm == MAP_FAILED) {
         fprintf(stderr, "out of memory for %ld cycles\n", s.cycles);
         return 3;
     }
@@ -318,6 +430,7 @@ int main(int argc, char **argv)
         }
         fclose(f);
     }
+    fx = &s;
     for (i = 0; i < N; ++i) {
         x[i] = s.q0[i];
         v[i] = s.qd0[i];
@@ -342,11 +455,21 @@ int main(int argc, char **argv)
                     held[i] = tau[i];
                 }
             }
-            for (i = 0; i < N; ++i) {
-                Q[k * N + i] = x[i];
-                TAU[k * N + i] = held[i];
+            {
+                const double *applied = line_push(&s, k, held);
+                for (i = 0; i < N; ++i) {
+                    Q[k * N + i] = x[i];
+                    TAU[k * N + i] = applied[i];
+                    if (k == 0) {
+                        act[i] = applied[i]; /* the actuator at rest on the first command */
+                    }
+                }
+                rk4(x, v, act, applied, s.Ts);
             }
-            rk4(x, v, held, s.Ts);
+            if (diverged(&s, x, v)) {
+                diverged_at = k;
+                break;
+            }
         }
     } else {
         sh->t0 = now_ns() + 100000000LL; /* first tick 100 ms from now */
@@ -392,10 +515,21 @@ int main(int argc, char **argv)
                     held[i] = sh->tau[i];
                 }
             }
-            for (i = 0; i < N; ++i) {
-                TAU[k * N + i] = held[i];
+            {
+                const double *applied = line_push(&s, k, held);
+                for (i = 0; i < N; ++i) {
+                    TAU[k * N + i] = applied[i];
+                    if (k == 0) {
+                        act[i] = applied[i]; /* the actuator at rest on the first command */
+                    }
+                }
+                rk4(x, v, act, applied, s.Ts);
             }
-            rk4(x, v, held, s.Ts);
+            if (diverged(&s, x, v)) {
+                diverged_at = k;
+                kill(child, SIGKILL); /* the controller has nothing left to control */
+                break;
+            }
         }
         if (status && child > 0) {
             kill(child, SIGKILL);
@@ -419,7 +553,7 @@ int main(int argc, char **argv)
     }
     fclose(out);
     printf("cycles %ld missed %ld sched_fifo %d mlockall %d plant_sched_fifo %d "
-           "plant_mlockall %d\n", s.cycles, missed, offline ? 0 : sh->sched_fifo,
-           offline ? 0 : sh->mlocked, plant_rt & 1, (plant_rt >> 1) & 1);
+           "plant_mlockall %d diverged %ld\n", s.cycles, missed, offline ? 0 : sh->sched_fifo,
+           offline ? 0 : sh->mlocked, plant_rt & 1, (plant_rt >> 1) & 1, diverged_at);
     return 0;
 }

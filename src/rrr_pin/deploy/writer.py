@@ -42,8 +42,10 @@ from ..outputs import OutputDir, writing
 from ..sim.codegen import fingerprint
 from ..validation import FieldError, check_positive, check_rate
 from . import period, sources
+from .command import DEFAULT_COMMAND, TorqueCommand, check_command
 
 __all__ = ["Export", "ExportError", "export", "prepare_export", "check_exportable", "FILES",
+           "DYNAMICS",
            "FORMAT", "read_record",
            "EXPRESSIBLE_JOINTS", "generated_rrr_source"]
 
@@ -79,7 +81,13 @@ _K_FORMS = (FLForm, FLFrictionForm, FLAWForm)
 
 #: Every file an export may write (the dynamics files depend on the model).
 FILES = ("controller.h", "controller.c", "dynamics.h", "dynamics.c", "codegen_rrr.c",
-         "dynamics.cpp", "CMakeLists.txt", "main.c", "controller.json")
+         "dyn_model.c", "dyn_common.h", "dynamics.cpp", "CMakeLists.txt", "main.c",
+         "model.txt", "controller.json")
+
+#: The dynamics an export can carry: the nominal RRR's CppADCodeGen C, the C of
+#: :mod:`rrr_pin.sim.dyngen` for a chain of revolute x/y/z joints (no Pinocchio to build or
+#: link), Pinocchio C++ for any other expressible model.
+DYNAMICS = ("generated", "dyngen", "pinocchio")
 
 #: Pinocchio joint types the C API (one ``q`` and one ``qd`` per joint) expresses.
 EXPRESSIBLE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ",
@@ -113,8 +121,8 @@ class Export:
         The compiled form transcribed (matrices discrete at :attr:`rate`).
     rate : float
         Sampling rate [Hz].
-    dynamics : {"generated", "pinocchio"}
-        Which dynamics the folder carries.
+    dynamics : {"generated", "dyngen", "pinocchio"}
+        Which dynamics the folder carries (:data:`DYNAMICS`).
     files : dict
         File name -> text, in :data:`FILES` order.
     record : dict
@@ -123,6 +131,9 @@ class Export:
         ``K``'s continuous ``(A, B, C, D)`` that ``ctrl_step_dt`` discretizes at each measured
         period (None: a law without ``K``, a discrete ``K`` as given, or a method other than
         those of :data:`rrr_pin.deploy.period.GBT_ALPHA`).
+    command : TorqueCommand or None
+        The torque convention of ``ctrl_step``'s output (:mod:`rrr_pin.deploy.command`);
+        None reads as ``full``.
     """
 
     law: object
@@ -132,6 +143,7 @@ class Export:
     files: dict = field(repr=False)
     record: dict = field(repr=False)
     continuous: tuple | None = field(default=None, repr=False, compare=False)
+    command: TorqueCommand | None = None
 
     def write(self, folder) -> list[Path]:
         """Write the files into ``folder`` (which must exist); return their paths."""
@@ -314,7 +326,7 @@ def check_exportable(robot) -> None:
 
 def prepare_export(law, robot, rate: float | None = None, *, method: str = "tustin",
                    prewarp: float | None = None, design=None,
-                   dynamics: str = "auto") -> Export:
+                   dynamics: str = "auto", command: str = DEFAULT_COMMAND) -> Export:
     """Check and build an export of ``law`` on ``robot`` at ``rate``, without writing.
 
     Parameters as for :func:`export`.
@@ -347,17 +359,27 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         raise ExportError(f"law {law.name!r} was built on the model {form.nominal.name!r} "
                           f"(fingerprint {law_fp[:12]}...), not on robot {robot.name!r} "
                           f"({fp[:12]}...); build the law on the robot it is exported for")
-    if dynamics not in ("auto", "generated", "pinocchio"):
-        raise FieldError("dynamics", f"{{name}} must be 'auto', 'generated' or 'pinocchio', got "
-                                     f"{dynamics!r}")
+    conv = check_command(command, form)
+    if dynamics != "auto" and dynamics not in DYNAMICS:
+        raise FieldError("dynamics", f"{{name}} must be 'auto' or one of {', '.join(DYNAMICS)}, "
+                                     f"got {dynamics!r}")
     generated = generated_rrr_source()
     available = generated is not None and generated[0] == fp
     if dynamics == "generated" and not available:
         raise FieldError("dynamics", f"{{name}} = 'generated': no generated dynamics for robot "
                                      f"{robot.name!r} (fingerprint {fp[:12]}...); only the "
                                      f"nominal RRR has them")
-    use_generated = available and dynamics != "pinocchio"
-    dynamics = "generated" if use_generated else "pinocchio"
+    from ..sim.dyncache import generatable
+
+    if dynamics == "dyngen" and not generatable(robot.model):
+        raise FieldError("dynamics", f"{{name}} = 'dyngen': robot {robot.name!r} has a joint "
+                                     f"other than a revolute joint about x, y or z; the "
+                                     f"generator (rrr_pin.sim.dyngen) does not handle it")
+    use_generated = available and dynamics in ("auto", "generated")
+    if use_generated:
+        dynamics = "generated"
+    elif dynamics == "auto":
+        dynamics = "dyngen" if generatable(robot.model) else "pinocchio"
     import pinocchio as pin
 
     from .. import __version__
@@ -366,28 +388,36 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
     continuous = _continuous_k(law, method)
     k_method = None if isinstance(law, SampledLaw) else method  # None: K discrete as given
     step_dt = period.step_dt_text(form, continuous, method=k_method, prewarp=prewarp)
-    where = ("generated plain C of the nominal RRR (codegen_rrr.c)" if use_generated
-             else "Pinocchio C++ on the embedded model (dynamics.cpp)")
+    where = {"generated": "generated plain C of the nominal RRR (codegen_rrr.c)",
+             "dyngen": "generated plain C of the structure, the model's numbers as constants "
+                       "(dyn_model.c, dynamics.c; no Pinocchio)",
+             "pinocchio": "Pinocchio C++ on the embedded model (dynamics.cpp)"}[dynamics]
     files = {
         "controller.h": sources.controller_h(n=n, nx=nx, rate=rate, law=twin.name,
                                              kind=form.kind, joints=robot.joint_names,
                                              fingerprint=fp, dynamics=where,
-                                             step_dt=step_dt),
-        "controller.c": sources.controller_c(form, law=twin.name, rate=rate)
+                                             step_dt=step_dt, command=conv),
+        "controller.c": sources.controller_c(form, law=twin.name, rate=rate, command=conv)
         + period.controller_step_dt_c(form, continuous, method=k_method, prewarp=prewarp),
         "dynamics.h": sources.dynamics_h(where),
     }
     if use_generated:
         files["dynamics.c"] = sources.dynamics_codegen_c()
         files["codegen_rrr.c"] = generated[1]
+    elif dynamics == "dyngen":
+        files.update(sources.dynamics_dyngen(robot.model, robot.name, fp))
     else:
         files["dynamics.cpp"] = sources.dynamics_pinocchio_cpp(robot.model.saveToString(),
                                                               robot.name)
     q0 = np.clip(robot.neutral(), robot.lower, robot.upper)
-    files["CMakeLists.txt"] = sources.cmakelists(pinocchio=not use_generated,
+    files["CMakeLists.txt"] = sources.cmakelists(pinocchio=dynamics == "pinocchio",
+                                                 dyngen=dynamics == "dyngen",
                                                  version=pin.__version__,
                                                  python=sys.executable)
     files["main.c"] = sources.main_c(q0=q0)
+    # the model itself (Pinocchio's text serialization), which rrr-pin hil simulates: a URDF
+    # path or an identified arm needs no name to be found again
+    files["model.txt"] = robot.model.saveToString()
     if form.kind == "pd":
         law_record = {"kind": "pd", "Kp": form.Kp.tolist(), "Kd": form.Kd.tolist()}
     else:
@@ -420,6 +450,7 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         "law": {"name": twin.name, "label": twin.label or twin.name,
                 "class": f"{type(law).__module__}.{type(law).__qualname__}", **law_record},
         "rate_hz": rate, "nq": n, "nx": nx, "joints": list(robot.joint_names),
+        "command": conv.as_dict(),
         "ctrl_step_dt": {"period": step_dt, "K_continuous": None if continuous is None else
                          dict(zip("ABCD", (M.tolist() for M in continuous), strict=True)),
                          "method": None if continuous is None else method,
@@ -430,12 +461,12 @@ def prepare_export(law, robot, rate: float | None = None, *, method: str = "tust
         "design": _design_record(design),
     }
     files["controller.json"] = json.dumps(record, indent=2, sort_keys=True) + "\n"
-    return Export(twin, form, rate, dynamics, files, record, continuous)
+    return Export(twin, form, rate, dynamics, files, record, continuous, conv)
 
 
 def export(law, robot, rate: float | None = None, out="controller", *, method: str = "tustin",
            prewarp: float | None = None, design=None, dynamics: str = "auto",
-           overwrite: bool = False) -> Export:
+           command: str = DEFAULT_COMMAND, overwrite: bool = False) -> Export:
     """Write ``law`` on ``robot`` at ``rate`` as a self-contained C folder ``out``.
 
     The folder holds ``controller.h``/``controller.c`` (C99: no allocation, no mutable global,
@@ -468,9 +499,16 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
     design : Design, optional
         The source design, whose ``gamma`` and margins ``controller.json`` records (the
         ``"hinf"`` name uses the paper's design and records it).
-    dynamics : {"auto", "generated", "pinocchio"}, default "auto"
-        The model's dynamics in the folder: the generated C of the nominal RRR when it is that
-        model (``"auto"``, or required by ``"generated"``), else Pinocchio C++.
+    dynamics : {"auto", "generated", "dyngen", "pinocchio"}, default "auto"
+        The model's dynamics in the folder (:data:`DYNAMICS`): the generated C of the nominal
+        RRR when it is that model (``"auto"``, or required by ``"generated"``), else the
+        generated C of :mod:`rrr_pin.sim.dyngen` for a chain of revolute x/y/z joints (no
+        Pinocchio to build or link; armature included), else Pinocchio C++.
+    command : {"full", "no-gravity", "no-gravity-no-friction"}, default "full"
+        The torque convention of the drive (:mod:`rrr_pin.deploy.command`): ``ctrl_step``'s
+        torque is the law's minus ``Ghat(q)`` (``no-gravity``), and minus the law's friction
+        compensation too (``no-gravity-no-friction``); recorded in ``controller.json``
+        (``command``), applied to the safe torque ``ctrl_safe_torque``.
     overwrite : bool, default False
         Replace a previous export in ``out``.
 
@@ -486,14 +524,16 @@ def export(law, robot, rate: float | None = None, out="controller", *, method: s
         law built on another model, joints the C API cannot express.
     FieldError
         A continuous law without ``rate``, a ``rate`` other than a sampled law's, a prewarp
-        at or above Nyquist, a ``K`` unstable once discretized.
+        at or above Nyquist, a ``K`` unstable once discretized, a ``command`` the law cannot
+        honour (:func:`rrr_pin.deploy.command.check_command`).
     OutputError
         ``out`` not empty without ``overwrite``, not writable, or another tool's.
     """
     prepared = prepare_export(law, robot, rate, method=method, prewarp=prewarp, design=design,
-                              dynamics=dynamics)
+                              dynamics=dynamics, command=command)
     settings = {"law": prepared.law.name, "robot": robot.name, "rate": prepared.rate,
-                "method": method, "prewarp": prewarp, "dynamics": prepared.dynamics}
+                "method": method, "prewarp": prewarp, "dynamics": prepared.dynamics,
+                "command": prepared.command.name}
     with OutputDir.claim(out, "export", overwrite=overwrite, settings=settings,
                          option="out") as run:
         prepared.write(run.path)

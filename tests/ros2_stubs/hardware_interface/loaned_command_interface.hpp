@@ -14,11 +14,12 @@ public:
   LoanedCommandInterface(std::string name, double * value) : name_(std::move(name)), value_(value) {}
   LoanedCommandInterface(const LoanedCommandInterface &) = delete;
   LoanedCommandInterface(LoanedCommandInterface &&) = default;
-  const std::string & get_name() const { return name_; }
 #ifdef RRR_PIN_STUB_HUMBLE
-  void set_value(double value) { *value_ = value; }
+  const std::string get_name() const { return name_; }  // Humble: by value
+  void set_value(double val) { *value_ = val; }
   double get_value() const { return *value_; }
 #else
+  const std::string & get_name() const { return name_; }
   template <typename T>
   [[nodiscard]] bool set_value(const T & value, unsigned int max_tries = 10)
   {

@@ -16,10 +16,12 @@ public:
   LoanedStateInterface(std::string name, const double * value) : name_(std::move(name)), value_(value) {}
   LoanedStateInterface(const LoanedStateInterface &) = delete;
   LoanedStateInterface(LoanedStateInterface &&) = default;
-  const std::string & get_name() const { return name_; }
 #ifdef RRR_PIN_STUB_HUMBLE
+  const std::string get_name() const { return name_; }  // Humble: by value
   double get_value() const { return *value_; }
 #else
+  const std::string & get_name() const { return name_; }
+  [[deprecated("Jazzy: use get_optional")]] double get_value() const { return *value_; }
   template <typename T = double>
   [[nodiscard]] std::optional<T> get_optional(unsigned int max_tries = 10) const
   {
