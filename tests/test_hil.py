@@ -44,7 +44,13 @@ def test_hil_json_has_exactly_the_issue_keys(run, capsys):
     summary = json.loads((out / "hil.json").read_text())
     assert set(summary) == {"cycles", "missed", "latency_us", "jitter_us",
                             "max_error_vs_offline_rad", "status", "diverged_at_s"}
-    assert summary["status"] == "completed" and summary["diverged_at_s"] is None
+    # the ideal loop completes; missed deadlines (a loaded machine: the arm holds the torque
+    # of the period) can break the 10 kHz-clocked H-inf loop, which the status then says
+    if summary["missed"] == 0:
+        assert summary["status"] == "completed" and summary["diverged_at_s"] is None
+    else:
+        assert summary["status"] in ("completed", "diverged")
+        assert (summary["diverged_at_s"] is None) == (summary["status"] == "completed")
     assert set(summary["latency_us"]) == {"p50", "p99", "p999", "p9999", "max"}
     assert summary["cycles"] == 100_000
     run_record = json.loads((out / "hil_run.json").read_text())
@@ -249,7 +255,7 @@ def test_a_second_hil_of_the_model_reuses_its_build(exported, tmp_path):
 def test_actuator_and_friction_as_the_engines(exported, tmp_path, capsys):
     """An actuator of 200 rad/s and joint friction: hil's arm is rrr_pin.simulate's."""
     ex, folder, robot = exported
-    fx = PlantEffects(bandwidth=200.0, viscous=(0.4, 0.3, 0.2), coulomb=0.5,
+    fx = PlantEffects(actuator_bandwidth=200.0, viscous=(0.4, 0.3, 0.2), coulomb=0.5,
                       coulomb_velocity=0.05)
     res = hil(folder, 1000, tmp_path / "fx", rate=10_000.0, effects=fx)
     ref = default_reference(robot)
@@ -259,7 +265,7 @@ def test_actuator_and_friction_as_the_engines(exported, tmp_path, capsys):
     # the same RK4 stages and effects, two dynamics implementations (generated C vs
     # Pinocchio's ABA): round-off, below 1e-9 rad over 1000 periods
     assert_allclose(res.q_offline[:1000], traj.q[:1000], rtol=0, atol=1e-9)
-    assert res.run["effects"]["bandwidth_rad_s"] == 200.0
+    assert res.run["effects"]["actuator_bandwidth_rad_s"] == 200.0
     assert main(["hil", str(folder), "--cycles", "10", "--rate", "2000", "--friction",
                  "viscous=1/2", "--out", str(tmp_path / "bad")]) == 2
     assert "--friction viscous=1/2: 2 values" in capsys.readouterr().err

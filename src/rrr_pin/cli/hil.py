@@ -49,7 +49,7 @@ def run_hil(args) -> int:
 
     n = int(read_record(args.folder)["nq"])
     with as_options():
-        effects = PlantEffects(delay=args.delay, bandwidth=args.actuator_bandwidth,
+        effects = PlantEffects(delay=args.delay, actuator_bandwidth=args.actuator_bandwidth,
                                **friction_spec(args.friction, n))
         res = hil(args.folder, args.cycles, args.out, rate=args.rate, effects=effects,
                   overwrite=args.overwrite)
