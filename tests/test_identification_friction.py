@@ -665,3 +665,33 @@ def test_sigmoid_second_stage_fits_sigmoid_friction(rrr):
         rigid = idn.identify(rrr, data, held_out=0.2, method="ols")
     with pytest.raises(ValueError, match="needs a stage 1 with friction"):
         idn.refine_sigmoid_friction(rrr, data, rigid)
+
+
+#: Armature per joint [kg m^2] of the hidden arm (a geared arm's reflected rotor inertia).
+ARMATURE = np.array([0.4, 0.25, 0.1])
+
+
+def test_noise_free_data_recover_base_friction_and_armature_parameters(rrr):
+    """Issue 44 item 1: armature identified with friction. The truth's torques come from
+    Pinocchio's RNEA with ``model.armature`` set (an independent computation of the armature
+    term) plus friction. In the RRR's standard DH, joint 1's axis is fixed in the base and
+    joint 2's is perpendicular to it: the inertia of link 1 about z1 and of link 2 about z2
+    are seen only by their own joint's row, times its own acceleration, which is exactly the
+    armature's column; so those two armatures add to ``Izz_R[link1]`` and ``Izz_R[link2]``
+    with coefficient 1 and only joint 3's (parallel to joint 2) is a column of its own."""
+    truth = idn.with_armature(_truth(rrr), ARMATURE)
+    data = _data(rrr, truth, np.arange(0.0, 10.0, 1.0 / 50.0))
+    result = idn.identify(rrr, data, method="ols", held_out=0.2, friction=True, armature=True)
+    kept, absorbed = idn.armature_columns(rrr, result.base)
+    assert kept.tolist() == [2]
+    assert absorbed == {"joint1": ["Izz_R[link1]"], "joint2": ["Izz_R[link2]"]}
+    expected_theta = result.base(idn.standard_parameters(truth))
+    expected_theta[result.base.names.index("Izz_R[link1]")] += ARMATURE[0]
+    expected_theta[result.base.names.index("Izz_R[link2]")] += ARMATURE[1]
+    expected = np.concatenate([expected_theta, FRICTION.reshape(-1), ARMATURE[2:]])
+    got = np.concatenate([result.theta, result.friction, result.armature[2:]])
+    # Exact data, a well-conditioned regressor: round-off of one QR solve (issue 44: 1e-8).
+    assert_allclose(got, expected, rtol=1e-8, atol=1e-8 * np.abs(expected).max())
+    arm = result.summary["armature"]
+    assert_allclose(arm["joint3"]["value_kg_m2"], ARMATURE[2], rtol=1e-8)
+    assert arm["joint2"]["absorbed_into"] == ["Izz_R[link2]"]

@@ -12,6 +12,7 @@ One module per concept:
 - :mod:`rrr_pin.model.identification.regressors`: standard parameters, Pinocchio's regressor,
   the base parameters (Gautier 1990), :class:`IdentificationError`;
 - :mod:`rrr_pin.model.identification.friction`: viscous, Coulomb and offset columns;
+- :mod:`rrr_pin.model.identification.armature`: a reflected rotor inertia column per joint;
 - :mod:`rrr_pin.model.identification.measurements`: logs (a CSV, per-quantity text files),
   derivatives by a zero-phase filter, irregular time stamps;
 - :mod:`rrr_pin.model.identification.consistency`: the pseudo-inertia SDPs (Wensing, Kim &
@@ -26,6 +27,7 @@ One module per concept:
 Every public name is re-exported here (``rrr_pin.model.identification.identify``, ...).
 """
 
+from .armature import armature_columns, armature_names, armature_regressor, with_armature
 from .consistency import (
     CONSISTENCY_CONFIDENCE,
     PSEUDO_INERTIA_MARGIN,
@@ -80,6 +82,10 @@ __all__ = [
     "FRICTION_NAMES",
     "friction_regressor",
     "friction_names",
+    "armature_regressor",
+    "armature_names",
+    "armature_columns",
+    "with_armature",
     "random_states",
     "BaseParameters",
     "base_parameters",

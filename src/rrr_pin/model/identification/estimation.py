@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ...validation import FieldError, check_probability
+from .armature import armature_columns, armature_names, armature_regressor, with_armature
 from .consistency import consistent_parameters, urdf_with_parameters
 from .friction import friction_names, friction_regressor
 from .measurements import Measurements, filter_like
@@ -79,8 +80,11 @@ class Identification:
         identified friction (``summary["friction"]``, per joint, with standard deviations).
     friction : ndarray, shape (3 nq,) or (0,)
         ``fv, fc, off`` per joint (:func:`friction_regressor`), empty without friction.
-    cov_all : ndarray, shape (p + 3 nq, p + 3 nq), optional
-        Covariance of base and friction parameters together.
+    cov_all : ndarray, shape (p + 3 nq + na, p + 3 nq + na), optional
+        Covariance of base, friction and armature parameters together.
+    armature : ndarray, shape (nq,) or (0,)
+        Estimated armature per joint [kg m^2] (0 where it is absorbed into a base parameter,
+        :func:`~rrr_pin.model.identification.armature.armature_columns`), empty without.
     """
 
     base: BaseParameters
@@ -91,6 +95,7 @@ class Identification:
     summary: dict = field(default_factory=dict)
     friction: np.ndarray = field(default_factory=lambda: np.zeros(0))
     cov_all: np.ndarray | None = field(default=None, repr=False)
+    armature: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def std(self) -> np.ndarray:
@@ -105,6 +110,7 @@ class Identification:
                 "base_consistent": self.base(self.phi).tolist(),
                 "standard_consistent": self.phi.tolist(),
                 "friction_estimate": self.friction.tolist(),
+                "armature_estimate": self.armature.tolist(),
                 "cov_all": None if self.cov_all is None else self.cov_all.tolist()}
 
     def write(self, folder, *, urdf_name: str = "identified.urdf") -> list[Path]:
@@ -249,7 +255,7 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
 
 def identify(robot, data: Measurements, *, method: str = "wls", held_out: float = 0.2,
              base: BaseParameters | None = None, friction: bool = False,
-             refuse_inconsistent: bool = True,
+             armature: bool = False, refuse_inconsistent: bool = True,
              mass_band: float | None = None,
              inertia_band: float | None = None) -> Identification:
     r"""Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
@@ -281,6 +287,11 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         Identify, with the base parameters, each joint's viscous and Coulomb friction and a
         torque offset (:func:`friction_regressor`):
         ``tau = Y_b theta_b + fv qd + fc sign(qd) + off``.
+    armature : bool, default False
+        Identify each joint's armature ``I_a`` (``+ I_a qdd``,
+        :func:`~rrr_pin.model.identification.armature.armature_regressor`) with them; a joint
+        whose armature the base parameters already hold (the first joint's, about an axis
+        fixed in the base) is reported as absorbed (``summary["armature"]``), not a column.
     refuse_inconsistent : bool, default True
         Refuse an estimate with no physically consistent arm inside its 99.9 % region
         (:func:`consistent_parameters`), or with a friction coefficient below zero by 3
@@ -341,6 +352,9 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     N = sum(d.N for d in runs)
     m = sum(len(part["fit"]) for part in parts)
     names = list(base.names) + (friction_names(robot) if friction else [])
+    kept, absorbed = (armature_columns(robot, base) if armature
+                      else (np.zeros(0, dtype=int), {}))
+    names += [armature_names(robot)[j] for j in kept]
     P = len(names)
     if m * n < 2 * P or m * n - P < n:
         raise IdentificationError(
@@ -360,9 +374,11 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     def design(part, rows_):
         d = part["data"]
         W = base.reduce(regressor(robot, d.q[rows_], d.qd[rows_], d.qdd[rows_]))
-        if not friction:
-            return W
-        return np.hstack([W, part["Yf"][rows_].reshape(-1, 3 * n)])
+        if friction:
+            W = np.hstack([W, part["Yf"][rows_].reshape(-1, 3 * n)])
+        if kept.size:
+            W = np.hstack([W, armature_regressor(d.qdd[rows_])[:, kept]])
+        return W
 
     W1 = np.vstack([design(part, part["fit"]) for part in parts])
     tau_fit = np.vstack([part["tau_f"][part["fit"]] for part in parts])
@@ -388,8 +404,18 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     from ..dynamics import robot_from_xml
 
     fr = None
+    nf = 3 * n if friction else 0
+    std_x = np.sqrt(np.diag(cov_x))
+    arm = np.zeros(n if armature else 0)
+    arm[kept] = x[p + nf:]
+    arm_std = np.zeros_like(arm)
+    arm_std[kept] = std_x[p + nf:]
+    ar = None if not armature else {
+        j: ({"value_kg_m2": float(arm[i]), "std": float(arm_std[i])} if j not in absorbed
+            else {"value_kg_m2": 0.0, "std": 0.0, "absorbed_into": absorbed[j]})
+        for i, j in enumerate(robot.joint_names)}
     if friction:
-        f, fs = x[p:].reshape(n, 3), np.sqrt(np.diag(cov_x))[p:].reshape(n, 3)
+        f, fs = x[p:p + nf].reshape(n, 3), std_x[p:p + nf].reshape(n, 3)
         fr = {j: {"viscous_Nms_rad": float(f[i, 0]), "coulomb_Nm": float(f[i, 1]),
                   "offset_Nm": float(f[i, 2]), "std": {"viscous_Nms_rad": float(fs[i, 0]),
                                                        "coulomb_Nm": float(fs[i, 1]),
@@ -400,6 +426,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     identified = robot_from_xml(urdf, name=f"{robot.name}_identified",
                                 gravity=robot.gravity, label="identified URDF",
                                 lock=dict(robot.locked) or None)
+    if armature:
+        with_armature(identified, np.maximum(arm, 0.0))
     suspect = friction_suspects(robot, qd_fit, r, tau_fit)
     if fr:  # friction dissipates: a coefficient below zero by 3 standard deviations contradicts
         wrong = [f"{j} {k} {v[k]:.3g} +- {v['std'][k]:.2g}" for j, v in fr.items()
@@ -413,6 +441,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
                                                  "refuse_inconsistent=False, CLI "
                                                  "--keep-inconsistent)")
             suspect = "; ".join(filter(None, [suspect, said]))
+    clipped = _clipped(fr, ar)
     summary = {
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
         "links": body_links(robot), "gravity_m_s2": robot.gravity,
@@ -436,6 +465,12 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "standard_nominal": phi0.tolist(),
         "friction_model": "viscous + coulomb + offset" if friction else None,
         "friction": fr, "model_error_warning": suspect or None,
+        "armature": ar, "armature_columns": kept.tolist() if armature else None,
+        "clipped": clipped or None,
+        "armature_note": None if not armature else "per joint [kg m^2], added to M(q)'s "
+                         "diagonal (Pinocchio's model.armature); not in the URDF: set on the "
+                         "loaded model from this record; absorbed_into: the base parameters "
+                         "that already hold it (written into those links' inertia)",
         "friction_urdf": None if not fr else {
             j: {"damping": max(v["viscous_Nms_rad"], 0.0), "friction": max(v["coulomb_Nm"], 0.0)}
             for j, v in fr.items()},
@@ -444,10 +479,15 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "intervals_cover": "noise only: a model error (unmodelled friction, delays, "
                            "flexibility) is not in the standard deviations",
     }
-    if suspect:
+    if suspect or clipped:
         import warnings
 
-        warnings.warn(suspect, stacklevel=2)
+        if suspect:
+            warnings.warn(suspect, stacklevel=2)
+        for c in clipped:
+            warnings.warn(f"clipped: {c['joint']} {c['parameter']} estimated {c['value']:.4g} "
+                          f"+- {c['std']:.2g} {c['unit']} (below 0: it would feed energy in), "
+                          f"written as 0 into the identified model", stacklevel=2)
     held = [(part, np.arange(part["n_fit"], part["data"].N - part["edge"])) for part in parts]
     held = [(part, rows_) for part, rows_ in held if rows_.size]
     if held:
@@ -469,8 +509,23 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
             "rms_torque_Nm": _per_joint(robot, rms.tolist())}
     else:
         summary["held_out"] = None
-    return Identification(base, theta, cov, phi, urdf, summary, x[p:].copy(),
-                          cov_x)
+    return Identification(base, theta, cov, phi, urdf, summary, x[p:p + nf].copy(),
+                          cov_x, arm)
+
+
+def _clipped(fr, ar) -> list[dict]:
+    """The negative friction and armature estimates written as 0: joint, value, std, unit."""
+    out = []
+    for j, v in (fr or {}).items():
+        for k, unit in (("viscous_Nms_rad", "N m s/rad"), ("coulomb_Nm", "N m")):
+            if v[k] < 0.0:
+                out.append({"joint": j, "parameter": k.split("_")[0], "value": v[k],
+                            "std": v["std"][k], "unit": unit})
+    for j, v in (ar or {}).items():
+        if v["value_kg_m2"] < 0.0:
+            out.append({"joint": j, "parameter": "armature", "value": v["value_kg_m2"],
+                        "std": v["std"], "unit": "kg m^2"})
+    return out
 
 
 def r_squared(tau, pred) -> np.ndarray:

@@ -86,7 +86,7 @@ def check_identification_record(record: dict, path) -> None:
         except (TypeError, ValueError) as exc:
             raise IdentificationError(f"identification {str(path)!r}: 'cov_all' or "
                                       f"'friction_estimate' not numbers: {exc}") from None
-        P = p + f.size
+        P = p + f.size + len(record.get("armature_columns") or [])
         if f.size != 3 * len(record["joints"]) or cov_all.shape != (P, P):
             raise IdentificationError(
                 f"identification {str(path)!r}: 'friction_estimate' has {f.size} values "
@@ -309,11 +309,15 @@ class IdentifiedUncertainty(UncertaintySet):
         cov = np.asarray(rec["cov"], float)
         p = len(mean)
         f_mean = np.asarray(rec.get("friction_estimate") or [], float)
+        kept = np.asarray(rec.get("armature_columns") or [], dtype=int)
+        a_est = np.asarray(rec.get("armature_estimate") or [], float)
+        a_mean = a_est[kept] if kept.size else np.zeros(0)
         if f_mean.size and rec.get("cov_all") is not None:
-            mean = np.concatenate([mean, f_mean])
+            mean = np.concatenate([mean, f_mean, a_mean])
             cov = np.asarray(rec["cov_all"], float)
         else:
-            f_mean = np.zeros(0)
+            f_mean = a_mean = np.zeros(0)
+        nf = f_mean.size
         L = np.linalg.cholesky(cov)
         limit = chi2.ppf(self.confidence, len(mean))
         problem, theta, phi = self._problem()
@@ -325,8 +329,17 @@ class IdentifiedUncertainty(UncertaintySet):
                 continue
             x = mean + L @ z
             friction = None
+            drawn_armature = None
+            if a_mean.size:
+                drawn_armature = np.where(a_est > 0.0, a_est, 0.0)
+                drawn_armature[kept] = x[p + nf:]
+                if np.any(drawn_armature < 0.0):
+                    negative += 1
+                    if self.draws != "project":
+                        continue
+                    drawn_armature = np.maximum(drawn_armature, 0.0)
             if f_mean.size:
-                f = x[p:].reshape(-1, 3)
+                f = x[p:p + nf].reshape(-1, 3)
                 if np.any(f[:, :2] < 0.0):
                     negative += 1
                     if self.draws != "project":
@@ -364,7 +377,9 @@ class IdentifiedUncertainty(UncertaintySet):
                 rejected["projected_mahalanobis"] = moved
                 rejected["friction_clipped"] = bool(negative)
             return text, {"base": x[:p].tolist(), "standard": np.asarray(phi_value).tolist(),
-                          "friction": friction, "rejected": rejected}
+                          "friction": friction, "rejected": rejected,
+                          **({"armature": drawn_armature.tolist()}
+                             if drawn_armature is not None else {})}
         raise IdentificationError(
             f"{self.path}: no physically consistent plant in {self.MAX_DRAWS} draws "
             f"({outside} outside the {self.confidence:.0%} region, {inconsistent} with no "
