@@ -19,6 +19,8 @@ One module per concept:
   Slotine 2017) and the identified URDF;
 - :mod:`rrr_pin.model.identification.estimation`: least squares, the block-sandwich
   covariance, :func:`identify`, the model-error warning, predictions;
+- :mod:`rrr_pin.model.identification.crossval`: cross-validation by period, segment or
+  run, per-sample prediction intervals, the repeated-motion check;
 - :mod:`rrr_pin.model.identification.record`: ``identification.json``'s check and the
   uncertain plants drawn from it (:class:`IdentifiedUncertainty`);
 - :mod:`rrr_pin.model.identification.sigmoid`: a nonlinear second stage, each joint's
@@ -37,13 +39,22 @@ from .consistency import (
     pseudo_inertia_lmis,
     urdf_with_parameters,
 )
+from .crossval import (
+    REPEAT_DISTANCE,
+    cross_validate,
+    detect_period,
+    prediction_interval,
+    repeats_training,
+)
 from .estimation import (
     Identification,
+    correlation_lag,
     friction_suspects,
     identify,
     least_squares,
     predict_torques,
     r_squared,
+    written_distance,
 )
 from .friction import FRICTION_NAMES, friction_names, friction_regressor
 from .measurements import (
@@ -86,6 +97,13 @@ __all__ = [
     "armature_names",
     "armature_columns",
     "with_armature",
+    "REPEAT_DISTANCE",
+    "cross_validate",
+    "detect_period",
+    "prediction_interval",
+    "repeats_training",
+    "correlation_lag",
+    "written_distance",
     "random_states",
     "BaseParameters",
     "base_parameters",

@@ -56,6 +56,9 @@ __all__ = [
     "r_squared",
     "friction_suspects",
     "predict_torques",
+    "correlation_lag",
+    "written_distance",
+    "jackknife_scale",
 ]
 
 
@@ -163,7 +166,7 @@ def _unidentifiable(names, R: np.ndarray) -> list[str]:
 
 
 def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
-                  method: str = "wls", *, names=None, block: int = 1):
+                  method: str = "wls", *, names=None, block: int = 1, hac_lag: int = 0):
     r"""Estimate base parameters by ordinary or weighted least squares, with their covariance.
 
     Parameters
@@ -191,6 +194,20 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
 
         so that every sample enters the fit and the correlation that the filter puts between
         neighbours is counted, not assumed away.
+    hac_lag : int, default 0
+        Above 0 (and taking precedence over ``block``), the heteroskedasticity and
+        autocorrelation consistent covariance of Newey & West (1987), Bartlett kernel of
+        bandwidth ``L = hac_lag`` samples, which counts a model error that is correlated
+        over ``L`` samples (a friction shape, an armature, a filter the model lacks) as the
+        noise it is for the estimate:
+
+        .. math:: \operatorname{cov} = (W^T W)^{-1} \tfrac{m}{m - P} \Big(\sum_{|l| \le L}
+                  \big(1 - \tfrac{|l|}{L+1}\big) \sum_k g_k g_{k-l}^T\Big) (W^T W)^{-1},
+                  \qquad g_k = W_k^T r_k ,
+
+        computed as ``H^T H / (L + 1)`` with ``H`` the sums of ``g`` over every window of
+        ``L + 1`` consecutive samples (the Bartlett weights are the windows' overlaps), so it
+        is positive semi-definite and costs ``O(m P^2)``.
 
     Returns
     -------
@@ -241,7 +258,16 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
     s2 = float(np.sum(rw * rw)) / (N * n - p)
     Rinv = np.linalg.inv(R)
     cov = s2 * (Rinv @ Rinv.T)
-    if block > 1:
+    if hac_lag > 0:
+        g = np.einsum("kjp,kj->kp", (W * np.tile(weights, N)[:, None]).reshape(N, n, p), rw)
+        c = np.concatenate([np.zeros((1, p)), np.cumsum(g, axis=0)])
+        lo = np.clip(np.arange(-hac_lag, N) , 0, N)
+        hi = np.clip(np.arange(-hac_lag, N) + hac_lag + 1, 0, N)
+        H = c[hi] - c[lo]
+        meat = (N / max(N - p / n, 1.0)) * (H.T @ H) / (hac_lag + 1)
+        cov = (Rinv @ Rinv.T) @ meat @ (Rinv @ Rinv.T)
+        cov = 0.5 * (cov + cov.T)
+    elif block > 1:
         Ww = (W * np.tile(weights, N)[:, None]).reshape(N, n, p)
         B = -(-N // block)
         pad = B * block - N
@@ -255,7 +281,8 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
 
 def identify(robot, data: Measurements, *, method: str = "wls", held_out: float = 0.2,
              base: BaseParameters | None = None, friction: bool = False,
-             armature: bool = False, refuse_inconsistent: bool = True,
+             armature: bool = False, covariance: str = "noise",
+             hac_lag: int | None = None, refuse_inconsistent: bool = True,
              mass_band: float | None = None,
              inertia_band: float | None = None) -> Identification:
     r"""Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
@@ -292,6 +319,15 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         :func:`~rrr_pin.model.identification.armature.armature_regressor`) with them; a joint
         whose armature the base parameters already hold (the first joint's, about an axis
         fixed in the base) is reported as absorbed (``summary["armature"]``), not a column.
+    covariance : {"noise", "hac"}, default "noise"
+        ``"noise"``: the covariance of white (or filter-window correlated) noise around a
+        correct model. ``"hac"``: calibrated to include the model error, the Newey-West
+        covariance of :func:`least_squares` (``hac_lag``), and the consistency distance,
+        the refusal and ``identification.json``'s ``cov`` in its terms.
+    hac_lag : int, optional
+        Bandwidth [samples] of ``"hac"``; default :func:`correlation_lag` of the residuals
+        (the lag at which their autocorrelation, averaged over joints, first falls below
+        0.1), at least one derivative-filter window.
     refuse_inconsistent : bool, default True
         Refuse an estimate with no physically consistent arm inside its 99.9 % region
         (:func:`consistent_parameters`), or with a friction coefficient below zero by 3
@@ -326,6 +362,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     """
     if method not in ("wls", "ols"):
         raise ValueError(f"method must be 'wls' or 'ols', got {method!r}")
+    if covariance not in ("noise", "hac"):
+        raise ValueError(f"covariance must be 'noise' or 'hac', got {covariance!r}")
     held_out = check_probability("held_out", held_out)
     if held_out > 0.9:
         raise FieldError("held_out", "{name} must be in [0, 0.9] (the fraction of the samples "
@@ -386,7 +424,30 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     y1 = tau_fit.reshape(-1)
     x, cov_x, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method, names=names,
                                                    block=block)
+    nf = 3 * n if friction else 0
+    dropped = {}
+    below = [int(j) for i, j in enumerate(kept) if x[p + nf + i] < 0.0]
+    if below:  # an armature below zero is not detected: its column leaves, the rest refitted
+        sd = np.sqrt(np.diag(cov_x))
+        for i, j in enumerate(kept):
+            if j in below:
+                dropped[robot.joint_names[j]] = (float(x[p + nf + i]), float(sd[p + nf + i]))
+        kept = np.asarray([j for j in kept if j not in below], dtype=int)
+        names = names[:p + nf] + [armature_names(robot)[j] for j in kept]
+        W1 = np.vstack([design(part, part["fit"]) for part in parts])
+        x, cov_x, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method, names=names,
+                                                       block=block)
     r = (y1 - W1 @ x).reshape(m, n)
+    summary_extra = {}
+    cov_noise = cov_x[:len(base.names), :len(base.names)].copy()
+    if covariance == "hac":
+        lag = max(correlation_lag(r), block) if hac_lag is None else int(hac_lag)
+        cov_x = least_squares(base, W1, y1, n, method, names=names, hac_lag=lag)[1]
+        weights = 1.0 / sigma_j if method == "wls" else np.ones(n)
+        jack, s_cv = jackknife_scale(W1, y1, cov_x, n, weights)
+        cov_x = max(jack, 1.0) * cov_x
+        summary_extra = {"jackknife_c2": jack, "hac_lag_samples": lag,
+                         "prediction_noise_std_Nm": _per_joint(robot, s_cv)}
     rows = m * n
     theta, cov = x[:p], cov_x[:p, :p]
     # The consistency metric from the base parameters' marginal covariance: A^T A = s2 cov^-1
@@ -401,18 +462,26 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     phi, consistency = consistent_parameters(base, theta, A, phi0, sigma=math.sqrt(s2 / rows),
                                              refuse=refuse_inconsistent, mass_band=mass_band,
                                              inertia_band=inertia_band)
+    consistency["written"] = written_distance(base(phi) - theta, cov, cov_noise,
+                                              W1[:, :p], n, robot.joint_names)
+    consistency["covariance"] = covariance
+    if covariance == "hac":
+        consistency["hac_lag_samples"] = lag
     from ..dynamics import robot_from_xml
 
     fr = None
-    nf = 3 * n if friction else 0
     std_x = np.sqrt(np.diag(cov_x))
     arm = np.zeros(n if armature else 0)
     arm[kept] = x[p + nf:]
     arm_std = np.zeros_like(arm)
     arm_std[kept] = std_x[p + nf:]
     ar = None if not armature else {
-        j: ({"value_kg_m2": float(arm[i]), "std": float(arm_std[i])} if j not in absorbed
-            else {"value_kg_m2": 0.0, "std": 0.0, "absorbed_into": absorbed[j]})
+        j: ({"value_kg_m2": 0.0, "std": 0.0, "absorbed_into": absorbed[j]} if j in absorbed
+            else {"value_kg_m2": 0.0, "std": dropped[j][1], "not_detected": (
+                f"estimate {dropped[j][0]:.4g} +- {dropped[j][1]:.2g} kg m^2 below 0: column "
+                f"left out and the rest refitted (a torque sensor after the gearbox does not "
+                f"see the rotor)")} if j in dropped
+            else {"value_kg_m2": float(arm[i]), "std": float(arm_std[i])})
         for i, j in enumerate(robot.joint_names)}
     if friction:
         f, fs = x[p:p + nf].reshape(n, 3), std_x[p:p + nf].reshape(n, 3)
@@ -449,7 +518,13 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "kinematics": joint_kinematics(robot),
         "data": runs[0].source if len(runs) == 1 else [d.source for d in runs], "samples": N,
         "runs": len(runs), "samples_fit": m, "fit_decimation": 1,
-        "covariance": ("block sandwich over blocks of one derivative-filter window "
+        **summary_extra,
+        "covariance": ("Newey-West (Bartlett kernel, "
+                       f"{summary_extra.get('hac_lag_samples')} samples) scaled by the block "
+                       f"jackknife's c2 = {summary_extra.get('jackknife_c2', 1.0):.4g} over "
+                       f"{JACKKNIFE_BLOCKS} blocks: calibrated to the model error"
+                       if covariance == "hac" else None) or (
+                       "block sandwich over blocks of one derivative-filter window "
                        f"({block} samples): the filter correlates neighbouring residuals"
                        if block > 1 else "s2 (W^T W)^-1 (independent residuals)"),
         "torque_filter": "savgol (as q)" if block > 1 else None,
@@ -476,7 +551,10 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
             for j, v in fr.items()},
         "friction_urdf_note": None if not fr else "each joint's <dynamics damping friction> "
                               "in the identified URDF: the estimate, a negative one written as 0",
-        "intervals_cover": "noise only: a model error (unmodelled friction, delays, "
+        "intervals_cover": "noise and the model error, as far as it varies from one "
+                           "stretch of the motion to the next (block jackknife)"
+                           if covariance == "hac" else
+                           "noise only: a model error (unmodelled friction, delays, "
                            "flexibility) is not in the standard deviations",
     }
     if suspect or clipped:
@@ -513,8 +591,137 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
                           cov_x, arm)
 
 
+#: Contiguous blocks of the block jackknife that calibrates the covariance.
+JACKKNIFE_BLOCKS = 10
+
+
+def jackknife_scale(W, y, cov, n: int, weights, blocks: int = JACKKNIFE_BLOCKS) -> float:
+    r"""How much wider the estimate varies, leaving out blocks of time, than ``cov`` says.
+
+    The delete-a-block jackknife (Kunsch 1989) over ``blocks`` contiguous blocks of samples:
+    ``theta_(k)`` fitted without block ``k`` (by downdating the weighted normal equations),
+
+    .. math:: C_J = \tfrac{K-1}{K} \sum_k (\theta_{(k)} - \bar\theta)(\theta_{(k)} -
+              \bar\theta)^T, \qquad c^2 = \operatorname{tr}(C^{-1} C_J) / P ,
+
+    the mean ratio of the jackknife variance to ``cov``'s in ``cov``'s own metric. A model
+    error that depends on the motion (a friction shape, an armature, a payload the regressor
+    lacks) moves the estimate from one stretch of motion to the next by more than the noise
+    does; ``c^2 > 1`` measures by how much (with ``K = 10`` blocks, ``C_J`` has rank 9: one
+    scalar is what it can calibrate).
+
+    Parameters
+    ----------
+    W : ndarray, shape (m n, P)
+        Regressor (unweighted), rows sample-major.
+    y : ndarray, shape (m n,)
+        Torques [N m].
+    cov : ndarray, shape (P, P)
+        The covariance to calibrate.
+    n : int
+        Joints.
+    weights : ndarray, shape (n,)
+        Per-joint row weights of the fit (``1 / sigma_j`` for ``wls``).
+    blocks : int, default 10
+
+    Returns
+    -------
+    c2 : float
+        ``c^2``.
+    s_cv : ndarray, shape (n,)
+        Per joint, the RMS [N m] of each block's residual predicted by the fit without it
+        (the leave-one-block-out prediction error: the residual level on motion the fit has
+        not seen, for prediction intervals).
+
+    References
+    ----------
+    .. [1] H. R. Kunsch, "The jackknife and the bootstrap for general stationary
+       observations", Annals of Statistics 17(3), 1989.
+    """
+    m, P = len(y) // n, W.shape[1]
+    Dw = np.tile(weights, m)
+    Ww, yw = (W * Dw[:, None]).reshape(m, n, P), (y * Dw).reshape(m, n)
+    edges = np.linspace(0, m, blocks + 1).astype(int)
+    spans = list(zip(edges[:-1], edges[1:], strict=True))
+    A_k = [np.einsum("kjp,kjq->pq", Ww[a:b], Ww[a:b]) for a, b in spans]
+    b_k = [np.einsum("kjp,kj->p", Ww[a:b], yw[a:b]) for a, b in spans]
+    A, b = sum(A_k), sum(b_k)
+    thetas = np.array([np.linalg.solve(A - Ak, b - bk)
+                       for Ak, bk in zip(A_k, b_k, strict=True)])
+    Wr, yr = W.reshape(m, n, P), y.reshape(m, n)
+    e = np.concatenate([yr[a:c] - Wr[a:c] @ th
+                        for (a, c), th in zip(spans, thetas, strict=True)])
+    d = thetas - thetas.mean(axis=0)
+    CJ = (blocks - 1) / blocks * (d.T @ d)
+    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    w = np.maximum(w, 1e-15 * max(float(w.max()), 1e-300))
+    return (float(np.trace((V.T @ CJ @ V) / w[:, None]) / P),
+            np.sqrt(np.mean(e * e, axis=0)))
+
+
+def correlation_lag(r, level: float = 0.1) -> int:
+    """Return the lag [samples] where the residuals' autocorrelation first falls below ``level``.
+
+    Parameters
+    ----------
+    r : ndarray, shape (m, n)
+        Residuals [N m] of consecutive samples, per joint.
+    level : float, default 0.1
+        Of the autocorrelation averaged over joints (each joint's by FFT, zero-padded).
+
+    Returns
+    -------
+    int
+        At least 1, at most ``m // 4``.
+    """
+    m = len(r)
+    x = r - r.mean(axis=0)
+    f = np.fft.rfft(x, n=2 * m, axis=0)
+    acf = np.fft.irfft(f * np.conj(f), axis=0)[:m]
+    acf = (acf / np.where(acf[0] > 0.0, acf[0], 1.0)).mean(axis=1)
+    below = np.flatnonzero(acf[1:m // 4 + 1] < level)
+    return int(below[0] + 1) if below.size else max(m // 4, 1)
+
+
+def written_distance(d, cov, cov_noise, W, n: int, joints) -> dict:
+    """Measure how far the arm written lies from the estimate.
+
+    In calibrated and noise-only standard deviations, and as the RMS torque change it makes
+    over the fitted samples.
+
+    Parameters
+    ----------
+    d : ndarray, shape (p,)
+        Base parameters written minus estimated.
+    cov, cov_noise : ndarray, shape (p, p)
+        The record's covariance and the white-noise one.
+    W : ndarray, shape (m n, p)
+        The (unweighted) base regressor of the fitted samples.
+    n : int
+        Joints.
+    joints : sequence of str, shape (n,)
+
+    Returns
+    -------
+    dict
+        ``mahalanobis`` (``sqrt(d^T cov^-1 d)``), ``mahalanobis_noise`` (the same with
+        ``cov_noise``), ``rms_Nm`` per joint and ``rms_Nm_all`` [N m].
+    """
+    def mahal(c):
+        w, V = np.linalg.eigh(0.5 * (c + c.T))
+        w = np.maximum(w, 1e-15 * max(float(w.max()), 1e-300))
+        z = V.T @ d
+        return float(np.sqrt(np.sum(z * z / w)))
+
+    t = (W @ d).reshape(-1, n)
+    return {"mahalanobis": mahal(cov), "mahalanobis_noise": mahal(cov_noise),
+            "rms_Nm": {j: float(v) for j, v in zip(joints, np.sqrt(np.mean(t * t, axis=0)),
+                                                   strict=True)},
+            "rms_Nm_all": float(np.sqrt(np.mean(t * t)))}
+
+
 def _clipped(fr, ar) -> list[dict]:
-    """The negative friction and armature estimates written as 0: joint, value, std, unit."""
+    """Return the negative friction and armature estimates written as 0 (joint, value, std)."""
     out = []
     for j, v in (fr or {}).items():
         for k, unit in (("viscous_Nms_rad", "N m s/rad"), ("coulomb_Nm", "N m")):
