@@ -235,7 +235,8 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
                 f"Mahalanobis distance {mahal:.4g} > {limit:.4g} (RMS torque change "
                 f"{t_star:.4g} N m). The data do not fit a rigid arm with this URDF's "
                 f"kinematics: check the joint order, torque signs and units, and unmodelled "
-                f"friction or payload")
+                f"friction or payload; to keep the nearest consistent arm anyway: "
+                f"refuse_inconsistent=False (command line: --keep-inconsistent)")
     phi1 = np.asarray(phi.value, dtype=float)
     p2 = cp.Problem(cp.Minimize(cp.norm(cp.multiply(parameter_weights(phi0), phi - phi0))),
                     [cp.norm(resid) <= t_star + 1e-6 * scale] + lmis)
@@ -275,7 +276,8 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
         bool(t_star <= 1e-6 * max(scale, 1e-300)), "pseudo_inertia_margins": margins.tolist()}
 
 
-def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -> str:
+def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None,
+                         locked=None) -> str:
     """Return the URDF text with each moving body's inertial replaced by standard parameters.
 
     Parameters
@@ -297,6 +299,11 @@ def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -
         offset has no URDF field and stays in ``identification.json``; a negative coefficient,
         which URDF readers refuse and which would feed energy in, is written as 0, the
         nearest admissible value, and stays as estimated in the JSON, warned).
+    locked : dict, optional
+        ``{joint: value}`` [rad or m]: each written as a ``fixed`` joint at that value (its
+        motion folded into its ``<origin>``; ``<axis>``, ``<limit>``, ``<mimic>`` and
+        ``<dynamics>`` dropped), so the URDF loads as the arm it was identified as, without
+        the locks repeated.
 
     Returns
     -------
@@ -349,9 +356,39 @@ def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -
             el = ET.SubElement(joint, "dynamics")
         for k, v in values.items():
             el.set(k, repr(v))
+    for joint in root.findall("joint"):
+        if joint.get("name") in (locked or {}):
+            _fix_joint(joint, float(locked[joint.get("name")]))
     text = ET.tostring(root, encoding="unicode")
     check_urdf_inertials(text)
     return text
+
+
+def _fix_joint(joint, value: float) -> None:
+    """Make a URDF ``<joint>`` fixed at ``value`` [rad or m] (its motion into its origin)."""
+    origin = joint.find("origin")
+    xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None
+                              else "0 0 0").split()]
+    rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None
+                              else "0 0 0").split()]
+    axis_el = joint.find("axis")
+    axis = np.array([float(v) for v in (axis_el.get("xyz", "1 0 0") if axis_el is not None
+                                        else "1 0 0").split()])
+    axis = axis / np.linalg.norm(axis)
+    M = pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
+    if joint.get("type") == "prismatic":
+        motion = pin.SE3(np.eye(3), value * axis)
+    else:
+        motion = pin.SE3(pin.AngleAxis(value, axis).matrix(), np.zeros(3))
+    M = M * motion
+    for tag in ("axis", "limit", "mimic", "dynamics", "calibration", "safety_controller"):
+        for el in joint.findall(tag):
+            joint.remove(el)
+    if origin is None:
+        origin = ET.SubElement(joint, "origin")
+    origin.set("xyz", " ".join(repr(float(v)) for v in M.translation))
+    origin.set("rpy", " ".join(repr(float(v)) for v in pin.rpy.matrixToRpy(M.rotation)))
+    joint.set("type", "fixed")
 
 
 # --- estimation -------------------------------------------------------------------------------

@@ -12,7 +12,7 @@ prediction error, :func:`~rrr_pin.model.identification.jackknife_scale`: cross-v
 scaling), ``y_{k,j}`` the regressor row of sample ``k``, joint ``j``, and ``C`` the
 Newey-West covariance of the estimate (:func:`~rrr_pin.model.identification.least_squares`),
 which widens the interval where the sample's regressor is unlike the training's. (The
-parameter covariance of the record, ``identify(..., covariance="hac")``, is that ``C`` scaled
+parameter covariance of the record, ``identify(..., covariance="calibrated")``, is that ``C`` scaled
 by the block jackknife's ``c^2``; the prediction interval does not scale it again, since
 ``s_j`` already holds the parameter error of an average unseen block.)
 

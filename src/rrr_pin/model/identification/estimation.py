@@ -319,13 +319,13 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         :func:`~rrr_pin.model.identification.armature.armature_regressor`) with them; a joint
         whose armature the base parameters already hold (the first joint's, about an axis
         fixed in the base) is reported as absorbed (``summary["armature"]``), not a column.
-    covariance : {"noise", "hac"}, default "noise"
+    covariance : {"noise", "calibrated"}, default "noise"
         ``"noise"``: the covariance of white (or filter-window correlated) noise around a
-        correct model. ``"hac"``: calibrated to include the model error, the Newey-West
+        correct model. ``"calibrated"``: calibrated to include the model error, the Newey-West
         covariance of :func:`least_squares` (``hac_lag``), and the consistency distance,
         the refusal and ``identification.json``'s ``cov`` in its terms.
     hac_lag : int, optional
-        Bandwidth [samples] of ``"hac"``; default :func:`correlation_lag` of the residuals
+        Bandwidth [samples] of ``"calibrated"``; default :func:`correlation_lag` of the residuals
         (the lag at which their autocorrelation, averaged over joints, first falls below
         0.1), at least one derivative-filter window.
     refuse_inconsistent : bool, default True
@@ -362,8 +362,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     """
     if method not in ("wls", "ols"):
         raise ValueError(f"method must be 'wls' or 'ols', got {method!r}")
-    if covariance not in ("noise", "hac"):
-        raise ValueError(f"covariance must be 'noise' or 'hac', got {covariance!r}")
+    if covariance not in ("noise", "calibrated"):
+        raise ValueError(f"covariance must be 'noise' or 'calibrated', got {covariance!r}")
     held_out = check_probability("held_out", held_out)
     if held_out > 0.9:
         raise FieldError("held_out", "{name} must be in [0, 0.9] (the fraction of the samples "
@@ -440,7 +440,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     r = (y1 - W1 @ x).reshape(m, n)
     summary_extra = {}
     cov_noise = cov_x[:len(base.names), :len(base.names)].copy()
-    if covariance == "hac":
+    if covariance == "calibrated":
         lag = max(correlation_lag(r), block) if hac_lag is None else int(hac_lag)
         cov_x = least_squares(base, W1, y1, n, method, names=names, hac_lag=lag)[1]
         weights = 1.0 / sigma_j if method == "wls" else np.ones(n)
@@ -465,7 +465,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     consistency["written"] = written_distance(base(phi) - theta, cov, cov_noise,
                                               W1[:, :p], n, robot.joint_names)
     consistency["covariance"] = covariance
-    if covariance == "hac":
+    if covariance == "calibrated":
         consistency["hac_lag_samples"] = lag
     from ..dynamics import robot_from_xml
 
@@ -491,10 +491,10 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
                                                        "offset_Nm": float(fs[i, 2])}}
               for i, j in enumerate(robot.joint_names)}
     urdf = urdf_with_parameters(robot.urdf, body_links(robot), phi,
-                                moving=robot.joint_names, friction=fr)
+                                moving=robot.joint_names, friction=fr,
+                                locked=dict(robot.locked))
     identified = robot_from_xml(urdf, name=f"{robot.name}_identified",
-                                gravity=robot.gravity, label="identified URDF",
-                                lock=dict(robot.locked) or None)
+                                gravity=robot.gravity, label="identified URDF")
     if armature:
         with_armature(identified, np.maximum(arm, 0.0))
     suspect = friction_suspects(robot, qd_fit, r, tau_fit)
@@ -515,6 +515,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
         "links": body_links(robot), "gravity_m_s2": robot.gravity,
         "locked": dict(robot.locked),
+        "locked_note": "written into the identified URDF as fixed joints at these values"
+                       if robot.locked else None,
         "kinematics": joint_kinematics(robot),
         "data": runs[0].source if len(runs) == 1 else [d.source for d in runs], "samples": N,
         "runs": len(runs), "samples_fit": m, "fit_decimation": 1,
@@ -523,7 +525,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
                        f"{summary_extra.get('hac_lag_samples')} samples) scaled by the block "
                        f"jackknife's c2 = {summary_extra.get('jackknife_c2', 1.0):.4g} over "
                        f"{JACKKNIFE_BLOCKS} blocks: calibrated to the model error"
-                       if covariance == "hac" else None) or (
+                       if covariance == "calibrated" else None) or (
                        "block sandwich over blocks of one derivative-filter window "
                        f"({block} samples): the filter correlates neighbouring residuals"
                        if block > 1 else "s2 (W^T W)^-1 (independent residuals)"),
@@ -553,7 +555,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
                               "in the identified URDF: the estimate, a negative one written as 0",
         "intervals_cover": "noise and the model error, as far as it varies from one "
                            "stretch of the motion to the next (block jackknife)"
-                           if covariance == "hac" else
+                           if covariance == "calibrated" else
                            "noise only: a model error (unmodelled friction, delays, "
                            "flexibility) is not in the standard deviations",
     }
