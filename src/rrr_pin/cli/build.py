@@ -158,6 +158,10 @@ def tolerances_from_args(args, plant):
             raise ValueError(f"--confidence {args.confidence:g} applies to plants drawn from "
                              f"an identification: give --uncertainty IDENTIFICATION.json too "
                              f"(the paper's tolerances have no confidence region)")
+        if getattr(args, "uncertainty_draws", None) is not None:
+            raise ValueError(f"--uncertainty-draws {args.uncertainty_draws} applies to plants "
+                             f"drawn from an identification: give --uncertainty "
+                             f"IDENTIFICATION.json too")
         return Tolerances()
     from ..model.identification import IdentifiedUncertainty
 
@@ -165,7 +169,7 @@ def tolerances_from_args(args, plant):
     with as_options():
         tol = IdentifiedUncertainty(args.uncertainty, confidence=0.95 if args.confidence is None
                                     else args.confidence,
-                                    draws=getattr(args, "uncertainty_draws", "reject"))
+                                    draws=getattr(args, "uncertainty_draws", None) or "reject")
     tol.check_robot(plant)
     return tol
 

@@ -47,10 +47,12 @@ from .crossval import (
     repeats_training,
 )
 from .estimation import (
+    JACKKNIFE_BLOCKS,
     Identification,
     correlation_lag,
     friction_suspects,
     identify,
+    jackknife_scale,
     least_squares,
     predict_torques,
     r_squared,
@@ -104,6 +106,8 @@ __all__ = [
     "repeats_training",
     "correlation_lag",
     "written_distance",
+    "jackknife_scale",
+    "JACKKNIFE_BLOCKS",
     "random_states",
     "BaseParameters",
     "base_parameters",

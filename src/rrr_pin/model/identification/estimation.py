@@ -59,6 +59,7 @@ __all__ = [
     "correlation_lag",
     "written_distance",
     "jackknife_scale",
+    "JACKKNIFE_BLOCKS",
 ]
 
 
