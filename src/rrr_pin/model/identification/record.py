@@ -346,7 +346,7 @@ class IdentifiedUncertainty(UncertaintySet):
                             for j, fj in zip(rec["joints"], f, strict=True)}
             theta.value = x[:p]
             try:
-                problem.solve(solver="CLARABEL")
+                problem.solve(solver="CLARABEL", warm_start=False)
                 ok = problem.status == "optimal"
             except Exception:  # cvxpy.SolverError: a rejected draw
                 ok = False
