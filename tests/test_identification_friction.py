@@ -868,3 +868,14 @@ def test_a_draw_does_not_depend_on_the_draws_before_it(rrr, tmp_path):
     seq = [used.draw(urdf, np.random.default_rng(k)) for k in range(4)]
     for k in (1, 3):
         assert idn.IdentifiedUncertainty(path).draw(urdf, np.random.default_rng(k)) == seq[k]
+
+
+def test_the_bands_accept_the_arm_they_came_from(rrr):
+    """Issue 46: a clean log of the nominal RRR itself, identified with --inertia-band 2
+    --mass-band 2 around that nominal: the nominal (thin rods, pseudo-inertias of rank 2) is
+    inside its own bands, so the arm returned is the nominal's, base parameters to 1e-6 of
+    their size (the SDP's tolerance), instead of 'infeasible'."""
+    data = _data(rrr, rrr, np.arange(0.0, 10.0, 1.0 / 50.0), friction=None)
+    res = idn.identify(rrr, data, method="ols", held_out=0.0, inertia_band=2.0, mass_band=2.0)
+    expected = res.base(idn.standard_parameters(rrr))
+    assert_allclose(res.base(res.phi), expected, rtol=0, atol=1e-6 * np.abs(expected).max())

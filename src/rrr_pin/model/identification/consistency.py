@@ -191,6 +191,11 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     phi0 = np.asarray(phi0, dtype=float)
     nb = len(phi0) // 10
     margins = _margins(phi0)
+    if inertia_band is not None:
+        # J >= J0 / f already keeps J positive semi-definite; a margin above lambda_min(J0) / f
+        # would refuse the nominal itself when its bodies are thin (rods: J0 of rank 2)
+        margins = np.array([min(margins[b], max(np.linalg.eigvalsh(pseudo_inertia(
+            phi0[10 * b:10 * b + 10]))[0], 0.0) / inertia_band) for b in range(nb)])
     phi = cp.Variable(len(phi0))
     resid = A @ (base.K @ phi) - A @ theta
     lmis = pseudo_inertia_lmis(phi, nb, margins)
@@ -200,17 +205,20 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     # An inaccurate end is kept only when its point checks: every pseudo-inertia positive
     # semi-definite (then t* is the measured distance of a consistent arm, an upper bound on
     # the optimum); the status is recorded in info["stage1"].
+    def psd(v):  # round-off of a rank-deficient (thin-rod) body: 1e-9 of its largest
+        w = np.linalg.eigvalsh(pseudo_inertia(v))
+        return w[0] >= -1e-9 * max(w[-1], 0.0)
+
     if status == "optimal_inaccurate" and phi.value is not None and all(
-            np.linalg.eigvalsh(pseudo_inertia(np.asarray(phi.value, float)[10 * b:10 * b + 10]
-                                              )).min() >= 0.0 for b in range(nb)):
+            psd(np.asarray(phi.value, float)[10 * b:10 * b + 10]) for b in range(nb)):
         status1 = "optimal_inaccurate: kept, every pseudo-inertia checked positive semi-definite"
         p1_value = float(np.linalg.norm(A @ (base.K @ np.asarray(phi.value, float) - theta)))
     elif status == "optimal":
         status1 = "optimal"
         p1_value = float(p1.value)
     else:
-        status1 = status
-    if not status1.startswith("optimal"):
+        status1 = f"{status} (its point not checked consistent)"
+    if not status1.startswith("optimal") or "not checked" in status1:
         raise IdentificationError(f"the consistency SDP (nearest consistent base parameters) "
                                   f"ended {status!r}: no physically consistent arm found")
     t_star = p1_value
