@@ -319,7 +319,9 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         Identify each joint's armature ``I_a`` (``+ I_a qdd``,
         :func:`~rrr_pin.model.identification.armature.armature_regressor`) with them; a joint
         whose armature the base parameters already hold (the first joint's, about an axis
-        fixed in the base) is reported as absorbed (``summary["armature"]``), not a column.
+        fixed in the base) is reported as absorbed (``summary["armature"]``), not a column;
+        one estimated below 0 is not detected: its column is left out and the rest refitted
+        (a torque sensor after the gearbox, as the Panda's, never sees the rotor).
     covariance : {"noise", "calibrated"}, default "noise"
         ``"noise"``: the covariance of white (or filter-window correlated) noise around a
         correct model. ``"calibrated"``: calibrated to include the model error, the Newey-West
@@ -350,6 +352,10 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         The residual of a joint correlates with ``qd`` or ``sign(qd)`` (``|r| > 0.3``, named
         joints): a friction term is missing from the model (``friction=False``) or not of the
         form modelled. The intervals then do not cover the model error.
+    UserWarning
+        A friction coefficient or armature estimated below 0 and written as 0 into the
+        identified model ("clipped: joint parameter estimated value +- std unit";
+        ``summary["clipped"]``).
 
     Raises
     ------
@@ -512,6 +518,16 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
                                                  "--keep-inconsistent)")
             suspect = "; ".join(filter(None, [suspect, said]))
     clipped = _clipped(fr, ar)
+    if covariance == "calibrated":
+        covariance_said = (f"Newey-West (Bartlett kernel, {lag} samples) scaled by the block "
+                           f"jackknife's c2 = {max(jack, 1.0):.4g} (measured {jack:.4g}, never "
+                           f"below 1) over {JACKKNIFE_BLOCKS} blocks: calibrated to the model "
+                           f"error")
+    elif block > 1:
+        covariance_said = ("block sandwich over blocks of one derivative-filter window "
+                           f"({block} samples): the filter correlates neighbouring residuals")
+    else:
+        covariance_said = "s2 (W^T W)^-1 (independent residuals)"
     summary = {
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
         "links": body_links(robot), "gravity_m_s2": robot.gravity,
@@ -522,14 +538,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "data": runs[0].source if len(runs) == 1 else [d.source for d in runs], "samples": N,
         "runs": len(runs), "samples_fit": m, "fit_decimation": 1,
         **summary_extra,
-        "covariance": ("Newey-West (Bartlett kernel, "
-                       f"{summary_extra.get('hac_lag_samples')} samples) scaled by the block "
-                       f"jackknife's c2 = {summary_extra.get('jackknife_c2', 1.0):.4g} over "
-                       f"{JACKKNIFE_BLOCKS} blocks: calibrated to the model error"
-                       if covariance == "calibrated" else None) or (
-                       "block sandwich over blocks of one derivative-filter window "
-                       f"({block} samples): the filter correlates neighbouring residuals"
-                       if block > 1 else "s2 (W^T W)^-1 (independent residuals)"),
+        "covariance": covariance_said,
         "torque_filter": "savgol (as q)" if block > 1 else None,
         "held_out_fraction": held_out, "derivatives": (runs[0].derived or {
             "filter": None, "estimated": []}) if len(runs) == 1 else [
