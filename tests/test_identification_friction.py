@@ -835,7 +835,8 @@ def test_cross_validation_bad_input_is_refused_by_name(rrr, tmp_path, capsys):
             (["--model", str(tmp_path), "--data", str(csv), "--inertia-band", "2"],
              "--inertia-band would not act"),
             (["--model", str(tmp_path), "--data", str(csv), "--robot", "ur5"],
-             "--robot would not act")):
+             "--robot would not act"),
+            (["--design-excitation", "--no-friction"], "--friction/--no-friction would not")):
         assert main(["identify", *argv, "--out", str(tmp_path / "o")]) == 2, argv
         err = capsys.readouterr().err
         assert said in err and "Traceback" not in err, (argv, err)

@@ -43,15 +43,15 @@ def add(sub) -> None:
                         "velocity.txt, torques.txt: one number per line, nq per sample, as "
                         "Gaz et al.'s Panda logs); several runs: several, each filtered on "
                         "its own, fitted together")
-    p.add_argument("--friction", action=argparse.BooleanOptionalAction, default=True,
+    p.add_argument("--friction", action=argparse.BooleanOptionalAction, default=None,
                    help="identify each joint's viscous and Coulomb friction and torque offset "
                         "with the base parameters (written into identification.json and the "
                         "URDF's <dynamics damping friction>); on by default")
-    p.add_argument("--armature", action=argparse.BooleanOptionalAction, default=True,
+    p.add_argument("--armature", action=argparse.BooleanOptionalAction, default=None,
                    help="identify each joint's armature (reflected rotor inertia, added to "
                         "M(q)'s diagonal; in identification.json, not the URDF); a joint whose "
                         "estimate is below 0 is said and left out; on by default")
-    p.add_argument("--covariance", choices=("calibrated", "noise"), default="calibrated",
+    p.add_argument("--covariance", choices=("calibrated", "noise"), default=None,
                    help="'calibrated' (default): Newey-West covariance scaled by a block "
                         "jackknife, which includes the model error; 'noise': white noise "
                         "around a correct model")
@@ -125,7 +125,21 @@ def run_identify(args) -> int:
             seen[key] = path
     if args.model is not None:
         return _predict(args)
+    if args.design_excitation:
+        given = [opt for opt, v in (("--friction/--no-friction", args.friction),
+                                    ("--armature/--no-armature", args.armature),
+                                    ("--covariance", args.covariance), ("--folds", args.folds),
+                                    ("--mass-band", args.mass_band),
+                                    ("--inertia-band", args.inertia_band)) if v is not None]
+        if given or args.keep_inconsistent:
+            raise ValueError("--design-excitation designs the motion to log and fits nothing: "
+                             + ", ".join(given + (["--keep-inconsistent"]
+                                                  if args.keep_inconsistent else []))
+                             + " would not act; leave them out")
     args.robot = "rrr" if args.robot is None else args.robot
+    args.friction = True if args.friction is None else args.friction
+    args.armature = True if args.armature is None else args.armature
+    args.covariance = "calibrated" if args.covariance is None else args.covariance
     not_a_folder(robot=args.robot)
     folds = _folds(args.folds)
     from ..model.excitation import MAX_HARMONICS
@@ -262,8 +276,9 @@ def _predict(args) -> int:
         ("--inertia-band", args.inertia_band is not None),
         ("--keep-inconsistent", args.keep_inconsistent), ("--folds", args.folds is not None),
         ("--method", args.method != "wls"), ("--held-out", args.held_out != 0.2),
-        ("--no-friction", not args.friction), ("--no-armature", not args.armature),
-        ("--covariance", args.covariance != "calibrated")) if on]
+        ("--friction/--no-friction", args.friction is not None),
+        ("--armature/--no-armature", args.armature is not None),
+        ("--covariance", args.covariance is not None)) if on]
     if given:
         raise ValueError(f"--model DIR predicts with DIR's identified arm, fitting nothing: "
                          f"{', '.join(given)} would not act; leave "
