@@ -459,18 +459,48 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     theta, cov = x[:p], cov_x[:p, :p]
     # The consistency metric from the base parameters' marginal covariance: A^T A = s2 cov^-1
     # / rows, which is R^T R / rows of the (weighted) regressor when there are no friction
-    # columns and the residuals are independent.
+    # columns and the residuals are independent. With the calibrated covariance the arm is
+    # still chosen in the noise metric (the smallest torque change over the data, what the
+    # prediction needs), and judged in the calibrated one (its distance, the refusal).
     # A square root of cov^-1 by eigenvalues (cov can be numerically semi-definite on short
     # logs, where Cholesky of its inverse fails): A^T A = cov^-1 on its range
-    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    metric = cov_noise if covariance == "calibrated" else cov
+    w, V = np.linalg.eigh(0.5 * (metric + metric.T))
     w = np.maximum(w, 1e-15 * max(float(w.max()), 1e-300))
     A = (V / np.sqrt(w)).T * math.sqrt(s2 / rows)
     phi0 = standard_parameters(robot)
-    phi, consistency = consistent_parameters(base, theta, A, phi0, sigma=math.sqrt(s2 / rows),
-                                             refuse=refuse_inconsistent, mass_band=mass_band,
-                                             inertia_band=inertia_band)
+    phi, consistency = consistent_parameters(
+        base, theta, A, phi0, sigma=None if covariance == "calibrated" else math.sqrt(s2 / rows),
+        refuse=refuse_inconsistent, mass_band=mass_band, inertia_band=inertia_band)
     consistency["written"] = written_distance(base(phi) - theta, cov, cov_noise,
                                               W1[:, :p], n, robot.joint_names)
+    if covariance == "calibrated":
+        from scipy.stats import chi2
+
+        from .consistency import CONSISTENCY_CONFIDENCE, PSEUDO_INERTIA_MARGIN
+
+        d_cal = consistency["written"]["mahalanobis"]
+        limit = math.sqrt(chi2.ppf(CONSISTENCY_CONFIDENCE, p))
+        scale = float(np.linalg.norm(A @ theta))
+        outside = bool(d_cal > limit and consistency["distance_rms_Nm"]
+                       > 10.0 * PSEUDO_INERTIA_MARGIN * scale)
+        consistency.update(mahalanobis=d_cal, outside_confidence=outside,
+                           mahalanobis_returned=d_cal)
+        said = (f"the nearest physically consistent arm lies {d_cal:.4g} standard deviations "
+                f"of the calibrated covariance from the estimate, outside its "
+                f"{CONSISTENCY_CONFIDENCE:.1%} region (limit {limit:.4g}; RMS torque change "
+                f"{consistency['written']['rms_Nm_all']:.4g} N m)")
+        if outside and refuse_inconsistent:
+            raise IdentificationError(
+                f"infeasible consistency problem: {said}. The data do not fit a rigid arm with "
+                f"this URDF's kinematics even allowing for the model error the residuals show: "
+                f"check the joint order, torque signs and units, or a payload; to keep the "
+                f"nearest consistent arm anyway: refuse_inconsistent=False (command line: "
+                f"--keep-inconsistent)")
+        if outside:
+            import warnings
+
+            warnings.warn(said + ": kept, as asked", stacklevel=2)
     consistency["covariance"] = covariance
     if covariance == "calibrated":
         consistency["hac_lag_samples"] = lag
