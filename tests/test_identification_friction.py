@@ -727,14 +727,14 @@ def test_calibrated_covariance_covers_a_friction_shape_the_white_one_does_not(rr
     for seed in range(3):
         fits = {k: [] for k in z}
         for s in (2 * seed + 1, 2 * seed + 2):
-            data = _stribeck_data(rrr, truth, t, s)
-            for k in z:
-                fits[k].append(idn.identify(rrr, data, method="ols", held_out=0.0,
-                                            friction=True, covariance=k,
-                                            refuse_inconsistent=False))
-        for k, (a, b) in fits.items():
-            z[k].append((np.r_[a.theta, a.friction] - np.r_[b.theta, b.friction])
-                        / np.sqrt(np.diag(a.cov_all) + np.diag(b.cov_all)))
+            res = idn.identify(rrr, _stribeck_data(rrr, truth, t, s), method="ols",
+                               held_out=0.0, friction=True, covariance="calibrated",
+                               refuse_inconsistent=False)
+            x = np.r_[res.theta, res.friction]
+            fits["noise"].append((x, np.diag(res.cov_all_noise)))  # the same fit, uncalibrated
+            fits["calibrated"].append((x, np.diag(res.cov_all)))
+        for k, ((xa, va), (xb, vb)) in fits.items():
+            z[k].append((xa - xb) / np.sqrt(va + vb))
     lo, hi = binom.ppf([0.0005, 0.9995], 72, 0.95)
     inside = {k: int(np.sum(np.abs(np.concatenate(v)) < 1.96)) for k, v in z.items()}
     assert inside["noise"] < lo, inside

@@ -89,6 +89,9 @@ class Identification:
     armature : ndarray, shape (nq,) or (0,)
         Estimated armature per joint [kg m^2] (0 where it is absorbed into a base parameter,
         :func:`~rrr_pin.model.identification.armature.armature_columns`), empty without.
+    cov_all_noise : ndarray, shape like ``cov_all``, optional
+        The white-noise (or filter-window block) covariance of the same fit, before
+        calibration; equal to ``cov_all`` with ``covariance="noise"``. Not written.
     """
 
     base: BaseParameters
@@ -100,6 +103,7 @@ class Identification:
     friction: np.ndarray = field(default_factory=lambda: np.zeros(0))
     cov_all: np.ndarray | None = field(default=None, repr=False)
     armature: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cov_all_noise: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def std(self) -> np.ndarray:
@@ -447,6 +451,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     r = (y1 - W1 @ x).reshape(m, n)
     summary_extra = {}
     cov_noise = cov_x[:len(base.names), :len(base.names)].copy()
+    cov_all_noise = cov_x.copy()
     if covariance == "calibrated":
         lag = max(correlation_lag(r), block) if hac_lag is None else int(hac_lag)
         cov_x = least_squares(base, W1, y1, n, method, names=names, hac_lag=lag)[1]
@@ -630,7 +635,7 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     else:
         summary["held_out"] = None
     return Identification(base, theta, cov, phi, urdf, summary, x[p:p + nf].copy(),
-                          cov_x, arm)
+                          cov_x, arm, cov_all_noise)
 
 
 #: Contiguous blocks of the block jackknife that calibrates the covariance.
