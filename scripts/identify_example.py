@@ -118,7 +118,8 @@ def main(argv=None):
     status = cli(["identify", "--robot", "rrr", "--data", str(log), "--out",
                   str(out / "identify"), "--overwrite"]
                  + (["--window", "0.05"] if args.quick else [])
-                 + (["--friction", "--keep-inconsistent"] if args.friction else []))
+                 + (["--keep-inconsistent"] if args.friction
+                    else ["--no-friction", "--no-armature"]))
     if status:
         raise SystemExit(status)
     record = json.loads((out / "identify" / "identification.json").read_text())

@@ -112,7 +112,7 @@ def main(argv=None):
                                refuse_inconsistent=False, mass_band=args.mass_band,
                                inertia_band=args.inertia_band)
         fits[name] = res
-        arm = robot_from_xml(res.urdf, name=f"panda_{name}", lock=dict(robot.locked) or None)
+        arm = robot_from_xml(res.urdf, name=f"panda_{name}")  # its locks are written in
         preds[name] = idn.predict_torques(arm, data, res.summary["friction"])
         print(f"{name}: {len(caught)} warnings: " + " | ".join(
             str(w.message)[:160] for w in caught))

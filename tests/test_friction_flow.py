@@ -266,7 +266,7 @@ def test_plants_drawn_carry_their_drawn_friction(friction_record, rrr):
         assert_allclose(fv, [expect[j]["viscous_Nms_rad"] for j in rrr.joint_names], rtol=1e-15)
         assert_allclose(fc, [expect[j]["coulomb_Nm"] for j in rrr.joint_names], rtol=1e-15)
         assert np.all(fv >= 0) and np.all(fc >= 0)
-        assert "negative_friction" in info["rejected"]
+        assert "friction_folded" in info["rejected"]
         drawn.append(fv)
     # the draws spread around the estimate by about its standard deviation (20 draws of a
     # chi-square-truncated normal: between 0.3 and 1.7 std per joint)
@@ -283,7 +283,7 @@ def test_montecarlo_on_drawn_plants_simulates_their_friction(friction_record, tm
                  "--friction", "urdf", "--compensate-friction", "--no-progress",
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "negative friction" in printed
+    assert "folded back" in printed
     summary = json.loads((out / "summary.json").read_text())
     assert summary["summary"]["engines"]["fl"] == {"python": 2}  # compensation: Python only
     drawn = [json.loads(line) for line in (out / "samples.jsonl").read_text().splitlines()]
@@ -308,7 +308,7 @@ def test_projected_draws_are_consistent_and_record_the_move(friction_record, rrr
     for b in range(3):  # physically consistent after the move
         assert np.linalg.eigvalsh(idn.pseudo_inertia(phi[10 * b:10 * b + 10])).min() > 0.0
     text, info = tol.draw(urdf, np.random.default_rng(2))
-    assert set(info["rejected"]) >= {"projected", "projected_mahalanobis", "friction_clipped"}
+    assert set(info["rejected"]) >= {"projected", "projected_mahalanobis", "friction_folded"}
 
 
 def test_friction_too_stiff_for_the_substep_is_refused(rubbing):

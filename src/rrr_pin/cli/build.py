@@ -263,6 +263,10 @@ def tolerances_from_args(args, plant, *, vertices: bool = False):
             raise ValueError(f"--confidence {args.confidence:g} applies to plants drawn from "
                              f"an identification: give --uncertainty IDENTIFICATION.json too "
                              f"(the paper's tolerances have no confidence region)")
+        if getattr(args, "uncertainty_draws", None) is not None:
+            raise ValueError(f"--uncertainty-draws {args.uncertainty_draws} applies to plants "
+                             f"drawn from an identification: give --uncertainty "
+                             f"IDENTIFICATION.json too")
         try:
             return (ToleranceVertices if vertices else Tolerances)(**joint)
         except ValueError as exc:  # "armature tolerance must be ..." -> the option's name
@@ -278,7 +282,7 @@ def tolerances_from_args(args, plant, *, vertices: bool = False):
     with as_options():
         tol = IdentifiedUncertainty(args.uncertainty, confidence=0.95 if args.confidence is None
                                     else args.confidence,
-                                    draws=getattr(args, "uncertainty_draws", "reject"))
+                                    draws=getattr(args, "uncertainty_draws", None) or "reject")
     tol.check_robot(plant)
     return tol
 
@@ -372,19 +376,18 @@ def rejections_line(entries) -> str | None:
         return None
     outside = sum(d["outside_confidence"] for d in drawn)
     inconsistent = sum(d["inconsistent"] for d in drawn)
-    negative = sum(d.get("negative_friction", 0) for d in drawn)
+    folded = sum(d.get("friction_folded", 0) for d in drawn)
+    said = (f"; {folded} drawn friction (or armature) coefficients below 0 folded back to "
+            f"|x|" if any("friction_folded" in d for d in drawn) else "")
     if any("projected" in d for d in drawn):  # --uncertainty-draws project: moved, not redrawn
         moved = [d["projected_mahalanobis"] for d in drawn if d["projected"]]
         return (f"identified uncertainty: {len(drawn)} plants drawn; {outside} redrawn outside "
                 f"the confidence region; {len(moved)} moved to the nearest physically "
                 f"consistent arm" + (f" (by {min(moved):.3g} to {max(moved):.3g} standard "
-                                     f"deviations)" if moved else "")
-                + f"; {sum(d['friction_clipped'] for d in drawn)} with a negative friction "
-                  f"coefficient set to 0")
+                                     f"deviations)" if moved else "") + said)
     return (f"identified uncertainty: {len(drawn)} plants drawn; rejected and redrawn: "
             f"{outside} outside the confidence region, {inconsistent} with no physically "
-            f"consistent arm" + (f", {negative} with negative friction" if any(
-                "negative_friction" in d for d in drawn) else ""))
+            f"consistent arm" + said)
 
 
 def frozen_configuration(args, plant):

@@ -83,6 +83,10 @@ def add_tuning_arguments(p) -> None:
     g.add_argument("--confidence", type=float, default=None,
                    help="with --uncertainty only: confidence region the plants are drawn in "
                         "(0.95)")
+    g.add_argument("--uncertainty-draws", choices=("reject", "project"), default=None,
+                   help="with --uncertainty: a draw with no physically consistent arm is "
+                        "rejected and redrawn (reject, default), or moved to the nearest "
+                        "consistent arm, its distance recorded (project)")
     g.add_argument("--seed", type=int, default=0, help="seed of the plants and starts (0)")
     g.add_argument("--rate", type=float, default=1000.0, metavar="HZ",
                    help="sampling rate of the tuned law [Hz] (1000)")
@@ -135,7 +139,8 @@ def run_tuned(args) -> int:
                              else "--lam" if f == "lam_start" else f) from None
     fixed = parse_with(args.fixed, "")
     if args.plants == "vertices":
-        if args.uncertainty is not None or args.confidence is not None:
+        if (args.uncertainty is not None or args.confidence is not None
+                or args.uncertainty_draws is not None):
             raise ValueError("--plants vertices takes the corners of the tolerance box; an "
                              "identified set (--uncertainty, --confidence) has none: give "
                              "--plants samples")

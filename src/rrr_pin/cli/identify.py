@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 
@@ -30,7 +31,7 @@ def add(sub) -> None:
                     "DIR/identified.urdf and DIR/identification.json. With "
                     "--design-excitation, writes instead an optimised Fourier excitation, "
                     "DIR/excitation.csv (for --reference spline --csv) and excitation.json.")
-    p.add_argument("--robot", default="rrr", metavar="NAME|PATH",
+    p.add_argument("--robot", default=None, metavar="NAME|PATH",
                    help="arm whose kinematics are trusted and whose inertials are the prior: "
                         "'rrr' (default), an example-robot-data name or a URDF path")
     p.add_argument("--lock", action="append", metavar="JOINT=VALUE",
@@ -42,10 +43,25 @@ def add(sub) -> None:
                         "velocity.txt, torques.txt: one number per line, nq per sample, as "
                         "Gaz et al.'s Panda logs); several runs: several, each filtered on "
                         "its own, fitted together")
-    p.add_argument("--friction", action="store_true",
+    p.add_argument("--friction", action=argparse.BooleanOptionalAction, default=None,
                    help="identify each joint's viscous and Coulomb friction and torque offset "
                         "with the base parameters (written into identification.json and the "
-                        "URDF's <dynamics damping friction>)")
+                        "URDF's <dynamics damping friction>); on by default")
+    p.add_argument("--armature", action=argparse.BooleanOptionalAction, default=None,
+                   help="identify each joint's armature (reflected rotor inertia, added to "
+                        "M(q)'s diagonal; in identification.json, not the URDF); a joint whose "
+                        "estimate is below 0 is said and left out; on by default")
+    p.add_argument("--covariance", choices=("calibrated", "noise"), default=None,
+                   help="'calibrated' (default): Newey-West covariance scaled by a block "
+                        "jackknife, which includes the model error; 'noise': white noise "
+                        "around a correct model")
+    p.add_argument("--folds", default=None, metavar="K|period|runs",
+                   help="cross-validate: K contiguous segments, one fold per period of a "
+                        "periodic excitation, or one per run; reported per fold, with the "
+                        "coverage of --level prediction intervals")
+    p.add_argument("--level", type=float, default=0.95, metavar="P",
+                   help="level of the prediction intervals, in (0, 1) (0.95): of --folds, "
+                        "and of tau_<joint>_lo/_hi written by --model")
     p.add_argument("--mass-band", type=float, default=None, metavar="F",
                    help="plausibility bound of the consistent arm: every body's mass within "
                         "[m0/F, F m0] of --robot's (default: pseudo-inertia positive definite "
@@ -56,12 +72,12 @@ def add(sub) -> None:
                         "in every direction (default: none)")
     p.add_argument("--keep-inconsistent", action="store_true",
                    help="keep the nearest consistent arm, with a warning, when it lies outside "
-                        "the estimate's 99.9%% region (real logs, whose model error the noise "
-                        "model does not cover); refused by default")
+                        "the estimate's 99.9%% region of the covariance; refused by default")
     p.add_argument("--model", metavar="DIR", default=None,
                    help="predict only: the torques of --data with the model identified in DIR "
-                        "(its identified.urdf and friction); writes --out/prediction.csv and "
-                        "prediction.json, fits nothing")
+                        "(its identified.urdf, friction and armature), with --level prediction "
+                        "intervals (tau_<joint>_lo, tau_<joint>_hi); writes "
+                        "--out/prediction.csv and prediction.json, fits nothing")
     p.add_argument("--method", choices=("wls", "ols"), default="wls",
                    help="weighted (per-joint noise, default) or ordinary least squares")
     p.add_argument("--held-out", type=float, default=0.2, metavar="FRACTION",
@@ -93,9 +109,39 @@ def run_identify(args) -> int:
     from ..model.plant import URDF
     from ..outputs import writing
 
-    not_a_folder(robot=args.robot)
+    if not (math.isfinite(args.level) and 0.0 < args.level < 1.0):
+        raise ValueError(f"--level must be in (0, 1) (the prediction intervals' coverage), "
+                         f"got {args.level!r}")
+    if args.data is not None:
+        from pathlib import Path
+
+        seen = {}
+        for path in args.data:
+            key = Path(path).resolve()
+            if key in seen:
+                raise ValueError(f"--data: {path!r} is given twice (as {seen[key]!r}): the same "
+                                 f"log fitted twice would halve its variance; give each run "
+                                 f"once")
+            seen[key] = path
     if args.model is not None:
         return _predict(args)
+    if args.design_excitation:
+        given = [opt for opt, v in (("--friction/--no-friction", args.friction),
+                                    ("--armature/--no-armature", args.armature),
+                                    ("--covariance", args.covariance), ("--folds", args.folds),
+                                    ("--mass-band", args.mass_band),
+                                    ("--inertia-band", args.inertia_band)) if v is not None]
+        if given or args.keep_inconsistent:
+            raise ValueError("--design-excitation designs the motion to log and fits nothing: "
+                             + ", ".join(given + (["--keep-inconsistent"]
+                                                  if args.keep_inconsistent else []))
+                             + " would not act; leave them out")
+    args.robot = "rrr" if args.robot is None else args.robot
+    args.friction = True if args.friction is None else args.friction
+    args.armature = True if args.armature is None else args.armature
+    args.covariance = "calibrated" if args.covariance is None else args.covariance
+    not_a_folder(robot=args.robot)
+    folds = _folds(args.folds)
     from ..model.excitation import MAX_HARMONICS
 
     for name, lo in (("harmonics", 2), ("periods", 1), ("maxiter", 1)):
@@ -149,17 +195,23 @@ def run_identify(args) -> int:
         return 0
     import warnings
 
-    from ..model.identification import identify
+    from ..model.identification import cross_validate, identify
 
     with as_options(), warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         data = [_read(path, robot, args.window) for path in args.data]
         result = identify(robot, data, method=args.method, held_out=args.held_out,
-                          friction=args.friction, mass_band=args.mass_band,
+                          friction=args.friction, armature=args.armature,
+                          covariance=args.covariance, mass_band=args.mass_band,
                           inertia_band=args.inertia_band,
                           refuse_inconsistent=not args.keep_inconsistent)
+        cv = None if folds is None else cross_validate(
+            robot, data, folds, method=args.method, friction=args.friction,
+            armature=args.armature, level=args.level)
     for w in caught:  # the model-error and consistency warnings, said once, without a path
         print(f"warning: {w.message}")
+    if cv is not None:
+        result.summary["cross_validation"] = cv
     out = claim_out(args, "identify")
     written = result.write(out)
     s = result.summary
@@ -176,10 +228,31 @@ def run_identify(args) -> int:
         print(f"held-out {s['held_out']['samples']} samples, identified URDF's torque error "
               "RMS [N m]: " + ", ".join(f"{k} {v:.4g}" for k, v in
                                        s["held_out"]["rms_error_urdf_Nm"].items()))
+    if s.get("armature"):
+        print("armature [kg m^2]: " + ", ".join(
+            f"{k} " + ("absorbed into " + "/".join(v["absorbed_into"]) if "absorbed_into" in v
+                       else "not detected (estimate < 0)" if "not_detected" in v
+                       else f"{v['value_kg_m2']:.3g} +- {v['std']:.2g}")
+            for k, v in s["armature"].items()))
     c = s["consistency"]
+    w = c["written"]
     print("physically consistent: " + ("the estimate itself" if c["feasible_at_estimate"]
-                                       else f"nearest consistent arm at RMS torque change "
-                                            f"{c['distance_rms_Nm']:.3g} N m"))
+                                       else "the nearest consistent arm") +
+          f", {w['mahalanobis']:.3g} standard deviations of the {args.covariance} covariance "
+          f"from the estimate ({w['mahalanobis_noise']:.3g} of the noise-only one), RMS torque "
+          f"change {w['rms_Nm_all']:.3g} N m")
+    if cv is not None:
+        print(f"cross-validation ({cv['kind']}" + (f", period {cv['period_s']:.4g} s"
+                                                    if cv["period_s"] else "")
+              + f"), {cv['level']:.0%} prediction intervals:")
+        for f in cv["folds"]:
+            print(f"  fold {f['fold']} (run {f['run']}, samples {f['first_sample']}.."
+                  f"{f['last_sample']}" + (", repeats the training motion" if
+                                            f["repeats_training"] else "") + "): RMS [N m] "
+                  + " ".join(f"{v:.3g}" for v in f["rms_Nm"].values()) + "; covered "
+                  + " ".join(f"{v:.0%}" for v in f["coverage"].values()))
+        print("  all folds: RMS [N m] " + " ".join(f"{v:.3g}" for v in cv["rms_Nm"].values())
+              + "; covered " + " ".join(f"{v:.1%}" for v in cv["coverage"].values()))
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
@@ -196,9 +269,20 @@ def _predict(args) -> int:
 
     if args.data is None or len(args.data) != 1:
         raise ValueError("--model DIR predicts one --data FILE.csv: give one file")
-    if args.design_excitation or args.friction:
-        raise ValueError("--model DIR predicts with DIR's model: --design-excitation and "
-                         "--friction are not read with it")
+    given = [opt for opt, on in (
+        ("--robot", args.robot is not None), ("--lock", bool(args.lock)),
+        ("--design-excitation", args.design_excitation),
+        ("--mass-band", args.mass_band is not None),
+        ("--inertia-band", args.inertia_band is not None),
+        ("--keep-inconsistent", args.keep_inconsistent), ("--folds", args.folds is not None),
+        ("--method", args.method != "wls"), ("--held-out", args.held_out != 0.2),
+        ("--friction/--no-friction", args.friction is not None),
+        ("--armature/--no-armature", args.armature is not None),
+        ("--covariance", args.covariance is not None)) if on]
+    if given:
+        raise ValueError(f"--model DIR predicts with DIR's identified arm, fitting nothing: "
+                         f"{', '.join(given)} would not act; leave "
+                         + ("it" if len(given) == 1 else "them") + " out")
     folder = Path(args.model)
     rec_path = folder / "identification.json"
     try:
@@ -207,13 +291,23 @@ def _predict(args) -> int:
     except (OSError, ValueError, KeyError) as exc:
         raise IdentificationError(f"--model {args.model!r}: cannot read its "
                                   f"identification.json and identified URDF: {exc}") from None
-    lock = dict(rec.get("locked") or {})
+    import xml.etree.ElementTree as ET
+
+    moving = {j.get("name") for j in ET.fromstring(urdf).findall("joint")
+              if j.get("type") != "fixed"}
+    lock = {k: v for k, v in (rec.get("locked") or {}).items() if k in moving}  # older records
     robot = robot_from_xml(urdf, name=f"{rec.get('robot', 'arm')}_identified",
                            gravity=rec["gravity_m_s2"], label=f"--model {args.model}",
                            **({"lock": lock} if lock else {}))
+    arm = rec.get("armature") or {}
+    if arm:  # a URDF carries no armature: set on the loaded model from the record
+        from ..model.identification import with_armature
+
+        with_armature(robot, [max(arm[j]["value_kg_m2"], 0.0) for j in robot.joint_names])
     with as_options():
         data = _read(args.data[0], robot, args.window)
     pred = predict_torques(robot, data, rec.get("friction"))
+    half = _half_width(rec, robot, data, args.level)
     from ..model.identification import filter_like, r_squared
 
     tau = filter_like(data, data.tau)
@@ -223,22 +317,81 @@ def _predict(args) -> int:
     out = claim_out(args, "identify")
     csv_path, js = out / "prediction.csv", out / "prediction.json"
     header = "t," + ",".join(f"tau_{j}" for j in robot.joint_names)
+    columns = [data.t, pred]
+    if half is not None:
+        header += "," + ",".join(f"tau_{j}_lo,tau_{j}_hi" for j in robot.joint_names)
+        columns += [np.column_stack([x for j in range(robot.nq)
+                                     for x in (pred[:, j] - half[:, j], pred[:, j] + half[:, j])])]
     with writing(csv_path):
-        np.savetxt(csv_path, np.column_stack([data.t, pred]), delimiter=",", header=header,
+        np.savetxt(csv_path, np.column_stack(columns), delimiter=",", header=header,
                    comments="", fmt="%.10g")
     summary = {"model": str(folder), "data": data.source, "samples": data.N,
                "derivatives": data.derived or None,
                "torque_filter": "savgol (as q)" if data.derived else None,
                "residual_rms_Nm": dict(zip(robot.joint_names, rms.tolist(), strict=True)),
-               "r2": dict(zip(robot.joint_names, r2.tolist(), strict=True))}
+               "r2": dict(zip(robot.joint_names, r2.tolist(), strict=True)),
+               "interval_level": None if half is None else args.level,
+               "interval_coverage": None if half is None else dict(zip(
+                   robot.joint_names, (np.abs(e) <= half).mean(axis=0).tolist(), strict=True)),
+               "interval": None if half is None else (
+                   "tau_<joint>_lo/_hi: prediction +- z sqrt(s_j^2 + y C y^T), s_j the "
+                   "leave-one-block-out residual level, C the Newey-West covariance "
+                   "(identification.json's cov_all / jackknife_c2)")}
     with writing(js):
         js.write_text(json.dumps(summary, indent=1) + "\n")
     print(f"predicted {data.N} samples of {data.source} with {folder}")
     print("residual RMS [N m]: " + ", ".join(f"{k} {v:.4g}" for k, v in
                                              summary["residual_rms_Nm"].items()))
     print("R^2: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["r2"].items()))
+    if half is not None:
+        print(f"{args.level:.0%} prediction intervals cover: " + ", ".join(
+            f"{k} {v:.1%}" for k, v in summary["interval_coverage"].items()))
     print(f"wrote {csv_path} and {js}")
     return 0
+
+
+def _half_width(rec, robot, data, level):
+    """Half-widths [N m] (shape (N, nq)) of the prediction intervals of a calibrated record."""
+    import numpy as np
+
+    from ..model.identification import (
+        BaseParameters,
+        armature_regressor,
+        filter_like,
+        friction_regressor,
+        prediction_interval,
+        regressor,
+    )
+
+    s = rec.get("prediction_noise_std_Nm")
+    if not s or rec.get("cov_all") is None:
+        return None  # a record without the calibration (older, or --covariance noise)
+    n = robot.nq
+    W = BaseParameters.from_dict(rec["base"]).reduce(regressor(robot, data.q, data.qd,
+                                                               data.qdd))
+    if rec.get("friction"):
+        Yf = friction_regressor(data.qd).reshape(data.N, n * 3 * n)
+        W = np.hstack([W, filter_like(data, Yf).reshape(-1, 3 * n)])
+    kept = rec.get("armature_columns") or []
+    if kept:
+        W = np.hstack([W, armature_regressor(data.qdd)[:, kept]])
+    cov = np.asarray(rec["cov_all"], float) / max(rec.get("jackknife_c2", 1.0), 1.0)
+    _, half = prediction_interval(W, np.zeros(W.shape[1]), cov,
+                                  np.array([s[j] for j in robot.joint_names]), n, level)
+    return half
+
+
+def _folds(text):
+    """``--folds``: None, an integer >= 2, 'period' or 'runs'."""
+    if text is None or text in ("period", "runs"):
+        return text
+    try:
+        k = int(text)
+    except ValueError:
+        k = 0
+    if k < 2:
+        raise ValueError(f"--folds must be an integer >= 2, 'period' or 'runs', got {text!r}")
+    return k
 
 
 def _read(path, robot, window):

@@ -137,7 +137,7 @@ def add_law_arguments(p, default_duration: float, default_rate) -> None:
                    help="with --uncertainty only: confidence region the plants are drawn in "
                         "(0.95)")
     add_joint_tolerance_arguments(p)
-    p.add_argument("--uncertainty-draws", choices=("reject", "project"), default="reject",
+    p.add_argument("--uncertainty-draws", choices=("reject", "project"), default=None,
                    help="with --uncertainty: a draw with no physically consistent arm is "
                         "rejected and redrawn (reject, default), or moved to the nearest "
                         "consistent arm, its distance recorded (project: for an estimate "

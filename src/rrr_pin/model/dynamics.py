@@ -727,7 +727,8 @@ def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
         if joint.find("mimic") is not None and name not in locked:
             raise RobotModelError(
                 f"joint {name!r} mimics {joint.find('mimic').get('joint')!r}: mimic joints are "
-                f"not supported; lock it (e.g. lock={{{name!r}: 0.0}})")
+                f"not supported; lock it (Python: lock={{{name!r}: 0.0}}; command line: "
+                f"--lock {name}=0)")
         _check_joint(joint, locked)
         children.setdefault(parent.get("link"), []).append((joint, child.get("link")))
     roots = set(links) - set(parent_joint)

@@ -12,12 +12,15 @@ One module per concept:
 - :mod:`rrr_pin.model.identification.regressors`: standard parameters, Pinocchio's regressor,
   the base parameters (Gautier 1990), :class:`IdentificationError`;
 - :mod:`rrr_pin.model.identification.friction`: viscous, Coulomb and offset columns;
+- :mod:`rrr_pin.model.identification.armature`: a reflected rotor inertia column per joint;
 - :mod:`rrr_pin.model.identification.measurements`: logs (a CSV, per-quantity text files),
   derivatives by a zero-phase filter, irregular time stamps;
 - :mod:`rrr_pin.model.identification.consistency`: the pseudo-inertia SDPs (Wensing, Kim &
   Slotine 2017) and the identified URDF;
 - :mod:`rrr_pin.model.identification.estimation`: least squares, the block-sandwich
   covariance, :func:`identify`, the model-error warning, predictions;
+- :mod:`rrr_pin.model.identification.crossval`: cross-validation by period, segment or
+  run, per-sample prediction intervals, the repeated-motion check;
 - :mod:`rrr_pin.model.identification.record`: ``identification.json``'s check and the
   uncertain plants drawn from it (:class:`IdentifiedUncertainty`);
 - :mod:`rrr_pin.model.identification.sigmoid`: a nonlinear second stage, each joint's
@@ -26,6 +29,7 @@ One module per concept:
 Every public name is re-exported here (``rrr_pin.model.identification.identify``, ...).
 """
 
+from .armature import armature_columns, armature_names, armature_regressor, with_armature
 from .consistency import (
     CONSISTENCY_CONFIDENCE,
     PSEUDO_INERTIA_MARGIN,
@@ -35,13 +39,24 @@ from .consistency import (
     pseudo_inertia_lmis,
     urdf_with_parameters,
 )
+from .crossval import (
+    REPEAT_DISTANCE,
+    cross_validate,
+    detect_period,
+    prediction_interval,
+    repeats_training,
+)
 from .estimation import (
+    JACKKNIFE_BLOCKS,
     Identification,
+    correlation_lag,
     friction_suspects,
     identify,
+    jackknife_scale,
     least_squares,
     predict_torques,
     r_squared,
+    written_distance,
 )
 from .friction import FRICTION_NAMES, friction_names, friction_regressor
 from .measurements import (
@@ -80,6 +95,19 @@ __all__ = [
     "FRICTION_NAMES",
     "friction_regressor",
     "friction_names",
+    "armature_regressor",
+    "armature_names",
+    "armature_columns",
+    "with_armature",
+    "REPEAT_DISTANCE",
+    "cross_validate",
+    "detect_period",
+    "prediction_interval",
+    "repeats_training",
+    "correlation_lag",
+    "written_distance",
+    "jackknife_scale",
+    "JACKKNIFE_BLOCKS",
     "random_states",
     "BaseParameters",
     "base_parameters",

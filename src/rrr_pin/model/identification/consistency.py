@@ -217,6 +217,11 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     phi0 = np.asarray(phi0, dtype=float)
     nb = len(phi0) // 10
     margins = _margins(phi0)
+    if inertia_band is not None:
+        # J >= J0 / f already keeps J positive semi-definite; a margin above lambda_min(J0) / f
+        # would refuse the nominal itself when its bodies are thin (rods: J0 of rank 2)
+        margins = np.array([min(margins[b], max(np.linalg.eigvalsh(pseudo_inertia(
+            phi0[10 * b:10 * b + 10]))[0], 0.0) / inertia_band) for b in range(nb)])
     phi = cp.Variable(len(phi0))
     resid = A @ (base.K @ phi) - A @ theta
     lmis = pseudo_inertia_lmis(phi, nb, margins)
@@ -226,17 +231,20 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
     # An inaccurate end is kept only when its point checks: every pseudo-inertia positive
     # semi-definite (then t* is the measured distance of a consistent arm, an upper bound on
     # the optimum); the status is recorded in info["stage1"].
+    def psd(v):  # round-off of a rank-deficient (thin-rod) body: 1e-9 of its largest
+        w = np.linalg.eigvalsh(pseudo_inertia(v))
+        return w[0] >= -1e-9 * max(w[-1], 0.0)
+
     if status == "optimal_inaccurate" and phi.value is not None and all(
-            np.linalg.eigvalsh(pseudo_inertia(np.asarray(phi.value, float)[10 * b:10 * b + 10]
-                                              )).min() >= 0.0 for b in range(nb)):
+            psd(np.asarray(phi.value, float)[10 * b:10 * b + 10]) for b in range(nb)):
         status1 = "optimal_inaccurate: kept, every pseudo-inertia checked positive semi-definite"
         p1_value = float(np.linalg.norm(A @ (base.K @ np.asarray(phi.value, float) - theta)))
     elif status == "optimal":
         status1 = "optimal"
         p1_value = float(p1.value)
     else:
-        status1 = status
-    if not status1.startswith("optimal"):
+        status1 = f"{status} (its point not checked consistent)"
+    if not status1.startswith("optimal") or "not checked" in status1:
         raise IdentificationError(f"the consistency SDP (nearest consistent base parameters) "
                                   f"ended {status!r}: no physically consistent arm found")
     t_star = p1_value
@@ -261,7 +269,8 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
                 f"Mahalanobis distance {mahal:.4g} > {limit:.4g} (RMS torque change "
                 f"{t_star:.4g} N m). The data do not fit a rigid arm with this URDF's "
                 f"kinematics: check the joint order, torque signs and units, and unmodelled "
-                f"friction or payload")
+                f"friction or payload; to keep the nearest consistent arm anyway: "
+                f"refuse_inconsistent=False (command line: --keep-inconsistent)")
     phi1 = np.asarray(phi.value, dtype=float)
     p2 = cp.Problem(cp.Minimize(cp.norm(cp.multiply(parameter_weights(phi0), phi - phi0))),
                     [cp.norm(resid) <= t_star + 1e-6 * scale] + lmis)
@@ -301,7 +310,8 @@ def consistent_parameters(base: BaseParameters, theta, A, phi0, *, sigma: float 
         bool(t_star <= 1e-6 * max(scale, 1e-300)), "pseudo_inertia_margins": margins.tolist()}
 
 
-def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -> str:
+def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None,
+                         locked=None) -> str:
     """Return the URDF text with each moving body's inertial replaced by standard parameters.
 
     Parameters
@@ -323,6 +333,11 @@ def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -
         offset has no URDF field and stays in ``identification.json``; a negative coefficient,
         which URDF readers refuse and which would feed energy in, is written as 0, the
         nearest admissible value, and stays as estimated in the JSON, warned).
+    locked : dict, optional
+        ``{joint: value}`` [rad or m]: each written as a ``fixed`` joint at that value (its
+        motion folded into its ``<origin>``; ``<axis>``, ``<limit>``, ``<mimic>`` and
+        ``<dynamics>`` dropped), so the URDF loads as the arm it was identified as, without
+        the locks repeated.
 
     Returns
     -------
@@ -375,9 +390,39 @@ def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None) -
             el = ET.SubElement(joint, "dynamics")
         for k, v in values.items():
             el.set(k, repr(v))
+    for joint in root.findall("joint"):
+        if joint.get("name") in (locked or {}):
+            _fix_joint(joint, float(locked[joint.get("name")]))
     text = ET.tostring(root, encoding="unicode")
     check_urdf_inertials(text)
     return text
+
+
+def _fix_joint(joint, value: float) -> None:
+    """Make a URDF ``<joint>`` fixed at ``value`` [rad or m] (its motion into its origin)."""
+    origin = joint.find("origin")
+    xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None
+                              else "0 0 0").split()]
+    rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None
+                              else "0 0 0").split()]
+    axis_el = joint.find("axis")
+    axis = np.array([float(v) for v in (axis_el.get("xyz", "1 0 0") if axis_el is not None
+                                        else "1 0 0").split()])
+    axis = axis / np.linalg.norm(axis)
+    M = pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
+    if joint.get("type") == "prismatic":
+        motion = pin.SE3(np.eye(3), value * axis)
+    else:
+        motion = pin.SE3(pin.AngleAxis(value, axis).matrix(), np.zeros(3))
+    M = M * motion
+    for tag in ("axis", "limit", "mimic", "dynamics", "calibration", "safety_controller"):
+        for el in joint.findall(tag):
+            joint.remove(el)
+    if origin is None:
+        origin = ET.SubElement(joint, "origin")
+    origin.set("xyz", " ".join(repr(float(v)) for v in M.translation))
+    origin.set("rpy", " ".join(repr(float(v)) for v in pin.rpy.matrixToRpy(M.rotation)))
+    joint.set("type", "fixed")
 
 
 # --- estimation -------------------------------------------------------------------------------

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ...validation import FieldError, check_probability
+from .armature import armature_columns, armature_names, armature_regressor, with_armature
 from .consistency import consistent_parameters, urdf_with_parameters
 from .friction import friction_names, friction_regressor
 from .measurements import Measurements, filter_like
@@ -55,6 +56,10 @@ __all__ = [
     "r_squared",
     "friction_suspects",
     "predict_torques",
+    "correlation_lag",
+    "written_distance",
+    "jackknife_scale",
+    "JACKKNIFE_BLOCKS",
 ]
 
 
@@ -79,8 +84,14 @@ class Identification:
         identified friction (``summary["friction"]``, per joint, with standard deviations).
     friction : ndarray, shape (3 nq,) or (0,)
         ``fv, fc, off`` per joint (:func:`friction_regressor`), empty without friction.
-    cov_all : ndarray, shape (p + 3 nq, p + 3 nq), optional
-        Covariance of base and friction parameters together.
+    cov_all : ndarray, shape (p + 3 nq + na, p + 3 nq + na), optional
+        Covariance of base, friction and armature parameters together.
+    armature : ndarray, shape (nq,) or (0,)
+        Estimated armature per joint [kg m^2] (0 where it is absorbed into a base parameter,
+        :func:`~rrr_pin.model.identification.armature.armature_columns`), empty without.
+    cov_all_noise : ndarray, shape like ``cov_all``, optional
+        The white-noise (or filter-window block) covariance of the same fit, before
+        calibration; equal to ``cov_all`` with ``covariance="noise"``. Not written.
     """
 
     base: BaseParameters
@@ -91,6 +102,8 @@ class Identification:
     summary: dict = field(default_factory=dict)
     friction: np.ndarray = field(default_factory=lambda: np.zeros(0))
     cov_all: np.ndarray | None = field(default=None, repr=False)
+    armature: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cov_all_noise: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def std(self) -> np.ndarray:
@@ -105,6 +118,7 @@ class Identification:
                 "base_consistent": self.base(self.phi).tolist(),
                 "standard_consistent": self.phi.tolist(),
                 "friction_estimate": self.friction.tolist(),
+                "armature_estimate": self.armature.tolist(),
                 "cov_all": None if self.cov_all is None else self.cov_all.tolist()}
 
     def write(self, folder, *, urdf_name: str = "identified.urdf") -> list[Path]:
@@ -157,7 +171,7 @@ def _unidentifiable(names, R: np.ndarray) -> list[str]:
 
 
 def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
-                  method: str = "wls", *, names=None, block: int = 1):
+                  method: str = "wls", *, names=None, block: int = 1, hac_lag: int = 0):
     r"""Estimate base parameters by ordinary or weighted least squares, with their covariance.
 
     Parameters
@@ -185,6 +199,20 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
 
         so that every sample enters the fit and the correlation that the filter puts between
         neighbours is counted, not assumed away.
+    hac_lag : int, default 0
+        Above 0 (and taking precedence over ``block``), the heteroskedasticity and
+        autocorrelation consistent covariance of Newey & West (1987), Bartlett kernel of
+        bandwidth ``L = hac_lag`` samples, which counts a model error that is correlated
+        over ``L`` samples (a friction shape, an armature, a filter the model lacks) as the
+        noise it is for the estimate:
+
+        .. math:: \operatorname{cov} = (W^T W)^{-1} \tfrac{m}{m - P} \Big(\sum_{|l| \le L}
+                  \big(1 - \tfrac{|l|}{L+1}\big) \sum_k g_k g_{k-l}^T\Big) (W^T W)^{-1},
+                  \qquad g_k = W_k^T r_k ,
+
+        computed as ``H^T H / (L + 1)`` with ``H`` the sums of ``g`` over every window of
+        ``L + 1`` consecutive samples (the Bartlett weights are the windows' overlaps), so it
+        is positive semi-definite and costs ``O(m P^2)``.
 
     Returns
     -------
@@ -235,7 +263,16 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
     s2 = float(np.sum(rw * rw)) / (N * n - p)
     Rinv = np.linalg.inv(R)
     cov = s2 * (Rinv @ Rinv.T)
-    if block > 1:
+    if hac_lag > 0:
+        g = np.einsum("kjp,kj->kp", (W * np.tile(weights, N)[:, None]).reshape(N, n, p), rw)
+        c = np.concatenate([np.zeros((1, p)), np.cumsum(g, axis=0)])
+        lo = np.clip(np.arange(-hac_lag, N) , 0, N)
+        hi = np.clip(np.arange(-hac_lag, N) + hac_lag + 1, 0, N)
+        H = c[hi] - c[lo]
+        meat = (N / max(N - p / n, 1.0)) * (H.T @ H) / (hac_lag + 1)
+        cov = (Rinv @ Rinv.T) @ meat @ (Rinv @ Rinv.T)
+        cov = 0.5 * (cov + cov.T)
+    elif block > 1:
         Ww = (W * np.tile(weights, N)[:, None]).reshape(N, n, p)
         B = -(-N // block)
         pad = B * block - N
@@ -249,7 +286,8 @@ def least_squares(base: BaseParameters, W: np.ndarray, y: np.ndarray, n: int,
 
 def identify(robot, data: Measurements, *, method: str = "wls", held_out: float = 0.2,
              base: BaseParameters | None = None, friction: bool = False,
-             refuse_inconsistent: bool = True,
+             armature: bool = False, covariance: str = "noise",
+             hac_lag: int | None = None, refuse_inconsistent: bool = True,
              mass_band: float | None = None,
              inertia_band: float | None = None) -> Identification:
     r"""Identify the base parameters of ``robot`` from measurements, and a consistent URDF.
@@ -281,6 +319,22 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         Identify, with the base parameters, each joint's viscous and Coulomb friction and a
         torque offset (:func:`friction_regressor`):
         ``tau = Y_b theta_b + fv qd + fc sign(qd) + off``.
+    armature : bool, default False
+        Identify each joint's armature ``I_a`` (``+ I_a qdd``,
+        :func:`~rrr_pin.model.identification.armature.armature_regressor`) with them; a joint
+        whose armature the base parameters already hold (the first joint's, about an axis
+        fixed in the base) is reported as absorbed (``summary["armature"]``), not a column;
+        one estimated below 0 is not detected: its column is left out and the rest refitted
+        (a torque sensor after the gearbox, as the Panda's, never sees the rotor).
+    covariance : {"noise", "calibrated"}, default "noise"
+        ``"noise"``: the covariance of white (or filter-window correlated) noise around a
+        correct model. ``"calibrated"``: calibrated to include the model error, the Newey-West
+        covariance of :func:`least_squares` (``hac_lag``), and the consistency distance,
+        the refusal and ``identification.json``'s ``cov`` in its terms.
+    hac_lag : int, optional
+        Bandwidth [samples] of ``"calibrated"``; default :func:`correlation_lag` of the residuals
+        (the lag at which their autocorrelation, averaged over joints, first falls below
+        0.1), at least one derivative-filter window.
     refuse_inconsistent : bool, default True
         Refuse an estimate with no physically consistent arm inside its 99.9 % region
         (:func:`consistent_parameters`), or with a friction coefficient below zero by 3
@@ -302,6 +356,10 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         The residual of a joint correlates with ``qd`` or ``sign(qd)`` (``|r| > 0.3``, named
         joints): a friction term is missing from the model (``friction=False``) or not of the
         form modelled. The intervals then do not cover the model error.
+    UserWarning
+        A friction coefficient or armature estimated below 0 and written as 0 into the
+        identified model ("clipped: joint parameter estimated value +- std unit";
+        ``summary["clipped"]``).
 
     Raises
     ------
@@ -315,6 +373,8 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     """
     if method not in ("wls", "ols"):
         raise ValueError(f"method must be 'wls' or 'ols', got {method!r}")
+    if covariance not in ("noise", "calibrated"):
+        raise ValueError(f"covariance must be 'noise' or 'calibrated', got {covariance!r}")
     held_out = check_probability("held_out", held_out)
     if held_out > 0.9:
         raise FieldError("held_out", "{name} must be in [0, 0.9] (the fraction of the samples "
@@ -341,6 +401,9 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     N = sum(d.N for d in runs)
     m = sum(len(part["fit"]) for part in parts)
     names = list(base.names) + (friction_names(robot) if friction else [])
+    kept, absorbed = (armature_columns(robot, base) if armature
+                      else (np.zeros(0, dtype=int), {}))
+    names += [armature_names(robot)[j] for j in kept]
     P = len(names)
     if m * n < 2 * P or m * n - P < n:
         raise IdentificationError(
@@ -360,9 +423,11 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     def design(part, rows_):
         d = part["data"]
         W = base.reduce(regressor(robot, d.q[rows_], d.qd[rows_], d.qdd[rows_]))
-        if not friction:
-            return W
-        return np.hstack([W, part["Yf"][rows_].reshape(-1, 3 * n)])
+        if friction:
+            W = np.hstack([W, part["Yf"][rows_].reshape(-1, 3 * n)])
+        if kept.size:
+            W = np.hstack([W, armature_regressor(d.qdd[rows_])[:, kept]])
+        return W
 
     W1 = np.vstack([design(part, part["fit"]) for part in parts])
     tau_fit = np.vstack([part["tau_f"][part["fit"]] for part in parts])
@@ -370,36 +435,110 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
     y1 = tau_fit.reshape(-1)
     x, cov_x, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method, names=names,
                                                    block=block)
+    nf = 3 * n if friction else 0
+    dropped = {}
+    below = [int(j) for i, j in enumerate(kept) if x[p + nf + i] < 0.0]
+    if below:  # an armature below zero is not detected: its column leaves, the rest refitted
+        sd = np.sqrt(np.diag(cov_x))
+        for i, j in enumerate(kept):
+            if j in below:
+                dropped[robot.joint_names[j]] = (float(x[p + nf + i]), float(sd[p + nf + i]))
+        kept = np.asarray([j for j in kept if j not in below], dtype=int)
+        names = names[:p + nf] + [armature_names(robot)[j] for j in kept]
+        W1 = np.vstack([design(part, part["fit"]) for part in parts])
+        x, cov_x, R, sigma_j, s2, cond = least_squares(base, W1, y1, n, method, names=names,
+                                                       block=block)
     r = (y1 - W1 @ x).reshape(m, n)
+    summary_extra = {}
+    cov_noise = cov_x[:len(base.names), :len(base.names)].copy()
+    cov_all_noise = cov_x.copy()
+    if covariance == "calibrated":
+        lag = max(correlation_lag(r), block) if hac_lag is None else int(hac_lag)
+        cov_x = least_squares(base, W1, y1, n, method, names=names, hac_lag=lag)[1]
+        weights = 1.0 / sigma_j if method == "wls" else np.ones(n)
+        jack, s_cv = jackknife_scale(W1, y1, cov_x, n, weights)
+        cov_x = max(jack, 1.0) * cov_x
+        summary_extra = {"jackknife_c2": jack, "hac_lag_samples": lag,
+                         "prediction_noise_std_Nm": _per_joint(robot, s_cv)}
     rows = m * n
     theta, cov = x[:p], cov_x[:p, :p]
     # The consistency metric from the base parameters' marginal covariance: A^T A = s2 cov^-1
     # / rows, which is R^T R / rows of the (weighted) regressor when there are no friction
-    # columns and the residuals are independent.
+    # columns and the residuals are independent. With the calibrated covariance the arm is
+    # still chosen in the noise metric (the smallest torque change over the data, what the
+    # prediction needs), and judged in the calibrated one (its distance, the refusal).
     # A square root of cov^-1 by eigenvalues (cov can be numerically semi-definite on short
     # logs, where Cholesky of its inverse fails): A^T A = cov^-1 on its range
-    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    metric = cov_noise if covariance == "calibrated" else cov
+    w, V = np.linalg.eigh(0.5 * (metric + metric.T))
     w = np.maximum(w, 1e-15 * max(float(w.max()), 1e-300))
     A = (V / np.sqrt(w)).T * math.sqrt(s2 / rows)
     phi0 = standard_parameters(robot)
-    phi, consistency = consistent_parameters(base, theta, A, phi0, sigma=math.sqrt(s2 / rows),
-                                             refuse=refuse_inconsistent, mass_band=mass_band,
-                                             inertia_band=inertia_band)
+    phi, consistency = consistent_parameters(
+        base, theta, A, phi0, sigma=None if covariance == "calibrated" else math.sqrt(s2 / rows),
+        refuse=refuse_inconsistent, mass_band=mass_band, inertia_band=inertia_band)
+    consistency["written"] = written_distance(base(phi) - theta, cov, cov_noise,
+                                              W1[:, :p], n, robot.joint_names)
+    if covariance == "calibrated":
+        from scipy.stats import chi2
+
+        from .consistency import CONSISTENCY_CONFIDENCE, PSEUDO_INERTIA_MARGIN
+
+        d_cal = consistency["written"]["mahalanobis"]
+        limit = math.sqrt(chi2.ppf(CONSISTENCY_CONFIDENCE, p))
+        scale = float(np.linalg.norm(A @ theta))
+        outside = bool(d_cal > limit and consistency["distance_rms_Nm"]
+                       > 10.0 * PSEUDO_INERTIA_MARGIN * scale)
+        consistency.update(mahalanobis=d_cal, outside_confidence=outside,
+                           mahalanobis_returned=d_cal)
+        said = (f"the nearest physically consistent arm lies {d_cal:.4g} standard deviations "
+                f"of the calibrated covariance from the estimate, outside its "
+                f"{CONSISTENCY_CONFIDENCE:.1%} region (limit {limit:.4g}; RMS torque change "
+                f"{consistency['written']['rms_Nm_all']:.4g} N m)")
+        if outside and refuse_inconsistent:
+            raise IdentificationError(
+                f"infeasible consistency problem: {said}. The data do not fit a rigid arm with "
+                f"this URDF's kinematics even allowing for the model error the residuals show: "
+                f"check the joint order, torque signs and units, or a payload; to keep the "
+                f"nearest consistent arm anyway: refuse_inconsistent=False (command line: "
+                f"--keep-inconsistent)")
+        if outside:
+            import warnings
+
+            warnings.warn(said + ": kept, as asked", stacklevel=2)
+    consistency["covariance"] = covariance
+    if covariance == "calibrated":
+        consistency["hac_lag_samples"] = lag
     from ..dynamics import robot_from_xml
 
     fr = None
+    std_x = np.sqrt(np.diag(cov_x))
+    arm = np.zeros(n if armature else 0)
+    arm[kept] = x[p + nf:]
+    arm_std = np.zeros_like(arm)
+    arm_std[kept] = std_x[p + nf:]
+    ar = None if not armature else {
+        j: ({"value_kg_m2": 0.0, "std": 0.0, "absorbed_into": absorbed[j]} if j in absorbed
+            else {"value_kg_m2": 0.0, "std": dropped[j][1], "not_detected": (
+                f"estimate {dropped[j][0]:.4g} +- {dropped[j][1]:.2g} kg m^2 below 0: column "
+                f"left out and the rest refitted (a torque sensor after the gearbox does not "
+                f"see the rotor)")} if j in dropped
+            else {"value_kg_m2": float(arm[i]), "std": float(arm_std[i])})
+        for i, j in enumerate(robot.joint_names)}
     if friction:
-        f, fs = x[p:].reshape(n, 3), np.sqrt(np.diag(cov_x))[p:].reshape(n, 3)
+        f, fs = x[p:p + nf].reshape(n, 3), std_x[p:p + nf].reshape(n, 3)
         fr = {j: {"viscous_Nms_rad": float(f[i, 0]), "coulomb_Nm": float(f[i, 1]),
                   "offset_Nm": float(f[i, 2]), "std": {"viscous_Nms_rad": float(fs[i, 0]),
                                                        "coulomb_Nm": float(fs[i, 1]),
                                                        "offset_Nm": float(fs[i, 2])}}
               for i, j in enumerate(robot.joint_names)}
     urdf = urdf_with_parameters(robot.urdf, body_links(robot), phi,
-                                moving=robot.joint_names, friction=fr)
+                                moving=robot.joint_names, friction=fr,
+                                locked=dict(robot.locked))
     identified = robot_from_xml(urdf, name=f"{robot.name}_identified",
-                                gravity=robot.gravity, label="identified URDF",
-                                lock=dict(robot.locked) or None)
+                                gravity=robot.gravity, label="identified URDF")
+    if armature:
+        with_armature(identified, np.maximum(arm, 0.0))
     suspect = friction_suspects(robot, qd_fit, r, tau_fit)
     if fr:  # friction dissipates: a coefficient below zero by 3 standard deviations contradicts
         wrong = [f"{j} {k} {v[k]:.3g} +- {v['std'][k]:.2g}" for j, v in fr.items()
@@ -413,16 +552,28 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
                                                  "refuse_inconsistent=False, CLI "
                                                  "--keep-inconsistent)")
             suspect = "; ".join(filter(None, [suspect, said]))
+    clipped = _clipped(fr, ar)
+    if covariance == "calibrated":
+        covariance_said = (f"Newey-West (Bartlett kernel, {lag} samples) scaled by the block "
+                           f"jackknife's c2 = {max(jack, 1.0):.4g} (measured {jack:.4g}, never "
+                           f"below 1) over {JACKKNIFE_BLOCKS} blocks: calibrated to the model "
+                           f"error")
+    elif block > 1:
+        covariance_said = ("block sandwich over blocks of one derivative-filter window "
+                           f"({block} samples): the filter correlates neighbouring residuals")
+    else:
+        covariance_said = "s2 (W^T W)^-1 (independent residuals)"
     summary = {
         "robot": robot.name, "source": robot.source, "joints": list(robot.joint_names),
         "links": body_links(robot), "gravity_m_s2": robot.gravity,
         "locked": dict(robot.locked),
+        "locked_note": "written into the identified URDF as fixed joints at these values"
+                       if robot.locked else None,
         "kinematics": joint_kinematics(robot),
         "data": runs[0].source if len(runs) == 1 else [d.source for d in runs], "samples": N,
         "runs": len(runs), "samples_fit": m, "fit_decimation": 1,
-        "covariance": ("block sandwich over blocks of one derivative-filter window "
-                       f"({block} samples): the filter correlates neighbouring residuals"
-                       if block > 1 else "s2 (W^T W)^-1 (independent residuals)"),
+        **summary_extra,
+        "covariance": covariance_said,
         "torque_filter": "savgol (as q)" if block > 1 else None,
         "held_out_fraction": held_out, "derivatives": (runs[0].derived or {
             "filter": None, "estimated": []}) if len(runs) == 1 else [
@@ -436,18 +587,32 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
         "standard_nominal": phi0.tolist(),
         "friction_model": "viscous + coulomb + offset" if friction else None,
         "friction": fr, "model_error_warning": suspect or None,
+        "armature": ar, "armature_columns": kept.tolist() if armature else None,
+        "clipped": clipped or None,
+        "armature_note": None if not armature else "per joint [kg m^2], added to M(q)'s "
+                         "diagonal (Pinocchio's model.armature); not in the URDF: set on the "
+                         "loaded model from this record; absorbed_into: the base parameters "
+                         "that already hold it (written into those links' inertia)",
         "friction_urdf": None if not fr else {
             j: {"damping": max(v["viscous_Nms_rad"], 0.0), "friction": max(v["coulomb_Nm"], 0.0)}
             for j, v in fr.items()},
         "friction_urdf_note": None if not fr else "each joint's <dynamics damping friction> "
                               "in the identified URDF: the estimate, a negative one written as 0",
-        "intervals_cover": "noise only: a model error (unmodelled friction, delays, "
+        "intervals_cover": "noise and the model error, as far as it varies from one "
+                           "stretch of the motion to the next (block jackknife)"
+                           if covariance == "calibrated" else
+                           "noise only: a model error (unmodelled friction, delays, "
                            "flexibility) is not in the standard deviations",
     }
-    if suspect:
+    if suspect or clipped:
         import warnings
 
-        warnings.warn(suspect, stacklevel=2)
+        if suspect:
+            warnings.warn(suspect, stacklevel=2)
+        for c in clipped:
+            warnings.warn(f"clipped: {c['joint']} {c['parameter']} estimated {c['value']:.4g} "
+                          f"+- {c['std']:.2g} {c['unit']} (below 0: it would feed energy in), "
+                          f"written as 0 into the identified model", stacklevel=2)
     held = [(part, np.arange(part["n_fit"], part["data"].N - part["edge"])) for part in parts]
     held = [(part, rows_) for part, rows_ in held if rows_.size]
     if held:
@@ -469,8 +634,152 @@ def identify(robot, data: Measurements, *, method: str = "wls", held_out: float 
             "rms_torque_Nm": _per_joint(robot, rms.tolist())}
     else:
         summary["held_out"] = None
-    return Identification(base, theta, cov, phi, urdf, summary, x[p:].copy(),
-                          cov_x)
+    return Identification(base, theta, cov, phi, urdf, summary, x[p:p + nf].copy(),
+                          cov_x, arm, cov_all_noise)
+
+
+#: Contiguous blocks of the block jackknife that calibrates the covariance.
+JACKKNIFE_BLOCKS = 10
+
+
+def jackknife_scale(W, y, cov, n: int, weights, blocks: int = JACKKNIFE_BLOCKS) -> float:
+    r"""How much wider the estimate varies, leaving out blocks of time, than ``cov`` says.
+
+    The delete-a-block jackknife (Kunsch 1989) over ``blocks`` contiguous blocks of samples:
+    ``theta_(k)`` fitted without block ``k`` (by downdating the weighted normal equations),
+
+    .. math:: C_J = \tfrac{K-1}{K} \sum_k (\theta_{(k)} - \bar\theta)(\theta_{(k)} -
+              \bar\theta)^T, \qquad c^2 = \operatorname{tr}(C^{-1} C_J) / P ,
+
+    the mean ratio of the jackknife variance to ``cov``'s in ``cov``'s own metric. A model
+    error that depends on the motion (a friction shape, an armature, a payload the regressor
+    lacks) moves the estimate from one stretch of motion to the next by more than the noise
+    does; ``c^2 > 1`` measures by how much (with ``K = 10`` blocks, ``C_J`` has rank 9: one
+    scalar is what it can calibrate).
+
+    Parameters
+    ----------
+    W : ndarray, shape (m n, P)
+        Regressor (unweighted), rows sample-major.
+    y : ndarray, shape (m n,)
+        Torques [N m].
+    cov : ndarray, shape (P, P)
+        The covariance to calibrate.
+    n : int
+        Joints.
+    weights : ndarray, shape (n,)
+        Per-joint row weights of the fit (``1 / sigma_j`` for ``wls``).
+    blocks : int, default 10
+
+    Returns
+    -------
+    c2 : float
+        ``c^2``.
+    s_cv : ndarray, shape (n,)
+        Per joint, the RMS [N m] of each block's residual predicted by the fit without it
+        (the leave-one-block-out prediction error: the residual level on motion the fit has
+        not seen, for prediction intervals).
+
+    References
+    ----------
+    .. [1] H. R. Kunsch, "The jackknife and the bootstrap for general stationary
+       observations", Annals of Statistics 17(3), 1989.
+    """
+    m, P = len(y) // n, W.shape[1]
+    Dw = np.tile(weights, m)
+    Ww, yw = (W * Dw[:, None]).reshape(m, n, P), (y * Dw).reshape(m, n)
+    edges = np.linspace(0, m, blocks + 1).astype(int)
+    spans = list(zip(edges[:-1], edges[1:], strict=True))
+    A_k = [np.einsum("kjp,kjq->pq", Ww[a:b], Ww[a:b]) for a, b in spans]
+    b_k = [np.einsum("kjp,kj->p", Ww[a:b], yw[a:b]) for a, b in spans]
+    A, b = sum(A_k), sum(b_k)
+    thetas = np.array([np.linalg.solve(A - Ak, b - bk)
+                       for Ak, bk in zip(A_k, b_k, strict=True)])
+    Wr, yr = W.reshape(m, n, P), y.reshape(m, n)
+    e = np.concatenate([yr[a:c] - Wr[a:c] @ th
+                        for (a, c), th in zip(spans, thetas, strict=True)])
+    d = thetas - thetas.mean(axis=0)
+    CJ = (blocks - 1) / blocks * (d.T @ d)
+    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    w = np.maximum(w, 1e-15 * max(float(w.max()), 1e-300))
+    return (float(np.trace((V.T @ CJ @ V) / w[:, None]) / P),
+            np.sqrt(np.mean(e * e, axis=0)))
+
+
+def correlation_lag(r, level: float = 0.1) -> int:
+    """Return the lag [samples] where the residuals' autocorrelation first falls below ``level``.
+
+    Parameters
+    ----------
+    r : ndarray, shape (m, n)
+        Residuals [N m] of consecutive samples, per joint.
+    level : float, default 0.1
+        Of the autocorrelation averaged over joints (each joint's by FFT, zero-padded).
+
+    Returns
+    -------
+    int
+        At least 1, at most ``m // 4``.
+    """
+    m = len(r)
+    x = r - r.mean(axis=0)
+    f = np.fft.rfft(x, n=2 * m, axis=0)
+    acf = np.fft.irfft(f * np.conj(f), axis=0)[:m]
+    acf = (acf / np.where(acf[0] > 0.0, acf[0], 1.0)).mean(axis=1)
+    below = np.flatnonzero(acf[1:m // 4 + 1] < level)
+    return int(below[0] + 1) if below.size else max(m // 4, 1)
+
+
+def written_distance(d, cov, cov_noise, W, n: int, joints) -> dict:
+    """Measure how far the arm written lies from the estimate.
+
+    In calibrated and noise-only standard deviations, and as the RMS torque change it makes
+    over the fitted samples.
+
+    Parameters
+    ----------
+    d : ndarray, shape (p,)
+        Base parameters written minus estimated.
+    cov, cov_noise : ndarray, shape (p, p)
+        The record's covariance and the white-noise one.
+    W : ndarray, shape (m n, p)
+        The (unweighted) base regressor of the fitted samples.
+    n : int
+        Joints.
+    joints : sequence of str, shape (n,)
+
+    Returns
+    -------
+    dict
+        ``mahalanobis`` (``sqrt(d^T cov^-1 d)``), ``mahalanobis_noise`` (the same with
+        ``cov_noise``), ``rms_Nm`` per joint and ``rms_Nm_all`` [N m].
+    """
+    def mahal(c):
+        w, V = np.linalg.eigh(0.5 * (c + c.T))
+        w = np.maximum(w, 1e-15 * max(float(w.max()), 1e-300))
+        z = V.T @ d
+        return float(np.sqrt(np.sum(z * z / w)))
+
+    t = (W @ d).reshape(-1, n)
+    return {"mahalanobis": mahal(cov), "mahalanobis_noise": mahal(cov_noise),
+            "rms_Nm": {j: float(v) for j, v in zip(joints, np.sqrt(np.mean(t * t, axis=0)),
+                                                   strict=True)},
+            "rms_Nm_all": float(np.sqrt(np.mean(t * t)))}
+
+
+def _clipped(fr, ar) -> list[dict]:
+    """Return the negative friction and armature estimates written as 0 (joint, value, std)."""
+    out = []
+    for j, v in (fr or {}).items():
+        for k, unit in (("viscous_Nms_rad", "N m s/rad"), ("coulomb_Nm", "N m")):
+            if v[k] < 0.0:
+                out.append({"joint": j, "parameter": k.split("_")[0], "value": v[k],
+                            "std": v["std"][k], "unit": unit})
+    for j, v in (ar or {}).items():
+        if v["value_kg_m2"] < 0.0:
+            out.append({"joint": j, "parameter": "armature", "value": v["value_kg_m2"],
+                        "std": v["std"], "unit": "kg m^2"})
+    return out
 
 
 def r_squared(tau, pred) -> np.ndarray:

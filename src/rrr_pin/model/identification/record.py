@@ -86,7 +86,7 @@ def check_identification_record(record: dict, path) -> None:
         except (TypeError, ValueError) as exc:
             raise IdentificationError(f"identification {str(path)!r}: 'cov_all' or "
                                       f"'friction_estimate' not numbers: {exc}") from None
-        P = p + f.size
+        P = p + f.size + len(record.get("armature_columns") or [])
         if f.size != 3 * len(record["joints"]) or cov_all.shape != (P, P):
             raise IdentificationError(
                 f"identification {str(path)!r}: 'friction_estimate' has {f.size} values "
@@ -123,10 +123,12 @@ class IdentifiedUncertainty(UncertaintySet):
     When the identification has friction (``identify --friction``), base and friction
     parameters are drawn together, from their joint covariance (``cov_all``) in its
     ``confidence`` ellipsoid (of ``p + 3 nq`` dimensions), around the consistent base
-    parameters and the friction estimate; a draw with a negative viscous or Coulomb
-    coefficient (friction that would feed energy in) is rejected and redrawn like an
-    inconsistent one. Each plant's URDF carries its drawn friction as ``<dynamics damping
-    friction>`` (simulated with ``PlantEffects(viscous="urdf", coulomb="urdf")``, CLI
+    parameters and the friction estimate; a viscous or Coulomb coefficient (or an armature)
+    drawn below zero is folded back (``|x|``: the folded normal of a coefficient known to be
+    >= 0, which an estimate near 0 calls for; issue 46: rejecting such draws left none on a
+    real log), counted in ``rejected["friction_folded"]``; the plant is kept. Each plant's
+    URDF carries its drawn friction as ``<dynamics damping friction>`` (simulated with
+    ``PlantEffects(viscous="urdf", coulomb="urdf")``, CLI
     ``--friction urdf``); the offsets are drawn but neither simulated nor written.
 
     Parameters
@@ -139,10 +141,10 @@ class IdentifiedUncertainty(UncertaintySet):
         ``"reject"``: the above (inconsistent draws redrawn, none moved). ``"project"``: a
         draw with no consistent arm is moved to the nearest consistent one (in the metric of
         the estimate's covariance, :func:`consistent_parameters` with the identification's
-        mass band), a negative friction coefficient to 0; each plant records how far it was
-        moved (``projected_mahalanobis``). For a real log whose estimate lies outside the
-        consistent set (``identify --keep-inconsistent``), where almost every draw is
-        inconsistent and rejection finds no plant.
+        mass band), a friction coefficient below 0 folded back as in "reject"; each plant
+        records how far it was moved (``projected_mahalanobis``). For a real log whose
+        estimate lies outside the consistent set (``identify --keep-inconsistent``), where
+        almost every draw is inconsistent and rejection finds no plant.
     """
 
     MAX_DRAWS = 1000
@@ -309,11 +311,15 @@ class IdentifiedUncertainty(UncertaintySet):
         cov = np.asarray(rec["cov"], float)
         p = len(mean)
         f_mean = np.asarray(rec.get("friction_estimate") or [], float)
+        kept = np.asarray(rec.get("armature_columns") or [], dtype=int)
+        a_est = np.asarray(rec.get("armature_estimate") or [], float)
+        a_mean = a_est[kept] if kept.size else np.zeros(0)
         if f_mean.size and rec.get("cov_all") is not None:
-            mean = np.concatenate([mean, f_mean])
+            mean = np.concatenate([mean, f_mean, a_mean])
             cov = np.asarray(rec["cov_all"], float)
         else:
-            f_mean = np.zeros(0)
+            f_mean = a_mean = np.zeros(0)
+        nf = f_mean.size
         L = np.linalg.cholesky(cov)
         limit = chi2.ppf(self.confidence, len(mean))
         problem, theta, phi = self._problem()
@@ -325,19 +331,22 @@ class IdentifiedUncertainty(UncertaintySet):
                 continue
             x = mean + L @ z
             friction = None
-            if f_mean.size:
-                f = x[p:].reshape(-1, 3)
-                if np.any(f[:, :2] < 0.0):
-                    negative += 1
-                    if self.draws != "project":
-                        continue
-                    f = np.column_stack([np.maximum(f[:, :2], 0.0), f[:, 2]])
+            drawn_armature = None
+            if a_mean.size:  # folded at 0 (see the class docstring)
+                drawn_armature = np.where(a_est > 0.0, a_est, 0.0)
+                drawn_armature[kept] = x[p + nf:]
+                negative += int(np.sum(drawn_armature < 0.0))
+                drawn_armature = np.abs(drawn_armature)
+            if f_mean.size:  # folded at 0: a coefficient known to be >= 0
+                f = x[p:p + nf].reshape(-1, 3)
+                negative += int(np.sum(f[:, :2] < 0.0))
+                f = np.column_stack([np.abs(f[:, :2]), f[:, 2]])
                 friction = {j: {"viscous_Nms_rad": float(fj[0]), "coulomb_Nm": float(fj[1]),
                                 "offset_Nm": float(fj[2])}
                             for j, fj in zip(rec["joints"], f, strict=True)}
             theta.value = x[:p]
             try:
-                problem.solve(solver="CLARABEL")
+                problem.solve(solver="CLARABEL", warm_start=False)
                 ok = problem.status == "optimal"
             except Exception:  # cvxpy.SolverError: a rejected draw
                 ok = False
@@ -358,15 +367,16 @@ class IdentifiedUncertainty(UncertaintySet):
                 continue
             rejected = {"outside_confidence": outside, "inconsistent": inconsistent}
             if f_mean.size:
-                rejected["negative_friction"] = negative
+                rejected["friction_folded"] = negative
             if self.draws == "project":
                 rejected["projected"] = moved is not None
                 rejected["projected_mahalanobis"] = moved
-                rejected["friction_clipped"] = bool(negative)
             return text, {"base": x[:p].tolist(), "standard": np.asarray(phi_value).tolist(),
-                          "friction": friction, "rejected": rejected}
+                          "friction": friction, "rejected": rejected,
+                          **({"armature": drawn_armature.tolist()}
+                             if drawn_armature is not None else {})}
         raise IdentificationError(
             f"{self.path}: no physically consistent plant in {self.MAX_DRAWS} draws "
             f"({outside} outside the {self.confidence:.0%} region, {inconsistent} with no "
-            f"consistent arm, {negative} with negative friction); the identified covariance "
-            f"is too wide for this arm")
+            f"consistent arm); the identified covariance is too wide for this arm: draw with "
+            f"--uncertainty-draws project (each draw moved to the nearest consistent arm)")
