@@ -18,10 +18,12 @@ __all__ = ["load_plant", "load_model_and_plant", "plant_friction_record", "parse
            "frozen_configuration"]
 
 
-def load_plant(args, *, lock: bool = True, robot=None):
+def load_plant(args, *, lock: bool = True, robot=None, armature: bool = True):
     """Return the plant of ``--robot`` (and ``--lock``, ``--armature``): any kind load_robot reads.
 
-    ``robot`` stands for ``args.robot`` where a command's ``--robot`` has another default.
+    ``robot`` stands for ``args.robot`` where a command's ``--robot`` has another default;
+    ``armature=False`` where the command's ``--armature`` is not the plant's (``identify``'s
+    switch of the armature column).
     """
     from ..model.dynamics import load_robot
 
@@ -29,7 +31,8 @@ def load_plant(args, *, lock: bool = True, robot=None):
     not_a_folder(robot=robot)
     with as_options():
         return load_robot(robot, lock=parse_lock(args.lock) if lock else None,
-                          armature=parse_armature(getattr(args, "armature", None)))
+                          armature=parse_armature(getattr(args, "armature", None))
+                          if armature else None)
 
 
 def parse_armature(text: str | None):

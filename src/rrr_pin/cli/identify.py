@@ -171,7 +171,7 @@ def run_identify(args) -> int:
                          "motion to log); give one or the other")
     if not args.design_excitation and args.data is None:
         raise ValueError("--data FILE.csv is required (or --design-excitation)")
-    robot = load_plant(args)
+    robot = load_plant(args, armature=False)  # --armature: the column to identify
     robot.require(URDF, f"rrr-pin identify --robot {args.robot} ({_WHY})")
     if args.design_excitation:
         from ..model.excitation import design_excitation
