@@ -528,3 +528,11 @@ def test_every_plant_effect_is_an_option_spelled_as_its_field():
                           (["--noise-q", "x"], "--noise-q expects a number")):
         with pytest.raises(ValueError, match=message):
             settings_from_args(parser.parse_args(["montecarlo", "--samples", "1", *argv]), 3)
+
+
+def test_no_option_shadows_the_command_name():
+    # issue 47's --command (the torque convention) once took argparse's dest "command", the
+    # subcommand's: every error of export then read "rrr-pin full: error: ...".
+    parser = cli.build_parser()
+    for name, sub in parser._subparsers._group_actions[0].choices.items():
+        assert "command" not in {a.dest for a in sub._actions}, name

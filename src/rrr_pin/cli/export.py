@@ -49,8 +49,9 @@ def add(sub) -> None:
     p.add_argument("--compensate-friction", action="store_true",
                    help="fl, hinf: the exported law adds Fv qd + Fc tanh(qd / S) to its torque "
                         "(recorded in controller.json: law.friction_compensation)")
-    p.add_argument("--command", default="full", choices=("full", "no-gravity",
-                                                          "no-gravity-no-friction"),
+    # dest: "command" is the subcommand's name (rrr-pin's own errors say "rrr-pin export")
+    p.add_argument("--command", dest="torque_command", default="full",
+                   choices=("full", "no-gravity", "no-gravity-no-friction"),
                    help="the drive's torque convention: full (the law's whole torque, "
                         "default), no-gravity (minus Ghat(q): the drive adds gravity), "
                         "no-gravity-no-friction (minus the friction compensation too, as "
@@ -96,7 +97,7 @@ def run_export(args) -> int:
             make_law(args.law, robot, **({"K": K} if K is not None else {}),
                      **({"friction": friction} if friction is not None else {}))
         prepared = prepare_export(law, robot, args.rate, method=args.method,
-                                  prewarp=args.prewarp, design=d, command=args.command)
+                                  prewarp=args.prewarp, design=d, command=args.torque_command)
     band = 0.0
     if args.ros2:
         from ..deploy.ros2 import PERIOD_TOLERANCE
