@@ -45,8 +45,14 @@ def add_tuning_arguments(p) -> None:
                         "noise_gain=N_M_PER_RAD (peak gain from position noise to torque), "
                         "reference_model=RAD_S[,peak=M] (the tracking error no larger than "
                         "the FL closed loop's of that bandwidth, M > 1 allowed at high "
-                        "frequency; default 2); default "
-                        "delay_margin=0.003 disk_margin=0.5 error_ratio=10")
+                        "frequency; default 2), lower_gain_margin=K (stable with the torque "
+                        "scaled by every factor in [K, 1]; lower_gain_margin=0.5 is added "
+                        "unless given, =1 turns it off); default "
+                        "delay_margin=0.003 disk_margin=0.5 error_ratio=10. Every requirement "
+                        "is evaluated, and every plant simulated, behind the --with effects "
+                        "and the delay and actuator of actuator_bandwidth=RAD_S,delay=S; "
+                        "status met only when every requirement is verified and every plant "
+                        "simulated stable")
     g.add_argument("--structure", default="order2", metavar="NAME",
                    help="the outer controller K: fl (none), gain, pid, leadlag, orderN "
                         "(a stable order-N transfer function; order2 is the paper's shape), "
@@ -61,7 +67,8 @@ def add_tuning_arguments(p) -> None:
                    help="tune one FL bandwidth lam per joint, each starting at --lam (implies "
                         "--per-joint; design.json records lam_rad_s as a list)")
     g.add_argument("--samples", type=int, default=20,
-                   help="uncertain plants the design must work on, with the nominal (20)")
+                   help="uncertain plants the design must work on, with the nominal (20, "
+                        ">= 1); drawn from the design's plant set (design.json: plants)")
     g.add_argument("--plants", choices=("samples", "vertices"), default="samples",
                    help="how the --samples plants are drawn: samples (uniform inside the "
                         "20 %% / 5 %% tolerance box, as the studies draw them) or vertices "
@@ -95,7 +102,7 @@ def run_tuned(args) -> int:
     import json
 
     from ..campaign.requirements import make_requirement
-    from ..campaign.tuning import TuneError, tune
+    from ..campaign.tuning import TuneError, design_tolerances, tune
     from ..control.structures import make_structure
     from ..model.dynamics import load_robot
     from ..report.jsondata import dumps
@@ -117,6 +124,10 @@ def run_tuned(args) -> int:
         raise exc.relabelled(lambda f: "--per-joint-lam" if f == "lam" and args.per_joint_lam
                              else f) from None
     fixed = parse_with(args.fixed, "")
+    if args.samples < 1:
+        raise FieldError("--samples", f"{{name}} must be >= 1 (the uncertain plants the design "
+                                      f"is verified on, besides the nominal), got "
+                                      f"{args.samples}")
     if args.plants == "vertices":
         if args.uncertainty is not None or args.confidence is not None:
             raise ValueError("--plants vertices takes the corners of the tolerance box; an "
@@ -125,6 +136,8 @@ def run_tuned(args) -> int:
         from ..model.uncertainty import ToleranceVertices
 
         tol = ToleranceVertices()
+    elif args.uncertainty is None and args.confidence is None:
+        tol = design_tolerances()
     else:
         tol = tolerances_from_args(args, robot)
     try:
