@@ -181,7 +181,9 @@ def test_tuned_design_round_trips_through_json(rrr, tmp_path):
     law = tuned_law(load_design(path), rrr)
     assert law.name == "tuned"
     assert_allclose(law.lam, res.lam, rtol=1e-12)
-    assert [row["name"] for row in res.table] == ["delay_margin", "disk_margin"]
+    # lower_gain_margin is added by default (issue 45)
+    assert [row["name"] for row in res.table] == ["delay_margin", "disk_margin",
+                                                  "lower_gain_margin"]
     assert all(row["verified"] is not None for row in res.table)
 
 

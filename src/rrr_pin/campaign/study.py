@@ -37,6 +37,7 @@ from ..control.references import Reference, TaskSpaceReference, study_reference
 from ..outputs import writing
 from ..sim.simulation import time_grid
 from ..sim.trajectory import SimulationDiverged, metrics
+from .coverage import certificate_loop, certify_run
 from .executors import check_jobs, default_jobs, run_tasks
 from .runner import (
     RunSettings,
@@ -350,6 +351,14 @@ def summarize(result: StudyResult) -> dict:
         out["samples_certified"] = sum(1 for c in certs if c["certified"])
         out["certificate_b"] = certs[0]["b"]
         out["nugap_max"] = max(c["nugap_max"] for c in certs)
+        # per law: certified plants on which it ran (a divergence is never certified for it)
+        good = [s for s in result.samples if s.get("certificate", {}).get("certified")]
+        out["certified_ran"] = {k: sum(1 for s in good if k in s.get("metrics", {}))
+                                for k in names}
+        if result.certificate is not None:
+            out["certificate"] = certificate_loop(result.certificate["lam_rad_s"],
+                                                  result.certificate["points"],
+                                                  result.config.run)
     if ok:
         def rms(key, what, axis=None):
             sq = np.array([np.asarray(s["metrics"][key][what]) ** 2 for s in ok])
@@ -528,7 +537,7 @@ def run_plants(tasks: tuple) -> list[tuple[dict, dict | None]]:
     for t, r in zip(tasks, runs, strict=True):
         cert = None
         if t.certificate is not None and t.certify:
-            cert = t.certificate.certify(t.nominal, t.plant, t.reference, t.run.duration)
+            cert = certify_run(t.certificate, t.nominal, t.plant, t.reference, t.run)
         out.append((r, cert))
     return out
 
@@ -538,8 +547,8 @@ def run_plant(task: PlantTask) -> tuple[dict, dict | None]:
     runs = run_laws(task.plant, task.laws, task.reference, task.run)
     cert = None
     if task.certificate is not None and task.certify:
-        cert = task.certificate.certify(task.nominal, task.plant, task.reference,
-                                        task.run.duration)
+        cert = certify_run(task.certificate, task.nominal, task.plant, task.reference,
+                           task.run)
     return runs, cert
 
 

@@ -756,7 +756,7 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
             vals = [r.estimate(ctx, ev) for r in reqs]
             norm = [r.normalized(v) for r, v in zip(reqs, vals, strict=True)]
             out = (float(max(norm)), ev, vals)
-        cache[key] = out
+        cache[key] = (out[0], None, out[2])   # the responses are not kept (memory)
         return out
 
     rng = np.random.default_rng([int(seed), 7919])
@@ -787,7 +787,8 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     objective, x = best
     values = np.exp(np.clip(x, bounds[:, 0], bounds[:, 1]))
     lam, K = structure.split(values)
-    _, ev, estimates = evaluate(x)
+    _, _, estimates = evaluate(x)
+    ev = _Eval(ctx, lam, K)
     info = {"robot": robot.name, "joints": list(robot.joint_names), "plants": plant_info,
             "home_rad": home.tolist(), "fixed": fixed,
             "effects": {**effects, "note": "every requirement is evaluated, and every plant "

@@ -180,7 +180,8 @@ def results_markdown(result: StudyResult, data: dict | None = None) -> str:
         lines += ["", f"Frozen-configuration certificates (H-infinity design, nu-gap against "
                   f"b(Gs, Ks) = {s['certificate_b']:.4g}): {s['samples_certified']} of {n_cert} "
                   f"uncertain plants certified, largest nu-gap {s['nugap_max']:.4g}. A "
-                  "certificate covers the frozen linearizations only (see the README)."]
+                  "certificate covers the frozen linearizations only (see the README)"
+                  + _coverage_text(s) + "."]
     builtin = {d["name"] for d in result.laws if d.get("class") == _TRACKING}
     if all(k in builtin for k in PAPER_LAWS) and base == PAPER_LAWS[0]:
         lines += [""] + _paper_rows(result, s)
@@ -453,6 +454,21 @@ def study_captions(result: StudyResult, design: dict | None = None) -> dict:
     }
 
 
+def _coverage_text(s: dict) -> str:
+    """``; covers ...`` of a study summary's certificate: its loop, laws, effects left out."""
+    cov = s.get("certificate")
+    if not cov:
+        return ""
+    loop = (f"at {cov['rate_hz']:g} Hz, delay {cov['delay_s']:g} s, actuator "
+            f"{cov['actuator_rad_s'] or 'ideal'} rad/s" if cov["rate_hz"]
+            else "continuous, without effects")
+    ran = ", ".join(f"{k} ran on {n}" for k, n in s.get("certified_ran", {}).items())
+    return (f"; covers {cov['law']}, {loop}"
+            + (f"; not covered, present in the runs: {', '.join(cov['not_covered'])}"
+               if cov["not_covered"] else "")
+            + (f"; on the certified plants {ran}" if ran else ""))
+
+
 def summary_lines(result: StudyResult, summary: dict) -> list[str]:
     """Headline figures of a study as text lines (no newlines), for a terminal.
 
@@ -473,7 +489,7 @@ def summary_lines(result: StudyResult, summary: dict) -> list[str]:
         checked = sum(1 for x in result.samples if "certificate" in x)
         lines.append(f"certified (frozen nu-gap < b = {s['certificate_b']:.4g}): "
                      f"{s['samples_certified']} of {checked} plants, largest nu-gap "
-                     f"{s['nugap_max']:.4g}")
+                     f"{s['nugap_max']:.4g}" + _coverage_text(s))
     ts = result.task_space
     if ts:
         lines.append(f"task space, frame {ts['frame']!r}, RMS |e_x| [mm] nominal / uncertain "
