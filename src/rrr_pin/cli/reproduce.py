@@ -11,6 +11,7 @@ from .build import (
     settings_from_args,
     tolerances_from_args,
     torque_limit_from_args,
+    warn_effect_margins,
     with_torque_limit,
 )
 from .common import check_out_early, claim_out, control_ss
@@ -92,6 +93,7 @@ def run_reproduce(args) -> int:
     # every refusal before the design figures and the progress bar: a refused study writes
     # and prints nothing but its one line
     laws, reference = check_study(plant, laws, config=config, reference=reference)
+    warn_effect_margins(args, laws, settings.rate, settings.effects)
     if out is None:  # --overwrite: the previous run is removed now that the study holds
         out = claim_out(args, "reproduce")
     figures = save_design_figures(d, out)
