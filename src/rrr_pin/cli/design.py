@@ -113,6 +113,10 @@ def run_tuned(args) -> int:
 
     if args.out is None:
         raise ValueError("design to requirements writes DIR/design.json: give --out DIR")
+    if args.samples < 1:
+        raise FieldError("--samples", f"{{name}} must be >= 1 (the uncertain plants the design "
+                                      f"is verified on, besides the nominal), got "
+                                      f"{args.samples}")
     out = claim_out(args, "design")
     reqs = [make_requirement(t) for t in (args.require or DEFAULT_REQUIREMENTS)]
     robot = load_robot(args.robot or "rrr", lock=parse_lock(args.lock))
@@ -124,10 +128,6 @@ def run_tuned(args) -> int:
         raise exc.relabelled(lambda f: "--per-joint-lam" if f == "lam" and args.per_joint_lam
                              else f) from None
     fixed = parse_with(args.fixed, "")
-    if args.samples < 1:
-        raise FieldError("--samples", f"{{name}} must be >= 1 (the uncertain plants the design "
-                                      f"is verified on, besides the nominal), got "
-                                      f"{args.samples}")
     if args.plants == "vertices":
         if args.uncertainty is not None or args.confidence is not None:
             raise ValueError("--plants vertices takes the corners of the tolerance box; an "
