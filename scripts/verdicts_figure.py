@@ -40,7 +40,9 @@ def main() -> None:
     robot = load_robot(a.robot)
     if a.design:
         law = tuned_law(load_design(a.design), robot)
-        lam, K, label = law.lam, law.K, f"design {a.design}"
+        from pathlib import Path
+
+        lam, K, label = law.lam, law.K, f"design {Path(a.design).parent.name}/design.json"
     else:
         import rrr_pin
 
@@ -61,6 +63,7 @@ def main() -> None:
     for (name, (each, pooled)), marker in zip(ratios.items(), "ox", strict=True):
         ax.plot(x, each, marker, label=f"{name}: pooled {pooled:.3g}")
     ax.axhline(a.target, color="k", lw=0.8, ls="--", label=f"required {a.target:g}")
+    ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_xlabel("plant of the set (0: nominal)")
     ax.set_ylabel("RMS error ratio FL / law [-]")
     ax.set_title(f"{robot.name}, {label}", fontsize=9)
