@@ -68,7 +68,9 @@ def add_tuning_arguments(p) -> None:
                         "--per-joint; design.json records lam_rad_s as a list)")
     g.add_argument("--samples", type=int, default=20,
                    help="uncertain plants the design must work on, with the nominal (20, "
-                        ">= 1); drawn from the design's plant set (design.json: plants)")
+                        ">= 1), drawn from the design's plant set: the 20 %% inertia / 5 %% "
+                        "length box (recorded in design.json under plants); each is "
+                        "simulated behind the design's effects before status met")
     g.add_argument("--plants", choices=("samples", "vertices"), default="samples",
                    help="how the --samples plants are drawn: samples (uniform inside the "
                         "20 %% / 5 %% tolerance box, as the studies draw them) or vertices "
