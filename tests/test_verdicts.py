@@ -203,3 +203,22 @@ def test_error_ratio_behind_the_effects_follows_the_simulation(rrr, paper):
     # 10 % prediction tolerance
     assert_allclose(est, sim, rtol=0.1)
     assert ctx.run.effects.delay == DELAY and ctx.run.effects.bandwidth == WA
+
+
+# --- warnings ------------------------------------------------------------------------------------
+
+def test_a_law_behind_effects_beyond_its_margin_is_named(rrr, paper, behind):
+    import re
+
+    from rrr_pin import fl_controller, hinf_fl_controller
+    from rrr_pin.campaign.effect_margins import EffectMarginWarning, check_effect_margins
+
+    ctx, ev = behind
+    laws = [fl_controller(rrr, 100.0), hinf_fl_controller(rrr, paper.K_reduced, LAM)]
+    with pytest.warns(EffectMarginWarning, match="hinf: delay margin") as caught:
+        msgs = check_effect_margins(laws, RATE, delay=0.004, actuator=WA)
+    assert len(msgs) == len(caught) == 1 and "below the 4 ms delay requested" in msgs[0]
+    # the margin named (stress's digital loop) against the tuner's exact loop with the same
+    # actuator (LoopSet, another implementation): 3 digits printed
+    named = float(re.search(r"delay margin ([0-9.]+) ms", msgs[0]).group(1)) * 1e-3
+    assert_allclose(named, DelayMargin(0.001).verify(ctx, ev)[0], rtol=5e-3)
