@@ -30,7 +30,12 @@ def design_effects_record(design) -> dict:
     """
     if not design:
         return {}
-    fx = design.get("effects") or design.get("fixed") or {}
+    fx = dict(design.get("effects") or design.get("fixed") or {})
+    for row in design.get("requirements") or []:   # a design.json from before "effects"
+        if row.get("name") == "actuator_bandwidth":
+            fx.setdefault("actuator", row.get("target"))
+            if row.get("delay"):
+                fx.setdefault("delay", row["delay"])
     return {k: float(fx[k]) for k in ("delay", "actuator") if fx.get(k)}
 
 

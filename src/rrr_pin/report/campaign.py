@@ -198,7 +198,9 @@ def summary_lines(campaign: Campaign, summary: dict) -> list[str]:
     if "status" in s:
         lines.append(f"per law: {s['status']}")
     if "certified" in s:
-        lines.append(f"certified (frozen nu-gap < b): {s['certified']} plants, of which "
+        exact = " and exact discrete loop" if (s.get("certificate") or {}).get("rate_hz") \
+            else ""
+        lines.append(f"certified (frozen nu-gap < b{exact}): {s['certified']} plants, of which "
                      f"{s['certified_and_ran']} ran; not certified but ran: "
                      f"{s['not_certified_but_ran']}; largest nu-gap {s['nugap_max']:.4g}")
         if "certified_ran" in s:
