@@ -210,9 +210,9 @@ def summary_lines(campaign: Campaign, summary: dict) -> list[str]:
                                       else "") for n, c in s["certified_ran"].items()))
         cov = s.get("certificate")
         if cov:
-            rate = (f"at {cov['rate_hz']:g} Hz, delay {cov['delay_s']:g} s, actuator "
-                    f"{cov['actuator_rad_s'] or 'ideal'} rad/s" if cov["rate_hz"]
-                    else "continuous, without effects")
+            wa = f"{cov['actuator_rad_s']:g} rad/s" if cov["actuator_rad_s"] else "none"
+            rate = (f"at {cov['rate_hz']:g} Hz, delay {cov['delay_s']:g} s, actuator {wa}"
+                    if cov["rate_hz"] else "continuous, without effects")
             lines.append(f"the certificate covers {cov['law']} on {cov['plant']}, {rate}; "
                          + (f"not covered, present in this run: "
                             f"{', '.join(cov['not_covered'])}" if cov["not_covered"]

@@ -459,9 +459,9 @@ def _coverage_text(s: dict) -> str:
     cov = s.get("certificate")
     if not cov:
         return ""
-    loop = (f"at {cov['rate_hz']:g} Hz, delay {cov['delay_s']:g} s, actuator "
-            f"{cov['actuator_rad_s'] or 'ideal'} rad/s" if cov["rate_hz"]
-            else "continuous, without effects")
+    wa = f"{cov['actuator_rad_s']:g} rad/s" if cov["actuator_rad_s"] else "none"
+    loop = (f"at {cov['rate_hz']:g} Hz, delay {cov['delay_s']:g} s, actuator {wa}"
+            if cov["rate_hz"] else "continuous, without effects")
     ran = ", ".join(f"{k} ran on {n}" for k, n in s.get("certified_ran", {}).items())
     return (f"; covers {cov['law']}, {loop}"
             + (f"; not covered, present in the runs: {', '.join(cov['not_covered'])}"
