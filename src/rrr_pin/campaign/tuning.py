@@ -161,16 +161,6 @@ class _Eval:
             return sigma_bounds(self.S_at(mask) - eye)
         return np.maximum(m - delta, 0.0), m + delta, exact, refine
 
-    def L_fixed(self, *keep):
-        """``L`` times the frequency factors of the fixed effects named in ``keep``."""
-        L, w = self.L, self.ctx.loops.omega
-        if "delay" in keep and "delay" in self.ctx.fixed:
-            L = L * np.exp(-1j * w * self.ctx.fixed["delay"])[None, :, None, None]
-        if "actuator" in keep and "actuator" in self.ctx.fixed:
-            wa = self.ctx.fixed["actuator"]
-            L = L * (wa / (1j * w + wa))[None, :, None, None]
-        return L
-
     def loop_at(self, ctx, i, w):
         """Plant ``i``'s loop response at frequencies ``w``, shape (nw, n, n)."""
         P = ctx.plant_response(w)[i:i + 1]
