@@ -7,13 +7,19 @@ r"""Design to requirements: tune a structured FL law over a plant set, then veri
 
 over the free parameters ``theta`` of a :class:`~rrr_pin.control.structures.Structure`
 (searched on a log scale inside their bounds), every requirement evaluated on the digital loop
-of each plant of the set (:class:`~rrr_pin.control.sampled_loops.LoopSet`) on a frequency grid.
-A point whose exact discrete closed loop is unstable on any plant (with the fixed effects) is
-penalized by its spectral radius. The search is scipy's bounded Nelder-Mead (the objective is a
-maximum of non-smooth functions) from several seeded starts. The best point is then verified:
+of each plant of the set (:class:`~rrr_pin.control.sampled_loops.LoopSet`) on a frequency grid,
+behind the design's effects (:func:`design_effects`: ``fixed`` and the delay and actuator the
+requirements state; the plant behind them discretized exactly). A point whose exact discrete
+closed loop is unstable on any plant (with those effects) is penalized by its spectral radius.
+The search is scipy's bounded Nelder-Mead (the objective is a maximum of non-smooth functions)
+from several seeded starts. The best point is then verified:
 each requirement's exact value (:meth:`Requirement.verify`) and, for the delay and the
 actuator, the breaking point that :func:`rrr_pin.campaign.stress.breaking_point` simulates on
-the nominal plant beside the exact linear prediction on that plant.
+the nominal plant beside the exact linear prediction on that plant; every plant of the set is
+simulated behind the effects. The status is ``met`` only when every requirement holds with a
+finite value and no run diverged; otherwise the failures name the requirement and the plant
+(:func:`plant_failures`, :func:`simulated_failures`). ``lower_gain_margin`` is added unless a
+requirement states one (:func:`with_default_requirements`).
 
 The result (:class:`TuneResult`) is the tuned law (``name = "tuned"``), the table per
 requirement (target, achieved on the grid, verified), and the trade-off when the requirements
@@ -41,7 +47,9 @@ from .requirements import (
     _bisect_up,
 )
 
-__all__ = ["tune", "TuneResult", "TuneError", "tuned_law", "load_design", "DESIGN_FORMAT"]
+__all__ = ["tune", "TuneResult", "TuneError", "tuned_law", "load_design", "DESIGN_FORMAT",
+           "DEFAULT_LOWER_GAIN_MARGIN", "with_default_requirements", "design_effects",
+           "design_tolerances", "check_plant_set", "plant_failures", "simulated_failures"]
 
 #: ``format`` of a ``design.json``.
 DESIGN_FORMAT = "rrr-pin-design/1"
