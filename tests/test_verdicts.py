@@ -222,3 +222,15 @@ def test_a_law_behind_effects_beyond_its_margin_is_named(rrr, paper, behind):
     # actuator (LoopSet, another implementation): 3 digits printed
     named = float(re.search(r"delay margin ([0-9.]+) ms", msgs[0]).group(1)) * 1e-3
     assert_allclose(named, DelayMargin(0.001).verify(ctx, ev)[0], rtol=5e-3)
+
+
+def test_realistic_run_is_the_stated_set(rrr):
+    from rrr_pin.campaign.runner import RunSettings
+    from rrr_pin.campaign.study import REALISTIC_SET, realistic_run
+
+    run = realistic_run(RunSettings(duration=2.0), rrr)
+    fx = run.effects
+    assert (run.rate, run.duration, fx.delay, fx.bandwidth) == (
+        REALISTIC_SET["rate_hz"], 2.0, REALISTIC_SET["delay_s"], REALISTIC_SET["actuator_rad_s"])
+    assert fx.torque_limit == tuple(rrr.effort_limits())   # the URDF's limits [N m]
+    assert run.to_dict()["effects"]["delay_substeps"] * run.dt == pytest.approx(0.001)

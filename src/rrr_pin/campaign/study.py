@@ -58,6 +58,8 @@ __all__ = [
     "StudyResult",
     "UncertainPlant",
     "draw_plants",
+    "REALISTIC_SET",
+    "realistic_run",
     "PlantTask",
     "run_plant",
     "run_plants",
@@ -137,6 +139,34 @@ class UncertainPlant:
         with writing(path):  # a full disk names the file
             path.write_text(text)
         return path
+
+
+#: The realistic set of ``rrr-pin reproduce --realistic``: the laws sampled at 1 kHz behind a
+#: 1 ms delay and a 300 rad/s first-order actuator, joint friction (viscous 0.1 N m s/rad,
+#: Coulomb 0.2 N m on every joint) and the URDF's effort limits. Sensor noise joins when the
+#: command line has it (issue 50) and rotor armature when the plant sets carry it (issue 44):
+#: one entry each here.
+REALISTIC_SET = {"rate_hz": 1000.0, "delay_s": 0.001, "actuator_rad_s": 300.0,
+                 "viscous_Nms": 0.1, "coulomb_Nm": 0.2, "torque_limit": "urdf"}
+
+
+def realistic_run(run: RunSettings, nominal) -> RunSettings:
+    """Return ``run`` with :data:`REALISTIC_SET`'s rate and effects (its duration kept).
+
+    Parameters
+    ----------
+    run : RunSettings
+    nominal : Plant
+        Its effort limits [N m] are the torque limit.
+    """
+    from dataclasses import replace
+
+    from ..control.effects import PlantEffects
+
+    fx = PlantEffects(delay=REALISTIC_SET["delay_s"], bandwidth=REALISTIC_SET["actuator_rad_s"],
+                      viscous=REALISTIC_SET["viscous_Nms"], coulomb=REALISTIC_SET["coulomb_Nm"],
+                      torque_limit=tuple(float(x) for x in nominal.effort_limits()))
+    return replace(run, rate=REALISTIC_SET["rate_hz"], dt=None, effects=fx)
 
 
 def draw_plants(nominal, count: int, seed: int, tolerances) -> list[UncertainPlant]:

@@ -27,7 +27,7 @@ from .viewer import Scene, Track, task_path_points
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "study_captions",
            "summary_lines", "write_trajectories", "torque_limit_table", "PAPER_ERROR_RATIO",
-           "PAPER_LAWS"]
+           "PAPER_LAWS", "realistic_lines"]
 
 #: The paper's claim for the uncertain plants: "almost a ten times better performance".
 PAPER_ERROR_RATIO = 10.0
@@ -452,6 +452,27 @@ def study_captions(result: StudyResult, design: dict | None = None) -> dict:
                          "controller's run on the nominal plant, in the plane the path spans "
                          "most.",
     }
+
+
+def realistic_lines(section: dict) -> list[str]:
+    """Return the realistic pass of ``reproduce --realistic`` as text lines.
+
+    ``section`` is ``results.json``'s ``realistic``: ``set`` (the effects), ``summary`` (of
+    the study run behind them, :func:`rrr_pin.campaign.study.summarize`).
+    """
+    fx, s = section["set"], section["summary"]
+    head = (f"realistic set ({fx['rate_hz']:g} Hz, delay {1e3 * fx['delay_s']:g} ms, actuator "
+            f"{fx['actuator_rad_s']:g} rad/s, friction {fx['viscous_Nms']:g} N m s/rad + "
+            f"{fx['coulomb_Nm']:g} N m, torque limits {fx['torque_limit']}):")
+    base = s["baseline"]
+    out = [head]
+    for name, r in s.get("error_ratio_uncertain", {}).items():
+        t = s.get("torque_ratio_uncertain", {}).get(name)
+        out.append(f"  RMS error {base} / {name} = {_fmt(r)}; RMS torque {name} / {base} = "
+                   f"{_fmt(t)}")
+    out.append("  diverged (of the uncertain plants): " + ", ".join(
+        f"{k} {v}" for k, v in s["diverged"].items()))
+    return out
 
 
 def _coverage_text(s: dict) -> str:
