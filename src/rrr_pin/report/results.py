@@ -470,8 +470,11 @@ def realistic_lines(section: dict) -> list[str]:
         t = s.get("torque_ratio_uncertain", {}).get(name)
         out.append(f"  RMS error {base} / {name} = {_fmt(r)}; RMS torque {name} / {base} = "
                    f"{_fmt(t)}")
+    laws = (s.get("torque_limit") or {}).get("laws") or {
+        k: {"uncertain_diverged": v} for k, v in s["diverged"].items()}
     out.append("  diverged (of the uncertain plants): " + ", ".join(
-        f"{k} {v}" for k, v in s["diverged"].items()))
+        f"{k} {v['uncertain_diverged']}" + (" and on the nominal" if v.get("nominal_diverged")
+                                           else "") for k, v in laws.items()))
     return out
 
 
