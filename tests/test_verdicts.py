@@ -234,3 +234,16 @@ def test_realistic_run_is_the_stated_set(rrr):
         REALISTIC_SET["rate_hz"], 2.0, REALISTIC_SET["delay_s"], REALISTIC_SET["actuator_rad_s"])
     assert fx.torque_limit == tuple(rrr.effort_limits())   # the URDF's limits [N m]
     assert run.to_dict()["effects"]["delay_substeps"] * run.dt == pytest.approx(0.001)
+
+
+def test_realistic_figure_draws_both_ratios():
+    from rrr_pin.report.plotting import plot_realistic
+
+    def run(ideal, real):
+        return {"summary": {"error_ratio_uncertain": {"hinf": ideal}},
+                "realistic": {"summary": {"error_ratio_uncertain": {"hinf": real}}}}
+    fig = plot_realistic({"rrr": run(21.4, 0.0118), "kinova": run(19.6, 0.746)})
+    ax = fig.axes[0]
+    heights = sorted(p.get_height() for p in ax.patches)
+    assert_allclose(heights, sorted([21.4, 0.0118, 19.6, 0.746]), rtol=0)  # the data drawn
+    assert ax.get_yscale() == "log" and "[-]" in ax.get_ylabel()

@@ -162,6 +162,9 @@ def _realistic(args, plant, d, config, reference, certificate, data, out) -> dic
     result = run_study(plant, laws, config=cfg, reference=reference, certificate=certificate)
     data = {**data, "realistic": {"set": REALISTIC_SET, "run": run.to_dict(),
                                   "summary": summarize(result)}}
+    from ..report.plotting import plot_realistic, save_figure
+
+    save_figure(plot_realistic({plant.name: data}), out / "realistic.png")
     lines = realistic_lines(data["realistic"])
     with writing(out / "results.json"):
         (out / "results.json").write_text(dumps(data, indent=1) + "\n")
