@@ -24,6 +24,8 @@ RUNS = [
     ("identify_example.py", ["--quick", "--friction", "--out", "{tmp}"]),
     ("compare_searches.py", ["--starts", "1", "--maxfev", "8", "--nm-maxfev", "6",
                              "--plants", "0", "--out", "{tmp}/searches.png"]),
+    ("verdicts_figure.py", ["--plants", "1", "--duration", "0.5", "--out",
+                            "{tmp}/verdicts.png"]),
 ]
 
 # issue 13's keys, and the keys the benchmark had before them (kept for the README's table).

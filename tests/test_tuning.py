@@ -182,7 +182,9 @@ def test_tuned_design_round_trips_through_json(rrr, tmp_path):
     law = tuned_law(load_design(path), rrr)
     assert law.name == "tuned"
     assert_allclose(law.lam, res.lam, rtol=1e-12)
-    assert [row["name"] for row in res.table] == ["delay_margin", "disk_margin"]
+    # lower_gain_margin is added by default (issue 45)
+    assert [row["name"] for row in res.table] == ["delay_margin", "disk_margin",
+                                                  "lower_gain_margin"]
     assert all(row["verified"] is not None for row in res.table)
 
 
@@ -287,7 +289,9 @@ def test_cli_design_writes_the_arms_own_design(robot, design_run):
     assert run.code == 0, run.stderr
     data = load_design(run.out / "design.json")
     assert data["robot"] == robot and data["law"] == "tuned"
-    assert [row["name"] for row in data["requirements"]] == ["delay_margin", "disk_margin"]
+    # lower_gain_margin is added by default (issue 45)
+    assert [row["name"] for row in data["requirements"]] == ["delay_margin", "disk_margin",
+                                                             "lower_gain_margin"]
     assert "delay_margin" in run.stdout and "verified" in run.stdout
 
 
@@ -526,7 +530,8 @@ def test_cli_design_per_joint_on_vertices(tmp_path):
     assert len(data["K"]["per_joint"]) == 3
     assert data["plants"]["tolerances"]["draw"] == "vertices"
     assert [row["name"] for row in data["requirements"]] == ["reference_model",
-                                                             "delay_margin"]
+                                                             "delay_margin",
+                                                             "lower_gain_margin"]
 
 
 def test_cli_design_vertices_of_an_identified_set_are_refused(tmp_path):

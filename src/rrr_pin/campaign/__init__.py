@@ -7,7 +7,10 @@ campaign), :mod:`~rrr_pin.campaign.runner` (``RunSettings``, ``run_laws``: any l
 effects), :mod:`~rrr_pin.campaign.store` (append-only storage, resume) and
 :mod:`~rrr_pin.campaign.executors` (local processes or Dask), :mod:`~rrr_pin.campaign.requirements`
 and :mod:`~rrr_pin.campaign.tuning` (design to requirements: ``tune``, with the search of
-:mod:`~rrr_pin.campaign.minimax`). Each takes any plant
+:mod:`~rrr_pin.campaign.minimax`), :mod:`~rrr_pin.campaign.coverage` (what a certificate
+covers: the exact discrete loop behind a run's effects) and
+:mod:`~rrr_pin.campaign.effect_margins` (warnings where a law meets effects beyond its
+margins). Each takes any plant
 (:mod:`rrr_pin.model.plant`): a serial arm and a closed chain run the same code. The study and
 the campaign are siblings on the runner: neither imports the other.
 

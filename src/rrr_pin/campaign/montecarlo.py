@@ -38,6 +38,7 @@ from ..sim.batched import BATCH_MAX, MAX_THREADS, thread_pool, warm
 from ..sim.engine_names import AUTO, CODEGEN
 from ..sim.simulation import reuse_preparation
 from ..validation import check_count
+from .coverage import certificate_loop
 from .executors import CampaignInterrupted, check_jobs, interrupt_on_signals, run_tasks
 from .runner import (
     RunSettings,
@@ -327,7 +328,9 @@ def _row(job: CampaignJob, k: int, parameters, plant, runs: dict) -> dict:
     if undefined:
         row["undefined"] = "; ".join(undefined)
     if job.certificate is not None and k != NOMINAL_INDEX:
-        cert = job.certificate.certify(job.nominal, plant, job.reference, settings.run.duration)
+        from .coverage import certify_run
+
+        cert = certify_run(job.certificate, job.nominal, plant, job.reference, settings.run)
         row["certified"], row["nugap_max"] = cert["certified"], cert["nugap_max"]
     return row
 
@@ -447,7 +450,11 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
     return Campaign(robot=nominal.name, joint_names=list(nominal.joint_names),
                     laws=[law.describe() for law in laws],
                     rows=[r for r in rows if r["index"] != NOMINAL_INDEX],
-                    settings={**settings.to_dict(), "reference": reference.to_dict()},
+                    settings={**settings.to_dict(), "reference": reference.to_dict(),
+                              **({"certificate": certificate_loop(certificate.lam,
+                                                                   certificate.points,
+                                                                   settings.run)}
+                                 if certificate is not None else {})},
                     nominal=next((r for r in rows if r["index"] == NOMINAL_INDEX), None),
                     per_law=per_law, joint_dynamics=nominal.joint_dynamics())
 
@@ -598,7 +605,11 @@ def campaign_summary(campaign: Campaign) -> dict:
         where it is the minimum: the least benefit over the baseline); ``undefined``
         (when some ratio is undefined, e.g. 0/0): per ratio, the number of samples where it
         is (they are left out of its figures); ``engines``: per law, how many samples each
-        engine ran.
+        engine ran; ``per_law``: per law, the samples it ``ran`` on and ``diverged`` on, and
+        ``status`` ("fl ran on 20, tuned on 20, hinf diverged on 20"); with certificates,
+        ``certified_ran`` and ``certified_diverged`` per law (a plant whose law diverged is
+        never counted as certified for that law) and ``certificate`` (the loop it covers,
+        :func:`rrr_pin.campaign.coverage.certificate_loop`).
     """
     rows, base = campaign.rows, campaign.baseline
     ok = [r for r in rows if r["status"] == "ok"]
@@ -635,8 +646,23 @@ def campaign_summary(campaign: Campaign) -> dict:
                 undefined[key] = count
     if undefined:
         out["undefined"] = undefined
+    ran = {name: {r["index"] for r in rows if f"{name}_rms_error" in r}
+           for name in campaign.names}
+    out["per_law"] = {name: {"ran": len(ran[name]), "diverged": len(rows) - len(ran[name])}
+                      for name in campaign.names}
+    out["status"] = ", ".join(
+        f"{name} ran on {c['ran']}" + (f" (diverged on {c['diverged']})"
+                                       if c["ran"] and c["diverged"] else "")
+        if c["ran"] else f"{name} diverged on {c['diverged']}"
+        for name, c in out["per_law"].items())
     certs = [r for r in rows if "certified" in r]
     if certs:
+        good = [r["index"] for r in certs if r["certified"]]
+        out["certified_ran"] = {n: sum(1 for k in good if k in ran[n]) for n in campaign.names}
+        out["certified_diverged"] = {n: len(good) - out["certified_ran"][n]
+                                     for n in campaign.names}
+        if "certificate" in campaign.settings:
+            out["certificate"] = campaign.settings["certificate"]
         out["certified"] = sum(1 for r in certs if r["certified"])
         out["certified_and_ran"] = sum(1 for r in certs if r["certified"] and
                                        r["status"] == "ok")

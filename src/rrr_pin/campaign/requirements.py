@@ -2,19 +2,23 @@ r"""Requirements of a tuned design: typed inputs, each estimated on a frequency 
 
 A requirement states a target on the loop actually implemented: the law sampled at its rate,
 on every plant of the set (:class:`~rrr_pin.control.sampled_loops.LoopSet`, the plants
-linearized at the reference's mean configuration), with the effects held fixed (``fixed``:
-``{"delay": s, "actuator": rad/s}``) present. Each gives
+linearized at the reference's mean configuration), behind the design's effects
+(``ctx.effects``, :func:`rrr_pin.campaign.tuning.design_effects`: the ``--with`` effects and
+the delay and actuator a requirement states, ``{"delay": s, "actuator": rad/s}``; the plant
+behind them discretized exactly, :meth:`~rrr_pin.control.sampled_loops.LoopSet.effect_plant`).
+Each gives
 
 * :meth:`Requirement.estimate`, the fast value the tuner minimizes over (a frequency grid, or
   a linear prediction), worst over the plants;
 * :meth:`Requirement.verify`, the exact value (eigenvalues of the exact discrete closed loop,
   python-control's ``disk_margins`` with SLICOT's ``AB13MD``, nonlinear simulation);
-* :meth:`Requirement.normalized`, the value over the target (<= 1: met), the tuner's measure.
+* :meth:`Requirement.normalized`, the value over the target (<= 1: met), the tuner's measure;
+* :meth:`Requirement.per_plant`, the value of each plant (which one fails).
 
 Built in (:data:`REQUIREMENTS`, the CLI's ``--require NAME=VALUE``): ``delay_margin`` [s],
-``disk_margin`` [-], ``actuator_bandwidth`` [rad/s], ``bandwidth`` [rad/s], ``peak_torque``
-[N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad], ``reference_model``
-[rad/s]. Write your own by subclassing :class:`Requirement`.
+``disk_margin`` [-], ``lower_gain_margin`` [-], ``actuator_bandwidth`` [rad/s], ``bandwidth``
+[rad/s], ``peak_torque`` [N m or ``urdf``], ``error_ratio`` [-], ``noise_gain`` [N m/rad],
+``reference_model`` [rad/s]. Write your own by subclassing :class:`Requirement`.
 """
 
 from __future__ import annotations
@@ -27,7 +31,8 @@ import numpy as np
 
 from ..validation import FieldError, check_positive
 
-__all__ = ["Requirement", "DelayMargin", "DiskMargin", "ActuatorBandwidth", "Bandwidth",
+__all__ = ["Requirement", "DelayMargin", "DiskMargin", "LowerGainMargin", "ActuatorBandwidth",
+           "Bandwidth",
            "PeakTorque", "ErrorRatio", "NoiseGain", "ReferenceModel", "REQUIREMENTS",
            "make_requirement",
            "disk_margin_grid", "bandwidth_grid"]
@@ -150,6 +155,13 @@ class Requirement:
         """Exact value and how it was computed (default: the estimate)."""
         return self.estimate(ctx, ev), "frequency grid"
 
+    def per_plant(self, ctx, ev):
+        """Return the value on each plant of the set, shape (np,), or None (none per plant).
+
+        The tuner names the plant that fails with it.
+        """
+        return None
+
     def to_dict(self) -> dict:
         """JSON-ready record (with the fields a subclass adds)."""
         extra = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "target"}
@@ -182,7 +194,16 @@ class DelayMargin(Requirement):
             check_positive("actuator", self.actuator, unit="rad/s")
 
     def _wa(self, ctx):
-        return self.actuator or ctx.fixed.get("actuator")
+        return self.actuator or _effects(ctx).get("actuator")
+
+    def per_plant(self, ctx, ev):
+        """Grid value of each plant, shape (np,) [s]."""
+        from ..control.sampled_loops import delay_margin_from_response
+
+        wa = self._wa(ctx)
+        f = None if wa is None else wa / (1j * ctx.loops.omega + wa)
+        eigs, iv = ev.scaled_eigs(f, "modulus")
+        return delay_margin_from_response(None, ctx.loops.omega, eigs, iv)
 
     def estimate(self, ctx, ev):
         """Return the grid value, worst over the plants."""
@@ -236,6 +257,104 @@ class DiskMargin(Requirement):
                              f"{min(m.grid for m in got):.6g}); certified lower bound "
                              f"1/||S - I/2||_inf = {min(m.lower for m in got):.6g} (AB13DD)")
 
+    def per_plant(self, ctx, ev):
+        """Grid value of each plant, shape (np,)."""
+        return disk_margin_grid(ev.L, ev.S(), screen=False)
+
+
+@dataclass(frozen=True)
+class LowerGainMargin(Requirement):
+    r"""Lower gain margin: the smallest common factor ``k`` on the torque the loop tolerates [-].
+
+    The loop stays stable with the law's torque scaled by every ``k`` in ``[k_low, 1]``
+    (``k_low`` at most the target; 0.5 is 6 dB), worst plant, with the design's effects: the
+    margin a plant heavier than the law's model uses up (a rotor armature the model lacks
+    scales the FL loop's gain by ``Mhat M^-1``). An open loop unstable at rest (gravity)
+    always has one.
+
+    * :meth:`estimate`: the eigenvalues ``lambda(e^{jwT})`` of ``L`` on the grid where they
+      cross the negative real axis outside the unit circle, ``k = 1 / |lambda|``
+      (generalized Nyquist: the closed loop of ``k L`` changes only where ``-1/k`` is on an
+      eigenlocus), the largest;
+    * :meth:`verify`: bisection on ``k`` of the exact discrete closed loop's spectral radius
+      (:meth:`~rrr_pin.control.sampled_loops.LoopSet.spectral_radius` with the law's output
+      scaled by ``k``, the delay and actuator included), then ``[k_low, 1]`` checked on 20
+      points.
+
+    Parameters
+    ----------
+    target : float
+        The factor [-], in (0, 1] (1: off, any reduction may destabilize).
+    default : bool
+        Added by the tuner because no requirement stated one (recorded).
+    """
+
+    default: bool = False
+    name: ClassVar[str] = "lower_gain_margin"
+    unit: ClassVar[str] = "-"
+    sense: ClassVar[str] = "max"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.target > 1.0:
+            raise FieldError("lower_gain_margin", f"{{name}} is a factor on the torque in "
+                                                  f"(0, 1], got {self.target!r}")
+
+    def normalized(self, achieved) -> float:
+        """``achieved / target`` (<= 1 met); a target of 1 is always met."""
+        return 0.0 if self.target >= 1.0 else float(achieved) / self.target
+
+    def per_plant(self, ctx, ev):
+        """Grid value of each plant, shape (np,)."""
+        if ev._eig_e is None:
+            ev._eig_e = np.linalg.eigvals(ev.L)
+        lam = ev._eig_e                                        # (np, nw, n)
+        out = np.zeros(lam.shape[0])
+        a, b = lam[:, :-1, :, None], lam[:, 1:, None, :]       # every pair of eigenvalues
+        cross = (a.imag * b.imag <= 0) & (a.real < 0) & (b.real < 0)
+        f = np.where(cross, a.imag / np.where(a.imag == b.imag, 1.0, a.imag - b.imag), 0.0)
+        mag = np.exp((1 - f) * np.log(np.abs(a) + 1e-300) + f * np.log(np.abs(b) + 1e-300))
+        k = np.where(cross & (mag > 1.0), 1.0 / mag, 0.0)
+        np.maximum(out, k.reshape(k.shape[0], -1).max(axis=1), out=out)
+        return out
+
+    def estimate(self, ctx, ev):
+        """Return the grid value, worst over the plants."""
+        return float(np.max(self.per_plant(ctx, ev)))
+
+    def verify(self, ctx, ev):
+        """Return the exact value and how it was computed."""
+        from dataclasses import replace
+
+        fx = _effects(ctx)
+        Ac, Bc, Cc, Dc = ev.law.law
+
+        def stable(k):
+            law = replace(ev.law, law=(Ac, Bc, k * Cc, k * Dc))
+            return bool(np.all(ctx.loops.spectral_radius(law, fx.get("delay", 0.0),
+                                                         fx.get("actuator")) < 1.0))
+        if not stable(1.0):
+            return math.inf, "exact discrete eigenvalues: unstable at k = 1"
+        lo, hi = 0.0, 1.0           # stable at hi; largest unstable k below it
+        for k in np.linspace(1.0, 0.0, 21)[1:]:
+            if not stable(max(k, 1e-6)):
+                lo = k
+                break
+            hi = k
+        else:
+            return 0.0, "exact discrete eigenvalues, stable down to k = 1e-6"
+        while hi - lo > 1e-4:
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if stable(mid) else (mid, hi)
+        return hi, "exact discrete eigenvalues (delay and actuator as states), bisection"
+
+    def to_dict(self):
+        """Return the JSON-ready record."""
+        return {**super().to_dict(),
+                "note": "stable for the torque scaled by every k in [verified, 1]"
+                        + ("; added by default (lower_gain_margin=1 turns it off)"
+                           if self.default else "")}
+
 
 @dataclass(frozen=True)
 class ActuatorBandwidth(Requirement):
@@ -262,7 +381,15 @@ class ActuatorBandwidth(Requirement):
                                           f"{MAX_DELAY_MARGIN:g} s")
 
     def _delay(self, ctx):
-        return self.delay if self.delay is not None else ctx.fixed.get("delay", 0.0)
+        return self.delay if self.delay is not None else _effects(ctx).get("delay", 0.0)
+
+    def per_plant(self, ctx, ev):
+        """Exact smallest actuator of each plant [rad/s] (bisection, 1e-3), shape (np,)."""
+        delay = self._delay(ctx)
+        return np.array([_bisect_down(
+            lambda wa, i=i: bool(ctx.loops.spectral_radius(ev.law, delay, wa,
+                                                           plants=[i])[0] < 1.0),
+            self.target, 1e-3) for i in range(len(ctx.loops.plants))])
 
     def _smallest(self, ctx, ev, rtol):
         delay = self._delay(ctx)
@@ -313,7 +440,7 @@ class Bandwidth(Requirement):
                 w = np.array([math.exp(logw)])
                 L = ev.loop_at(ctx, i, w)
                 return float(np.linalg.svd(_sens(L), compute_uv=False)[0, 0]) - lvl
-            w0 = float(bandwidth_grid(ev.L_fixed()[i:i + 1], ctx.loops.omega)[0])
+            w0 = float(bandwidth_grid(ev.L[i:i + 1], ctx.loops.omega)[0])
             if not math.isfinite(w0):
                 out.append(math.inf)
                 continue
@@ -324,6 +451,10 @@ class Bandwidth(Requirement):
                 hi += 0.05
             out.append(math.exp(brentq(g, lo, hi, xtol=1e-10)))
         return min(out), "exact frequency response, root of sigma_max(S) = -3 dB"
+
+    def per_plant(self, ctx, ev):
+        """Grid value of each plant, shape (np,) [rad/s]."""
+        return bandwidth_grid(ev.L, ctx.loops.omega, ev.S(), screen=False)
 
 
 @dataclass(frozen=True)
@@ -404,7 +535,8 @@ class ReferenceModel(Requirement):
 
         def psi(i, x):
             P = loops.plant_response(x)[i:i + 1]
-            L = loops.loop_response(loops.law(ev.lam, ev.K, x, matrices=False), P)
+            Pe = ctx.plant_response(x)[i:i + 1] if _effects(ctx) else P
+            L = loops.loop_response(loops.law(ev.lam, ev.K, x, matrices=False), Pe)
             return _sigma_max(self._E(loops, _sens(L), P[..., :n, :]))[0] * self._weight(x)
 
         out = []
@@ -419,6 +551,11 @@ class ReferenceModel(Requirement):
                 best = max(best, -float(res.fun))
             out.append(best)
         return max(out), "exact frequency response, peak over w refined (scipy bounded)"
+
+    def per_plant(self, ctx, ev):
+        """Grid value of each plant, shape (np,)."""
+        E = self._E(ctx.loops, ev.S(), ctx.loops.P[..., :ctx.loops.n, :])
+        return (_sigma_max(E) * self._weight(ctx.loops.omega)).max(axis=1)
 
     def to_dict(self):
         """Return the JSON-ready record."""
@@ -458,6 +595,12 @@ class NoiseGain(Requirement):
             out.append(float(control.linfnorm(T)[0]))
         return max(out), "H-infinity norm of the discrete loop (python-control linfnorm, " \
                          "SLICOT AB13DD)"
+
+    def per_plant(self, ctx, ev):
+        """Grid peak of each plant, shape (np,) [N m/rad]."""
+        from ..control.grid_bounds import peak_sigma
+
+        return peak_sigma(ev.S() @ ev.law.C[None, :, :, :ctx.loops.n], False)
 
 
 @dataclass(frozen=True)
@@ -510,6 +653,11 @@ class PeakTorque(Requirement):
         return float(np.max(peak[:, j] / self.limits(ctx)[j])), \
             "nonlinear simulation on every plant, peak |tau| over the limit"
 
+    def per_plant(self, ctx, ev):
+        """Return the simulated peak over the limit of each plant, shape (np,)."""
+        j = self._joints(ctx)
+        return (ctx.simulated(ev)["peak_torque"][:, j] / self.limits(ctx)[j]).max(axis=1)
+
     def to_dict(self):
         """Return the JSON-ready record."""
         return {**super().to_dict(),
@@ -528,9 +676,22 @@ class ErrorRatio(Requirement):
         return ctx.error_ratio_estimate(ev)
 
     def verify(self, ctx, ev):
-        """Return the exact value and how it was computed."""
+        """Return the exact value and how it was computed (NaN: a run diverged)."""
         return ctx.simulated(ev)["error_ratio"], \
-            "nonlinear simulation on every plant, against FL alone (lam 100 rad/s)"
+            "nonlinear simulation on every plant with the design's effects, against FL " \
+            "alone (lam 100 rad/s) behind the same effects"
+
+    def per_plant(self, ctx, ev):
+        """Return the simulated ratio of each plant, shape (np,) (0: the law diverged)."""
+        sim = ctx.simulated(ev)
+        each = np.array(sim["error_ratio_per_plant"], dtype=float)
+        each[list(sim["diverged"])] = 0.0      # a divergence is the worst ratio
+        return each
+
+
+def _effects(ctx) -> dict:
+    """Return the effects a requirement is evaluated with (the design's, else the fixed)."""
+    return getattr(ctx, "effects", None) or ctx.fixed
 
 
 def _bisect_up(stable, start, floor, rtol=1e-3):
@@ -565,7 +726,8 @@ def _bisect_down(stable, start, rtol):
 
 
 #: Built-in requirements by CLI name.
-REQUIREMENTS = {cls.name: cls for cls in (DelayMargin, DiskMargin, ActuatorBandwidth,
+REQUIREMENTS = {cls.name: cls for cls in (DelayMargin, DiskMargin, LowerGainMargin,
+                                          ActuatorBandwidth,
                                           Bandwidth, PeakTorque, ErrorRatio, NoiseGain,
                                           ReferenceModel)}
 

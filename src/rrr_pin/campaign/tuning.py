@@ -7,13 +7,19 @@ r"""Design to requirements: tune a structured FL law over a plant set, then veri
 
 over the free parameters ``theta`` of a :class:`~rrr_pin.control.structures.Structure`
 (searched on a log scale inside their bounds), every requirement evaluated on the digital loop
-of each plant of the set (:class:`~rrr_pin.control.sampled_loops.LoopSet`) on a frequency grid.
-A point whose exact discrete closed loop is unstable on any plant (with the fixed effects) is
-penalized by its spectral radius. The search is scipy's bounded Nelder-Mead (the objective is a
-maximum of non-smooth functions) from several seeded starts. The best point is then verified:
+of each plant of the set (:class:`~rrr_pin.control.sampled_loops.LoopSet`) on a frequency grid,
+behind the design's effects (:func:`design_effects`: ``fixed`` and the delay and actuator the
+requirements state; the plant behind them discretized exactly). A point whose exact discrete
+closed loop is unstable on any plant (with those effects) is penalized by its spectral radius.
+The search is scipy's bounded Nelder-Mead (the objective is a maximum of non-smooth functions)
+from several seeded starts. The best point is then verified:
 each requirement's exact value (:meth:`Requirement.verify`) and, for the delay and the
 actuator, the breaking point that :func:`rrr_pin.campaign.stress.breaking_point` simulates on
-the nominal plant beside the exact linear prediction on that plant.
+the nominal plant beside the exact linear prediction on that plant; every plant of the set is
+simulated behind the effects. The status is ``met`` only when every requirement holds with a
+finite value and no run diverged; otherwise the failures name the requirement and the plant
+(:func:`plant_failures`, :func:`simulated_failures`). ``lower_gain_margin`` is added unless a
+requirement states one (:func:`with_default_requirements`).
 
 The result (:class:`TuneResult`) is the tuned law (``name = "tuned"``), the table per
 requirement (target, achieved on the grid, verified), and the trade-off when the requirements
@@ -41,7 +47,9 @@ from .requirements import (
     _bisect_up,
 )
 
-__all__ = ["tune", "TuneResult", "TuneError", "tuned_law", "load_design", "DESIGN_FORMAT"]
+__all__ = ["tune", "TuneResult", "TuneError", "tuned_law", "load_design", "DESIGN_FORMAT",
+           "DEFAULT_LOWER_GAIN_MARGIN", "with_default_requirements", "design_effects",
+           "design_tolerances", "check_plant_set", "plant_failures", "simulated_failures"]
 
 #: ``format`` of a ``design.json``.
 DESIGN_FORMAT = "rrr-pin-design/1"
@@ -70,8 +78,12 @@ class _Eval:
     def __init__(self, ctx, lam, K):
         self.ctx, self.lam, self.K = ctx, lam, K
         self.law = ctx.loops.law(lam, K)
-        self.L = ctx.loops.loop_response(self.law)
-        self._sim = None
+        #: The loop without effects (margins searched on top of it) and with the design's
+        #: effects (:func:`design_effects`, exact discrete responses), shape (np, nw, n, n).
+        self.L0 = ctx.loops.loop_response(self.law)
+        self.L = self.L0 if ctx.parts_e is None else \
+            ctx.loops.loop_response(self.law, parts=ctx.parts_e)
+        self._sim, self._eig_e = None, None
         self._S, self._discs, self._lam, self._done = None, None, None, None
         self._sb, self._Sp, self._Sdone = None, None, None
 
@@ -96,9 +108,9 @@ class _Eval:
         from ..control.grid_bounds import crossing_intervals, gershgorin_discs
 
         if self._discs is None:
-            self._discs = gershgorin_discs(self.L)
-            self._lam = np.full(self.L.shape[:-1], np.nan, complex)
-            self._done = np.zeros(self.L.shape[:2], bool)
+            self._discs = gershgorin_discs(self.L0)
+            self._lam = np.full(self.L0.shape[:-1], np.nan, complex)
+            self._done = np.zeros(self.L0.shape[:2], bool)
         iv = crossing_intervals(self._discs, factor, kind)
         if not self.ctx.screen:
             iv = np.ones_like(iv)
@@ -107,13 +119,13 @@ class _Eval:
         need[:, 1:] |= iv
         need &= ~self._done
         if need.any():
-            self._lam[need] = np.linalg.eigvals(self.L[need])
+            self._lam[need] = np.linalg.eigvals(self.L0[need])
             self._done |= need
         lam = self._lam if factor is None else self._lam * factor[None, :, None]
         return lam, iv
 
     def S(self):
-        """Input sensitivity ``(I + L)^-1`` of the loop without effects, computed once."""
+        """Input sensitivity ``(I + L)^-1`` of the loop with the design's effects, once."""
         if self._S is None:
             self._S = np.linalg.inv(np.eye(self.L.shape[-1]) + self.L)
         return self._S
@@ -157,19 +169,9 @@ class _Eval:
             return sigma_bounds(self.S_at(mask) - eye)
         return np.maximum(m - delta, 0.0), m + delta, exact, refine
 
-    def L_fixed(self, *keep):
-        """``L`` times the frequency factors of the fixed effects named in ``keep``."""
-        L, w = self.L, self.ctx.loops.omega
-        if "delay" in keep and "delay" in self.ctx.fixed:
-            L = L * np.exp(-1j * w * self.ctx.fixed["delay"])[None, :, None, None]
-        if "actuator" in keep and "actuator" in self.ctx.fixed:
-            wa = self.ctx.fixed["actuator"]
-            L = L * (wa / (1j * w + wa))[None, :, None, None]
-        return L
-
     def loop_at(self, ctx, i, w):
         """Plant ``i``'s loop response at frequencies ``w``, shape (nw, n, n)."""
-        P = ctx.loops.plant_response(w)[i:i + 1]
+        P = ctx.plant_response(w)[i:i + 1]
         return ctx.loops.loop_response(ctx.loops.law(self.lam, self.K, w, matrices=False),
                                        P)[0]
 
@@ -180,8 +182,14 @@ class _Eval:
         from ..control.sampled_loops import zoh
 
         loops = ctx.loops
-        Phi, Gam = zoh(loops.A[i], loops.B[i], loops.T)
-        P = control.ss(Phi, Gam, np.eye(Phi.shape[0]), 0, loops.T)
+        fx = ctx.effects or {}
+        if fx:   # the plant behind the design's delay and actuator, exactly discretized
+            Phi, Gam = loops.effect_plant(i, fx.get("delay", 0.0), fx.get("actuator"))
+            Cy = np.eye(2 * loops.n, Phi.shape[0])
+        else:
+            Phi, Gam = zoh(loops.A[i], loops.B[i], loops.T)
+            Cy = np.eye(Phi.shape[0])
+        P = control.ss(Phi, Gam, Cy, 0, loops.T)
         Ac, Bc, Cc, Dc = self.law.law
         C = control.ss(Ac, Bc, Cc, Dc, loops.T) if Ac.size else control.ss([], [], [], Dc,
                                                                              loops.T)
@@ -217,6 +225,24 @@ class _Context:
     fl_energy: float = None
     #: Screen the grid (:mod:`rrr_pin.control.grid_bounds`); False: LAPACK at every point.
     screen: bool = True
+    #: The effects every requirement is evaluated with (:func:`design_effects`):
+    #: ``{"delay": s, "actuator": rad/s}``; None or empty: the ideal loop.
+    effects: dict = None
+    #: :meth:`LoopSet.parts` of the plants behind ``effects`` on the grid (None: none).
+    parts_e: tuple = None
+
+    def plant_response(self, w) -> np.ndarray:
+        """Exact responses of every plant behind the design's effects, (np, nw, 2n, n)."""
+        fx = self.effects or {}
+        return self.loops.effect_response(w, fx.get("delay", 0.0), fx.get("actuator"))
+
+    def effect_factor(self, w) -> np.ndarray:
+        """``e^{-j w tau} wa / (j w + wa)`` of the design's effects at ``w`` [rad/s], (nw,)."""
+        fx = self.effects or {}
+        f = np.exp(-1j * w * fx.get("delay", 0.0))
+        if fx.get("actuator"):
+            f = f * fx["actuator"] / (1j * w + fx["actuator"])
+        return f
 
     def joint_index(self, name):
         return list(self.nominal.joint_names).index(name)
@@ -228,6 +254,9 @@ class _Context:
         loop to its torque mismatch ``w(t) = ID_plant(r) - ID_nominal(r)`` (what the law's
         feed-forward misses): a linear convolution by FFT (the input zero-padded to ``pad``
         times its length, so that the response is the one from rest, transient included).
+        With the design's effects the feed-forward reaches the plant through them
+        (``W = ID_plant - f ID_nominal``, ``f = e^{-j w tau} wa / (j w + wa)``) and the loop
+        is the plant's behind them (:meth:`plant_response`).
         """
         t = np.arange(int(round(duration * fs))) / fs
         r, rd, rdd = (np.asarray(x) for x in self.reference.sample(t))
@@ -238,10 +267,11 @@ class _Context:
                         for q, v, a in zip(r, rd, rdd, strict=True)])
         self.id_peak = np.abs(ids).max(axis=1)
         nfft = pad * t.size
-        W = np.fft.rfft(ids - hat[None], n=nfft, axis=1)            # (np, nf, n)
         w = 2.0 * np.pi * np.fft.rfftfreq(nfft, 1.0 / fs)
         w[0] = 1e-3 * w[1]                                          # DC: the slowest bin
-        P = self.loops.plant_response(w)                            # (np, nf, 2n, n)
+        W = np.fft.rfft(ids, n=nfft, axis=1) - self.effect_factor(w)[None, :, None] * \
+            np.fft.rfft(hat, n=nfft, axis=0)[None]                  # (np, nf, n)
+        P = self.plant_response(w)                                  # (np, nf, 2n, n)
         self.harmonics = (w, W, t.size, nfft, self.loops.parts(P))
         self.fl_energy = self._energy(100.0, None)
 
@@ -270,35 +300,52 @@ class _Context:
         law = _law(self.nominal, ev.lam, ev.K)
         fl = fl_controller(self.nominal, 100.0)
         runs = run_laws_batch(self.plants, [law, fl], self.reference, self.run)
-        peak, err, err_fl = [], 0.0, 0.0
-        for row in runs:
-            t = row[law.name]
+        peak, errs, errs_fl, diverged, fl_diverged = [], [], [], {}, {}
+        for p, row in enumerate(runs):
+            t, tf = row[law.name], row[fl.name]
             if isinstance(t, Exception):
                 peak.append(np.full(self.loops.n, np.inf))
-                err = math.inf
-                continue
-            peak.append(np.abs(t.tau).max(axis=0))
-            err += float(np.sum(t.error ** 2))
-            err_fl += float(np.sum(row[fl.name].error ** 2)) \
-                if not isinstance(row[fl.name], Exception) else math.inf
+                errs.append(math.inf)
+                diverged[p] = str(t)
+            else:
+                peak.append(np.abs(t.tau).max(axis=0))
+                errs.append(float(np.sum(t.error ** 2)))
+            if isinstance(tf, Exception):
+                errs_fl.append(math.inf)
+                fl_diverged[p] = str(tf)
+            else:
+                errs_fl.append(float(np.sum(tf.error ** 2)))
+        err, err_fl = float(np.sum(errs)), float(np.sum(errs_fl))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            each = np.sqrt(np.asarray(errs_fl) / np.asarray(errs))
         ev._sim = {"peak_torque": np.array(peak),
-                   "error_ratio": math.sqrt(err_fl / err) if err > 0 else math.inf}
+                   "error_ratio": (math.sqrt(err_fl / err) if err > 0 and math.isfinite(err)
+                                   and math.isfinite(err_fl) else math.nan),
+                   "error_ratio_per_plant": each, "diverged": diverged,
+                   "baseline_diverged": fl_diverged}
         return ev._sim
 
 
-def _context(robot, plants, reference, rate, fixed, duration) -> _Context:
+def _context(robot, plants, reference, rate, fixed, duration, effects=None) -> _Context:
     """Build the tuner's context: the plants' digital loops and the tracking estimate's inputs.
 
-    The loops are linearized at the reference's mean configuration.
+    The loops are linearized at the reference's mean configuration; ``effects``
+    (:func:`design_effects`) are in every requirement's evaluation and in the simulations.
     """
+    from ..control.effects import PlantEffects
     from ..control.sampled_loops import LoopSet
     from .runner import RunSettings
 
     t = np.linspace(0.0, duration, 401)
     home = np.asarray(reference.sample(t)[0], float).mean(axis=0)
     loops = LoopSet(robot, plants, home, rate)
-    ctx = _Context(robot, loops, reference, fixed, RunSettings(duration=duration, rate=rate),
-                   list(plants))
+    effects = dict(effects or {})
+    run = RunSettings(duration=duration, rate=rate, effects=PlantEffects(
+        delay=effects.get("delay", 0.0), actuator_bandwidth=effects.get("actuator"))
+        if effects else None)
+    ctx = _Context(robot, loops, reference, fixed, run, list(plants), effects=effects)
+    if effects:
+        ctx.parts_e = loops.parts(ctx.plant_response(loops.omega))
     ctx.prepare_tracking(duration)
     return ctx
 
@@ -415,6 +462,7 @@ class TuneResult:
         if self.tradeoff:
             out.append(f"trade-off: binding {', '.join(self.tradeoff['binding'])}; unmet "
                        f"{', '.join(self.tradeoff['unmet']) or 'none'}")
+            out += [f"  not met: {text}" for text in self.tradeoff.get("failures", [])]
         return out
 
 
@@ -462,6 +510,142 @@ def _check_requirements(requirements, nominal, fixed) -> list:
             raise FieldError("requirements", "{name}: actuator_bandwidth with an actuator "
                                              "held fixed contradicts by construction")
     return reqs
+
+
+#: Lower gain margin every design must have unless a requirement states its own: the loop
+#: stays stable with every torque scaled by any factor in ``[0.5, 1]`` (6 dB), e.g. a real
+#: arm whose inertia (rotor armature) is up to twice the model's on the loop's directions.
+DEFAULT_LOWER_GAIN_MARGIN = 0.5
+
+
+def with_default_requirements(reqs) -> list:
+    """Add ``lower_gain_margin`` (:data:`DEFAULT_LOWER_GAIN_MARGIN`) unless one is given.
+
+    ``LowerGainMargin(1.0)`` (any gain reduction may destabilize) turns it off.
+    """
+    from .requirements import LowerGainMargin
+
+    if any(isinstance(r, LowerGainMargin) for r in reqs):
+        return list(reqs)
+    return [*reqs, LowerGainMargin(DEFAULT_LOWER_GAIN_MARGIN, default=True)]
+
+
+def design_effects(reqs, fixed) -> dict:
+    """Return the effects the design's loop runs with: ``fixed`` and the requirements'.
+
+    ``actuator_bandwidth=WA,delay=TAU`` states an actuator ``WA`` and a delay ``TAU`` the
+    loop runs behind; ``delay_margin=...,actuator=WA`` an actuator. Of several, the largest
+    delay and the slowest actuator.
+
+    Returns
+    -------
+    dict
+        ``{"delay": s, "actuator": rad/s}`` (keys only for the effects present).
+
+    Raises
+    ------
+    FieldError
+        ``requirements``: a delay present (held or stated) at or above the required delay
+        margin, which no loop can then have.
+    """
+    out = {k: v for k, v in fixed.items() if k in ("delay", "actuator")}
+
+    def put(key, value, pick):
+        if value:
+            out[key] = pick(out[key], value) if key in out else value
+    for r in reqs:
+        if isinstance(r, ActuatorBandwidth):
+            put("actuator", r.target, min)
+            put("delay", r.delay, max)
+        elif isinstance(r, DelayMargin):
+            put("actuator", r.actuator, min)
+    for r in reqs:
+        if isinstance(r, DelayMargin) and out.get("delay", 0.0) >= r.target:
+            raise FieldError("requirements", f"{{name}}: delay_margin = {r.target:g} s with a "
+                                             f"delay of {out['delay']:g} s present "
+                                             f"contradicts: the margin counts the whole delay "
+                                             f"the loop tolerates, the present one included")
+    return out
+
+
+def design_tolerances():
+    """Return the plant set of a design drawn from a count: the paper's box, armature +-50 %.
+
+    :class:`~rrr_pin.model.uncertainty.Tolerances`: 20 % inertias, 5 % lengths, and each
+    joint's armature drawn in [0.5, 1.5] times its nominal (a geared arm's reflected rotor
+    inertia is known to a factor, and the loop's lower gain margin is what it tests). The range
+    is relative: an arm loaded without armature (a URDF, no ``--armature``) keeps none, so give
+    the nominal ``--armature`` of your drives. The one place the design's default set is chosen
+    (``design.json`` records it under ``plants``).
+    """
+    from ..model.uncertainty import Tolerances
+
+    return Tolerances(armature=DESIGN_ARMATURE_TOLERANCE)
+
+
+#: The design's default relative range of each joint's armature (:func:`design_tolerances`).
+DESIGN_ARMATURE_TOLERANCE = 0.5
+
+
+def check_plant_set(tol) -> None:
+    """Refuse a tolerance box with no width: its plants would all be the nominal.
+
+    Raises
+    ------
+    FieldError
+        ``tolerances``: every range of a :class:`~rrr_pin.model.uncertainty.Tolerances` is
+        empty (zero width).
+    """
+    from dataclasses import fields as dc_fields
+
+    from ..model.uncertainty import Tolerances
+
+    if not isinstance(tol, Tolerances):
+        return
+    widths = {f.name: getattr(tol, f.name) for f in dc_fields(tol)
+              if isinstance(getattr(tol, f.name), float | int)}
+    if widths and all(float(np.max(np.abs(v))) == 0.0 for v in widths.values()):
+        raise FieldError("tolerances", f"{{name}}: the plant set has an empty range "
+                                       f"({', '.join(f'{k} = {v}' for k, v in widths.items())}"
+                                       f"): every plant would be the nominal; give a width, "
+                                       f"or plants=[robot] to design on the nominal alone")
+
+
+def plant_failures(ctx, ev, reqs, table) -> list:
+    """Name the plant each unmet requirement fails on (:meth:`Requirement.per_plant`).
+
+    Returns
+    -------
+    list of dict
+        ``requirement``, ``plant`` (index in the set, 0 the nominal when drawn), ``value``
+        (that plant's, or None), ``text``.
+    """
+    out = []
+    for r, row in zip(reqs, table, strict=True):
+        if row["met"]:
+            continue
+        each = r.per_plant(ctx, ev)
+        if each is None or not len(each):
+            k, v = None, None
+        else:
+            norm = np.array([r.normalized(x) if np.isfinite(x) else np.inf for x in each])
+            k = int(np.argmax(norm))
+            v = float(each[k])
+        where = f"plant {k}" if k is not None else "the plant set"
+        value = row["verified"] if row["verified"] is not None else row["achieved"]
+        text = (f"{r.name} = {_num(value)} against {row['sense']} {_num(row['target'])} "
+                f"{r.unit}: worst on {where}" + (f" ({_num(v)})" if v is not None else ""))
+        out.append({"requirement": r.name, "plant": k, "value": v, "text": text})
+    return out
+
+
+def simulated_failures(ctx, ev) -> list:
+    """Return the plants on which the law diverged, simulated with the design's effects."""
+    sim = ctx.simulated(ev)
+    fx = ", ".join(f"{k} {v:g}" for k, v in (ctx.effects or {}).items()) or "no effects"
+    return [{"requirement": "stable in simulation", "plant": int(k), "value": None,
+             "text": f"stable in simulation: the law diverged on plant {k} with {fx} "
+                     f"({why})"} for k, why in sorted(sim["diverged"].items())]
 
 
 def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances=None,
@@ -523,7 +707,6 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     from scipy.optimize import minimize
 
     from ..control.references import default_reference
-    from ..model.uncertainty import Tolerances
     from .stress import check_fixed
 
     t0 = time.perf_counter()
@@ -538,11 +721,13 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         raise FieldError("search", f"{{name}} must be 'nelder-mead' or 'minimax', got "
                                    f"{search!r}")
     fixed = check_fixed(fixed)
-    reqs = _check_requirements(requirements, robot, fixed)
+    reqs = with_default_requirements(_check_requirements(requirements, robot, fixed))
+    effects = design_effects(reqs, fixed)
     structure.check_joints(robot.name, robot.joint_names)
     if isinstance(plants, int | np.integer):
         count = check_count("plants", plants)
-        tol = tolerances or Tolerances()
+        tol = tolerances or design_tolerances()
+        check_plant_set(tol)
         plant_list = [robot] + [robot.perturbed(np.random.default_rng([int(seed), k]), tol)[0]
                                 for k in range(count)]
         plant_info = {"samples": count, "seed": int(seed), "tolerances": tol.as_settings(),
@@ -551,7 +736,7 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         plant_list = list(plants)
         plant_info = {"given": len(plant_list)}
     reference = reference or default_reference(robot)
-    ctx = _context(robot, plant_list, reference, rate, fixed, duration)
+    ctx = _context(robot, plant_list, reference, rate, fixed, duration, effects)
     loops, home = ctx.loops, ctx.loops.home
     for r in reqs:
         r.prepare(ctx)
@@ -567,16 +752,16 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         lam, K = structure.split(values)
         ev = _Eval(ctx, lam, K)
         rho = max(float(np.max(loops.spectral_radius(ev.law))),
-                  float(np.max(loops.spectral_radius(ev.law, fixed.get("delay", 0.0),
-                                                     fixed.get("actuator"))))
-                  if fixed else 0.0)
+                  float(np.max(loops.spectral_radius(ev.law, effects.get("delay", 0.0),
+                                                     effects.get("actuator"))))
+                  if effects else 0.0)
         if rho >= 1.0:
             out = (_UNSTABLE + rho, ev, None)
         else:
             vals = [r.estimate(ctx, ev) for r in reqs]
             norm = [r.normalized(v) for r, v in zip(reqs, vals, strict=True)]
             out = (float(max(norm)), ev, vals)
-        cache[key] = out
+        cache[key] = (out[0], None, out[2])   # the responses are not kept (memory)
         return out
 
     rng = np.random.default_rng([int(seed), 7919])
@@ -607,9 +792,13 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     objective, x = best
     values = np.exp(np.clip(x, bounds[:, 0], bounds[:, 1]))
     lam, K = structure.split(values)
-    _, ev, estimates = evaluate(x)
+    _, _, estimates = evaluate(x)
+    ev = _Eval(ctx, lam, K)
     info = {"robot": robot.name, "joints": list(robot.joint_names), "plants": plant_info,
             "home_rad": home.tolist(), "fixed": fixed,
+            "effects": {**effects, "note": "every requirement is evaluated, and every plant "
+                                           "simulated, with these effects (--with and the "
+                                           "delay and actuator the requirements state)"},
             "reference": reference.to_dict(),
             "grid_rad_s": [float(loops.omega[0]), float(loops.omega[-1]),
                            int(loops.omega.size)],
@@ -621,7 +810,7 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         result = TuneResult(structure, values, lam, K, rate, [], objective, "unstable",
                             None, runs, info)
         raise TuneError(f"no point of the {structure.kind} structure found stabilizes every "
-                        f"plant of the set (with {fixed or 'no fixed effects'}): best point "
+                        f"plant of the set (with {effects or 'no effects'}): best point "
                         f"{dict(zip(names, values.round(6).tolist(), strict=True))}, largest "
                         f"closed-loop spectral radius {objective - _UNSTABLE:.4g} (>= 1)",
                         result)
@@ -635,16 +824,22 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
                 "=False): met and normalized are the estimate's"
         value = row["verified"] if row["verified"] is not None else est
         row["normalized"] = r.normalized(value)
-        row["met"] = bool(row["normalized"] <= 1.0 + 1e-9)
+        # a non-finite value is never met (inf error ratio of a zero error, NaN of a divergence)
+        row["met"] = bool(math.isfinite(value) and row["normalized"] <= 1.0 + 1e-9)
         if verify and simulate and isinstance(r, DelayMargin | ActuatorBandwidth):
             row.update(_stress_row(ctx, ev, r, stress_settings))
         table.append(row)
+    failures = plant_failures(ctx, ev, reqs, table) if verify else []
+    if verify and simulate:
+        failures += simulated_failures(ctx, ev)
     norms = [row["normalized"] for row in table]
     worst = max(norms)
-    status = "met" if worst <= 1.0 + 1e-9 else "trade-off"
+    status = "met" if all(row["met"] for row in table) and not failures else "trade-off"
+    info["failures"] = failures
     tradeoff = None if status == "met" else {
         "binding": [row["name"] for row in table if row["normalized"] >= worst / 1.02],
         "unmet": [row["name"] for row in table if not row["met"]],
+        "failures": [f["text"] for f in failures],
         "best_point": dict(zip(names, values.tolist(), strict=True))}
     info["seconds"] = time.perf_counter() - t0
     result = TuneResult(structure, values, lam, K, rate, table, objective, status, tradeoff,
@@ -669,7 +864,7 @@ def _stress_row(ctx, ev, req, settings) -> dict:
     # prediction and in the simulation alike
     wa = req._wa(ctx) if effect == "delay" else None
     delay = req._delay(ctx) if effect == "actuator" else 0.0
-    held = dict(ctx.fixed)
+    held = {k: v for k, v in (ctx.effects or ctx.fixed).items() if k != effect}
     if wa:
         held["actuator"] = wa
     if delay:

@@ -347,6 +347,41 @@ def design_record(args) -> dict | None:
             "structure": d.get("structure"), "requirements": d.get("requirements")}
 
 
+def warn_effect_margins(args, laws, rate, effects=None) -> list[str]:
+    """Print, once each, the laws whose delay or actuator margin is below the effects.
+
+    The effects requested (``effects``, a :class:`~rrr_pin.control.effects.PlantEffects`)
+    and, for ``tuned``, those recorded in ``--design`` (its ``effects``), by
+    :func:`rrr_pin.campaign.effect_margins.check_effect_margins`.
+    """
+    import sys
+    import warnings
+
+    from ..campaign.effect_margins import check_effect_margins, design_effects_record
+
+    if rate is None:
+        return []
+    out = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if effects is not None and (effects.delay or effects.actuator_bandwidth):
+            check_effect_margins(laws, rate, effects.delay, effects.actuator_bandwidth)
+        path = getattr(args, "design", None)
+        tuned = [law for law in laws if law.name == "tuned"]
+        if path is not None and tuned:
+            from ..campaign.tuning import load_design
+
+            fx = design_effects_record(load_design(path))
+            check_effect_margins(tuned, rate, fx.get("delay", 0.0), fx.get("actuator"),
+                                 source="recorded in its design")
+    for w in caught:
+        text = str(w.message)
+        if text not in out:
+            out.append(text)
+            print(f"warning: {text}", file=sys.stderr)
+    return out
+
+
 def torque_limit_from_args(args, plant, reference, settings):
     """Return ``--torque-limit``'s limits [N m] and their rule, or ``(None, {})`` without it."""
     if args.torque_limit is None:

@@ -13,6 +13,7 @@ from .build import (
     settings_from_args,
     tolerances_from_args,
     torque_limit_from_args,
+    warn_effect_margins,
     with_torque_limit,
 )
 from .options import add_design_argument, add_law_arguments, add_plant_arguments
@@ -108,6 +109,7 @@ def run_montecarlo(args) -> int:
                                 baseline=baseline, tolerances=tolerances)
     # every refusal before the store is opened: a refused campaign leaves no files behind
     laws, reference = check_campaign(plant, laws, settings, reference=reference)
+    warn_effect_margins(args, laws, run.rate, run.effects)
     store = open_store(args.out, plant, laws, settings, reference, resume=args.resume,
                        overwrite=args.overwrite, certificate=certificate)
     total = args.samples + 1  # the nominal plant too

@@ -55,8 +55,14 @@ def add_tuning_arguments(p) -> None:
                         "noise_gain=N_M_PER_RAD (peak gain from position noise to torque), "
                         "reference_model=RAD_S[,peak=M] (the tracking error no larger than "
                         "the FL closed loop's of that bandwidth, M > 1 allowed at high "
-                        "frequency; default 2); default "
-                        "delay_margin=0.003 disk_margin=0.5 error_ratio=10")
+                        "frequency; default 2), lower_gain_margin=K (stable with the torque "
+                        "scaled by every factor in [K, 1]; lower_gain_margin=0.5 is added "
+                        "unless given, =1 turns it off); default "
+                        "delay_margin=0.003 disk_margin=0.5 error_ratio=10. Every requirement "
+                        "is evaluated, and every plant simulated, behind the --with effects "
+                        "and the delay and actuator of actuator_bandwidth=RAD_S,delay=S; "
+                        "status met only when every requirement is verified and every plant "
+                        "simulated stable")
     g.add_argument("--structure", default="order2", metavar="NAME",
                    help="the outer controller K: fl (none), gain, pid, leadlag, orderN "
                         "(a stable order-N transfer function; order2 is the paper's shape), "
@@ -71,7 +77,10 @@ def add_tuning_arguments(p) -> None:
                    help="tune one FL bandwidth lam per joint, each starting at --lam (implies "
                         "--per-joint; design.json records lam_rad_s as a list)")
     g.add_argument("--samples", type=int, default=20,
-                   help="uncertain plants the design must work on, with the nominal (20)")
+                   help="uncertain plants the design must work on, with the nominal (20, "
+                        ">= 1), drawn from the design's plant set: the 20 %% inertia / 5 %% "
+                        "length box (recorded in design.json under plants); each is "
+                        "simulated behind the design's effects before status met")
     g.add_argument("--plants", choices=("samples", "vertices"), default="samples",
                    help="how the --samples plants are drawn: samples (uniform inside the "
                         "20 %% / 5 %% tolerance box, as the studies draw them) or vertices "
@@ -110,7 +119,7 @@ def run_tuned(args) -> int:
     import json
 
     from ..campaign.requirements import make_requirement
-    from ..campaign.tuning import TuneError, tune
+    from ..campaign.tuning import TuneError, design_tolerances, tune
     from ..control.structures import make_structure
     from ..report.jsondata import dumps
     from ..validation import FieldError
@@ -119,6 +128,10 @@ def run_tuned(args) -> int:
 
     if args.out is None:
         raise ValueError("design to requirements writes DIR/design.json: give --out DIR")
+    if args.samples < 1:
+        raise FieldError("--samples", f"{{name}} must be >= 1 (the uncertain plants the design "
+                                      f"is verified on, besides the nominal), got "
+                                      f"{args.samples}")
     out = claim_out(args, "design")
     reqs = [make_requirement(t) for t in (args.require or DEFAULT_REQUIREMENTS)]
     robot = load_plant(args, robot=args.robot or "rrr")
@@ -145,6 +158,10 @@ def run_tuned(args) -> int:
                              "identified set (--uncertainty, --confidence) has none: give "
                              "--plants samples")
         tol = tolerances_from_args(args, robot, vertices=True)
+    elif (args.uncertainty is None and args.confidence is None
+          and not any(getattr(args, f"tolerance_{k}", 0.0) for k in ("armature", "damping",
+                                                                     "friction"))):
+        tol = design_tolerances()
     else:
         tol = tolerances_from_args(args, robot)
     try:

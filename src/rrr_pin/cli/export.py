@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from .build import compensation_from_args, design_record, load_plant, tuned_from_args
+from .build import (
+    compensation_from_args,
+    design_record,
+    load_plant,
+    tuned_from_args,
+    warn_effect_margins,
+)
 from .common import as_options, check_out_early, claim_out
 from .options import add_armature_argument, add_design_argument, add_overwrite
 
@@ -105,6 +111,7 @@ def run_export(args) -> int:
         band = PERIOD_TOLERANCE
     check_sampled_loop(law, robot, prepared.rate, method=args.method, prewarp=args.prewarp,
                        band=band)
+    warn_effect_margins(args, [law], prepared.rate)   # the effects its design recorded
     if args.ros2:
         from ..deploy.ros2 import ros2_package
 

@@ -303,6 +303,61 @@ class LoopSet:
         mats = delayed_loop_matrix(Phi, G0, G1, ell, law.law, self.n)   # stacked, one size
         return np.abs(np.linalg.eigvals(mats)).max(axis=-1)
 
+    def effect_plant(self, i: int, delay: float = 0.0,
+                     bandwidth: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        r"""Plant ``i`` behind a delay and an actuator as one discrete system, exactly.
+
+        The plant of :meth:`closed_loop` (zero-order hold, actuator ``wa/(s + wa)`` as
+        states, fractional delay: Franklin, Powell & Workman sec. 4.3.4) with the delayed
+        inputs ``w_k = u_{k-k}``, ``k = 1..ell+1``, as states:
+        ``x = (z, w_1, ..., w_{ell+1})``, ``x+ = F x + H u``, output ``[q; qd] = x[:2n]``.
+
+        Returns
+        -------
+        F : ndarray, shape (nx, nx)
+        H : ndarray, shape (nx, n)
+        """
+        n = self.n
+        (_, G0, Phi, G1), ell = self._discrete(i, delay, bandwidth)
+        nz, L = Phi.shape[0], ell + 1
+        F = np.zeros((nz + L * n, nz + L * n))
+        H = np.zeros((nz + L * n, n))
+        F[:nz, :nz] = Phi
+        if ell == 0:
+            H[:nz] = G0
+        else:
+            F[:nz, nz + (ell - 1) * n:nz + ell * n] = G0
+        F[:nz, nz + ell * n:] = G1
+        H[nz:nz + n] = np.eye(n)
+        for k in range(1, L):
+            F[nz + k * n:nz + (k + 1) * n, nz + (k - 1) * n:nz + k * n] = np.eye(n)
+        return F, H
+
+    def effect_response(self, omega, delay: float = 0.0,
+                        bandwidth: float | None = None) -> np.ndarray:
+        r"""Exact responses ``[q; qd](e^{jwT}) / u`` of every plant behind a delay and actuator.
+
+        .. math:: P_e(z) = \big[(zI - \Phi)^{-1} (G_0 z^{-\ell} + G_1 z^{-\ell-1})\big]_{2n}
+
+        (:meth:`effect_plant`); without effects, :meth:`plant_response`.
+
+        Returns
+        -------
+        ndarray, shape (np, nw, 2n, n), complex
+        """
+        if not delay and not bandwidth:
+            return self.plant_response(omega)
+        z = np.exp(1j * np.asarray(omega, dtype=float) * self.T)
+        out = []
+        for i in range(len(self.plants)):
+            (_, G0, Phi, G1), ell = self._discrete(i, delay, bandwidth)
+            eye = np.eye(Phi.shape[0])
+            rhs = (G0[None] * z[:, None, None] ** -ell
+                   + G1[None] * z[:, None, None] ** (-ell - 1))
+            X = np.linalg.solve(z[:, None, None] * eye - Phi, rhs)
+            out.append(X[:, :2 * self.n])
+        return np.array(out)
+
 
 def zoh(A, B, t):
     """Return ``(e^{A t}, int_0^t e^{A s} ds B)``: the zero-order hold over ``t`` [s]."""

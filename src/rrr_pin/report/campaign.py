@@ -197,10 +197,28 @@ def summary_lines(campaign: Campaign, summary: dict) -> list[str]:
     s = summary
     lines = [f"every controller ran on {s['samples_ok']}, a run diverged on "
              f"{s['samples_diverged']}"]
+    if "status" in s:
+        lines.append(f"per law: {s['status']}")
     if "certified" in s:
-        lines.append(f"certified (frozen nu-gap < b): {s['certified']} plants, of which "
+        exact = " and exact discrete loop" if (s.get("certificate") or {}).get("rate_hz") \
+            else ""
+        lines.append(f"certified (frozen nu-gap < b{exact}): {s['certified']} plants, of which "
                      f"{s['certified_and_ran']} ran; not certified but ran: "
                      f"{s['not_certified_but_ran']}; largest nu-gap {s['nugap_max']:.4g}")
+        if "certified_ran" in s:
+            lines.append("on the certified plants: " + ", ".join(
+                f"{n} ran on {c}" + (f" (diverged on {s['certified_diverged'][n]}: not "
+                                      f"certified for {n})" if s['certified_diverged'][n]
+                                      else "") for n, c in s["certified_ran"].items()))
+        cov = s.get("certificate")
+        if cov:
+            wa = f"{cov['actuator_rad_s']:g} rad/s" if cov["actuator_rad_s"] else "none"
+            rate = (f"at {cov['rate_hz']:g} Hz, delay {cov['delay_s']:g} s, actuator {wa}"
+                    if cov["rate_hz"] else "continuous, without effects")
+            lines.append(f"the certificate covers {cov['law']} on {cov['plant']}, {rate}; "
+                         + (f"not covered, present in this run: "
+                            f"{', '.join(cov['not_covered'])}" if cov["not_covered"]
+                            else "every effect of this run covered"))
     if s.get("engines"):
         lines.append("engines that ran: " + "; ".join(
             f"{name} " + ", ".join(f"{e} {n}" for e, n in counts.items())

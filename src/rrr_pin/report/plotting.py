@@ -40,6 +40,7 @@ from ..outputs import writing
 from ..robust.robustness import closed_loop, sigma
 
 __all__ = [
+    "plot_realistic",
     "plant_effects_phrase",
     "plot_task_path",
     "design_omega",
@@ -86,6 +87,48 @@ def _new(figsize, ax=None):
         return ax.figure, ax
     fig = Figure(figsize=figsize, layout="constrained")
     return fig, fig.add_subplot()
+
+
+def plot_realistic(runs: dict, ax=None):
+    """Draw the paper's comparison on the ideal loop and behind the realistic set, per robot.
+
+    Parameters
+    ----------
+    runs : dict
+        ``{robot: results.json content}`` of ``rrr-pin reproduce --realistic`` runs.
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Bars of the RMS error ratio baseline / law [-] (log scale; above 1 the law tracks
+        better) of each law, ideal and realistic, and the paper's 10.
+    """
+    fig, ax = _new((7.0, 3.6), ax)
+    bars, labels = [], []
+    for robot, data in runs.items():
+        ideal = data["summary"]["error_ratio_uncertain"]
+        real = data["realistic"]["summary"].get("error_ratio_uncertain", {})
+        for law in ideal:
+            bars.append((ideal[law], real.get(law)))
+            labels.append(f"{robot}\n{law}")
+    x = np.arange(len(bars))
+    w = 0.38
+    ideal = [b[0] if b[0] else np.nan for b in bars]
+    real = [b[1] if b[1] else np.nan for b in bars]
+    ax.bar(x - w / 2, ideal, w, label="ideal loop (the paper's)")
+    ax.bar(x + w / 2, real, w, label="behind the realistic set")
+    for xi, (i, r) in zip(x, bars, strict=True):
+        for dx, v in ((-w / 2, i), (w / 2, r)):
+            if v:
+                ax.annotate(f"{v:.3g}", (xi + dx, v), ha="center", va="bottom", fontsize=8)
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.axhline(10.0, color="k", lw=0.8, ls="--", label="the paper's 10x")
+    ax.set_yscale("log")
+    ax.set_xticks(x, labels)
+    ax.set_ylabel("RMS error ratio FL / law [-]")
+    ax.legend(fontsize=8, loc="upper center")
+    return fig
 
 
 def _grid(axes, rows: int, cols: int, figsize, **subplots):

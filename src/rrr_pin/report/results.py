@@ -27,7 +27,7 @@ from .viewer import Scene, Track, task_path_points
 
 __all__ = ["write_results", "results_markdown", "write_study_report", "study_captions",
            "failed_checks", "summary_lines", "write_trajectories", "torque_limit_table",
-           "PAPER_ERROR_RATIO", "PAPER_LAWS"]
+           "PAPER_ERROR_RATIO", "PAPER_LAWS", "realistic_lines"]
 
 #: The paper's claim for the uncertain plants: "almost a ten times better performance".
 PAPER_ERROR_RATIO = 10.0
@@ -180,7 +180,8 @@ def results_markdown(result: StudyResult, data: dict | None = None) -> str:
         lines += ["", f"Frozen-configuration certificates (H-infinity design, nu-gap against "
                   f"b(Gs, Ks) = {s['certificate_b']:.4g}): {s['samples_certified']} of {n_cert} "
                   f"uncertain plants certified, largest nu-gap {s['nugap_max']:.4g}. A "
-                  "certificate covers the frozen linearizations only (see the README)."]
+                  "certificate covers the frozen linearizations only (see the README)"
+                  + _coverage_text(s) + "."]
     builtin = {d["name"] for d in result.laws if d.get("class") == _TRACKING}
     if all(k in builtin for k in PAPER_LAWS) and base == PAPER_LAWS[0]:
         lines += [""] + _paper_rows(result, s)
@@ -495,6 +496,45 @@ def study_captions(result: StudyResult, design: dict | None = None) -> dict:
     }
 
 
+def realistic_lines(section: dict) -> list[str]:
+    """Return the realistic pass of ``reproduce --realistic`` as text lines.
+
+    ``section`` is ``results.json``'s ``realistic``: ``set`` (the effects), ``summary`` (of
+    the study run behind them, :func:`rrr_pin.campaign.study.summarize`).
+    """
+    fx, s = section["set"], section["summary"]
+    head = (f"realistic set ({fx['rate_hz']:g} Hz, delay {1e3 * fx['delay_s']:g} ms, actuator "
+            f"{fx['actuator_rad_s']:g} rad/s, friction {fx['viscous_Nms']:g} N m s/rad + "
+            f"{fx['coulomb_Nm']:g} N m, torque limits {fx['torque_limit']}):")
+    base = s["baseline"]
+    out = [head]
+    for name, r in s.get("error_ratio_uncertain", {}).items():
+        t = s.get("torque_ratio_uncertain", {}).get(name)
+        out.append(f"  RMS error {base} / {name} = {_fmt(r)}; RMS torque {name} / {base} = "
+                   f"{_fmt(t)}")
+    laws = (s.get("torque_limit") or {}).get("laws") or {
+        k: {"uncertain_diverged": v} for k, v in s["diverged"].items()}
+    out.append("  diverged (of the uncertain plants): " + ", ".join(
+        f"{k} {v['uncertain_diverged']}" + (" and on the nominal" if v.get("nominal_diverged")
+                                           else "") for k, v in laws.items()))
+    return out
+
+
+def _coverage_text(s: dict) -> str:
+    """``; covers ...`` of a study summary's certificate: its loop, laws, effects left out."""
+    cov = s.get("certificate")
+    if not cov:
+        return ""
+    wa = f"{cov['actuator_rad_s']:g} rad/s" if cov["actuator_rad_s"] else "none"
+    loop = (f"at {cov['rate_hz']:g} Hz, delay {cov['delay_s']:g} s, actuator {wa}"
+            if cov["rate_hz"] else "continuous, without effects")
+    ran = ", ".join(f"{k} ran on {n}" for k, n in s.get("certified_ran", {}).items())
+    return (f"; covers {cov['law']}, {loop}"
+            + (f"; not covered, present in the runs: {', '.join(cov['not_covered'])}"
+               if cov["not_covered"] else "")
+            + (f"; on the certified plants {ran}" if ran else ""))
+
+
 def summary_lines(result: StudyResult, summary: dict) -> list[str]:
     """Headline figures of a study as text lines (no newlines), for a terminal.
 
@@ -515,7 +555,7 @@ def summary_lines(result: StudyResult, summary: dict) -> list[str]:
         checked = sum(1 for x in result.samples if "certificate" in x)
         lines.append(f"certified (frozen nu-gap < b = {s['certificate_b']:.4g}): "
                      f"{s['samples_certified']} of {checked} plants, largest nu-gap "
-                     f"{s['nugap_max']:.4g}")
+                     f"{s['nugap_max']:.4g}" + _coverage_text(s))
     ts = result.task_space
     if ts:
         lines.append(f"task space, frame {ts['frame']!r}, RMS |e_x| [mm] nominal / uncertain "
