@@ -291,7 +291,10 @@ def refined_disk_margin(L, omega, *, xtol: float = 1e-6, peaks: int = 4) -> Refi
         if res.fun < best:
             best, where = float(res.fun), float(np.exp(res.x))
     n = L.ninputs
-    S = control.feedback(control.ss([], [], [], np.eye(n), L.dt), L)
+    # minimal first: a loop's realization may carry modes on the boundary that S does not see
+    # (a double integrator's z = 1 in a non-minimal discrete product)
+    S = control.minreal(control.feedback(control.ss([], [], [], np.eye(n), L.dt), L),
+                        verbose=False)
     poles = S.poles()
     stable = (np.all(np.abs(poles) < 1.0) if L.isdtime() else np.all(poles.real < 0.0))
     lower = 0.0
