@@ -23,6 +23,24 @@ KINDS = ["rrr", "fivebar"]
 REFERENCE_KIND = {"rrr": "sine", "fivebar": "spline"}
 
 
+@pytest.fixture
+def without_figures(monkeypatch, tmp_path):
+    """``rrr-pin reproduce`` draws no figure and writes no report.html in this test.
+
+    For the tests whose claim is in results.json (options reaching the study): the figures and
+    the report cost most of a small run's CPU (measured: a process running the three tests that
+    use this, 26.6 s -> 5.3 s of CPU), and the shared runs of ``reproduced`` check them.
+    """
+    import rrr_pin.report.margins as margins
+    import rrr_pin.report.plotting as plotting
+    import rrr_pin.report.results as results
+
+    monkeypatch.setattr(plotting, "save_design_figures", lambda d, out: [])
+    monkeypatch.setattr(plotting, "save_study_figures", lambda result, out, plant=None: [])
+    monkeypatch.setattr(margins, "save_margins_figure", lambda *a, **k: tmp_path / "m.png")
+    monkeypatch.setattr(results, "write_study_report", lambda *a, **k: tmp_path / "r.html")
+
+
 @pytest.mark.parametrize("reproduced, plant", [(k, k) for k in KINDS], indirect=True, ids=KINDS)
 def test_reproduce_writes_everything(reproduced, plant):
     assert reproduced.code == 0, reproduced.stderr
@@ -96,7 +114,7 @@ def test_reproduce_prints_the_report_lines(reproduced, plant):
      "--q0", "0.05,0,0"],
     ["--controllers", "pd,fl", "--reference", "line", "--end", "0.6,0.1,1.9"],
 ], ids=["quintic-3-laws", "line-pd-baseline"])
-def test_reproduce_references_and_controllers(tmp_path, extra):
+def test_reproduce_references_and_controllers(tmp_path, extra, without_figures):
     out = tmp_path / "r"
     assert cli.main(["reproduce", "--out", str(out), "--samples", "1", "--duration", "0.3",
                      "--jobs", "1", "--no-progress", "--no-certify"] + extra) == 0
@@ -242,7 +260,8 @@ def test_out_is_a_file(tmp_path, capsys, cmd):
     assert "exists and is not a folder" in err and "Traceback" not in err
 
 
-def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path, rrr):
+def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path, rrr,
+                                                             without_figures):
     # The circle of --reference circle starts at the frame's position at the start
     # configuration: centre + radius * start_dir is that point (rrr_pin.control.paths).
     import ast
