@@ -23,24 +23,6 @@ KINDS = ["rrr", "fivebar"]
 REFERENCE_KIND = {"rrr": "sine", "fivebar": "spline"}
 
 
-@pytest.fixture
-def without_figures(monkeypatch, tmp_path):
-    """``rrr-pin reproduce`` draws no figure and writes no report.html in this test.
-
-    For the tests whose claim is in results.json (options reaching the study): the figures and
-    the report cost most of a small run's CPU (measured: a process running the three tests that
-    use this, 26.6 s -> 5.3 s of CPU), and the shared runs of ``reproduced`` check them.
-    """
-    import rrr_pin.report.margins as margins
-    import rrr_pin.report.plotting as plotting
-    import rrr_pin.report.results as results
-
-    monkeypatch.setattr(plotting, "save_design_figures", lambda d, out: [])
-    monkeypatch.setattr(plotting, "save_study_figures", lambda result, out, plant=None: [])
-    monkeypatch.setattr(margins, "save_margins_figure", lambda *a, **k: tmp_path / "m.png")
-    monkeypatch.setattr(results, "write_study_report", lambda *a, **k: tmp_path / "r.html")
-
-
 @pytest.mark.parametrize("reproduced, plant", [(k, k) for k in KINDS], indirect=True, ids=KINDS)
 def test_reproduce_writes_everything(reproduced, plant):
     assert reproduced.code == 0, reproduced.stderr
