@@ -18,7 +18,9 @@ there first (``chain.reset(q)``), and after every test each shared chain is re-s
   same design for ``n`` joints (cached), e.g. a certificate on the 5-bar's 2 joints;
 * ``reproduced``, ``montecarlo_run``, ``stress_run``: one ``rrr-pin reproduce``,
   ``montecarlo`` and ``stress`` run per plant kind (default ``"rrr"``; parametrize them
-  indirectly like ``plant``), for the tests that only read their outputs.
+  indirectly like ``plant``), for the tests that only read their outputs;
+* ``without_figures``: a test's own ``rrr-pin reproduce`` writes results.json without drawing
+  its figures and report.html (for a claim about what reached the study).
 
 A shared run is made once per test session, also under pytest-xdist (``-n 2``): the first
 worker that needs it runs it in the session's common temporary folder, under a file lock, and
@@ -294,3 +296,22 @@ def generated_matches_pinocchio():
                 assert_allclose(got, want, rtol=0.0, atol=1e-12 * np.abs(want).max())
 
     return check
+
+
+@pytest.fixture
+def without_figures(monkeypatch, tmp_path):
+    """``rrr-pin reproduce`` draws no figure and writes no report.html in this test.
+
+    For the tests whose claim is in results.json (options reaching the study): the figures and
+    the report cost most of a small run's CPU (measured: a process running the three tests of
+    tests/test_cli.py that use this, 26.6 s -> 5.3 s of CPU), and the shared runs of
+    ``reproduced`` check them.
+    """
+    import rrr_pin.report.margins as margins
+    import rrr_pin.report.plotting as plotting
+    import rrr_pin.report.results as results
+
+    monkeypatch.setattr(plotting, "save_design_figures", lambda d, out: [])
+    monkeypatch.setattr(plotting, "save_study_figures", lambda result, out, plant=None: [])
+    monkeypatch.setattr(margins, "save_margins_figure", lambda *a, **k: tmp_path / "m.png")
+    monkeypatch.setattr(results, "write_study_report", lambda *a, **k: tmp_path / "r.html")

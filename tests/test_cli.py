@@ -96,7 +96,7 @@ def test_reproduce_prints_the_report_lines(reproduced, plant):
      "--q0", "0.05,0,0"],
     ["--controllers", "pd,fl", "--reference", "line", "--end", "0.6,0.1,1.9"],
 ], ids=["quintic-3-laws", "line-pd-baseline"])
-def test_reproduce_references_and_controllers(tmp_path, extra):
+def test_reproduce_references_and_controllers(tmp_path, extra, without_figures):
     out = tmp_path / "r"
     assert cli.main(["reproduce", "--out", str(out), "--samples", "1", "--duration", "0.3",
                      "--jobs", "1", "--no-progress", "--no-certify"] + extra) == 0
@@ -242,7 +242,8 @@ def test_out_is_a_file(tmp_path, capsys, cmd):
     assert "exists and is not a folder" in err and "Traceback" not in err
 
 
-def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path, rrr):
+def test_reproduce_circle_reference_starts_where_the_frame_is(tmp_path, rrr,
+                                                             without_figures):
     # The circle of --reference circle starts at the frame's position at the start
     # configuration: centre + radius * start_dir is that point (rrr_pin.control.paths).
     import ast

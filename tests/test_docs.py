@@ -65,3 +65,9 @@ def test_docs_build_without_warnings(tmp_path):
     for name in ("bench", "codegen"):
         assert (html / "gallery" / f"{name}.html").exists()
     assert "Quick start" in (html / "readme.html").read_text()
+    # every page of the guide is built and reachable from its index (the glob toctree)
+    index = (html / "guide" / "index.html").read_text()
+    for page in (DOCS / "guide").glob("*.md"):
+        assert (html / "guide" / f"{page.stem}.html").exists(), page.name
+        assert page.stem == "index" or f'href="{page.stem}.html"' in index, page.name
+    assert (html / "figures.html").exists()

@@ -257,7 +257,8 @@ def test_per_joint_lam_structure_tunes_and_round_trips(rrr, tmp_path):
         PerJoint(base=make_structure("gain"), joints=rrr.joint_names, lam=30.0)
 
 
-def test_cli_design_per_joint_lam_writes_a_list_and_reproduce_runs_it(tmp_path):
+def test_cli_design_per_joint_lam_writes_a_list_and_reproduce_runs_it(tmp_path,
+                                                                      without_figures):
     from conftest import REPRODUCE, run_cli
 
     run = run_cli(["design", "--robot", "rrr", "--structure", "gain", "--per-joint-lam",
