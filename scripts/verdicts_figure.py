@@ -1,4 +1,5 @@
 """A design's error ratio per plant, on the ideal loop and behind its delay and actuator.
+======================================================================================
 
 Reproduces the figure of ``docs/guide/verdicts.md``: the tracking-error ratio (FL alone at
 lam = 100 rad/s over the law, RMS, simulated) of each plant of the design's set, once on the

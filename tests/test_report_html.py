@@ -419,14 +419,15 @@ def test_campaign_report_and_summary_lines(small_campaign, tmp_path):
     assert (f"<td>pd_rms_torque</td>\n<td>N m</td>\n<td>{m['median']:.4g}</td>" in text)
     lines = summary_lines(small_campaign, s)
     assert lines[0] == "every controller ran on 3, a run diverged on 0"
+    assert lines[1] == "per law: fl ran on 3, pd ran on 3"  # issue 50: the status per law
     # the engines that ran the rows, as the rows record them
     ran = {law: {r[f"{law}_engine"] for r in small_campaign.rows} for law in ("fl", "pd")}
-    assert lines[1] == "engines that ran: " + "; ".join(
+    assert lines[2] == "engines that ran: " + "; ".join(
         f"{law} {e.pop()} 3" for law, e in ran.items())
     share = 100 * s["fraction_better"]["pd"]
-    assert lines[2] == f"pd better than fl on {share:.1f} % of the plants"
-    assert lines[3].split() == ["metric", "median", "p95", "worst"]
-    assert [line.split()[0] for line in lines[4:]] == [
+    assert lines[3] == f"pd better than fl on {share:.1f} % of the plants"
+    assert lines[4].split() == ["metric", "median", "p95", "worst"]
+    assert [line.split()[0] for line in lines[5:]] == [
         "fl_rms_error", "fl_max_error", "error_ratio_pd", "torque_ratio_pd", "pd_rms_error",
         "pd_max_error"]
 
