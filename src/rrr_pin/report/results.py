@@ -505,7 +505,9 @@ def realistic_lines(section: dict) -> list[str]:
     fx, s = section["set"], section["summary"]
     head = (f"realistic set ({fx['rate_hz']:g} Hz, delay {1e3 * fx['delay_s']:g} ms, actuator "
             f"{fx['actuator_rad_s']:g} rad/s, friction {fx['viscous_Nms']:g} N m s/rad + "
-            f"{fx['coulomb_Nm']:g} N m, torque limits {fx['torque_limit']}):")
+            f"{fx['coulomb_Nm']:g} N m, torque limits {fx['torque_limit']}"
+            + (f", noise {fx['noise_q_rad']:g} rad on q and {fx['noise_qd_rad_s']:g} rad/s on qd"
+               if "noise_q_rad" in fx else "") + "):")
     base = s["baseline"]
     out = [head]
     for name, r in s.get("error_ratio_uncertain", {}).items():
