@@ -119,7 +119,7 @@ def default_jobs() -> int:
 
 
 def available_memory() -> int:
-    """Memory this machine can still give [bytes] (Linux ``MemAvailable``; else the physical)."""
+    """Return the memory this machine can still give [bytes] (``MemAvailable``; else physical)."""
     try:
         with open("/proc/meminfo") as fh:
             for line in fh:
@@ -140,8 +140,11 @@ WORKER_BYTES = 150 * 1024 * 1024
 
 
 def max_jobs() -> int:
-    """Most local worker processes this machine can run: ``JOBS_PER_CPU`` per CPU, and no
-    more than the available memory holds at :data:`WORKER_BYTES` each (at least 1)."""
+    """Return the most local worker processes this machine can run (at least 1).
+
+    :data:`JOBS_PER_CPU` per CPU, and no more than the available memory holds at
+    :data:`WORKER_BYTES` each.
+    """
     return max(1, min(JOBS_PER_CPU * (os.cpu_count() or 1),
                       available_memory() // WORKER_BYTES))
 

@@ -231,13 +231,13 @@ class _Context:
     block: int | None = None
 
     def blocks(self) -> list[slice]:
-        """The plants' blocks, in order, as slices of :attr:`plants`."""
+        """Return the plants' blocks, in order, as slices of :attr:`plants`."""
         n = len(self.plants)
         b = n if self.block is None else self.block
         return [slice(i, min(i + b, n)) for i in range(0, max(n, 1), max(b, 1))]
 
     def subset(self, plants: slice) -> _Context:
-        """This context on the plants ``plants`` (the loops' arrays are views, not copies)."""
+        """Return the context on the plants ``plants`` (the loops' arrays are views, not copies)."""
         return replace(self, loops=self.loops.subset(plants), plants=self.plants[plants],
                        id_peak=None if self.id_peak is None else self.id_peak[plants])
 
@@ -331,7 +331,7 @@ def _context(robot, plants, reference, rate, fixed, duration) -> _Context:
 
 
 def _estimates(ctx, blocks, reqs, lam, K, fixed) -> tuple:
-    """The tuner's objective and estimates of the law ``(lam, K)``, block by block of plants.
+    """Return the tuner's objective and estimates of the law ``(lam, K)``, block by block.
 
     A point unstable on any plant (with the fixed effects) scores :data:`_UNSTABLE` plus the
     largest spectral radius, with no estimates. Otherwise each requirement's estimate (the
@@ -742,7 +742,6 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     lam, K = structure.split(values)
     _, estimates = evaluate(x)
     ev = _Eval(ctx, lam, K)   # the best point's, on every plant, for the verification
-    del cache, blocks
     info = {"robot": robot.name, "joints": list(robot.joint_names), "plants": plant_info,
             "home_rad": home.tolist(), "fixed": fixed,
             "reference": reference.to_dict(),

@@ -54,6 +54,9 @@ def add(sub) -> None:
                       help="start afresh in a non-empty --out (its previous campaign is "
                            "deleted)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-figures", action="store_true",
+                   help="no montecarlo.png or certificates.png (matplotlib not imported); "
+                        "the tables are the same")
     add_design_argument(p)
     p.set_defaults(func=run_montecarlo)
 
@@ -64,13 +67,14 @@ def run_montecarlo(args) -> int:
 
     from tqdm import tqdm
 
-    from ..campaign.executors import CampaignInterrupted, WorkersLost, exit_status
+    from ..campaign.executors import CampaignInterrupted, WorkersLost, check_jobs, exit_status
     from ..campaign.montecarlo import (
         CampaignSettings,
         check_campaign,
         open_store,
         run_campaign,
     )
+    from ..campaign.store import check_room, row_bytes
     from ..outputs import check_writable
     from ..report.campaign import summary_lines, write_campaign, write_campaign_report
     from ..sim.batched import MAX_THREADS
@@ -78,6 +82,10 @@ def run_montecarlo(args) -> int:
 
     check_count("--samples", args.samples, 1)
     check_count("--threads", args.threads, 1, MAX_THREADS)
+    try:
+        check_jobs(args.jobs)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"--{exc}") from None
     check_writable(args.out)
     args.write_hint = (f"; the samples finished so far are kept in {args.out}/parts.jsonl: "
                        "free space, then rerun with --resume")
@@ -97,6 +105,7 @@ def run_montecarlo(args) -> int:
                                 baseline=baseline, tolerances=tolerances)
     # every refusal before the store is opened: a refused campaign leaves no files behind
     laws, reference = check_campaign(plant, laws, settings, reference=reference)
+    check_room(args.out, args.samples + 1, row_bytes(len(laws), plant.nq))
     store = open_store(args.out, plant, laws, settings, reference, resume=args.resume,
                        overwrite=args.overwrite, certificate=certificate)
     total = args.samples + 1  # the nominal plant too
@@ -123,7 +132,8 @@ def run_montecarlo(args) -> int:
         bar.close()
         elapsed = time.perf_counter() - start
         s = write_campaign(campaign, args.out, store=store, certificate_b=None if
-                           certificate is None else certificate.margin(plant.nq))
+                           certificate is None else certificate.margin(plant.nq),
+                           figures=not args.no_figures)
         if design_record(args) is not None:  # which design ran, with its requirement table
             _record_design(args)
         s["written"].append(str(write_campaign_report(campaign, s, args.out, store)))

@@ -174,7 +174,7 @@ class LoopSet:
         self._parts = self.parts(self.P)
 
     def subset(self, plants: slice) -> LoopSet:
-        """This set restricted to the plants ``plants``, a slice (responses are views).
+        """Return the set restricted to the plants ``plants``, a slice (responses are views).
 
         The law's nominal, grid and rate are shared; the plants' discretizations are cached
         per subset (:meth:`spectral_radius` of a subset indexes its own plants).
