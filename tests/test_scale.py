@@ -69,3 +69,25 @@ def test_campaign_too_large_for_the_disk_is_refused(tmp_path):
     with pytest.raises(DiskTooSmall, match=r"need about .* TB on disk"):
         check_room(tmp_path / "new", 10 ** 12, row_bytes(2, 3))
     check_room(tmp_path, 10, row_bytes(2, 3))   # 10 rows fit
+
+
+def test_campaign_tables_same_for_any_flush_and_without_figures(rrr, tmp_path):
+    import rrr_pin.campaign.montecarlo as mc
+    from rrr_pin.campaign.runner import RunSettings, make_laws
+    from rrr_pin.control.references import study_reference
+    from rrr_pin.report.campaign import write_campaign
+
+    laws = make_laws(["fl", "pd"], rrr)
+    settings = mc.CampaignSettings(samples=3, run=RunSettings(duration=0.1, rate=1000.0))
+    reference = study_reference(rrr, settings.run.duration)
+    tables = {}
+    for chunk, figures in ((1, True), (100, False)):   # 4 flushes and a figure, 1 and none
+        out = tmp_path / f"c{chunk}"
+        with mc.open_store(out, rrr, laws, settings, reference) as store:
+            campaign = mc.run_campaign(rrr, laws, settings, jobs=1, chunk=chunk, store=store)
+            summary = write_campaign(campaign, out, store=store, figures=figures)
+        assert (out / "montecarlo.png").exists() == figures
+        assert not any(p.endswith(".png") for p in summary["written"]) or figures
+        tables[chunk] = {name: (out / name).read_text()
+                         for name in ("campaign.csv", "samples.jsonl", "summary.json")}
+    assert tables[1] == tables[100]
