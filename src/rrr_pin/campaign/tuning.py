@@ -486,7 +486,8 @@ class TuneResult:
     starts : list of dict
         Per start: its initial point, best objective and evaluations.
     info : dict
-        Robot, plant set, home, fixed effects, reference, seconds.
+        Robot, plant set, home, fixed effects, reference, seconds, and ``peak_rss_mb``: the
+        process's peak resident memory [MB] when the design was verified.
     """
 
     structure: object
