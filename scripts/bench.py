@@ -573,7 +573,7 @@ def loopsyn_3x3_s(repeat: int = 1) -> float:
 
 
 #: The sections, in order (``--sections``); 9 only with ``--export``.
-SECTIONS = ("1", "2", "2b", "2c", "3", "4", "4b", "4c", "4d", "5", "6", "7", "8", "10")
+SECTIONS = ("1", "2", "2b", "2c", "3", "4", "4b", "4c", "4d", "5", "6", "7", "8", "10", "11")
 
 
 def main(argv=None):
@@ -597,6 +597,15 @@ def main(argv=None):
                         help="plants of the 1-job throughput run (20)")
     parser.add_argument("--startup-repeat", type=int, default=5,
                         help="runs of each start-up timing (5)")
+    parser.add_argument("--design-arms", action="store_true",
+                        help="section 11: also design --robot panda and ur5 with the defaults "
+                             "(minutes each)")
+    parser.add_argument("--mc-100k", action="store_true",
+                        help="section 11: also montecarlo --samples 100000 on the RRR "
+                             "(minutes)")
+    parser.add_argument("--scale-samples", type=int, default=1000,
+                        help="section 11: plants of the montecarlo command against the "
+                             "in-process campaign (1000)")
     parser.add_argument("--quick", action="store_true",
                         help="tiny settings (0.05 s rollouts, 2 plants), to check that it runs")
     parser.add_argument("--export", metavar="DIR", nargs="?", const="bench_export",
@@ -622,6 +631,7 @@ def main(argv=None):
     rng = np.random.default_rng(0)
     q, qd = rng.uniform(-np.pi, np.pi, 3), rng.uniform(-5, 5, 3)
     result = {"machine": machine()}
+    peaks = SectionPeaks(result, run)   # each section's own peak resident memory
 
     # 1. Per call. The bare calls are the ones the Robot methods make (V: RNEA with zero
     # acceleration on the zero-gravity copy of the model).
@@ -655,6 +665,7 @@ def main(argv=None):
     n_steps = int(round(args.duration * args.rate))
     n_rk4 = int(round(args.duration / 1e-3))
     floors = {}
+    peaks.mark("1")
     if run("2"):
         compiled_rows = []
         for name, law in laws.items():
@@ -688,6 +699,7 @@ def main(argv=None):
     # 2b. Engine "codegen" (issues 13, 23): the same loop on the parameter-input generated
     # dynamics (rrr_pin.sim.batched, one plant per call), against the compiled engine and both
     # floors in the same interleaved rounds; sine reference.
+    peaks.mark("2")
     if run("2b"):
         codegen_rows = []
         for name, law in laws.items():
@@ -718,12 +730,14 @@ def main(argv=None):
     # at the rate, sine reference; H-inf + FL on the RRR, FL on UR5 and Panda) on the compiled
     # engine, on the generated dynamics one plant per call, and 16 plants per call; each with
     # its dynamics-call floor; same interleaved rounds.
+    peaks.mark("2b")
     if run("2c") or run("4"):
         result["batched_vs_compiled"] = [batch_row(arm, args, n_steps)
                                          for arm in (("rrr", "ur5", "panda") if run("2c")
                                                      else ("rrr",))]
 
     # 3. Python engine against the hand-written loop (FL, ZOH, sine), and H-inf for the record.
+    peaks.mark("2c")
     if run("3"):
         sine = refs["sine"]
         Ts = 1.0 / args.rate
@@ -765,9 +779,11 @@ def main(argv=None):
         run_campaign(robot, two, settings, jobs=jobs)
         return time.perf_counter() - t0
 
+    peaks.mark("3")
     if run("4b"):
         result.update(closed_chain_ms(args.duration, args.rate, args.repeat))
 
+    peaks.mark("4b")
     if run("4"):
         floor = result.get("floor_ms") or floor_ms(robot, robot, n_steps, kind="fl",
                                                    repeat=args.repeat)
@@ -787,6 +803,7 @@ def main(argv=None):
             "montecarlo_rollouts_per_s": {"1": 2 * args.mc_samples / one_job_s,
                                           "2": 2 * args.campaign_samples / campaign_s}})
 
+    peaks.mark("4")
     # 4c. Campaigns against the batched engine's own floor (issue 33): RRR, Panda, and arms
     # whose structure is not compiled in (generated, built and cached at first use, timed in
     # an empty cache).
@@ -820,10 +837,12 @@ def main(argv=None):
             del os.environ["RRR_PIN_CACHE"]
         result["first_use"] = first
 
+    peaks.mark("4c")
     # 4d. The MuJoCo engine's campaign next to the batched engine's (issue 44).
     if run("4d"):
         result["mujoco_campaign"] = mujoco_campaign(args.mujoco_samples, args.duration,
                                                     args.rate, fresh=not args.quick)
+    peaks.mark("4d")
 
     # 5. Start-up in fresh processes.
     if run("5"):
@@ -835,9 +854,11 @@ def main(argv=None):
             "python_startup_s": subprocess_s([sys.executable, "-c", "pass"],
                                              args.startup_repeat)})
 
+    peaks.mark("5")
     # 6. loopsyn on a 3 x 3 plant (issue 21).
     if run("6"):
         result["loopsyn_3x3_s"] = loopsyn_3x3_s(1 if args.quick else 3)
+    peaks.mark("6")
     result["goals"] = GOALS
     result["settings"] = {"duration_s": args.duration, "rate_hz": args.rate, "substeps": 1,
                           "continuous_dt_s": 1e-3, "repeat": args.repeat, "calls": args.calls,
@@ -846,11 +867,17 @@ def main(argv=None):
                           "sections": [x for x in SECTIONS if run(x)]}
     if run("8"):
         result["identification"] = identification_bench(5.0 if args.quick else 10.0)
+    peaks.mark("8")
     if run("7"):
         result["mu"] = mu_upper_s(1 if args.quick else 10)
+    peaks.mark("7")
     if run("10"):
         result["tuning"] = tuning_bench(1 if args.quick else 19, 1 if args.quick else 4,
                                         30 if args.quick else None)
+    peaks.mark("10")
+    if run("11"):
+        result["scale"] = scale_bench(args)
+    peaks.mark("11")
     if args.export is not None:
         result["export"] = export_step_us(200 if args.quick else 200000, Path(args.export))
     if args.json:
@@ -861,6 +888,9 @@ def main(argv=None):
         report_identification(result["identification"])
     if "10" in args.sections:
         report_tuning(result["tuning"])
+    if "11" in args.sections:
+        report_scale(result["scale"])
+    report_peaks(result)
 
 
 def report(res, args):
@@ -1112,6 +1142,161 @@ def mu_upper_s(count: int) -> dict:
             "frequencies": count, "parameters": len(loop.names),
             "size": int(loop.M.ninputs)}
 
+
+
+class SectionPeaks:
+    """Each section's own peak resident memory [MB] into ``result["peak_rss_mb"]``.
+
+    Linux's high-water mark ``VmHWM`` (``/proc/self/status``) is read when a section ends,
+    then reset (``5`` into ``/proc/self/clear_refs``) for the next one; elsewhere
+    ``getrusage``'s peak, which only grows (then a section's figure is the largest so far).
+    Subprocesses' peaks are measured apart (:func:`run_child`).
+    """
+
+    def __init__(self, result: dict, run):
+        self.result, self.run = result, run
+        result["peak_rss_mb"] = {}
+        self._reset()
+
+    @staticmethod
+    def _reset() -> None:
+        try:
+            Path("/proc/self/clear_refs").write_text("5")
+        except OSError:
+            pass
+
+    @staticmethod
+    def now_mb() -> float:
+        """Return the peak resident memory since the last reset [MB]."""
+        try:
+            for line in Path("/proc/self/status").read_text().splitlines():
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+        except OSError:
+            pass
+        import resource
+
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+    def mark(self, name: str) -> None:
+        """End section ``name`` (if it ran): record its peak, start the next one's."""
+        if self.run(name):
+            self.result["peak_rss_mb"][name] = self.now_mb()
+        self._reset()
+
+
+def report_peaks(res: dict) -> None:
+    """Print each section's peak resident memory."""
+    peaks = res.get("peak_rss_mb") or {}
+    if peaks:
+        print("\npeak resident memory of this process per section [MB]: " +
+              ", ".join(f"{k}: {v:.0f}" for k, v in peaks.items()))
+
+
+def run_child(argv: list[str], limit_bytes: int | None = None) -> dict:
+    """Run ``argv`` and return its wall time [s], exit status and peak resident memory [MB].
+
+    ``os.wait4`` gives this child's own resource usage (its ``ru_maxrss``, with the
+    descendants it waited for, e.g. worker processes). ``limit_bytes`` caps its address space
+    (``RLIMIT_AS``) so that a run that would grow without bound fails instead.
+    """
+    import resource
+
+    def limit():
+        if limit_bytes:
+            resource.setrlimit(resource.RLIMIT_AS, (limit_bytes, limit_bytes))
+
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            preexec_fn=limit)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    err = proc.stderr.read().decode(errors="replace").strip().splitlines()
+    return {"argv": argv[2:], "wall_s": wall, "status": proc.returncode,
+            "peak_rss_mb": usage.ru_maxrss / 1024.0, "load": os.getloadavg()[0],
+            "error": err[-1] if proc.returncode and err else None}
+
+
+#: Issue 48's goals: (largest value, unit).
+SCALE_GOALS = {"design_arm_s": 120.0, "design_arm_mb": 1024.0, "moonshot_s": 40.0,
+               "moonshot_mb": 500.0, "montecarlo_cli_ratio": 1.3, "mc_100k_ratio": 1.1,
+               "mc_100k_mb": 2048.0}
+
+
+def scale_bench(args) -> dict:
+    """Issue 48: designs and campaigns at scale, each in a fresh process (time and memory).
+
+    * ``rrr-pin design`` of the RRR's moonshot (four requirements, lam tuned), and with
+      ``--design-arms`` of the Panda and the UR5 with the defaults, each under a 6 GB address
+      space limit;
+    * ``rrr-pin montecarlo --samples N --jobs 2 --no-figures`` (RRR) against
+      :func:`rrr_pin.campaign.montecarlo.run_campaign` of the same plants in this process
+      (``jobs=2``);
+    * with ``--mc-100k``, ``montecarlo --samples 100000`` against 100 times the 1000-plant one.
+    """
+    import tempfile
+
+    from rrr_pin.campaign.montecarlo import CampaignSettings, run_campaign
+
+    cli = [sys.executable, "-m", "rrr_pin.cli"]
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        reduced = ["--samples", "2", "--starts", "1"] if args.quick else []
+        moon = ["design", "--robot", "rrr", "--require", "delay_margin=0.006", "--require",
+                "error_ratio=10", "--require", "actuator_bandwidth=300,delay=0.002",
+                "--tune-lam", "--no-progress", "--out", f"{tmp}/moon", *reduced]
+        out["moonshot"] = run_child(cli + moon, 6_000_000_000)
+        if args.design_arms:
+            for arm in ("panda", "ur5"):
+                out[f"design_{arm}"] = run_child(
+                    cli + ["design", "--robot", arm, "--no-progress", "--out",
+                           f"{tmp}/{arm}", *reduced], 6_000_000_000)
+        n = 2 if args.quick else args.scale_samples
+        mc = ["montecarlo", "--samples", str(n), "--jobs", "2", "--no-figures",
+              "--no-progress"]
+        out["montecarlo_cli"] = run_child(cli + mc + ["--out", f"{tmp}/mc"])
+        robot = rrr_pin.load_robot("rrr")
+        laws = make_laws("fl,hinf", robot)
+        t0 = time.perf_counter()
+        run_campaign(robot, laws, CampaignSettings(samples=n, run=RunSettings(duration=10.0)),
+                     jobs=2)
+        out["montecarlo_in_process_s"] = time.perf_counter() - t0
+        out["montecarlo_samples"] = n
+        if args.mc_100k:
+            out["mc_100k"] = run_child(cli + ["montecarlo", "--samples", "100000", "--jobs",
+                                              "2", "--no-figures", "--no-progress", "--out",
+                                              f"{tmp}/mc100k"], 6_000_000_000)
+    out["goals"] = SCALE_GOALS
+    return out
+
+
+def report_scale(r: dict) -> None:
+    """Print issue 48's figures: time and peak memory of each command, with the load."""
+    g = r["goals"]
+    print("\n11. at scale (issue 48), each command in a fresh process "
+          "[wall s, peak resident MB, 1-min load average at its end]")
+    rows = [("moonshot", "design rrr moonshot", g["moonshot_s"], g["moonshot_mb"])]
+    rows += [(k, f"design {k[7:]} (defaults)", g["design_arm_s"], g["design_arm_mb"])
+             for k in ("design_panda", "design_ur5") if k in r]
+    for key, label, gs, gm in rows:
+        x = r[key]
+        ok = x["status"] == 0 and x["wall_s"] <= gs and x["peak_rss_mb"] <= gm
+        print(f"  {label:34}{x['wall_s']:9.1f} s{x['peak_rss_mb']:9.0f} MB  load "
+              f"{x['load']:5.2f}   goal <= {gs:g} s, {gm:g} MB: "
+              f"{'met' if ok else 'NOT MET'}{'' if x['status'] == 0 else ' ' + str(x['error'])}")
+    x, n = r["montecarlo_cli"], r["montecarlo_samples"]
+    ratio = x["wall_s"] / r["montecarlo_in_process_s"]
+    print(f"  montecarlo --samples {n} --jobs 2: {x['wall_s']:.2f} s ({x['peak_rss_mb']:.0f} "
+          f"MB, load {x['load']:.2f}) / in-process campaign {r['montecarlo_in_process_s']:.2f}"
+          f" s = {ratio:.2f}   {verdict(ratio, g['montecarlo_cli_ratio'])}")
+    if "mc_100k" in r:
+        x = r["mc_100k"]
+        ratio = x["wall_s"] / (100 * r["montecarlo_cli"]["wall_s"] * 1000 / n)
+        ok = ratio <= g["mc_100k_ratio"] and x["peak_rss_mb"] <= g["mc_100k_mb"]
+        print(f"  montecarlo --samples 100000: {x['wall_s']:.1f} s, {x['peak_rss_mb']:.0f} MB "
+              f"(load {x['load']:.2f}); / 100 x the 1000-plant command = {ratio:.2f}   goal <= "
+              f"{g['mc_100k_ratio']:g}, {g['mc_100k_mb']:g} MB: {'met' if ok else 'NOT MET'}")
 
 
 def tuning_bench(samples: int, starts: int, maxfev: int | None = None) -> dict:

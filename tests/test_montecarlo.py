@@ -607,7 +607,7 @@ def test_a_law_returning_nan_mid_run_gives_a_stated_status(rrr):
 def test_chunks_cover_every_sample_once_and_shrink_at_the_end(n, size, tail, unit):
     # Hand-counted for 1001 samples of chunks of 32, 2 workers (tail 4), batches of 16: 29
     # chunks of 32 leave 73, then ceil(73 / 4) = 19 -> 32, 41 -> 11 -> 16, 25 -> 16, 9.
-    blocks = list(mc._blocks(list(range(n)), size, tail, unit))
+    blocks = list(mc._blocks(iter(range(n)), n, size, tail, unit))
     assert [k for b in blocks for k in b] == list(range(n))
     assert all(len(b) <= size for b in blocks)
     if (n, size, tail) == (1001, 32, 4):

@@ -52,7 +52,8 @@ from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 
 __all__ = [
-    "run_tasks", "check_jobs", "default_jobs", "interrupt_on_signals", "exit_status",
+    "run_tasks", "check_jobs", "default_jobs", "max_jobs", "available_memory",
+    "interrupt_on_signals", "exit_status",
     "ExecutorError", "CampaignInterrupted", "WorkersLost", "SchedulerUnreachable",
     "SignalReceived",
 ]
@@ -117,6 +118,37 @@ def default_jobs() -> int:
     return min(2, os.cpu_count() or 1)
 
 
+def available_memory() -> int:
+    """Return the memory this machine can still give [bytes] (``MemAvailable``; else physical)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 1 << 62
+
+
+#: Local worker processes per CPU :func:`check_jobs` allows (more only queue for the CPUs).
+JOBS_PER_CPU = 4
+#: Resident memory one local worker needs at least [bytes] (the imports and a chunk).
+WORKER_BYTES = 150 * 1024 * 1024
+
+
+def max_jobs() -> int:
+    """Return the most local worker processes this machine can run (at least 1).
+
+    :data:`JOBS_PER_CPU` per CPU, and no more than the available memory holds at
+    :data:`WORKER_BYTES` each.
+    """
+    return max(1, min(JOBS_PER_CPU * (os.cpu_count() or 1),
+                      available_memory() // WORKER_BYTES))
+
+
 def check_jobs(jobs) -> int:
     """Validate a number of local worker processes; ``None`` gives :func:`default_jobs`.
 
@@ -125,7 +157,8 @@ def check_jobs(jobs) -> int:
     TypeError
         ``jobs`` is not an integer (e.g. ``2.5`` or ``True``).
     ValueError
-        ``jobs < 1`` (``0``, ``-1``).
+        ``jobs < 1`` (``0``, ``-1``), or more than :func:`max_jobs` (the CPUs times
+        :data:`JOBS_PER_CPU`, and what the free memory holds).
     """
     if jobs is None:
         return default_jobs()
@@ -138,6 +171,12 @@ def check_jobs(jobs) -> int:
                         f"got {jobs!r}") from None
     if n < 1:
         raise ValueError(f"jobs must be an integer >= 1 (local worker processes), got {n}")
+    high = max_jobs()
+    if n > high:
+        raise ValueError(f"jobs = {n} local worker processes: this machine runs at most "
+                         f"{high} ({JOBS_PER_CPU} per CPU of {os.cpu_count() or 1}, "
+                         f"{WORKER_BYTES >> 20} MB each of "
+                         f"{available_memory() / 1e9:.3g} GB available)")
     return n
 
 

@@ -21,6 +21,7 @@ adds ``<law>_drift`` [m] to its rows (:attr:`Campaign.per_law`).
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import pickle
@@ -440,7 +441,8 @@ def run_campaign(nominal, laws, settings: CampaignSettings, *,
     job = CampaignJob(settings=settings, laws=tuple(laws), reference=reference,
                       nominal=nominal, certificate=certificate, batch=batch, threads=threads)
     samples = int(settings.samples)
-    rows = run_samples(job, [NOMINAL_INDEX, *range(samples)], total=samples + 1,
+    rows = run_samples(job, itertools.chain((NOMINAL_INDEX,), range(samples)),
+                       total=samples + 1,
                        name=nominal.name, jobs=jobs, scheduler=scheduler, executor=executor,
                        chunk=chunk, store=store, progress=progress,
                        max_chunk=max(32, 4 * batch * threads),
@@ -473,20 +475,25 @@ def _chunk_size(total: int, workers: int, max_chunk: int, min_chunk: int, unit: 
     return unit * math.ceil(size / unit) if size > unit else size
 
 
-def _blocks(todo: list, size: int, tail: int, unit: int):
+def _blocks(todo, n: int, size: int, tail: int, unit: int):
     """Yield ``todo`` in chunks of ``size``; once less than ``tail`` chunks' work is left, smaller.
 
-    A chunk of the last ``tail`` rounds takes about ``1 / tail`` of what is left, rounded up to
-    a multiple of ``unit`` (at least ``unit``, at most ``size``): the last chunk of one worker
-    then leaves the others idle for less time. Which samples go together changes no row.
+    ``todo`` is any iterable of ``n`` indices, read lazily (a chunk at a time: any number of
+    samples streams). A chunk of the last ``tail`` rounds takes about ``1 / tail`` of what is
+    left, rounded up to a multiple of ``unit`` (at least ``unit``, at most ``size``): the last
+    chunk of one worker then leaves the others idle for less time. Which samples go together
+    changes no row.
     """
-    i, n = 0, len(todo)
+    it, i = iter(todo), 0
     while i < n:
         step = size
         if n - i < tail * size:
             step = min(size, max(unit, math.ceil(math.ceil((n - i) / tail) / unit) * unit))
-        yield tuple(todo[i:i + step])
-        i += step
+        block = tuple(itertools.islice(it, step))
+        if not block:
+            return
+        yield block
+        i += len(block)
 
 
 def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
@@ -530,10 +537,11 @@ def run_samples(job, indices, *, total: int, name: str, jobs: int | None = None,
     workers = jobs if executor is None and scheduler is None else 4
     size = chunk or _chunk_size(total, workers, max_chunk, min_chunk, unit)
     done = store.done() if store is not None else set()
-    todo = [k for k in indices if k not in done]
+    todo = (k for k in indices if k not in done)   # lazily: never the list of every index
     tail = 1 if chunk else 2 * workers  # the chunks of the last rounds shrink (default chunk)
     tasks = (CampaignChunk(job, block)
-             for block in _blocks(todo, size, tail, max(unit, min_chunk)))
+             for block in _blocks(todo, total - len(done), size, tail,
+                                  max(unit, min_chunk)))
     rows: list[dict] = []
     finished = len(done)
     samples = total

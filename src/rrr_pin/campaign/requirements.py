@@ -133,6 +133,9 @@ class Requirement:
     name: ClassVar[str] = ""
     unit: ClassVar[str] = ""
     sense: ClassVar[str] = "min"
+    #: True: the estimate pools the plants (not the worst of per-plant values), so the tuner
+    #: estimates it on all plants at once rather than block by block.
+    pooled: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "target", check_positive(self.name, self.target,
@@ -670,6 +673,7 @@ class ErrorRatio(Requirement):
 
     name: ClassVar[str] = "error_ratio"
     unit: ClassVar[str] = "-"
+    pooled: ClassVar[bool] = True
 
     def estimate(self, ctx, ev):
         """Return the grid value, worst over the plants."""

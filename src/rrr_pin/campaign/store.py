@@ -82,7 +82,7 @@ except ImportError:  # pragma: no cover - Windows
 
 __all__ = [
     "CampaignStore", "StoreError", "OutputNotEmpty", "SettingsMismatch", "StoreCorrupt",
-    "ChecksumMismatch", "MANIFEST", "PARTS",
+    "ChecksumMismatch", "MANIFEST", "PARTS", "row_bytes", "check_room", "DiskTooSmall",
 ]
 
 #: File names inside the output directory.
@@ -139,6 +139,62 @@ class ChecksumMismatch(StoreCorrupt):
         super().__init__(message)
         self.path = path
         self.line = line
+
+
+class DiskTooSmall(StoreError):
+    """A campaign whose rows and tables cannot fit on the disk of its output folder."""
+
+
+def row_bytes(laws: int, joints: int) -> int:
+    """Bytes a sample takes on disk: its ``parts.jsonl`` row and its lines of the final tables.
+
+    A fit of measured rows (RRR, 2 laws: 2.2 kB in ``parts.jsonl``; UR5, 3 laws: 3.7 kB),
+    each then written again, about as large, into ``campaign.csv`` and ``samples.jsonl``.
+
+    Parameters
+    ----------
+    laws, joints : int
+        Laws of the campaign and joints of the plant.
+    """
+    return 2 * (600 + 150 * joints + 180 * laws * joints)
+
+
+def check_room(out, samples: int, per_sample: int) -> None:
+    """Refuse a campaign whose ``samples`` rows of ``per_sample`` bytes exceed the free disk.
+
+    Parameters
+    ----------
+    out : path-like
+        The output folder (or where it will be made).
+    samples : int
+        Rows the campaign writes (with the nominal plant's).
+    per_sample : int
+        Bytes per row (:func:`row_bytes`).
+
+    Raises
+    ------
+    DiskTooSmall
+        Naming the size needed and the free space.
+    """
+    import shutil
+
+    where = Path(out).absolute()
+    while not where.exists():
+        where = where.parent
+    free = shutil.disk_usage(where).free
+    need = samples * per_sample
+    if need > free:
+        raise DiskTooSmall(f"--samples: {samples - 1} plants (+ the nominal) need about "
+                           f"{_size(need)} on disk ({per_sample / 1e3:.3g} kB per plant: "
+                           f"parts.jsonl and the tables), more than the {_size(free)} free "
+                           f"at {str(where)!r}")
+
+
+def _size(n: float) -> str:
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n / 1e3:.3g} kB"
 
 
 def _digest(settings: dict) -> str:

@@ -32,7 +32,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -49,7 +49,8 @@ from .requirements import (
 
 __all__ = ["tune", "TuneResult", "TuneError", "tuned_law", "load_design", "DESIGN_FORMAT",
            "DEFAULT_LOWER_GAIN_MARGIN", "with_default_requirements", "design_effects",
-           "design_tolerances", "check_plant_set", "plant_failures", "simulated_failures"]
+           "design_tolerances", "check_plant_set", "plant_failures", "simulated_failures",
+           "check_budget", "peak_rss_mb", "MAX_SEARCH_SECONDS"]
 
 #: ``format`` of a ``design.json``.
 DESIGN_FORMAT = "rrr-pin-design/1"
@@ -75,17 +76,36 @@ class TuneError(ValueError):
 class _Eval:
     """One law ``(lam, K)`` on the context: responses computed once, values cached."""
 
-    def __init__(self, ctx, lam, K):
+    def __init__(self, ctx, lam, K, law=None):
         self.ctx, self.lam, self.K = ctx, lam, K
-        self.law = ctx.loops.law(lam, K)
-        #: The loop without effects (margins searched on top of it) and with the design's
-        #: effects (:func:`design_effects`, exact discrete responses), shape (np, nw, n, n).
-        self.L0 = ctx.loops.loop_response(self.law)
-        self.L = self.L0 if ctx.parts_e is None else \
-            ctx.loops.loop_response(self.law, parts=ctx.parts_e)
+        # the law's response is the same on every block of plants (one grid, one nominal)
+        self.law = ctx.loops.law(lam, K) if law is None else law
+        self._L0 = self._L = None
         self._sim, self._eig_e = None, None
         self._S, self._discs, self._lam, self._done = None, None, None, None
         self._sb, self._Sp, self._Sdone = None, None, None
+
+    @property
+    def L0(self) -> np.ndarray:
+        """The loop without effects (margins are searched on top of it), (np, nw, n, n).
+
+        Computed on first use: an evaluation whose requirements need no response builds none.
+        """
+        if self._L0 is None:
+            self._L0 = self.ctx.loops.loop_response(self.law)
+        return self._L0
+
+    @property
+    def L(self) -> np.ndarray:
+        """The loop behind the design's effects, shape (np, nw, n, n), on first use.
+
+        :func:`design_effects`' exact discrete responses; :attr:`L0` without effects.
+        """
+        if self.ctx.parts_e is None:
+            return self.L0
+        if self._L is None:
+            self._L = self.ctx.loops.loop_response(self.law, parts=self.ctx.parts_e)
+        return self._L
 
     def scaled_eigs(self, factor, kind):
         """Eigenvalues of ``f(w) L`` where a margin may cross, and those intervals.
@@ -243,6 +263,22 @@ class _Context:
         if fx.get("actuator"):
             f = f * fx["actuator"] / (1j * w + fx["actuator"])
         return f
+    #: Plants per block of an evaluation (None: all at once); what one evaluation holds is
+    #: proportional to it, not to the number of plants.
+    block: int | None = None
+
+    def blocks(self) -> list[slice]:
+        """Return the plants' blocks, in order, as slices of :attr:`plants`."""
+        n = len(self.plants)
+        b = n if self.block is None else self.block
+        return [slice(i, min(i + b, n)) for i in range(0, max(n, 1), max(b, 1))]
+
+    def subset(self, plants: slice) -> _Context:
+        """Return the context on the plants ``plants`` (the loops' arrays are views, not copies)."""
+        return replace(self, loops=self.loops.subset(plants), plants=self.plants[plants],
+                       id_peak=None if self.id_peak is None else self.id_peak[plants],
+                       parts_e=None if self.parts_e is None else
+                       tuple(x[plants] for x in self.parts_e))
 
     def joint_index(self, name):
         return list(self.nominal.joint_names).index(name)
@@ -278,12 +314,16 @@ class _Context:
     def _energy(self, lam, K):
         w, W, nt, nfft, parts = self.harmonics
         law = self.loops.law(lam, K, w, matrices=False)
-        L = self.loops.loop_response(law, parts=parts)
-        n = L.shape[-1]
-        # e = P_q S w, S = (I + L)^-1 applied by a solve
-        E = (parts[0] @ np.linalg.solve(np.eye(n) + L, W[..., None]))[..., 0]
-        e = np.fft.irfft(E, n=nfft, axis=1)[:, :nt]
-        return float(np.sum(e * e))
+        total = 0.0
+        for b in self.blocks():   # summed block by block: one block's responses at a time
+            pb = tuple(x[b] for x in parts)
+            L = self.loops.loop_response(law, parts=pb)
+            n = L.shape[-1]
+            # e = P_q S w, S = (I + L)^-1 applied by a solve
+            E = (pb[0] @ np.linalg.solve(np.eye(n) + L, W[b][..., None]))[..., 0]
+            e = np.fft.irfft(E, n=nfft, axis=1)[:, :nt]
+            total += float(np.sum(e * e))
+        return total
 
     def error_ratio_estimate(self, ev) -> float:
         """Linear estimate of FL alone's RMS error over the law's, pooled over the plants."""
@@ -348,6 +388,97 @@ def _context(robot, plants, reference, rate, fixed, duration, effects=None) -> _
         ctx.parts_e = loops.parts(ctx.plant_response(loops.omega))
     ctx.prepare_tracking(duration)
     return ctx
+
+
+def _estimates(ctx, blocks, reqs, lam, K, fixed) -> tuple:
+    """Return the tuner's objective and estimates of the law ``(lam, K)``, block by block.
+
+    A point unstable on any plant (with the fixed effects) scores :data:`_UNSTABLE` plus the
+    largest spectral radius, with no estimates. Otherwise each requirement's estimate (the
+    worst over the plants) is the worst of its blocks' (the smallest for a lower bound, the
+    largest for an upper bound), equal to the one on all plants at once; a pooled requirement
+    (``pooled``, e.g. the error ratio) is estimated once on the whole context. One block's
+    responses are alive at a time.
+
+    Returns
+    -------
+    objective : float
+    estimates : list of float, or None (unstable)
+    """
+    loops = ctx.loops
+    law = loops.law(lam, K)
+    rho = 0.0
+    for b, _ in blocks:
+        idx = range(b.start, b.stop)
+        rho = max(rho, float(np.max(loops.spectral_radius(law, plants=idx))))
+        if fixed:
+            rho = max(rho, float(np.max(loops.spectral_radius(
+                law, fixed.get("delay", 0.0), fixed.get("actuator"), plants=idx))))
+    if rho >= 1.0:
+        return _UNSTABLE + rho, None
+    vals = [None] * len(reqs)
+    for _, sub in blocks:
+        ev = _Eval(sub, lam, K, law)
+        for j, r in enumerate(reqs):
+            if r.pooled:
+                continue
+            v = r.estimate(sub, ev)
+            vals[j] = v if vals[j] is None else (min if r.sense == "min" else max)(vals[j], v)
+        del ev
+    whole = _Eval(ctx, lam, K, law)    # its responses are not built unless a requirement asks
+    for j, r in enumerate(reqs):
+        if r.pooled:
+            vals[j] = r.estimate(ctx, whole)
+    norm = [r.normalized(v) for r, v in zip(reqs, vals, strict=True)]
+    return float(max(norm)), vals
+
+
+#: Bytes the tuner's context holds per plant and per grid point, over ``n^2`` (the plant's
+#: responses ``P`` and their five law-independent parts, complex).
+_BYTES_PER_POINT = (2 + 5) * 16
+#: Seconds of one plant's evaluation per grid point, over ``n^2`` (measured: UR5, 6 joints,
+#: 200 points, ~3 ms per plant and evaluation on the 2-core machine); a floor of the cost.
+_SECONDS_PER_POINT = 1e-6
+#: Longest search :func:`tune` starts [s]: a day.
+MAX_SEARCH_SECONDS = 86400.0
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process so far [MB] (``getrusage``; Linux reports kB)."""
+    import resource
+    import sys
+
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
+
+
+def check_budget(n: int, plants: int, starts: int, maxfev: int, points: int = 200) -> None:
+    """Refuse a search that cannot finish: its memory above what is free, or over a day.
+
+    A floor of the cost (the context's responses; every evaluation on every plant), so what
+    is refused could not finish; what passes may still be slow.
+
+    Raises
+    ------
+    FieldError
+        ``plants`` (memory) or ``starts`` (time), naming the estimate.
+    """
+    from .executors import available_memory
+
+    per_plant = _BYTES_PER_POINT * points * n * n
+    need = per_plant * plants
+    free = available_memory()
+    if need > free:
+        raise FieldError("plants", f"{{name}} = {plants - 1} (+ the nominal) needs at least "
+                                   f"{need / 1e9:.3g} GB for the plants' frequency responses "
+                                   f"({per_plant / 1e6:.3g} MB each), more than the "
+                                   f"{free / 1e9:.3g} GB available: give fewer plants")
+    secs = _SECONDS_PER_POINT * points * n * n * plants * starts * maxfev
+    if secs > MAX_SEARCH_SECONDS:
+        raise FieldError("starts", f"{{name}} = {starts} of up to {maxfev} evaluations on "
+                                   f"{plants} plants would take at least {secs / 3600:.3g} h "
+                                   f"(more than {MAX_SEARCH_SECONDS / 3600:g} h): give fewer "
+                                   f"starts or plants")
 
 
 def _diagonal(Ks):
@@ -415,7 +546,8 @@ class TuneResult:
     starts : list of dict
         Per start: its initial point, best objective and evaluations.
     info : dict
-        Robot, plant set, home, fixed effects, reference, seconds.
+        Robot, plant set, home, fixed effects, reference, seconds, and ``peak_rss_mb``: the
+        process's peak resident memory [MB] when the design was verified.
     """
 
     structure: object
@@ -652,7 +784,8 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
          reference=None, rate: float = 1000.0, fixed=None, starts: int = 4,
          maxfev: int | None = None, verify: bool = True, simulate: bool = True,
          duration: float = 4.0, stress_settings=None,
-         search: str = "nelder-mead") -> TuneResult:
+         search: str = "nelder-mead", block: int | None = 32,
+         progress=None) -> TuneResult:
     """Tune ``structure`` on ``robot`` against ``requirements`` over a plant set, and verify.
 
     Parameters
@@ -690,6 +823,15 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         The search per start: scipy's bounded Nelder-Mead on the worst normalized value, or
         :func:`rrr_pin.campaign.minimax.minimax` (trust-region linear programs on the
         requirements' linearizations, the max kept explicit); both get ``maxfev``.
+    block : int or None
+        Plants evaluated together (None: all at once). What one evaluation holds grows with
+        the block, not with the number of plants; the result is the same for every block
+        (each estimate is the worst of its blocks'; the pooled error ratio sums its energies
+        block by block, equal to rounding).
+    progress : callable, optional
+        ``progress(done, total, start, best)`` after each evaluation: evaluations done and
+        the most there can be (``starts * maxfev``; a start that converges early counts as
+        finished), the start (1-based) and the best objective so far.
 
     Returns
     -------
@@ -717,6 +859,8 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
                                       f"nothing to tune")
     rate = check_rate("rate", rate)
     starts = check_count("starts", starts, 1)
+    if block is not None:
+        block = check_count("block", block, 1)
     if search not in ("nelder-mead", "minimax"):
         raise FieldError("search", f"{{name}} must be 'nelder-mead' or 'minimax', got "
                                    f"{search!r}")
@@ -724,8 +868,10 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     reqs = with_default_requirements(_check_requirements(requirements, robot, fixed))
     effects = design_effects(reqs, fixed)
     structure.check_joints(robot.name, robot.joint_names)
+    maxfev = maxfev or 150 * (len(names) + 1)
     if isinstance(plants, int | np.integer):
         count = check_count("plants", plants)
+        check_budget(robot.nq, count + 1, starts, maxfev)
         tol = tolerances or design_tolerances()
         check_plant_set(tol)
         plant_list = [robot] + [robot.perturbed(np.random.default_rng([int(seed), k]), tol)[0]
@@ -740,37 +886,37 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
     loops, home = ctx.loops, ctx.loops.home
     for r in reqs:
         r.prepare(ctx)
+    ctx.block = block
+    blocks = [(b, ctx.subset(b)) for b in ctx.blocks()]
 
     bounds = np.log(np.array(structure.bounds(), dtype=float))
     cache = {}
 
     def evaluate(x):
+        """``(objective, estimates or None)`` at ``x``; only these numbers are cached."""
         key = tuple(np.round(x, 12))
         if key in cache:
             return cache[key]
         values = np.exp(np.clip(x, bounds[:, 0], bounds[:, 1]))
         lam, K = structure.split(values)
-        ev = _Eval(ctx, lam, K)
-        rho = max(float(np.max(loops.spectral_radius(ev.law))),
-                  float(np.max(loops.spectral_radius(ev.law, effects.get("delay", 0.0),
-                                                     effects.get("actuator"))))
-                  if effects else 0.0)
-        if rho >= 1.0:
-            out = (_UNSTABLE + rho, ev, None)
-        else:
-            vals = [r.estimate(ctx, ev) for r in reqs]
-            norm = [r.normalized(v) for r, v in zip(reqs, vals, strict=True)]
-            out = (float(max(norm)), ev, vals)
-        cache[key] = (out[0], None, out[2])   # the responses are not kept (memory)
+        out = _estimates(ctx, blocks, reqs, lam, K, effects)
+        cache[key] = out   # the numbers only: no response is kept (memory)
+        report(out[0])
         return out
 
     rng = np.random.default_rng([int(seed), 7919])
     x0s = [np.clip(np.log(structure.initial()), bounds[:, 0], bounds[:, 1])]
     x0s += [rng.uniform(bounds[:, 0], bounds[:, 1]) for _ in range(starts - 1)]
-    maxfev = maxfev or 150 * (len(names) + 1)
     best, runs = None, []
+    done = [0, 1, math.inf]         # evaluations, start, best objective
+
+    def report(f):
+        done[0] += 1
+        done[2] = min(done[2], f)
+        if progress is not None:
+            progress(min(done[0], starts * maxfev), starts * maxfev, done[1], done[2])
     def normalized(x):   # the vector whose max is the objective (minimax search)
-        f, _, vals = evaluate(x)
+        f, vals = evaluate(x)
         return np.full(len(reqs), f) if vals is None else \
             np.array([r.normalized(v) for r, v in zip(reqs, vals, strict=True)])
 
@@ -789,11 +935,12 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
                      "objective": float(fun), "evaluations": int(nfev)})
         if best is None or fun < best[0]:
             best = (float(fun), xs)
+        done[0], done[1] = done[1] * maxfev, done[1] + 1   # an early stop ends its share
     objective, x = best
     values = np.exp(np.clip(x, bounds[:, 0], bounds[:, 1]))
     lam, K = structure.split(values)
-    _, _, estimates = evaluate(x)
-    ev = _Eval(ctx, lam, K)
+    _, estimates = evaluate(x)
+    ev = _Eval(ctx, lam, K)   # the best point's, on every plant, for the verification
     info = {"robot": robot.name, "joints": list(robot.joint_names), "plants": plant_info,
             "home_rad": home.tolist(), "fixed": fixed,
             "effects": {**effects, "note": "every requirement is evaluated, and every plant "
@@ -842,6 +989,7 @@ def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances
         "failures": [f["text"] for f in failures],
         "best_point": dict(zip(names, values.tolist(), strict=True))}
     info["seconds"] = time.perf_counter() - t0
+    info["peak_rss_mb"] = peak_rss_mb()
     result = TuneResult(structure, values, lam, K, rate, table, objective, status, tradeoff,
                         runs, info)
     floor = [r for r in reqs if isinstance(r, PeakTorque)

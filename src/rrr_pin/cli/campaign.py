@@ -57,6 +57,9 @@ def add(sub) -> None:
                       help="start afresh in a non-empty --out (its previous campaign is "
                            "deleted)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-figures", action="store_true",
+                   help="no montecarlo.png or certificates.png (matplotlib not imported); "
+                        "the tables are the same")
     add_design_argument(p)
     p.set_defaults(func=run_montecarlo)
 
@@ -67,13 +70,14 @@ def run_montecarlo(args) -> int:
 
     from tqdm import tqdm
 
-    from ..campaign.executors import CampaignInterrupted, WorkersLost, exit_status
+    from ..campaign.executors import CampaignInterrupted, WorkersLost, check_jobs, exit_status
     from ..campaign.montecarlo import (
         CampaignSettings,
         check_campaign,
         open_store,
         run_campaign,
     )
+    from ..campaign.store import check_room, row_bytes
     from ..outputs import check_writable
     from ..report.campaign import summary_lines, write_campaign, write_campaign_report
     from ..sim.batched import MAX_THREADS
@@ -87,6 +91,10 @@ def run_montecarlo(args) -> int:
                          f"the batched engine's ({CODEGEN}); the {args.engine} engine runs one "
                          f"plant at a time per process: give --jobs instead, or --engine "
                          f"{CODEGEN} or {AUTO}")
+    try:
+        check_jobs(args.jobs)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"--{exc}") from None
     check_writable(args.out)
     args.write_hint = (f"; the samples finished so far are kept in {args.out}/parts.jsonl: "
                        "free space, then rerun with --resume")
@@ -110,6 +118,7 @@ def run_montecarlo(args) -> int:
     # every refusal before the store is opened: a refused campaign leaves no files behind
     laws, reference = check_campaign(plant, laws, settings, reference=reference)
     warn_effect_margins(args, laws, run.rate, run.effects)
+    check_room(args.out, args.samples + 1, row_bytes(len(laws), plant.nq))
     store = open_store(args.out, plant, laws, settings, reference, resume=args.resume,
                        overwrite=args.overwrite, certificate=certificate)
     total = args.samples + 1  # the nominal plant too
@@ -136,7 +145,8 @@ def run_montecarlo(args) -> int:
         bar.close()
         elapsed = time.perf_counter() - start
         s = write_campaign(campaign, args.out, store=store, certificate_b=None if
-                           certificate is None else certificate.margin(plant.nq))
+                           certificate is None else certificate.margin(plant.nq),
+                           figures=not args.no_figures)
         if design_record(args) is not None:  # which design ran, with its requirement table
             _record_summary(args, "design", design_record(args))
         if match is not None:  # the laws' model and the plant, joint by joint

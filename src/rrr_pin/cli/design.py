@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 from .common import claim_out, control_ss, option
 from .options import add_armature_argument, add_joint_tolerance_arguments, add_overwrite
 
@@ -108,6 +110,14 @@ def add_tuning_arguments(p) -> None:
     g.add_argument("--no-simulate", action="store_true",
                    help="verify without the simulations (peak torque, error ratio, stress "
                         "breaking points)")
+    g.add_argument("--block", type=int, default=32, metavar="N",
+                   help="plants evaluated together (32): the memory of one evaluation "
+                        "grows with N, not with --samples; the design is the same for any N")
+    g.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (start, evaluations, best normalized value, time "
+                        "left)")
+    g.add_argument("--quiet", action="store_true",
+                   help="no progress bar and no table: print only the file written")
 
 
 #: Requirements of ``rrr-pin design --robot ARM`` without ``--require``.
@@ -164,21 +174,58 @@ def run_tuned(args) -> int:
         tol = design_tolerances()
     else:
         tol = tolerances_from_args(args, robot)
+    from tqdm import tqdm
+
+    from ..campaign.executors import exit_status
+
+    # the bar opens at the first evaluation: a refused search prints only its refusal
+    bar = tqdm(total=0, unit="eval", desc=f"{robot.name}: design", delay=1e9,
+               disable=args.no_progress or args.quiet)
+
+    def progress(done, total, start, best):
+        if bar.total != total:
+            bar.total, bar.delay = total, 0
+        bar.set_postfix_str(f"start {start}/{args.starts}, best normalized {best:.4g}",
+                            refresh=False)
+        bar.update(done - bar.n)
+
     try:
         res = tune(robot, structure, reqs, plants=args.samples, seed=args.seed,
                    rate=args.rate, fixed=fixed, starts=args.starts, tolerances=tol,
-                   simulate=not args.no_simulate, search=args.search)
+                   simulate=not args.no_simulate, search=args.search, block=args.block,
+                   progress=progress)
     except TuneError as exc:
+        bar.close()
         if exc.result is not None:
-            (out / "design_refused.json").write_text(dumps(exc.result.to_dict()))
+            _write(out / "design_refused.json", dumps(exc.result.to_dict()))
         raise ValueError(str(exc)) from None
+    except FieldError as exc:  # tune's plants, starts, block are --samples, --starts, --block
+        bar.close()
+        raise exc.relabelled(lambda f: {"plants": "--samples", "starts": "--starts",
+                                        "block": "--block"}.get(f, f)) from None
+    except KeyboardInterrupt as exc:
+        bar.close()
+        print(f"rrr-pin design: interrupted ({exc or 'Ctrl-C'}) after {bar.n} evaluations; "
+              f"nothing written (design.json is written only once the search and its "
+              f"verification finish)", file=sys.stderr)
+        return exit_status(exc)
+    bar.close()
     path = out / "design.json"
-    path.write_text(dumps(res.to_dict()))
+    _write(path, dumps(res.to_dict()))
     if args.json:
         print(json.dumps({"design": str(path), "status": res.status}))
         return 0
-    print("\n".join(res.lines() + [f"wrote {path}"]))
+    print("\n".join(([] if args.quiet else res.lines()) + [f"wrote {path}"]))
     return 0
+
+
+def _write(path, text: str) -> None:
+    """Write ``text`` to ``path`` whole or not at all (a temporary file renamed over it)."""
+    import os
+
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(text)
+    os.replace(tmp, path)
 
 
 def run_design(args) -> int:

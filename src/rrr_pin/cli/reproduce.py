@@ -53,6 +53,9 @@ def add(sub) -> None:
                         "DIR/trajectories/<nominal|sampleNNN>_<controller>.FORMAT; FORMAT npz "
                         "(default), csv, parquet or mat (MATLAB); read with Trajectory.load")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-figures", action="store_true",
+                   help="no PNG figures (matplotlib not imported); results.json, results.md "
+                        "and report.html are the same but for the figures")
     p.set_defaults(func=run_reproduce)
 
 
@@ -62,8 +65,6 @@ def run_reproduce(args) -> int:
 
     from ..campaign.study import StudyConfig, check_study, run_study
     from ..report.design import study_design
-    from ..report.margins import design_loop_title, save_margins_figure
-    from ..report.plotting import save_design_figures, save_study_figures
     from ..report.results import (
         summary_lines,
         write_results,
@@ -95,9 +96,14 @@ def run_reproduce(args) -> int:
     warn_effect_margins(args, laws, settings.rate, settings.effects)
     if out is None:  # --overwrite: the previous run is removed now that the study holds
         out = claim_out(args, "reproduce")
-    figures = save_design_figures(d, out)
-    figures.append(save_margins_figure({"G K": control_ss(d.G * d.K)}, out,
-                                       title=design_loop_title(d)))
+    figures = []
+    if not args.no_figures:
+        from ..report.margins import design_loop_title, save_margins_figure
+        from ..report.plotting import save_design_figures
+
+        figures = save_design_figures(d, out)
+        figures.append(save_margins_figure({"G K": control_ss(d.G * d.K)}, out,
+                                           title=design_loop_title(d)))
     bar = tqdm(total=args.samples + 1, unit="plant", desc=f"{plant.name}: simulating",
                disable=args.no_progress)
     certificate = None if args.no_certify else CertificateSpec.from_design(
@@ -120,7 +126,10 @@ def run_reproduce(args) -> int:
     data = write_results(result, out, design=design_info)
     if args.realistic:
         data = _realistic(args, plant, d, config, reference, certificate, data, out)
-    figures += save_study_figures(result, out, plant)
+    if not args.no_figures:
+        from ..report.plotting import save_study_figures
+
+        figures += save_study_figures(result, out, plant)
     report = write_study_report(result, out, figures, design_info, plant, data=data)
     saved = write_trajectories(result, out, args.save_trajectories)  # None: clears old ones
     print(f"{plant.name}: {plant.nq} joints, gamma = {d.ncf.gamma:.4f}, controllers "

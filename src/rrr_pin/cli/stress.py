@@ -52,6 +52,9 @@ def add(sub) -> None:
                    help="folder for the figure and the JSON (results/stress)")
     add_overwrite(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-figures", action="store_true",
+                   help="no stress_<effect>.png (matplotlib not imported); the JSON is the "
+                        "same but for its figure (null)")
     add_design_argument(p)
     p.set_defaults(func=run_stress)
 
@@ -140,7 +143,7 @@ def run_stress(args) -> int:
     result["stem"] = stem
     if design_record(args) is not None:
         result["design"] = design_record(args)
-    fig = write_stress(result, args.out)
+    fig = write_stress(result, args.out, figure=not args.no_figures)
     if args.json:
         print(dumps(result))
         return 0

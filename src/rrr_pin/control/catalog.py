@@ -9,11 +9,13 @@ names and descriptions without importing Pinocchio, NumPy or python-control.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import NamedTuple
 
-__all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "FRICTION_LAWS", "make_law", "StressEffect",
-           "EFFECTS", "EFFECT_FIELDS", "effect_name", "DEFAULT_BUDGET", "REFERENCES"]
+__all__ = ["BuiltinLaw", "LAWS", "BUILTIN_LAWS", "FRICTION_LAWS", "make_law", "paper_K",
+           "StressEffect", "EFFECTS", "EFFECT_FIELDS", "effect_name", "DEFAULT_BUDGET",
+           "REFERENCES"]
 
 
 #: The built-in laws that can compensate joint friction (``friction=``).
@@ -25,6 +27,23 @@ def _no_friction(name: str, friction) -> None:
     if friction is not None:
         raise ValueError(f"controller {name!r} does not compensate friction; friction "
                          f"compensation applies to {', '.join(FRICTION_LAWS)}")
+
+
+@functools.lru_cache(maxsize=8)
+def paper_K(lam: float, n: int):
+    """Return the paper's reduced controller ``K`` for ``lam`` [rad/s] and ``n`` joints, cached.
+
+    :func:`rrr_pin.design` is synthesized once per process and inputs (``hinf`` and
+    ``hinf_aw`` share it).
+
+    Returns
+    -------
+    control.StateSpace
+        ``design(lam=lam, n=n).K_reduced``; shared: do not modify it.
+    """
+    from ..robust.loopshaping import design
+
+    return design(lam=lam, n=n).K_reduced
 
 
 def _fl(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
@@ -41,9 +60,7 @@ def _hinf(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
     from .laws import hinf_fl_controller
 
     if K is None:
-        from ..robust.loopshaping import design
-
-        K = design(lam=lam_hinf, n=nominal.nq).K_reduced
+        K = paper_K(lam_hinf, nominal.nq)
     return hinf_fl_controller(nominal, K, lam_hinf, friction=friction)
 
 
@@ -57,9 +74,7 @@ def _hinf_aw(nominal, *, K=None, lam_fl: float = 100.0, lam_hinf: float = 45.0,
     from .laws import hinf_aw_controller
 
     if K is None:
-        from ..robust.loopshaping import design
-
-        K = design(lam=lam_hinf, n=nominal.nq).K_reduced
+        K = paper_K(lam_hinf, nominal.nq)
     return hinf_aw_controller(nominal, K, lam_hinf,
                               torque_limit="urdf" if torque_limit is None else torque_limit,
                               friction=friction)

@@ -173,6 +173,20 @@ class LoopSet:
         self.P = self.plant_response(self.omega)
         self._parts = self.parts(self.P)
 
+    def subset(self, plants: slice) -> LoopSet:
+        """Return the set restricted to the plants ``plants``, a slice (responses are views).
+
+        The law's nominal, grid and rate are shared; the plants' discretizations are cached
+        per subset (:meth:`spectral_radius` of a subset indexes its own plants).
+        """
+        sub = object.__new__(LoopSet)
+        sub.__dict__.update(self.__dict__)
+        sub.plants, sub.A, sub.B = self.plants[plants], self.A[plants], self.B[plants]
+        sub.P = self.P[plants]
+        sub._parts = tuple(x[plants] for x in self._parts)
+        sub._zohs = {}
+        return sub
+
     def parts(self, P) -> tuple:
         """Law-independent parts of ``L = Mhat (diag(a) P_q + diag(b) P_qd) + Z`` for ``P``.
 

@@ -467,7 +467,10 @@ class Robot(Plant):
             triangle; its Python binding mirrors it into the lower one and returns a copy
             (``make_symmetric`` in ``bindings/python/algorithm/expose-crba.cpp``).
         """
-        if check:
+        # check_state's tests inlined for an already valid q (a method call is ~10 % of a
+        # 3-joint CRBA); anything else goes through check_state, which names the fault
+        if check and not (type(q) is np.ndarray and q.dtype is _F64 and q.shape == self._shape
+                          and math.isfinite(sum(q.tolist()))):
             q = self.check_state("q", q)
         return pin.crba(self.model, self.data, q)
 

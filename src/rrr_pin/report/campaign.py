@@ -20,7 +20,6 @@ from ..campaign.store import CampaignStore
 from ..outputs import writing
 from .html import write_report_html
 from .jsondata import dumps
-from .plotting import plot_campaign, plot_certificates, save_figure
 
 __all__ = ["write_campaign", "write_campaign_report", "summary_lines", "SETTINGS_UNITS"]
 
@@ -30,7 +29,7 @@ _TABLE_METRICS = ("error_ratio_{}", "torque_ratio_{}", "{}_rms_error", "{}_max_e
 
 
 def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | None = None,
-                   certificate_b: float | None = None) -> dict:
+                   certificate_b: float | None = None, figures: bool = True) -> dict:
     """Write ``campaign.csv``, ``samples.jsonl`` (parameters), ``summary.json`` and figures.
 
     ``campaign.csv`` has one row per sample: ``index`` ``k`` and ``seed`` ``s`` (integers; the
@@ -40,7 +39,8 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
     With a ``store``, the files are written through it (atomically, recorded as this run's).
     ``montecarlo.png`` is drawn when a sample ran every law; ``certificates.png``
     (:func:`rrr_pin.report.plotting.plot_certificates`) when the rows are certified and
-    ``certificate_b``, the margin ``b(Gs, Ks)`` they were certified against, is given.
+    ``certificate_b``, the margin ``b(Gs, Ks)`` they were certified against, is given. With
+    ``figures=False`` neither is drawn (matplotlib is not imported); the tables are the same.
 
     Returns
     -------
@@ -83,6 +83,11 @@ def write_campaign(campaign: Campaign, out: str | Path, store: CampaignStore | N
     figure = out / "montecarlo.png"
     if figure.exists():
         figure.unlink()
+    if not figures:
+        summary["written"] = [str(p) for p in written]
+        return summary
+    from .plotting import plot_campaign, plot_certificates, save_figure
+
     if any(r["status"] == "ok" for r in campaign.rows):
         save_figure(plot_campaign(campaign), figure)
         written.append(store.wrote("montecarlo.png") if store is not None else figure)

@@ -13,32 +13,35 @@ from pathlib import Path
 from ..control.catalog import EFFECTS
 from ..outputs import writing
 from .jsondata import dumps
-from .plotting import plot_stress, save_figure
 
 __all__ = ["write_stress", "stress_lines"]
 
 
-def write_stress(result: dict, out: str | Path) -> Path:
+def write_stress(result: dict, out: str | Path, figure: bool = True) -> Path:
     """Write ``stress_<stem>.png`` and ``stress_<stem>.json`` into ``out``.
 
     ``stem`` is ``result["stem"]`` if given (the CLI's ``delay_with_actuator300`` for
-    ``--with``), else the effect. Sets ``result["figure"]`` to the figure's path before writing
-    the JSON.
+    ``--with``), else the effect. Sets ``result["figure"]`` to the figure's path (None with
+    ``figure=False``: no PNG, matplotlib not imported) before writing the JSON.
 
     Returns
     -------
     Path
-        The figure.
+        The figure, or the JSON without one.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     stem = result.get("stem") or result["effect"]
-    fig = save_figure(plot_stress(result), out / f"stress_{stem}.png")
-    result["figure"] = str(fig)
+    fig = None
+    if figure:
+        from .plotting import plot_stress, save_figure
+
+        fig = save_figure(plot_stress(result), out / f"stress_{stem}.png")
+    result["figure"] = None if fig is None else str(fig)
     path = out / f"stress_{stem}.json"
     with writing(path):  # a full disk names the file
         path.write_text(dumps(result, indent=1))
-    return fig
+    return path if fig is None else fig
 
 
 def _fmt(v) -> str:

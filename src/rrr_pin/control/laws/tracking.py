@@ -228,11 +228,11 @@ class TrackingController(ModelLaw, ControlLaw):
         Ad, Bd, Cd, Dd : ndarrays
             Shapes (nx, nx), (nx, n), (n, nx), (n, n).
         """
+        rate = check_rate("rate", rate)
+        if self.nx == 0:   # a static law: nothing to discretize (python-control not imported)
+            return self._mats
         import control
 
-        rate = check_rate("rate", rate)
-        if self.nx == 0:
-            return self._mats
         Kd = control.sample_system(self.K, 1.0 / rate, method=method)
         return tuple(np.asarray(x, dtype=float) for x in (Kd.A, Kd.B, Kd.C, Kd.D))
 
