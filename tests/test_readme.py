@@ -123,6 +123,10 @@ def shell_commands(text: str) -> list[tuple[list[str], int, bool]]:
             continue
         code = code.replace("\\\n", " ")  # a backslash continues a line (no line counted)
         for n, line in enumerate(code.splitlines()):
+            if lang == "console":  # a session: "$ " starts a command, other lines are output
+                if not line.startswith("$ "):
+                    continue
+                line = line[2:]
             tokens = shlex.split(line, comments=True)
             if not tokens:
                 continue
