@@ -107,7 +107,7 @@ class FLForm(CompiledForm):
     C: np.ndarray
     D: np.ndarray
     kind: ClassVar[str] = "fl"
-    cpp: ClassVar[str | None] = 'FLLaw'
+    cpp: ClassVar[str | None] = "FLLaw"
 
     def __post_init__(self) -> None:
         _check_controller(self)
@@ -195,7 +195,7 @@ class FLAWForm(CompiledForm):
     L: np.ndarray
     limit: np.ndarray
     kind: ClassVar[str] = "fl_aw"
-    cpp: ClassVar[str | None] = 'FLAWLaw'
+    cpp: ClassVar[str | None] = "FLAWLaw"
 
     def __post_init__(self) -> None:
         _check_controller(self, "L")
@@ -225,7 +225,7 @@ class PDForm(CompiledForm):
     Kp: np.ndarray
     Kd: np.ndarray
     kind: ClassVar[str] = "pd"
-    cpp: ClassVar[str | None] = 'PDLaw'
+    cpp: ClassVar[str | None] = "PDLaw"
 
     def __post_init__(self) -> None:
         n = self.nominal.nq
@@ -274,7 +274,7 @@ class TwoDOFForm(CompiledForm):
     C: np.ndarray
     D: np.ndarray
     kind: ClassVar[str] = "twodof"
-    cpp: ClassVar[str | None] = 'TwoDOFLaw'
+    cpp: ClassVar[str | None] = "TwoDOFLaw"
 
     def __post_init__(self) -> None:
         _check_controller(self, inputs=2)
