@@ -682,7 +682,7 @@ namespace rrr_pin
         fx->check(f.nq, in.n_steps);
       }
       const Models md(f, plant, nominal);
-      if (fx && (fx->lags() || fx->rubs() || fx->flexes()))
+      if (fx && fx->drives())
         return sampled_loop<Out, BatchDriven>(md, law, in, lower, upper, *fx);
       if (in.sampled)
         return sampled_loop<Out, BatchPlant>(md, law, in, lower, upper, fx ? *fx : none);

@@ -65,6 +65,9 @@ namespace rrr_pin
     bool rubs() const { return Fv.size() > 0; }
     bool flexes() const { return Kf.size() > 0; }
     bool lags() const { return wa > 0.0; }
+    /// Whether the drive train is not ideal (the command reaches the joints through
+    /// joint_torque_at): a new drive-train effect is added here, not in the loops.
+    bool drives() const { return lags() || rubs() || flexes(); }
 
     void check(Eigen::Index n, std::int64_t n_steps) const
     {
