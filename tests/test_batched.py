@@ -17,6 +17,7 @@ from numpy.testing import assert_allclose
 
 from rrr_pin.campaign import montecarlo as mc
 from rrr_pin.campaign.runner import RunSettings, make_laws
+from rrr_pin.control import catalog
 from rrr_pin.control.effects import PlantEffects
 from rrr_pin.control.laws import fl_controller, hinf_fl_controller, pd_controller
 from rrr_pin.control.references import SineReference
@@ -292,8 +293,8 @@ def test_batched_effects_equal_compiled(rrr, ref, plants, effects, kind):
 
 
 def test_an_effect_without_a_batched_step_is_refused_by_name(rrr, ref, plants):
-    # Every effect of today's Resolved has its batched step; a field added to it and not to
-    # BATCH_EFFECTS is named in the refusal (here a made-up one), never run without it.
+    # Every effect of today's Resolved has its C++ step; a field added to it and not to
+    # _ext/effects.hpp is named in the refusal (here a made-up one), never run without it.
     from dataclasses import dataclass, fields
 
     from rrr_pin.control.effects import Resolved
@@ -308,6 +309,72 @@ def test_an_effect_without_a_batched_step_is_refused_by_name(rrr, ref, plants):
     more = WithBacklash(**{f.name: getattr(fx, f.name) for f in fields(fx)}, backlash=0.01)
     assert batched._unbatched_effects(fx) == []
     assert batched._unbatched_effects(more) == ["backlash"]
+
+
+#: The effect cases of the registry pin: the ideal plant and every effect a stress search can
+#: vary (rrr_pin.control.catalog.EFFECTS), each at a mild size taken from its direction alone
+#: (1e-3 in its unit where larger is harsher, 1e3 where smaller is), so an effect added there is
+#: pinned here without a test edit.
+EFFECT_CASES = ["ideal", *catalog.EFFECTS]
+
+
+def _case_effects(effect):
+    if effect == "ideal":
+        return None
+    stress = catalog.EFFECTS[effect]
+    return PlantEffects(**stress.fields(1e-3 if stress.direction == "up" else 1e3, 5))
+
+
+def assert_batched_pinned(plants, law, ref, effect):
+    """Batched runs of ``law`` on ``plants`` equal the compiled engine's, run by run.
+
+    1e-12 rad / 1e-11 rad/s (issue 23's pin: the generated dynamics differ from Pinocchio's by
+    round-off); a run that diverges diverges alike on both (same time, same joint).
+    """
+    q0 = ref.sample(np.array([0.0]))[0][0] + np.array([0.05, -0.04, 0.03])
+    go = dict(rate=RATE, dt=0.0005, q0=q0, effects=_case_effects(effect))
+    batch = simulate_batch(plants, law, ref, 0.1, **go)
+    for a, plant in zip(batch, plants, strict=True):
+        try:
+            c = simulate(plant, law, ref, 0.1, engine="compiled", **go)
+        except SimulationDiverged as exc:
+            assert isinstance(a, SimulationDiverged), a
+            assert (a.time, a.joint) == (exc.time, exc.joint)
+            continue
+        assert a.info["engine"] == "codegen"
+        assert_allclose(a.q, c.q, rtol=0.0, atol=1e-12)
+        assert_allclose(a.qd, c.qd, rtol=0.0, atol=1e-11)
+    return batch
+
+
+@pytest.fixture(scope="module")
+def registry_laws(rrr):
+    """Every built-in law of the registry (rrr_pin.control.catalog.LAWS) on the RRR."""
+    return {name: make_laws(name, rrr)[0] for name in catalog.LAWS}
+
+
+@pytest.mark.parametrize("effect", EFFECT_CASES)
+@pytest.mark.parametrize("name", list(catalog.LAWS))
+def test_every_registered_law_and_effect_is_batched_as_compiled(rrr, ref, plants, registry_laws,
+                                                                name, effect):
+    # The lists read, not typed: every law of the catalog, every effect of the stress registry
+    # and the ideal plant; the batched engine pinned to the compiled engine (the one list of C++
+    # laws, RRR_PIN_LAWS, and effects.hpp are what both run).
+    assert_batched_pinned(plants[::2], registry_laws[name], ref, effect)
+
+
+def test_a_throwaway_registered_law_runs_the_generic_checks(rrr, ref, plants, monkeypatch):
+    # A law registered the way a user would (a BuiltinLaw in catalog.LAWS; its compiled form a
+    # built-in one) is built by name and batched as compiled, by the same checks as the
+    # built-ins: nothing in the engines lists the laws.
+    monkeypatch.setitem(catalog.LAWS, "pd_slow", catalog.BuiltinLaw(
+        "PD + gravity compensation at 8 rad/s (throwaway)",
+        lambda nominal, **_: pd_controller(nominal, 8.0, name="pd_slow")))
+    law = catalog.make_law("pd_slow", rrr)
+    assert law.name == "pd_slow"
+    for effect in ("ideal", "delay"):
+        batch = assert_batched_pinned(plants[::2], law, ref, effect)
+        assert np.ptp(batch[0].q, axis=0).max() > 0.01  # the arm moves
 
 
 def test_a_diverging_plant_with_effects_leaves_its_batch_unchanged(rrr, ref, plants):

@@ -25,13 +25,12 @@ from rrr_pin.control.effects import PlantEffects, Resolved
 from rrr_pin.control.laws import (
     CompiledForm,
     ControlLaw,
-    FLAWForm,
     FLForm,
     PDForm,
     PDGravity,
     SampledLaw,
     TrackingController,
-    TwoDOFForm,
+    compiled_forms,
     fl_controller,
     hinf_aw_controller,
     hinf_fl_controller,
@@ -46,8 +45,9 @@ from rrr_pin.control.references import (
     task_space_reference,
 )
 from rrr_pin.model.dynamics import load_robot, robot_from_xml
+from rrr_pin.model.mechanisms import MECHANISMS
 from rrr_pin.model.uncertainty import Tolerances, sample_plants
-from rrr_pin.sim.compiled import ENGINE_LAWS, acceleration_ms, compile_robot, floor_ms
+from rrr_pin.sim.compiled import acceleration_ms, compile_robot, floor_ms
 from rrr_pin.sim.extension import EXTENSION, available
 from rrr_pin.sim.simulation import simulate, simulate_batch
 from rrr_pin.sim.trajectory import SimulationDiverged
@@ -143,8 +143,12 @@ def test_engines_agree_on_every_builtin_law_and_reference(rrr_plant, rrr_laws, r
 
 # --- every built-in compiled law on every kind of plant, with every plant effect -------------
 
-#: The plants of the pinning: serial arms and closed chains, by name (rrr_pin.load_robot).
+#: The plants of the pinning matrix below: two serial arms and two closed chains, by name
+#: (rrr_pin.load_robot); a representative cut of the default suite's 3-minute budget.
 KINDS = ("rrr", "ur5", "fivebar", "delta")
+#: Every plant: the serial arms and every registered mechanism (the 3-RRR included), for the
+#: per-plant checks, so that a mechanism added to the registry is checked without a test edit.
+PLANTS = ("rrr", "ur5", *MECHANISMS)
 #: Each effect alone, and all together (rrr_pin.control.effects.PlantEffects keywords). The
 #: saturation limit is set per run (below the peak torque the law asks, so it clips); the
 #: flexible joints alone need more transmission damping than with the actuator filter.
@@ -184,7 +188,7 @@ def plant_case(kind: str, variant: str):
                  else nominal.perturbed(np.random.default_rng(0), Tolerances())[0])
         ref = SineReference(home=nominal.neutral(), amp=0.1, freq=2.0, phase=0.3)
         q0 = ref(0.0)[0] + 0.02
-        K = K_CHAIN if kind in ("fivebar", "delta") else K18
+        K = K_CHAIN if nominal.loop_closures else K18
         probe = simulate(plant, hinf_fl_controller(nominal, K), ref, PIN_DURATION, rate=RATE,
                          q0=q0, engine="compiled")
         limit = 0.8 * np.abs(probe.tau).max(axis=0)
@@ -417,7 +421,8 @@ def _renamed_fl(nominal):
 def test_a_compiled_form_of_unknown_type_is_refused(rrr, rrr_refs, rate, form, name):
     law = UnknownFormPD(rrr, [100.0] * 3, [20.0] * 3, form)
     with pytest.raises(ValueError, match=f"compiled form {name} of law 'hand_pd' is not "
-                                         f"implemented in C\\+\\+ .known: FLForm, PDForm"):
+                                         f"implemented in C\\+\\+ .known: FLForm, FLAWForm, "
+                                         f"PDForm"):
         simulate(rrr, law, rrr_refs["quintic"], 0.01, rate=rate, engine="compiled")
 
 
@@ -462,13 +467,17 @@ def test_a_users_law_with_a_compiled_form_runs_batched(rrr, rrr_plant, rrr_laws,
 # --- the extension itself (ported from the former tests/test_compiled.py) ----------------------
 
 
-@pytest.mark.parametrize("form, cxx", [(FLForm, "FLLaw"), (PDForm, "PDLaw"), (FLAWForm, "FLAWLaw"),
-                                       (TwoDOFForm, "TwoDOFLaw"), (Resolved, "Effects")],
-                         ids=["FLForm", "PDForm", "FLAWForm", "TwoDOFForm", "Effects"])
+def _structs():
+    """(Python type, C++ struct) pairs: every compiled form with a C++ law, and the effects."""
+    return [(cls, vars(cls)["cpp"]) for cls in compiled_forms()] + [(Resolved, "Effects")]
+
+
+@pytest.mark.parametrize("form, cxx", _structs(), ids=[cls.__name__ for cls, _ in _structs()])
 def test_python_and_cxx_structs_have_the_same_fields(form, cxx):
     # sim.compiled copies every field by name (nominal and info stay in Python), so a field on
-    # one side only would fail loudly there; this names it here first.
-    assert ENGINE_LAWS.get(form, "Effects") == cxx
+    # one side only would fail loudly there; this names it here first. Every form that names a
+    # C++ law is one of the extension's (the one list RRR_PIN_LAWS).
+    assert cxx in EXTENSION.LAWS or form is Resolved
     obj = getattr(EXTENSION, cxx)()
     missing = [f.name for f in fields(form) if f.name not in ("nominal", "info")
                and not hasattr(obj, f.name)]
@@ -482,13 +491,13 @@ def _inputs(run):
 
 
 def _call(robot, form, inputs, effects=None):
-    from rrr_pin.sim.compiled import _law
+    from rrr_pin.sim.extension import law_struct
 
     ins = EXTENSION.RolloutInputs()
     for key, value in inputs.items():
         setattr(ins, key, value)
     m = compile_robot(robot)._model
-    return EXTENSION.rollout(m, m, _law(form), ins, effects)
+    return EXTENSION.rollout(m, m, law_struct(form), ins, effects)
 
 
 @pytest.fixture(scope="module")
@@ -546,7 +555,7 @@ def test_extension_built_against_installed_pinocchio():
     assert EXTENSION.pinocchio_version() == pin.__version__
 
 
-@pytest.mark.parametrize("name", KINDS)
+@pytest.mark.parametrize("name", PLANTS)
 def test_models_pass_exactly(name):
     plant = rrr_pin.load_robot(name)
     tree = compile_robot(plant)._model
@@ -614,7 +623,7 @@ def test_floor_ms_refuses_a_closed_chain():
         floor_ms(chain, chain, n_steps=10, repeat=1)
 
 
-@pytest.mark.parametrize("name", KINDS)
+@pytest.mark.parametrize("name", PLANTS)
 def test_the_plant_accelerations_are_the_python_plants(name):
     # The compiled plant's acceleration (ABA, or a closed chain's exact KKT) against the Python
     # plant's (pin.aba; Pinocchio's proximal constraintDynamics, which converges to the exact

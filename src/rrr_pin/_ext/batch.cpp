@@ -1,4 +1,5 @@
-// Batched rollouts on generated dynamics (see batch.hpp).
+// Batched rollouts on generated dynamics (see batch.hpp): the lane loops. The generated
+// structures they run on, compiled in or loaded at run time, are dyn_table.cpp's.
 #include "batch.hpp"
 
 #include <Eigen/LU>
@@ -6,10 +7,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <deque>
 #include <limits>
 #include <memory>
-#include <mutex>
 #include <stdexcept>
 #include <vector>
 
@@ -17,39 +16,10 @@
 #include "effects.hpp"
 #include "rk4.hpp"
 
-extern "C" {
-#define RRR_DYN_DECLARE(name)                                                                  \
-  extern const char name##_dyn_structure[];                                                    \
-  extern const char name##_dyn_fd[];                                                           \
-  extern const int name##_dyn_nq;                                                              \
-  extern const int name##_dyn_np;                                                              \
-  extern const int name##_dyn_nd;                                                              \
-  void name##_pre(int, const double *, double *);                                              \
-  void name##_crba(int, const double *, const double *, double *);                             \
-  void name##_nle(int, const double *, const double *, const double *, double *);              \
-  void name##_gravity(int, const double *, const double *, double *);                          \
-  void name##_fd(int, const double *, const double *, const double *, const double *, double *); \
-  void name##_fd_other(int, const double *, const double *, const double *, const double *,    \
-                       double *);                                                              \
-  void name##_id(int, const double *, const double *, const double *, const double *, double *);
-RRR_DYN_DECLARE(rrr)
-RRR_DYN_DECLARE(ur5)
-RRR_DYN_DECLARE(panda)
-#undef RRR_DYN_DECLARE
-}
-
 namespace rrr_pin
 {
   namespace
   {
-#define RRR_DYN_ENTRY(name)                                                                    \
-  DynFunctions{#name,          name##_dyn_structure, name##_dyn_fd, name##_dyn_nq,              \
-               name##_dyn_np,  name##_dyn_nd,        name##_pre,    name##_crba,                \
-               name##_nle,     name##_gravity,       name##_fd,     name##_fd_other,            \
-               name##_id}
-    const DynFunctions kTable[] = {RRR_DYN_ENTRY(rrr), RRR_DYN_ENTRY(ur5), RRR_DYN_ENTRY(panda)};
-#undef RRR_DYN_ENTRY
-
     /// The law's nominal model and the plants, structure-of-arrays derived vectors: the
     /// parameter-only expressions, computed once here (f.pre), not at every call.
     struct Models
@@ -397,7 +367,8 @@ namespace rrr_pin
       }
     };
 
-    /// The sampled plant behind its drive train (effects.hpp's joint_torque, per plant): B arms
+    /// The sampled plant behind its drive train (effects.hpp's joint_torque_at, per joint and
+    /// plant): B arms
     /// driven through the first-order actuator (a), the flexible joint (th, thd) and the
     /// friction of the effects, by their held commands u.
     struct BatchDriven
@@ -419,44 +390,37 @@ namespace rrr_pin
       void slope(const BState & y, int, BState & k)
       {
         const int B = md.B, n = md.n;
+        double ka = 0.0, kth = 0.0, kthd = 0.0;
         for (int j = 0; j < n; ++j)
           for (int b = 0; b < B; ++b)
           {
             const int i = j * B + b;
-            const double tm = fx.lags() ? y.a[i] : u[i];
-            double t = tm;
+            tj[i] = fx.joint_torque_at(j, y.q[i], y.qd[i], fx.lags() ? y.a[i] : 0.0,
+                                       fx.flexes() ? y.th[i] : 0.0,
+                                       fx.flexes() ? y.thd[i] : 0.0, u[i], ka, kth, kthd);
+            if (fx.lags())
+              k.a[i] = ka;
             if (fx.flexes())
             {
-              t = fx.Kf[j] * (y.th[i] - y.q[i]) + fx.Df[j] * (y.thd[i] - y.qd[i]);
-              k.th[i] = y.thd[i];
-              k.thd[i] = (tm - t) / fx.Bm[j];
+              k.th[i] = kth;
+              k.thd[i] = kthd;
             }
-            if (fx.rubs())
-              t = t - (fx.Fv[j] * y.qd[i] + fx.Fc[j] * std::tanh(y.qd[i] / fx.veps));
-            if (fx.lags())
-              k.a[i] = fx.wa * (u[i] - y.a[i]);
-            tj[i] = t;
           }
         k.q = y.qd;
         md.f.fd(B, md.plant.data(), y.q.data(), y.qd.data(), tj.data(), k.qd.data());
       }
 
-      /// effects.hpp's start, per plant: at rest on the first command, a = u, th = q + u / K,
-      /// thd = qd.
+      /// effects.hpp's start_at, per joint and plant: at rest on the first command.
       void start(BState & y) const
       {
         const int B = md.B, n = md.n;
+        double unused = 0.0;
         for (int j = 0; j < n; ++j)
           for (int b = 0; b < B; ++b)
           {
             const int i = j * B + b;
-            if (fx.lags())
-              y.a[i] = u[i];
-            if (fx.flexes())
-            {
-              y.th[i] = y.q[i] + u[i] / fx.Kf[j];
-              y.thd[i] = y.qd[i];
-            }
+            fx.start_at(j, u[i], y.q[i], y.qd[i], fx.lags() ? y.a[i] : unused,
+                        fx.flexes() ? y.th[i] : unused, fx.flexes() ? y.thd[i] : unused);
           }
       }
     };
@@ -565,8 +529,8 @@ namespace rrr_pin
       const std::int64_t H = fx.delay_steps > 0 ? fx.delay_steps / in.substeps + 2 : 0;
       std::vector<Lanes> hist(static_cast<std::size_t>(H), Lanes(n * B, 0.0));
       Lanes cmd(n * B);
-      // The sensor (effects.hpp's sense): the law reads qm = Q(q + n_q), qdm = qd + n_qd.
-      const bool senses = fx.noise_q.rows() > 0 || fx.noise_qd.rows() > 0 || fx.quantum > 0.0;
+      // The sensor (effects.hpp's sensed_q, sensed_qd): the law reads qm, qdm.
+      const bool senses = fx.senses();
       Lanes qm(senses ? n * B : 0), qdm(senses ? n * B : 0);
       for (int b = 0; b < B; ++b)
         out.start(b, y);
@@ -577,13 +541,8 @@ namespace rrr_pin
             for (int b = 0; b < B; ++b)
             {
               const int i = j * B + b;
-              double v = y.q[i];
-              if (fx.noise_q.rows() > 0)
-                v = v + fx.noise_q(k, j);
-              if (fx.quantum > 0.0)
-                v = fx.quantum * std::nearbyint(v / fx.quantum);
-              qm[i] = v;
-              qdm[i] = fx.noise_qd.rows() > 0 ? y.qd[i] + fx.noise_qd(k, j) : y.qd[i];
+              qm[i] = fx.sensed_q(k, j, y.q[i]);
+              qdm[i] = fx.sensed_qd(k, j, y.qd[i]);
             }
         const Lanes & tau =
           eval.torque(senses ? qm.data() : y.q.data(), senses ? qdm.data() : y.qd.data(),
@@ -595,10 +554,10 @@ namespace rrr_pin
           y.x.swap(xn);
         }
         cmd = tau;
-        if (fx.saturates())  // Eigen's cwiseMax(-limit).cwiseMin(limit): std::max, std::min
+        if (fx.saturates())  // effects.hpp's saturated, per joint and plant
           for (int j = 0; j < n; ++j)
             for (int b = 0; b < B; ++b)
-              cmd[j * B + b] = std::min(std::max(tau[j * B + b], -fx.limit[j]), fx.limit[j]);
+              cmd[j * B + b] = fx.saturated(j, tau[j * B + b]);
         stopped.clear();
         for (int b = 0; b < B; ++b)
         {
@@ -707,96 +666,6 @@ namespace rrr_pin
 
   namespace
   {
-    /// Structures loaded at run time (dyn_register), with the strings their entries point to.
-    /// A deque never moves its elements, so a reference handed out stays valid.
-    struct Loaded
-    {
-      std::mutex lock;
-      std::deque<std::string> strings;
-      std::deque<DynFunctions> table;
-    };
-
-    Loaded & loaded()
-    {
-      static Loaded l;
-      return l;
-    }
-  } // namespace
-
-  const DynFunctions * dyn_table(int & count)
-  {
-    count = static_cast<int>(sizeof(kTable) / sizeof(kTable[0]));
-    return kTable;
-  }
-
-  std::vector<DynFunctions> dyn_all()
-  {
-    std::vector<DynFunctions> out(std::begin(kTable), std::end(kTable));
-    Loaded & l = loaded();
-    std::lock_guard<std::mutex> guard(l.lock);
-    out.insert(out.end(), l.table.begin(), l.table.end());
-    return out;
-  }
-
-  void dyn_register(const std::string & name, const std::string & structure,
-                    const std::string & fd_algorithm, int nq, int np, int nd, std::uintptr_t pre,
-                    std::uintptr_t crba, std::uintptr_t nle, std::uintptr_t gravity,
-                    std::uintptr_t fd, std::uintptr_t fd_other, std::uintptr_t id)
-  {
-    if (nq < 1 || np != 3 + 23 * nq || nd < 1 || !pre || !crba || !nle || !gravity || !fd
-        || !fd_other || !id)
-      throw std::invalid_argument(
-        "dyn_register: nq >= 1, np = 3 + 23 nq, nd >= 1 and seven functions");
-    if (fd_algorithm != "ldlt" && fd_algorithm != "aba")
-      throw std::invalid_argument("dyn_register: fd_algorithm must be 'ldlt' or 'aba'");
-    Loaded & l = loaded();
-    std::lock_guard<std::mutex> guard(l.lock);
-    for (const DynFunctions & f : kTable)
-      if (name == f.name)
-        throw std::invalid_argument("dyn_register: '" + name + "' is compiled in");
-    for (const DynFunctions & f : l.table)
-      if (name == f.name)
-        throw std::invalid_argument("dyn_register: '" + name + "' is registered already");
-    l.strings.push_back(name);
-    const char * n = l.strings.back().c_str();
-    l.strings.push_back(structure);
-    const char * st = l.strings.back().c_str();
-    l.strings.push_back(fd_algorithm);
-    const char * alg = l.strings.back().c_str();
-    using Fd = void (*)(int, const double *, const double *, const double *, const double *,
-                        double *);
-    l.table.push_back(DynFunctions{
-      n, st, alg, nq, np, nd, reinterpret_cast<void (*)(int, const double *, double *)>(pre),
-      reinterpret_cast<void (*)(int, const double *, const double *, double *)>(crba),
-      reinterpret_cast<void (*)(int, const double *, const double *, const double *, double *)>(
-        nle),
-      reinterpret_cast<void (*)(int, const double *, const double *, double *)>(gravity),
-      reinterpret_cast<Fd>(fd), reinterpret_cast<Fd>(fd_other), reinterpret_cast<Fd>(id)});
-  }
-
-  const DynFunctions & dyn_by_name(const std::string & name)
-  {
-    std::string known;
-    for (const DynFunctions & f : kTable)
-    {
-      if (name == f.name)
-        return f;
-      known += (known.empty() ? "" : ", ") + std::string(f.name);
-    }
-    Loaded & l = loaded();
-    std::lock_guard<std::mutex> guard(l.lock);
-    for (const DynFunctions & f : l.table)
-    {
-      if (name == f.name)
-        return f;
-      known += ", " + std::string(f.name);
-    }
-    throw std::invalid_argument("no generated dynamics named '" + name + "' (known: " + known
-                                + ")");
-  }
-
-  namespace
-  {
     template<class Out, class Law>
     auto run_loop(const std::string & name, const RowMat & plant, const Vec & nominal,
                   const Law & law, const RolloutInputs & in, const RowMat & lower,
@@ -813,7 +682,7 @@ namespace rrr_pin
         fx->check(f.nq, in.n_steps);
       }
       const Models md(f, plant, nominal);
-      if (fx && (fx->lags() || fx->rubs() || fx->flexes()))
+      if (fx && fx->drives())
         return sampled_loop<Out, BatchDriven>(md, law, in, lower, upper, *fx);
       if (in.sampled)
         return sampled_loop<Out, BatchPlant>(md, law, in, lower, upper, fx ? *fx : none);
@@ -874,36 +743,7 @@ namespace rrr_pin
     return std::chrono::duration<double>(t1 - t0).count();
   }
 
-  template BatchResult batch_rollout<FLLaw>(
-    const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  template FigureResult batch_figures<FLLaw>(
-    const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  template FigureResult batch_figures<FLAWLaw>(
-    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  template FigureResult batch_figures<PDLaw>(
-    const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  template BatchResult batch_rollout<FLAWLaw>(
-    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  template double batch_floor_timing<FLAWLaw>(
-    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
-  template BatchResult batch_rollout<PDLaw>(
-    const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  template double batch_floor_timing<FLLaw>(
-    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
-  template double batch_floor_timing<PDLaw>(
-    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
-  template BatchResult batch_rollout<TwoDOFLaw>(
-    const std::string &, const RowMat &, const Vec &, const TwoDOFLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  template FigureResult batch_figures<TwoDOFLaw>(
-    const std::string &, const RowMat &, const Vec &, const TwoDOFLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  template double batch_floor_timing<TwoDOFLaw>(
-    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
+#define RRR_PIN_BATCH_INSTANCE(Law) RRR_PIN_BATCH_LAW(Law, )
+  RRR_PIN_LAWS(RRR_PIN_BATCH_INSTANCE)
+#undef RRR_PIN_BATCH_INSTANCE
 } // namespace rrr_pin

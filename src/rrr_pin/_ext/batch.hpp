@@ -92,36 +92,16 @@ namespace rrr_pin
     const std::string & name, const RowMat & plant, const Vec & nominal, bool sampled,
     int substeps, std::int64_t n_steps);
 
-  extern template BatchResult batch_rollout<FLLaw>(
-    const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  extern template FigureResult batch_figures<FLLaw>(
-    const std::string &, const RowMat &, const Vec &, const FLLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  extern template FigureResult batch_figures<FLAWLaw>(
-    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  extern template FigureResult batch_figures<PDLaw>(
-    const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  extern template BatchResult batch_rollout<FLAWLaw>(
-    const std::string &, const RowMat &, const Vec &, const FLAWLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  extern template double batch_floor_timing<FLAWLaw>(
+#define RRR_PIN_BATCH_LAW(Law, prefix)                                                           \
+  prefix template BatchResult batch_rollout<Law>(                                                \
+    const std::string &, const RowMat &, const Vec &, const Law &, const RolloutInputs &,        \
+    const RowMat &, const RowMat &, const Effects *);                                            \
+  prefix template FigureResult batch_figures<Law>(                                               \
+    const std::string &, const RowMat &, const Vec &, const Law &, const RolloutInputs &,        \
+    const RowMat &, const RowMat &, const Effects *);                                            \
+  prefix template double batch_floor_timing<Law>(                                                \
     const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
-  extern template BatchResult batch_rollout<PDLaw>(
-    const std::string &, const RowMat &, const Vec &, const PDLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  extern template double batch_floor_timing<FLLaw>(
-    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
-  extern template double batch_floor_timing<PDLaw>(
-    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
-  extern template BatchResult batch_rollout<TwoDOFLaw>(
-    const std::string &, const RowMat &, const Vec &, const TwoDOFLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  extern template FigureResult batch_figures<TwoDOFLaw>(
-    const std::string &, const RowMat &, const Vec &, const TwoDOFLaw &, const RolloutInputs &,
-    const RowMat &, const RowMat &, const Effects *);
-  extern template double batch_floor_timing<TwoDOFLaw>(
-    const std::string &, const RowMat &, const Vec &, bool, int, std::int64_t);
+#define RRR_PIN_BATCH_EXTERN(Law) RRR_PIN_BATCH_LAW(Law, extern)
+  RRR_PIN_LAWS(RRR_PIN_BATCH_EXTERN)
+#undef RRR_PIN_BATCH_EXTERN
 } // namespace rrr_pin

@@ -50,10 +50,9 @@ namespace rrr_pin
 
   void bind_batch(nb::module_ & mod)
   {
-    def_batch_law<FLLaw>(mod);
-    def_batch_law<FLAWLaw>(mod);
-    def_batch_law<PDLaw>(mod);
-    def_batch_law<TwoDOFLaw>(mod);
+#define RRR_PIN_BIND_BATCH_LAW(Law) def_batch_law<Law>(mod);
+    RRR_PIN_LAWS(RRR_PIN_BIND_BATCH_LAW)
+#undef RRR_PIN_BIND_BATCH_LAW
     mod.def("batch_models", []() {
       nb::dict d;
       int count = 0;

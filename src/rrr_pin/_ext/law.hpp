@@ -22,10 +22,19 @@
 //
 // torque() returns kOk or the stop of the law's model (a closed chain's loop that does not close
 // there); the torque is then tau().
+//
+// Each law names itself (name: its class in rrr_pin.sim._rollout and the `cpp` of its compiled
+// form in rrr_pin.control.laws.forms), says what it is (doc) and lists its fields once
+// (fields(): name and member, in the compiled form's spelling), from which the bindings are
+// made. RRR_PIN_LAWS at the end is the one list of laws: the bindings, the rollout, the batch
+// and its bindings expand it, so a law added there is bound, instantiated and batched.
 #pragma once
+
+#include <tuple>
 
 #include <Eigen/LU>
 
+#include "effects.hpp"  // Field, field()
 #include "terms.hpp"
 
 namespace rrr_pin
@@ -47,6 +56,14 @@ namespace rrr_pin
   {
     Vec lam;         // (n,) [rad/s], per joint
     Mat A, B, C, D;  // (m, m), (m, n), (n, m), (n, n); m = 0 for FL alone
+
+    static constexpr const char * name = "FLLaw";
+    static constexpr const char * doc = "Feedback linearization + linear controller (FLForm).";
+    static constexpr auto fields()
+    {
+      return std::make_tuple(field("lam", &FLLaw::lam), field("A", &FLLaw::A),
+                             field("B", &FLLaw::B), field("C", &FLLaw::C), field("D", &FLLaw::D));
+    }
 
     Eigen::Index nx() const { return A.rows(); }
 
@@ -128,6 +145,14 @@ namespace rrr_pin
     Mat L;      // (m, n) conditioning gain B D^-1
     Vec limit;  // (n,) torque limits [N m]
 
+    static constexpr const char * name = "FLAWLaw";
+    static constexpr const char * doc = "FLLaw clipped, K conditioned on the clip (FLAWForm).";
+    static constexpr auto fields()
+    {
+      return std::tuple_cat(FLLaw::fields(), std::make_tuple(field("L", &FLAWLaw::L),
+                                                             field("limit", &FLAWLaw::limit)));
+    }
+
     void check(Eigen::Index n) const
     {
       FLLaw::check(n);
@@ -193,6 +218,15 @@ namespace rrr_pin
   {
     Vec lam;         // (n,) [rad/s], per joint
     Mat A, B, C, D;  // (m, m), (m, 2n), (n, m), (n, 2n)
+
+    static constexpr const char * name = "TwoDOFLaw";
+    static constexpr const char * doc = "FL + 2-DOF controller on [e; qd] (TwoDOFForm).";
+    static constexpr auto fields()
+    {
+      return std::make_tuple(field("lam", &TwoDOFLaw::lam), field("A", &TwoDOFLaw::A),
+                             field("B", &TwoDOFLaw::B), field("C", &TwoDOFLaw::C),
+                             field("D", &TwoDOFLaw::D));
+    }
 
     Eigen::Index nx() const { return A.rows(); }
 
@@ -271,6 +305,13 @@ namespace rrr_pin
   {
     Mat Kp, Kd;  // (n, n) [N m/rad], [N m s/rad]
 
+    static constexpr const char * name = "PDLaw";
+    static constexpr const char * doc = "PD + gravity compensation (PDForm).";
+    static constexpr auto fields()
+    {
+      return std::make_tuple(field("Kp", &PDLaw::Kp), field("Kd", &PDLaw::Kd));
+    }
+
     Eigen::Index nx() const { return 0; }
 
     void check(Eigen::Index n) const
@@ -323,3 +364,7 @@ namespace rrr_pin
     };
   };
 } // namespace rrr_pin
+
+/// The compiled laws, once: X(Law) for each. Expanded by the bindings (module.cpp), the rollout's
+/// instantiations (rollout.hpp), the batch's (batch.hpp) and its bindings (batch_bind.cpp).
+#define RRR_PIN_LAWS(X) X(FLLaw) X(FLAWLaw) X(PDLaw) X(TwoDOFLaw)

@@ -1,9 +1,11 @@
 // Python bindings of the compiled rollout: rrr_pin.sim._rollout (private; use
 // rrr_pin.sim.compiled). Parameters travel as objects whose fields Python sets by name: a plant's
-// Tree (rrr_pin.model.plant.TreeDescription), a law (FLLaw, FLAWLaw, PDLaw or TwoDOFLaw, one per
-// compiled form), RolloutInputs and Effects.
+// Tree (rrr_pin.model.plant.TreeDescription), a law (one class per law of RRR_PIN_LAWS, law.hpp,
+// named as its compiled form's `cpp`, its fields bound from the law's own list), RolloutInputs
+// and Effects. LAWS: the names of the laws, in the list's order.
 #include <cstdint>
 #include <string>
+#include <tuple>
 
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
@@ -24,12 +26,14 @@ namespace
 {
   using LoopJoints = Eigen::Matrix<int, Eigen::Dynamic, 2, Eigen::RowMajor>;
 
-  /// Bind rollout() and floor_timing() for one law (overloads, selected by the law's type).
+  /// Bind one law: its class (Law::name, Law::doc, a read-write attribute per Law::fields()),
+  /// rollout() and floor_timing() (overloads, selected by the law's type).
   template<class Law>
-  nb::class_<Law> def_law(nb::module_ & mod, const char * name, const char * doc)
+  void def_law(nb::module_ & mod)
   {
-    nb::class_<Law> cls(mod, name, doc);
+    nb::class_<Law> cls(mod, Law::name, Law::doc);
     cls.def(nb::init<>());
+    std::apply([&cls](auto... f) { (cls.def_rw(f.name, f.member), ...); }, Law::fields());
     mod.def(
       "rollout", &rollout<Law>, nb::arg("plant"), nb::arg("nominal"), nb::arg("law"),
       nb::arg("inputs"), nb::arg("effects").none() = nb::none(),
@@ -43,7 +47,6 @@ namespace
       nb::arg("plant"), nb::arg("nominal"), nb::arg("law"), nb::arg("sampled"),
       nb::arg("substeps"), nb::arg("n_steps"), nb::call_guard<nb::gil_scoped_release>(),
       "Wall time [s] of the bare dynamics calls of a rollout of this law (serial trees).");
-    return cls;
   }
 } // namespace
 
@@ -118,44 +121,22 @@ NB_MODULE(_rollout, mod)
     .def_ro("law_q", &RolloutResult::law_q)
     .def_ro("seed", &RolloutResult::seed);
 
-  nb::class_<Effects>(mod, "Effects", "Plant effects (rrr_pin.control.effects.Resolved); all off.")
-    .def(nb::init<>())
-    .def_rw("delay_steps", &Effects::delay_steps)
-    .def_rw("wa", &Effects::wa)
-    .def_rw("limit", &Effects::limit)
-    .def_rw("Fv", &Effects::Fv)
-    .def_rw("Fc", &Effects::Fc)
-    .def_rw("veps", &Effects::veps)
-    .def_rw("noise_q", &Effects::noise_q)
-    .def_rw("noise_qd", &Effects::noise_qd)
-    .def_rw("quantum", &Effects::quantum)
-    .def_rw("Bm", &Effects::Bm)
-    .def_rw("Kf", &Effects::Kf)
-    .def_rw("Df", &Effects::Df);
+  nb::class_<Effects> effects(mod, "Effects",
+                              "Plant effects (rrr_pin.control.effects.Resolved); all off.");
+  effects.def(nb::init<>());
+  std::apply([&effects](auto... f) { (effects.def_rw(f.name, f.member), ...); },
+             Effects::fields());
 
-  def_law<FLLaw>(mod, "FLLaw", "Feedback linearization + linear controller (FLForm).")
-    .def_rw("lam", &FLLaw::lam)
-    .def_rw("A", &FLLaw::A)
-    .def_rw("B", &FLLaw::B)
-    .def_rw("C", &FLLaw::C)
-    .def_rw("D", &FLLaw::D);
-  def_law<FLAWLaw>(mod, "FLAWLaw", "FLLaw clipped, K conditioned on the clip (FLAWForm).")
-    .def_rw("lam", &FLAWLaw::lam)
-    .def_rw("A", &FLAWLaw::A)
-    .def_rw("B", &FLAWLaw::B)
-    .def_rw("C", &FLAWLaw::C)
-    .def_rw("D", &FLAWLaw::D)
-    .def_rw("L", &FLAWLaw::L)
-    .def_rw("limit", &FLAWLaw::limit);
-  def_law<PDLaw>(mod, "PDLaw", "PD + gravity compensation (PDForm).")
-    .def_rw("Kp", &PDLaw::Kp)
-    .def_rw("Kd", &PDLaw::Kd);
-  def_law<TwoDOFLaw>(mod, "TwoDOFLaw", "FL + 2-DOF controller on [e; qd] (TwoDOFForm).")
-    .def_rw("lam", &TwoDOFLaw::lam)
-    .def_rw("A", &TwoDOFLaw::A)
-    .def_rw("B", &TwoDOFLaw::B)
-    .def_rw("C", &TwoDOFLaw::C)
-    .def_rw("D", &TwoDOFLaw::D);
+#define RRR_PIN_BIND_LAW(Law) def_law<Law>(mod);
+  RRR_PIN_LAWS(RRR_PIN_BIND_LAW)
+#undef RRR_PIN_BIND_LAW
+#define RRR_PIN_LAW_NAME(Law) Law::name,
+  const char * laws[] = {RRR_PIN_LAWS(RRR_PIN_LAW_NAME)};
+#undef RRR_PIN_LAW_NAME
+  nb::list names;
+  for (const char * name : laws)
+    names.append(name);
+  mod.attr("LAWS") = nb::tuple(names);
 
   mod.def("check_reference", &check_reference, nb::arg("plant"), nb::arg("R"),
           nb::call_guard<nb::gil_scoped_release>(),

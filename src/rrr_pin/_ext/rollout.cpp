@@ -93,7 +93,7 @@ namespace rrr_pin
       Plant & plant;
       const Effects & fx;
       Parts parts;
-      Vec u, tj, tm, fr, qa, qda;
+      Vec u, tj, qa, qda;
 
       Driven(Plant & p, const Effects & effects, Eigen::Index n)
       : plant(p)
@@ -101,8 +101,6 @@ namespace rrr_pin
       , parts(effects.parts())
       , u(n)
       , tj(n)
-      , tm(n)
-      , fr(n)
       , qa(n)
       , qda(n)
       {
@@ -116,7 +114,7 @@ namespace rrr_pin
         else
         {
           const Measured m = plant.measure(y.q, y.qd, qa, qda);
-          fx.joint_torque(m.q, m.qd, y, u, k, tj, tm, fr);
+          fx.joint_torque(m.q, m.qd, y, u, k, tj);
           k.qd = plant.acceleration(y.q, y.qd, tj);
         }
       }
@@ -477,8 +475,7 @@ namespace rrr_pin
     return plant.acceleration(q, qd, tau);
   }
 
-  RRR_PIN_ROLLOUT_LAW(FLLaw, )
-  RRR_PIN_ROLLOUT_LAW(FLAWLaw, )
-  RRR_PIN_ROLLOUT_LAW(PDLaw, )
-  RRR_PIN_ROLLOUT_LAW(TwoDOFLaw, )
+#define RRR_PIN_ROLLOUT_INSTANCE(Law) RRR_PIN_ROLLOUT_LAW(Law, )
+  RRR_PIN_LAWS(RRR_PIN_ROLLOUT_INSTANCE)
+#undef RRR_PIN_ROLLOUT_INSTANCE
 } // namespace rrr_pin

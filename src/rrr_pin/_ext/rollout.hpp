@@ -85,8 +85,7 @@ namespace rrr_pin
   prefix template RolloutResult rollout<Law>(                                                    \
     const Tree &, const Tree &, const Law &, const RolloutInputs &, const Effects *);            \
   prefix template double floor_timing<Law>(const Tree &, const Tree &, bool, int, std::int64_t);
-  RRR_PIN_ROLLOUT_LAW(FLLaw, extern)
-  RRR_PIN_ROLLOUT_LAW(FLAWLaw, extern)
-  RRR_PIN_ROLLOUT_LAW(PDLaw, extern)
-  RRR_PIN_ROLLOUT_LAW(TwoDOFLaw, extern)
+#define RRR_PIN_ROLLOUT_EXTERN(Law) RRR_PIN_ROLLOUT_LAW(Law, extern)
+  RRR_PIN_LAWS(RRR_PIN_ROLLOUT_EXTERN)
+#undef RRR_PIN_ROLLOUT_EXTERN
 } // namespace rrr_pin

@@ -17,11 +17,14 @@ Pinocchio's calls), so trajectories equal the compiled engine's to round-off
 (``tests/test_batched.py``). No operation crosses plants and the C is compiled without fused
 multiply-adds, so a plant's numbers are the same whatever batch it runs in.
 
-Scope: the laws of :data:`BATCH_LAWS` (``FLForm``, ``FLAWForm``, ``PDForm``, ``TwoDOFForm``: FL,
-H-infinity + FL, its anti-windup form ``hinf_aw``, PD, the 2-DOF H-infinity + FL ``hinf2dof``),
-sampled or continuous, on the ideal plant or, for a sampled law, with the plant effects of
-:data:`BATCH_EFFECTS` (in the compiled engine's order: sensor -> law -> saturation -> delay ->
-actuator -> flexible joint -> plant with friction); anything else is refused by name
+Scope: the compiled engine's laws (the one list ``RRR_PIN_LAWS`` of ``_ext/law.hpp``, which the
+batch expands too: :func:`rrr_pin.sim.extension.law_forms`; today ``FLForm``, ``FLAWForm``,
+``PDForm``, ``TwoDOFForm``: FL, H-infinity + FL, its anti-windup form ``hinf_aw``, PD, the 2-DOF
+H-infinity + FL ``hinf2dof``),
+sampled or continuous, on the ideal plant or, for a sampled law, with every plant effect of
+``_ext/effects.hpp`` (:func:`rrr_pin.sim.extension.effect_fields`; each written once there, the
+lanes apply it per joint and plant; in the compiled engine's order: sensor -> law -> saturation
+-> delay -> actuator -> flexible joint -> plant with friction); anything else is refused by name
 (:func:`why_not`) and runs on the compiled engine under ``engine="auto"``, which records why.
 """
 
@@ -32,13 +35,24 @@ from dataclasses import fields, replace
 
 import numpy as np
 
-from ..control.laws import FLAWForm, FLForm, PDForm, TwoDOFForm, check_law_output
+from ..control.laws import check_law_output
 from ..model.dh import check_inertial, inertials_ok
 from ..validation import FieldError, check_count
 from . import dyncache, dyngen
 from .codegen import CodegenModelMismatch
-from .engine_names import AUTO, CODEGEN, COMPILED
-from .extension import EXTENSION, available, cannot_start, effects_struct, require
+from .engine_names import AUTO, CODEGEN, COMPILED, PYTHON
+from .extension import (
+    EXTENSION,
+    available,
+    cannot_start,
+    effect_fields,
+    effects_struct,
+    law_forms,
+    law_kinds,
+    law_name,
+    law_struct,
+    require,
+)
 from .reuse import keep, lookup, reused
 from .trajectory import (
     LAW_TORQUE,
@@ -52,7 +66,7 @@ from .trajectory import (
     tracking_figures_batch,
 )
 
-__all__ = ["GENERATED", "BATCH_LAWS", "BATCH_EFFECTS", "BATCH_MAX", "StructureMismatch",
+__all__ = ["GENERATED", "BATCH_MAX", "StructureMismatch",
            "generated_structure",
            "plant_parameters", "batchable", "why_not", "run_batch", "raise_or_return",
            "floor_ms", "MAX_THREADS", "thread_pool", "warm"]
@@ -64,18 +78,6 @@ GENERATED = {
     "ur5": ("ur5", ()),
     "panda": ("panda", (("panda_finger_joint1", 0.0), ("panda_finger_joint2", 0.0))),
 }
-
-#: The compiled forms the batched loop implements, by exact type, and their C++ law.
-BATCH_LAWS = {FLForm: "FLLaw", FLAWForm: "FLAWLaw", PDForm: "PDLaw", TwoDOFForm: "TwoDOFLaw"}
-
-#: The plant effects the batched loop implements (fields of
-#: :class:`rrr_pin.control.effects.Resolved`): every one today (the sensor's noise and encoder,
-#: the torque limit, the transport delay, the actuator, flexible joints, friction); a field
-#: added there and not here is refused by name.
-BATCH_EFFECTS = ("noise_q", "noise_qd", "quantum", "limit", "delay_steps", "wa", "Bm", "Kf",
-                 "Df", "Fv", "Fc", "veps")
-_BATCH_EFFECT_LABEL = ("the sensor noise, the encoder, the torque limit, the delay, the actuator, "
-                       "flexible joints and friction")
 
 #: Most plants in one batch (``RRR_DYN_BMAX`` of ``generated/dyn_common.h``).
 BATCH_MAX = 16
@@ -261,14 +263,14 @@ def why_not(run, form):
         who = plant if plant.loop_closures else form.nominal
         return (f"engine {CODEGEN!r} does not implement closed chains ({who.name!r} closes "
                 f"{', '.join(who.loop_closures)}): its generated dynamics are serial trees")
-    if type(form) not in BATCH_LAWS:
-        known = ", ".join(cls.__name__ for cls in BATCH_LAWS)
+    if law_name(form) is None:
+        known = ", ".join(cls.__name__ for cls in law_forms())
         return (f"compiled form {type(form).__qualname__} of law {law.name!r} is not "
                 f"implemented by the batched engine (known: {known})")
     others = _unbatched_effects(run.effects)
     if others:
-        return (f"engine {CODEGEN!r} batches {_BATCH_EFFECT_LABEL} only of the plant "
-                f"effects, got {', '.join(others)}")
+        return (f"engine {CODEGEN!r} runs the plant effects of _ext/effects.hpp only, got "
+                f"{', '.join(others)}")
     for robot, role in ((plant, "plant"), (form.nominal, "nominal")):
         if generated_structure(robot.model) is None:
             return _refusal(robot, role)
@@ -277,7 +279,7 @@ def why_not(run, form):
 
 def batchable(runs, form) -> bool:
     """Whether :func:`run_batch` can run these runs of a law's compiled ``form``."""
-    if not available() or type(form) not in BATCH_LAWS or not runs:
+    if not available() or law_name(form) is None or not runs:
         return False
     if any(r.plant.loop_closures for r in runs) or form.nominal.loop_closures:
         return False
@@ -288,14 +290,18 @@ def batchable(runs, form) -> bool:
 
 
 def _unbatched_effects(fx) -> list[str]:
-    """Return the effects of a run's ``Resolved`` outside BATCH_EFFECTS, by their user names."""
+    """Return the effects of a run's ``Resolved`` without a C++ step, by their user names.
+
+    Every field of ``Resolved`` has one today (``effect_fields``); a field added there and not
+    to ``_ext/effects.hpp`` is refused by name, never run without it.
+    """
     if fx is None:
         return []
     off = {"wa": 0.0, "quantum": 0.0}  # the scalar effects' "off"; arrays are None when off
     out = []
     for f in fields(fx):
         value = getattr(fx, f.name)
-        if f.name in (*BATCH_EFFECTS, "info") or value is None or (
+        if f.name in (*effect_fields(), "info") or value is None or (
                 f.name in off and value == off[f.name]):
             continue
         name = _EFFECT_NAMES.get(f.name, f.name)
@@ -316,19 +322,12 @@ def _key(fx):
 
     return (None if fx is None else
             tuple(array(getattr(fx, key)) if isinstance(getattr(fx, key), np.ndarray)
-                  else getattr(fx, key) for key in BATCH_EFFECTS))
+                  else getattr(fx, key) for key in effect_fields()))
 
 
 def _shared_effects(runs) -> bool:
     """Whether the runs share their batched effects (a batch applies one of each)."""
     return len({_key(r.effects) for r in runs}) == 1
-
-
-def _law(form):
-    law = getattr(EXTENSION, BATCH_LAWS[type(form)])()
-    for key, value in form.engine_fields().items():
-        setattr(law, key, value)
-    return law
 
 
 def _same(runs, key: str) -> None:
@@ -348,7 +347,7 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
         What :func:`rrr_pin.sim.simulation.simulate` validates, one per plant, of the same law
         (the same object), reference grid and initial state; plants of one generated structure.
     form : CompiledForm
-        ``runs[0].law.compiled_form()``, of a type in :data:`BATCH_LAWS`.
+        ``runs[0].law.compiled_form()``, one the compiled engine implements.
     batch : int, default 16
         Plants per call, 1 to :data:`BATCH_MAX`; results do not depend on it.
     threads : int, default 1
@@ -375,7 +374,7 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
         A plant or the law's model of a structure without generated dynamics.
     ValueError
         A form the batched loop does not implement, plant effects other than
-        :data:`BATCH_EFFECTS` (or effects the runs do not share), runs that do not share the
+        ``_ext/effects.hpp`` (or effects the runs do not share), runs that do not share the
         law, reference or initial state, or a law whose first torque is not finite (as
         :func:`rrr_pin.control.laws.check_law_output`).
     rrr_pin.validation.FieldError
@@ -383,10 +382,10 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
     """
     require()
     runs = list(runs)
-    if type(form) not in BATCH_LAWS:
-        known = ", ".join(cls.__name__ for cls in BATCH_LAWS)
+    if law_name(form) is None:
+        known = ", ".join(cls.__name__ for cls in law_forms())
         raise ValueError(f"compiled form {type(form).__qualname__} is not implemented by "
-                         f"the batched engine (known: {known}); use engine={COMPILED!r}")
+                         f"the batched engine (known: {known}); use engine={PYTHON!r}")
     if not 1 <= int(batch) <= BATCH_MAX:
         raise ValueError(f"batch must be an integer in [1, {BATCH_MAX}], got {batch!r}")
     check_count("threads", threads, 1, MAX_THREADS)
@@ -394,12 +393,11 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
         return []
     others = sorted({name for r in runs for name in _unbatched_effects(r.effects)})
     if others:
-        raise ValueError(f"engine={CODEGEN!r} batches {_BATCH_EFFECT_LABEL} only of the plant "
-                         f"effects, got {', '.join(others)}; use engine={COMPILED!r} with "
-                         f"these effects")
+        raise ValueError(f"engine={CODEGEN!r} runs the plant effects of _ext/effects.hpp only, "
+                         f"got {', '.join(others)}")
     if not _shared_effects(runs):
         raise ValueError("a batch shares its plant effects: its runs differ in them (a batch "
-                         "applies one of each of BATCH_EFFECTS)")
+                         "applies one of each effect)")
     if any(r.law is not runs[0].law for r in runs):
         raise ValueError("a batch runs one law: its runs have different laws")
     for key in ("R", "RD", "RDD", "q0", "qd0", "x0"):
@@ -420,7 +418,7 @@ def run_batch(runs, form, *, batch: int = BATCH_MAX, threads: int = 1,
                            upper=run0.upper, vlim=VELOCITY_LIMIT, h=run0.h,
                            substeps=run0.substeps, n_steps=len(run0.t) - 1).items():
         setattr(inputs, key, value)
-    law = _law(form)
+    law = law_struct(form)
     lower = np.stack([r.lower for r in runs])
     upper = np.stack([r.upper for r in runs])
     n1, n = len(run0.t), run0.plant.nq
@@ -560,7 +558,7 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
     float
         Wall time [ms] per plant of the fastest run.
     """
-    kinds = {cls.kind: name for cls, name in BATCH_LAWS.items()}
+    kinds = law_kinds()
     if kind not in kinds:
         raise ValueError(f"kind must be one of {', '.join(kinds)}, got {kind!r}")
     if repeat < 1 or not 1 <= batch <= BATCH_MAX:

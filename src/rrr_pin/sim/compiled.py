@@ -27,7 +27,8 @@ of ``law.hpp``, the plant effects of ``effects.hpp`` and the one RK4 of ``rk4.hp
 * the plant effects (:class:`~rrr_pin.control.effects.Resolved`: delay, actuator lag,
   saturation, friction, sensor noise, encoder, flexible joints) on the actuated coordinates,
   the passive ones of a closed chain ideal, as the Python engine's ``_effects``;
-* the law, by the exact type of its compiled form (:data:`ENGINE_LAWS`), on its model's
+* the law, by the exact type of its compiled form (its ``cpp``, a C++ law of the extension:
+  :func:`rrr_pin.sim.extension.law_name`), on its model's
   ``terms`` and ``G`` (a serial tree's CRBA, ``nonLinearEffects`` and gravity; a closed
   chain's reduced model, its passive coordinates by the law's own Newton seeded from its
   previous evaluation, the first from its description's ``home``):
@@ -83,10 +84,21 @@ import math
 
 import numpy as np
 
-from ..control.laws import FLAWForm, FLForm, PDForm, TwoDOFForm, check_law_output
+from ..control.laws import check_law_output
 from ..model.closed_chain import ConstraintDrift, LoopClosureError, SingularConfiguration
 from .engine_names import COMPILED, PYTHON
-from .extension import EXTENSION, CompiledRobot, cached, cannot_start, effects_struct, require
+from .extension import (
+    EXTENSION,
+    CompiledRobot,
+    cached,
+    cannot_start,
+    effects_struct,
+    law_forms,
+    law_kinds,
+    law_name,
+    law_struct,
+    require,
+)
 from .trajectory import (
     LAW_TORQUE,
     REASONS,
@@ -107,9 +119,10 @@ __all__ = [
     "ENGINE_LAWS",
 ]
 
-#: The compiled forms the C++ loop implements, by exact type, and the C++ law (a class of the
-#: extension whose fields are the form's, ``nominal`` aside) each one becomes.
-ENGINE_LAWS = {FLForm: "FLLaw", PDForm: "PDLaw", FLAWForm: "FLAWLaw", TwoDOFForm: "TwoDOFLaw"}
+#: The compiled forms the C++ loop implements, by exact type, and their C++ law: a view derived
+#: at import from the one list of laws (``RRR_PIN_LAWS``, through each form's ``cpp``), not a
+#: second list; :func:`implements` is the test the engines use.
+ENGINE_LAWS = {cls: vars(cls)["cpp"] for cls in law_forms()}
 
 # Why a C++ run stopped (RolloutResult.reason, Reason of terms.hpp): 0 to 3 index
 # rrr_pin.sim.trajectory.REASONS (the divergences, LAW_TORQUE: a law's non-finite torque), the
@@ -159,12 +172,12 @@ def _load(plant) -> CompiledRobot:
 
 
 def implements(form) -> bool:
-    """Whether the compiled engine implements ``form`` (its exact type in :data:`ENGINE_LAWS`)."""
-    return type(form) in ENGINE_LAWS
+    """Whether the compiled engine implements ``form`` (its exact type's ``cpp`` is a C++ law)."""
+    return law_name(form) is not None
 
 
 def _known() -> str:
-    return ", ".join(cls.__name__ for cls in ENGINE_LAWS)
+    return ", ".join(cls.__name__ for cls in law_forms())
 
 
 def _fill(obj, **values):
@@ -172,11 +185,6 @@ def _fill(obj, **values):
     for key, value in values.items():
         setattr(obj, key, value)
     return obj
-
-
-def _law(form):
-    """Return the C++ law of a compiled form: the extension's class for its type, by name."""
-    return _fill(getattr(EXTENSION, ENGINE_LAWS[type(form)])(), **form.engine_fields())
 
 
 def why_not(run, form) -> str | None:
@@ -236,7 +244,7 @@ def run_compiled(run, form):
     run : Run
         What :func:`rrr_pin.sim.simulation.simulate` validated.
     form : CompiledForm
-        ``run.law.compiled_form()``; an instance of a type in :data:`ENGINE_LAWS`.
+        ``run.law.compiled_form()``; one :func:`implements`.
 
     Returns
     -------
@@ -268,7 +276,7 @@ def run_compiled(run, form):
                    RDD=run.RDD, q0=x0, qd0=v0, x0=run.x0, lower=run.lower, upper=run.upper,
                    vlim=VELOCITY_LIMIT, h=run.h, substeps=run.substeps,
                    n_steps=len(run.t) - 1)
-    out = EXTENSION.rollout(compiled._model, compile_robot(form.nominal)._model, _law(form),
+    out = EXTENSION.rollout(compiled._model, compile_robot(form.nominal)._model, law_struct(form),
                             inputs, effects_struct(fx))
     if out.step >= 0:
         _raise(run, form, compiled.description, out)
@@ -352,7 +360,7 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
     repeat : int, default 5
         Runs; the fastest is returned (the least disturbed by other processes).
     kind : {"fl", "pd", "fl_aw", "twodof"}
-        The ``kind`` of a form in :data:`ENGINE_LAWS` (``FLForm.kind``, ``PDForm.kind``,
+        The ``kind`` of a form the engine implements (``FLForm.kind``, ``PDForm.kind``,
         ``FLAWForm.kind``, ``TwoDOFForm.kind``; ``"fl_aw"`` and ``"twodof"`` time FL's
         calls).
     sampled : bool, default True
@@ -365,7 +373,7 @@ def floor_ms(plant, nominal, n_steps: int, substeps: int = 1, repeat: int = 5, *
     plant_c, nominal_c = compile_robot(plant), compile_robot(nominal)
     if repeat < 1:
         raise ValueError(f"repeat must be >= 1, got {repeat!r}")
-    kinds = {cls.kind: name for cls, name in ENGINE_LAWS.items()}
+    kinds = law_kinds()
     if kind not in kinds:
         raise ValueError(f"kind must be one of {', '.join(kinds)}, got {kind!r}")
     law = getattr(EXTENSION, kinds[kind])()  # only its type matters: which calls to time

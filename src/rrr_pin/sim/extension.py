@@ -1,7 +1,8 @@
 """The compiled extension ``rrr_pin.sim._rollout``: loading, version check, loaded plants.
 
 Shared by the compiled engine (:mod:`rrr_pin.sim.compiled`) and the batched engine
-(:mod:`rrr_pin.sim.batched`); imports nothing of rrr_pin.
+(:mod:`rrr_pin.sim.batched`), which run the same list of C++ laws (:func:`law_name`); imports
+nothing of rrr_pin but the compiled forms.
 """
 
 from __future__ import annotations
@@ -10,8 +11,11 @@ from dataclasses import dataclass, field, fields
 
 import pinocchio as pin  # loads libpinocchio_default.so before the extension needs it
 
+from ..control.laws.forms import compiled_forms
+
 __all__ = ["EXTENSION", "CompiledRobot", "available", "require", "cached", "cannot_start",
-           "effects_struct"]
+           "effects_struct", "law_name", "law_struct", "law_forms", "law_kinds",
+           "effect_fields"]
 
 
 def _load_extension():
@@ -116,3 +120,50 @@ def effects_struct(fx):
         if f.name != "info" and value is not None:
             setattr(out, f.name, value)
     return out
+
+
+def law_name(form) -> str | None:
+    """Return the C++ law that implements a compiled form, or None if the extension has none.
+
+    The ``cpp`` set on the form's exact type (``rrr_pin.control.laws.CompiledForm.cpp``; a
+    subclass that does not set its own is another law, never run as its base), if it is one
+    of the extension's laws (``LAWS``: the list ``RRR_PIN_LAWS`` of ``_ext/law.hpp``, which
+    the compiled and the batched engines both expand).
+    """
+    name = vars(type(form)).get("cpp")
+    return name if EXTENSION is not None and name in EXTENSION.LAWS else None
+
+
+def law_struct(form):
+    """Return the extension's law for a compiled form, its fields set by name.
+
+    Every field of the form but ``nominal`` (``engine_fields``) has a namesake in the C++
+    law's own list of fields (``fields()`` in ``_ext/law.hpp``); ``form`` is one
+    :func:`law_name` names.
+    """
+    out = getattr(EXTENSION, law_name(form))()
+    for key, value in form.engine_fields().items():
+        setattr(out, key, value)
+    return out
+
+
+def law_forms() -> list[type]:
+    """Return the compiled form types the extension implements (their ``cpp`` in ``LAWS``)."""
+    laws = () if EXTENSION is None else EXTENSION.LAWS
+    return [cls for cls in compiled_forms() if vars(cls)["cpp"] in laws]
+
+
+def law_kinds() -> dict:
+    """Return ``kind -> C++ law name`` of :func:`law_forms` (what the floor timings take)."""
+    return {cls.kind: vars(cls)["cpp"] for cls in law_forms()}
+
+
+def effect_fields() -> tuple:
+    """Return the fields of the extension's ``Effects`` (``_ext/effects.hpp``), sorted.
+
+    The plant effects both compiled engines run: each written once in C++, applied to a
+    plant's vectors by the compiled rollout and to each lane entry by the batched one.
+    """
+    if EXTENSION is None:
+        return ()
+    return tuple(sorted(name for name in dir(EXTENSION.Effects) if not name.startswith("_")))

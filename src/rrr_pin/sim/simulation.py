@@ -370,8 +370,8 @@ def simulate_batch(plants, law, reference: Reference, duration: float, *, batch:
 
     With ``engine="auto"`` the plants run ``batch`` at a time on the generated dynamics
     (:func:`rrr_pin.sim.batched.run_batch`) when that engine can run them all (the law's
-    compiled form in :data:`rrr_pin.sim.batched.BATCH_LAWS`, the plants and the law's model of
-    a generated structure, plant effects among :data:`rrr_pin.sim.batched.BATCH_EFFECTS` shared
+    compiled form one the compiled engine implements, the plants and the law's model of
+    a generated structure, plant effects (every one of ``_ext/effects.hpp``) shared
     by the runs), and one at a time as :func:`simulate` picks
     otherwise. ``engine="codegen"`` requires the batched engine (refusing what it cannot run);
     any other engine runs one plant at a time. Each result is the one :func:`simulate` would

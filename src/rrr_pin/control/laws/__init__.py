@@ -67,7 +67,15 @@ References
 """
 
 from .antiwindup import AntiWindupTracking, hinf_aw_controller
-from .forms import CompiledForm, FLAWForm, FLForm, FLFrictionForm, PDForm, TwoDOFForm
+from .forms import (
+    CompiledForm,
+    FLAWForm,
+    FLForm,
+    FLFrictionForm,
+    PDForm,
+    TwoDOFForm,
+    compiled_forms,
+)
 from .pd import PD_BANDWIDTH, PDGravity, PDLinearModel, pd_controller
 from .protocol import (
     DEFAULT_RATE,
@@ -96,6 +104,7 @@ __all__ = [
     "FLAWForm",
     "PDForm",
     "TwoDOFForm",
+    "compiled_forms",
     "LinearModel",
     "FLLinearModel",
     "PDLinearModel",

@@ -2,7 +2,10 @@
 
 A law declares its form with :meth:`~rrr_pin.control.laws.protocol.ControlLaw.compiled_form`;
 an engine runs a form only if it implements its exact type (and refuses any other by name),
-so a form it does not know is never run as another. The nominal model of a form is a
+so a form it does not know is never run as another. A form's ``cpp`` names the C++ law that
+implements it (a law of ``RRR_PIN_LAWS`` in ``src/rrr_pin/_ext/law.hpp``, a class of the
+extension with the form's fields): the compiled and the batched engines run exactly the forms
+whose own ``cpp`` the extension has (:func:`compiled_forms`). The nominal model of a form is a
 :class:`~rrr_pin.model.plant.Plant` of any kind: ``M``, ``h`` and ``G`` are its
 :meth:`~rrr_pin.model.plant.Plant.terms` and :meth:`~rrr_pin.model.plant.Plant.G`.
 """
@@ -16,7 +19,8 @@ import numpy as np
 
 from ...validation import check_bandwidth, check_matrix, check_positive, check_vector
 
-__all__ = ["CompiledForm", "FLForm", "FLFrictionForm", "FLAWForm", "PDForm", "TwoDOFForm"]
+__all__ = ["CompiledForm", "FLForm", "FLFrictionForm", "FLAWForm", "PDForm", "TwoDOFForm",
+           "compiled_forms"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,10 +39,15 @@ class CompiledForm:
     kind : str
         Short name of the form (class attribute; messages and
         :func:`rrr_pin.sim.compiled.floor_ms`).
+    cpp : str or None
+        The C++ law that implements this exact type (class attribute, set on the type itself,
+        never inherited: a subclass is another law): its name in ``RRR_PIN_LAWS``
+        (``src/rrr_pin/_ext/law.hpp``); None for a form no C++ law implements.
     """
 
     nominal: object
     kind: ClassVar[str] = ""
+    cpp: ClassVar[str | None] = None
 
     def engine_fields(self) -> dict:
         """Return the fields a compiled law is filled with, by name (all but ``nominal``).
@@ -98,6 +107,7 @@ class FLForm(CompiledForm):
     C: np.ndarray
     D: np.ndarray
     kind: ClassVar[str] = "fl"
+    cpp: ClassVar[str | None] = "FLLaw"
 
     def __post_init__(self) -> None:
         _check_controller(self)
@@ -135,6 +145,7 @@ class FLFrictionForm(CompiledForm):
     coulomb: np.ndarray
     coulomb_velocity: float
     kind: ClassVar[str] = "fl_friction"
+    cpp: ClassVar[str | None] = None  # Python engine only
 
     def __post_init__(self) -> None:
         _check_controller(self)
@@ -184,6 +195,7 @@ class FLAWForm(CompiledForm):
     L: np.ndarray
     limit: np.ndarray
     kind: ClassVar[str] = "fl_aw"
+    cpp: ClassVar[str | None] = "FLAWLaw"
 
     def __post_init__(self) -> None:
         _check_controller(self, "L")
@@ -213,6 +225,7 @@ class PDForm(CompiledForm):
     Kp: np.ndarray
     Kd: np.ndarray
     kind: ClassVar[str] = "pd"
+    cpp: ClassVar[str | None] = "PDLaw"
 
     def __post_init__(self) -> None:
         n = self.nominal.nq
@@ -261,6 +274,23 @@ class TwoDOFForm(CompiledForm):
     C: np.ndarray
     D: np.ndarray
     kind: ClassVar[str] = "twodof"
+    cpp: ClassVar[str | None] = "TwoDOFLaw"
 
     def __post_init__(self) -> None:
         _check_controller(self, inputs=2)
+
+
+def compiled_forms() -> list[type]:
+    """Return every compiled form type that names its own C++ law (``cpp``), base first.
+
+    The subclasses of :class:`CompiledForm` defined so far (the built-ins and any user's),
+    whose ``cpp`` is set on the type itself; which of them the extension has is
+    :func:`rrr_pin.sim.extension.law_name`'s test.
+    """
+    out, todo = [], list(CompiledForm.__subclasses__())
+    while todo:
+        cls = todo.pop(0)
+        todo.extend(cls.__subclasses__())
+        if vars(cls).get("cpp"):
+            out.append(cls)
+    return out
