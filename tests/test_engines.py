@@ -153,13 +153,13 @@ PLANTS = ("rrr", "ur5", *MECHANISMS)
 #: saturation limit is set per run (below the peak torque the law asks, so it clips); the
 #: flexible joints alone need more transmission damping than with the actuator filter.
 EFFECTS = {
-    "delay": {"delay": 1.5e-3}, "actuator": {"bandwidth": 400.0},
+    "delay": {"delay": 1.5e-3}, "actuator": {"actuator_bandwidth": 400.0},
     "friction": {"viscous": 0.05, "coulomb": 0.1}, "saturation": {},
     "noise": {"noise_q": 1e-4, "noise_qd": 1e-3}, "quantization": {"encoder_counts": 2 ** 12},
-    "flexible": {"stiffness": 2e4, "motor_inertia": 0.05, "damping": 20.0},
-    "all": {"delay": 1.5e-3, "bandwidth": 400.0, "viscous": 0.05, "coulomb": 0.1,
+    "flexible": {"stiffness": 2e4, "motor_inertia": 0.05, "transmission_damping": 20.0},
+    "all": {"delay": 1.5e-3, "actuator_bandwidth": 400.0, "viscous": 0.05, "coulomb": 0.1,
             "noise_q": 1e-4, "noise_qd": 1e-3, "encoder_counts": 2 ** 18, "stiffness": 2e4,
-            "motor_inertia": 0.05, "damping": 1.0},
+            "motor_inertia": 0.05, "transmission_damping": 1.0},
 }
 #: Runs: sampled on the ideal plant and with each effect, continuous on the ideal plant
 #: (effects need a sampled law).
