@@ -799,6 +799,25 @@ def _check_subtree_mass(masses, children, locked) -> None:
                     f"rrr-pin refuses to simulate an arm with zero mass")
 
 
+def _locked(model, lock, label: str):
+    """Return ``(model, lock)``: ``lock``'s joints fixed (Pinocchio's reduced model), checked.
+
+    A model with no moving joint left is refused, naming ``label``.
+    """
+    if lock:
+        try:
+            lock = _check_lock(model, lock)
+        except RobotModelError as exc:
+            raise RobotModelError(f"{label}: {exc}") from None
+        q_ref = pin.neutral(model)
+        for joint_name, value in lock.items():
+            q_ref[model.joints[model.getJointId(joint_name)].idx_q] = value
+        model = pin.buildReducedModel(model, [model.getJointId(j) for j in lock], q_ref)
+    if model.nq == 0:
+        raise RobotModelError(f"{label}: no moving joint left")
+    return model, lock
+
+
 def _check_lock(model: pin.Model, lock: dict) -> dict[str, float]:
     """Check the joints to lock (the lock validator): known, finite, inside the limits.
 
@@ -974,17 +993,7 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
     unbounded = np.abs(model.upperPositionLimit) >= _UNBOUNDED
     model.upperPositionLimit[unbounded] = np.inf
     model.lowerPositionLimit[np.abs(model.lowerPositionLimit) >= _UNBOUNDED] = -np.inf
-    if lock:
-        try:
-            lock = _check_lock(model, lock)
-        except RobotModelError as exc:
-            raise RobotModelError(f"{label}: {exc}") from None
-        q_ref = pin.neutral(model)
-        for joint_name, value in lock.items():
-            q_ref[model.joints[model.getJointId(joint_name)].idx_q] = value
-        model = pin.buildReducedModel(model, [model.getJointId(j) for j in lock], q_ref)
-    if model.nq == 0:
-        raise RobotModelError(f"{label}: no moving joint left")
+    model, lock = _locked(model, lock, label)
     model.gravity.linear = np.array([0.0, 0.0, -gravity])
     robot = Robot(model=model, data=model.createData(), name=name or urdf_name, source=label,
                   urdf=raw, locked=lock)
@@ -1189,17 +1198,7 @@ def arm_from_mjcf(source, *, gravity: float | None = None,
         raise RobotModelError(f"{label}: negative joint {negative[0][0]} "
                               f"({negative[0][1]:g}); armature, damping and frictionloss "
                               f"must be >= 0")
-    if lock:
-        try:
-            lock = _check_lock(model, lock)
-        except RobotModelError as exc:
-            raise RobotModelError(f"{label}: {exc}") from None
-        q_ref = pin.neutral(model)
-        for joint_name, value in lock.items():
-            q_ref[model.joints[model.getJointId(joint_name)].idx_q] = value
-        model = pin.buildReducedModel(model, [model.getJointId(j) for j in lock], q_ref)
-    if model.nq == 0:
-        raise RobotModelError(f"{label}: no moving joint left")
+    model, lock = _locked(model, lock, label)
     model.gravity.linear = np.array([0.0, 0.0, -gravity])
     robot = MjcfArm(model=model, data=model.createData(), name=name or path.stem,
                     source=label, urdf="", locked=lock, mjcf=text)
