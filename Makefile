@@ -41,7 +41,7 @@ install: $(VENV)/.installed-test
 
 # reproduce owns $(OUT): --overwrite replaces its previous run there (only the files it wrote)
 reproduce: $(VENV)/.installed
-	$(BIN)/rrr-pin reproduce --out $(OUT) --overwrite
+	$(BIN)/rrr-pin reproduce --realistic --out $(OUT) --overwrite
 
 # two worker processes (pytest-xdist): the suite is CPU-bound and the machine has 2 cores
 test: $(VENV)/.installed-test
