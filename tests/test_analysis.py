@@ -341,7 +341,7 @@ def test_margin_times_tol_is_constant_over_the_uncertainty_scale(rrr):
     # Before: --tol 2 gave 1.6e-33 (central differences at factors 1 +- tol reached a mass
     # factor -1, where Pinocchio's composite inertia is meaningless: M up to 1.7e34).
     law = fl_controller(rrr)
-    tols = [0.2, 2.0, 5.0]
+    tols = [0.2, 2.0]  # the paper's and one past a factor -1 (where the bug was)
     results = [parametric_margin(law, Q, t, omega=_GRID)[1] for t in tols]
     lower = np.array([r.margin_lower * t for r, t in zip(results, tols, strict=True)])
     upper = np.array([r.margin_upper * t for r, t in zip(results, tols, strict=True)])
@@ -350,7 +350,7 @@ def test_margin_times_tol_is_constant_over_the_uncertainty_scale(rrr):
     assert_allclose(upper, upper[0], rtol=1e-9)
     # independent of mu: the eigenvalues of the closed loop rebuilt on the box's vertices
     # (Pinocchio's M for factors > 0, its affine extension where tol x alpha reaches 1)
-    for tol in (0.2, 2.0):
+    for tol in (2.0,):  # the vertices at 0.2 give the same alpha * tol (scaling, above)
         alpha, _ = sampled_margin(law, parametric_loop(law, Q, tol), samples=8)
         # mu's guarantee holds below its lower bound; the worst vertex is a mass factor
         # reaching 0 (M singular), the destabilizing perturbation mu's upper bound found
