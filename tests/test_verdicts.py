@@ -254,6 +254,8 @@ def test_realistic_figure_draws_both_ratios():
                 "realistic": {"summary": {"error_ratio_uncertain": {"hinf": real}}}}
     fig = plot_realistic({"rrr": run(21.4, 0.0118), "kinova": run(19.6, 0.746)})
     ax = fig.axes[0]
-    heights = sorted(p.get_height() for p in ax.patches)
-    assert_allclose(heights, sorted([21.4, 0.0118, 19.6, 0.746]), rtol=0)  # the data drawn
+    # each bar runs from 1 (equal tracking) to its ratio: the data drawn, at its far end
+    ends = sorted(p.get_y() + p.get_height() for p in ax.patches)
+    assert_allclose(ends, sorted([21.4, 0.0118, 19.6, 0.746]), rtol=1e-12)
+    assert all(p.get_y() == 1.0 for p in ax.patches)
     assert ax.get_yscale() == "log" and "[-]" in ax.get_ylabel()
