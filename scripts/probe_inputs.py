@@ -291,6 +291,10 @@ def _records(w: Path) -> None:
         for key in ("estimate", "std", "base_consistent"):
             r[key] = r[key][:k]
         r["cov"] = [row[:k] for row in r["cov"][:k]]
+        if "cov_all" in r:  # base parameters first, then friction (and armature) columns
+            n = len(r["cov_all"])
+            keep = [i for i in range(n) if i < k or i >= r["base_count"]]
+            r["cov_all"] = [[r["cov_all"][i][j] for j in keep] for i in keep]
         r["base_count"] = k
         for key in ("names", "expressions", "independent", "K"):
             r["base"][key] = r["base"][key][:k]
