@@ -86,6 +86,7 @@ def test_campaign_on_a_structure_generated_at_first_use_equals_compiled(cache):
                 assert abs(a[key] - value) <= 1e-12, key
 
 
+@pytest.mark.slow  # a second C compile of a structure (8 s); the first-use build is tested above
 def test_entry_of_another_generator_version_is_rebuilt(cache, monkeypatch):
     robot = robot_from_xml(GOOD)
     st = dyngen.structure(robot.model)

@@ -100,6 +100,7 @@ def test_a_structure_whose_forward_dynamics_is_an_aba_equals_pinocchio(
     generated_matches_pinocchio(name, model, 5, 4)
 
 
+@pytest.mark.slow  # two C builds of the generated code (7 s); make test-slow runs it
 @pytest.mark.skipif(not available(), reason="compiled extension not built")
 def test_hoisting_changes_no_bit(tmp_path, monkeypatch):
     # A 2-joint structure generated with and without hoisting (everything at every call, as
