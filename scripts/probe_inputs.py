@@ -348,7 +348,7 @@ def _trajectories(w: Path) -> None:
 
 
 def _designs(w: Path) -> None:
-    from rrr_pin.campaign.tuning import DESIGN_FORMAT
+    from rrr_pin.campaign.design_file import DESIGN_FORMAT
 
     (w / "noK.json").write_text(json.dumps({"format": DESIGN_FORMAT, "robot": "rrr",
                                             "joints": ["joint1", "joint2", "joint3"],

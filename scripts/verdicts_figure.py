@@ -20,7 +20,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rrr_pin.campaign.tuning import _context, _Eval, load_design, tuned_law  # noqa: E402
+from rrr_pin.campaign.design_file import load_design, tuned_law  # noqa: E402
+from rrr_pin.campaign.tuning import _context, _Eval  # noqa: E402
 from rrr_pin.control.references import default_reference  # noqa: E402
 from rrr_pin.model.dynamics import load_robot  # noqa: E402
 from rrr_pin.model.uncertainty import Tolerances  # noqa: E402

@@ -224,8 +224,9 @@ def test_bad_lam_is_named(rrr, paper_K, paper):
 
 
 def test_per_joint_lam_structure_tunes_and_round_trips(rrr, tmp_path):
+    from rrr_pin.campaign.design_file import load_design, tuned_law
     from rrr_pin.campaign.requirements import DelayMargin, DiskMargin
-    from rrr_pin.campaign.tuning import load_design, tune, tuned_law
+    from rrr_pin.campaign.tuning import tune
 
     st = make_structure("gain", lam=45.0, joints=rrr.joint_names, per_joint_lam=True)
     assert isinstance(st, PerJoint) and st.per_joint_lam
@@ -290,7 +291,7 @@ def test_linear_model_loops_per_joint(rrr):
     """Each joint's continuous loop is (2 lam_j s + lam_j^2 (1 + K_j(s))) / s^2 (eq. 10-11)."""
     import control
 
-    from rrr_pin.campaign.tuning import _law
+    from rrr_pin.campaign.design_file import law_of as _law
 
     Ks = [control.tf([1.0], [1.0]), control.tf([2.0, 30.0], [1.0, 10.0]),
           control.tf([3.0, 5.0], [1.0, 50.0])]

@@ -124,7 +124,7 @@ def test_design_files_and_tuned_laws_at_the_top_level(tmp_path, rrr):
     # issue 50: a tuned law is rrr_pin.tuned_law(rrr_pin.load_design(path), robot)
     import json
 
-    from rrr_pin.campaign.tuning import DESIGN_FORMAT
+    from rrr_pin.campaign.design_file import DESIGN_FORMAT
 
     path = tmp_path / "design.json"
     path.write_text(json.dumps({"format": DESIGN_FORMAT, "robot": rrr.name,

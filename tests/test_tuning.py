@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from rrr_pin.campaign.design_file import load_design, tuned_law
 from rrr_pin.campaign.requirements import (
     ActuatorBandwidth,
     Bandwidth,
@@ -27,7 +28,7 @@ from rrr_pin.campaign.requirements import (
     make_requirement,
 )
 from rrr_pin.campaign.stress import linear_boundary
-from rrr_pin.campaign.tuning import TuneError, _Context, _Eval, load_design, tune, tuned_law
+from rrr_pin.campaign.tuning import TuneError, _Context, _Eval, tune
 from rrr_pin.control.laws import fl_controller
 from rrr_pin.control.sampled_loops import LoopSet
 from rrr_pin.control.structures import PID, FixedOrder, FLOnly, Gain, LeadLag, make_structure
@@ -569,7 +570,7 @@ def test_tuning_the_weight_moves_the_papers_delay_margin_past_fl_alones(rrr, pap
 def test_a_design_file_without_or_with_a_bad_K_is_refused_naming_the_file(tmp_path, rrr):
     # issue 50's probe: a design.json without K ran FL alone (another law), and a bad K was
     # named without the file. load_design checks both, naming the file.
-    from rrr_pin.campaign.tuning import DESIGN_FORMAT
+    from rrr_pin.campaign.design_file import DESIGN_FORMAT
 
     good = {"format": DESIGN_FORMAT, "robot": "rrr", "joints": list(rrr.joint_names),
             "lam_rad_s": 45.0, "K": {"num": [2.0, 1.0], "den": [1.0, 0.5]}}

@@ -23,10 +23,11 @@ from rrr_pin.model.dh import (
     check_inertials,
     paper_params,
 )
-from rrr_pin.model.dynamics import check_urdf_inertials, load_robot
+from rrr_pin.model.dynamics import load_robot
 from rrr_pin.model.robots import RobotModelError
 from rrr_pin.model.uncertainty import perturb_inertia, perturb_urdf
 from rrr_pin.model.urdf import urdf_from_params
+from rrr_pin.model.urdf_checks import check_urdf_inertials
 
 # --- a valid two-joint arm, and one defect at a time ------------------------------------------
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from rrr_pin.campaign.design_set import design_effects
 from rrr_pin.campaign.requirements import (
     ActuatorBandwidth,
     Bandwidth,
@@ -22,7 +23,7 @@ from rrr_pin.campaign.requirements import (
     make_requirement,
 )
 from rrr_pin.campaign.stress import linear_boundary
-from rrr_pin.campaign.tuning import _context, _Eval, design_effects, tune
+from rrr_pin.campaign.tuning import _context, _Eval, tune
 from rrr_pin.control.references import default_reference
 from rrr_pin.validation import FieldError
 

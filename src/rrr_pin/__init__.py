@@ -25,7 +25,7 @@ _EXPORTS = {
     "CertificateSpec": "robust.certificates",
     "check_inertial": "model.dh",
     "check_lti": "robust.lti",
-    "check_urdf_inertials": "model.dynamics",
+    "check_urdf_inertials": "model.urdf_checks",
     "CirclePath": "control.references",
     "CompiledForm": "control.laws",
     "ControlLaw": "control.laws",
@@ -50,7 +50,7 @@ _EXPORTS = {
     "IKError": "control.references",
     "LinearModel": "control.laws",
     "LinePath": "control.references",
-    "load_design": "campaign.tuning",
+    "load_design": "campaign.design_file",
     "load_robot": "model.dynamics",
     "loopsyn": "robust.loopshaping",
     "make_law": "control.catalog",
@@ -91,7 +91,7 @@ _EXPORTS = {
     "Trajectory": "sim.trajectory",
     "tune": "campaign.tuning",
     "TuneResult": "campaign.tuning",
-    "tuned_law": "campaign.tuning",
+    "tuned_law": "campaign.design_file",
 }
 
 __all__ = ["__version__", *sorted(_EXPORTS, key=str.lower)]

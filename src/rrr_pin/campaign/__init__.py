@@ -7,7 +7,9 @@ campaign), :mod:`~rrr_pin.campaign.runner` (``RunSettings``, ``run_laws``: any l
 effects), :mod:`~rrr_pin.campaign.store` (append-only storage, resume) and
 :mod:`~rrr_pin.campaign.executors` (local processes or Dask), :mod:`~rrr_pin.campaign.requirements`
 and :mod:`~rrr_pin.campaign.tuning` (design to requirements: ``tune``, with the search of
-:mod:`~rrr_pin.campaign.minimax`), :mod:`~rrr_pin.campaign.coverage` (what a certificate
+:mod:`~rrr_pin.campaign.minimax`; the loop a design is judged on in
+:mod:`~rrr_pin.campaign.design_set`, its ``design.json`` in :mod:`~rrr_pin.campaign.design_file`),
+:mod:`~rrr_pin.campaign.coverage` (what a certificate
 covers: the exact discrete loop behind a run's effects) and
 :mod:`~rrr_pin.campaign.effect_margins` (warnings where a law meets effects beyond its
 margins). Each takes any plant

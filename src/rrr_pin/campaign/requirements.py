@@ -3,7 +3,7 @@ r"""Requirements of a tuned design: typed inputs, each estimated on a frequency 
 A requirement states a target on the loop actually implemented: the law sampled at its rate,
 on every plant of the set (:class:`~rrr_pin.control.sampled_loops.LoopSet`, the plants
 linearized at the reference's mean configuration), behind the design's effects
-(``ctx.effects``, :func:`rrr_pin.campaign.tuning.design_effects`: the ``--with`` effects and
+(``ctx.effects``, :func:`rrr_pin.campaign.design_set.design_effects`: the ``--with`` effects and
 the delay and actuator a requirement states, ``{"delay": s, "actuator": rad/s}``; the plant
 behind them discretized exactly, :meth:`~rrr_pin.control.sampled_loops.LoopSet.effect_plant`).
 Each gives

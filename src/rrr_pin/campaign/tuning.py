@@ -29,7 +29,6 @@ cannot all be met (the best point found and which requirements bind there). It i
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -37,6 +36,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..validation import FieldError, check_count, check_rate
+from .design_file import DESIGN_FORMAT, k_record, law_of
+from .design_set import (
+    check_plant_set,
+    design_effects,
+    design_tolerances,
+    number_text,
+    plant_failures,
+    simulated_failures,
+    with_default_requirements,
+)
 from .requirements import (
     ActuatorBandwidth,
     DelayMargin,
@@ -47,13 +56,9 @@ from .requirements import (
     _bisect_up,
 )
 
-__all__ = ["tune", "TuneResult", "TuneError", "tuned_law", "load_design", "DESIGN_FORMAT",
-           "DEFAULT_LOWER_GAIN_MARGIN", "with_default_requirements", "design_effects",
-           "design_tolerances", "check_plant_set", "plant_failures", "simulated_failures",
-           "check_budget", "peak_rss_mb", "MAX_SEARCH_SECONDS"]
+__all__ = ["tune", "TuneResult", "TuneError", "check_budget", "peak_rss_mb",
+           "MAX_SEARCH_SECONDS"]
 
-#: ``format`` of a ``design.json``.
-DESIGN_FORMAT = "rrr-pin-design/1"
 
 #: Objective of a point unstable on some plant: this plus its largest spectral radius.
 _UNSTABLE = 1e3
@@ -195,7 +200,7 @@ class _Eval:
         return ctx.loops.loop_response(ctx.loops.law(self.lam, self.K, w, matrices=False),
                                        P)[0]
 
-    def _plant_and_law(self, ctx, i):
+    def _plant_andlaw_of(self, ctx, i):
         """Plant ``i`` (zero-order hold at ``T``, output its state) and the law, discrete."""
         import control
 
@@ -217,7 +222,7 @@ class _Eval:
 
     def loop_ss(self, ctx, i):
         """Plant ``i``'s discrete loop at the torque input as a ``control.StateSpace``."""
-        P, C = self._plant_and_law(ctx, i)
+        P, C = self._plant_andlaw_of(ctx, i)
         return -C * P
 
     def noise_ss(self, ctx, i):
@@ -226,7 +231,7 @@ class _Eval:
 
         loops = ctx.loops
         n = loops.n
-        P, C = self._plant_and_law(ctx, i)
+        P, C = self._plant_andlaw_of(ctx, i)
         E = np.vstack([np.eye(n), np.zeros((n, n))])
         eye = control.ss([], [], [], np.eye(n), loops.T)
         return control.feedback(eye, C * P, sign=1) * C * control.ss([], [], [], E, loops.T)
@@ -337,7 +342,7 @@ class _Context:
         from ..control.laws import fl_controller
         from .runner import run_laws_batch
 
-        law = _law(self.nominal, ev.lam, ev.K)
+        law = law_of(self.nominal, ev.lam, ev.K)
         fl = fl_controller(self.nominal, 100.0)
         runs = run_laws_batch(self.plants, [law, fl], self.reference, self.run)
         peak, errs, errs_fl, diverged, fl_diverged = [], [], [], {}, {}
@@ -481,39 +486,6 @@ def check_budget(n: int, plants: int, starts: int, maxfev: int, points: int = 20
                                    f"starts or plants")
 
 
-def _diagonal(Ks):
-    """``diag(K_1, ..., K_n)`` as one ``control.TransferFunction`` (None: 0 on that joint)."""
-    import control
-
-    from ..control.sampled_loops import siso_coefficients
-
-    n = len(Ks)
-    nd = [siso_coefficients(k) if k is not None else (np.zeros(1), np.ones(1)) for k in Ks]
-    num = [[nd[i][0] if i == j else [0.0] for j in range(n)] for i in range(n)]
-    den = [[nd[i][1] if i == j else [1.0] for j in range(n)] for i in range(n)]
-    return control.tf(num, den)
-
-
-def _law(nominal, lam, K, name="tuned"):
-    from ..control.laws import TrackingController
-
-    if isinstance(K, list | tuple):
-        K = _diagonal(K)
-    return TrackingController(nominal=nominal, lam=lam, K=K, name=name, label="tuned design")
-
-
-def _k_record(K):
-    """``design.json``'s ``K``: ``{num, den}``, or ``{"per_joint": [{num, den}, ...]}``."""
-    from ..control.sampled_loops import siso_coefficients
-
-    if K is None:
-        return None
-    if isinstance(K, list | tuple):
-        return {"per_joint": [_k_record(k) for k in K]}
-    num, den = siso_coefficients(K)
-    return {"num": num.tolist(), "den": den.tolist()}
-
-
 @dataclass
 class TuneResult:
     """What :func:`tune` found and verified.
@@ -564,14 +536,14 @@ class TuneResult:
 
     def law(self, nominal, name: str = "tuned"):
         """Return the tuned law on ``nominal`` (continuous; run it sampled at ``rate``)."""
-        return _law(nominal, self.lam, self.K, name)
+        return law_of(nominal, self.lam, self.K, name)
 
     def to_dict(self) -> dict:
         """Return the ``design.json`` record (``lam_rad_s`` a list when per joint)."""
         from ..control.laws.tracking import lam_record
 
         return {"format": DESIGN_FORMAT, "law": "tuned", "lam_rad_s": lam_record(self.lam),
-                "K": _k_record(self.K),
+                "K": k_record(self.K),
                 "rate_hz": self.rate, "structure": self.structure.to_dict(self.values),
                 "requirements": self.table, "objective": self.objective,
                 "status": self.status, "tradeoff": self.tradeoff, "starts": self.starts,
@@ -588,22 +560,14 @@ class TuneResult:
                    f"{'simulated':>12}  met")
         for row in self.table:
             sim = row.get("simulated")
-            out.append(f"{row['name']:<20}{_num(row['target']):>12}{_num(row['achieved']):>12}"
-                       f"{_num(row['verified']):>12}{_num(sim):>12}  "
+            out.append(f"{row['name']:<20}{number_text(row['target']):>12}{number_text(row['achieved']):>12}"
+                       f"{number_text(row['verified']):>12}{number_text(sim):>12}  "
                        f"{'yes' if row['met'] else 'NO'}")
         if self.tradeoff:
             out.append(f"trade-off: binding {', '.join(self.tradeoff['binding'])}; unmet "
                        f"{', '.join(self.tradeoff['unmet']) or 'none'}")
             out += [f"  not met: {text}" for text in self.tradeoff.get("failures", [])]
         return out
-
-
-def _num(x):
-    if x is None:
-        return "-"
-    if isinstance(x, str):
-        return x
-    return f"{x:.4g}"
 
 
 def _k_text(K):
@@ -644,140 +608,6 @@ def _check_requirements(requirements, nominal, fixed) -> list:
     return reqs
 
 
-#: Lower gain margin every design must have unless a requirement states its own: the loop
-#: stays stable with every torque scaled by any factor in ``[0.5, 1]`` (6 dB), e.g. a real
-#: arm whose inertia (rotor armature) is up to twice the model's on the loop's directions.
-DEFAULT_LOWER_GAIN_MARGIN = 0.5
-
-
-def with_default_requirements(reqs) -> list:
-    """Add ``lower_gain_margin`` (:data:`DEFAULT_LOWER_GAIN_MARGIN`) unless one is given.
-
-    ``LowerGainMargin(1.0)`` (any gain reduction may destabilize) turns it off.
-    """
-    from .requirements import LowerGainMargin
-
-    if any(isinstance(r, LowerGainMargin) for r in reqs):
-        return list(reqs)
-    return [*reqs, LowerGainMargin(DEFAULT_LOWER_GAIN_MARGIN, default=True)]
-
-
-def design_effects(reqs, fixed) -> dict:
-    """Return the effects the design's loop runs with: ``fixed`` and the requirements'.
-
-    ``actuator_bandwidth=WA,delay=TAU`` states an actuator ``WA`` and a delay ``TAU`` the
-    loop runs behind; ``delay_margin=...,actuator=WA`` an actuator. Of several, the largest
-    delay and the slowest actuator.
-
-    Returns
-    -------
-    dict
-        ``{"delay": s, "actuator": rad/s}`` (keys only for the effects present).
-
-    Raises
-    ------
-    FieldError
-        ``requirements``: a delay present (held or stated) at or above the required delay
-        margin, which no loop can then have.
-    """
-    out = {k: v for k, v in fixed.items() if k in ("delay", "actuator")}
-
-    def put(key, value, pick):
-        if value:
-            out[key] = pick(out[key], value) if key in out else value
-    for r in reqs:
-        if isinstance(r, ActuatorBandwidth):
-            put("actuator", r.target, min)
-            put("delay", r.delay, max)
-        elif isinstance(r, DelayMargin):
-            put("actuator", r.actuator, min)
-    for r in reqs:
-        if isinstance(r, DelayMargin) and out.get("delay", 0.0) >= r.target:
-            raise FieldError("requirements", f"{{name}}: delay_margin = {r.target:g} s with a "
-                                             f"delay of {out['delay']:g} s present "
-                                             f"contradicts: the margin counts the whole delay "
-                                             f"the loop tolerates, the present one included")
-    return out
-
-
-def design_tolerances():
-    """Return the plant set of a design drawn from a count: the paper's box, armature +-50 %.
-
-    :class:`~rrr_pin.model.uncertainty.Tolerances`: 20 % inertias, 5 % lengths, and each
-    joint's armature drawn in [0.5, 1.5] times its nominal (a geared arm's reflected rotor
-    inertia is known to a factor, and the loop's lower gain margin is what it tests). The range
-    is relative: an arm loaded without armature (a URDF, no ``--armature``) keeps none, so give
-    the nominal ``--armature`` of your drives. The one place the design's default set is chosen
-    (``design.json`` records it under ``plants``).
-    """
-    from ..model.uncertainty import Tolerances
-
-    return Tolerances(armature=DESIGN_ARMATURE_TOLERANCE)
-
-
-#: The design's default relative range of each joint's armature (:func:`design_tolerances`).
-DESIGN_ARMATURE_TOLERANCE = 0.5
-
-
-def check_plant_set(tol) -> None:
-    """Refuse a tolerance box with no width: its plants would all be the nominal.
-
-    Raises
-    ------
-    FieldError
-        ``tolerances``: every range of a :class:`~rrr_pin.model.uncertainty.Tolerances` is
-        empty (zero width).
-    """
-    from dataclasses import fields as dc_fields
-
-    from ..model.uncertainty import Tolerances
-
-    if not isinstance(tol, Tolerances):
-        return
-    widths = {f.name: getattr(tol, f.name) for f in dc_fields(tol)
-              if isinstance(getattr(tol, f.name), float | int)}
-    if widths and all(float(np.max(np.abs(v))) == 0.0 for v in widths.values()):
-        raise FieldError("tolerances", f"{{name}}: the plant set has an empty range "
-                                       f"({', '.join(f'{k} = {v}' for k, v in widths.items())}"
-                                       f"): every plant would be the nominal; give a width, "
-                                       f"or plants=[robot] to design on the nominal alone")
-
-
-def plant_failures(ctx, ev, reqs, table) -> list:
-    """Name the plant each unmet requirement fails on (:meth:`Requirement.per_plant`).
-
-    Returns
-    -------
-    list of dict
-        ``requirement``, ``plant`` (index in the set, 0 the nominal when drawn), ``value``
-        (that plant's, or None), ``text``.
-    """
-    out = []
-    for r, row in zip(reqs, table, strict=True):
-        if row["met"]:
-            continue
-        each = r.per_plant(ctx, ev)
-        if each is None or not len(each):
-            k, v = None, None
-        else:
-            norm = np.array([r.normalized(x) if np.isfinite(x) else np.inf for x in each])
-            k = int(np.argmax(norm))
-            v = float(each[k])
-        where = f"plant {k}" if k is not None else "the plant set"
-        value = row["verified"] if row["verified"] is not None else row["achieved"]
-        text = (f"{r.name} = {_num(value)} against {row['sense']} {_num(row['target'])} "
-                f"{r.unit}: worst on {where}" + (f" ({_num(v)})" if v is not None else ""))
-        out.append({"requirement": r.name, "plant": k, "value": v, "text": text})
-    return out
-
-
-def simulated_failures(ctx, ev) -> list:
-    """Return the plants on which the law diverged, simulated with the design's effects."""
-    sim = ctx.simulated(ev)
-    fx = ", ".join(f"{k} {v:g}" for k, v in (ctx.effects or {}).items()) or "no effects"
-    return [{"requirement": "stable in simulation", "plant": int(k), "value": None,
-             "text": f"stable in simulation: the law diverged on plant {k} with {fx} "
-                     f"({why})"} for k, why in sorted(sim["diverged"].items())]
 
 
 def tune(robot, structure, requirements, plants=20, *, seed: int = 0, tolerances=None,
@@ -1026,98 +856,10 @@ def _stress_row(ctx, ev, req, settings) -> dict:
             return ctx.loops.spectral_radius(ev.law, delay, w, plants=nominal_only)[0] < 1.0
         pred = _bisect_down(stable, req.target, 1e-4)
     settings = settings or StressSettings()
-    law = _law(ctx.nominal, ev.lam, ev.K)
+    law = law_of(ctx.nominal, ev.lam, ev.K)
     found = breaking_point(ctx.nominal, law, ctx.reference, effect, settings,
                            guess=pred if math.isfinite(pred) and pred > 0 else None,
                            fixed=held)
     return {"simulated": found["simulated"], "simulated_status": found["status"],
             "simulated_bracket": found["bracket"], "predicted_nominal": pred,
             "simulated_with": held}
-
-
-def load_design(path) -> dict:
-    """Read a ``design.json`` (:meth:`TuneResult.to_dict`), checking its format.
-
-    Raises
-    ------
-    ValueError
-        Not a design file (its ``format`` is not :data:`DESIGN_FORMAT`), or unreadable JSON.
-    """
-    try:
-        with open(path) as fh:
-            data = json.load(fh)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"--design {path}: not JSON ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != DESIGN_FORMAT:
-        raise ValueError(f"--design {path}: not an rrr-pin design (format "
-                         f"{data.get('format') if isinstance(data, dict) else None!r}, "
-                         f"expected {DESIGN_FORMAT!r}); write one with rrr-pin design "
-                         f"--require ...")
-    missing = [key for key in ("robot", "joints", "lam_rad_s", "K") if key not in data]
-    if missing:  # K null is FL alone, as the tuner writes it; a missing K is another law
-        raise ValueError(f"--design {path}: no {', '.join(missing)} (a design.json written by "
-                         f"rrr-pin design --require ... has them all; K null for FL alone)")
-    K = data["K"]
-    for k in (K["per_joint"] if isinstance(K, dict) and "per_joint" in K and
-              isinstance(K["per_joint"], list) else [K]):
-        if k is not None and not _k_ok(k):
-            raise ValueError(f"--design {path}: K = {json.dumps(k)[:120]} is not a transfer "
-                             f"function {{\"num\": [...], \"den\": [...]}} of finite "
-                             f"coefficients, den[0] != 0, proper (len(num) <= len(den))")
-    return data
-
-
-def _k_ok(k) -> bool:
-    """Whether ``k`` is ``{num, den}`` of a proper SISO transfer function with finite numbers."""
-    if not isinstance(k, dict) or set(k) != {"num", "den"}:
-        return False
-    try:
-        num, den = (np.asarray(k[key], dtype=float) for key in ("num", "den"))
-    except (TypeError, ValueError):
-        return False
-    return bool(num.ndim == den.ndim == 1 and num.size and den.size and den[0] != 0
-                and num.size <= den.size and np.all(np.isfinite(num))
-                and np.all(np.isfinite(den)))
-
-
-def tuned_law(design: dict, nominal, name: str = "tuned"):
-    """Build the tuned law of a ``design.json`` record on ``nominal``.
-
-    ``rrr_pin.tuned_law(rrr_pin.load_design("tuned/design.json"), robot)`` is the law that
-    ``rrr-pin design --require ...`` wrote, ready for :func:`rrr_pin.simulate` or a campaign.
-
-    Parameters
-    ----------
-    design : dict
-        A record read by :func:`load_design`.
-    nominal : rrr_pin.model.plant.Plant
-        The arm it was tuned for (same name and joints).
-    name : str
-        The law's name in runs and tables.
-
-    Returns
-    -------
-    rrr_pin.ControlLaw
-        The feedback-linearizing law with the design's ``lam_rad_s`` [rad/s] (one, or one per
-        joint) and its loop-shaping controller ``K`` (none: FL alone).
-
-    Raises
-    ------
-    ValueError
-        The design was tuned for another arm (its robot name or joints differ).
-    """
-    import control
-
-    if design.get("robot") != nominal.name or list(design.get("joints", [])) != \
-            list(nominal.joint_names):
-        raise ValueError(f"the design was tuned for {design.get('robot')!r} (joints "
-                         f"{design.get('joints')}), not for {nominal.name!r} (joints "
-                         f"{list(nominal.joint_names)}): tune one with rrr-pin design "
-                         f"--robot ...")
-    K = design.get("K")
-    if K is not None and "per_joint" in K:
-        K = [None if k is None else control.tf(k["num"], k["den"]) for k in K["per_joint"]]
-    elif K is not None:
-        K = control.tf(K["num"], K["den"])
-    # lam_rad_s: a number, or a list of one per joint (checked by the law, naming the joint)
-    return _law(nominal, design.get("lam_rad_s"), K, name)

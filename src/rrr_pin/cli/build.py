@@ -328,7 +328,7 @@ def tuned_from_args(args, plant, names):
     if path is None:
         raise ValueError("--controllers tuned needs --design DIR/design.json (write one with "
                          "rrr-pin design --robot ARM --require NAME=VALUE --out DIR)")
-    from ..campaign.tuning import load_design, tuned_law
+    from ..campaign.design_file import load_design, tuned_law
 
     not_a_folder(design=path)
     return tuned_law(load_design(path), plant)
@@ -339,7 +339,7 @@ def design_record(args) -> dict | None:
     path = getattr(args, "design", None)
     if path is None:
         return None
-    from ..campaign.tuning import load_design
+    from ..campaign.design_file import load_design
 
     d = load_design(path)
     return {"path": str(path), "robot": d.get("robot"), "lam_rad_s": d.get("lam_rad_s"),
@@ -369,7 +369,7 @@ def warn_effect_margins(args, laws, rate, effects=None) -> list[str]:
         path = getattr(args, "design", None)
         tuned = [law for law in laws if law.name == "tuned"]
         if path is not None and tuned:
-            from ..campaign.tuning import load_design
+            from ..campaign.design_file import load_design
 
             fx = design_effects_record(load_design(path))
             check_effect_margins(tuned, rate, fx.get("delay", 0.0), fx.get("actuator"),

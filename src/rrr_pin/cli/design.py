@@ -128,8 +128,9 @@ def run_tuned(args) -> int:
     """Tune, verify and write ``--out/design.json``; print the requirement table."""
     import json
 
+    from ..campaign.design_set import design_tolerances
     from ..campaign.requirements import make_requirement
-    from ..campaign.tuning import TuneError, design_tolerances, tune
+    from ..campaign.tuning import TuneError, tune
     from ..control.structures import make_structure
     from ..report.jsondata import dumps
     from ..validation import FieldError

@@ -4,7 +4,9 @@ Holds :mod:`~rrr_pin.model.plant` (the ``Plant`` protocol every layer above uses
 capabilities, the ``UncertaintySet`` base), :mod:`~rrr_pin.model.dh` (the paper's Tables 1-2),
 :mod:`~rrr_pin.model.urdf` (the URDF generator), :mod:`~rrr_pin.model.robots` (where an arm
 comes from: the paper's RRR, an example-robot-data name or a URDF path),
-:mod:`~rrr_pin.model.dynamics` (``Robot``, ``load_robot``: M, V, G through Pinocchio),
+:mod:`~rrr_pin.model.dynamics` (``Robot``, ``load_robot``: M, V, G through Pinocchio), with
+:mod:`~rrr_pin.model.urdf_checks` (a URDF's inertials, joints and tree checked before Pinocchio
+reads it) and :mod:`~rrr_pin.model.locks` (joints locked: checked, removed, mimic joints),
 :mod:`~rrr_pin.model.closed_form` (the corrected eq. (2)-(7)), :mod:`~rrr_pin.model.uncertainty`
 (seeded uncertain plants as URDF), :mod:`~rrr_pin.model.drawn` (an uncertain arm's numbers put
 together into its Pinocchio model as the URDF reader would, without the text),

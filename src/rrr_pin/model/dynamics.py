@@ -13,7 +13,8 @@ of freedom. Continuous (unbounded revolute) joints are loaded as revolute joints
 limits, so ``q`` is always an angle and ``nq == nv``.
 
 Validation happens at the edges, once. Loading checks the URDF itself (XML, tree, joint
-axes and limits, every link's inertial with :func:`check_urdf_inertials`, joints to lock)
+axes and limits, every link's inertial with
+:func:`~rrr_pin.model.urdf_checks.check_urdf_inertials`, joints to lock)
 before Pinocchio sees it, because urdfdom silently zeroes some bad inertias. The dynamics
 methods of :class:`Robot` check their arrays (:meth:`Robot.check_state`) unless called with
 ``check=False``, the fast path for loops that have validated their state.
@@ -35,9 +36,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..validation import check_joint_values, check_positive, check_real
-from .dh import ArmParams, check_inertial
+from ..validation import check_joint_values, check_positive
+from .dh import ArmParams
 from .drawn import ArmMap, arm_map, assemble
+from .locks import lock_mimics, locked_model
+from .mjcf_checks import is_serial_mjcf, mjcf_gravity
 from .plant import (
     EFFORT_LIMITS,
     FRAMES,
@@ -52,19 +55,20 @@ from .plant import (
     UncertaintySet,
 )
 from .robots import ERD_ARMS, RobotModelError, nominal_params, read_source
+from .urdf_checks import (
+    UNBOUNDED,
+    parse_urdf,
+    prepare_urdf,
+    unbound_continuous,
+)
 
 __all__ = ["Robot", "DrawnArm", "MjcfArm", "load_robot", "robot_from_xml", "arm_from_mjcf",
-           "is_serial_mjcf",
-           "check_urdf_inertials", "check_regular", "DEFAULT_GRAVITY"]
+           "check_regular", "DEFAULT_GRAVITY"]
 
 logger = logging.getLogger(__name__)
 
 #: Gravity magnitude [m/s^2] used unless told otherwise: the paper's "standard value" 9.8.
 DEFAULT_GRAVITY = 9.8
-
-#: Stand-in limit [rad] for continuous joints in the URDF handed to urdfdom (it cannot parse
-#: ``inf``); replaced by ``+-inf`` in the loaded model.
-_UNBOUNDED = 1e300
 
 #: The mass matrix at the neutral configuration counts as singular when its smallest
 #: eigenvalue is at most this fraction of its largest (a relative test: scale-free).
@@ -574,277 +578,6 @@ class DrawnArm(Robot):
         super().__setstate__(state)
 
 
-def _numbers(element, attribute: str, count: int, default: str, what: str) -> list[float]:
-    """Parse ``count`` finite numbers from an attribute, or raise naming ``what``."""
-    raw = element.get(attribute, default)
-    try:
-        values = [float(v) for v in raw.split()]
-    except ValueError:
-        values = []
-    if len(values) != count or not all(math.isfinite(v) for v in values):
-        raise RobotModelError(f"{what}: <{element.tag} {attribute}=\"{raw}\"> must hold "
-                              f"{count} finite number{'s' if count > 1 else ''}")
-    return values
-
-
-def _inertial_of(link: ET.Element) -> tuple[float, np.ndarray] | None:
-    """Mass [kg] and inertia tensor [kg m^2] of a URDF ``<link>``, checked; None if absent."""
-    what = f"link {link.get('name')!r}"
-    inertial = link.find("inertial")
-    if inertial is None:
-        return None
-    origin = inertial.find("origin")
-    if origin is not None:
-        _numbers(origin, "xyz", 3, "0 0 0", f"{what} <inertial>")
-        _numbers(origin, "rpy", 3, "0 0 0", f"{what} <inertial>")
-    mass_el = inertial.find("mass")
-    if mass_el is None:
-        raise RobotModelError(f"{what}: <inertial> has no <mass>")
-    (mass,) = _numbers(mass_el, "value", 1, "", what)
-    inertia_el = inertial.find("inertia")
-    if inertia_el is None:
-        raise RobotModelError(f"{what}: <inertial> has no <inertia> (urdfdom would read zero "
-                              f"rotational inertia); give ixx, ixy, ixz, iyy, iyz, izz")
-    v = {key: _numbers(inertia_el, key, 1, "", what)[0]
-         for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
-    inertia = np.array([[v["ixx"], v["ixy"], v["ixz"]],
-                        [v["ixy"], v["iyy"], v["iyz"]],
-                        [v["ixz"], v["iyz"], v["izz"]]])
-    try:
-        return check_inertial(mass, inertia, name=what)
-    except ValueError as exc:
-        raise RobotModelError(str(exc)) from None
-
-
-def check_urdf_inertials(urdf) -> dict[str, tuple[float, np.ndarray]]:
-    """Read and check the ``<inertial>`` of every link of a URDF.
-
-    urdfdom (under Pinocchio) reads NaN or inf in ``<inertia>``, or an ``<inertial>`` without
-    ``<inertia>``, as zero rotational inertia with only a message on stderr; this validator
-    refuses them, and every body that is not physical (:func:`rrr_pin.model.dh.check_inertial`).
-
-    Parameters
-    ----------
-    urdf : str or xml.etree.ElementTree.Element
-        URDF text, or its parsed ``<robot>`` element.
-
-    Returns
-    -------
-    dict
-        Link name -> ``(mass [kg], inertia tensor, shape (3, 3) [kg m^2])``, in the
-        ``<inertial>`` frame, for the links that have an ``<inertial>``.
-
-    Raises
-    ------
-    RobotModelError (a ValueError)
-        Naming the link, the field and the value: a non-finite number, a missing ``<mass>`` or
-        ``<inertia>`` or attribute, a negative mass, an inertia that is not positive
-        semi-definite or breaks the triangle inequality, or a massless link with inertia.
-    """
-    root = _parse(urdf) if isinstance(urdf, str) else urdf
-    out = {}
-    for link in root.findall("link"):
-        inertial = _inertial_of(link)
-        if inertial is not None:
-            out[link.get("name")] = inertial
-    return out
-
-
-def _parse(text: str) -> ET.Element:
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise RobotModelError(f"malformed URDF (not well-formed XML): {exc}") from None
-    if root.tag != "robot":
-        raise RobotModelError(f"malformed URDF: root element is <{root.tag}>, expected <robot>")
-    return root
-
-
-def _check_joint(joint: ET.Element, locked: set[str]) -> None:
-    """Check a joint's numbers: origin, axis (nonzero) and limits (lower < upper)."""
-    name, jtype = joint.get("name"), joint.get("type")
-    what = f"joint {name!r}"
-    origin = joint.find("origin")
-    if origin is not None:
-        _numbers(origin, "xyz", 3, "0 0 0", what)
-        _numbers(origin, "rpy", 3, "0 0 0", what)
-    if jtype == "fixed":
-        return
-    axis_el = joint.find("axis")
-    if axis_el is not None:
-        axis = _numbers(axis_el, "xyz", 3, "1 0 0", what)
-        if math.hypot(*axis) == 0.0:
-            raise RobotModelError(f"{what}: <axis xyz=\"{axis_el.get('xyz')}\"> is the zero "
-                                  f"vector; a joint needs a direction to turn or slide along")
-    limit = joint.find("limit")
-    if jtype in ("revolute", "prismatic"):
-        if limit is None:
-            raise RobotModelError(f"malformed URDF: {jtype} {what} has no <limit>")
-        (lower,) = _numbers(limit, "lower", 1, "0", what)
-        (upper,) = _numbers(limit, "upper", 1, "0", what)
-        if lower > upper or (lower == upper and name not in locked):
-            raise RobotModelError(
-                f"{what}: limits lower={lower!r} and upper={upper!r} leave no range of motion "
-                f"(need lower < upper; a missing attribute reads 0); fix the <limit>, make the "
-                f"joint fixed, or lock it")
-
-
-def _prepare_urdf(text: str, locked: set[str]) -> tuple[str, str]:
-    """Validate URDF XML and rewrite continuous joints as unbounded revolute joints.
-
-    The URDF validator: the tree (one root, one parent per link, every link reached), every
-    joint's numbers (:func:`_check_joint`), every link's inertial
-    (:func:`check_urdf_inertials`) and some mass behind every moving joint.
-    """
-    root = _parse(text)
-    links = {}
-    for link in root.findall("link"):
-        if link.get("name") in links:
-            raise RobotModelError(f"malformed URDF: two links named {link.get('name')!r}")
-        links[link.get("name")] = link
-    joints = root.findall("joint")
-    if not links:
-        raise RobotModelError("malformed URDF: no <link> element")
-    masses = {link: mass for link, (mass, _) in check_urdf_inertials(root).items()}
-    children, parent_joint = {}, {}
-    for joint in joints:
-        name, jtype = joint.get("name"), joint.get("type")
-        parent, child = joint.find("parent"), joint.find("child")
-        if parent is None or child is None:
-            raise RobotModelError(f"malformed URDF: joint {name!r} lacks <parent> or <child>")
-        for end in (parent.get("link"), child.get("link")):
-            if end not in links:
-                raise RobotModelError(f"malformed URDF: joint {name!r} refers to an unknown "
-                                      f"link {end!r}")
-        if child.get("link") in parent_joint:
-            raise RobotModelError(
-                f"malformed URDF: link {child.get('link')!r} is the child of two joints, "
-                f"{parent_joint[child.get('link')]!r} and {name!r}; a URDF must be a tree "
-                f"(one parent per link)")
-        parent_joint[child.get("link")] = name
-        if jtype in ("floating", "planar"):
-            raise RobotModelError(f"joint {name!r} is {jtype}: rrr-pin handles fixed-base arms "
-                                  f"with revolute and prismatic joints only")
-        if jtype not in ("revolute", "continuous", "prismatic", "fixed"):
-            raise RobotModelError(f"malformed URDF: joint {name!r} has unknown type {jtype!r}")
-        if joint.find("mimic") is not None and name not in locked:
-            raise RobotModelError(
-                f"joint {name!r} mimics {joint.find('mimic').get('joint')!r}: mimic joints are "
-                f"not supported; lock it (Python: lock={{{name!r}: 0.0}}; command line: "
-                f"--lock {name}=0)")
-        _check_joint(joint, locked)
-        children.setdefault(parent.get("link"), []).append((joint, child.get("link")))
-    roots = set(links) - set(parent_joint)
-    if len(roots) != 1:
-        raise RobotModelError(f"malformed URDF: expected one root link, found {sorted(roots)}")
-    reached, stack = set(), list(roots)
-    while stack:
-        name = stack.pop()
-        reached.add(name)
-        stack += [child for _, child in children.get(name, [])]
-    if len(reached) != len(links):
-        raise RobotModelError(f"malformed URDF: links {sorted(set(links) - reached)} are not "
-                              f"connected to the root link {sorted(roots)[0]!r} (their joints "
-                              f"form a loop)")
-    _check_subtree_mass(masses, children, locked)
-    return _unbound_continuous(root)
-
-
-def _unbound_continuous(root: ET.Element, raw: str | None = None) -> tuple[str, str]:
-    """Rewrite continuous joints as revolute joints with unbounded limits (no checks).
-
-    Returns the URDF text for urdfdom and the ``<robot name>``: ``raw`` (the text ``root``
-    was parsed from, when given) as it is if no joint is continuous, which saves writing the
-    same elements and attributes out again (0.3 ms of a campaign's 3-joint plant).
-    """
-    name = root.get("name") or "robot"
-    joints = root.findall("joint")
-    if raw is not None and all(j.get("type") != "continuous" for j in joints):
-        return raw, name
-    for joint in joints:
-        if joint.get("type") == "continuous":
-            joint.set("type", "revolute")
-            limit = joint.find("limit")
-            if limit is None:
-                limit = ET.SubElement(joint, "limit", {"effort": "1e6", "velocity": "1e6"})
-            limit.set("lower", repr(-_UNBOUNDED))
-            limit.set("upper", repr(_UNBOUNDED))
-    return ET.tostring(root, encoding="unicode"), name
-
-
-def _check_subtree_mass(masses, children, locked) -> None:
-    """Refuse a moving joint whose subtree carries no mass (M would be singular).
-
-    ``masses`` maps the links that have an ``<inertial>`` to their mass [kg], as read and
-    checked (finite, >= 0) by :func:`check_urdf_inertials`; ``children`` maps a link to its
-    ``(joint, child link)`` pairs.
-    """
-
-    def subtree(link_name):
-        names = [link_name]
-        for _, child in children.get(link_name, []):
-            names += subtree(child)
-        return names
-
-    for joints in children.values():
-        for joint, child in joints:
-            if joint.get("type") == "fixed" or joint.get("name") in locked:
-                continue
-            below = subtree(child)
-            # Masses are >= 0: a zero sum means every link below is massless (all are named).
-            if not sum(masses.get(link, 0.0) for link in below) > 0.0:
-                raise RobotModelError(
-                    f"joint {joint.get('name')!r} moves no mass: the links downstream of it "
-                    f"({', '.join(below)}) have no <inertial> data or zero mass; "
-                    f"rrr-pin refuses to simulate an arm with zero mass")
-
-
-def _locked(model, lock, label: str):
-    """Return ``(model, lock)``: ``lock``'s joints fixed (Pinocchio's reduced model), checked.
-
-    A model with no moving joint left is refused, naming ``label``.
-    """
-    if lock:
-        try:
-            lock = _check_lock(model, lock)
-        except RobotModelError as exc:
-            raise RobotModelError(f"{label}: {exc}") from None
-        q_ref = pin.neutral(model)
-        for joint_name, value in lock.items():
-            q_ref[model.joints[model.getJointId(joint_name)].idx_q] = value
-        model = pin.buildReducedModel(model, [model.getJointId(j) for j in lock], q_ref)
-    if model.nq == 0:
-        raise RobotModelError(f"{label}: no moving joint left")
-    return model, lock
-
-
-def _check_lock(model: pin.Model, lock: dict) -> dict[str, float]:
-    """Check the joints to lock (the lock validator): known, finite, inside the limits.
-
-    Returns the values as floats. Raises ``RobotModelError`` naming the joint, the value and the
-    limits.
-    """
-    unknown = [j for j in lock if not isinstance(j, str) or not model.existJointName(j)]
-    if unknown:
-        raise RobotModelError(f"cannot lock unknown joints {unknown}; joints are "
-                              f"{list(model.names)[1:]}")
-    out = {}
-    for joint_name, value in lock.items():
-        jid = model.getJointId(joint_name)
-        idx = model.joints[jid].idx_q
-        lower = float(model.lowerPositionLimit[idx])
-        upper = float(model.upperPositionLimit[idx])
-        try:
-            value = check_real(f"lock value of joint {joint_name!r}", value, "rad or m")
-        except ValueError as exc:
-            raise RobotModelError(str(exc)) from None
-        if not lower <= value <= upper:
-            raise RobotModelError(f"cannot lock joint {joint_name!r} at {value!r}: outside its "
-                                  f"limits [{lower!r}, {upper!r}]")
-        out[joint_name] = value
-    return out
-
-
 def load_robot(source="rrr", *, gravity: float | None = None,
                lock: dict[str, float] | None = None, armature=None) -> Robot:
     """Load a fixed-base serial arm into Pinocchio.
@@ -885,7 +618,8 @@ def load_robot(source="rrr", *, gravity: float | None = None,
     RobotModelError (a ValueError)
         Naming the link, joint or field: not UTF-8, malformed URDF (not a tree, two parents,
         zero joint axis, limits with ``lower >= upper``, non-finite numbers), an inertial that
-        is not physical (:func:`check_urdf_inertials`), floating base, unlocked mimic joint,
+        is not physical (:func:`~rrr_pin.model.urdf_checks.check_urdf_inertials`), floating
+        base, unlocked mimic joint,
         moving joint without mass downstream, a joint to lock that is unknown or whose value
         is not finite or outside its limits, or a mass matrix that is not positive definite.
     ValueError
@@ -907,7 +641,7 @@ def load_robot(source="rrr", *, gravity: float | None = None,
         gravity = source.g if isinstance(source, ArmParams) else DEFAULT_GRAVITY
     raw, name, label = read_source(source)
     if isinstance(source, str) and source in ERD_ARMS:
-        lock = _lock_mimics(raw, name, lock)
+        lock = lock_mimics(raw, name, lock)
     robot = robot_from_xml(raw, name=name, gravity=gravity, lock=lock, label=label)
     robot.params = nominal_params(robot)
     if armature is not None:
@@ -916,36 +650,6 @@ def load_robot(source="rrr", *, gravity: float | None = None,
                 ", ".join(robot.joint_names),
                 f", locked {robot.locked}" if robot.locked else "")
     return robot
-
-
-def _lock_mimics(urdf: str, name: str, lock: dict[str, float] | None) -> dict[str, float]:
-    """Lock an example-robot-data arm's mimic joints and the joints they follow (a gripper).
-
-    rrr-pin cannot simulate a mimic joint; a built-in name must still load, so each mimic
-    joint and its leader not already in ``lock`` are locked at 0 clipped to their limits
-    [rad or m], with a logged warning naming them (the robot's ``locked`` field records them).
-    """
-    import xml.etree.ElementTree as ET
-
-    lock = dict(lock or {})
-    joints = {j.get("name"): j for j in ET.fromstring(urdf).findall("joint")}
-    added = {}
-    for joint in joints.values():
-        mimic = joint.find("mimic")
-        if mimic is None:
-            continue
-        for jname in (joint.get("name"), mimic.get("joint")):
-            if jname in lock or jname in added or jname not in joints:
-                continue
-            limit = joints[jname].find("limit")
-            lower = float(limit.get("lower", 0.0)) if limit is not None else 0.0
-            upper = float(limit.get("upper", 0.0)) if limit is not None else 0.0
-            added[jname] = min(max(0.0, lower), upper) if lower <= upper else 0.0
-    if added:
-        logger.warning("%s: locked %s (mimic joints and the joints they follow cannot be "
-                       "simulated; pass lock= to choose their positions)", name,
-                       ", ".join(f"{k}={v:g}" for k, v in added.items()))
-    return {**lock, **added}
 
 
 def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAULT_GRAVITY,
@@ -979,8 +683,8 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
     gravity = check_positive("gravity", gravity, allow_zero=True, unit="m/s^2")
     raw = urdf
     try:
-        urdf, urdf_name = (_prepare_urdf(raw, set(lock)) if check
-                           else _unbound_continuous(_parse(raw), raw))
+        urdf, urdf_name = (prepare_urdf(raw, set(lock)) if check
+                           else unbound_continuous(parse_urdf(raw), raw))
     except RobotModelError as exc:
         raise RobotModelError(f"{label}: {exc}") from None
     try:
@@ -990,10 +694,10 @@ def robot_from_xml(urdf: str, *, name: str | None = None, gravity: float = DEFAU
     if model.nq != model.nv:
         raise RobotModelError(f"{label}: joints with nq != nv are not supported "
                               f"(nq={model.nq}, nv={model.nv})")
-    unbounded = np.abs(model.upperPositionLimit) >= _UNBOUNDED
+    unbounded = np.abs(model.upperPositionLimit) >= UNBOUNDED
     model.upperPositionLimit[unbounded] = np.inf
-    model.lowerPositionLimit[np.abs(model.lowerPositionLimit) >= _UNBOUNDED] = -np.inf
-    model, lock = _locked(model, lock, label)
+    model.lowerPositionLimit[np.abs(model.lowerPositionLimit) >= UNBOUNDED] = -np.inf
+    model, lock = locked_model(model, lock, label)
     model.gravity.linear = np.array([0.0, 0.0, -gravity])
     robot = Robot(model=model, data=model.createData(), name=name or urdf_name, source=label,
                   urdf=raw, locked=lock)
@@ -1020,24 +724,6 @@ def check_regular(robot: Robot, label: str) -> None:
             f"{label}: the mass matrix is singular at the neutral configuration (eigenvalues "
             f"{eig}): some joint moves no inertia about its axis (e.g. point masses on the "
             f"axis, or an axis along a massless direction of its subtree)")
-
-
-def is_serial_mjcf(source) -> bool:
-    """Whether ``source`` is an MJCF file (``.xml``) of a serial arm: no loop closure.
-
-    A file that cannot be read or parsed counts as not serial, so that the closed-chain
-    loader reports it as it always has.
-    """
-    from .mjcf_checks import has_loop_closure
-
-    if not isinstance(source, (str, Path)) or not str(source).lower().endswith(".xml"):
-        return False
-    try:
-        root = ET.fromstring(Path(source).read_bytes())
-    except (OSError, ET.ParseError):
-        return False
-    return (root.tag == "mujoco" and root.find("worldbody") is not None
-            and not has_loop_closure(root))
 
 
 #: The joints Pinocchio builds from an MJCF hinge or slide (any axis).
@@ -1106,25 +792,6 @@ class MjcfArm(Robot):
         return self.perturbed(None, None)
 
 
-#: MuJoCo's gravity when the MJCF gives none [m/s^2] (``<option gravity="0 0 -9.81">``).
-MJCF_GRAVITY = 9.81
-
-
-def _mjcf_gravity(root, label: str) -> float:
-    """Return the magnitude [m/s^2] of an MJCF's ``<option gravity>``, which must point down z."""
-    text = next((o.get("gravity") for o in root.findall("option") if o.get("gravity")), None)
-    if text is None:
-        return MJCF_GRAVITY
-    try:
-        g = [float(v) for v in text.split()]
-    except ValueError:
-        g = []
-    if len(g) != 3 or g[0] != 0.0 or g[1] != 0.0 or not g[2] <= 0.0:
-        raise RobotModelError(f"{label}: <option gravity={text!r}>: rrr-pin's plants have "
-                              f"gravity along -z (0 0 -g, g >= 0 [m/s^2])")
-    return -g[2]
-
-
 def arm_from_mjcf(source, *, gravity: float | None = None,
                   lock: dict[str, float] | None = None, name: str | None = None) -> MjcfArm:
     """Load a fixed-base serial arm from an MJCF file with Pinocchio's MJCF parser.
@@ -1179,7 +846,7 @@ def arm_from_mjcf(source, *, gravity: float | None = None,
                               f"as a parallel mechanism)")
     lock = dict(lock or {})
     if gravity is None:
-        gravity = _mjcf_gravity(root, label)
+        gravity = mjcf_gravity(root, label)
     gravity = check_positive("gravity", gravity, allow_zero=True, unit="m/s^2")
     check_serial_mjcf(root, label, locked=lock)
     try:
@@ -1198,7 +865,7 @@ def arm_from_mjcf(source, *, gravity: float | None = None,
         raise RobotModelError(f"{label}: negative joint {negative[0][0]} "
                               f"({negative[0][1]:g}); armature, damping and frictionloss "
                               f"must be >= 0")
-    model, lock = _locked(model, lock, label)
+    model, lock = locked_model(model, lock, label)
     model.gravity.linear = np.array([0.0, 0.0, -gravity])
     robot = MjcfArm(model=model, data=model.createData(), name=name or path.stem,
                     source=label, urdf="", locked=lock, mjcf=text)

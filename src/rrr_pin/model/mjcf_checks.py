@@ -19,6 +19,8 @@ check here names the file, the element and the value, with a
 from __future__ import annotations
 
 import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -27,7 +29,8 @@ from .mechanisms import MechanismError
 from .robots import RobotModelError
 
 __all__ = ["HOME_GAP_LIMIT", "check_mjcf_tree", "check_home_closes", "check_serial_mjcf",
-           "has_loop_closure", "MOTOR_ACTUATORS"]
+           "has_loop_closure", "MOTOR_ACTUATORS", "is_serial_mjcf", "MJCF_GRAVITY",
+           "mjcf_gravity"]
 
 
 #: Largest gap [m] of a ``<connect>`` at the ``home`` keyframe that loading closes by Newton
@@ -325,3 +328,38 @@ def check_serial_mjcf(root, label: str, locked=()) -> list[str]:
                                       f"gear={gear!r}: the law's torque reaches the joint "
                                       f"unchanged only with gear 1; remove the gear")
     return names
+
+
+def is_serial_mjcf(source) -> bool:
+    """Whether ``source`` is an MJCF file (``.xml``) of a serial arm: no loop closure.
+
+    A file that cannot be read or parsed counts as not serial, so that the closed-chain
+    loader reports it as it always has.
+    """
+    if not isinstance(source, (str, Path)) or not str(source).lower().endswith(".xml"):
+        return False
+    try:
+        root = ET.fromstring(Path(source).read_bytes())
+    except (OSError, ET.ParseError):
+        return False
+    return (root.tag == "mujoco" and root.find("worldbody") is not None
+            and not has_loop_closure(root))
+
+
+#: MuJoCo's gravity when the MJCF gives none [m/s^2] (``<option gravity="0 0 -9.81">``).
+MJCF_GRAVITY = 9.81
+
+
+def mjcf_gravity(root, label: str) -> float:
+    """Return the magnitude [m/s^2] of an MJCF's ``<option gravity>``, which must point down z."""
+    text = next((o.get("gravity") for o in root.findall("option") if o.get("gravity")), None)
+    if text is None:
+        return MJCF_GRAVITY
+    try:
+        g = [float(v) for v in text.split()]
+    except ValueError:
+        g = []
+    if len(g) != 3 or g[0] != 0.0 or g[1] != 0.0 or not g[2] <= 0.0:
+        raise RobotModelError(f"{label}: <option gravity={text!r}>: rrr-pin's plants have "
+                              f"gravity along -z (0 0 -g, g >= 0 [m/s^2])")
+    return -g[2]

@@ -6,7 +6,7 @@ module writes, read as Pinocchio reads them) and writes the URDF text of this mo
 asked for. A plant is validated once, where it is made: a DH plant by the checks of
 :class:`~rrr_pin.model.dh.DHLink`, which hold for its scaled links by construction
 (:meth:`~rrr_pin.model.dh.DHLink.scaled`; its URDF is generated from them), a URDF plant by
-:func:`~rrr_pin.model.dynamics.check_urdf_inertials` on the text written, or by
+:func:`~rrr_pin.model.urdf_checks.check_urdf_inertials` on the text written, or by
 :func:`~rrr_pin.model.dh.check_inertials` on the inertials drawn into its model (its tree,
 joints and limits are the nominal's, which were checked when the nominal was loaded). So
 the plant of a loaded nominal may be loaded with
@@ -518,7 +518,7 @@ def _check_nominal(urdf: str) -> None:
     that passed (a text that fails raises, so is not cached), and the check of each perturbed
     plant is never skipped.
     """
-    from .dynamics import check_urdf_inertials
+    from .urdf_checks import check_urdf_inertials
 
     check_urdf_inertials(urdf)
 
@@ -553,11 +553,11 @@ def perturb_urdf(urdf: str, rng: np.random.Generator, tol: Tolerances = Toleranc
     ------
     RobotModelError (a ValueError)
         An inertial of ``urdf``, or of the plant, that is not physical, naming the link
-        (:func:`rrr_pin.model.dynamics.check_urdf_inertials`).
+        (:func:`rrr_pin.model.urdf_checks.check_urdf_inertials`).
     """
     import yourdfpy
 
-    from .dynamics import check_urdf_inertials
+    from .urdf_checks import check_urdf_inertials
 
     _check_nominal(urdf)  # perturb physical bodies only
     robot = yourdfpy.URDF.load(io.BytesIO(urdf.encode()), build_scene_graph=False,

@@ -343,9 +343,9 @@ def urdf_with_parameters(urdf: str, links, phi, *, moving=None, friction=None,
     -------
     str
         URDF text; its inertials are checked by
-        :func:`rrr_pin.model.dynamics.check_urdf_inertials` (raises ``RobotModelError``).
+        :func:`rrr_pin.model.urdf_checks.check_urdf_inertials` (raises ``RobotModelError``).
     """
-    from ..dynamics import check_urdf_inertials
+    from ..urdf_checks import check_urdf_inertials
 
     root = ET.fromstring(urdf)
     by_name = {link.get("name"): link for link in root.findall("link")}
