@@ -68,7 +68,9 @@ class HilResult:
         The content of ``hil_run.json`` (the conditions and the secondary figures).
     q_hil, q_offline, q_replay : ndarray, shape (cycles, n)
         The arm's joint angles [rad] at each tick: real-time, offline, and offline with the
-        real-time run's missed deadlines replayed (equal to ``q_hil`` bit for bit).
+        real-time run's missed deadlines replayed (equal to ``q_hil`` bit for bit). A loop that
+        diverged stops there: ``q_hil`` and ``q_replay`` at the real-time run's divergence,
+        ``q_offline`` at its own (the offline loop holds no torque).
     """
 
     summary: dict
@@ -382,9 +384,14 @@ def hil(folder, cycles: int, out, *, rate: float | None = None, effects=None,
                                f"its replay at {rep_header['diverged']}")
         summary = _summary(cycles, header, timing, rate, q_hil, q_off, law_rate)
         ran = cycles if header["diverged"] < 0 else header["diverged"] + 1
-        q_hil, q_off, q_rep = q_hil[:ran], q_off[:ran], q_rep[:ran]
-        tau_hil, tau_off = tau_hil[:ran], tau_off[:ran]
+        # the offline loop keeps its own length: a real-time run that diverged on held torques
+        # (missed deadlines) does not cut the loop that had none
+        ran_off = cycles if off_header["diverged"] < 0 else off_header["diverged"] + 1
+        both = min(ran, ran_off)
+        q_hil, q_off, q_rep = q_hil[:ran], q_off[:ran_off], q_rep[:ran]
+        tau_hil, tau_off = tau_hil[:ran], tau_off[:ran_off]
         r = ref.sample(np.arange(ran) / law_rate)[0]
+        r_off = ref.sample(np.arange(ran_off) / law_rate)[0]
         run = {
             "folder": str(folder), "law": record["law"]["name"], "model": robot.name,
             "law_rate_hz": law_rate, "clock_rate_hz": rate,
@@ -396,10 +403,11 @@ def hil(folder, cycles: int, out, *, rate: float | None = None, effects=None,
             "wall_s": wall_hil, "offline_wall_s": wall_off,
             "step_us": _percentiles(timing["step"]), "wake_us": _percentiles(timing["wake"]),
             "state_late": int(timing["late"].sum()),
-            "torque_max_diff_vs_offline_Nm": float(np.max(np.abs(tau_hil - tau_off))),
+            "torque_max_diff_vs_offline_Nm": float(np.max(np.abs(tau_hil[:both]
+                                                                 - tau_off[:both]))),
             "max_error_vs_replay_rad": float(np.max(np.abs(q_hil - q_rep))),
             "max_tracking_error_rad": {"hil": float(np.max(np.abs(q_hil - r))),
-                                       "offline": float(np.max(np.abs(q_off - r)))},
+                                       "offline": float(np.max(np.abs(q_off - r_off)))},
             "reference": ref.to_dict(),
             "plant": "the export's nominal model (dynamics.h), RK4 of Ts per cycle, torque "
                      "held; a torque written after the next tick is not applied (the "

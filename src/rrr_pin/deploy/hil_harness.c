@@ -293,6 +293,23 @@ static const double *line_push(const settings *s, long k, const double cmd[N])
 
 /* Whether the other process is alive: the controller asks for its parent (the arm), the arm
  * for its child (the controller). */
+/* One law period of the arm, the same in the offline and the real-time loops: the torque held
+ * goes through the delay line, the one the joints get is recorded in tau_row, the actuator
+ * starts at rest on the first command, and the arm advances by one RK4 period. */
+static void plant_period(const settings *s, long k, const double held[N], double x[N],
+                         double v[N], double act[N], double tau_row[N])
+{
+    const double *applied = line_push(s, k, held);
+    int i;
+    for (i = 0; i < N; ++i) {
+        tau_row[i] = applied[i];
+        if (k == 0) {
+            act[i] = applied[i]; /* the actuator at rest on the first command */
+        }
+    }
+    rk4(x, v, act, applied, s->Ts);
+}
+
 static pid_t parent_pid, child_pid;
 
 static int peer_alive(void)
@@ -455,17 +472,10 @@ int main(int argc, char **argv)
                     held[i] = tau[i];
                 }
             }
-            {
-                const double *applied = line_push(&s, k, held);
-                for (i = 0; i < N; ++i) {
-                    Q[k * N + i] = x[i];
-                    TAU[k * N + i] = applied[i];
-                    if (k == 0) {
-                        act[i] = applied[i]; /* the actuator at rest on the first command */
-                    }
-                }
-                rk4(x, v, act, applied, s.Ts);
+            for (i = 0; i < N; ++i) {
+                Q[k * N + i] = x[i];
             }
+            plant_period(&s, k, held, x, v, act, &TAU[k * N]);
             if (diverged(&s, x, v)) {
                 diverged_at = k;
                 break;
@@ -515,16 +525,7 @@ int main(int argc, char **argv)
                     held[i] = sh->tau[i];
                 }
             }
-            {
-                const double *applied = line_push(&s, k, held);
-                for (i = 0; i < N; ++i) {
-                    TAU[k * N + i] = applied[i];
-                    if (k == 0) {
-                        act[i] = applied[i]; /* the actuator at rest on the first command */
-                    }
-                }
-                rk4(x, v, act, applied, s.Ts);
-            }
+            plant_period(&s, k, held, x, v, act, &TAU[k * N]);
             if (diverged(&s, x, v)) {
                 diverged_at = k;
                 kill(child, SIGKILL); /* the controller has nothing left to control */
